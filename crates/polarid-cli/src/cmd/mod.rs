@@ -1,0 +1,12 @@
+//! The subcommands, one module each.
+
+pub mod classify;
+pub mod demo;
+pub mod evaluate;
+pub mod fit;
+pub mod map;
+pub mod measure;
+pub mod model;
+pub mod simulate;
+pub mod stokes;
+pub mod train;

@@ -1,0 +1,111 @@
+//! Run context shared by the commands: output policy, progress, exit statuses, and
+//! the small helpers every command uses to write its outputs.
+
+use std::io::{IsTerminal, Write};
+use std::path::Path;
+
+use polarid_core::CoreError;
+use polarid_io::IoError;
+
+/// Options common to every command.
+#[derive(Debug, Clone)]
+pub struct Ctx {
+    /// Overwrite existing outputs.
+    pub force: bool,
+    /// Suppress progress and informational messages.
+    pub quiet: bool,
+    /// Standard error is a terminal (progress bars are drawn only then).
+    pub stderr_is_tty: bool,
+}
+
+impl Ctx {
+    /// Context from the global flags.
+    pub fn new(force: bool, quiet: bool) -> Self {
+        Self {
+            force,
+            quiet,
+            stderr_is_tty: std::io::stderr().is_terminal(),
+        }
+    }
+
+    /// True when progress bars should be drawn.
+    #[allow(dead_code)]
+    pub fn show_progress(&self) -> bool {
+        !self.quiet && self.stderr_is_tty
+    }
+
+    /// A progress bar of `len` steps, hidden unless standard error is a terminal.
+    #[allow(dead_code)]
+    pub fn progress(&self, len: u64, what: &str) -> indicatif::ProgressBar {
+        if !self.show_progress() {
+            return indicatif::ProgressBar::hidden();
+        }
+        let pb = indicatif::ProgressBar::new(len);
+        if let Ok(style) =
+            indicatif::ProgressStyle::with_template("{msg:>12} [{bar:40}] {pos}/{len} ({eta})")
+        {
+            pb.set_style(style.progress_chars("=> "));
+        }
+        pb.set_message(what.to_string());
+        pb
+    }
+
+    /// Print an informational message on standard error unless `--quiet`.
+    #[allow(dead_code)]
+    pub fn info(&self, msg: impl AsRef<str>) {
+        if !self.quiet {
+            eprintln!("{}", msg.as_ref());
+        }
+    }
+
+    /// Write a text output to `path` atomically, or to standard output when `path` is
+    /// `None`. `inputs` are never overwritten.
+    #[allow(dead_code)]
+    pub fn write_output(
+        &self,
+        path: Option<&Path>,
+        inputs: &[&Path],
+        write: impl FnOnce(&mut dyn Write) -> polarid_io::Result<()>,
+    ) -> anyhow::Result<()> {
+        match path {
+            Some(p) => {
+                polarid_io::atomic::check_output(p, self.force, inputs)?;
+                polarid_io::atomic::write_atomic(p, self.force, write)?;
+            }
+            None => {
+                // Build the whole output first so that a failure prints nothing.
+                let mut buf: Vec<u8> = Vec::new();
+                write(&mut buf)?;
+                let mut out = std::io::stdout().lock();
+                out.write_all(&buf)?;
+                out.flush()?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A usage or input error found by the CLI itself (exit status 2).
+#[derive(Debug)]
+pub struct BadInput(pub String);
+
+impl std::fmt::Display for BadInput {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for BadInput {}
+
+/// Exit status for an error: 2 when the user's input or usage is at fault, 1 otherwise.
+pub fn exit_status(e: &anyhow::Error) -> u8 {
+    for cause in e.chain() {
+        if cause.is::<BadInput>() || cause.is::<CoreError>() {
+            return 2;
+        }
+        if let Some(io) = cause.downcast_ref::<IoError>() {
+            return if io.is_bad_input() { 2 } else { 1 };
+        }
+    }
+    1
+}

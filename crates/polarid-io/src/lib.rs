@@ -1,0 +1,15 @@
+//! # polarid-io
+//!
+//! Files for polarid: grayscale PNG/TIFF frames, float32 TIFF outputs, the capture-set
+//! manifest (TOML), the CSV tables of `shared/FORMATS.md`, trained models (JSON),
+//! material libraries (CSV, refractiveindex.info YAML) and atomic output writing.
+#![warn(missing_docs)]
+
+pub mod atomic;
+pub mod error;
+pub mod image;
+pub mod library;
+pub mod manifest;
+pub mod table;
+
+pub use error::{IoError, Result};

@@ -1,0 +1,11 @@
+#!/usr/bin/env bash
+# The one command that runs every test of polarid (README, CI).
+# Rust: formatting check, the whole workspace's tests (release build: the Monte-Carlo
+# acceptance tests run 10^5 fits).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+echo "== cargo fmt --check"
+cargo fmt --all -- --check
+echo "== cargo test (release)"
+cargo test --workspace --release --locked
+echo "== all tests passed"
