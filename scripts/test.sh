@@ -7,5 +7,5 @@ cd "$(dirname "$0")/.."
 echo "== cargo fmt --check"
 cargo fmt --all -- --check
 echo "== cargo test (release)"
-cargo test --workspace --release --locked
+cargo test --release --locked
 echo "== all tests passed"
