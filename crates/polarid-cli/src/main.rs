@@ -6,6 +6,7 @@
 
 mod cmd;
 mod ctx;
+mod views;
 
 use std::process::ExitCode;
 

@@ -10,6 +10,7 @@ pub mod error;
 pub mod image;
 pub mod library;
 pub mod manifest;
+pub mod model;
 pub mod table;
 
 pub use error::{IoError, Result};

@@ -1,0 +1,1 @@
+//! PNG views of DoLP and AoLP images (to be written).

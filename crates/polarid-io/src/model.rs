@@ -1,0 +1,1 @@
+//! Trained classification models (JSON) (to be written).

@@ -1,0 +1,1 @@
+//! Classification CSV — written by `classify` (to be written).

@@ -1,0 +1,166 @@
+//! Fits CSV — written by `fit`, read by `train` and `classify`.
+//!
+//! `target,class,n,k,n_se,k_se,nk_corr,rms_residual,measurements,status`
+//! (extra columns written by polarid: `reason`, `model`, `sigma`, `rho_d`, `theta_r_deg`).
+
+use std::io::Write;
+use std::path::Path;
+
+use super::{CsvTable, fmt_f64, fmt_opt, write_rows};
+use crate::error::Result;
+
+/// Column order of the fits CSV.
+pub const COLUMNS: [&str; 15] = [
+    "target",
+    "class",
+    "n",
+    "k",
+    "n_se",
+    "k_se",
+    "nk_corr",
+    "rms_residual",
+    "measurements",
+    "status",
+    "reason",
+    "model",
+    "sigma",
+    "rho_d",
+    "theta_r_deg",
+];
+
+/// One fitted target.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct FitRow {
+    /// Target name.
+    pub target: String,
+    /// Known class, if any.
+    pub class: Option<String>,
+    /// Real part of the index.
+    pub n: f64,
+    /// Imaginary part of the index.
+    pub k: f64,
+    /// Standard error of `n` (NaN when unknown).
+    pub n_se: f64,
+    /// Standard error of `k` (NaN when unknown).
+    pub k_se: f64,
+    /// Correlation of the `n` and `k` estimates (NaN when unknown).
+    pub nk_corr: f64,
+    /// Root-mean-square DoLP residual.
+    pub rms_residual: f64,
+    /// Number of measurements used.
+    pub measurements: u64,
+    /// `ok`, or why the estimate should not be trusted.
+    pub status: String,
+    /// Human-readable reason for a status other than `ok` (may be empty).
+    pub reason: String,
+    /// Reflectance model used (`specular` or `mixed`).
+    pub model: String,
+    /// Fitted roughness σ (mixed model only).
+    pub sigma: Option<f64>,
+    /// Fitted diffuse albedo ρd (mixed model only).
+    pub rho_d: Option<f64>,
+    /// Fitted camera zenith angle, degrees (when estimated).
+    pub theta_r_deg: Option<f64>,
+}
+
+/// Read a fits CSV: needs `target`, `n`, `k`; the rest is optional (`status` defaults to
+/// `ok`, standard errors to NaN).
+pub fn read(path: &Path) -> Result<Vec<FitRow>> {
+    let t = CsvTable::read(path)?;
+    from_table(&t)
+}
+
+/// Parse fits from an already read table.
+pub fn from_table(t: &CsvTable) -> Result<Vec<FitRow>> {
+    let c_target = t.require("target")?;
+    let c_n = t.require("n")?;
+    let c_k = t.require("k")?;
+    let c_class = t.col("class");
+    let (c_nse, c_kse, c_corr, c_rms) = (
+        t.col("n_se"),
+        t.col("k_se"),
+        t.col("nk_corr"),
+        t.col("rms_residual"),
+    );
+    let (c_meas, c_status, c_reason, c_model) = (
+        t.col("measurements"),
+        t.col("status"),
+        t.col("reason"),
+        t.col("model"),
+    );
+    let (c_sigma, c_rho, c_tr) = (t.col("sigma"), t.col("rho_d"), t.col("theta_r_deg"));
+    // Standard errors may legitimately be "nan" in our own output.
+    let nan_ok = |r: usize, c: Option<usize>| -> Result<f64> {
+        match c {
+            Some(c) if t.text(r, c).eq_ignore_ascii_case("nan") => Ok(f64::NAN),
+            _ => Ok(t.opt_f64(r, c)?.unwrap_or(f64::NAN)),
+        }
+    };
+    let mut out = Vec::with_capacity(t.rows.len());
+    for r in 0..t.rows.len() {
+        let target = t.text(r, c_target).to_string();
+        if target.is_empty() {
+            return Err(t.err(r, c_target, "empty target name"));
+        }
+        let status = t.opt_text(r, c_status).unwrap_or_else(|| "ok".into());
+        // n, k of a failed fit may be nan; of a usable fit they must be numbers.
+        let num = |c: usize| -> Result<f64> {
+            if status != "ok" && t.text(r, c).eq_ignore_ascii_case("nan") {
+                Ok(f64::NAN)
+            } else {
+                t.f64(r, c)
+            }
+        };
+        let n = num(c_n)?;
+        let k = num(c_k)?;
+        if k < 0.0 {
+            return Err(t.err(r, c_k, "k must be >= 0"));
+        }
+        out.push(FitRow {
+            target,
+            class: t.opt_text(r, c_class),
+            n,
+            k,
+            n_se: nan_ok(r, c_nse)?,
+            k_se: nan_ok(r, c_kse)?,
+            nk_corr: nan_ok(r, c_corr)?,
+            rms_residual: nan_ok(r, c_rms)?,
+            measurements: t.opt_u64(r, c_meas)?.unwrap_or(0),
+            status,
+            reason: t.opt_text(r, c_reason).unwrap_or_default(),
+            model: t.opt_text(r, c_model).unwrap_or_else(|| "specular".into()),
+            sigma: t.opt_f64(r, c_sigma)?,
+            rho_d: t.opt_f64(r, c_rho)?,
+            theta_r_deg: t.opt_f64(r, c_tr)?,
+        });
+    }
+    Ok(out)
+}
+
+/// Write fits in the documented column order.
+pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[FitRow]) -> Result<()> {
+    write_rows(
+        w,
+        path,
+        &COLUMNS,
+        rows.iter().map(|f| {
+            vec![
+                f.target.clone(),
+                f.class.clone().unwrap_or_default(),
+                fmt_f64(f.n),
+                fmt_f64(f.k),
+                fmt_f64(f.n_se),
+                fmt_f64(f.k_se),
+                fmt_f64(f.nk_corr),
+                fmt_f64(f.rms_residual),
+                f.measurements.to_string(),
+                f.status.clone(),
+                f.reason.clone(),
+                f.model.clone(),
+                fmt_opt(f.sigma),
+                fmt_opt(f.rho_d),
+                fmt_opt(f.theta_r_deg),
+            ]
+        }),
+    )
+}

@@ -1,0 +1,188 @@
+//! Measurements CSV — written by `measure`, read by `fit`.
+//!
+//! `target,class,theta_i_deg,theta_r_deg,phi_deg,beta_deg,dolp,dolp_se,s0,pixels,rejected`
+//! (extra columns written by polarid: `exposure`, `saturated`).
+
+use std::io::Write;
+use std::path::Path;
+
+use polarid_core::geometry;
+
+use super::{CsvTable, fmt_f64, fmt_opt, write_rows};
+use crate::error::Result;
+
+/// Column order of the measurements CSV.
+pub const COLUMNS: [&str; 13] = [
+    "target",
+    "class",
+    "theta_i_deg",
+    "theta_r_deg",
+    "phi_deg",
+    "beta_deg",
+    "dolp",
+    "dolp_se",
+    "s0",
+    "pixels",
+    "rejected",
+    "exposure",
+    "saturated",
+];
+
+/// One row: a target's DoLP in one capture.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Measurement {
+    /// Target (region) name.
+    pub target: String,
+    /// Known class, if any.
+    pub class: Option<String>,
+    /// Source zenith angle, degrees.
+    pub theta_i_deg: Option<f64>,
+    /// Camera zenith angle, degrees.
+    pub theta_r_deg: Option<f64>,
+    /// `phi_r - phi_i`, degrees (default 180).
+    pub phi_deg: f64,
+    /// Half the source–camera angle, degrees (eq. 5).
+    pub beta_deg: f64,
+    /// DoLP of the region's mean Stokes vector.
+    pub dolp: f64,
+    /// Standard error of `dolp`.
+    pub dolp_se: Option<f64>,
+    /// Mean S0 (divided by the exposure).
+    pub s0: Option<f64>,
+    /// Pixels used.
+    pub pixels: Option<u64>,
+    /// Pixels rejected (saturated, dark, invalid).
+    pub rejected: Option<u64>,
+    /// Relative exposure of the capture (S0 was divided by it).
+    pub exposure: Option<f64>,
+    /// Pixels rejected because they were saturated (part of `rejected`).
+    pub saturated: Option<u64>,
+}
+
+/// Read a measurements CSV. Needs `target`, `dolp` and either `beta_deg` or
+/// `theta_i_deg` and `theta_r_deg` (`phi_deg` defaults to 180). Angles must be finite and
+/// in `[0, 90)`, `dolp` in `[0, 1]`, `dolp_se` positive.
+pub fn read(path: &Path) -> Result<Vec<Measurement>> {
+    let t = CsvTable::read(path)?;
+    from_table(&t)
+}
+
+/// Parse measurements from an already read table.
+pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
+    let c_target = t.require("target")?;
+    let c_dolp = t.require("dolp")?;
+    let c_beta = t.col("beta_deg");
+    let c_ti = t.col("theta_i_deg");
+    let c_tr = t.col("theta_r_deg");
+    if c_beta.is_none() && (c_ti.is_none() || c_tr.is_none()) {
+        // Report the first missing one.
+        t.require(if c_ti.is_none() {
+            "theta_i_deg"
+        } else {
+            "theta_r_deg"
+        })
+        .map_err(|_| crate::error::IoError::CsvStructure {
+            path: t.path.clone(),
+            reason: "needs column `beta_deg`, or columns `theta_i_deg` and `theta_r_deg`".into(),
+        })?;
+    }
+    let c_phi = t.col("phi_deg");
+    let c_class = t.col("class");
+    let c_se = t.col("dolp_se");
+    let c_s0 = t.col("s0");
+    let c_pix = t.col("pixels");
+    let c_rej = t.col("rejected");
+    let c_exp = t.col("exposure");
+    let c_sat = t.col("saturated");
+    let mut out = Vec::with_capacity(t.rows.len());
+    for r in 0..t.rows.len() {
+        let target = t.text(r, c_target).to_string();
+        if target.is_empty() {
+            return Err(t.err(r, c_target, "empty target name"));
+        }
+        let angle = |c: Option<usize>| -> Result<Option<f64>> {
+            let v = t.opt_f64(r, c)?;
+            if let (Some(v), Some(c)) = (v, c)
+                && !(0.0..90.0).contains(&v)
+            {
+                return Err(t.err(r, c, "angle outside [0, 90) degrees"));
+            }
+            Ok(v)
+        };
+        let theta_i_deg = angle(c_ti)?;
+        let theta_r_deg = angle(c_tr)?;
+        let phi_deg = t.opt_f64(r, c_phi)?.unwrap_or(180.0);
+        let beta_deg = match (t.opt_f64(r, c_beta)?, theta_i_deg, theta_r_deg) {
+            (Some(b), _, _) => {
+                let c = c_beta.unwrap_or(0);
+                if !(0.0..90.0).contains(&b) {
+                    return Err(t.err(r, c, "angle outside [0, 90) degrees"));
+                }
+                b
+            }
+            (None, Some(ti), Some(tr)) => {
+                geometry::beta(ti.to_radians(), tr.to_radians(), phi_deg.to_radians()).to_degrees()
+            }
+            (None, _, _) => {
+                let c = c_beta.or(c_ti).unwrap_or(0);
+                return Err(t.err(
+                    r,
+                    c,
+                    "missing value: need beta_deg, or theta_i_deg and theta_r_deg",
+                ));
+            }
+        };
+        let dolp = t.f64(r, c_dolp)?;
+        if !(0.0..=1.0).contains(&dolp) {
+            return Err(t.err(r, c_dolp, "DoLP outside [0, 1]"));
+        }
+        let dolp_se = t.opt_f64(r, c_se)?;
+        if let (Some(se), Some(c)) = (dolp_se, c_se)
+            && se <= 0.0
+        {
+            return Err(t.err(r, c, "standard error must be > 0"));
+        }
+        out.push(Measurement {
+            target,
+            class: t.opt_text(r, c_class),
+            theta_i_deg,
+            theta_r_deg,
+            phi_deg,
+            beta_deg,
+            dolp,
+            dolp_se,
+            s0: t.opt_f64(r, c_s0)?,
+            pixels: t.opt_u64(r, c_pix)?,
+            rejected: t.opt_u64(r, c_rej)?,
+            exposure: t.opt_f64(r, c_exp)?,
+            saturated: t.opt_u64(r, c_sat)?,
+        });
+    }
+    Ok(out)
+}
+
+/// Write measurements in the documented column order.
+pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[Measurement]) -> Result<()> {
+    write_rows(
+        w,
+        path,
+        &COLUMNS,
+        rows.iter().map(|m| {
+            vec![
+                m.target.clone(),
+                m.class.clone().unwrap_or_default(),
+                fmt_opt(m.theta_i_deg),
+                fmt_opt(m.theta_r_deg),
+                fmt_f64(m.phi_deg),
+                fmt_f64(m.beta_deg),
+                fmt_f64(m.dolp),
+                fmt_opt(m.dolp_se),
+                fmt_opt(m.s0),
+                m.pixels.map(|v| v.to_string()).unwrap_or_default(),
+                m.rejected.map(|v| v.to_string()).unwrap_or_default(),
+                fmt_opt(m.exposure),
+                m.saturated.map(|v| v.to_string()).unwrap_or_default(),
+            ]
+        }),
+    )
+}

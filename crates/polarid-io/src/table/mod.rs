@@ -1,0 +1,228 @@
+//! The CSV tables of `shared/FORMATS.md`.
+//!
+//! Readers find columns by name, ignore unknown columns and skip lines that start with
+//! `#`; every parse error names the file, the line, the column and the value.
+//! Writers emit the columns in the documented order.
+
+pub mod classification;
+pub mod fits;
+pub mod measurements;
+pub mod model_rows;
+
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+
+use crate::error::{IoError, Result};
+
+/// A CSV file read into memory: header plus records with their line numbers.
+#[derive(Debug, Clone)]
+pub struct CsvTable {
+    /// File the table was read from (used in error messages).
+    pub path: PathBuf,
+    /// Column names, trimmed.
+    pub headers: Vec<String>,
+    /// Records with their 1-based line numbers.
+    pub rows: Vec<(u64, csv::StringRecord)>,
+}
+
+impl CsvTable {
+    /// Read a CSV file.
+    pub fn read(path: &Path) -> Result<Self> {
+        let f = std::fs::File::open(path).map_err(|e| IoError::io(path, e))?;
+        Self::from_reader(path, f)
+    }
+
+    /// Read CSV text from `reader`; `path` labels error messages.
+    ///
+    /// Lines starting with `#` are comments; reported line numbers are those of the
+    /// original file, comments included.
+    pub fn from_reader<R: Read>(path: &Path, mut reader: R) -> Result<Self> {
+        let structure = |reason: String| IoError::CsvStructure {
+            path: path.to_path_buf(),
+            reason,
+        };
+        let mut bytes = Vec::new();
+        reader
+            .read_to_end(&mut bytes)
+            .map_err(|e| IoError::io(path, e))?;
+        let text =
+            String::from_utf8(bytes).map_err(|e| structure(format!("not UTF-8 text: {e}")))?;
+        // Drop comment lines, remembering the original number of each kept line.
+        let mut kept = String::with_capacity(text.len());
+        let mut line_of: Vec<u64> = Vec::new();
+        for (i, line) in text.lines().enumerate() {
+            if line.trim_start().starts_with('#') {
+                continue;
+            }
+            kept.push_str(line);
+            kept.push('\n');
+            line_of.push(i as u64 + 1);
+        }
+        let orig = |l: u64| -> u64 {
+            l.checked_sub(1)
+                .and_then(|i| line_of.get(i as usize).copied())
+                .unwrap_or(l)
+        };
+        let mut rdr = csv::ReaderBuilder::new()
+            .trim(csv::Trim::All)
+            .flexible(false)
+            .from_reader(kept.as_bytes());
+        let headers: Vec<String> = rdr
+            .headers()
+            .map_err(|e| structure(format!("cannot read the header line: {e}")))?
+            .iter()
+            .map(|h| h.trim().to_string())
+            .collect();
+        if headers.iter().all(|h| h.is_empty()) {
+            return Err(structure("no header line (the file is empty)".into()));
+        }
+        let mut rows = Vec::new();
+        for rec in rdr.records() {
+            let rec = rec.map_err(|e| {
+                let line = e.position().map(|p| orig(p.line())).unwrap_or(0);
+                structure(format!("line {line}: {e}"))
+            })?;
+            let line = rec.position().map(|p| orig(p.line())).unwrap_or(0);
+            rows.push((line, rec));
+        }
+        Ok(Self {
+            path: path.to_path_buf(),
+            headers,
+            rows,
+        })
+    }
+
+    /// Index of column `name`, if present.
+    pub fn col(&self, name: &str) -> Option<usize> {
+        self.headers.iter().position(|h| h == name)
+    }
+
+    /// Index of column `name`, or an error naming the file and the missing column.
+    pub fn require(&self, name: &str) -> Result<usize> {
+        self.col(name).ok_or_else(|| IoError::CsvStructure {
+            path: self.path.clone(),
+            reason: format!(
+                "missing required column `{name}` (columns are: {})",
+                self.headers.join(",")
+            ),
+        })
+    }
+
+    /// Text of row `row`, column `col`.
+    pub fn text(&self, row: usize, col: usize) -> &str {
+        self.rows[row].1.get(col).unwrap_or("")
+    }
+
+    /// An error about the value of row `row`, column `col`.
+    pub fn err(&self, row: usize, col: usize, reason: impl Into<String>) -> IoError {
+        IoError::Csv {
+            path: self.path.clone(),
+            line: self.rows[row].0,
+            column: self.headers.get(col).cloned().unwrap_or_default(),
+            value: self.text(row, col).to_string(),
+            reason: reason.into(),
+        }
+    }
+
+    /// A required finite number.
+    pub fn f64(&self, row: usize, col: usize) -> Result<f64> {
+        let t = self.text(row, col);
+        match t.parse::<f64>() {
+            Ok(v) if v.is_finite() => Ok(v),
+            Ok(_) => Err(self.err(row, col, "not a finite number")),
+            Err(_) if t.is_empty() => Err(self.err(row, col, "missing value")),
+            Err(_) => Err(self.err(row, col, "not a number")),
+        }
+    }
+
+    /// An optional finite number: `None` when the column is absent or the cell empty.
+    pub fn opt_f64(&self, row: usize, col: Option<usize>) -> Result<Option<f64>> {
+        match col {
+            None => Ok(None),
+            Some(c) if self.text(row, c).is_empty() => Ok(None),
+            Some(c) => self.f64(row, c).map(Some),
+        }
+    }
+
+    /// An optional non-negative integer.
+    pub fn opt_u64(&self, row: usize, col: Option<usize>) -> Result<Option<u64>> {
+        match col {
+            None => Ok(None),
+            Some(c) if self.text(row, c).is_empty() => Ok(None),
+            Some(c) => self
+                .text(row, c)
+                .parse::<u64>()
+                .map(Some)
+                .map_err(|_| self.err(row, c, "not a non-negative integer")),
+        }
+    }
+
+    /// An optional text cell: `None` when the column is absent or the cell empty.
+    pub fn opt_text(&self, row: usize, col: Option<usize>) -> Option<String> {
+        col.map(|c| self.text(row, c).to_string())
+            .filter(|s| !s.is_empty())
+    }
+}
+
+/// Format a number for CSV output: shortest round-trip decimal, exponent notation for
+/// very small or large magnitudes, `nan` for NaN.
+pub fn fmt_f64(x: f64) -> String {
+    if x.is_nan() {
+        "nan".to_string()
+    } else if x == 0.0 || (1e-5..1e16).contains(&x.abs()) || x.is_infinite() {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
+/// Format an optional number (empty cell for `None`).
+pub fn fmt_opt(x: Option<f64>) -> String {
+    x.map(fmt_f64).unwrap_or_default()
+}
+
+/// Write a header and rows of already formatted cells.
+pub fn write_rows<W: Write + ?Sized>(
+    w: &mut W,
+    path: &Path,
+    headers: &[&str],
+    rows: impl IntoIterator<Item = Vec<String>>,
+) -> Result<()> {
+    let mut wtr = csv::Writer::from_writer(w);
+    let io = |e: csv::Error| IoError::io(path, std::io::Error::other(e.to_string()));
+    wtr.write_record(headers).map_err(io)?;
+    for r in rows {
+        wtr.write_record(&r).map_err(io)?;
+    }
+    wtr.flush().map_err(|e| IoError::io(path, e))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reads_with_comments_and_names_bad_cells() {
+        let text = "# comment\na,b\n1,2\n# another\n3,x\n";
+        let t = CsvTable::from_reader(Path::new("t.csv"), text.as_bytes()).unwrap();
+        assert_eq!(t.rows.len(), 2);
+        let b = t.require("b").unwrap();
+        assert_eq!(t.f64(0, b).unwrap(), 2.0);
+        let e = t.f64(1, b).unwrap_err().to_string();
+        assert!(
+            e.contains("t.csv") && e.contains("line 5") && e.contains("`b`") && e.contains("\"x\""),
+            "{e}"
+        );
+        let e = t.require("zz").unwrap_err().to_string();
+        assert!(e.contains("zz"), "{e}");
+    }
+
+    #[test]
+    fn formats_numbers() {
+        assert_eq!(fmt_f64(0.5), "0.5");
+        assert_eq!(fmt_f64(1.5e-87), "1.5e-87");
+        assert_eq!(fmt_f64(f64::NAN), "nan");
+        assert_eq!(fmt_f64(0.0), "0");
+    }
+}

@@ -1,0 +1,1 @@
+//! Rows of `polarid model` (to be written).
