@@ -183,9 +183,9 @@ class Scene:
     file_format: str = "tif"
     exposure: str | float = "auto"
     full_scale_fraction: float = 0.7
-    electrons_per_dn: float = 4.0
+    electrons_per_dn: float = 8.0
     read_noise_dn: float = 2.0
-    dark_level: float = 0.0
+    dark_level: float = 64.0
     bits: int = 12
     dofp_pattern: list = field(default_factory=lambda: [90, 45, 135, 0])
 
@@ -540,6 +540,11 @@ def cmd_render(args):
     peaks = []
     for _, s0, s1, s2 in renders:
         peaks.append(max(float(polarizer(s0, s1, s2, a)[plate_mask].max()) for a in ANGLES))
+    for ti_deg, pk in zip(sc.theta_i_deg, peaks):
+        if not pk > 0:
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise SystemExit(f"{args.scene}: every plate is black at theta_i_deg = {ti_deg:g} "
+                             "(no reflected light reaches the camera); check n, k, sigma and the angles")
     if sc.exposure == "auto":
         gains = [sc.full_scale_fraction * full / pk for pk in peaks]
     elif sc.exposure == "fixed":
