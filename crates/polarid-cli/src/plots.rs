@@ -1511,15 +1511,15 @@ mod tests {
             ],
         );
         // All three decision regions are shaded.
-        for i in 0..3 {
-            let n = count_colour(&r.png, tint(PALETTE[i], 0.18), 2);
+        for (i, &c) in PALETTE.iter().take(3).enumerate() {
+            let n = count_colour(&r.png, tint(c, 0.18), 2);
             assert!(n > 2000, "region {i} has {n} pixels");
+            // Prototype markers in full colour.
+            assert!(count_colour(&r.png, c, 8) > 50, "prototype {i}");
         }
-        // Prototype markers in full colour.
-        for i in 0..3 {
-            assert!(count_colour(&r.png, PALETTE[i], 8) > 50, "prototype {i}");
-        }
-        assert_eq!(r.svg.matches("<polygon").count() >= 3, true);
+        // No fourth class colour anywhere.
+        assert_eq!(count_colour(&r.png, tint(PALETTE[3], 0.18), 2), 0);
+        assert!(r.svg.matches("<polygon").count() >= 3);
     }
 
     #[test]

@@ -807,7 +807,7 @@ figcaption { font-size: 0.95em; margin-top: 0.4em; }
 dl dt { font-weight: bold; margin-top: 0.8em; }
 dl dd { margin-left: 1.2em; }
 dd p { margin: 0.2em 0; }
-pre.eq { background: #f6f8fa; padding: 0.6em 0.8em; overflow-x: auto; font-size: 0.92em; }
+pre.eq { background: #f6f8fa; padding: 0.6em 0.8em; overflow-x: auto; font-size: 1em; }
 code { font-family: 'DejaVu Sans Mono', monospace; font-size: 0.92em; }
 ";
 
@@ -1194,6 +1194,50 @@ mod tests {
             ..Report::default()
         };
         assert!(bad.to_html().unwrap_err().to_string().contains("not a PNG"));
+    }
+
+    /// The report opens in headless Chromium without errors and all its plots decode
+    /// (`scripts/check_report.sh`; skipped when Chromium is not installed, unless
+    /// `POLARID_REQUIRE_BROWSER=1`).
+    #[test]
+    fn report_renders_in_headless_browser() {
+        let dir = tempfile::tempdir().unwrap();
+        let (report, _) = sample_report(false);
+        let (html, _) = report.write(dir.path(), "report").unwrap();
+        let shot = dir.path().join("shot.png");
+        let script = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scripts/check_report.sh");
+        let out = match std::process::Command::new("bash")
+            .arg(script)
+            .arg(&html)
+            .arg(&shot)
+            .output()
+        {
+            Ok(o) => o,
+            Err(e) => {
+                assert!(
+                    std::env::var("POLARID_REQUIRE_BROWSER").as_deref() != Ok("1"),
+                    "cannot run bash: {e}"
+                );
+                eprintln!("skipped: cannot run bash: {e}");
+                return;
+            }
+        };
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            out.status.success(),
+            "check_report.sh failed:\n{stdout}\n{stderr}"
+        );
+        if stdout.contains("SKIPPED") {
+            eprintln!("{stdout}");
+            return;
+        }
+        assert!(
+            stdout.contains(": 4 images, 0 not decoded, 0 errors"),
+            "{stdout}"
+        );
+        let img = image::open(&shot).unwrap();
+        assert_eq!(img.width(), 1200);
     }
 
     /// Writes a sample report for the headless-browser check and the README picture:
