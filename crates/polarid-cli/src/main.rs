@@ -6,6 +6,8 @@
 
 mod cmd;
 mod ctx;
+mod plots;
+mod report;
 mod views;
 
 use std::process::ExitCode;
