@@ -89,6 +89,21 @@ impl Cov2 {
         })
     }
 
+    /// Covariance from a matrix `[[nn, nk], [kn, kk]]`; `None` unless it is finite,
+    /// symmetric and positive definite.
+    pub fn from_matrix(m: [[f64; 2]; 2]) -> Option<Self> {
+        let c = Self {
+            nn: m[0][0],
+            nk: m[0][1],
+            kk: m[1][1],
+        };
+        let ok = m.iter().flatten().all(|v| v.is_finite())
+            && m[0][1] == m[1][0]
+            && c.nn > 0.0
+            && c.nn * c.kk - c.nk * c.nk > 0.0;
+        ok.then_some(c)
+    }
+
     /// Sum of two covariances (of independent estimates).
     pub fn add(self, other: Self) -> Self {
         Self {
