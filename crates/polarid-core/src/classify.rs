@@ -104,15 +104,6 @@ impl Cov2 {
         ok.then_some(c)
     }
 
-    /// Sum of two covariances (of independent estimates).
-    pub fn add(self, other: Self) -> Self {
-        Self {
-            nn: self.nn + other.nn,
-            nk: self.nk + other.nk,
-            kk: self.kk + other.kk,
-        }
-    }
-
     /// Standard errors and correlation `(n_se, k_se, nk_corr)`.
     pub fn to_se(&self) -> (f64, f64, f64) {
         let (sn, sk) = (self.nn.sqrt(), self.kk.sqrt());
@@ -130,6 +121,19 @@ impl Cov2 {
         // Σ⁻¹ = [[kk, −nk], [−nk, nn]] / det
         let q = (self.kk * dn * dn - 2.0 * self.nk * dn * dk + self.nn * dk * dk) / det;
         (q.is_finite() && q >= 0.0).then_some(q)
+    }
+}
+
+impl std::ops::Add for Cov2 {
+    type Output = Self;
+
+    /// Sum of two covariances (of independent estimates).
+    fn add(self, other: Self) -> Self {
+        Self {
+            nn: self.nn + other.nn,
+            nk: self.nk + other.nk,
+            kk: self.kk + other.kk,
+        }
     }
 }
 
@@ -441,7 +445,7 @@ impl Classifier {
     /// available (the estimate's plus the prototype's).
     fn mahalanobis(est: &Estimate, p: &Prototype) -> Option<f64> {
         let cov = match (est.cov, p.cov) {
-            (Some(a), Some(b)) => a.add(b),
+            (Some(a), Some(b)) => a + b,
             (Some(a), None) | (None, Some(a)) => a,
             (None, None) => return None,
         };

@@ -153,7 +153,7 @@ pub fn explain(target: &str, d: &Decision, clf: &Classifier, top: usize) -> Stri
     match (&d.nearest_class, d.nearest) {
         (Some(c), Some(nb)) => {
             if d.predicted == *c {
-                s.push_str(&format!("{c}"));
+                s.push_str(c);
             } else {
                 s.push_str(&format!("{} (nearest {c})", d.predicted));
             }
