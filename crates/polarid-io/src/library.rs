@@ -1,1 +1,633 @@
-//! (to be written)
+//! Material libraries: literature values of the complex index `N = n + ik` that estimates
+//! are compared with (`polarid classify --library`), and a reader for the YAML files of
+//! the refractiveindex.info database, to build a library for any filter band.
+//!
+//! # Library CSV
+//!
+//! `name,n,k` with optional `category` (`metal`, `dielectric`, `semiconductor`,
+//! `other`) and `reference`; other columns are ignored. When `n` / `k` are absent the
+//! reader uses `n_band` / `k_band` (the band means of the shared
+//! `library_650nm.csv` format), so that file can be used as it is.
+//!
+//! Two libraries are built into polarid (embedded in the binary):
+//!
+//! - `builtin` — 39 materials at 650 nm, the band means over 610–690 nm of
+//!   `data/library_650nm.csv`, from the refractiveindex.info database (CC0; cite
+//!   M. N. Polyanskiy, Sci. Data 11, 94 (2024) and the measurement in each row's
+//!   `reference`);
+//! - `paper2007` — the reference values of the paper's Table 1 (green paint, aluminum,
+//!   copper; `data/paper_2007.csv`).
+//!
+//! # refractiveindex.info YAML
+//!
+//! [`RiiData`] reads one database file: `DATA` entries of type `tabulated nk`,
+//! `tabulated n`, `tabulated k` and `formula 1` … `formula 9` (wavelengths in µm), and
+//! evaluates `n(λ)`, `k(λ)` — tabulated data linearly interpolated, formulas evaluated
+//! directly, never extrapolated, `k = 0` when the file gives only `n`.
+//! [`RiiData::band_mean`] averages them over a band sampled every `step` nm, the method
+//! of `library_650nm.csv` (610–690 nm, 1 nm steps, 81 samples).
+//!
+//! The formulas (coefficients `C1, C2, …`, `λ` in µm; missing trailing coefficients are
+//! zero, as in the database):
+//!
+//! | type | formula |
+//! |---|---|
+//! | 1 Sellmeier | `n² − 1 = C1 + Σ C(2i) λ² / (λ² − C(2i+1)²)` |
+//! | 2 Sellmeier-2 | `n² − 1 = C1 + Σ C(2i) λ² / (λ² − C(2i+1))` |
+//! | 3 polynomial | `n² = C1 + Σ C(2i) λ^C(2i+1)` |
+//! | 4 RefractiveIndex.INFO | `n² = C1 + C2 λ^C3/(λ² − C4^C5) + C6 λ^C7/(λ² − C8^C9) + Σ_{i≥5} C(2i) λ^C(2i+1)` |
+//! | 5 Cauchy | `n = C1 + Σ C(2i) λ^C(2i+1)` |
+//! | 6 gases | `n − 1 = C1 + Σ C(2i) / (C(2i+1) − λ⁻²)` |
+//! | 7 Herzberger | `n = C1 + C2/(λ² − 0.028) + C3/(λ² − 0.028)² + C4 λ² + C5 λ⁴ + C6 λ⁶` |
+//! | 8 Retro | `(n² − 1)/(n² + 2) = C1 + C2 λ²/(λ² − C3) + C4 λ²` |
+//! | 9 Exotic | `n² = C1 + C2/(λ² − C3) + C4 (λ − C5)/((λ − C5)² + C6)` |
+
+use std::path::{Path, PathBuf};
+
+use polarid_core::classify::{Prototype, check_class_name};
+use saphyr::{LoadableYamlNode, Yaml};
+
+use crate::error::{IoError, Result};
+use crate::table::CsvTable;
+
+/// The built-in 650 nm library (refractiveindex.info, CC0), as shipped.
+pub const BUILTIN_CSV: &str = include_str!("../data/library_650nm.csv");
+/// The paper's Table 1 reference values.
+pub const PAPER_2007_CSV: &str = include_str!("../data/paper_2007.csv");
+/// Names accepted by [`Library::load`] for the built-in libraries.
+pub const BUILTIN_NAMES: [&str; 2] = ["builtin", "paper2007"];
+
+/// One material of a library.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Material {
+    /// Material name (becomes the class name).
+    pub name: String,
+    /// Category (`metal`, `dielectric`, `semiconductor`, `other`), when given.
+    pub category: Option<String>,
+    /// Real part of the index.
+    pub n: f64,
+    /// Imaginary part of the index.
+    pub k: f64,
+    /// Literature reference, when given.
+    pub reference: Option<String>,
+    /// Line of the library file.
+    pub line: u64,
+}
+
+/// A material library.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Library {
+    /// `builtin`, `paper2007` or the file it was read from.
+    pub source: String,
+    /// The materials, in file order.
+    pub materials: Vec<Material>,
+}
+
+impl Library {
+    /// The built-in 650 nm library (39 materials, band means over 610–690 nm).
+    pub fn builtin() -> Result<Self> {
+        Self::from_csv_text("builtin", BUILTIN_CSV)
+    }
+
+    /// The paper's Table 1 reference values.
+    pub fn paper_2007() -> Result<Self> {
+        Self::from_csv_text("paper2007", PAPER_2007_CSV)
+    }
+
+    /// A built-in library by name (`builtin`, `paper2007`), or else a library CSV file.
+    pub fn load(spec: &str) -> Result<Self> {
+        match spec {
+            "builtin" => Self::builtin(),
+            "paper2007" => Self::paper_2007(),
+            _ => Self::read_csv(Path::new(spec)),
+        }
+    }
+
+    /// Read a library CSV file.
+    pub fn read_csv(path: &Path) -> Result<Self> {
+        let t = CsvTable::read(path)?;
+        Self::from_table(&t, path.display().to_string())
+    }
+
+    /// Parse library CSV text; `label` names it in errors and in [`Library::source`].
+    pub fn from_csv_text(label: &str, text: &str) -> Result<Self> {
+        let t = CsvTable::from_reader(Path::new(label), text.as_bytes())?;
+        Self::from_table(&t, label.to_string())
+    }
+
+    fn from_table(t: &CsvTable, source: String) -> Result<Self> {
+        let c_name = t.require("name")?;
+        let c_n = match t.col("n") {
+            Some(c) => c,
+            None => t.col("n_band").map_or_else(|| t.require("n"), Ok)?,
+        };
+        let c_k = match t.col("k") {
+            Some(c) => c,
+            None => t.col("k_band").map_or_else(|| t.require("k"), Ok)?,
+        };
+        let c_cat = t.col("category");
+        let c_ref = t.col("reference");
+        let mut materials = Vec::with_capacity(t.rows.len());
+        for r in 0..t.rows.len() {
+            let name = t.text(r, c_name).to_string();
+            if let Err(e) = check_class_name(&name) {
+                return Err(t.err(r, c_name, e.to_string()));
+            }
+            let n = t.f64(r, c_n)?;
+            if n <= 0.0 {
+                return Err(t.err(r, c_n, "n must be > 0"));
+            }
+            let k = t.f64(r, c_k)?;
+            if k < 0.0 {
+                return Err(t.err(r, c_k, "k must be >= 0"));
+            }
+            materials.push(Material {
+                name,
+                category: t.opt_text(r, c_cat),
+                n,
+                k,
+                reference: t.opt_text(r, c_ref),
+                line: t.rows[r].0,
+            });
+        }
+        if materials.is_empty() {
+            return Err(IoError::CsvStructure {
+                path: t.path.clone(),
+                reason: "the library has no materials".into(),
+            });
+        }
+        Ok(Self { source, materials })
+    }
+
+    /// The materials as classification prototypes (class = material name, no covariance,
+    /// source `library <source> line <line>`).
+    pub fn prototypes(&self) -> Vec<Prototype> {
+        self.materials
+            .iter()
+            .map(|m| Prototype {
+                class: m.name.clone(),
+                n: m.n,
+                k: m.k,
+                cov: None,
+                category: m.category.clone(),
+                source: format!("library {} line {}", self.source, m.line),
+            })
+            .collect()
+    }
+}
+
+/// How a refractiveindex.info file gives `n` or `k` as a function of wavelength.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Dispersion {
+    /// A dispersion formula (`formula 1` … `formula 9`), giving `n`.
+    Formula {
+        /// Formula number, 1 to 9.
+        kind: u8,
+        /// Coefficients `C1, C2, …`.
+        coefficients: Vec<f64>,
+        /// Validity range in µm, when the file gives one.
+        range_um: Option<(f64, f64)>,
+    },
+    /// Tabulated values, linearly interpolated.
+    Table {
+        /// Wavelengths in µm, sorted (the database repeats a node now and then and lists a
+        /// few rows out of order; a repeated wavelength takes its first value).
+        wavelength_um: Vec<f64>,
+        /// Values at those wavelengths.
+        values: Vec<f64>,
+    },
+}
+
+impl Dispersion {
+    /// Wavelength range (µm) over which the data may be evaluated.
+    pub fn range_um(&self) -> (f64, f64) {
+        match self {
+            Dispersion::Formula { range_um, .. } => {
+                range_um.unwrap_or((f64::NEG_INFINITY, f64::INFINITY))
+            }
+            Dispersion::Table { wavelength_um, .. } => (
+                wavelength_um.first().copied().unwrap_or(f64::NAN),
+                wavelength_um.last().copied().unwrap_or(f64::NAN),
+            ),
+        }
+    }
+
+    /// Value at `wl` µm (NaN outside the range or where a formula has no real value).
+    pub fn eval(&self, wl: f64) -> f64 {
+        let (lo, hi) = self.range_um();
+        if !(wl >= lo && wl <= hi) {
+            return f64::NAN;
+        }
+        match self {
+            Dispersion::Table {
+                wavelength_um: w,
+                values: v,
+            } => {
+                // First node >= wl.
+                let j = w.partition_point(|&x| x < wl);
+                match (j, w.get(j), v.get(j)) {
+                    (_, Some(&wj), Some(&vj)) if wj == wl => vj,
+                    (j, Some(&wj), Some(&vj)) if j > 0 => {
+                        let (wi, vi) = (w[j - 1], v[j - 1]);
+                        vi + (vj - vi) * (wl - wi) / (wj - wi)
+                    }
+                    _ => f64::NAN,
+                }
+            }
+            Dispersion::Formula {
+                kind, coefficients, ..
+            } => formula(*kind, coefficients, wl),
+        }
+    }
+}
+
+/// Evaluate refractiveindex.info dispersion formula `kind` (1–9) at `l` µm (see the
+/// module documentation). NaN for an unknown formula or no real index.
+pub fn formula(kind: u8, c: &[f64], l: f64) -> f64 {
+    let cf = |i: usize| c.get(i).copied().unwrap_or(0.0);
+    let l2 = l * l;
+    // Σ over pairs (C(2i), C(2i+1)) from 0-based index `from`, skipping zero multipliers.
+    let pairs = |from: usize, term: &dyn Fn(f64, f64) -> f64| -> f64 {
+        let mut s = 0.0;
+        let mut i = from;
+        while i < c.len() {
+            let a = cf(i);
+            if a != 0.0 {
+                s += term(a, cf(i + 1));
+            }
+            i += 2;
+        }
+        s
+    };
+    match kind {
+        1 => (1.0 + cf(0) + pairs(1, &|a, b| a * l2 / (l2 - b * b))).sqrt(),
+        2 => (1.0 + cf(0) + pairs(1, &|a, b| a * l2 / (l2 - b))).sqrt(),
+        3 => (cf(0) + pairs(1, &|a, b| a * l.powf(b))).sqrt(),
+        4 => {
+            let mut n2 = cf(0);
+            if cf(1) != 0.0 {
+                n2 += cf(1) * l.powf(cf(2)) / (l2 - cf(3).powf(cf(4)));
+            }
+            if cf(5) != 0.0 {
+                n2 += cf(5) * l.powf(cf(6)) / (l2 - cf(7).powf(cf(8)));
+            }
+            (n2 + pairs(9, &|a, b| a * l.powf(b))).sqrt()
+        }
+        5 => cf(0) + pairs(1, &|a, b| a * l.powf(b)),
+        6 => 1.0 + cf(0) + pairs(1, &|a, b| a / (b - 1.0 / l2)),
+        7 => {
+            let m = 1.0 / (l2 - 0.028);
+            cf(0) + cf(1) * m + cf(2) * m * m + cf(3) * l2 + cf(4) * l2 * l2 + cf(5) * l2 * l2 * l2
+        }
+        8 => {
+            let b = cf(0) + cf(1) * l2 / (l2 - cf(2)) + cf(3) * l2;
+            ((1.0 + 2.0 * b) / (1.0 - b)).sqrt()
+        }
+        9 => {
+            let d = l - cf(4);
+            (cf(0) + cf(1) / (l2 - cf(2)) + cf(3) * d / (d * d + cf(5))).sqrt()
+        }
+        _ => f64::NAN,
+    }
+}
+
+/// The optical constants of one refractiveindex.info YAML file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RiiData {
+    /// The file (for messages).
+    pub path: PathBuf,
+    /// How `n` is given.
+    pub n: Dispersion,
+    /// How `k` is given (`None`: the file gives only `n`; `k` is taken as 0).
+    pub k: Option<Dispersion>,
+}
+
+fn scalar_text(y: &Yaml) -> Option<String> {
+    if let Some(s) = y.as_str() {
+        return Some(s.to_string());
+    }
+    if let Some(f) = y.as_floating_point() {
+        return Some(f.to_string());
+    }
+    y.as_integer().map(|i| i.to_string())
+}
+
+impl RiiData {
+    /// Read a refractiveindex.info YAML file.
+    pub fn read(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| IoError::io(path, e))?;
+        Self::parse(path, &text)
+    }
+
+    /// Parse refractiveindex.info YAML text; `path` labels errors.
+    pub fn parse(path: &Path, text: &str) -> Result<Self> {
+        let bad = |reason: String| IoError::Model {
+            path: path.to_path_buf(),
+            reason,
+        };
+        let docs = Yaml::load_from_str(text).map_err(|e| bad(format!("not valid YAML: {e}")))?;
+        let doc = docs
+            .first()
+            .ok_or_else(|| bad("empty YAML document".into()))?;
+        let data = doc
+            .as_mapping_get("DATA")
+            .and_then(|d| d.as_sequence())
+            .ok_or_else(|| bad("no `DATA` list".into()))?;
+        let mut n: Option<Dispersion> = None;
+        let mut k: Option<Dispersion> = None;
+        for (i, entry) in data.iter().enumerate() {
+            let field = |name: &str| -> Result<String> {
+                entry
+                    .as_mapping_get(name)
+                    .and_then(scalar_text)
+                    .ok_or_else(|| bad(format!("DATA[{i}]: missing field `{name}`")))
+            };
+            let ty = field("type")?;
+            let ty = ty.trim();
+            let numbers = |name: &str, s: &str| -> Result<Vec<f64>> {
+                s.split_whitespace()
+                    .map(|t| {
+                        t.parse::<f64>()
+                            .ok()
+                            .filter(|v| v.is_finite())
+                            .ok_or_else(|| {
+                                bad(format!("DATA[{i}] ({ty}): `{name}` has a bad number {t:?}"))
+                            })
+                    })
+                    .collect()
+            };
+            let set = |slot: &mut Option<Dispersion>, what: &str, d: Dispersion| -> Result<()> {
+                if slot.is_some() {
+                    return Err(bad(format!(
+                        "DATA[{i}] ({ty}): {what} is given more than once"
+                    )));
+                }
+                *slot = Some(d);
+                Ok(())
+            };
+            if let Some(num) = ty.strip_prefix("formula") {
+                let kind: u8 = num
+                    .trim()
+                    .parse()
+                    .ok()
+                    .filter(|k| (1..=9).contains(k))
+                    .ok_or_else(|| {
+                        bad(format!(
+                            "DATA[{i}]: unsupported type {ty:?} (formula 1 to 9 are supported)"
+                        ))
+                    })?;
+                let coefficients = numbers("coefficients", &field("coefficients")?)?;
+                let range_um = match entry
+                    .as_mapping_get("wavelength_range")
+                    .and_then(scalar_text)
+                {
+                    None => None,
+                    Some(s) => match numbers("wavelength_range", &s)?.as_slice() {
+                        [a, b] if a < b => Some((*a, *b)),
+                        _ => {
+                            return Err(bad(format!(
+                                "DATA[{i}] ({ty}): `wavelength_range` must be two increasing \
+                                 numbers, got {s:?}"
+                            )));
+                        }
+                    },
+                };
+                set(
+                    &mut n,
+                    "n",
+                    Dispersion::Formula {
+                        kind,
+                        coefficients,
+                        range_um,
+                    },
+                )?;
+            } else if let Some(cols) = ty.strip_prefix("tabulated") {
+                let cols = cols.trim();
+                let width = match cols {
+                    "nk" => 3,
+                    "n" | "k" => 2,
+                    _ => {
+                        return Err(bad(format!(
+                            "DATA[{i}]: unsupported type {ty:?} (tabulated nk, n or k)"
+                        )));
+                    }
+                };
+                let text = field("data")?;
+                let mut rows: Vec<(f64, f64, f64)> = Vec::new();
+                for (ln, line) in text.lines().enumerate() {
+                    if line.trim().is_empty() {
+                        continue;
+                    }
+                    let v = numbers("data", line)?;
+                    if v.len() != width {
+                        return Err(bad(format!(
+                            "DATA[{i}] ({ty}): data line {} has {} numbers, expected {width}: {line:?}",
+                            ln + 1,
+                            v.len()
+                        )));
+                    }
+                    rows.push((v[0], v[1], v.get(2).copied().unwrap_or(0.0)));
+                }
+                // A few database files list some rows out of order: sort by wavelength
+                // (stable, so a repeated wavelength keeps its first value first).
+                rows.sort_by(|x, y| x.0.total_cmp(&y.0));
+                let w: Vec<f64> = rows.iter().map(|r| r.0).collect();
+                let a: Vec<f64> = rows.iter().map(|r| r.1).collect();
+                let b: Vec<f64> = rows.iter().map(|r| r.2).collect();
+                if w.is_empty() {
+                    return Err(bad(format!("DATA[{i}] ({ty}): no data")));
+                }
+                let table = |values| Dispersion::Table {
+                    wavelength_um: w.clone(),
+                    values,
+                };
+                match cols {
+                    "nk" => {
+                        set(&mut n, "n", table(a))?;
+                        set(&mut k, "k", table(b))?;
+                    }
+                    "n" => set(&mut n, "n", table(a))?,
+                    _ => set(&mut k, "k", table(a))?,
+                }
+            } else {
+                return Err(bad(format!("DATA[{i}]: unsupported type {ty:?}")));
+            }
+        }
+        let n = n.ok_or_else(|| bad("the file gives no refractive index n".into()))?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            n,
+            k,
+        })
+    }
+
+    /// Wavelength range (µm) covered by both `n` and `k`.
+    pub fn range_um(&self) -> (f64, f64) {
+        let (a, b) = self.n.range_um();
+        match &self.k {
+            Some(k) => {
+                let (c, d) = k.range_um();
+                (a.max(c), b.min(d))
+            }
+            None => (a, b),
+        }
+    }
+
+    /// `(n, k)` at `wl` µm; `k = 0` when the file gives only `n`. Fails outside the data's
+    /// range (no extrapolation) or where a formula has no real value.
+    pub fn nk(&self, wl: f64) -> Result<(f64, f64)> {
+        let (lo, hi) = self.range_um();
+        if !(wl >= lo && wl <= hi) {
+            return Err(IoError::Model {
+                path: self.path.clone(),
+                reason: format!(
+                    "wavelength {:.1} nm is outside the data's range {:.1}–{:.1} nm \
+                     (no extrapolation)",
+                    wl * 1e3,
+                    lo * 1e3,
+                    hi * 1e3
+                ),
+            });
+        }
+        let n = self.n.eval(wl);
+        let k = self.k.as_ref().map_or(0.0, |k| k.eval(wl));
+        if !(n.is_finite() && k.is_finite()) {
+            return Err(IoError::Model {
+                path: self.path.clone(),
+                reason: format!(
+                    "no real optical constants at {:.1} nm (n = {n}, k = {k})",
+                    wl * 1e3
+                ),
+            });
+        }
+        Ok((n, k))
+    }
+
+    /// Arithmetic means of `n` and of `k` over `lo_nm ..= hi_nm` sampled every `step_nm`
+    /// (`library_650nm.csv`: 610, 690, 1 → 81 samples). `lo_nm = hi_nm` gives the value
+    /// at that wavelength.
+    pub fn band_mean(&self, lo_nm: f64, hi_nm: f64, step_nm: f64) -> Result<(f64, f64)> {
+        if !(lo_nm > 0.0 && hi_nm >= lo_nm && step_nm > 0.0 && hi_nm.is_finite()) {
+            return Err(IoError::Model {
+                path: self.path.clone(),
+                reason: format!(
+                    "bad band {lo_nm}–{hi_nm} nm, step {step_nm} nm (need 0 < low <= high, step > 0)"
+                ),
+            });
+        }
+        let count = ((hi_nm - lo_nm) / step_nm + 1e-9).floor() as usize + 1;
+        let (mut sn, mut sk) = (0.0, 0.0);
+        for j in 0..count {
+            let wl_nm = lo_nm + j as f64 * step_nm;
+            let (n, k) = self.nk(wl_nm / 1e3)?;
+            sn += n;
+            sk += k;
+        }
+        Ok((sn / count as f64, sk / count as f64))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn builtin_libraries_load() {
+        let lib = Library::builtin().unwrap();
+        assert_eq!(lib.materials.len(), 39);
+        let al = lib.materials.iter().find(|m| m.name == "aluminum").unwrap();
+        // Band means (n_band, k_band) are used when there is no n, k column.
+        assert_eq!((al.n, al.k), (1.56483, 7.6998));
+        assert_eq!(al.category.as_deref(), Some("metal"));
+        assert_eq!(al.line, 3);
+        let p = Library::paper_2007().unwrap();
+        assert_eq!(p.materials.len(), 3);
+        assert_eq!((p.materials[1].n, p.materials[1].k), (1.24, 6.60));
+    }
+
+    #[test]
+    fn library_errors_name_line_and_value() {
+        let e = Library::from_csv_text("lib.csv", "name,n,k\nfoo,1.5,-1\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("lib.csv") && e.contains("line 2") && e.contains("-1"),
+            "{e}"
+        );
+        let e = Library::from_csv_text("lib.csv", "name,n\nfoo,1.5\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`k`"), "{e}");
+        let e = Library::from_csv_text("lib.csv", "name,n,k\nunknown,1.5,0\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("reserved"), "{e}");
+    }
+
+    #[test]
+    fn formulas_match_hand_values() {
+        // Formula 1, fused silica (Malitson 1965) at 0.65 µm.
+        let c = [
+            0.0, 0.6961663, 0.0684043, 0.4079426, 0.1162414, 0.8974794, 9.896161,
+        ];
+        let l2: f64 = 0.65 * 0.65;
+        let mut n2 = 1.0;
+        for i in 0..3 {
+            n2 += c[1 + 2 * i] * l2 / (l2 - c[2 + 2 * i] * c[2 + 2 * i]);
+        }
+        assert!((formula(1, &c, 0.65) - n2.sqrt()).abs() < 1e-15);
+        assert!((formula(1, &c, 0.65) - 1.45653).abs() < 5e-6);
+        // Formula 5 (Cauchy) and 4 against direct evaluation.
+        let cc = [1.5130, -0.003169, 2.0, 0.003962, -2.0];
+        let v = 1.5130 - 0.003169 * l2 + 0.003962 / l2;
+        assert!((formula(5, &cc, 0.65) - v).abs() < 1e-15);
+        let c4 = [5.913, 0.2441, 0.0, 0.0803, 1.0, 0.0, 0.0, 0.0, 1.0];
+        let v = (5.913 + 0.2441 / (l2 - 0.0803)).sqrt();
+        assert!((formula(4, &c4, 0.65) - v).abs() < 1e-15);
+        // Formula 7 and 8, 9, 6, 3 against their definitions.
+        let c7 = [1.4, 0.01, 0.001, -0.002, 1e-5, 1e-7];
+        let m = 1.0 / (l2 - 0.028);
+        let v = 1.4 + 0.01 * m + 0.001 * m * m - 0.002 * l2 + 1e-5 * l2 * l2 + 1e-7 * l2 * l2 * l2;
+        assert!((formula(7, &c7, 0.65) - v).abs() < 1e-15);
+        let c8 = [0.2, 0.05, 0.01, -0.001];
+        let b = 0.2 + 0.05 * l2 / (l2 - 0.01) - 0.001 * l2;
+        assert!((formula(8, &c8, 0.65) - ((1.0 + 2.0 * b) / (1.0 - b)).sqrt()).abs() < 1e-15);
+        let c9 = [2.0, 0.02, 0.03, 0.1, 0.5, 0.04];
+        let d = 0.65 - 0.5;
+        let v = (2.0 + 0.02 / (l2 - 0.03) + 0.1 * d / (d * d + 0.04)).sqrt();
+        assert!((formula(9, &c9, 0.65) - v).abs() < 1e-15);
+        let c6 = [0.0, 0.05792105, 238.0185, 0.00167917, 57.362];
+        let v = 1.0 + 0.05792105 / (238.0185 - 1.0 / l2) + 0.00167917 / (57.362 - 1.0 / l2);
+        assert!((formula(6, &c6, 0.65) - v).abs() < 1e-15);
+        let c3 = [2.0, 0.1, 2.0, 0.01, -2.0];
+        let v = (2.0 + 0.1 * l2 + 0.01 / l2).sqrt();
+        assert!((formula(3, &c3, 0.65) - v).abs() < 1e-15);
+        // Formula 2 is formula 1 with squared poles.
+        let c2 = [0.0, 0.6961663, 0.0684043f64.powi(2)];
+        assert!((formula(2, &c2, 0.65) - formula(1, &c[..3], 0.65)).abs() < 1e-15);
+    }
+
+    #[test]
+    fn yaml_tabulated_interpolates_and_refuses_extrapolation() {
+        let text = "DATA:\n  - type: tabulated nk\n    data: |\n        0.6 1.0 2.0\n        0.7 2.0 4.0\n";
+        let d = RiiData::parse(Path::new("t.yml"), text).unwrap();
+        let (n, k) = d.nk(0.65).unwrap();
+        assert!((n - 1.5).abs() < 1e-15 && (k - 3.0).abs() < 1e-15);
+        let (n, k) = d.band_mean(600.0, 700.0, 1.0).unwrap();
+        assert!((n - 1.5).abs() < 1e-12 && (k - 3.0).abs() < 1e-12);
+        let e = d.nk(0.75).unwrap_err().to_string();
+        assert!(e.contains("t.yml") && e.contains("750.0 nm"), "{e}");
+        // n only: k = 0.
+        let text = "DATA:\n  - type: formula 5\n    wavelength_range: 0.3 1.0\n    coefficients: 1.5 0.01 -2\n";
+        let d = RiiData::parse(Path::new("f.yml"), text).unwrap();
+        let (n, k) = d.nk(0.5).unwrap();
+        assert!((n - 1.54).abs() < 1e-12 && k == 0.0);
+        let e = RiiData::parse(
+            Path::new("x.yml"),
+            "DATA:\n  - type: formula 12\n    coefficients: 1\n",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("x.yml") && e.contains("formula 12"), "{e}");
+    }
+}

@@ -1,1 +1,201 @@
-//! Trained classification models (JSON) (to be written).
+//! Trained classification models (JSON), written by `polarid train`, read by
+//! `polarid classify --model` and `polarid map --model`.
+//!
+//! ```json
+//! {
+//!   "format": "polarid-model",
+//!   "format_version": 1,
+//!   "created_by": "polarid 0.1.0",
+//!   "prototypes": [
+//!     { "class": "aluminum", "n": 1.64, "k": 4.56,
+//!       "covariance": [[0.0004, 0.0001], [0.0001, 0.0009]],
+//!       "category": null,
+//!       "source": { "file": "fits.csv", "line": 3, "target": "A" } }
+//!   ]
+//! }
+//! ```
+//!
+//! `covariance` is the `(n, k)` covariance of the training estimate (`null` when the fit
+//! gave no standard errors). `source.file` is relative to the model file's folder when the
+//! fits file lies under it, else absolute. A model whose `format_version` is not
+//! [`FORMAT_VERSION`] is refused with an error naming both versions.
+
+use std::io::Write;
+use std::path::Path;
+
+use polarid_core::classify::{Cov2, Prototype, check_class_name};
+use serde::{Deserialize, Serialize};
+
+use crate::error::{IoError, Result};
+
+/// Value of the `format` field.
+pub const FORMAT: &str = "polarid-model";
+/// The model format version this polarid writes and reads.
+pub const FORMAT_VERSION: u64 = 1;
+
+/// Where a prototype came from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PrototypeSource {
+    /// The fits CSV.
+    pub file: String,
+    /// Line of the fits CSV.
+    pub line: u64,
+    /// Target name in that file.
+    pub target: String,
+}
+
+/// One prototype of a model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ModelPrototype {
+    /// Class name.
+    pub class: String,
+    /// Real part of the index.
+    pub n: f64,
+    /// Imaginary part of the index.
+    pub k: f64,
+    /// Covariance `[[var n, cov nk], [cov nk, var k]]` of the training estimate.
+    pub covariance: Option<[[f64; 2]; 2]>,
+    /// Category, when known.
+    #[serde(default)]
+    pub category: Option<String>,
+    /// Provenance.
+    pub source: PrototypeSource,
+}
+
+/// A trained model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Model {
+    /// Always [`FORMAT`].
+    pub format: String,
+    /// [`FORMAT_VERSION`].
+    pub format_version: u64,
+    /// Program that wrote the model.
+    pub created_by: String,
+    /// The prototypes.
+    pub prototypes: Vec<ModelPrototype>,
+}
+
+impl Model {
+    /// A model of the current format version.
+    pub fn new(prototypes: Vec<ModelPrototype>) -> Self {
+        Self {
+            format: FORMAT.into(),
+            format_version: FORMAT_VERSION,
+            created_by: format!("polarid {}", env!("CARGO_PKG_VERSION")),
+            prototypes,
+        }
+    }
+
+    /// Read and check a model file.
+    pub fn read(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| IoError::io(path, e))?;
+        Self::parse(path, &text)
+    }
+
+    /// Parse and check model JSON; `path` labels errors.
+    pub fn parse(path: &Path, text: &str) -> Result<Self> {
+        let bad = |reason: String| IoError::Model {
+            path: path.to_path_buf(),
+            reason,
+        };
+        let v: serde_json::Value =
+            serde_json::from_str(text).map_err(|e| bad(format!("not valid JSON: {e}")))?;
+        match v.get("format").and_then(|f| f.as_str()) {
+            Some(FORMAT) => {}
+            other => {
+                return Err(bad(format!(
+                    "not a polarid model (field `format` is {}, expected \"{FORMAT}\")",
+                    other.map_or("missing".to_string(), |s| format!("{s:?}"))
+                )));
+            }
+        }
+        match v.get("format_version") {
+            Some(x) if x.as_u64() == Some(FORMAT_VERSION) => {}
+            Some(x) => {
+                return Err(bad(format!(
+                    "model format version {x} is not supported (this polarid reads version \
+                     {FORMAT_VERSION}); retrain the model with `polarid train`"
+                )));
+            }
+            None => return Err(bad("missing field `format_version`".into())),
+        }
+        let m: Model = serde_json::from_value(v).map_err(|e| bad(format!("bad model: {e}")))?;
+        for (i, p) in m.prototypes.iter().enumerate() {
+            let at = format!("prototypes[{i}] (class {:?})", p.class);
+            check_class_name(&p.class).map_err(|e| bad(format!("{at}: {e}")))?;
+            if !(p.n.is_finite() && p.k.is_finite() && p.k >= 0.0) {
+                return Err(bad(format!(
+                    "{at}: n = {}, k = {} (need finite values, k >= 0)",
+                    p.n, p.k
+                )));
+            }
+            if let Some(c) = p.covariance
+                && (Cov2::from_matrix(c).is_none())
+            {
+                return Err(bad(format!(
+                    "{at}: covariance {c:?} is not a symmetric positive definite matrix"
+                )));
+            }
+        }
+        if m.prototypes.is_empty() {
+            return Err(bad("the model has no prototypes".into()));
+        }
+        Ok(m)
+    }
+
+    /// Write the model as pretty JSON.
+    pub fn write<W: Write + ?Sized>(&self, w: &mut W, path: &Path) -> Result<()> {
+        let text = serde_json::to_string_pretty(self)
+            .map_err(|e| IoError::io(path, std::io::Error::other(e.to_string())))?;
+        w.write_all(text.as_bytes())
+            .and_then(|_| w.write_all(b"\n"))
+            .map_err(|e| IoError::io(path, e))
+    }
+
+    /// The prototypes for a classifier (source `FILE:LINE target T`).
+    pub fn prototypes(&self) -> Vec<Prototype> {
+        self.prototypes
+            .iter()
+            .map(|p| Prototype {
+                class: p.class.clone(),
+                n: p.n,
+                k: p.k,
+                cov: p.covariance.and_then(Cov2::from_matrix),
+                category: p.category.clone(),
+                source: format!(
+                    "{}:{} target {}",
+                    p.source.file, p.source.line, p.source.target
+                ),
+            })
+            .collect()
+    }
+}
+
+/// `[[nn, nk], [nk, kk]]` of a covariance.
+pub fn cov_matrix(c: &Cov2) -> [[f64; 2]; 2] {
+    [[c.nn, c.nk], [c.nk, c.kk]]
+}
+
+/// A path to record in a file written at `out`: relative to `out`'s folder when `path`
+/// lies under it, else absolute (or as given when it cannot be resolved).
+pub fn path_relative_to_output(path: &Path, out: &Path) -> String {
+    let abs = std::fs::canonicalize(path).ok();
+    let dir = out
+        .parent()
+        .map(|p| {
+            if p.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                p
+            }
+        })
+        .and_then(|p| std::fs::canonicalize(p).ok());
+    match (abs, dir) {
+        (Some(a), Some(d)) => match a.strip_prefix(&d) {
+            Ok(rel) => rel.display().to_string(),
+            Err(_) => a.display().to_string(),
+        },
+        (Some(a), None) => a.display().to_string(),
+        _ => path.display().to_string(),
+    }
+}

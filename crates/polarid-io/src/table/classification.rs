@@ -1,1 +1,200 @@
-//! Classification CSV — written by `classify` (to be written).
+//! Classification CSV — written by `classify`.
+//!
+//! `target,class,predicted,distance,runner_up,runner_up_distance,status` (the columns of
+//! `shared/FORMATS.md`), then polarid's extra columns: `margin` (runner-up distance minus
+//! distance), `nearest` (class of the nearest prototype, also when rejected), `category`
+//! (of that prototype, e.g. `metal`, for library prototypes), `metric`, `gate` (the
+//! statistic compared with the reject threshold), `votes` (k-NN votes for the class),
+//! `reason` (why a status is not `ok`), and Wolff's baseline when it was run:
+//! `wolff_class` (`metal`, `dielectric` or `unknown`), `wolff_fr_max` (largest Fresnel
+//! ratio `(1 + P)/(1 − P)` over the measurements in the window), `wolff_beta_deg` (its β).
+//!
+//! `predicted` is a class name or `unknown`; distances of an unclassified target are empty.
+
+use std::io::Write;
+use std::path::Path;
+
+use super::{CsvTable, fmt_opt, write_rows};
+use crate::error::Result;
+
+/// Column order of the classification CSV.
+pub const COLUMNS: [&str; 17] = [
+    "target",
+    "class",
+    "predicted",
+    "distance",
+    "runner_up",
+    "runner_up_distance",
+    "status",
+    "margin",
+    "nearest",
+    "category",
+    "metric",
+    "gate",
+    "votes",
+    "reason",
+    "wolff_class",
+    "wolff_fr_max",
+    "wolff_beta_deg",
+];
+
+/// One classified target.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ClassificationRow {
+    /// Target name.
+    pub target: String,
+    /// Known class, if any.
+    pub class: Option<String>,
+    /// Predicted class or `unknown`.
+    pub predicted: String,
+    /// Distance to the nearest prototype of `nearest`.
+    pub distance: Option<f64>,
+    /// Nearest other class.
+    pub runner_up: Option<String>,
+    /// Distance to the runner-up.
+    pub runner_up_distance: Option<f64>,
+    /// `ok`, `rejected`, `fit_<status>`, `no_covariance`, `invalid_estimate`.
+    pub status: String,
+    /// `runner_up_distance − distance`.
+    pub margin: Option<f64>,
+    /// Class of the nearest prototype (also when rejected).
+    pub nearest: Option<String>,
+    /// Category of the nearest prototype.
+    pub category: Option<String>,
+    /// `euclidean` or `mahalanobis`.
+    pub metric: String,
+    /// Statistic compared with the reject threshold.
+    pub gate: Option<f64>,
+    /// Votes for the class among the k nearest.
+    pub votes: Option<u64>,
+    /// Why the status is not `ok`.
+    pub reason: String,
+    /// Wolff's class, when run.
+    pub wolff_class: Option<String>,
+    /// Wolff's largest Fresnel ratio.
+    pub wolff_fr_max: Option<f64>,
+    /// β of that ratio, degrees.
+    pub wolff_beta_deg: Option<f64>,
+}
+
+fn finite(x: Option<f64>) -> Option<f64> {
+    x.filter(|v| !v.is_nan())
+}
+
+/// Write classification rows in the documented column order.
+pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[ClassificationRow]) -> Result<()> {
+    write_rows(
+        w,
+        path,
+        &COLUMNS,
+        rows.iter().map(|r| {
+            vec![
+                r.target.clone(),
+                r.class.clone().unwrap_or_default(),
+                r.predicted.clone(),
+                fmt_opt(finite(r.distance)),
+                r.runner_up.clone().unwrap_or_default(),
+                fmt_opt(finite(r.runner_up_distance)),
+                r.status.clone(),
+                fmt_opt(finite(r.margin)),
+                r.nearest.clone().unwrap_or_default(),
+                r.category.clone().unwrap_or_default(),
+                r.metric.clone(),
+                fmt_opt(finite(r.gate)),
+                r.votes.map(|v| v.to_string()).unwrap_or_default(),
+                r.reason.clone(),
+                r.wolff_class.clone().unwrap_or_default(),
+                fmt_opt(finite(r.wolff_fr_max)),
+                fmt_opt(finite(r.wolff_beta_deg)),
+            ]
+        }),
+    )
+}
+
+/// Read a classification CSV (needs `target`, `predicted`, `status`; the rest optional).
+pub fn read(path: &Path) -> Result<Vec<ClassificationRow>> {
+    let t = CsvTable::read(path)?;
+    let c_target = t.require("target")?;
+    let c_pred = t.require("predicted")?;
+    let c_status = t.require("status")?;
+    let c = |n: &str| t.col(n);
+    let mut out = Vec::with_capacity(t.rows.len());
+    for r in 0..t.rows.len() {
+        let fnum = |n: &str| -> Result<Option<f64>> {
+            match c(n) {
+                Some(col) if t.text(r, col).eq_ignore_ascii_case("inf") => Ok(Some(f64::INFINITY)),
+                col => t.opt_f64(r, col),
+            }
+        };
+        out.push(ClassificationRow {
+            target: t.text(r, c_target).to_string(),
+            class: t.opt_text(r, c("class")),
+            predicted: t.text(r, c_pred).to_string(),
+            distance: fnum("distance")?,
+            runner_up: t.opt_text(r, c("runner_up")),
+            runner_up_distance: fnum("runner_up_distance")?,
+            status: t.text(r, c_status).to_string(),
+            margin: fnum("margin")?,
+            nearest: t.opt_text(r, c("nearest")),
+            category: t.opt_text(r, c("category")),
+            metric: t.opt_text(r, c("metric")).unwrap_or_default(),
+            gate: fnum("gate")?,
+            votes: t.opt_u64(r, c("votes"))?,
+            reason: t.opt_text(r, c("reason")).unwrap_or_default(),
+            wolff_class: t.opt_text(r, c("wolff_class")),
+            wolff_fr_max: fnum("wolff_fr_max")?,
+            wolff_beta_deg: fnum("wolff_beta_deg")?,
+        });
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trip() {
+        let rows = vec![
+            ClassificationRow {
+                target: "T1".into(),
+                class: Some("aluminum".into()),
+                predicted: "aluminum".into(),
+                distance: Some(0.25),
+                runner_up: Some("copper".into()),
+                runner_up_distance: Some(1.5),
+                status: "ok".into(),
+                margin: Some(1.25),
+                nearest: Some("aluminum".into()),
+                metric: "euclidean".into(),
+                votes: Some(1),
+                wolff_class: Some("metal".into()),
+                wolff_fr_max: Some(1.5),
+                wolff_beta_deg: Some(60.0),
+                ..Default::default()
+            },
+            ClassificationRow {
+                target: "T2".into(),
+                predicted: "unknown".into(),
+                distance: Some(f64::NAN),
+                status: "fit_not_converged".into(),
+                reason: "not classified, because".into(),
+                metric: "euclidean".into(),
+                ..Default::default()
+            },
+        ];
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("c.csv");
+        let mut buf = Vec::new();
+        write(&mut buf, &p, &rows).unwrap();
+        let text = String::from_utf8(buf.clone()).unwrap();
+        assert!(text.starts_with(
+            "target,class,predicted,distance,runner_up,runner_up_distance,status,margin"
+        ));
+        std::fs::write(&p, buf).unwrap();
+        let back = read(&p).unwrap();
+        let mut expect = rows.clone();
+        expect[1].distance = None;
+        assert_eq!(back, expect);
+    }
+}
