@@ -23,7 +23,7 @@
 //!    at run time), fused with the search for the best node;
 //! 2. takes one Gauss–Newton step from that node with the stored Jacobian (no model
 //!    evaluation), and polishes with Levenberg–Marquardt (analytic Jacobian from
-//!    [`dop_grad_terms`](crate::dop::dop_grad_terms), 2×2 normal equations solved in
+//!    [`dop_grad_terms`], 2×2 normal equations solved in
 //!    closed form; on average 8.7 evaluations of the `T` model values and gradients
 //!    at `T = 10`, noise sd 0.005, `(n, k)` uniform in `[0.2, 3] × [0, 8]`, and 6.7
 //!    without noise);
