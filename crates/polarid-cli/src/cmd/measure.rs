@@ -6,6 +6,8 @@
 //! (`polarid_core::region`), the mean S0 divided by the capture's exposure, the pixels
 //! used and rejected, and `beta` from the geometry (eq. 5).
 //!
+//! A standard error that comes out as 0 (noiseless data) is written as an empty cell.
+//!
 //! DoFP captures are demosaiced bilinearly at full resolution (so that `rect` is in raw
 //! pixel coordinates) without rounding, and their standard errors use the bilinear
 //! variance inflation. Stokes captures (float TIFF) are used as they are: `dark_level`
@@ -126,7 +128,9 @@ fn measure_capture(m: &Manifest, c: &Capture) -> anyhow::Result<Vec<Measurement>
             phi_deg: c.phi_deg,
             beta_deg,
             dolp: st.dolp,
-            dolp_se: st.dolp_se,
+            // Noiseless data have no scatter; an SE of 0 is left empty (the CSV
+            // contract requires dolp_se > 0 when present).
+            dolp_se: st.dolp_se.filter(|se| se.is_finite() && *se > 0.0),
             s0: Some(st.s0() / c.exposure),
             pixels: Some(st.pixels),
             rejected: Some(st.rejected),
