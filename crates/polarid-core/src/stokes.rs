@@ -524,7 +524,7 @@ fn accumulate_row<T: Sample>(
         *a1 += c[1] * d;
         *a2 += c[2] * d;
         // Bit 0: saturated; bit 1: not finite (NaN compares false with everything).
-        *m |= ((v >= sat) as u8) | (((v - v) != 0.0) as u8) << 1;
+        *m |= ((v >= sat) as u8) | ((!v.is_finite()) as u8) << 1;
     }
 }
 
@@ -539,7 +539,7 @@ pub(crate) fn finish_mask_row(
 ) -> PixelCounts {
     let mut h = [0u32; 4];
     for (((&a0, &a1), &a2), m) in r0.iter().zip(r1).zip(r2).zip(rm.iter_mut()) {
-        let nonfinite = (*m & 2 != 0) || (a0 + a1 + a2 - (a0 + a1 + a2)) != 0.0;
+        let nonfinite = (*m & 2 != 0) || !(a0 + a1 + a2).is_finite();
         let v = if nonfinite {
             mask::INVALID
         } else if *m & 1 != 0 {
@@ -610,7 +610,7 @@ pub fn dolp_aolp_pixel(s0: f32, s1: f32, s2: f32) -> (f32, f32) {
     let a = atan2_fast(s2, s1) * (90.0 / std::f32::consts::PI);
     let a = if a < 0.0 { a + 180.0 } else { a };
     let a = if a >= 180.0 { a - 180.0 } else { a };
-    let ok = s0 > 0.0 && (s1 - s1) == 0.0 && (s2 - s2) == 0.0 && (s0 - s0) == 0.0;
+    let ok = s0 > 0.0 && s0.is_finite() && s1.is_finite() && s2.is_finite();
     if ok { (d, a) } else { (f32::NAN, f32::NAN) }
 }
 
