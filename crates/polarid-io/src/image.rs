@@ -1,1 +1,443 @@
-//! (to be written)
+//! Grayscale frames (PNG, TIFF) in, float32 TIFF and 8/16-bit PNG/TIFF out.
+//!
+//! Readers accept single-page grayscale images: PNG of 8 or 16 bits, TIFF of 8 or 16
+//! bit unsigned integers or 32-bit (also 64-bit) IEEE floats. The file type is found from
+//! its first bytes, not its name. Everything else — colour, alpha, palettes, several
+//! pages, other bit depths, truncated or corrupt files — is an [`IoError::Image`] naming
+//! the file and saying what is wrong. Pixel values are returned as `f32` (exact for 8-
+//! and 16-bit integers), row-major, with the sample type so that callers know the
+//! type's maximum (the default saturation level).
+//!
+//! Writers are atomic ([`crate::atomic::write_atomic`]): the image is encoded in memory
+//! and renamed into place only when complete. Inside a [`crate::atomic::StagedDir`]
+//! pass the staged path.
+
+use std::io::Cursor;
+use std::path::{Path, PathBuf};
+
+use crate::atomic::write_atomic;
+use crate::error::{IoError, Result};
+
+/// The sample type of a frame as stored.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SampleKind {
+    /// 8-bit unsigned integers.
+    U8,
+    /// 16-bit unsigned integers.
+    U16,
+    /// 32-bit IEEE floats (64-bit float TIFFs are read as this too).
+    F32,
+}
+
+impl SampleKind {
+    /// Bits per sample as stored (64-bit float TIFFs report 32).
+    pub fn bit_depth(self) -> u8 {
+        match self {
+            SampleKind::U8 => 8,
+            SampleKind::U16 => 16,
+            SampleKind::F32 => 32,
+        }
+    }
+
+    /// Largest representable value: 255, 65535, or `+inf` for floats.
+    pub fn type_max(self) -> f32 {
+        match self {
+            SampleKind::U8 => 255.0,
+            SampleKind::U16 => 65535.0,
+            SampleKind::F32 => f32::INFINITY,
+        }
+    }
+
+    /// True for the integer types.
+    pub fn is_integer(self) -> bool {
+        !matches!(self, SampleKind::F32)
+    }
+}
+
+/// One grayscale frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Frame {
+    /// The file it was read from.
+    pub path: PathBuf,
+    /// Width (columns).
+    pub width: usize,
+    /// Height (rows).
+    pub height: usize,
+    /// Sample type as stored.
+    pub kind: SampleKind,
+    /// Pixel values, row-major, `width × height`.
+    pub data: Vec<f32>,
+}
+
+impl Frame {
+    /// Largest value of the stored type ([`SampleKind::type_max`]).
+    pub fn type_max(&self) -> f32 {
+        self.kind.type_max()
+    }
+
+    /// Bits per sample as stored.
+    pub fn bit_depth(&self) -> u8 {
+        self.kind.bit_depth()
+    }
+}
+
+fn image_err(path: &Path, reason: impl Into<String>) -> IoError {
+    IoError::Image {
+        path: path.to_path_buf(),
+        reason: reason.into(),
+    }
+}
+
+/// Read a grayscale PNG or TIFF frame.
+pub fn read_frame(path: &Path) -> Result<Frame> {
+    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
+        read_png(path, &bytes)
+    } else if bytes.starts_with(b"II*\0")
+        || bytes.starts_with(b"MM\0*")
+        || bytes.starts_with(b"II+\0")
+        || bytes.starts_with(b"MM\0+")
+    {
+        read_tiff(path, &bytes)
+    } else if bytes.is_empty() {
+        Err(image_err(path, "is empty (expected a PNG or TIFF image)"))
+    } else {
+        Err(image_err(path, "is not a PNG or TIFF image"))
+    }
+}
+
+fn read_png(path: &Path, bytes: &[u8]) -> Result<Frame> {
+    let corrupt = |e: png::DecodingError| image_err(path, format!("truncated or corrupt PNG: {e}"));
+    let dec = png::Decoder::new(Cursor::new(bytes));
+    let mut reader = dec.read_info().map_err(corrupt)?;
+    let info = reader.info();
+    let (w, h) = (info.width as usize, info.height as usize);
+    let depth = info.bit_depth;
+    match info.color_type {
+        png::ColorType::Grayscale => {}
+        png::ColorType::GrayscaleAlpha => {
+            return Err(image_err(
+                path,
+                "is a grayscale image with an alpha channel; frames must be plain grayscale",
+            ));
+        }
+        other => {
+            return Err(image_err(
+                path,
+                format!("is a colour image ({other:?}); frames must be grayscale"),
+            ));
+        }
+    }
+    if info.is_animated() {
+        return Err(image_err(
+            path,
+            "is an animated PNG with several frames; one image per file is needed",
+        ));
+    }
+    let kind = match depth {
+        png::BitDepth::Eight => SampleKind::U8,
+        png::BitDepth::Sixteen => SampleKind::U16,
+        other => {
+            return Err(image_err(
+                path,
+                format!(
+                    "has {} bits per sample; 8- or 16-bit grayscale is needed",
+                    other as u8
+                ),
+            ));
+        }
+    };
+    let size = reader
+        .output_buffer_size()
+        .ok_or_else(|| image_err(path, "is too large to decode"))?;
+    let mut buf = vec![0u8; size];
+    let out = reader.next_frame(&mut buf).map_err(corrupt)?;
+    let buf = &buf[..out.buffer_size()];
+    let data: Vec<f32> = match kind {
+        SampleKind::U8 => buf.iter().map(|&v| v as f32).collect(),
+        _ => buf
+            .chunks_exact(2)
+            .map(|c| u16::from_be_bytes([c[0], c[1]]) as f32)
+            .collect(),
+    };
+    if data.len() != w * h || w == 0 || h == 0 {
+        return Err(image_err(
+            path,
+            format!(
+                "decoded {} samples for a {w}x{h} image (truncated or corrupt)",
+                data.len()
+            ),
+        ));
+    }
+    Ok(Frame {
+        path: path.to_path_buf(),
+        width: w,
+        height: h,
+        kind,
+        data,
+    })
+}
+
+fn read_tiff(path: &Path, bytes: &[u8]) -> Result<Frame> {
+    use tiff::decoder::{Decoder, DecodingResult};
+    let corrupt = |e: tiff::TiffError| match e {
+        tiff::TiffError::UnsupportedError(u) => {
+            image_err(path, format!("unsupported TIFF variant: {u}"))
+        }
+        other => image_err(path, format!("truncated or corrupt TIFF: {other}")),
+    };
+    let mut dec = Decoder::new(Cursor::new(bytes))
+        .map_err(corrupt)?
+        .with_limits(tiff::decoder::Limits::unlimited());
+    let (w, h) = dec.dimensions().map_err(corrupt)?;
+    let (w, h) = (w as usize, h as usize);
+    match dec.colortype().map_err(corrupt)? {
+        tiff::ColorType::Gray(8 | 16 | 32 | 64) => {}
+        tiff::ColorType::Gray(b) => {
+            return Err(image_err(
+                path,
+                format!(
+                    "has {b} bits per sample; 8/16-bit integer or 32-bit float grayscale is needed"
+                ),
+            ));
+        }
+        tiff::ColorType::GrayA(_) => {
+            return Err(image_err(
+                path,
+                "is a grayscale image with an alpha channel; frames must be plain grayscale",
+            ));
+        }
+        other => {
+            return Err(image_err(
+                path,
+                format!("is a colour image ({other:?}); frames must be grayscale"),
+            ));
+        }
+    }
+    if dec.more_images() {
+        let mut pages = 1usize;
+        while dec.more_images() && pages < 10_000 {
+            if dec.next_image().is_err() {
+                break;
+            }
+            pages += 1;
+        }
+        return Err(image_err(
+            path,
+            format!("is a multi-page TIFF ({pages} pages); one image per file is needed"),
+        ));
+    }
+    let (kind, data) = match dec.read_image().map_err(corrupt)? {
+        DecodingResult::U8(v) => (SampleKind::U8, v.into_iter().map(|x| x as f32).collect()),
+        DecodingResult::U16(v) => (SampleKind::U16, v.into_iter().map(|x| x as f32).collect()),
+        DecodingResult::F32(v) => (SampleKind::F32, v),
+        DecodingResult::F64(v) => (SampleKind::F32, v.into_iter().map(|x| x as f32).collect()),
+        _ => {
+            return Err(image_err(
+                path,
+                "has a sample format other than unsigned 8/16-bit integers or floats",
+            ));
+        }
+    };
+    let data: Vec<f32> = data;
+    if data.len() != w * h || w == 0 || h == 0 {
+        return Err(image_err(
+            path,
+            format!(
+                "decoded {} samples for a {w}x{h} image (truncated or corrupt)",
+                data.len()
+            ),
+        ));
+    }
+    Ok(Frame {
+        path: path.to_path_buf(),
+        width: w,
+        height: h,
+        kind,
+        data,
+    })
+}
+
+/// Read several frames of one capture and check that they have the same size (the
+/// error names the first file that differs from the first frame).
+pub fn read_frames<P: AsRef<Path>>(paths: &[P]) -> Result<Vec<Frame>> {
+    let mut out: Vec<Frame> = Vec::with_capacity(paths.len());
+    for p in paths {
+        let f = read_frame(p.as_ref())?;
+        if let Some(first) = out.first() {
+            check_same_size(first, &f)?;
+        }
+        out.push(f);
+    }
+    Ok(out)
+}
+
+/// Error unless `other` has the size of `first`.
+pub fn check_same_size(first: &Frame, other: &Frame) -> Result<()> {
+    if (first.width, first.height) != (other.width, other.height) {
+        return Err(image_err(
+            &other.path,
+            format!(
+                "is {}x{} pixels but {} is {}x{}: the frames of one capture must have the same size",
+                other.width,
+                other.height,
+                first.path.display(),
+                first.width,
+                first.height
+            ),
+        ));
+    }
+    Ok(())
+}
+
+fn check_buf(path: &Path, width: usize, height: usize, len: usize) -> Result<(u32, u32)> {
+    if width == 0 || height == 0 || width * height != len {
+        return Err(image_err(
+            path,
+            format!("cannot write {len} samples as a {width}x{height} image"),
+        ));
+    }
+    let w = u32::try_from(width).map_err(|_| image_err(path, "image too wide"))?;
+    let h = u32::try_from(height).map_err(|_| image_err(path, "image too tall"))?;
+    Ok((w, h))
+}
+
+fn tiff_bytes<C>(path: &Path, w: u32, h: u32, data: &[C::Inner]) -> Result<Vec<u8>>
+where
+    C: tiff::encoder::colortype::ColorType,
+    [C::Inner]: tiff::encoder::TiffValue,
+{
+    let mut cur = Cursor::new(Vec::new());
+    let enc_err = |e: tiff::TiffError| image_err(path, format!("cannot encode TIFF: {e}"));
+    let mut enc = tiff::encoder::TiffEncoder::new(&mut cur).map_err(enc_err)?;
+    enc.write_image::<C>(w, h, data).map_err(enc_err)?;
+    Ok(cur.into_inner())
+}
+
+fn write_bytes(path: &Path, force: bool, bytes: &[u8]) -> Result<()> {
+    write_atomic(path, force, |w| {
+        w.write_all(bytes).map_err(|e| IoError::io(path, e))
+    })
+}
+
+/// Write a float32 grayscale TIFF (Stokes, DoLP, AoLP images).
+pub fn write_tiff_f32(
+    path: &Path,
+    force: bool,
+    width: usize,
+    height: usize,
+    data: &[f32],
+) -> Result<()> {
+    let (w, h) = check_buf(path, width, height, data.len())?;
+    let bytes = tiff_bytes::<tiff::encoder::colortype::Gray32Float>(path, w, h, data)?;
+    write_bytes(path, force, &bytes)
+}
+
+/// True when `path`'s extension asks for TIFF (`.tif`, `.tiff`), false for PNG
+/// (`.png`); an error otherwise.
+fn wants_tiff(path: &Path) -> Result<bool> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    match ext.as_deref() {
+        Some("tif" | "tiff") => Ok(true),
+        Some("png") => Ok(false),
+        _ => Err(image_err(
+            path,
+            "unknown image type: the file name must end in .png, .tif or .tiff",
+        )),
+    }
+}
+
+fn png_bytes(
+    path: &Path,
+    w: u32,
+    h: u32,
+    color: png::ColorType,
+    depth: png::BitDepth,
+    data: &[u8],
+) -> Result<Vec<u8>> {
+    let enc_err = |e: png::EncodingError| image_err(path, format!("cannot encode PNG: {e}"));
+    let mut out = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut out, w, h);
+        enc.set_color(color);
+        enc.set_depth(depth);
+        let mut wr = enc.write_header().map_err(enc_err)?;
+        wr.write_image_data(data).map_err(enc_err)?;
+        wr.finish().map_err(enc_err)?;
+    }
+    Ok(out)
+}
+
+/// Write an 8-bit grayscale image as PNG or TIFF (from the file name's extension).
+pub fn write_gray8(
+    path: &Path,
+    force: bool,
+    width: usize,
+    height: usize,
+    data: &[u8],
+) -> Result<()> {
+    let (w, h) = check_buf(path, width, height, data.len())?;
+    let bytes = if wants_tiff(path)? {
+        tiff_bytes::<tiff::encoder::colortype::Gray8>(path, w, h, data)?
+    } else {
+        png_bytes(
+            path,
+            w,
+            h,
+            png::ColorType::Grayscale,
+            png::BitDepth::Eight,
+            data,
+        )?
+    };
+    write_bytes(path, force, &bytes)
+}
+
+/// Write a 16-bit grayscale image as PNG or TIFF (from the file name's extension).
+pub fn write_gray16(
+    path: &Path,
+    force: bool,
+    width: usize,
+    height: usize,
+    data: &[u16],
+) -> Result<()> {
+    let (w, h) = check_buf(path, width, height, data.len())?;
+    let bytes = if wants_tiff(path)? {
+        tiff_bytes::<tiff::encoder::colortype::Gray16>(path, w, h, data)?
+    } else {
+        let be: Vec<u8> = data.iter().flat_map(|v| v.to_be_bytes()).collect();
+        png_bytes(
+            path,
+            w,
+            h,
+            png::ColorType::Grayscale,
+            png::BitDepth::Sixteen,
+            &be,
+        )?
+    };
+    write_bytes(path, force, &bytes)
+}
+
+/// Write an 8-bit RGB PNG (views, colour maps); `data` is `width × height × 3`.
+pub fn write_rgb8_png(
+    path: &Path,
+    force: bool,
+    width: usize,
+    height: usize,
+    data: &[u8],
+) -> Result<()> {
+    if data.len() != width * height * 3 {
+        return Err(image_err(
+            path,
+            format!(
+                "cannot write {} bytes as a {width}x{height} RGB image",
+                data.len()
+            ),
+        ));
+    }
+    let (w, h) = check_buf(path, width, height, width * height)?;
+    let bytes = png_bytes(path, w, h, png::ColorType::Rgb, png::BitDepth::Eight, data)?;
+    write_bytes(path, force, &bytes)
+}

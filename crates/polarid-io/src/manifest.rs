@@ -1,1 +1,701 @@
-//! (to be written)
+//! The capture-set manifest (TOML) of `shared/FORMATS.md`: one scene, one fixed camera,
+//! the source moved between captures; several targets (regions) may share the frame.
+//!
+//! ```toml
+//! theta_r_deg = 60.0        # camera zenith; may be overridden per capture
+//! phi_deg = 180.0           # phi_r - phi_i (default 180)
+//! dark_level = 0.0          # DN subtracted from every raw frame (default 0)
+//! saturation = 4095.0       # DN; raw pixels at or above it are rejected (default: type max)
+//! wavelength_nm = 650.0     # optional, informational
+//!
+//! [[region]]
+//! name = "A"
+//! rect = [12, 44, 40, 40]   # x (column), y (row), width, height; origin top-left
+//! class = "aluminum"        # optional
+//!
+//! [[capture]]
+//! theta_i_deg = 35.0
+//! exposure = 1.0            # optional; S0 is divided by it
+//! frames = [ { angle_deg = 0.0, file = "i35/pol000.tif" }, ... ]   # >= 3 distinct angles
+//! # or: dofp = { file = "raw.tif", pattern = [90, 45, 135, 0] }   (pattern optional)
+//! # or: stokes = { s0 = "s0.tif", s1 = "s1.tif", s2 = "s2.tif" }
+//! ```
+//!
+//! Per capture, `theta_r_deg`, `phi_deg`, `dark_level` and `saturation` may override the
+//! top-level values, and `name` may label the capture. Paths are relative to the manifest
+//! file. Validation errors are [`IoError::Manifest`] with the manifest's 1-based line
+//! number and a dotted field path; array indices in field paths are 1-based
+//! (`capture[2].frames[1].file` is the first frame of the second `[[capture]]`).
+//! Unknown keys are not errors (FORMATS.md lets users extend files) but are listed in
+//! [`Manifest::warnings`] so that a typo does not pass unnoticed.
+
+use std::collections::HashSet;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use polarid_core::mosaic::Pattern;
+use polarid_core::region::Rect;
+use polarid_core::stokes::StokesSolver;
+use toml::Spanned;
+use toml::de::{DeTable, DeValue};
+
+use crate::error::{IoError, Result};
+
+/// A validated capture-set manifest.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Manifest {
+    /// The manifest file.
+    pub path: PathBuf,
+    /// Top-level camera zenith, degrees (if given).
+    pub theta_r_deg: Option<f64>,
+    /// Top-level `phi_r − phi_i`, degrees (default 180).
+    pub phi_deg: f64,
+    /// Top-level dark level, DN (default 0).
+    pub dark_level: f64,
+    /// Top-level saturation level, DN (default: the frames' type maximum).
+    pub saturation: Option<f64>,
+    /// Informational wavelength, nm.
+    pub wavelength_nm: Option<f64>,
+    /// The targets.
+    pub regions: Vec<Region>,
+    /// The captures, in file order.
+    pub captures: Vec<Capture>,
+    /// Unknown keys that were ignored, one message each (with the line).
+    pub warnings: Vec<String>,
+}
+
+/// One target region.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Region {
+    /// Unique target name.
+    pub name: String,
+    /// Pixel rectangle in the coordinates of the files as stored.
+    pub rect: Rect,
+    /// Known material, if any.
+    pub class: Option<String>,
+    /// Line of the region's `rect` in the manifest (for later errors, e.g. a rectangle
+    /// that leaves the frame).
+    pub line: usize,
+    /// 1-based index among the `[[region]]` tables.
+    pub index: usize,
+}
+
+/// One capture (source position).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Capture {
+    /// 1-based index among the `[[capture]]` tables.
+    pub index: usize,
+    /// Line of the capture's first key in the manifest.
+    pub line: usize,
+    /// Optional label.
+    pub name: Option<String>,
+    /// Source zenith angle, degrees.
+    pub theta_i_deg: f64,
+    /// Camera zenith angle, degrees (the capture's own or the top-level one).
+    pub theta_r_deg: f64,
+    /// `phi_r − phi_i`, degrees.
+    pub phi_deg: f64,
+    /// Relative exposure (S0 is divided by it), default 1.
+    pub exposure: f64,
+    /// Dark level, DN.
+    pub dark_level: f64,
+    /// Saturation level, DN (`None`: the frames' type maximum).
+    pub saturation: Option<f64>,
+    /// What was recorded.
+    pub source: CaptureSource,
+}
+
+/// One frame of a rotating-polarizer capture.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameRef {
+    /// Polarizer angle, degrees.
+    pub angle_deg: f64,
+    /// Image file (resolved against the manifest's directory).
+    pub file: PathBuf,
+}
+
+/// The data of a capture.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CaptureSource {
+    /// Rotating polarizer: at least 3 frames with distinct angles (mod 180°).
+    Frames(Vec<FrameRef>),
+    /// Division-of-focal-plane raw mosaic.
+    Dofp {
+        /// The raw frame.
+        file: PathBuf,
+        /// The 2×2 pattern (default `90,45,135,0`).
+        pattern: Pattern,
+    },
+    /// Stokes images computed elsewhere (float TIFF).
+    Stokes {
+        /// S0 image.
+        s0: PathBuf,
+        /// S1 image.
+        s1: PathBuf,
+        /// S2 image.
+        s2: PathBuf,
+    },
+}
+
+impl CaptureSource {
+    /// Every file the capture reads.
+    pub fn files(&self) -> Vec<&Path> {
+        match self {
+            CaptureSource::Frames(f) => f.iter().map(|f| f.file.as_path()).collect(),
+            CaptureSource::Dofp { file, .. } => vec![file.as_path()],
+            CaptureSource::Stokes { s0, s1, s2 } => vec![s0, s1, s2],
+        }
+    }
+}
+
+/// Read and validate a manifest file.
+pub fn load(path: &Path) -> Result<Manifest> {
+    let text = std::fs::read_to_string(path).map_err(|e| IoError::io(path, e))?;
+    parse(path, &text)
+}
+
+/// Validate manifest `text`; `path` labels errors and anchors relative file paths.
+pub fn parse(path: &Path, text: &str) -> Result<Manifest> {
+    let p = Parser {
+        path,
+        text,
+        dir: path
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .map(Path::to_path_buf)
+            .unwrap_or_else(|| PathBuf::from(".")),
+        warnings: std::cell::RefCell::new(Vec::new()),
+    };
+    p.manifest()
+}
+
+type Table<'i> = DeTable<'i>;
+type Val<'i> = Spanned<DeValue<'i>>;
+
+struct Parser<'a> {
+    path: &'a Path,
+    text: &'a str,
+    dir: PathBuf,
+    warnings: std::cell::RefCell<Vec<String>>,
+}
+
+impl<'a> Parser<'a> {
+    fn line(&self, pos: usize) -> usize {
+        let end = pos.min(self.text.len());
+        self.text.as_bytes()[..end]
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count()
+            + 1
+    }
+
+    fn snippet(&self, span: &Range<usize>) -> String {
+        let s = self
+            .text
+            .get(span.clone())
+            .unwrap_or("")
+            .trim()
+            .replace('\n', " ");
+        if s.chars().count() > 60 {
+            let t: String = s.chars().take(57).collect();
+            format!("{t}...")
+        } else {
+            s
+        }
+    }
+
+    fn err(&self, span: &Range<usize>, field: &str, reason: impl Into<String>) -> IoError {
+        IoError::Manifest {
+            path: self.path.to_path_buf(),
+            line: self.line(span.start),
+            field: field.to_string(),
+            value: self.snippet(span),
+            reason: reason.into(),
+        }
+    }
+
+    fn warn_unknown(&self, table: &Table<'_>, known: &[&str], prefix: &str) {
+        for (k, _) in table.iter() {
+            if !known.contains(&k.get_ref().as_ref()) {
+                self.warnings.borrow_mut().push(format!(
+                    "{}: line {}: unknown field `{}{}` ignored",
+                    self.path.display(),
+                    self.line(k.span().start),
+                    prefix,
+                    k.get_ref()
+                ));
+            }
+        }
+    }
+
+    fn get<'t, 'i>(&self, t: &'t Table<'i>, key: &str) -> Option<&'t Val<'i>> {
+        t.iter()
+            .find(|(k, _)| k.get_ref().as_ref() == key)
+            .map(|(_, v)| v)
+    }
+
+    fn num(&self, v: &Val<'_>, field: &str) -> Result<f64> {
+        let x = match v.get_ref() {
+            DeValue::Integer(i) => i64::from_str_radix(i.as_str(), i.radix())
+                .ok()
+                .map(|x| x as f64),
+            DeValue::Float(f) => f.as_str().replace('_', "").parse::<f64>().ok(),
+            other => {
+                return Err(self.err(
+                    &v.span(),
+                    field,
+                    format!("expected a number, found a {}", other.type_str()),
+                ));
+            }
+        };
+        match x {
+            Some(x) if x.is_finite() => Ok(x),
+            _ => Err(self.err(&v.span(), field, "expected a finite number")),
+        }
+    }
+
+    fn opt_num(
+        &self,
+        t: &Table<'_>,
+        key: &str,
+        prefix: &str,
+    ) -> Result<Option<(f64, Range<usize>)>> {
+        match self.get(t, key) {
+            None => Ok(None),
+            Some(v) => Ok(Some((self.num(v, &format!("{prefix}{key}"))?, v.span()))),
+        }
+    }
+
+    fn string(&self, v: &Val<'_>, field: &str) -> Result<String> {
+        match v.get_ref() {
+            DeValue::String(s) => Ok(s.to_string()),
+            other => Err(self.err(
+                &v.span(),
+                field,
+                format!("expected a string, found a {}", other.type_str()),
+            )),
+        }
+    }
+
+    fn file(&self, v: &Val<'_>, field: &str) -> Result<PathBuf> {
+        let s = self.string(v, field)?;
+        if s.trim().is_empty() {
+            return Err(self.err(&v.span(), field, "empty file name"));
+        }
+        let p = self.dir.join(&s);
+        if !p.is_file() {
+            return Err(self.err(&v.span(), field, format!("file {} not found", p.display())));
+        }
+        Ok(p)
+    }
+
+    fn table<'t, 'i>(&self, v: &'t Val<'i>, field: &str) -> Result<&'t Table<'i>> {
+        v.get_ref().as_table().ok_or_else(|| {
+            self.err(
+                &v.span(),
+                field,
+                format!("expected a table, found a {}", v.get_ref().type_str()),
+            )
+        })
+    }
+
+    fn array<'t, 'i>(&self, v: &'t Val<'i>, field: &str) -> Result<&'t [Val<'i>]> {
+        v.get_ref().as_array().map(|a| &a[..]).ok_or_else(|| {
+            self.err(
+                &v.span(),
+                field,
+                format!("expected an array, found a {}", v.get_ref().type_str()),
+            )
+        })
+    }
+
+    fn angle(&self, t: &Table<'_>, key: &str, prefix: &str) -> Result<Option<f64>> {
+        match self.opt_num(t, key, prefix)? {
+            Some((v, span)) if !(0.0..90.0).contains(&v) => Err(self.err(
+                &span,
+                &format!("{prefix}{key}"),
+                "zenith angle must be in [0, 90) degrees",
+            )),
+            other => Ok(other.map(|x| x.0)),
+        }
+    }
+
+    fn manifest(&self) -> Result<Manifest> {
+        let root = DeTable::parse(self.text).map_err(|e| {
+            let span = e.span().unwrap_or(0..0);
+            IoError::Manifest {
+                path: self.path.to_path_buf(),
+                line: self.line(span.start),
+                field: self
+                    .text
+                    .get(self.line_start(span.start)..)
+                    .and_then(|l| l.split('=').next())
+                    .map(|k| k.trim().to_string())
+                    .filter(|k| !k.is_empty() && !k.contains('\n'))
+                    .unwrap_or_else(|| "-".into()),
+                value: self.snippet(&span),
+                reason: format!("invalid TOML: {}", e.message()),
+            }
+        })?;
+        let root = root.get_ref();
+        let whole = 0..0;
+        self.warn_unknown(
+            root,
+            &[
+                "theta_r_deg",
+                "phi_deg",
+                "dark_level",
+                "saturation",
+                "wavelength_nm",
+                "region",
+                "capture",
+            ],
+            "",
+        );
+        let theta_r_deg = self.angle(root, "theta_r_deg", "")?;
+        let phi_deg = self.opt_num(root, "phi_deg", "")?.map_or(180.0, |x| x.0);
+        let dark_level = match self.opt_num(root, "dark_level", "")? {
+            Some((v, span)) if v < 0.0 => {
+                return Err(self.err(&span, "dark_level", "dark level must be >= 0"));
+            }
+            Some((v, _)) => v,
+            None => 0.0,
+        };
+        let saturation = match self.opt_num(root, "saturation", "")? {
+            Some((v, span)) if v <= dark_level => {
+                return Err(self.err(
+                    &span,
+                    "saturation",
+                    format!("saturation must be above the dark level {dark_level}"),
+                ));
+            }
+            other => other.map(|x| x.0),
+        };
+        let wavelength_nm = match self.opt_num(root, "wavelength_nm", "")? {
+            Some((v, span)) if v <= 0.0 => {
+                return Err(self.err(&span, "wavelength_nm", "wavelength must be > 0"));
+            }
+            other => other.map(|x| x.0),
+        };
+
+        // Regions.
+        let mut regions = Vec::new();
+        let mut names = HashSet::new();
+        let region_vals = match self.get(root, "region") {
+            Some(v) => self.array(v, "region")?,
+            None => &[],
+        };
+        for (i, rv) in region_vals.iter().enumerate() {
+            let pre = format!("region[{}].", i + 1);
+            let t = self.table(rv, &format!("region[{}]", i + 1))?;
+            self.warn_unknown(t, &["name", "rect", "class"], &pre);
+            let name_v = self.get(t, "name").ok_or_else(|| {
+                self.err(&rv.span(), &format!("{pre}name"), "missing region name")
+            })?;
+            let name = self.string(name_v, &format!("{pre}name"))?;
+            if name.trim().is_empty() || name.contains(',') || name.contains('"') {
+                return Err(self.err(
+                    &name_v.span(),
+                    &format!("{pre}name"),
+                    "region names must be non-empty and contain no comma or quote",
+                ));
+            }
+            if !names.insert(name.clone()) {
+                return Err(self.err(
+                    &name_v.span(),
+                    &format!("{pre}name"),
+                    "duplicate region name",
+                ));
+            }
+            let rect_v = self
+                .get(t, "rect")
+                .ok_or_else(|| self.err(&rv.span(), &format!("{pre}rect"), "missing rect"))?;
+            let items = self.array(rect_v, &format!("{pre}rect"))?;
+            let bad_rect = || {
+                self.err(
+                    &rect_v.span(),
+                    &format!("{pre}rect"),
+                    "rect must be [x, y, width, height]: four non-negative integers, width and height > 0",
+                )
+            };
+            if items.len() != 4 {
+                return Err(bad_rect());
+            }
+            let mut r = [0usize; 4];
+            for (k, it) in items.iter().enumerate() {
+                let v = match it.get_ref() {
+                    DeValue::Integer(i) => i64::from_str_radix(i.as_str(), i.radix()).ok(),
+                    _ => None,
+                };
+                r[k] = match v {
+                    Some(v) if v >= 0 => v as usize,
+                    _ => return Err(bad_rect()),
+                };
+            }
+            if r[2] == 0 || r[3] == 0 {
+                return Err(bad_rect());
+            }
+            let class = match self.get(t, "class") {
+                Some(v) => {
+                    let c = self.string(v, &format!("{pre}class"))?;
+                    if c.contains(',') || c.contains('"') {
+                        return Err(self.err(
+                            &v.span(),
+                            &format!("{pre}class"),
+                            "class names must contain no comma or quote",
+                        ));
+                    }
+                    Some(c).filter(|c| !c.trim().is_empty())
+                }
+                None => None,
+            };
+            regions.push(Region {
+                name,
+                rect: Rect {
+                    x: r[0],
+                    y: r[1],
+                    width: r[2],
+                    height: r[3],
+                },
+                class,
+                line: self.line(rect_v.span().start),
+                index: i + 1,
+            });
+        }
+        if regions.is_empty() {
+            return Err(self.err(
+                &whole,
+                "region",
+                "no [[region]]: at least one target is needed",
+            ));
+        }
+
+        // Captures.
+        let cap_vals = match self.get(root, "capture") {
+            Some(v) => self.array(v, "capture")?,
+            None => &[],
+        };
+        let mut captures = Vec::new();
+        for (i, cv) in cap_vals.iter().enumerate() {
+            captures.push(self.capture(i + 1, cv, theta_r_deg, phi_deg, dark_level, saturation)?);
+        }
+        if captures.is_empty() {
+            return Err(self.err(&whole, "capture", "no [[capture]]: at least one is needed"));
+        }
+        Ok(Manifest {
+            path: self.path.to_path_buf(),
+            theta_r_deg,
+            phi_deg,
+            dark_level,
+            saturation,
+            wavelength_nm,
+            regions,
+            captures,
+            warnings: self.warnings.take(),
+        })
+    }
+
+    fn line_start(&self, pos: usize) -> usize {
+        let end = pos.min(self.text.len());
+        self.text[..end].rfind('\n').map_or(0, |i| i + 1)
+    }
+
+    fn capture(
+        &self,
+        index: usize,
+        cv: &Val<'_>,
+        theta_r_top: Option<f64>,
+        phi_top: f64,
+        dark_top: f64,
+        sat_top: Option<f64>,
+    ) -> Result<Capture> {
+        let pre = format!("capture[{index}].");
+        let t = self.table(cv, &format!("capture[{index}]"))?;
+        self.warn_unknown(
+            t,
+            &[
+                "name",
+                "theta_i_deg",
+                "theta_r_deg",
+                "phi_deg",
+                "exposure",
+                "dark_level",
+                "saturation",
+                "frames",
+                "dofp",
+                "stokes",
+            ],
+            &pre,
+        );
+        let first_line = t
+            .iter()
+            .map(|(k, _)| k.span().start)
+            .min()
+            .unwrap_or(cv.span().start);
+        let span = first_line..cv.span().end;
+        let name = match self.get(t, "name") {
+            Some(v) => Some(self.string(v, &format!("{pre}name"))?),
+            None => None,
+        };
+        let theta_i_deg = self.angle(t, "theta_i_deg", &pre)?.ok_or_else(|| {
+            self.err(
+                &span,
+                &format!("{pre}theta_i_deg"),
+                "missing source zenith angle",
+            )
+        })?;
+        let theta_r_deg = match self.angle(t, "theta_r_deg", &pre)?.or(theta_r_top) {
+            Some(v) => v,
+            None => {
+                return Err(self.err(
+                    &span,
+                    &format!("{pre}theta_r_deg"),
+                    "no camera zenith angle: set theta_r_deg at the top or in the capture",
+                ));
+            }
+        };
+        let phi_deg = self.opt_num(t, "phi_deg", &pre)?.map_or(phi_top, |x| x.0);
+        let exposure = match self.opt_num(t, "exposure", &pre)? {
+            Some((v, s)) if v <= 0.0 => {
+                return Err(self.err(&s, &format!("{pre}exposure"), "exposure must be > 0"));
+            }
+            Some((v, _)) => v,
+            None => 1.0,
+        };
+        let dark_level = match self.opt_num(t, "dark_level", &pre)? {
+            Some((v, s)) if v < 0.0 => {
+                return Err(self.err(&s, &format!("{pre}dark_level"), "dark level must be >= 0"));
+            }
+            Some((v, _)) => v,
+            None => dark_top,
+        };
+        let saturation = match self.opt_num(t, "saturation", &pre)? {
+            Some((v, s)) if v <= dark_level => {
+                return Err(self.err(
+                    &s,
+                    &format!("{pre}saturation"),
+                    format!("saturation must be above the dark level {dark_level}"),
+                ));
+            }
+            Some((v, _)) => Some(v),
+            None => sat_top,
+        };
+        if let (Some(s), None) = (saturation, self.get(t, "saturation"))
+            && s <= dark_level
+        {
+            return Err(self.err(
+                &span,
+                &format!("{pre}dark_level"),
+                format!("dark level must be below the saturation level {s}"),
+            ));
+        }
+        let kinds: Vec<&str> = ["frames", "dofp", "stokes"]
+            .into_iter()
+            .filter(|k| self.get(t, k).is_some())
+            .collect();
+        if kinds.len() != 1 {
+            return Err(self.err(
+                &span,
+                &format!("{pre}frames"),
+                if kinds.is_empty() {
+                    "a capture needs one of `frames`, `dofp` or `stokes`".to_string()
+                } else {
+                    format!(
+                        "a capture needs exactly one of `frames`, `dofp` or `stokes`, found {}",
+                        kinds.join(" and ")
+                    )
+                },
+            ));
+        }
+        let source = match kinds[0] {
+            "frames" => {
+                let fv = self
+                    .get(t, "frames")
+                    .ok_or_else(|| self.err(&span, "frames", "missing"))?;
+                let field = format!("{pre}frames");
+                let items = self.array(fv, &field)?;
+                let mut frames = Vec::new();
+                for (j, it) in items.iter().enumerate() {
+                    let fpre = format!("{pre}frames[{}].", j + 1);
+                    let ft = self.table(it, &format!("{pre}frames[{}]", j + 1))?;
+                    self.warn_unknown(ft, &["angle_deg", "file"], &fpre);
+                    let (angle_deg, _) =
+                        self.opt_num(ft, "angle_deg", &fpre)?.ok_or_else(|| {
+                            self.err(
+                                &it.span(),
+                                &format!("{fpre}angle_deg"),
+                                "missing polarizer angle",
+                            )
+                        })?;
+                    let file_v = self.get(ft, "file").ok_or_else(|| {
+                        self.err(&it.span(), &format!("{fpre}file"), "missing file")
+                    })?;
+                    let file = self.file(file_v, &format!("{fpre}file"))?;
+                    frames.push(FrameRef { angle_deg, file });
+                }
+                let angles: Vec<f64> = frames.iter().map(|f| f.angle_deg).collect();
+                if let Err(e) = StokesSolver::from_degrees(&angles) {
+                    return Err(self.err(&fv.span(), &field, e.to_string()));
+                }
+                CaptureSource::Frames(frames)
+            }
+            "dofp" => {
+                let dv = self
+                    .get(t, "dofp")
+                    .ok_or_else(|| self.err(&span, "dofp", "missing"))?;
+                let field = format!("{pre}dofp");
+                let dt = self.table(dv, &field)?;
+                self.warn_unknown(dt, &["file", "pattern"], &format!("{field}."));
+                let file_v = self.get(dt, "file").ok_or_else(|| {
+                    self.err(&dv.span(), &format!("{field}.file"), "missing file")
+                })?;
+                let file = self.file(file_v, &format!("{field}.file"))?;
+                let pattern = match self.get(dt, "pattern") {
+                    None => Pattern::default(),
+                    Some(pv) => {
+                        let pf = format!("{field}.pattern");
+                        let items = self.array(pv, &pf)?;
+                        let mut a = Vec::new();
+                        for it in items {
+                            a.push(self.num(it, &pf)?);
+                        }
+                        Pattern::new(&a).map_err(|e| self.err(&pv.span(), &pf, e.to_string()))?
+                    }
+                };
+                CaptureSource::Dofp { file, pattern }
+            }
+            _ => {
+                let sv = self
+                    .get(t, "stokes")
+                    .ok_or_else(|| self.err(&span, "stokes", "missing"))?;
+                let field = format!("{pre}stokes");
+                let st = self.table(sv, &field)?;
+                self.warn_unknown(st, &["s0", "s1", "s2"], &format!("{field}."));
+                let mut files = Vec::new();
+                for k in ["s0", "s1", "s2"] {
+                    let v = self.get(st, k).ok_or_else(|| {
+                        self.err(&sv.span(), &format!("{field}.{k}"), "missing file")
+                    })?;
+                    files.push(self.file(v, &format!("{field}.{k}"))?);
+                }
+                let mut it = files.into_iter();
+                match (it.next(), it.next(), it.next()) {
+                    (Some(s0), Some(s1), Some(s2)) => CaptureSource::Stokes { s0, s1, s2 },
+                    _ => return Err(self.err(&sv.span(), &field, "needs s0, s1 and s2")),
+                }
+            }
+        };
+        Ok(Capture {
+            index,
+            line: self.line(first_line),
+            name,
+            theta_i_deg,
+            theta_r_deg,
+            phi_deg,
+            exposure,
+            dark_level,
+            saturation,
+            source,
+        })
+    }
+}

@@ -1,12 +1,307 @@
-//! `polarid stokes` (not yet implemented).
+//! `polarid stokes`: Stokes, DoLP and AoLP images from rotating-polarizer frames or a
+//! division-of-focal-plane (DoFP) mosaic.
+//!
+//! Writes `s0.tif`, `s1.tif`, `s2.tif`, `dolp.tif`, `aolp.tif` (float32; DoLP and AoLP are
+//! NaN where a pixel is rejected) and the views `dolp.png`, `aolp.png` into the output
+//! directory, all or nothing.
 
-use crate::Ctx;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use polarid_core::mosaic::{self, Pattern};
+use polarid_core::region::Sampling;
+use polarid_core::stokes::{self, PixelCounts, PixelRules, StokesSolver};
+use polarid_io::atomic::{StagedDir, check_output};
+use polarid_io::image::{self, Frame};
+
+use crate::{BadInput, Ctx};
+
+/// How a DoFP mosaic is turned into Stokes images.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Demosaic {
+    /// Full resolution, bilinear interpolation of each channel (OpenCV's / polanalyser's).
+    Bilinear,
+    /// Half resolution: one Stokes vector per 2x2 super-pixel.
+    Superpixel,
+}
 
 /// Arguments of `polarid stokes`.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Frames taken through a polarizer at the angles of --angles (grayscale PNG/TIFF).
+    #[arg(long, num_args = 1.., value_name = "FILE", conflicts_with = "dofp")]
+    pub frames: Vec<PathBuf>,
+    /// Polarizer angles of the frames, degrees, comma-separated (e.g. 0,45,90,135).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        value_name = "A,..."
+    )]
+    pub angles: Vec<f64>,
+    /// A raw division-of-focal-plane mosaic (grayscale PNG/TIFF).
+    #[arg(long, value_name = "RAW")]
+    pub dofp: Option<PathBuf>,
+    /// The DoFP 2x2 pattern, degrees, row by row from the top-left.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "90,45,135,0",
+        value_name = "A,B,C,D"
+    )]
+    pub pattern: Vec<f64>,
+    /// DoFP reconstruction. `bilinear` rounds interpolated values of integer frames to
+    /// whole DN exactly as OpenCV does, so results match polanalyser's demosaicing.
+    #[arg(long, value_enum, default_value_t = Demosaic::Bilinear)]
+    pub demosaic: Demosaic,
+    /// Dark level (DN) subtracted from every raw value.
+    #[arg(long, default_value_t = 0.0, value_name = "DN")]
+    pub dark_level: f64,
+    /// Raw values at or above this are saturated and rejected (default: the type's max).
+    #[arg(long, value_name = "DN")]
+    pub saturation: Option<f64>,
+    /// Upper end of the DoLP colour scale of the views (default: automatic).
+    #[arg(long, value_name = "DOLP")]
+    pub dolp_max: Option<f64>,
+    /// Output directory.
+    #[arg(short = 'o', long, value_name = "DIR")]
+    pub output: PathBuf,
+}
+
+/// Stokes images of one capture, with mask and counts.
+pub struct StokesImages {
+    /// Width of the images.
+    pub width: usize,
+    /// Height of the images.
+    pub height: usize,
+    /// S0.
+    pub s0: Vec<f32>,
+    /// S1.
+    pub s1: Vec<f32>,
+    /// S2.
+    pub s2: Vec<f32>,
+    /// Mask (`polarid_core::stokes::mask`).
+    pub mask: Vec<u8>,
+    /// Pixel counts.
+    pub counts: PixelCounts,
+    /// How the pixels relate, for region standard errors.
+    pub sampling: Sampling,
+}
+
+impl StokesImages {
+    fn alloc(width: usize, height: usize, sampling: Sampling) -> Self {
+        let n = width * height;
+        Self {
+            width,
+            height,
+            s0: vec![0.0; n],
+            s1: vec![0.0; n],
+            s2: vec![0.0; n],
+            mask: vec![0; n],
+            counts: PixelCounts::default(),
+            sampling,
+        }
+    }
+}
+
+/// Pixel rules from a dark level and an optional saturation (default: the frames' type
+/// maximum).
+pub fn rules_for(frame: &Frame, dark_level: f64, saturation: Option<f64>) -> PixelRules {
+    PixelRules {
+        dark_level: dark_level as f32,
+        saturation: saturation.map_or(frame.type_max(), |s| s as f32),
+        min_s0: 0.0,
+    }
+}
+
+/// Stokes images from rotating-polarizer frames (same size, checked by the reader).
+pub fn frames_stokes(
+    frames: &[Frame],
+    solver: &StokesSolver,
+    rules: &PixelRules,
+) -> anyhow::Result<StokesImages> {
+    let first = frames.first().context("no frames")?;
+    let mut out = StokesImages::alloc(first.width, first.height, Sampling::Independent);
+    let views: Vec<&[f32]> = frames.iter().map(|f| f.data.as_slice()).collect();
+    out.counts = solver
+        .compute(
+            &views,
+            first.width,
+            rules,
+            &mut out.s0,
+            &mut out.s1,
+            &mut out.s2,
+            &mut out.mask,
+        )
+        .map_err(|e| polarid_io::IoError::Core {
+            path: first.path.clone(),
+            source: e,
+        })?;
+    Ok(out)
+}
+
+/// Stokes images from a DoFP mosaic.
+pub fn dofp_stokes(
+    raw: &Frame,
+    pattern: &Pattern,
+    rules: &PixelRules,
+    demosaic: Demosaic,
+    round: bool,
+) -> anyhow::Result<StokesImages> {
+    let wrap = |e| polarid_io::IoError::Core {
+        path: raw.path.clone(),
+        source: e,
+    };
+    let out = match demosaic {
+        Demosaic::Bilinear => {
+            let mut o = StokesImages::alloc(raw.width, raw.height, Sampling::BilinearDofp);
+            o.counts = mosaic::bilinear_stokes(
+                &raw.data,
+                raw.width,
+                pattern,
+                rules,
+                round,
+                &mut o.s0,
+                &mut o.s1,
+                &mut o.s2,
+                &mut o.mask,
+            )
+            .map_err(wrap)?;
+            o
+        }
+        Demosaic::Superpixel => {
+            let mut o = StokesImages::alloc(raw.width / 2, raw.height / 2, Sampling::Independent);
+            o.counts = mosaic::superpixel_stokes(
+                &raw.data,
+                raw.width,
+                pattern,
+                rules,
+                &mut o.s0,
+                &mut o.s1,
+                &mut o.s2,
+                &mut o.mask,
+            )
+            .map_err(wrap)?;
+            o
+        }
+    };
+    Ok(out)
+}
 
 /// Run `polarid stokes`.
-pub fn run(_args: Args, _ctx: &Ctx) -> anyhow::Result<()> {
-    anyhow::bail!("`polarid stokes` is not implemented yet")
+pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
+    if !args.dark_level.is_finite() || args.dark_level < 0.0 {
+        return Err(BadInput(format!(
+            "--dark-level must be a finite number >= 0, got {}",
+            args.dark_level
+        ))
+        .into());
+    }
+    if let Some(s) = args.saturation
+        && (!s.is_finite() || s <= args.dark_level)
+    {
+        return Err(BadInput(format!(
+            "--saturation must be a finite number above the dark level, got {s}"
+        ))
+        .into());
+    }
+    let (img, inputs): (StokesImages, Vec<PathBuf>) = match (&args.dofp, args.frames.is_empty()) {
+        (Some(raw_path), true) => {
+            let pattern = Pattern::new(&args.pattern)?;
+            let raw = image::read_frame(raw_path)?;
+            let rules = rules_for(&raw, args.dark_level, args.saturation);
+            let round = raw.kind.is_integer() && args.demosaic == Demosaic::Bilinear;
+            (
+                dofp_stokes(&raw, &pattern, &rules, args.demosaic, round)?,
+                vec![raw_path.clone()],
+            )
+        }
+        (None, false) => {
+            if args.angles.len() != args.frames.len() {
+                return Err(BadInput(format!(
+                    "--angles gives {} angle(s) for {} frame(s); give one angle per frame",
+                    args.angles.len(),
+                    args.frames.len()
+                ))
+                .into());
+            }
+            let solver = StokesSolver::from_degrees(&args.angles)?;
+            if solver.ill_conditioned() && !ctx.quiet {
+                eprintln!(
+                    "polarid: warning: polarizer angles {:?} are poorly spread (condition number {:.1}, best {:.2}): S1 and S2 will be noisy",
+                    args.angles,
+                    solver.condition_number(),
+                    std::f64::consts::SQRT_2
+                );
+            }
+            let frames = image::read_frames(&args.frames)?;
+            let rules = rules_for(&frames[0], args.dark_level, args.saturation);
+            (
+                frames_stokes(&frames, &solver, &rules)?,
+                args.frames.clone(),
+            )
+        }
+        (Some(_), false) => {
+            return Err(BadInput("give either --frames or --dofp, not both".into()).into());
+        }
+        (None, true) => {
+            return Err(
+                BadInput("give --frames F... with --angles A,... or --dofp RAW".into()).into(),
+            );
+        }
+    };
+    let (w, h) = (img.width, img.height);
+    let n = w * h;
+    let mut dolp = vec![0f32; n];
+    let mut aolp = vec![0f32; n];
+    stokes::dolp_aolp(
+        w,
+        &img.s0,
+        &img.s1,
+        &img.s2,
+        Some(&img.mask),
+        &mut dolp,
+        &mut aolp,
+    )?;
+    let dolp_max = match args.dolp_max {
+        Some(m) if m.is_finite() && m > 0.0 => m as f32,
+        Some(m) => {
+            return Err(BadInput(format!("--dolp-max must be > 0, got {m}")).into());
+        }
+        None => crate::views::auto_dolp_max(&dolp),
+    };
+
+    let names = [
+        "s0.tif", "s1.tif", "s2.tif", "dolp.tif", "aolp.tif", "dolp.png", "aolp.png",
+    ];
+    let input_refs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+    let staged = StagedDir::new(&args.output, ctx.force)?;
+    for name in names {
+        check_output(&staged.final_path(name), ctx.force, &input_refs)?;
+    }
+    for (name, data) in [
+        ("s0.tif", &img.s0),
+        ("s1.tif", &img.s1),
+        ("s2.tif", &img.s2),
+        ("dolp.tif", &dolp),
+        ("aolp.tif", &aolp),
+    ] {
+        image::write_tiff_f32(&staged.path(name)?, true, w, h, data)?;
+    }
+    let (vw, vh, px) = crate::views::dolp_view(w, h, &dolp, dolp_max);
+    image::write_rgb8_png(&staged.path("dolp.png")?, true, vw, vh, &px)?;
+    let (vw, vh, px) = crate::views::aolp_view(w, h, &aolp, &dolp, dolp_max);
+    image::write_rgb8_png(&staged.path("aolp.png")?, true, vw, vh, &px)?;
+    staged.commit()?;
+    let c = img.counts;
+    ctx.info(format!(
+        "polarid stokes: wrote {} files ({w}x{h}) to {}; pixels valid {}, saturated {}, dark {}, invalid {}",
+        names.len(),
+        args.output.display(),
+        c.valid,
+        c.saturated,
+        c.dark,
+        c.invalid
+    ));
+    Ok(())
 }
