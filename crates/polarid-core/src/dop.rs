@@ -104,6 +104,22 @@ fn parts(n: f64, k: f64, t: &BetaTerms) -> Parts {
     Parts { a, b, r, q }
 }
 
+/// `P = 2xy/Q` with `x = cA`, `y = s²`, `Q = c²√C + s⁴ = x² + y² + (cB)²`, evaluated
+/// as `1 − ((x − y)² + (cB)²)/Q` where `P > 1/2`, so that `P = 1` exactly at
+/// Brewster's angle for `k = 0` (instead of `1 − ulp`). Clamped to `[0, 1]`.
+#[inline(always)]
+fn p_value(a: f64, b: f64, t: &BetaTerms, inv_q: f64) -> f64 {
+    let x = t.c * a;
+    let p = 2.0 * x * t.s2 * inv_q;
+    let e = x - t.s2;
+    let cb = t.c * b;
+    let p_hi = 1.0 - (e * e + cb * cb) * inv_q;
+    // Branch-free select (P > 1/2 is unpredictable in a fit); exact: for m = 1,
+    // p_hi − p is exact (Sterbenz) and p + (p_hi − p) = p_hi.
+    let m = f64::from(u8::from(p > 0.5));
+    (p + m * (p_hi - p)).clamp(0.0, 1.0)
+}
+
 /// Degree of linear polarization `P(n, k, β)` of eq. (9), using precomputed β terms.
 ///
 /// Returns a value in `[0, 1]` (`P = 1` at Brewster's angle for `k = 0`, `P = 0` at
@@ -111,9 +127,9 @@ fn parts(n: f64, k: f64, t: &BetaTerms) -> Parts {
 /// singularity of `(Rs − Rp)/(Rs + Rp)`; eq. (9) returns its limit along `k = 0`.
 #[inline]
 pub fn dop_terms(n: f64, k: f64, t: &BetaTerms) -> f64 {
-    let Parts { a, q, .. } = parts(n, k, t);
+    let Parts { a, b, q, .. } = parts(n, k, t);
     if q > 0.0 {
-        (2.0 * a * t.s2 * t.c / q).clamp(0.0, 1.0)
+        p_value(a, b, t, 1.0 / q)
     } else {
         0.0
     }
@@ -163,11 +179,11 @@ pub fn dop_grad_terms(n: f64, k: f64, t: &BetaTerms) -> DopGrad {
     let dr_dk = 2.0 * k * v * inv_r;
     let num = 2.0 * t.s2 * t.c;
     let inv_q = 1.0 / q;
-    let p = num * a * inv_q;
+    let p = p_value(a, b, t, inv_q);
     let ac2 = a * t.c2;
     let f = num * inv_q * inv_q;
     DopGrad {
-        p: p.clamp(0.0, 1.0),
+        p,
         dp_dn: f * (da_dn * q - ac2 * dr_dn),
         dp_dk: f * (da_dk * q - ac2 * dr_dk),
     }
