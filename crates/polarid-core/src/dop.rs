@@ -158,6 +158,7 @@ pub fn dop(n: f64, k: f64, beta: f64) -> f64 {
 /// medium (`k = 0`, `n = sin β` exactly, `R = 0`) the derivative in `n` is unbounded;
 /// `P = 0` and zero derivatives are returned there.
 #[inline]
+#[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN-safe on purpose
 pub fn dop_grad_terms(n: f64, k: f64, t: &BetaTerms) -> DopGrad {
     let Parts { a, b, r, q } = parts(n, k, t);
     if !(r > 0.0) || !(q > 0.0) {

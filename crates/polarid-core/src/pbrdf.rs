@@ -60,6 +60,7 @@ pub struct Pbrdf {
 ///
 /// Returns 0 for grazing geometries (`cos θi cos θr = 0` or `θ = 90°`).
 #[inline]
+#[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN-safe on purpose
 pub fn facet_factor(sigma: f64, g: &ScatterGeometry) -> f64 {
     let s2 = sigma * sigma;
     let den = 8.0 * std::f64::consts::PI * s2 * g.cos2_tilt * g.cos2_tilt * g.cos_i * g.cos_r;
@@ -191,7 +192,7 @@ pub fn to_global(local: &Mueller3, g: &ScatterGeometry) -> Mueller3 {
     // Normal of the scattering plane (any vector ⊥ u_i when u_i ∥ u_r; (0, 1, 0) is
     // ⊥ u_i since the source is at azimuth 0).
     let mut w = cross(ui, ur);
-    if !(dot(&w, &w) > 1e-300) {
+    if dot(&w, &w) <= 1e-300 {
         w = [0.0, 1.0, 0.0];
     }
     // Incident beam: k_i = −u_i, s = unit(z × k_i) = (0, −1, 0) (also the θi → 0

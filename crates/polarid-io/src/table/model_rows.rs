@@ -155,15 +155,16 @@ pub fn from_table(t: &CsvTable) -> Result<ModelInput> {
         for (slot, &c) in v.iter_mut().zip(idx.iter()) {
             *slot = t.f64(r, c)?;
         }
+        // `CsvTable::f64` has rejected NaN and infinities.
         let (n, k) = (v[0], v[1]);
-        if !(n > 0.0) {
+        if n <= 0.0 {
             return Err(t.err(r, idx[0], "the real index n must be > 0"));
         }
-        if !(k >= 0.0) {
+        if k < 0.0 {
             return Err(t.err(r, idx[1], "the extinction coefficient k must be >= 0"));
         }
         if pbrdf {
-            if !(v[2] > 0.0) {
+            if v[2] <= 0.0 {
                 return Err(t.err(r, idx[2], "sigma must be > 0"));
             }
             for j in [3, 4] {
