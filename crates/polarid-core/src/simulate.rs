@@ -1,0 +1,292 @@
+//! Synthetic polarimetric captures: plates of known optics seen by a noisy sensor.
+//!
+//! Radiometry (per capture, collimated unpolarized source of normal irradiance `E0`):
+//! the radiance Stokes vector leaving a plate towards the camera is
+//!
+//! ```text
+//! L = E0 cos θi · ( f00 + ρd/π ,  f10 ,  f20 )
+//! ```
+//!
+//! with `f` the Priest–Meier pBRDF (paper eq. 3) in the camera beam's global s/p frame and
+//! `ρd` the albedo of an optional Lambertian, fully depolarizing diffuse component.
+//! The camera's image +x axis is the camera beam's `s = unit(z × k)` and image up (−y)
+//! is `p = k × s`, so with the polarizer-angle convention of `CONVENTIONS.md` the image
+//! Stokes vector equals the s/p one (`S1 = I_s − I_p`). In the paper's geometry
+//! (`φ = 180°`) `f20 = 0` and the light is s-polarized: `AoLP = 0°`.
+//!
+//! Sensor: expected photo-electrons `e = exposure · gain_scale · I(a)` with
+//! `I(a) = (S0 + S1 cos 2a + S2 sin 2a)/2`; Poisson shot noise, Gaussian read noise,
+//! conversion to DN with the gain that maps the full well onto the ADC range above the
+//! dark level, rounding, and clipping to `[0, 2^bits − 1]` (saturation).
+
+use rand::SeedableRng;
+use rand::rngs::Xoshiro256PlusPlus;
+use rand_distr::{Distribution, Normal, Poisson};
+use rayon::prelude::*;
+
+use crate::error::{CoreError, Result, ensure_finite, ensure_range};
+
+/// A linear sensor with shot and read noise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sensor {
+    /// ADC bit depth (1–16).
+    pub bit_depth: u32,
+    /// Full-well capacity, electrons (the charge that reaches the top of the ADC range).
+    pub full_well_e: f64,
+    /// Read noise, electrons rms.
+    pub read_noise_e: f64,
+    /// Dark level (offset), DN.
+    pub dark_level_dn: f64,
+    /// Draw Poisson shot noise (false: noiseless expected values, still quantized).
+    pub shot_noise: bool,
+}
+
+impl Default for Sensor {
+    /// A 12-bit machine-vision sensor: 10 000 e⁻ full well, 3 e⁻ read noise, no offset.
+    fn default() -> Self {
+        Self {
+            bit_depth: 12,
+            full_well_e: 10_000.0,
+            read_noise_e: 3.0,
+            dark_level_dn: 0.0,
+            shot_noise: true,
+        }
+    }
+}
+
+impl Sensor {
+    /// Validate the parameters.
+    pub fn validate(&self) -> Result<()> {
+        if !(1..=16).contains(&self.bit_depth) {
+            return Err(CoreError::OutOfRange {
+                name: "bit_depth",
+                value: self.bit_depth as f64,
+                expected: "1 to 16",
+            });
+        }
+        ensure_range("full_well_e", self.full_well_e, 1.0, 1e9, "1 to 1e9 electrons")?;
+        ensure_range("read_noise_e", self.read_noise_e, 0.0, 1e6, ">= 0 electrons")?;
+        ensure_range(
+            "dark_level_dn",
+            self.dark_level_dn,
+            0.0,
+            self.max_dn() - 1.0,
+            "0 <= dark level < the ADC maximum",
+        )?;
+        Ok(())
+    }
+
+    /// Largest raw value, `2^bits − 1` (the saturation level).
+    #[inline]
+    pub fn max_dn(&self) -> f64 {
+        ((1u32 << self.bit_depth) - 1) as f64
+    }
+
+    /// Electrons per DN.
+    #[inline]
+    pub fn gain_e_per_dn(&self) -> f64 {
+        self.full_well_e / (self.max_dn() - self.dark_level_dn)
+    }
+
+    /// One raw sample for `electrons` expected photo-electrons.
+    #[inline]
+    pub fn sample(&self, electrons: f64, rng: &mut Xoshiro256PlusPlus) -> u16 {
+        let e = electrons.max(0.0);
+        let mut q = if self.shot_noise && e > 0.0 {
+            match Poisson::new(e) {
+                Ok(p) => p.sample(rng),
+                Err(_) => e,
+            }
+        } else {
+            e
+        };
+        if self.read_noise_e > 0.0
+            && let Ok(nd) = Normal::new(0.0, self.read_noise_e)
+        {
+            q += nd.sample(rng);
+        }
+        let dn = (self.dark_level_dn + q / self.gain_e_per_dn()).round();
+        dn.clamp(0.0, self.max_dn()) as u16
+    }
+}
+
+/// Optics of a plate: complex index, roughness, and diffuse albedo.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlateOptics {
+    /// Real part of the index.
+    pub n: f64,
+    /// Imaginary part of the index (≥ 0).
+    pub k: f64,
+    /// Priest–Meier slope parameter σ (per-axis slope standard deviation), > 0.
+    pub sigma: f64,
+    /// Albedo of the Lambertian depolarized component (0 for the paper's pure specular
+    /// model).
+    pub rho_d: f64,
+}
+
+impl PlateOptics {
+    /// Validate the parameters.
+    pub fn validate(&self) -> Result<()> {
+        ensure_range("n", self.n, 1e-6, 100.0, "0 < n <= 100")?;
+        ensure_range("k", self.k, 0.0, 100.0, "0 <= k <= 100")?;
+        ensure_range("sigma", self.sigma, 1e-6, 10.0, "0 < sigma <= 10")?;
+        ensure_range("rho_d", self.rho_d, 0.0, 1.0, "0 <= rho_d <= 1")?;
+        Ok(())
+    }
+}
+
+/// Radiance Stokes vector `(S0, S1, S2)` in the camera's image frame, per unit normal
+/// irradiance, of a plate lit from zenith `theta_i` and seen from zenith `theta_r` with
+/// azimuth difference `phi` (radians): `cos θi · (f00 + ρd/π, f10, f20)`, `f` from
+/// paper eq. (3) in the global s/p frame.
+pub fn plate_radiance(optics: &PlateOptics, theta_i: f64, theta_r: f64, phi: f64) -> Result<[f64; 3]> {
+    optics.validate()?;
+    let f = crate::pbrdf::pbrdf(optics.n, optics.k, optics.sigma, theta_i, theta_r, phi)?;
+    let g = f.global;
+    let ci = theta_i.cos();
+    Ok([
+        ci * (g[0][0] + optics.rho_d / std::f64::consts::PI),
+        ci * g[1][0],
+        ci * g[2][0],
+    ])
+}
+
+/// A rectangle of the frame with uniform radiance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct UniformRect {
+    /// Column of the top-left corner.
+    pub x: usize,
+    /// Row of the top-left corner.
+    pub y: usize,
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// Radiance Stokes vector `(S0, S1, S2)` (arbitrary linear units).
+    pub stokes: [f64; 3],
+}
+
+/// Intensity behind a linear polarizer at angle `a` (radians): `(S0 + S1 cos 2a + S2 sin 2a)/2`.
+#[inline]
+pub fn polarizer_intensity(s: &[f64; 3], a: f64) -> f64 {
+    let (s2a, c2a) = (2.0 * a).sin_cos();
+    0.5 * (s[0] + s[1] * c2a + s[2] * s2a)
+}
+
+/// Which polarizer angle (radians) each pixel of a frame sees.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Analyzer {
+    /// A rotating polarizer: the same angle everywhere.
+    Uniform(f64),
+    /// A 2×2 division-of-focal-plane mosaic, row by row from the top-left.
+    Mosaic([f64; 4]),
+}
+
+/// Render one raw frame into `out` (`width × height`, row-major): background radiance
+/// `background` (Stokes) outside the rectangles, sensor noise everywhere.
+/// `electrons_per_unit` converts radiance units to expected electrons (exposure ×
+/// optical throughput). Deterministic for a given `seed` (rows use independent streams).
+#[allow(clippy::too_many_arguments)]
+pub fn render_frame(
+    width: usize,
+    height: usize,
+    rects: &[UniformRect],
+    background: [f64; 3],
+    analyzer: Analyzer,
+    sensor: &Sensor,
+    electrons_per_unit: f64,
+    seed: u64,
+    out: &mut [u16],
+) -> Result<()> {
+    sensor.validate()?;
+    ensure_finite("electrons_per_unit", electrons_per_unit)?;
+    if width == 0 || height == 0 {
+        return Err(CoreError::InvalidDimensions {
+            width,
+            height,
+            reason: "empty frame".into(),
+        });
+    }
+    if out.len() != width * height {
+        return Err(CoreError::LengthMismatch {
+            name: "out",
+            expected: width * height,
+            got: out.len(),
+        });
+    }
+    for r in rects {
+        if r.width == 0 || r.height == 0 || r.x + r.width > width || r.y + r.height > height {
+            return Err(CoreError::InvalidRegion {
+                x: r.x,
+                y: r.y,
+                width: r.width,
+                height: r.height,
+                reason: format!("is empty or leaves the {width}x{height} frame"),
+            });
+        }
+    }
+    out.par_chunks_mut(width)
+        .enumerate()
+        .for_each(|(row, line)| {
+            let mut rng = Xoshiro256PlusPlus::seed_from_u64(
+                seed ^ (row as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
+            );
+            for (col, px) in line.iter_mut().enumerate() {
+                let s = rects
+                    .iter()
+                    .rev()
+                    .find(|r| col >= r.x && col < r.x + r.width && row >= r.y && row < r.y + r.height)
+                    .map(|r| r.stokes)
+                    .unwrap_or(background);
+                let a = match analyzer {
+                    Analyzer::Uniform(a) => a,
+                    Analyzer::Mosaic(p) => p[(row % 2) * 2 + (col % 2)],
+                };
+                *px = sensor.sample(electrons_per_unit * polarizer_intensity(&s, a), &mut rng);
+            }
+        });
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn noiseless_sensor_is_linear_and_saturates() {
+        let s = Sensor {
+            shot_noise: false,
+            read_noise_e: 0.0,
+            ..Sensor::default()
+        };
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(1);
+        let g = s.gain_e_per_dn();
+        assert_eq!(s.sample(100.0 * g, &mut rng), 100);
+        assert_eq!(s.sample(1e9, &mut rng), 4095);
+        assert_eq!(s.sample(-5.0, &mut rng), 0);
+    }
+
+    #[test]
+    fn frame_places_rects_and_background() {
+        let s = Sensor {
+            shot_noise: false,
+            read_noise_e: 0.0,
+            ..Sensor::default()
+        };
+        let g = s.gain_e_per_dn();
+        let rect = UniformRect {
+            x: 2,
+            y: 1,
+            width: 3,
+            height: 2,
+            stokes: [2.0, 1.0, 0.0],
+        };
+        let mut out = vec![0u16; 8 * 4];
+        render_frame(8, 4, &[rect], [0.0; 3], Analyzer::Uniform(0.0), &s, 100.0 * g, 7, &mut out).unwrap();
+        // I(0) = (2 + 1)/2 = 1.5 units -> 150 DN
+        assert_eq!(out[1 * 8 + 2], 150);
+        assert_eq!(out[0], 0);
+        let bad = UniformRect { x: 7, ..rect };
+        assert!(render_frame(8, 4, &[bad], [0.0; 3], Analyzer::Uniform(0.0), &s, 1.0, 7, &mut out).is_err());
+    }
+}
