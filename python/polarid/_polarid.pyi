@@ -10,6 +10,8 @@ from typing import overload
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+__all__ = ["__version__", "dolp_model", "dolp_model_grad"]
+
 __version__: str
 
 _F = float | NDArray[np.float64]

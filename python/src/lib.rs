@@ -7,6 +7,8 @@
 //! arguments, broadcasting, zero-copy output). The pure-Python package `polarid`
 //! (`python/polarid/`) re-exports the functions and carries the type stubs.
 
+#![warn(missing_docs)]
+
 use pyo3::prelude::*;
 
 pub mod arrays;

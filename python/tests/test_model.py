@@ -119,6 +119,13 @@ def test_invalid_input_messages(args, message):
         assert str(info.value) == message
 
 
+def test_non_numeric_input_names_the_argument():
+    with pytest.raises(ValueError, match="could not convert string to float"):
+        polarid.dolp_model("glass", 0.0, 45.0)
+    with pytest.raises(TypeError):
+        polarid.dolp_model(1.5 + 0.1j, 0.0, 45.0)
+
+
 def test_grad_matches_value_and_finite_differences():
     rng = np.random.default_rng(7)
     n = rng.uniform(0.3, 3.0, 500)
