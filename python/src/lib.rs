@@ -1,1 +1,25 @@
-pub fn _placeholder() {}
+//! Python bindings of polarid (the extension module `polarid._polarid`).
+//!
+//! Layout: one Rust module per topic, each with a `register(m)` function that adds its
+//! `#[pyfunction]`s to the extension module (`model.rs`: the eq. (9) forward model;
+//! `stokes.rs`, `fit.rs`, `classify.rs` ... to come). Shared pieces: `errors.rs` (the
+//! one mapping of `CoreError`/`IoError` to Python exceptions) and `arrays.rs` (array-like
+//! arguments, broadcasting, zero-copy output). The pure-Python package `polarid`
+//! (`python/polarid/`) re-exports the functions and carries the type stubs.
+
+#![warn(missing_docs)]
+
+use pyo3::prelude::*;
+
+pub mod arrays;
+pub mod errors;
+pub mod model;
+
+/// Recover the complex refractive index of shiny surfaces from passive polarization
+/// images, and classify the material (Rust extension module of `polarid`).
+#[pymodule]
+fn _polarid(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    model::register(m)?;
+    Ok(())
+}

@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# Python tests of polarid: build and install the package from this repository into the
+# virtualenv .venv-test (created on first use, reused afterwards), with pytest and the
+# pinned baseline environment of ../shared/bench/requirements.txt (numpy, scipy,
+# polanalyser, OpenCV, matplotlib: the comparison tests use them), then run
+# `pytest python/tests -q`.
+#
+# Needs only Rust (cargo) and Python >= 3.11 with pip. Environment:
+#   PYTHON          interpreter that creates the venv (default: python3)
+#   POLARID_SHARED  the shared reference folder (default: ../shared next to the repo)
+#   POLARID_VENV    the virtualenv (default: .venv-test at the repository root)
+# Extra arguments are passed to pytest.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+root=$(pwd)
+venv=${POLARID_VENV:-$root/.venv-test}
+shared=${POLARID_SHARED:-$root/../shared}
+python=${PYTHON:-python3}
+
+if [[ ! -x "$venv/bin/python" ]] || ! "$venv/bin/python" -c 'import sys' 2>/dev/null; then
+    "$python" -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else 1)' || {
+        echo "error: $python is $("$python" --version 2>&1); polarid needs Python >= 3.11 (set PYTHON=...)" >&2
+        exit 1
+    }
+    echo "== creating virtualenv $venv"
+    "$python" -m venv "$venv"
+fi
+pip=("$venv/bin/python" -m pip --disable-pip-version-check)
+
+echo "== installing test requirements"
+reqs=(pytest numpy)
+if [[ -f "$shared/bench/requirements.txt" ]]; then
+    reqs+=(-r "$shared/bench/requirements.txt")
+else
+    echo "warning: $shared/bench/requirements.txt not found: the tests that compare with polanalyser will fail or skip" >&2
+fi
+"${pip[@]}" install -q "${reqs[@]}"
+
+echo "== building and installing polarid (maturin, release, --locked)"
+# --force-reinstall: the version number does not change between builds.
+"${pip[@]}" install -q --force-reinstall --no-deps ./python
+
+echo "== pytest python/tests"
+export POLARID_SHARED="$shared"
+exec "$venv/bin/python" -m pytest python/tests -q "$@"
