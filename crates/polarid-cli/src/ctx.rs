@@ -77,8 +77,11 @@ impl Ctx {
                 let mut buf: Vec<u8> = Vec::new();
                 write(&mut buf)?;
                 let mut out = std::io::stdout().lock();
-                out.write_all(&buf)?;
-                out.flush()?;
+                match out.write_all(&buf).and_then(|()| out.flush()) {
+                    // A closed pipe (`polarid ... | head`) is not a failure.
+                    Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {}
+                    r => r?,
+                }
             }
         }
         Ok(())

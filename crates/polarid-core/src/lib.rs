@@ -22,6 +22,7 @@ pub mod geometry;
 pub mod mosaic;
 pub mod pbrdf;
 pub mod region;
+pub mod simulate;
 pub mod stokes;
 
 pub use error::{CoreError, Result};

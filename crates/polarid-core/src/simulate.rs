@@ -64,8 +64,20 @@ impl Sensor {
                 expected: "1 to 16",
             });
         }
-        ensure_range("full_well_e", self.full_well_e, 1.0, 1e9, "1 to 1e9 electrons")?;
-        ensure_range("read_noise_e", self.read_noise_e, 0.0, 1e6, ">= 0 electrons")?;
+        ensure_range(
+            "full_well_e",
+            self.full_well_e,
+            1.0,
+            1e9,
+            "1 to 1e9 electrons",
+        )?;
+        ensure_range(
+            "read_noise_e",
+            self.read_noise_e,
+            0.0,
+            1e6,
+            ">= 0 electrons",
+        )?;
         ensure_range(
             "dark_level_dn",
             self.dark_level_dn,
@@ -139,7 +151,12 @@ impl PlateOptics {
 /// irradiance, of a plate lit from zenith `theta_i` and seen from zenith `theta_r` with
 /// azimuth difference `phi` (radians): `cos θi · (f00 + ρd/π, f10, f20)`, `f` from
 /// paper eq. (3) in the global s/p frame.
-pub fn plate_radiance(optics: &PlateOptics, theta_i: f64, theta_r: f64, phi: f64) -> Result<[f64; 3]> {
+pub fn plate_radiance(
+    optics: &PlateOptics,
+    theta_i: f64,
+    theta_r: f64,
+    phi: f64,
+) -> Result<[f64; 3]> {
     optics.validate()?;
     let f = crate::pbrdf::pbrdf(optics.n, optics.k, optics.sigma, theta_i, theta_r, phi)?;
     let g = f.global;
@@ -235,7 +252,9 @@ pub fn render_frame(
                 let s = rects
                     .iter()
                     .rev()
-                    .find(|r| col >= r.x && col < r.x + r.width && row >= r.y && row < r.y + r.height)
+                    .find(|r| {
+                        col >= r.x && col < r.x + r.width && row >= r.y && row < r.y + r.height
+                    })
                     .map(|r| r.stokes)
                     .unwrap_or(background);
                 let a = match analyzer {
@@ -282,11 +301,35 @@ mod tests {
             stokes: [2.0, 1.0, 0.0],
         };
         let mut out = vec![0u16; 8 * 4];
-        render_frame(8, 4, &[rect], [0.0; 3], Analyzer::Uniform(0.0), &s, 100.0 * g, 7, &mut out).unwrap();
+        render_frame(
+            8,
+            4,
+            &[rect],
+            [0.0; 3],
+            Analyzer::Uniform(0.0),
+            &s,
+            100.0 * g,
+            7,
+            &mut out,
+        )
+        .unwrap();
         // I(0) = (2 + 1)/2 = 1.5 units -> 150 DN
         assert_eq!(out[1 * 8 + 2], 150);
         assert_eq!(out[0], 0);
         let bad = UniformRect { x: 7, ..rect };
-        assert!(render_frame(8, 4, &[bad], [0.0; 3], Analyzer::Uniform(0.0), &s, 1.0, 7, &mut out).is_err());
+        assert!(
+            render_frame(
+                8,
+                4,
+                &[bad],
+                [0.0; 3],
+                Analyzer::Uniform(0.0),
+                &s,
+                1.0,
+                7,
+                &mut out
+            )
+            .is_err()
+        );
     }
 }

@@ -17,6 +17,18 @@ fn parent_dir(path: &Path) -> PathBuf {
     }
 }
 
+/// Give a temporary output file the usual mode of a new file (`0644`, not the `0600`
+/// of temporary files), so that outputs are readable like any other file.
+fn set_default_mode(path: &Path) {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let _ = fs::set_permissions(path, fs::Permissions::from_mode(0o644));
+    }
+    #[cfg(not(unix))]
+    let _ = path;
+}
+
 /// True when `a` and `b` name the same existing file.
 fn same_file(a: &Path, b: &Path) -> bool {
     match (fs::canonicalize(a), fs::canonicalize(b)) {
@@ -53,6 +65,7 @@ where
         .prefix(".polarid-tmp-")
         .tempfile_in(&dir)
         .map_err(|e| IoError::io(&dir, e))?;
+    set_default_mode(tmp.path());
     {
         let mut w = BufWriter::new(tmp.as_file());
         write(&mut w)?;

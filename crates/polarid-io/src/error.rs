@@ -16,8 +16,8 @@ pub enum IoError {
     Io {
         /// The file.
         path: PathBuf,
-        /// The underlying error.
-        #[source]
+        /// The underlying error (shown in this error's message, so not chained as a
+        /// source: `{:#}` would print it twice).
         source: std::io::Error,
     },
     /// An image file that cannot be used (format, colour, pages, size, corruption).
@@ -89,8 +89,7 @@ pub enum IoError {
     Core {
         /// The file whose data caused it.
         path: PathBuf,
-        /// The core error.
-        #[source]
+        /// The core error (shown in this error's message).
         source: CoreError,
     },
 }
