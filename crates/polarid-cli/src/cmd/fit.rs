@@ -8,7 +8,7 @@
 //! otherwise it is unweighted and the standard errors are scaled by the residual.
 
 use std::collections::HashMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use polarid_core::fit::{FitBounds, FitOptions, FitPlan};
@@ -75,21 +75,19 @@ struct Group<'a> {
     rows: Vec<(u64, &'a Measurement)>,
 }
 
-/// Run `polarid fit`.
-pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
-    if args.reflectance == Reflectance::Mixed {
-        return Err(BadInput(
-            "--reflectance mixed is not available yet (use --reflectance specular)".into(),
-        )
-        .into());
-    }
-    let path = &args.measurements;
-    let table = CsvTable::read(path)?;
-    let rows = measurements::from_table(&table)?;
+/// Fit every target of a set of measurements (each with the line it came from in
+/// `path`, for messages): rows grouped by target in first-appearance order, one
+/// [`FitPlan`] per distinct β set. Errors (exit status 2) name the file, target and lines.
+pub fn fit_measurements(
+    path: &Path,
+    rows: &[(u64, Measurement)],
+    opts: FitOptions,
+    ctx: &Ctx,
+) -> anyhow::Result<Vec<FitRow>> {
     // Group by target, first-appearance order.
     let mut groups: Vec<Group> = Vec::new();
     let mut index: HashMap<&str, usize> = HashMap::new();
-    for (m, (line, _)) in rows.iter().zip(&table.rows) {
+    for (line, m) in rows {
         let gi = *index.entry(m.target.as_str()).or_insert_with(|| {
             groups.push(Group {
                 target: m.target.as_str(),
@@ -102,15 +100,6 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     if groups.is_empty() {
         return Err(BadInput(format!("{}: no measurements", path.display())).into());
     }
-    let opts = FitOptions {
-        bounds: FitBounds {
-            n_min: args.n_range.0,
-            n_max: args.n_range.1,
-            k_min: args.k_range.0,
-            k_max: args.k_range.1,
-        },
-        ..Default::default()
-    };
     // One plan per distinct β set (targets of one capture set share it).
     let mut plans: HashMap<Vec<u64>, FitPlan> = HashMap::new();
     let pb = ctx.progress(groups.len() as u64, "fitting");
@@ -194,6 +183,32 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         pb.inc(1);
     }
     pb.finish_and_clear();
+    Ok(out)
+}
+
+/// Run `polarid fit`.
+pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
+    if args.reflectance == Reflectance::Mixed {
+        return Err(BadInput(
+            "--reflectance mixed is not available yet (use --reflectance specular)".into(),
+        )
+        .into());
+    }
+    let path = &args.measurements;
+    let table = CsvTable::read(path)?;
+    let rows = measurements::from_table(&table)?;
+    let rows: Vec<(u64, Measurement)> =
+        table.rows.iter().map(|(line, _)| *line).zip(rows).collect();
+    let opts = FitOptions {
+        bounds: FitBounds {
+            n_min: args.n_range.0,
+            n_max: args.n_range.1,
+            k_min: args.k_range.0,
+            k_max: args.k_range.1,
+        },
+        ..Default::default()
+    };
+    let out = fit_measurements(path, &rows, opts, ctx)?;
     let not_ok = out.iter().filter(|r| r.status != "ok").count();
     if not_ok > 0 {
         ctx.info(format!(

@@ -141,6 +141,19 @@ fn measure_capture(m: &Manifest, c: &Capture) -> anyhow::Result<Vec<Measurement>
     Ok(rows)
 }
 
+/// Measure every region of every capture of a loaded manifest (one row per target per
+/// capture, captures in manifest order), with a progress bar over the captures.
+pub fn measure_manifest(m: &Manifest, ctx: &Ctx) -> anyhow::Result<Vec<Measurement>> {
+    let pb = ctx.progress(m.captures.len() as u64, "captures");
+    let mut rows = Vec::with_capacity(m.captures.len() * m.regions.len());
+    for c in &m.captures {
+        rows.extend(measure_capture(m, c)?);
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    Ok(rows)
+}
+
 /// Run `polarid measure`.
 pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     let m = manifest::load(&args.manifest)?;
@@ -156,13 +169,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     if let Some(out) = &args.output {
         polarid_io::atomic::check_output(out, ctx.force, &inputs)?;
     }
-    let pb = ctx.progress(m.captures.len() as u64, "captures");
-    let mut rows = Vec::with_capacity(m.captures.len() * m.regions.len());
-    for c in &m.captures {
-        rows.extend(measure_capture(&m, c)?);
-        pb.inc(1);
-    }
-    pb.finish_and_clear();
+    let rows = measure_manifest(&m, ctx)?;
     let label = args
         .output
         .clone()
