@@ -112,3 +112,20 @@ pub fn exit_status(e: &anyhow::Error) -> u8 {
     }
     1
 }
+
+/// The error and its causes, joined by `: `, leaving out a cause whose text the message
+/// already contains (library errors repeat their source in their own message).
+pub fn error_message(e: &anyhow::Error) -> String {
+    let mut msg = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if msg.contains(&text) {
+            continue;
+        }
+        if !msg.is_empty() {
+            msg.push_str(": ");
+        }
+        msg.push_str(&text);
+    }
+    msg
+}

@@ -78,7 +78,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("polarid: error: {e:#}");
+            eprintln!("polarid: error: {}", ctx::error_message(&e));
             ExitCode::from(ctx::exit_status(&e))
         }
     }
