@@ -421,11 +421,7 @@ impl Ctx<'_> {
                 };
                 let (a, b, s) = (get("start")?, get("stop")?, get("step")?);
                 if !(s > 0.0) || b < a {
-                    return Err(self.err(
-                        &span,
-                        field,
-                        "need step > 0 and stop >= start",
-                    ));
+                    return Err(self.err(&span, field, "need step > 0 and stop >= start"));
                 }
                 let n = ((b - a) / s + 1e-9).floor() as usize + 1;
                 if n > 10_000 {
@@ -615,12 +611,9 @@ impl Ctx<'_> {
                     ));
                 }
                 let fraction = match &r.fraction {
-                    Some(v) => self.num_in(
-                        v,
-                        "exposure.fraction",
-                        |x| x > 0.0 && x <= 1.0,
-                        "in (0, 1]",
-                    )?,
+                    Some(v) => {
+                        self.num_in(v, "exposure.fraction", |x| x > 0.0 && x <= 1.0, "in (0, 1]")?
+                    }
                     None => 0.7,
                 };
                 Ok(Exposure::Auto { fraction })
@@ -695,11 +688,9 @@ impl Ctx<'_> {
                 };
                 Ok(CaptureKind::Dofp { pattern })
             }
-            Some((_, span)) => Err(self.err(
-                &span,
-                "capture.kind",
-                "must be \"frames\" or \"dofp\"",
-            )),
+            Some((_, span)) => {
+                Err(self.err(&span, "capture.kind", "must be \"frames\" or \"dofp\""))
+            }
         }
     }
 
@@ -751,7 +742,9 @@ impl Ctx<'_> {
                 "in [0.001, 10] (slope standard deviation)",
             )?;
             let rho_d = match &p.rho_d {
-                Some(v) => self.num_in(v, &f("rho_d"), |x| (0.0..=1.0).contains(&x), "in [0, 1]")?,
+                Some(v) => {
+                    self.num_in(v, &f("rho_d"), |x| (0.0..=1.0).contains(&x), "in [0, 1]")?
+                }
                 None => 0.0,
             };
             let rect_v = p

@@ -77,7 +77,8 @@ pub struct Simulated {
     pub captures: usize,
     /// Number of image files.
     pub frames: usize,
-    /// The noise-free values, per capture then per plate.
+    /// The noise-free values, per capture then per plate (also in `truth.csv`).
+    #[allow(dead_code)]
     pub truth: Vec<TruthRow>,
     /// Warnings (dim or saturated plates).
     pub warnings: Vec<String>,
