@@ -454,7 +454,7 @@ mod tests {
         )
         .unwrap();
         // I(0) = (2 + 1)/2 = 1.5 units -> 150 DN
-        assert_eq!(out[1 * 8 + 2], 150);
+        assert_eq!(out[8 + 2], 150);
         assert_eq!(out[0], 0);
         let bad = UniformRect { x: 7, ..rect };
         assert!(

@@ -420,7 +420,7 @@ impl Ctx<'_> {
                     })
                 };
                 let (a, b, s) = (get("start")?, get("stop")?, get("step")?);
-                if !(s > 0.0) || b < a {
+                if s.is_nan() || s <= 0.0 || b < a {
                     return Err(self.err(&span, field, "need step > 0 and stop >= start"));
                 }
                 let n = ((b - a) / s + 1e-9).floor() as usize + 1;
@@ -738,7 +738,7 @@ impl Ctx<'_> {
             let sigma = self.num_in(
                 &req(&p.sigma, "sigma", "roughness `sigma`")?,
                 &f("sigma"),
-                |x| x >= 1e-3 && x <= 10.0,
+                |x| (1e-3..=10.0).contains(&x),
                 "in [0.001, 10] (slope standard deviation)",
             )?;
             let rho_d = match &p.rho_d {
