@@ -122,6 +122,99 @@ impl Sensor {
     }
 }
 
+impl Sensor {
+    /// Raw DN above the dark level per unit of radiance behind the polarizer at relative
+    /// exposure 1: `2^bits − 1 − dark`. At exposure `x`, a radiance `I` behind the
+    /// polarizer gives `x · I · full_well` expected electrons, i.e.
+    /// `x · I · dn_per_unit()` DN above the dark level, so `S0 (DN) / x` is the radiance
+    /// in these units whatever the exposure (the manifest's `exposure` convention).
+    #[inline]
+    pub fn dn_per_unit(&self) -> f64 {
+        self.max_dn() - self.dark_level_dn
+    }
+
+    /// Expected electrons per unit radiance behind the polarizer at relative exposure
+    /// `exposure` (`exposure · full_well`), the `electrons_per_unit` of [`render_frame`].
+    #[inline]
+    pub fn electrons_per_unit(&self, exposure: f64) -> f64 {
+        exposure * self.full_well_e
+    }
+}
+
+/// How the exposure of a capture is chosen.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Exposure {
+    /// A fixed relative exposure (time × gain): a radiance `I` behind the polarizer gives
+    /// `exposure · I · full_well` electrons.
+    Fixed(f64),
+    /// Per capture, the exposure that brings the brightest plate pixel (noise-free,
+    /// brightest polarizer angle) to `fraction` of the full scale above the dark level.
+    Auto {
+        /// Fraction of the full scale, in (0, 1].
+        fraction: f64,
+    },
+}
+
+impl Exposure {
+    /// Validate the parameters.
+    pub fn validate(&self) -> Result<()> {
+        match *self {
+            Exposure::Fixed(x) => ensure_range("exposure", x, 1e-12, 1e12, "> 0")?,
+            Exposure::Auto { fraction } => {
+                ensure_range("exposure fraction", fraction, 1e-6, 1.0, "in (0, 1]")?
+            }
+        };
+        Ok(())
+    }
+
+    /// The relative exposure of a capture whose brightest plate pixel has the expected
+    /// radiance `peak` behind the polarizer (see [`peak_intensity`]). An auto exposure of
+    /// a capture with no light (`peak <= 0`) is 1.
+    pub fn resolve(&self, peak: f64) -> Result<f64> {
+        self.validate()?;
+        ensure_finite("peak intensity", peak)?;
+        Ok(match *self {
+            Exposure::Fixed(x) => x,
+            Exposure::Auto { fraction } if peak > 0.0 => fraction / peak,
+            Exposure::Auto { .. } => 1.0,
+        })
+    }
+}
+
+/// The largest noise-free intensity `(S0 + S1 cos 2a + S2 sin 2a)/2` over the Stokes
+/// vectors `stokes` and the polarizer angles `angles` (radians); 0 when either is empty.
+pub fn peak_intensity(stokes: &[[f64; 3]], angles: &[f64]) -> f64 {
+    let mut peak = 0.0f64;
+    for s in stokes {
+        for &a in angles {
+            peak = peak.max(polarizer_intensity(s, a));
+        }
+    }
+    peak
+}
+
+/// DoLP `sqrt(S1² + S2²) / S0` of a Stokes vector (0 when `S0 <= 0`).
+#[inline]
+pub fn stokes_dolp(s: &[f64; 3]) -> f64 {
+    if s[0] > 0.0 {
+        s[1].hypot(s[2]) / s[0]
+    } else {
+        0.0
+    }
+}
+
+/// A well-mixed 64-bit seed for frame `frame` of capture `capture` of a simulation with
+/// seed `seed` (SplitMix64 finaliser), so frames have independent noise streams.
+pub fn frame_seed(seed: u64, capture: u64, frame: u64) -> u64 {
+    let mut z = seed
+        .wrapping_add(capture.wrapping_mul(0x9E37_79B9_7F4A_7C15))
+        .wrapping_add(frame.wrapping_mul(0xD1B5_4A32_D192_ED03))
+        .wrapping_add(0x2545_F491_4F6C_DD1D);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
 /// Optics of a plate: complex index, roughness, and diffuse albedo.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PlateOptics {
@@ -286,6 +379,53 @@ mod tests {
     }
 
     #[test]
+    fn auto_exposure_hits_the_requested_fraction() {
+        let s = Sensor {
+            shot_noise: false,
+            read_noise_e: 0.0,
+            dark_level_dn: 64.0,
+            ..Sensor::default()
+        };
+        let stokes = [[2.0, 1.0, 0.0], [0.5, 0.0, 0.1]];
+        let angles = [0.0, std::f64::consts::FRAC_PI_2];
+        let peak = peak_intensity(&stokes, &angles);
+        assert!((peak - 1.5).abs() < 1e-15);
+        let x = Exposure::Auto { fraction: 0.6 }.resolve(peak).unwrap();
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(1);
+        let dn = s.sample(s.electrons_per_unit(x) * peak, &mut rng);
+        // 64 + 0.6 * (4095 - 64) = 2482.6 -> 2483
+        assert_eq!(dn, 2483);
+        assert_eq!(Exposure::Fixed(0.3).resolve(peak).unwrap(), 0.3);
+        assert!(Exposure::Auto { fraction: 1.5 }.resolve(peak).is_err());
+        assert!(Exposure::Fixed(0.0).resolve(peak).is_err());
+        assert_ne!(frame_seed(1, 0, 0), frame_seed(1, 0, 1));
+        assert_ne!(frame_seed(1, 0, 1), frame_seed(1, 1, 0));
+    }
+
+    #[test]
+    fn specular_plate_dolp_is_eq9() {
+        let o = PlateOptics {
+            n: 1.24,
+            k: 6.6,
+            sigma: 0.2,
+            rho_d: 0.0,
+        };
+        for ti in [35.0f64, 50.0, 80.0] {
+            let l = plate_radiance(
+                &o,
+                ti.to_radians(),
+                60.0f64.to_radians(),
+                std::f64::consts::PI,
+            )
+            .unwrap();
+            let beta = (0.5 * (ti + 60.0)).to_radians();
+            let p = crate::dop::dop(o.n, o.k, beta);
+            assert!((stokes_dolp(&l) - p).abs() < 1e-12, "ti {ti}");
+            assert!(l[0] > 0.0 && l[1] > 0.0, "s-polarized, S1 > 0");
+        }
+    }
+
+    #[test]
     fn frame_places_rects_and_background() {
         let s = Sensor {
             shot_noise: false,
@@ -314,7 +454,7 @@ mod tests {
         )
         .unwrap();
         // I(0) = (2 + 1)/2 = 1.5 units -> 150 DN
-        assert_eq!(out[1 * 8 + 2], 150);
+        assert_eq!(out[8 + 2], 150);
         assert_eq!(out[0], 0);
         let bad = UniformRect { x: 7, ..rect };
         assert!(

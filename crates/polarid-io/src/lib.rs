@@ -11,6 +11,7 @@ pub mod image;
 pub mod library;
 pub mod manifest;
 pub mod model;
+pub mod scene;
 pub mod table;
 
 pub use error::{IoError, Result};

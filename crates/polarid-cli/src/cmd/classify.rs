@@ -215,6 +215,31 @@ pub fn explain(target: &str, d: &Decision, clf: &Classifier, top: usize) -> Stri
     s
 }
 
+/// The classification CSV row of fit `f` classified as `d` by `clf` (without Wolff's
+/// columns).
+pub fn classification_row(f: &FitRow, d: &Decision, clf: &Classifier) -> ClassificationRow {
+    let category = d
+        .nearest
+        .and_then(|nb| clf.prototypes()[nb.index].category.clone());
+    ClassificationRow {
+        target: f.target.clone(),
+        class: f.class.clone(),
+        predicted: d.predicted.clone(),
+        distance: d.nearest.map(|_| d.distance),
+        runner_up: d.runner_up.clone(),
+        runner_up_distance: d.runner_up.as_ref().map(|_| d.runner_up_distance),
+        status: d.status.label(),
+        margin: Some(d.margin),
+        nearest: d.nearest_class.clone(),
+        category,
+        metric: clf.config().metric.name().into(),
+        gate: d.gate,
+        votes: d.nearest.map(|_| d.votes as u64),
+        reason: d.reason.clone(),
+        ..Default::default()
+    }
+}
+
 /// Run `polarid classify`.
 pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     let cfg = args.method.config()?;
@@ -253,26 +278,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     for (line, f) in &fits {
         let d = clf.classify(&estimate_of(f));
         notes.push(explain(&f.target, &d, &clf, args.explain));
-        let category = d
-            .nearest
-            .and_then(|nb| clf.prototypes()[nb.index].category.clone());
-        let mut row = ClassificationRow {
-            target: f.target.clone(),
-            class: f.class.clone(),
-            predicted: d.predicted.clone(),
-            distance: d.nearest.map(|_| d.distance),
-            runner_up: d.runner_up.clone(),
-            runner_up_distance: d.runner_up.as_ref().map(|_| d.runner_up_distance),
-            status: d.status.label(),
-            margin: Some(d.margin),
-            nearest: d.nearest_class.clone(),
-            category,
-            metric: cfg.metric.name().into(),
-            gate: d.gate,
-            votes: d.nearest.map(|_| d.votes as u64),
-            reason: d.reason.clone(),
-            ..Default::default()
-        };
+        let mut row = classification_row(f, &d, &clf);
         if args.wolff.is_some() {
             let obs = wolff.get(&f.target).map(Vec::as_slice).unwrap_or(&[]);
             let w = wolff_classify(obs, &wcfg).map_err(|e| {
