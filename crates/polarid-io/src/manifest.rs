@@ -497,7 +497,11 @@ impl<'a> Parser<'a> {
 
     fn line_start(&self, pos: usize) -> usize {
         let end = pos.min(self.text.len());
-        self.text[..end].rfind('\n').map_or(0, |i| i + 1)
+        // Bytes, not `str` slicing: a span need not fall on a character boundary.
+        self.text.as_bytes()[..end] // ok: end <= len
+            .iter()
+            .rposition(|&b| b == b'\n')
+            .map_or(0, |i| i + 1)
     }
 
     fn capture(
@@ -608,6 +612,7 @@ impl<'a> Parser<'a> {
             ));
         }
         let source = match kinds[0] {
+            // ok: kinds.len() == 1 was checked above
             "frames" => {
                 let fv = self
                     .get(t, "frames")
