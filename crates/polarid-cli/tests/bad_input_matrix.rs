@@ -683,6 +683,21 @@ fn duplicate_region_names() {
     );
 }
 
+#[test]
+fn region_name_with_a_newline() {
+    let c = Case::new();
+    four_frames(&c, 8, 8);
+    let m = c.write(
+        "m.toml",
+        &manifest("name = \"A\\nB\"\nrect = [1, 1, 2, 2]", FRAMES),
+    );
+    bad(
+        &c,
+        &["measure", &m, "-o", "m.csv"],
+        &["line 4", "region[1].name", "control character"],
+    );
+}
+
 // ---------------------------------------------------------------------------------------
 // Angles: NaN, Inf, negative, >= 90
 

@@ -200,7 +200,7 @@ fn read_png(path: &Path, bytes: &[u8], max_pixels: u64) -> Result<Frame> {
         SampleKind::U8 => buf.iter().map(|&v| v as f32).collect(),
         _ => buf
             .chunks_exact(2)
-            .map(|c| u16::from_be_bytes([c[0], c[1]]) as f32)
+            .map(|c| u16::from_be_bytes([c[0], c[1]]) as f32) // ok: chunks of exactly 2
             .collect(),
     };
     if data.len() != w * h || w == 0 || h == 0 {
