@@ -3,12 +3,12 @@
 #
 #   scripts/fuzz.sh [SECONDS] [TARGET...]     (default: 60 s each, every target)
 #
-# Works with the stable toolchain: cargo-fuzz needs nightly only for sanitizers, so the
-# targets are built with `--sanitizer none` (libFuzzer's coverage instrumentation,
-# `-Cpasses=sancov-module`, is stable) and RUSTC_BOOTSTRAP=1 lets cargo-fuzz pass its
-# remaining `-Z` flags. Rust's own checks (bounds, overflow via debug assertions,
-# `-Cdebug-assertions` is on) stand in for AddressSanitizer. Install cargo-fuzz with
-# `cargo install cargo-fuzz`.
+# Works with the stable toolchain (no nightly on this machine): cargo-fuzz needs nightly
+# only for sanitizers (`-Zsanitizer`), so the targets are built with `--sanitizer none`;
+# libFuzzer's coverage instrumentation (`-Cpasses=sancov-module`, `-Cllvm-args=...`) is
+# stable. polarid's readers are safe Rust, so bounds and overflow checks
+# (`--debug-assertions`) stand in for AddressSanitizer. Install cargo-fuzz with
+# `cargo install cargo-fuzz`. See fuzz/README.md.
 #
 # Targets run one after the other in one process each (the machine has 2 cores); set
 # FUZZ_PARALLEL=2 to run two at a time. Each run starts from fuzz/seeds/TARGET and keeps
@@ -24,7 +24,6 @@ if [ ${#targets[@]} -eq 0 ]; then
     targets=(manifest csv_tables image_frame dofp)
 fi
 command -v cargo-fuzz >/dev/null || { echo "fuzz.sh: cargo-fuzz not installed (cargo install cargo-fuzz)" >&2; exit 1; }
-export RUSTC_BOOTSTRAP=1
 flags=(--sanitizer none -O --debug-assertions)
 cargo fuzz build "${flags[@]}"
 mkdir -p logs
@@ -37,7 +36,7 @@ dict_for() {
 }
 run_one() {
     local t=$1
-    mkdir -p "corpus/$t" "artifacts/$t"
+    mkdir -p "corpus/$t" "artifacts/$t" "seeds/$t"
     # -rss_limit_mb and -timeout turn out-of-memory and hangs into findings.
     # shellcheck disable=SC2046
     cargo fuzz run "${flags[@]}" "$t" "corpus/$t" "seeds/$t" -- \
