@@ -93,8 +93,19 @@ pub struct StagedDir {
 }
 
 impl StagedDir {
-    /// Prepare to write into `dest`.
+    /// Prepare to write into `dest`, which must be a directory or not exist yet (an
+    /// existing file of that name is an error, even with `force`: it is not replaced by
+    /// a directory).
     pub fn new(dest: &Path, force: bool) -> Result<Self> {
+        if dest.exists() && !dest.is_dir() {
+            return Err(IoError::io(
+                dest,
+                std::io::Error::new(
+                    std::io::ErrorKind::InvalidInput,
+                    "exists and is not a directory (the output must be a directory)",
+                ),
+            ));
+        }
         let parent = parent_dir(dest);
         fs::create_dir_all(&parent).map_err(|e| IoError::io(&parent, e))?;
         let tmp = tempfile::Builder::new()
@@ -124,16 +135,24 @@ impl StagedDir {
     }
 
     /// Move every staged file into the destination. Fails before moving anything if a
-    /// destination file exists and `force` was not given.
+    /// destination file exists and `force` was not given, or if a destination is a
+    /// directory (which a file cannot replace).
     pub fn commit(self) -> Result<Vec<PathBuf>> {
         let mut files = Vec::new();
         collect_files(self.tmp.path(), Path::new(""), &mut files)?;
-        if !self.force {
-            for rel in &files {
-                let d = self.dest.join(rel);
-                if d.exists() {
-                    return Err(IoError::OutputExists { path: d });
-                }
+        for rel in &files {
+            let d = self.dest.join(rel);
+            if d.is_dir() {
+                return Err(IoError::io(
+                    &d,
+                    std::io::Error::new(
+                        std::io::ErrorKind::InvalidInput,
+                        "is a directory; cannot write an output file there",
+                    ),
+                ));
+            }
+            if !self.force && d.exists() {
+                return Err(IoError::OutputExists { path: d });
             }
         }
         let mut out = Vec::with_capacity(files.len());

@@ -88,17 +88,35 @@ fn image_err(path: &Path, reason: impl Into<String>) -> IoError {
     }
 }
 
+/// Largest frame the readers accept, in pixels (2^28, e.g. 16384 x 16384): a decoded
+/// frame of this size holds 1 GiB of `f32`. A header announcing more is refused before
+/// anything is allocated, so a corrupt or hostile file cannot exhaust memory.
+pub const MAX_PIXELS: u64 = 1 << 28;
+
 /// Read a grayscale PNG or TIFF frame.
 pub fn read_frame(path: &Path) -> Result<Frame> {
     let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    decode_frame(path, &bytes)
+}
+
+/// Decode a grayscale PNG or TIFF frame held in memory; `path` labels errors and is
+/// recorded in the frame. Same rules as [`read_frame`], with the size limit
+/// [`MAX_PIXELS`].
+pub fn decode_frame(path: &Path, bytes: &[u8]) -> Result<Frame> {
+    decode_frame_limited(path, bytes, MAX_PIXELS)
+}
+
+/// [`decode_frame`] with a caller-chosen limit on the number of pixels (fuzzing uses a
+/// small one to keep each run fast).
+pub fn decode_frame_limited(path: &Path, bytes: &[u8], max_pixels: u64) -> Result<Frame> {
     if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
-        read_png(path, &bytes)
+        read_png(path, bytes, max_pixels)
     } else if bytes.starts_with(b"II*\0")
         || bytes.starts_with(b"MM\0*")
         || bytes.starts_with(b"II+\0")
         || bytes.starts_with(b"MM\0+")
     {
-        read_tiff(path, &bytes)
+        read_tiff(path, bytes, max_pixels)
     } else if bytes.is_empty() {
         Err(image_err(path, "is empty (expected a PNG or TIFF image)"))
     } else {
@@ -106,11 +124,35 @@ pub fn read_frame(path: &Path) -> Result<Frame> {
     }
 }
 
-fn read_png(path: &Path, bytes: &[u8]) -> Result<Frame> {
+/// Error unless a `w x h` frame is within `max_pixels` and not empty.
+fn check_dims(path: &Path, w: u32, h: u32, max_pixels: u64) -> Result<()> {
+    if w == 0 || h == 0 {
+        return Err(image_err(path, format!("has no pixels ({w}x{h})")));
+    }
+    let n = u64::from(w) * u64::from(h);
+    if n > max_pixels {
+        return Err(image_err(
+            path,
+            format!(
+                "is {w}x{h} = {n} pixels, more than the {max_pixels} a frame may have \
+                 (corrupt header?)"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+fn read_png(path: &Path, bytes: &[u8], max_pixels: u64) -> Result<Frame> {
     let corrupt = |e: png::DecodingError| image_err(path, format!("truncated or corrupt PNG: {e}"));
-    let dec = png::Decoder::new(Cursor::new(bytes));
+    let mut dec = png::Decoder::new(Cursor::new(bytes));
+    // The decoder's own limit (64 MiB by default) would refuse large 16-bit frames
+    // with a confusing message; the size is checked against `max_pixels` instead.
+    dec.set_limits(png::Limits {
+        bytes: usize::try_from(max_pixels.saturating_mul(2)).unwrap_or(usize::MAX),
+    });
     let mut reader = dec.read_info().map_err(corrupt)?;
     let info = reader.info();
+    check_dims(path, info.width, info.height, max_pixels)?;
     let (w, h) = (info.width as usize, info.height as usize);
     let depth = info.bit_depth;
     match info.color_type {
@@ -152,12 +194,13 @@ fn read_png(path: &Path, bytes: &[u8]) -> Result<Frame> {
         .ok_or_else(|| image_err(path, "is too large to decode"))?;
     let mut buf = vec![0u8; size];
     let out = reader.next_frame(&mut buf).map_err(corrupt)?;
-    let buf = &buf[..out.buffer_size()];
+    // ok: the decoder never reports more than the buffer it was given.
+    let buf = buf.get(..out.buffer_size()).unwrap_or(&buf);
     let data: Vec<f32> = match kind {
         SampleKind::U8 => buf.iter().map(|&v| v as f32).collect(),
         _ => buf
             .chunks_exact(2)
-            .map(|c| u16::from_be_bytes([c[0], c[1]]) as f32)
+            .map(|c| u16::from_be_bytes([c[0], c[1]]) as f32) // ok: chunks of exactly 2
             .collect(),
     };
     if data.len() != w * h || w == 0 || h == 0 {
@@ -178,7 +221,7 @@ fn read_png(path: &Path, bytes: &[u8]) -> Result<Frame> {
     })
 }
 
-fn read_tiff(path: &Path, bytes: &[u8]) -> Result<Frame> {
+fn read_tiff(path: &Path, bytes: &[u8], max_pixels: u64) -> Result<Frame> {
     use tiff::decoder::{Decoder, DecodingResult};
     let corrupt = |e: tiff::TiffError| match e {
         tiff::TiffError::UnsupportedError(u) => {
@@ -186,10 +229,18 @@ fn read_tiff(path: &Path, bytes: &[u8]) -> Result<Frame> {
         }
         other => image_err(path, format!("truncated or corrupt TIFF: {other}")),
     };
+    // 8 bytes per pixel covers 64-bit float samples; the frame size itself is checked
+    // against `max_pixels` before decoding.
+    let budget = usize::try_from(max_pixels.saturating_mul(8)).unwrap_or(usize::MAX);
+    let mut limits = tiff::decoder::Limits::default();
+    limits.decoding_buffer_size = budget;
+    limits.intermediate_buffer_size = budget;
+    limits.ifd_value_size = budget.min(64 << 20);
     let mut dec = Decoder::new(Cursor::new(bytes))
         .map_err(corrupt)?
-        .with_limits(tiff::decoder::Limits::unlimited());
+        .with_limits(limits);
     let (w, h) = dec.dimensions().map_err(corrupt)?;
+    check_dims(path, w, h, max_pixels)?;
     let (w, h) = (w as usize, h as usize);
     match dec.colortype().map_err(corrupt)? {
         tiff::ColorType::Gray(8 | 16 | 32 | 64) => {}
@@ -258,18 +309,61 @@ fn read_tiff(path: &Path, bytes: &[u8]) -> Result<Frame> {
     })
 }
 
-/// Read several frames of one capture and check that they have the same size (the
-/// error names the first file that differs from the first frame).
+/// Read several frames of one capture and check that they have the same size and sample
+/// type (the error names the first file that differs from the first frame, and both
+/// sizes or types).
 pub fn read_frames<P: AsRef<Path>>(paths: &[P]) -> Result<Vec<Frame>> {
     let mut out: Vec<Frame> = Vec::with_capacity(paths.len());
     for p in paths {
         let f = read_frame(p.as_ref())?;
         if let Some(first) = out.first() {
             check_same_size(first, &f)?;
+            check_same_kind(first, &f)?;
         }
         out.push(f);
     }
     Ok(out)
+}
+
+fn kind_name(k: SampleKind) -> &'static str {
+    match k {
+        SampleKind::U8 => "8-bit integer",
+        SampleKind::U16 => "16-bit integer",
+        SampleKind::F32 => "floating-point",
+    }
+}
+
+/// Error unless `other` has the sample type of `first` (mixing types in one capture
+/// would mix saturation levels and scales).
+pub fn check_same_kind(first: &Frame, other: &Frame) -> Result<()> {
+    if first.kind != other.kind {
+        return Err(image_err(
+            &other.path,
+            format!(
+                "has {} samples but {} has {} samples: the frames of one capture must have \
+                 the same type",
+                kind_name(other.kind),
+                first.path.display(),
+                kind_name(first.kind)
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Error unless `frame` holds floating-point samples (Stokes images, which can be
+/// negative, are float TIFFs).
+pub fn check_float(frame: &Frame, what: &str) -> Result<()> {
+    if frame.kind != SampleKind::F32 {
+        return Err(image_err(
+            &frame.path,
+            format!(
+                "has {} samples; {what} must be a 32-bit float TIFF",
+                kind_name(frame.kind)
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Error unless `other` has the size of `first`.

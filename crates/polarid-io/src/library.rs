@@ -147,7 +147,7 @@ impl Library {
                 n,
                 k,
                 reference: t.opt_text(r, c_ref),
-                line: t.rows[r].0,
+                line: t.rows[r].0, // ok: r < rows.len()
             });
         }
         if materials.is_empty() {
@@ -228,6 +228,7 @@ impl Dispersion {
                 match (j, w.get(j), v.get(j)) {
                     (_, Some(&wj), Some(&vj)) if wj == wl => vj,
                     (j, Some(&wj), Some(&vj)) if j > 0 => {
+                        // ok: 0 < j < len (w.get(j) matched) and v has w's length.
                         let (wi, vi) = (w[j - 1], v[j - 1]);
                         vi + (vj - vi) * (wl - wi) / (wj - wi)
                     }
@@ -426,6 +427,7 @@ impl RiiData {
                             v.len()
                         )));
                     }
+                    // ok: v.len() == width >= 2.
                     rows.push((v[0], v[1], v.get(2).copied().unwrap_or(0.0)));
                 }
                 // A few database files list some rows out of order: sort by wavelength

@@ -393,11 +393,17 @@ impl<'a> Parser<'a> {
                 self.err(&rv.span(), &format!("{pre}name"), "missing region name")
             })?;
             let name = self.string(name_v, &format!("{pre}name"))?;
-            if name.trim().is_empty() || name.contains(',') || name.contains('"') {
+            if name.trim().is_empty()
+                || name.contains(',')
+                || name.contains('"')
+                || name.chars().any(char::is_control)
+                || name.trim() != name
+            {
                 return Err(self.err(
                     &name_v.span(),
                     &format!("{pre}name"),
-                    "region names must be non-empty and contain no comma or quote",
+                    "region names must be non-empty, without leading or trailing spaces, \
+                     and contain no comma, quote or control character",
                 ));
             }
             if !names.insert(name.clone()) {
@@ -428,6 +434,7 @@ impl<'a> Parser<'a> {
                     _ => None,
                 };
                 r[k] = match v {
+                    // ok: k < 4 (items.len() == 4 was checked)
                     Some(v) if v >= 0 => v as usize,
                     _ => return Err(bad_rect()),
                 };
@@ -438,11 +445,11 @@ impl<'a> Parser<'a> {
             let class = match self.get(t, "class") {
                 Some(v) => {
                     let c = self.string(v, &format!("{pre}class"))?;
-                    if c.contains(',') || c.contains('"') {
+                    if c.contains(',') || c.contains('"') || c.chars().any(char::is_control) {
                         return Err(self.err(
                             &v.span(),
                             &format!("{pre}class"),
-                            "class names must contain no comma or quote",
+                            "class names must contain no comma, quote or control character",
                         ));
                     }
                     Some(c).filter(|c| !c.trim().is_empty())
@@ -497,7 +504,11 @@ impl<'a> Parser<'a> {
 
     fn line_start(&self, pos: usize) -> usize {
         let end = pos.min(self.text.len());
-        self.text[..end].rfind('\n').map_or(0, |i| i + 1)
+        // Bytes, not `str` slicing: a span need not fall on a character boundary.
+        self.text.as_bytes()[..end] // ok: end <= len
+            .iter()
+            .rposition(|&b| b == b'\n')
+            .map_or(0, |i| i + 1)
     }
 
     fn capture(
@@ -608,6 +619,7 @@ impl<'a> Parser<'a> {
             ));
         }
         let source = match kinds[0] {
+            // ok: kinds.len() == 1 was checked above
             "frames" => {
                 let fv = self
                     .get(t, "frames")

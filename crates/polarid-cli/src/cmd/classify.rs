@@ -140,6 +140,8 @@ fn load_prototypes(
 /// A one-paragraph explanation of a decision: nearest prototypes and, when categories are
 /// known, the nearest prototype of another category.
 pub fn explain(target: &str, d: &Decision, clf: &Classifier, top: usize) -> String {
+    // ok (indexing `protos` below): every index in a decision is one of `clf`'s
+    // prototypes, produced by `clf.classify`.
     let protos = clf.prototypes();
     let unit = clf.config().metric.name();
     let cat = |i: usize| {
@@ -220,6 +222,7 @@ pub fn explain(target: &str, d: &Decision, clf: &Classifier, top: usize) -> Stri
 pub fn classification_row(f: &FitRow, d: &Decision, clf: &Classifier) -> ClassificationRow {
     let category = d
         .nearest
+        // ok: nb.index is an index into clf.prototypes() (from clf.classify).
         .and_then(|nb| clf.prototypes()[nb.index].category.clone());
     ClassificationRow {
         target: f.target.clone(),

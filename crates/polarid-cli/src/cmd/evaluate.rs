@@ -58,6 +58,7 @@ fn table(ev: &Evaluation, mode: &str) -> String {
         s.push_str(&format!("  {p:>w$}"));
     }
     s.push_str("  total\n");
+    // ok (c.counts[r]): the confusion matrix has one row of counts per true class.
     for (r, t) in c.truth.iter().enumerate() {
         s.push_str(&format!("{t:<w0$}"));
         for (v, w) in c.counts[r].iter().zip(&widths) {
@@ -99,6 +100,7 @@ fn write_csv(
         w,
         path,
         &cols,
+        // ok (c.counts[r]): one row of counts per true class.
         c.truth.iter().enumerate().map(|(r, t)| {
             let mut row = vec![t.clone()];
             row.extend(c.counts[r].iter().map(u64::to_string));

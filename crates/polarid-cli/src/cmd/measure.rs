@@ -8,6 +8,14 @@
 //!
 //! A standard error that comes out as 0 (noiseless data) is written as an empty cell.
 //!
+//! Saturation is reported, not hidden: `rejected` counts every pixel of the region left
+//! out (saturated, dark or invalid — for DoFP, a pixel is rejected when any raw pixel its
+//! bilinear interpolation uses is), and `saturated` the part of `rejected` that is
+//! saturated (a raw value at or above the capture's `saturation`, default the type's
+//! maximum). `pixels + rejected` is the region's area. When more than
+//! [`SATURATED_WARN`] of a region is saturated, a warning on standard error names the
+//! target, the capture and the fraction.
+//!
 //! DoFP captures are demosaiced bilinearly at full resolution (so that `rect` is in raw
 //! pixel coordinates) without rounding, and their standard errors use the bilinear
 //! variance inflation. Stokes captures (float TIFF) are used as they are: `dark_level`
@@ -37,6 +45,9 @@ pub struct Args {
     pub output: Option<PathBuf>,
 }
 
+/// Fraction of a region's pixels above which saturation is warned about (1 %).
+pub const SATURATED_WARN: f64 = 0.01;
+
 /// Stokes images of one capture.
 fn capture_images(c: &Capture) -> anyhow::Result<StokesImages> {
     Ok(match &c.source {
@@ -45,6 +56,7 @@ fn capture_images(c: &Capture) -> anyhow::Result<StokesImages> {
             let solver = StokesSolver::from_degrees(&angles)?;
             let paths: Vec<&Path> = frames.iter().map(|f| f.file.as_path()).collect();
             let imgs = image::read_frames(&paths)?;
+            // ok: the manifest guarantees at least three frames.
             let rules = rules_for(&imgs[0], c.dark_level, c.saturation);
             frames_stokes(&imgs, &solver, &rules)?
         }
@@ -55,6 +67,10 @@ fn capture_images(c: &Capture) -> anyhow::Result<StokesImages> {
         }
         CaptureSource::Stokes { s0, s1, s2 } => {
             let imgs = image::read_frames(&[s0, s1, s2])?;
+            for f in &imgs {
+                image::check_float(f, "a Stokes image")?;
+            }
+            // ok: read_frames returned one frame per path (three).
             let (w, h) = (imgs[0].width, imgs[0].height);
             let mut it = imgs.into_iter().map(|f| f.data);
             let (d0, d1, d2) = match (it.next(), it.next(), it.next()) {
@@ -151,6 +167,24 @@ pub fn measure_manifest(m: &Manifest, ctx: &Ctx) -> anyhow::Result<Vec<Measureme
         pb.inc(1);
     }
     pb.finish_and_clear();
+    for (i, r) in rows.iter().enumerate() {
+        let (Some(sat), Some(px), Some(rej)) = (r.saturated, r.pixels, r.rejected) else {
+            continue;
+        };
+        let area = px + rej;
+        if area > 0 && sat as f64 > SATURATED_WARN * area as f64 {
+            let c = m.regions.len().max(1);
+            let cap = m.captures.get(i / c);
+            ctx.info(format!(
+                "polarid: warning: target {:?}, capture {} (line {}): {sat} of {area} pixels \
+                 ({:.1}%) saturated and left out",
+                r.target,
+                cap.map_or(0, |c| c.index),
+                cap.map_or(0, |c| c.line),
+                100.0 * sat as f64 / area as f64
+            ));
+        }
+    }
     Ok(rows)
 }
 

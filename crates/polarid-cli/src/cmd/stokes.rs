@@ -235,6 +235,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
                 );
             }
             let frames = image::read_frames(&args.frames)?;
+            // ok: one frame per angle, and the solver accepted at least three angles.
             let rules = rules_for(&frames[0], args.dark_level, args.saturation);
             (
                 frames_stokes(&frames, &solver, &rules)?,

@@ -114,6 +114,11 @@ pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[ClassificationRo
 /// Read a classification CSV (needs `target`, `predicted`, `status`; the rest optional).
 pub fn read(path: &Path) -> Result<Vec<ClassificationRow>> {
     let t = CsvTable::read(path)?;
+    from_table(&t)
+}
+
+/// Parse classification rows from an already read table.
+pub fn from_table(t: &CsvTable) -> Result<Vec<ClassificationRow>> {
     let c_target = t.require("target")?;
     let c_pred = t.require("predicted")?;
     let c_status = t.require("status")?;

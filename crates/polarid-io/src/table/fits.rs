@@ -113,6 +113,9 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<FitRow>> {
         };
         let n = num(c_n)?;
         let k = num(c_k)?;
+        if n <= 0.0 {
+            return Err(t.err(r, c_n, "n must be > 0"));
+        }
         if k < 0.0 {
             return Err(t.err(r, c_k, "k must be >= 0"));
         }

@@ -108,16 +108,16 @@ impl CsvTable {
         })
     }
 
-    /// Text of row `row`, column `col`.
+    /// Text of row `row`, column `col` (empty when either is out of range).
     pub fn text(&self, row: usize, col: usize) -> &str {
-        self.rows[row].1.get(col).unwrap_or("")
+        self.rows.get(row).and_then(|r| r.1.get(col)).unwrap_or("")
     }
 
     /// An error about the value of row `row`, column `col`.
     pub fn err(&self, row: usize, col: usize, reason: impl Into<String>) -> IoError {
         IoError::Csv {
             path: self.path.clone(),
-            line: self.rows[row].0,
+            line: self.rows.get(row).map_or(0, |r| r.0),
             column: self.headers.get(col).cloned().unwrap_or_default(),
             value: self.text(row, col).to_string(),
             reason: reason.into(),
@@ -181,20 +181,46 @@ pub fn fmt_opt(x: Option<f64>) -> String {
     x.map(fmt_f64).unwrap_or_default()
 }
 
+/// A `Write` shared by the two CSV writers of [`write_rows`].
+struct Shared<'a, W: Write + ?Sized>(&'a std::cell::RefCell<&'a mut W>);
+
+impl<W: Write + ?Sized> Write for Shared<'_, W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.borrow_mut().write(buf)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.0.borrow_mut().flush()
+    }
+}
+
 /// Write a header and rows of already formatted cells.
+///
+/// A row whose first cell starts with `#` would read back as a comment line, so its
+/// cells are quoted.
 pub fn write_rows<W: Write + ?Sized>(
     w: &mut W,
     path: &Path,
     headers: &[&str],
     rows: impl IntoIterator<Item = Vec<String>>,
 ) -> Result<()> {
-    let mut wtr = csv::Writer::from_writer(w);
+    let sink = std::cell::RefCell::new(w);
+    let mut plain = csv::Writer::from_writer(Shared(&sink));
+    let mut quoted = csv::WriterBuilder::new()
+        .quote_style(csv::QuoteStyle::Always)
+        .from_writer(Shared(&sink));
     let io = |e: csv::Error| IoError::io(path, std::io::Error::other(e.to_string()));
-    wtr.write_record(headers).map_err(io)?;
+    let flush = |e: std::io::Error| IoError::io(path, e);
+    plain.write_record(headers).map_err(io)?;
     for r in rows {
-        wtr.write_record(&r).map_err(io)?;
+        if r.first().is_some_and(|c| c.trim_start().starts_with('#')) {
+            plain.flush().map_err(flush)?;
+            quoted.write_record(&r).map_err(io)?;
+            quoted.flush().map_err(flush)?;
+        } else {
+            plain.write_record(&r).map_err(io)?;
+        }
     }
-    wtr.flush().map_err(|e| IoError::io(path, e))?;
+    plain.flush().map_err(flush)?;
     Ok(())
 }
 

@@ -150,12 +150,13 @@ pub fn from_table(t: &CsvTable) -> Result<ModelInput> {
     let mut dop_rows = Vec::new();
     let mut pbrdf_rows = Vec::new();
     for r in 0..t.rows.len() {
-        let line = t.rows[r].0;
+        let line = t.rows[r].0; // ok: r < rows.len()
         let mut v = [0.0f64; 6];
         for (slot, &c) in v.iter_mut().zip(idx.iter()) {
             *slot = t.f64(r, c)?;
         }
-        // `CsvTable::f64` has rejected NaN and infinities.
+        // `CsvTable::f64` has rejected NaN and infinities. Indexing below is ok: `v` has
+        // six slots and `idx` one per input column (2 or 6).
         let (n, k) = (v[0], v[1]);
         if n <= 0.0 {
             return Err(t.err(r, idx[0], "the real index n must be > 0"));
