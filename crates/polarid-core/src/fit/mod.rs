@@ -561,7 +561,7 @@ impl FitPlan {
                 return unsafe { self.fit_avx2(y, w, yp, wp, yf, wf, acc) };
             }
         }
-        self.fit_body(y, w, yp, wp, yf, wf, acc)
+        self.fit_body::<false>(y, w, yp, wp, yf, wf, acc)
     }
 
     /// [`FitPlan::fit_body`] compiled for AVX2 + FMA (selected at run time).
@@ -578,14 +578,15 @@ impl FitPlan {
         wf: &[f32],
         acc: &mut [f32],
     ) -> NkFit {
-        self.fit_body(y, w, yp, wp, yf, wf, acc)
+        self.fit_body::<true>(y, w, yp, wp, yf, wf, acc)
     }
 
     /// Coarse scan, local refinement, polish, search for a competing basin, and
-    /// uncertainties (see the module documentation).
+    /// uncertainties (see the module documentation). `FMA`: fused multiply-adds are
+    /// hardware instructions (otherwise separate multiply and add).
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn fit_body(
+    fn fit_body<const FMA: bool>(
         &self,
         y: &[f64],
         w: Option<&[f64]>,
@@ -596,7 +597,7 @@ impl FitPlan {
         acc: &mut [f32],
     ) -> NkFit {
         let t_len = self.len();
-        let (c0, _) = scan_body(
+        let (c0, _) = scan_body::<FMA>(
             &self.coarse_curves,
             self.gc_pad,
             &yf[..t_len],
@@ -789,16 +790,14 @@ impl FitPlan {
         out
     }
 
-    /// Grid cell (column, row) nearest above `(n, k)`.
+    /// Grid cell (column, row) nearest above `(n, k)`: the first node `≥` the value
+    /// along each axis (the last node beyond the box).
     #[inline]
     fn cell(&self, n: f64, k: f64) -> (usize, usize) {
+        let b = &self.opts.bounds;
         (
-            self.node_n
-                .partition_point(|&v| v < n)
-                .min(self.opts.grid_n - 1),
-            self.node_k
-                .partition_point(|&v| v < k)
-                .min(self.opts.grid_k - 1),
+            axis_cell(&self.node_n, b.n_min, b.n_max, n),
+            axis_cell(&self.node_k, b.k_min, b.k_max, k),
         )
     }
 
@@ -925,6 +924,45 @@ impl FitPlan {
     }
 }
 
+/// First index of the quadratically spaced `nodes` (see `warp`) holding a value `≥ x`,
+/// at most the last: `nodes.partition_point(|&v| v < x).min(len − 1)`, from the
+/// inverse of the spacing and at most a few corrections.
+#[inline]
+fn axis_cell(nodes: &[f64], lo: f64, hi: f64, x: f64) -> usize {
+    let m = nodes.len();
+    let u = ((x - lo) / (hi - lo)).clamp(0.0, 1.0).sqrt() * (m - 1) as f64;
+    let mut i = (u.ceil() as usize).min(m - 1);
+    while i > 0 && nodes[i - 1] >= x {
+        i -= 1;
+    }
+    while i < m - 1 && nodes[i] < x {
+        i += 1;
+    }
+    i
+}
+
+#[cfg(test)]
+mod cell_tests {
+    use super::{axis_cell, warp};
+
+    /// The inverse-spacing lookup equals the binary search it replaces.
+    #[test]
+    fn axis_cell_matches_partition_point() {
+        for &(lo, hi, m) in &[(0.01, 10.0, 32), (0.0, 15.0, 32), (0.5, 2.0, 7)] {
+            let nodes = warp(lo, hi, m);
+            let mut xs: Vec<f64> = (0..5000)
+                .map(|i| lo - 0.1 + (hi - lo + 0.2) * i as f64 / 4999.0)
+                .collect();
+            xs.extend(nodes.iter().copied());
+            xs.extend(nodes.iter().map(|v| v * (1.0 + 1e-15)));
+            for x in xs {
+                let want = nodes.partition_point(|&v| v < x).min(m - 1);
+                assert_eq!(axis_cell(&nodes, lo, hi, x), want, "x = {x}");
+            }
+        }
+    }
+}
+
 /// Inverse of the symmetric 2×2 `[[a, b], [b, c]]` as `(i00, i01, i11)`, or `None`
 /// when it is singular (a zero diagonal or `1 − ρ² < 1e-12`).
 fn inv2(a: f64, b: f64, c: f64) -> Option<(f64, f64, f64)> {
@@ -943,7 +981,7 @@ fn inv2(a: f64, b: f64, c: f64) -> Option<(f64, f64, f64)> {
 /// all `T` in registers (the compiler vectorises the lane loops) and stored once.
 /// Returns the best node and its cost.
 #[inline(always)]
-fn scan_body(
+fn scan_body<const FMA: bool>(
     curves: &[f32],
     gp: usize,
     y: &[f32],
@@ -960,9 +998,16 @@ fn scan_body(
         for (t, &yt) in y.iter().enumerate() {
             let row = &curves[t * gp + o..t * gp + o + B];
             let wt = w.map_or(1.0, |w| w[t]);
-            for l in 0..B {
-                let d = row[l] - yt;
-                a[l] += wt * d * d;
+            if FMA {
+                for l in 0..B {
+                    let d = row[l] - yt;
+                    a[l] = (wt * d).mul_add(d, a[l]);
+                }
+            } else {
+                for l in 0..B {
+                    let d = row[l] - yt;
+                    a[l] += wt * d * d;
+                }
             }
         }
         out.copy_from_slice(&a);
