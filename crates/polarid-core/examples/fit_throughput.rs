@@ -68,7 +68,7 @@ fn parse_args() -> Args {
             _ => usage(&format!("unknown option {flag}")),
         }
     }
-    if a.pixels == 0 || a.threads == 0 || a.repeats == 0 || !(a.sd >= 0.0) {
+    if a.pixels == 0 || a.threads == 0 || a.repeats == 0 || a.sd.is_nan() || a.sd < 0.0 {
         usage("--pixels, --threads and --repeats must be positive, --sd >= 0");
     }
     a
