@@ -14,11 +14,20 @@ use std::hint::black_box;
 const T: usize = 10;
 
 fn problem(pixels: usize) -> (Vec<f64>, Vec<f64>) {
-    let betas: Vec<f64> = (0..T)
+    let y = problem_sd(pixels, 0.005);
+    (betas(), y)
+}
+
+fn betas() -> Vec<f64> {
+    (0..T)
         .map(|i| ((35.0 + 5.0 * i as f64 + 60.0) / 2.0f64).to_radians())
-        .collect();
+        .collect()
+}
+
+fn problem_sd(pixels: usize, sd: f64) -> Vec<f64> {
+    let betas = betas();
     let mut rng = StdRng::seed_from_u64(1);
-    let noise = Normal::new(0.0, 0.005).unwrap();
+    let noise = Normal::new(0.0, sd).unwrap();
     let mut y = Vec::with_capacity(pixels * T);
     for _ in 0..pixels {
         let n: f64 = rng.random_range(0.3..3.0);
@@ -27,7 +36,7 @@ fn problem(pixels: usize) -> (Vec<f64>, Vec<f64>) {
             y.push((dop(n, k, b) + noise.sample(&mut rng)).clamp(0.0, 1.0));
         }
     }
-    (betas, y)
+    y
 }
 
 fn bench(c: &mut Criterion) {
@@ -50,6 +59,24 @@ fn bench(c: &mut Criterion) {
     let mut out = vec![NkFit::default(); pixels];
     g.bench_function("batch_rayon", |b| {
         b.iter(|| fit_batch(&plan, black_box(&y), None, &mut out).unwrap())
+    });
+    // The batch API on one thread: CPU cost per fit, free of the other core's load.
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    g.bench_function("batch_1_thread", |b| {
+        b.iter(|| one.install(|| fit_batch(&plan, black_box(&y), None, &mut out).unwrap()))
+    });
+    // Weighted fits (standard errors given), single thread.
+    let se = vec![0.005; y.len()];
+    g.bench_function("batch_1_thread_weighted", |b| {
+        b.iter(|| one.install(|| fit_batch(&plan, black_box(&y), Some(&se), &mut out).unwrap()))
+    });
+    // Noiseless curves (zero-residual problems converge quadratically).
+    let clean = problem_sd(pixels, 0.0);
+    g.bench_function("batch_1_thread_noiseless", |b| {
+        b.iter(|| one.install(|| fit_batch(&plan, black_box(&clean), None, &mut out).unwrap()))
     });
     g.finish();
     c.bench_function("plan_build_T10", |b| {

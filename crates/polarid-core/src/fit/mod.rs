@@ -18,15 +18,19 @@
 //! denser at small `n` and `k`, where the curves change fastest) with the DoLP curve of every node (f32, stored β-major so that the scan
 //! is a vectorised loop) and its Jacobian. Each fit then
 //!
-//! 1. scans every node: `G·T` multiply-adds in f32 (10,240 at the default size and
-//!    `T = 10`, no transcendental functions; AVX2 + FMA when the CPU has them, chosen
-//!    at run time), fused with the search for the best node;
+//! 1. scans the nodes (every `stride`-th along each axis, `stride = max(1, grid/32)`,
+//!    so every node at the default size, then the best node's neighbourhood):
+//!    `G·T` multiply-adds in f32 (10,240 at the default size and `T = 10`, no
+//!    transcendental functions), accumulated over `T` in registers for blocks of 32
+//!    nodes (AVX2 + FMA when the CPU has them, chosen at run time), fused with the
+//!    search for the best node;
 //! 2. takes one Gauss–Newton step from that node with the stored Jacobian (no model
-//!    evaluation), and polishes with Levenberg–Marquardt (analytic Jacobian from
-//!    [`dop_grad_terms`], 2×2 normal equations solved in
-//!    closed form; on average 8.7 evaluations of the `T` model values and gradients
-//!    at `T = 10`, noise sd 0.005, `(n, k)` uniform in `[0.2, 3] × [0, 8]`, and 6.7
-//!    without noise);
+//!    evaluation), and polishes with Levenberg–Marquardt (analytic Jacobian, the `T`
+//!    values and gradients evaluated four source positions at a time in f64x4 vectors,
+//!    `simd.rs`; 2×2 normal equations solved in closed form; it stops without a further
+//!    evaluation once the Gauss–Newton model predicts a relative decrease below
+//!    `ftol`): on average 6.8 evaluations at `T = 10`, noise sd 0.005, `(n, k)` uniform
+//!    in `[0.3, 3] × [0, 8]`;
 //! 3. looks for a competing basin: the best node outside the neighbourhoods already
 //!    polished; its quadratic model (stored Jacobian) predicts the lowest cost it can
 //!    reach, and it is polished too only if that prediction could beat the current
@@ -47,6 +51,7 @@
 
 mod crb;
 mod lm;
+mod simd;
 
 pub use crb::{Crb, crb, crb_weighted};
 
@@ -56,6 +61,7 @@ use crate::dop::{BetaTerms, dop_grad_terms, dop_terms};
 use crate::error::{CoreError, Result};
 
 use lm::{Eval, LmSettings};
+use simd::Lanes;
 
 /// The box of admissible `(n, k)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -215,10 +221,21 @@ pub struct FitPlan {
     node_n: Vec<f64>,
     /// `k` of the grid rows.
     node_k: Vec<f64>,
-    /// Padded node count (multiple of 16).
-    g_pad: usize,
-    /// DoLP of node `g` at `β_t`: `curves[t * g_pad + g]` (padding: +∞).
-    curves: Vec<f32>,
+    /// β terms padded to whole SIMD lanes.
+    lanes: Lanes,
+    /// DoLP of node `g` at `β_t`: `node_curves[g * lanes.len + t]` (padding: 0).
+    node_curves: Vec<f32>,
+    /// Grid columns of the coarse scan (every `stride`-th, and the last).
+    coarse_i: Vec<usize>,
+    /// Grid rows of the coarse scan.
+    coarse_j: Vec<usize>,
+    /// Spacing of the coarse nodes in grid steps.
+    stride: usize,
+    /// Padded coarse node count (multiple of 32).
+    gc_pad: usize,
+    /// DoLP of coarse node `c` (column `c % coarse_i.len()`) at `β_t`:
+    /// `coarse_curves[t * gc_pad + c]` (padding: +∞).
+    coarse_curves: Vec<f32>,
     /// Jacobian of node `g`: `jac[g * 2T + t]` = ∂P/∂n, `jac[g * 2T + T + t]` = ∂P/∂k.
     jac: Vec<f32>,
     /// Why every fit with this β set is ill-conditioned, if it is.
@@ -228,8 +245,15 @@ pub struct FitPlan {
 /// Per-thread scratch memory of a fit (no allocation per fit).
 #[derive(Debug, Clone)]
 pub struct FitWorkspace {
+    /// Costs of the coarse nodes.
     acc: Vec<f32>,
+    /// Weights `1/se²` (length T).
     w: Vec<f64>,
+    /// Measurements and weights padded to whole lanes (weight 0 on padding), f64 and f32.
+    yp: Vec<f64>,
+    wp: Vec<f64>,
+    yf: Vec<f32>,
+    wf: Vec<f32>,
 }
 
 fn warp(lo: f64, hi: f64, m: usize) -> Vec<f64> {
@@ -297,6 +321,13 @@ impl FitPlan {
                 expected: "at least 4 x 4 and at most 2^20 nodes",
             });
         }
+        if !(b.n_max <= simd::MAX_BOUND && b.k_max <= simd::MAX_BOUND) {
+            return Err(CoreError::OutOfRange {
+                name: "n_max/k_max",
+                value: b.n_max.max(b.k_max),
+                expected: "at most 1e100",
+            });
+        }
         if opts.max_candidates == 0 {
             return Err(CoreError::OutOfRange {
                 name: "max_candidates",
@@ -309,15 +340,16 @@ impl FitPlan {
         let node_n = warp(b.n_min, b.n_max, opts.grid_n);
         let node_k = warp(b.k_min, b.k_max, opts.grid_k);
         let g = opts.grid_n * opts.grid_k;
-        let g_pad = g.div_ceil(16) * 16;
-        let mut curves = vec![f32::INFINITY; t_len * g_pad];
+        let lanes = Lanes::new(&terms);
+        let tp = lanes.len;
+        let mut node_curves = vec![0f32; g * tp];
         let mut jac = vec![0f32; g * 2 * t_len];
         for (j, &k) in node_k.iter().enumerate() {
             for (i, &n) in node_n.iter().enumerate() {
                 let gi = j * opts.grid_n + i;
                 for (t, bt) in terms.iter().enumerate() {
                     let d = dop_grad_terms(n, k, bt);
-                    curves[t * g_pad + gi] = d.p as f32;
+                    node_curves[gi * tp + t] = d.p as f32;
                     jac[gi * 2 * t_len + t] = d.dp_dn as f32;
                     // Below K_U the second column is ∂P/∂u, u = k² (see lm::step).
                     let j2 = if k >= lm::K_U {
@@ -329,6 +361,29 @@ impl FitPlan {
                         (dop_terms(n, du.sqrt(), bt) - d.p) / du
                     };
                     jac[gi * 2 * t_len + t_len + t] = j2 as f32;
+                }
+            }
+        }
+        // Coarse scan: every `stride`-th node along each axis, and the last.
+        let stride = (opts.grid_n.min(opts.grid_k) / 32).max(1);
+        let sub = |m: usize| -> Vec<usize> {
+            let mut v: Vec<usize> = (0..m).step_by(stride).collect();
+            if v.last() != Some(&(m - 1)) {
+                v.push(m - 1);
+            }
+            v
+        };
+        let coarse_i = sub(opts.grid_n);
+        let coarse_j = sub(opts.grid_k);
+        let gc = coarse_i.len() * coarse_j.len();
+        let gc_pad = gc.div_ceil(32) * 32;
+        let mut coarse_curves = vec![f32::INFINITY; t_len * gc_pad];
+        for (cj, &j) in coarse_j.iter().enumerate() {
+            for (ci, &i) in coarse_i.iter().enumerate() {
+                let c = cj * coarse_i.len() + ci;
+                let gi = j * opts.grid_n + i;
+                for t in 0..t_len {
+                    coarse_curves[t * gc_pad + c] = node_curves[gi * tp + t];
                 }
             }
         }
@@ -351,8 +406,13 @@ impl FitPlan {
             opts,
             node_n,
             node_k,
-            g_pad,
-            curves,
+            lanes,
+            node_curves,
+            coarse_i,
+            coarse_j,
+            stride,
+            gc_pad,
+            coarse_curves,
             jac,
             issue,
         })
@@ -390,9 +450,14 @@ impl FitPlan {
 
     /// Scratch memory for [`FitPlan::fit_with`].
     pub fn workspace(&self) -> FitWorkspace {
+        let tp = self.lanes.len;
         FitWorkspace {
-            acc: vec![0.0; self.g_pad],
+            acc: vec![0.0; self.gc_pad],
             w: vec![0.0; self.len()],
+            yp: vec![0.0; tp],
+            wp: vec![0.0; tp],
+            yf: vec![0.0; tp],
+            wf: vec![0.0; tp],
         }
     }
 
@@ -446,7 +511,7 @@ impl FitPlan {
                 got: se.len(),
             });
         }
-        if ws.acc.len() != self.g_pad || ws.w.len() != t_len {
+        if ws.acc.len() != self.gc_pad || ws.w.len() != t_len || ws.yp.len() != self.lanes.len {
             *ws = self.workspace();
         }
         match check_pixel(dolp, dolp_se) {
@@ -455,27 +520,99 @@ impl FitPlan {
         }
     }
 
-    /// The fit proper, on validated data.
+    /// The fit proper, on validated data: prepares the padded measurements, then runs
+    /// [`FitPlan::fit_body`] compiled for AVX2 + FMA when the CPU has them.
     fn fit_checked(&self, y: &[f64], se: Option<&[f64]>, ws: &mut FitWorkspace) -> NkFit {
+        let FitWorkspace {
+            acc,
+            w,
+            yp,
+            wp,
+            yf,
+            wf,
+        } = ws;
+        let t_len = self.len();
         let w: Option<&[f64]> = match se {
             Some(se) => {
-                for (wt, &s) in ws.w.iter_mut().zip(se) {
+                for (wt, &s) in w.iter_mut().zip(se) {
                     *wt = 1.0 / (s * s);
                 }
-                Some(&ws.w)
+                Some(&w[..])
             }
             None => None,
         };
-        let acc = &mut ws.acc;
-        let (g0, _) = self.scan(y, w, acc);
+        for t in 0..yp.len() {
+            let (yt, wt) = if t < t_len {
+                (y[t], w.map_or(1.0, |w| w[t]))
+            } else {
+                (0.0, 0.0)
+            };
+            yp[t] = yt;
+            wp[t] = wt;
+            yf[t] = yt as f32;
+            wf[t] = wt as f32;
+        }
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2")
+                && std::arch::is_x86_feature_detected!("fma")
+            {
+                // SAFETY: the CPU supports the features the function is compiled for.
+                return unsafe { self.fit_avx2(y, w, yp, wp, yf, wf, acc) };
+            }
+        }
+        self.fit_body::<false>(y, w, yp, wp, yf, wf, acc)
+    }
+
+    /// [`FitPlan::fit_body`] compiled for AVX2 + FMA (selected at run time).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    #[allow(clippy::too_many_arguments)]
+    fn fit_avx2(
+        &self,
+        y: &[f64],
+        w: Option<&[f64]>,
+        yp: &[f64],
+        wp: &[f64],
+        yf: &[f32],
+        wf: &[f32],
+        acc: &mut [f32],
+    ) -> NkFit {
+        self.fit_body::<true>(y, w, yp, wp, yf, wf, acc)
+    }
+
+    /// Coarse scan, local refinement, polish, search for a competing basin, and
+    /// uncertainties (see the module documentation). `FMA`: fused multiply-adds are
+    /// hardware instructions (otherwise separate multiply and add).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn fit_body<const FMA: bool>(
+        &self,
+        y: &[f64],
+        w: Option<&[f64]>,
+        yp: &[f64],
+        wp: &[f64],
+        yf: &[f32],
+        wf: &[f32],
+        acc: &mut [f32],
+    ) -> NkFit {
+        let t_len = self.len();
+        let (c0, _) = scan_body::<FMA>(
+            &self.coarse_curves,
+            self.gc_pad,
+            &yf[..t_len],
+            w.map(|_| &wf[..t_len]),
+            acc,
+        );
+        let (g0, cost0) = self.refine(c0, yf, wf);
         let settings = LmSettings {
             max_iter: self.opts.max_iter,
             xtol: self.opts.xtol,
             ftol: self.opts.ftol,
         };
-        let mut best = self.polish_node(g0, acc[g0], y, w, &settings);
+        let mut best = self.polish_node(g0, cost0, y, w, yp, wp, &settings);
         let (mut iters, mut evals, mut starts) = (best.iters, best.evals, 1u32);
-        self.blank(acc, g0, best.n, best.k);
+        self.blank(acc, c0, best.n, best.k);
         // Cells of the minima found so far.
         let mut found = [(0usize, 0usize); 4];
         found[0] = self.cell(best.n, best.k);
@@ -483,11 +620,12 @@ impl FitPlan {
         let mut checks = 0;
         while (starts as usize) < self.opts.max_candidates && checks < 8 {
             checks += 1;
-            let (g, c) = argmin(acc);
-            if !c.is_finite() {
+            let (c, _) = argmin_body(acc);
+            if !acc.get(c).is_some_and(|v| v.is_finite()) {
                 break;
             }
-            let (n1, k1, pred) = self.node_step(g, c as f64, y, w);
+            let (g, cg) = self.refine(c, yf, wf);
+            let (n1, k1, pred) = self.node_step(g, cg as f64, y, w);
             // Polish only if this basin could beat the current minimum ...
             if pred > best.ev.cost * 1.02 + 1e-12 {
                 break;
@@ -497,7 +635,7 @@ impl FitPlan {
             let (i1, j1) = self.cell(n1, k1);
             let (i0, j0, _, _) = self.node(g);
             if i1.abs_diff(i0) > 2 || j1.abs_diff(j0) > 2 {
-                acc[g] = f32::INFINITY;
+                acc[c] = f32::INFINITY;
                 continue;
             }
             // ... and not near a minimum already found.
@@ -505,14 +643,14 @@ impl FitPlan {
                 .iter()
                 .any(|&(i, j)| i.abs_diff(i1) <= 2 && j.abs_diff(j1) <= 2)
             {
-                self.blank(acc, g, n1, k1);
+                self.blank(acc, c, n1, k1);
                 continue;
             }
-            let other = self.polish_node(g, c, y, w, &settings);
+            let other = self.polish_node(g, cg, y, w, yp, wp, &settings);
             iters += other.iters;
             evals += other.evals;
             starts += 1;
-            self.blank(acc, g, other.n, other.k);
+            self.blank(acc, c, other.n, other.k);
             if n_found < found.len() {
                 found[n_found] = self.cell(other.n, other.k);
                 n_found += 1;
@@ -532,19 +670,37 @@ impl FitPlan {
         fit
     }
 
-    /// `acc[g] = Σ_t w_t (curve_g(t) − y_t)²` for every node.
-    /// Returns the best node and its cost.
-    fn scan(&self, y: &[f64], w: Option<&[f64]>, acc: &mut [f32]) -> (usize, f32) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx2")
-                && std::arch::is_x86_feature_detected!("fma")
-            {
-                // SAFETY: the CPU supports the features the function is compiled for.
-                return unsafe { scan_avx2(&self.curves, self.g_pad, y, w, acc) };
+    /// The best grid node within `stride − 1` grid steps of coarse node `c` (at least
+    /// the coarse node itself), and its cost `Σ_t w_t (curve_g(t) − y_t)²` in f32.
+    #[inline(always)]
+    fn refine(&self, c: usize, yf: &[f32], wf: &[f32]) -> (usize, f32) {
+        const L: usize = simd::LANES;
+        let tp = self.lanes.len;
+        let cn = self.coarse_i.len();
+        let (ic, jc) = (self.coarse_i[c % cn], self.coarse_j[c / cn]);
+        let h = self.stride.saturating_sub(1);
+        let (gn, gk) = (self.opts.grid_n, self.opts.grid_k);
+        let (yf, wf) = (&yf[..tp], &wf[..tp]);
+        let mut best = (jc * gn + ic, f32::INFINITY);
+        for j in jc.saturating_sub(h)..(jc + h + 1).min(gk) {
+            for i in ic.saturating_sub(h)..(ic + h + 1).min(gn) {
+                let g = j * gn + i;
+                let curve = &self.node_curves[g * tp..(g + 1) * tp];
+                let mut a = [0f32; L];
+                for ch in 0..tp / L {
+                    for l in 0..L {
+                        let t = ch * L + l;
+                        let d = curve[t] - yf[t];
+                        a[l] += wf[t] * d * d;
+                    }
+                }
+                let v = (a[0] + a[2]) + (a[1] + a[3]);
+                if v < best.1 {
+                    best = (g, v);
+                }
             }
         }
-        scan_body(&self.curves, self.g_pad, y, w, acc)
+        best
     }
 
     /// Grid coordinates of node `g`.
@@ -557,17 +713,20 @@ impl FitPlan {
 
     /// One Gauss–Newton step from node `g` with its stored Jacobian: the start point
     /// and the cost its quadratic model predicts there.
+    #[inline(always)]
     fn node_step(&self, g: usize, cost: f64, y: &[f64], w: Option<&[f64]>) -> (f64, f64, f64) {
         let t_len = self.len();
+        let tp = self.lanes.len;
         let (_, _, n, k) = self.node(g);
         let jn = &self.jac[g * 2 * t_len..g * 2 * t_len + t_len];
         let jk = &self.jac[g * 2 * t_len + t_len..(g + 1) * 2 * t_len];
+        let curve = &self.node_curves[g * tp..g * tp + t_len];
         let mut ev = Eval {
             cost,
             ..Default::default()
         };
         for t in 0..t_len {
-            let r = self.curves[t * self.g_pad + g] as f64 - y[t];
+            let r = curve[t] as f64 - y[t];
             let wt = w.map_or(1.0, |w| w[t]);
             let (a, b) = (jn[t] as f64, jk[t] as f64);
             ev.h00 += wt * a * a;
@@ -600,56 +759,60 @@ impl FitPlan {
 
     /// Start at node `g` (one stored-Jacobian Gauss–Newton step, or the node itself if
     /// that step does not improve) and polish.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
     fn polish_node(
         &self,
         g: usize,
         grid_cost: f32,
         y: &[f64],
         w: Option<&[f64]>,
+        yp: &[f64],
+        wp: &[f64],
         s: &LmSettings,
     ) -> lm::LmOut {
         let b = &self.opts.bounds;
         let (n1, k1, _) = self.node_step(g, grid_cost as f64, y, w);
         let k_floor = if b.k_min == 0.0 { lm::K_FLOOR } else { b.k_min };
         let k1 = k1.max(k_floor);
-        let mut ev = lm::eval(&self.terms, y, w, n1, k1);
+        let mut ev = simd::eval(&self.lanes, yp, wp, n1, k1);
         let mut evals = 1;
         let (mut n0, mut k0) = (n1, k1);
         if !(ev.cost <= grid_cost as f64 * (1.0 + 1e-4) + 1e-12) {
             let (_, _, nn, kk) = self.node(g);
             n0 = nn;
             k0 = kk.max(k_floor);
-            ev = lm::eval(&self.terms, y, w, n0, k0);
+            ev = simd::eval(&self.lanes, yp, wp, n0, k0);
             evals += 1;
         }
-        let mut out = lm::polish(&self.terms, y, w, b, s, n0, k0, ev);
+        let mut out = lm::polish(&self.lanes, yp, wp, b, s, n0, k0, ev);
         out.evals += evals;
         out
     }
 
-    /// Grid cell (column, row) nearest above `(n, k)`.
+    /// Grid cell (column, row) nearest above `(n, k)`: the first node `≥` the value
+    /// along each axis (the last node beyond the box).
     #[inline]
     fn cell(&self, n: f64, k: f64) -> (usize, usize) {
+        let b = &self.opts.bounds;
         (
-            self.node_n
-                .partition_point(|&v| v < n)
-                .min(self.opts.grid_n - 1),
-            self.node_k
-                .partition_point(|&v| v < k)
-                .min(self.opts.grid_k - 1),
+            axis_cell(&self.node_n, b.n_min, b.n_max, n),
+            axis_cell(&self.node_k, b.k_min, b.k_max, k),
         )
     }
 
-    /// Exclude the neighbourhoods of node `g` and of the cell holding `(n, k)` from
-    /// later candidate searches.
-    fn blank(&self, acc: &mut [f32], g: usize, n: f64, k: f64) {
-        let (gn, gk) = (self.opts.grid_n, self.opts.grid_k);
-        let (i0, j0, _, _) = self.node(g);
+    /// Exclude the neighbourhoods of coarse node `c` and of the coarse node nearest
+    /// `(n, k)` from later candidate searches (±2 grid steps, at least one coarse step).
+    fn blank(&self, acc: &mut [f32], c: usize, n: f64, k: f64) {
+        let (cn, ck) = (self.coarse_i.len(), self.coarse_j.len());
         let (i1, j1) = self.cell(n, k);
-        for (ic, jc) in [(i0, j0), (i1, j1)] {
-            for j in jc.saturating_sub(2)..(jc + 3).min(gk) {
-                for i in ic.saturating_sub(2)..(ic + 3).min(gn) {
-                    acc[j * gn + i] = f32::INFINITY;
+        let s = self.stride;
+        let near = |i: usize, m: usize| ((i + s / 2) / s).min(m - 1);
+        let r = if s == 1 { 2 } else { 1 };
+        for (ic, jc) in [(c % cn, c / cn), (near(i1, cn), near(j1, ck))] {
+            for j in jc.saturating_sub(r)..(jc + r + 1).min(ck) {
+                for i in ic.saturating_sub(r)..(ic + r + 1).min(cn) {
+                    acc[j * cn + i] = f32::INFINITY;
                 }
             }
         }
@@ -661,6 +824,11 @@ impl FitPlan {
         let b = &self.opts.bounds;
         let ev = &out.ev;
         let (n, k) = (out.n, out.k);
+        // The lane evaluation returns the weighted cost; the rms residual is unweighted.
+        let ss = match w {
+            Some(_) => lm::eval(&self.terms, y, None, n, k).ss,
+            None => ev.cost,
+        };
         let s2 = match w {
             Some(_) => 1.0,
             None => ev.cost / (t_len as f64 - 2.0),
@@ -674,7 +842,7 @@ impl FitPlan {
         let mut fit = NkFit {
             n,
             k,
-            rms_residual: (ev.ss / t_len as f64).sqrt(),
+            rms_residual: (ss / t_len as f64).sqrt(),
             cost: ev.cost,
             ..Default::default()
         };
@@ -756,6 +924,45 @@ impl FitPlan {
     }
 }
 
+/// First index of the quadratically spaced `nodes` (see `warp`) holding a value `≥ x`,
+/// at most the last: `nodes.partition_point(|&v| v < x).min(len − 1)`, from the
+/// inverse of the spacing and at most a few corrections.
+#[inline]
+fn axis_cell(nodes: &[f64], lo: f64, hi: f64, x: f64) -> usize {
+    let m = nodes.len();
+    let u = ((x - lo) / (hi - lo)).clamp(0.0, 1.0).sqrt() * (m - 1) as f64;
+    let mut i = (u.ceil() as usize).min(m - 1);
+    while i > 0 && nodes[i - 1] >= x {
+        i -= 1;
+    }
+    while i < m - 1 && nodes[i] < x {
+        i += 1;
+    }
+    i
+}
+
+#[cfg(test)]
+mod cell_tests {
+    use super::{axis_cell, warp};
+
+    /// The inverse-spacing lookup equals the binary search it replaces.
+    #[test]
+    fn axis_cell_matches_partition_point() {
+        for &(lo, hi, m) in &[(0.01, 10.0, 32), (0.0, 15.0, 32), (0.5, 2.0, 7)] {
+            let nodes = warp(lo, hi, m);
+            let mut xs: Vec<f64> = (0..5000)
+                .map(|i| lo - 0.1 + (hi - lo + 0.2) * i as f64 / 4999.0)
+                .collect();
+            xs.extend(nodes.iter().copied());
+            xs.extend(nodes.iter().map(|v| v * (1.0 + 1e-15)));
+            for x in xs {
+                let want = nodes.partition_point(|&v| v < x).min(m - 1);
+                assert_eq!(axis_cell(&nodes, lo, hi, x), want, "x = {x}");
+            }
+        }
+    }
+}
+
 /// Inverse of the symmetric 2×2 `[[a, b], [b, c]]` as `(i00, i01, i11)`, or `None`
 /// when it is singular (a zero diagonal or `1 − ρ² < 1e-12`).
 fn inv2(a: f64, b: f64, c: f64) -> Option<(f64, f64, f64)> {
@@ -769,87 +976,68 @@ fn inv2(a: f64, b: f64, c: f64) -> Option<(f64, f64, f64)> {
     Some((c / det, -b / det, a / det))
 }
 
-/// The grid scan (see [`FitPlan::scan`]): `T` passes over contiguous f32 rows, which
-/// the compiler vectorises.
+/// The coarse grid scan: `acc[g] = Σ_t w_t (curve_g(t) − y_t)²` for every coarse node,
+/// fused with the search for the best node. Blocks of 32 nodes are accumulated over
+/// all `T` in registers (the compiler vectorises the lane loops) and stored once.
+/// Returns the best node and its cost.
 #[inline(always)]
-fn scan_body(
+fn scan_body<const FMA: bool>(
     curves: &[f32],
     gp: usize,
-    y: &[f64],
-    w: Option<&[f64]>,
+    y: &[f32],
+    w: Option<&[f32]>,
     acc: &mut [f32],
 ) -> (usize, f32) {
+    const B: usize = 32;
     const L: usize = 16;
-    let last = y.len() - 1;
-    for (t, &yt) in y.iter().enumerate().take(last) {
-        let row = &curves[t * gp..(t + 1) * gp];
-        let yt = yt as f32;
-        let wt = w.map_or(1.0, |w| w[t] as f32);
-        if t == 0 {
-            for (a, &c) in acc.iter_mut().zip(row) {
-                let d = c - yt;
-                *a = wt * d * d;
-            }
-        } else if w.is_none() {
-            for (a, &c) in acc.iter_mut().zip(row) {
-                let d = c - yt;
-                *a += d * d;
-            }
-        } else {
-            for (a, &c) in acc.iter_mut().zip(row) {
-                let d = c - yt;
-                *a += wt * d * d;
+    let mut m = [f32::INFINITY; L];
+    let acc = &mut acc[..gp];
+    for (bi, out) in acc.chunks_exact_mut(B).enumerate() {
+        let o = bi * B;
+        let mut a = [0f32; B];
+        for (t, &yt) in y.iter().enumerate() {
+            let row = &curves[t * gp + o..t * gp + o + B];
+            let wt = w.map_or(1.0, |w| w[t]);
+            if FMA {
+                for l in 0..B {
+                    let d = row[l] - yt;
+                    a[l] = (wt * d).mul_add(d, a[l]);
+                }
+            } else {
+                for l in 0..B {
+                    let d = row[l] - yt;
+                    a[l] += wt * d * d;
+                }
             }
         }
-    }
-    // Last pass fused with a lane-wise minimum.
-    let row = &curves[last * gp..(last + 1) * gp];
-    let yt = y[last] as f32;
-    let wt = w.map_or(1.0, |w| w[last] as f32);
-    let mut m = [f32::INFINITY; L];
-    for (a, c) in acc.chunks_exact_mut(L).zip(row.chunks_exact(L)) {
+        out.copy_from_slice(&a);
         for l in 0..L {
-            let d = c[l] - yt;
-            let v = a[l] + wt * d * d;
-            a[l] = v;
+            let v = if a[l + L] < a[l] { a[l + L] } else { a[l] };
             m[l] = if v < m[l] { v } else { m[l] };
         }
     }
     find(acc, &m)
 }
 
-/// Position of the smallest of the lane minima `m` in `acc`.
+/// Position of the smallest of the lane minima `m` in `acc` (`m[l]` is the minimum
+/// over the positions `≡ l (mod 16)`): only that residue class is searched.
 #[inline(always)]
 fn find(acc: &[f32], m: &[f32; 16]) -> (usize, f32) {
-    let mv = m
-        .iter()
-        .fold(f32::INFINITY, |a, &b| if b < a { b } else { a });
+    let (mut lb, mut mv) = (0, f32::INFINITY);
+    for (l, &v) in m.iter().enumerate() {
+        if v < mv {
+            (lb, mv) = (l, v);
+        }
+    }
     if !mv.is_finite() {
         return (0, f32::INFINITY);
     }
-    for (ci, c) in acc.chunks_exact(16).enumerate() {
-        let mut hit = false;
-        for &v in c {
-            hit |= v == mv;
-        }
-        if hit {
-            return (ci * 16 + c.iter().position(|&a| a == mv).unwrap_or(0), mv);
+    for i in (lb..acc.len()).step_by(16) {
+        if acc[i] == mv {
+            return (i, mv);
         }
     }
     (0, f32::INFINITY)
-}
-
-/// [`scan_body`] compiled for AVX2 + FMA (selected at run time).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn scan_avx2(
-    curves: &[f32],
-    gp: usize,
-    y: &[f64],
-    w: Option<&[f64]>,
-    acc: &mut [f32],
-) -> (usize, f32) {
-    scan_body(curves, gp, y, w, acc)
 }
 
 /// Index and value of the smallest element of `acc` (length a multiple of 16): a
@@ -864,26 +1052,6 @@ fn argmin_body(acc: &[f32]) -> (usize, f32) {
         }
     }
     find(acc, &m)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn argmin_avx2(acc: &[f32]) -> (usize, f32) {
-    argmin_body(acc)
-}
-
-/// Index and value of the smallest element (`+∞` when every node is excluded).
-#[inline]
-fn argmin(acc: &[f32]) -> (usize, f32) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-        {
-            // SAFETY: the CPU supports the features the function is compiled for.
-            return unsafe { argmin_avx2(acc) };
-        }
-    }
-    argmin_body(acc)
 }
 
 /// Reason a pixel's data cannot be fitted.
