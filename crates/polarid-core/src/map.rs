@@ -28,7 +28,7 @@ use std::collections::BTreeSet;
 
 use rayon::prelude::*;
 
-use crate::classify::Classifier;
+use crate::classify::{Classifier, Cov2};
 use crate::error::{CoreError, Result};
 use crate::fit::{FitPlan, FitStatus, NkFit, fit_batch};
 use crate::stokes::{PixelRules, Sample, StokesSolver, check_image, check_len, mask};
@@ -332,6 +332,7 @@ pub struct PixelClassifier {
     /// 1-based class index of each prototype.
     proto_class: Vec<u16>,
     max_distance: Option<f64>,
+    mahalanobis: bool,
 }
 
 impl PixelClassifier {
@@ -377,7 +378,52 @@ impl PixelClassifier {
             names,
             proto_class,
             max_distance,
+            mahalanobis: false,
         })
+    }
+
+    /// Rank prototypes by the Mahalanobis distance
+    /// `d² = Δᵀ (Σ_pixel + Σ_proto)⁻¹ Δ` with the pixel fit's covariance (from `n_se`,
+    /// `k_se`, `nk_corr`) instead of the Euclidean distance; `max_distance` is then in
+    /// standard deviations. Pixels without a usable covariance fall back to Euclidean.
+    pub fn with_mahalanobis(mut self, on: bool) -> Self {
+        self.mahalanobis = on;
+        self
+    }
+
+    /// Classify a pixel's fit ([`Self::classify`], or the Mahalanobis ranking when
+    /// enabled and the fit has a covariance).
+    #[inline]
+    pub fn classify_fit(&self, f: &NkFit) -> std::result::Result<(u16, f64), u8> {
+        if self.mahalanobis {
+            let corr = if f.nk_corr.is_finite() {
+                f.nk_corr
+            } else {
+                0.0
+            };
+            if let Some(cov) = Cov2::from_se(f.n_se, f.k_se, corr.clamp(-1.0, 1.0)) {
+                let mut best = (usize::MAX, f64::INFINITY);
+                for (i, p) in self.classifier.prototypes().iter().enumerate() {
+                    let c = match p.cov {
+                        Some(pc) => cov + pc,
+                        None => cov,
+                    };
+                    if let Some(d2) = c.mahalanobis2(f.n - p.n, f.k - p.k)
+                        && d2 < best.1
+                    {
+                        best = (i, d2);
+                    }
+                }
+                if best.0 != usize::MAX {
+                    let d = best.1.sqrt();
+                    if self.max_distance.is_some_and(|m| d > m) {
+                        return Err(reason::REJECTED);
+                    }
+                    return Ok((self.proto_class.get(best.0).copied().unwrap_or(0), d));
+                }
+            }
+        }
+        self.classify(f.n, f.k)
     }
 
     /// Class names, sorted; map index `i >= 1` is `names()[i - 1]`.
@@ -509,7 +555,7 @@ pub fn fit_and_classify(
             out.k_se[p] = f.k_se as f32;
             out.rms_residual[p] = f.rms_residual as f32;
             let (c, r) = match f.status {
-                FitStatus::Ok => match classifier.classify(f.n, f.k) {
+                FitStatus::Ok => match classifier.classify_fit(f) {
                     Ok((c, _)) => (c, reason::CLASSIFIED),
                     Err(r) => (0, r),
                 },
