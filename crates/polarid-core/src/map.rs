@@ -141,7 +141,7 @@ impl RowBufs {
 fn block_dolp(s0: f32, s1: f32, s2: f32, inv_area: f32, min_s0: f32, f: &mut u8) -> f32 {
     let mean0 = s0 * inv_area;
     let finite = s0.is_finite() && s1.is_finite() && s2.is_finite();
-    *f |= (!finite as u8) * flag::INVALID | ((mean0 <= min_s0) as u8) * flag::DARK;
+    *f |= ((!finite as u8) * flag::INVALID) | (((mean0 <= min_s0) as u8) * flag::DARK);
     let d = ((s1 * s1 + s2 * s2).sqrt() / s0).clamp(0.0, 1.0);
     if finite && s0 > 0.0 { d } else { f32::NAN }
 }
@@ -172,7 +172,7 @@ where
                     for i in 0..ow {
                         let m = b.rm[i];
                         let f = &mut rf[i];
-                        *f |= (m & 1) * flag::SATURATED | ((m >> 1) & 1) * flag::INVALID;
+                        *f |= ((m & 1) * flag::SATURATED) | (((m >> 1) & 1) * flag::INVALID);
                         rd[i] = block_dolp(b.r0[i], b.r1[i], b.r2[i], 1.0, min_s0, f);
                     }
                     return;
@@ -214,7 +214,7 @@ where
                 for i in 0..ow {
                     let m = b.am[i];
                     let f = &mut rf[i];
-                    *f |= (m & 1) * flag::SATURATED | ((m >> 1) & 1) * flag::INVALID;
+                    *f |= ((m & 1) * flag::SATURATED) | (((m >> 1) & 1) * flag::INVALID);
                     rd[i] = block_dolp(b.a0[i], b.a1[i], b.a2[i], inv_area, min_s0, f);
                 }
             },
