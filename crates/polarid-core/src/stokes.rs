@@ -164,6 +164,10 @@ pub struct StokesSolver {
     /// Pseudo-inverse, one `[p0, p1, p2]` column per frame: `S_j = Σ_i pinv[i][j] I_i`.
     pinv: Vec<[f64; 3]>,
     cond: f64,
+    /// Frame indices of the 0°, 45°, 90° and 135° polarizers when the angle set is
+    /// exactly that (any order): the kernels then use the exact form
+    /// `S0 = ½ ΣI`, `S1 = I0 − I90`, `S2 = I45 − I135`.
+    quad: Option<[usize; 4]>,
 }
 
 /// Eigenvalues of a symmetric 3×3 matrix (cyclic Jacobi), unordered.
@@ -307,11 +311,63 @@ impl StokesSolver {
                 p
             })
             .collect();
+        let quad = quad_indices(&deg);
         Ok(Self {
             angles: angles.to_vec(),
             pinv,
             cond,
+            quad,
         })
+    }
+
+    /// True when the angles are exactly 0/45/90/135° (in any order): the kernels then
+    /// use the specialised exact form `S0 = ½ ΣI`, `S1 = I0 − I90`, `S2 = I45 − I135`.
+    pub fn is_standard_quad(&self) -> bool {
+        self.quad.is_some()
+    }
+
+    /// Stokes of one row without the dark decision: writes `r0, r1, r2` (dark
+    /// subtracted) and the raw flag bits into `rm` (bit 0: a raw value reached the
+    /// saturation level; bit 1: a raw value is not finite). `rows` holds the row of
+    /// each frame (same length as `r0`), `coef` the `f32` pseudo-inverse
+    /// ([`Self::coef_f32`]). Used by the per-pixel map pipeline.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn stokes_row_raw<T: Sample>(
+        &self,
+        rows: &[&[T]],
+        coef: &[[f32; 3]],
+        rules: &PixelRules,
+        r0: &mut [f32],
+        r1: &mut [f32],
+        r2: &mut [f32],
+        rm: &mut [u8],
+    ) {
+        if let Some(q) = self.quad {
+            quad_row_raw(
+                [rows[q[0]], rows[q[1]], rows[q[2]], rows[q[3]]],
+                rules,
+                r0,
+                r1,
+                r2,
+                rm,
+            );
+            return;
+        }
+        r0.fill(0.0);
+        r1.fill(0.0);
+        r2.fill(0.0);
+        rm.fill(0);
+        for (raw, c) in rows.iter().zip(coef) {
+            accumulate_row(raw, *c, rules, r0, r1, r2, rm);
+        }
+    }
+
+    /// The pseudo-inverse in `f32`, one `[p0, p1, p2]` per frame.
+    pub(crate) fn coef_f32(&self) -> Vec<[f32; 3]> {
+        self.pinv
+            .iter()
+            .map(|p| [p[0] as f32, p[1] as f32, p[2] as f32])
+            .collect()
     }
 
     /// Convenience constructor from angles in degrees.
@@ -432,11 +488,20 @@ impl StokesSolver {
         check_len("s1", s1.len(), n)?;
         check_len("s2", s2.len(), n)?;
         check_len("mask", mask.len(), n)?;
-        let coef: Vec<[f32; 3]> = self
-            .pinv
-            .iter()
-            .map(|p| [p[0] as f32, p[1] as f32, p[2] as f32])
-            .collect();
+        if let Some(q) = self.quad {
+            let rows = [frames[q[0]], frames[q[1]], frames[q[2]], frames[q[3]]];
+            return Ok(match polar {
+                None => {
+                    quad_image::<T, false>(rows, width, rules, s0, s1, s2, mask, &mut [], &mut [])
+                }
+                Some((dolp, aolp)) => {
+                    check_len("dolp", dolp.len(), n)?;
+                    check_len("aolp", aolp.len(), n)?;
+                    quad_image::<T, true>(rows, width, rules, s0, s1, s2, mask, dolp, aolp)
+                }
+            });
+        }
+        let coef = self.coef_f32();
         let rows = s0
             .par_chunks_mut(width)
             .zip(s1.par_chunks_mut(width))
@@ -473,6 +538,244 @@ impl StokesSolver {
             }
         };
         Ok(counts)
+    }
+}
+
+/// Frame indices of 0/45/90/135° when `deg` is exactly that set (any order, modulo 180°).
+fn quad_indices(deg: &[f64]) -> Option<[usize; 4]> {
+    if deg.len() != 4 {
+        return None;
+    }
+    let mut idx = [usize::MAX; 4];
+    for (i, d) in deg.iter().enumerate() {
+        let r = d.rem_euclid(180.0);
+        let slot = [0.0, 45.0, 90.0, 135.0]
+            .iter()
+            .position(|&a| (r - a).abs() < 1e-9 || (r - 180.0 - a).abs() < 1e-9)?;
+        if idx[slot] != usize::MAX {
+            return None;
+        }
+        idx[slot] = i;
+    }
+    Some(idx)
+}
+
+/// Rows per parallel task of the image kernels (big enough to amortise scheduling,
+/// small enough to balance two to a few dozen threads).
+const ROWS_PER_TASK: usize = 16;
+
+/// The exact 0/45/90/135° kernel over a whole image, fused with the mask, the counts
+/// and (when `POLAR`) DoLP/AoLP: one pass, every output written once.
+#[allow(clippy::too_many_arguments)]
+fn quad_image<T: Sample, const POLAR: bool>(
+    q: [&[T]; 4],
+    width: usize,
+    rules: &PixelRules,
+    s0: &mut [f32],
+    s1: &mut [f32],
+    s2: &mut [f32],
+    mask: &mut [u8],
+    dolp: &mut [f32],
+    aolp: &mut [f32],
+) -> PixelCounts {
+    let chunk = width * ROWS_PER_TASK;
+    let base = s0
+        .par_chunks_mut(chunk)
+        .zip(s1.par_chunks_mut(chunk))
+        .zip(s2.par_chunks_mut(chunk))
+        .zip(mask.par_chunks_mut(chunk))
+        .enumerate();
+    let rows_at = |i: usize, len: usize| {
+        let off = i * chunk;
+        [
+            &q[0][off..off + len],
+            &q[1][off..off + len],
+            &q[2][off..off + len],
+            &q[3][off..off + len],
+        ]
+    };
+    if POLAR {
+        base.zip(dolp.par_chunks_mut(chunk))
+            .zip(aolp.par_chunks_mut(chunk))
+            .map(|(((i, (((c0, c1), c2), cm)), cd), ca)| {
+                let rows = rows_at(i, c0.len());
+                quad_block_dispatch::<T, true>(rows, rules, c0, c1, c2, cm, cd, ca)
+            })
+            .reduce(PixelCounts::default, PixelCounts::add)
+    } else {
+        base.map(|(i, (((c0, c1), c2), cm))| {
+            let rows = rows_at(i, c0.len());
+            quad_block_dispatch::<T, false>(rows, rules, c0, c1, c2, cm, &mut [], &mut [])
+        })
+        .reduce(PixelCounts::default, PixelCounts::add)
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn quad_block_dispatch<T: Sample, const POLAR: bool>(
+    q: [&[T]; 4],
+    rules: &PixelRules,
+    r0: &mut [f32],
+    r1: &mut [f32],
+    r2: &mut [f32],
+    rm: &mut [u8],
+    rd: &mut [f32],
+    ra: &mut [f32],
+) -> PixelCounts {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        {
+            // SAFETY: the CPU supports AVX2 and FMA (checked just above).
+            return unsafe { quad_block_avx2::<T, POLAR>(q, rules, r0, r1, r2, rm, rd, ra) };
+        }
+    }
+    quad_block::<T, POLAR>(q, rules, r0, r1, r2, rm, rd, ra)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn quad_block_avx2<T: Sample, const POLAR: bool>(
+    q: [&[T]; 4],
+    rules: &PixelRules,
+    r0: &mut [f32],
+    r1: &mut [f32],
+    r2: &mut [f32],
+    rm: &mut [u8],
+    rd: &mut [f32],
+    ra: &mut [f32],
+) -> PixelCounts {
+    quad_block::<T, POLAR>(q, rules, r0, r1, r2, rm, rd, ra)
+}
+
+/// One block of pixels of the exact 0/45/90/135° kernel (see [`quad_image`]).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn quad_block<T: Sample, const POLAR: bool>(
+    q: [&[T]; 4],
+    rules: &PixelRules,
+    r0: &mut [f32],
+    r1: &mut [f32],
+    r2: &mut [f32],
+    rm: &mut [u8],
+    rd: &mut [f32],
+    ra: &mut [f32],
+) -> PixelCounts {
+    let n = r0.len();
+    let (q0, q1, q2, q3) = (&q[0][..n], &q[1][..n], &q[2][..n], &q[3][..n]);
+    let (r1, r2, rm) = (&mut r1[..n], &mut r2[..n], &mut rm[..n]);
+    let dark2 = 2.0 * rules.dark_level;
+    let sat = rules.saturation;
+    let min_s0 = rules.min_s0;
+    let (mut n_sat, mut n_dark, mut n_inv) = (0u32, 0u32, 0u32);
+    if POLAR {
+        let (rd, ra) = (&mut rd[..n], &mut ra[..n]);
+        for i in 0..n {
+            let (a, b, c, d) = (
+                q0[i].to_f32(),
+                q1[i].to_f32(),
+                q2[i].to_f32(),
+                q3[i].to_f32(),
+            );
+            let (v0, v1, v2, m) = quad_pixel(a, b, c, d, dark2, sat, min_s0);
+            r0[i] = v0;
+            r1[i] = v1;
+            r2[i] = v2;
+            rm[i] = m;
+            n_sat += (m == mask::SATURATED) as u32;
+            n_dark += (m == mask::DARK) as u32;
+            n_inv += (m == mask::INVALID) as u32;
+            let (pd, pa) = dolp_aolp_pixel(v0, v1, v2);
+            let ok = m == mask::VALID;
+            rd[i] = if ok { pd } else { f32::NAN };
+            ra[i] = if ok { pa } else { f32::NAN };
+        }
+    } else {
+        for i in 0..n {
+            let (a, b, c, d) = (
+                q0[i].to_f32(),
+                q1[i].to_f32(),
+                q2[i].to_f32(),
+                q3[i].to_f32(),
+            );
+            let (v0, v1, v2, m) = quad_pixel(a, b, c, d, dark2, sat, min_s0);
+            r0[i] = v0;
+            r1[i] = v1;
+            r2[i] = v2;
+            rm[i] = m;
+            n_sat += (m == mask::SATURATED) as u32;
+            n_dark += (m == mask::DARK) as u32;
+            n_inv += (m == mask::INVALID) as u32;
+        }
+    }
+    let rejected = (n_sat + n_dark + n_inv) as u64;
+    PixelCounts {
+        valid: n as u64 - rejected,
+        saturated: n_sat as u64,
+        dark: n_dark as u64,
+        invalid: n_inv as u64,
+    }
+}
+
+/// One pixel of the exact 0/45/90/135° form: `(S0, S1, S2, mask)` from the raw values
+/// at 0, 45, 90 and 135° (`dark2` = twice the dark level).
+#[inline(always)]
+fn quad_pixel(
+    a: f32,
+    b: f32,
+    c: f32,
+    d: f32,
+    dark2: f32,
+    sat: f32,
+    min_s0: f32,
+) -> (f32, f32, f32, u8) {
+    let sum = (a + c) + (b + d);
+    let s0 = 0.5 * sum - dark2;
+    let s1 = a - c;
+    let s2 = b - d;
+    let mx = a.max(b).max(c.max(d));
+    let nonfinite = !(sum.is_finite() && (s1 + s2).is_finite());
+    let m = if nonfinite {
+        mask::INVALID
+    } else if mx >= sat {
+        mask::SATURATED
+    } else if s0 <= min_s0 {
+        mask::DARK
+    } else {
+        mask::VALID
+    };
+    (s0, s1, s2, m)
+}
+
+/// Raw Stokes of one row by the exact 0/45/90/135° form, with the raw flag bits of
+/// [`StokesSolver::stokes_row_raw`].
+fn quad_row_raw<T: Sample>(
+    q: [&[T]; 4],
+    rules: &PixelRules,
+    r0: &mut [f32],
+    r1: &mut [f32],
+    r2: &mut [f32],
+    rm: &mut [u8],
+) {
+    let n = r0.len();
+    let (q0, q1, q2, q3) = (&q[0][..n], &q[1][..n], &q[2][..n], &q[3][..n]);
+    let (r1, r2, rm) = (&mut r1[..n], &mut r2[..n], &mut rm[..n]);
+    let dark2 = 2.0 * rules.dark_level;
+    let sat = rules.saturation;
+    for i in 0..n {
+        let (a, b, c, d) = (
+            q0[i].to_f32(),
+            q1[i].to_f32(),
+            q2[i].to_f32(),
+            q3[i].to_f32(),
+        );
+        let sum = (a + c) + (b + d);
+        r0[i] = 0.5 * sum - dark2;
+        r1[i] = a - c;
+        r2[i] = b - d;
+        let mx = a.max(b).max(c.max(d));
+        rm[i] = (mx >= sat) as u8 | ((!sum.is_finite()) as u8) << 1;
     }
 }
 
@@ -781,5 +1084,75 @@ mod tests {
         let (d, _) = dolp_aolp_pixel(1.0, 3.0, 0.0);
         assert_eq!(d, 1.0);
         assert!(dolp_aolp_pixel(0.0, 1.0, 0.0).0.is_nan());
+    }
+
+    /// The exact 0/45/90/135 kernel (any frame order) agrees with the least-squares
+    /// solution of every pixel, and flags saturated, dark and non-finite pixels.
+    #[test]
+    fn quad_kernel_matches_least_squares() {
+        let (w, h) = (37usize, 21usize);
+        let n = w * h;
+        let order = [90.0, 0.0, 135.0, 45.0];
+        let solver = StokesSolver::from_degrees(&order).unwrap();
+        assert!(solver.is_standard_quad());
+        assert!(
+            !StokesSolver::from_degrees(&[0.0, 60.0, 120.0])
+                .unwrap()
+                .is_standard_quad()
+        );
+        let mut frames = vec![vec![0f32; n]; 4];
+        let mut x = 12345u64;
+        for i in 0..n {
+            for f in frames.iter_mut() {
+                x = x
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                f[i] = ((x >> 33) % 4000) as f32;
+            }
+        }
+        frames[0][5] = 4095.0;
+        frames[2][7] = f32::NAN;
+        for f in frames.iter_mut() {
+            f[9] = 10.0;
+        }
+        let rules = PixelRules {
+            dark_level: 8.0,
+            saturation: 4095.0,
+            min_s0: 20.0,
+        };
+        let views: Vec<&[f32]> = frames.iter().map(|f| f.as_slice()).collect();
+        let mut o: Vec<Vec<f32>> = vec![vec![0f32; n]; 5];
+        let mut m = vec![0u8; n];
+        let [s0, s1, s2, d, a] = &mut o[..] else {
+            unreachable!()
+        };
+        let c = solver
+            .compute_with_polar(&views, w, &rules, s0, s1, s2, &mut m, d, a)
+            .unwrap();
+        assert_eq!((c.saturated, c.invalid, c.dark), (1, 1, 1));
+        assert_eq!(c.valid, n as u64 - 3);
+        assert_eq!(
+            (m[5], m[7], m[9]),
+            (mask::SATURATED, mask::INVALID, mask::DARK)
+        );
+        for i in 0..n {
+            if i == 7 {
+                continue;
+            }
+            let iv: Vec<f64> = views.iter().map(|f| f[i] as f64 - 8.0).collect();
+            let r = solver.solve(&iv).unwrap();
+            for (got, want) in [o[0][i], o[1][i], o[2][i]].iter().zip(r) {
+                assert!(
+                    (*got as f64 - want).abs() < 1e-3,
+                    "pixel {i}: {got} vs {want}"
+                );
+            }
+            if m[i] == mask::VALID {
+                let want = ((r[1] * r[1] + r[2] * r[2]).sqrt() / r[0]).min(1.0);
+                assert!((o[3][i] as f64 - want).abs() < 1e-5);
+            } else {
+                assert!(o[3][i].is_nan() && o[4][i].is_nan());
+            }
+        }
     }
 }

@@ -1,0 +1,727 @@
+//! Per-pixel material maps: the paper's pipeline (sections 4–6) applied to every pixel
+//! instead of a 100 × 100 region average.
+//!
+//! For every (optionally binned) pixel:
+//!
+//! 1. **Stokes per capture** from the polarizer frames (`S0, S1, S2`, see
+//!    [`crate::stokes`]; dark level subtracted), summed over `b × b` blocks when binning
+//!    (`b = 1, 2, 4, …`; summing raw frames and summing Stokes vectors are the same
+//!    linear operation), then the DoLP
+//!    `P = √(S1² + S2²) / S0` clamped to `[0, 1]` ([`frames_dolp`], [`stokes_dolp`]).
+//!    Only the DoLP (f32) of each capture is kept, so memory holds `T` DoLP images and
+//!    one capture's frames at a time.
+//! 2. **Rejection by signal**: a pixel is left unclassified when, in any capture, a raw
+//!    value of its block reached the saturation level, a value is not finite, or the
+//!    block's mean dark-subtracted `S0` is at or below the dark threshold
+//!    ([`flag`]; reasons in [`reason`]).
+//! 3. **(n, k) fit** of the remaining pixels' `T` DoLP values against paper eq. (9) with
+//!    the shared [`FitPlan`] ([`fit_batch`], unweighted, covariance scaled by the reduced
+//!    χ²), in tiles of pixels so that the fit's working memory stays small.
+//! 4. **Class**: the nearest prototype in `(n, k)` (paper section 6, Euclidean
+//!    distance, [`Classifier::nearest_euclidean`]), optionally rejected beyond a maximum
+//!    distance. Pixels whose fit status is not `ok` are not classified.
+//!
+//! Class indices in the map are 1-based into [`PixelClassifier::names`] (sorted class
+//! names); 0 means "not classified", with the reason in the reason image.
+
+use std::collections::BTreeSet;
+
+use rayon::prelude::*;
+
+use crate::classify::{Classifier, Cov2};
+use crate::error::{CoreError, Result};
+use crate::fit::{FitPlan, FitStatus, NkFit, fit_batch};
+use crate::stokes::{PixelRules, Sample, StokesSolver, check_image, check_len, mask};
+
+/// Signal flag bits accumulated per pixel over the captures (OR of every capture).
+pub mod flag {
+    /// A raw value of the pixel's block reached the saturation level.
+    pub const SATURATED: u8 = 1;
+    /// The block's mean dark-subtracted `S0` is at or below the dark threshold.
+    pub const DARK: u8 = 2;
+    /// A raw value or Stokes component is not finite.
+    pub const INVALID: u8 = 4;
+}
+
+/// Why a map pixel is (not) classified: the values of the reason image.
+pub mod reason {
+    /// Classified.
+    pub const CLASSIFIED: u8 = 0;
+    /// Saturated in at least one capture.
+    pub const SATURATED: u8 = 1;
+    /// Too dark (low `S0`) in at least one capture.
+    pub const DARK: u8 = 2;
+    /// Non-finite data in at least one capture.
+    pub const INVALID: u8 = 3;
+    /// The fit is ill-conditioned.
+    pub const FIT_ILL_CONDITIONED: u8 = 4;
+    /// The fit did not converge.
+    pub const FIT_NOT_CONVERGED: u8 = 5;
+    /// The fit's minimum lies on the edge of the `(n, k)` box.
+    pub const FIT_AT_BOUND: u8 = 6;
+    /// The fit rejected the pixel's DoLP values.
+    pub const FIT_INVALID_INPUT: u8 = 7;
+    /// The nearest prototype is farther than the maximum distance.
+    pub const REJECTED: u8 = 8;
+    /// Number of reasons.
+    pub const COUNT: usize = 9;
+    /// The word of each reason (index = reason value), as written in summaries.
+    pub const NAMES: [&str; COUNT] = [
+        "classified",
+        "saturated",
+        "dark",
+        "invalid",
+        "fit_ill_conditioned",
+        "fit_not_converged",
+        "fit_at_bound",
+        "fit_invalid_input",
+        "rejected",
+    ];
+}
+
+/// The reason of a pixel's signal flags ([`flag`]): invalid before saturated before
+/// dark; [`reason::CLASSIFIED`] (0) when no flag is set.
+#[inline]
+pub fn signal_reason(flags: u8) -> u8 {
+    if flags & flag::INVALID != 0 {
+        reason::INVALID
+    } else if flags & flag::SATURATED != 0 {
+        reason::SATURATED
+    } else if flags & flag::DARK != 0 {
+        reason::DARK
+    } else {
+        reason::CLASSIFIED
+    }
+}
+
+/// Size of the map of a `width × height` frame binned by `bin` (incomplete blocks at
+/// the right and bottom edges are dropped). Errors: `bin` is 0 or larger than the
+/// frame.
+pub fn binned_size(width: usize, height: usize, bin: usize) -> Result<(usize, usize)> {
+    if bin == 0 || bin > width || bin > height {
+        return Err(CoreError::InvalidDimensions {
+            width,
+            height,
+            reason: format!("binning factor {bin} must be >= 1 and fit in the frame"),
+        });
+    }
+    Ok((width / bin, height / bin))
+}
+
+/// Per-thread row buffers of the DoLP kernels.
+struct RowBufs {
+    r0: Vec<f32>,
+    r1: Vec<f32>,
+    r2: Vec<f32>,
+    rm: Vec<u8>,
+    a0: Vec<f32>,
+    a1: Vec<f32>,
+    a2: Vec<f32>,
+    am: Vec<u8>,
+}
+
+impl RowBufs {
+    fn new(width: usize, out_width: usize) -> Self {
+        Self {
+            r0: vec![0.0; width],
+            r1: vec![0.0; width],
+            r2: vec![0.0; width],
+            rm: vec![0; width],
+            a0: vec![0.0; out_width],
+            a1: vec![0.0; out_width],
+            a2: vec![0.0; out_width],
+            am: vec![0; out_width],
+        }
+    }
+}
+
+/// DoLP of one block from its summed Stokes: `√(S1² + S2²)/S0` clamped to `[0, 1]`,
+/// NaN when `S0 <= 0` or a value is not finite; the flags gain DARK / INVALID.
+#[inline(always)]
+fn block_dolp(s0: f32, s1: f32, s2: f32, inv_area: f32, min_s0: f32, f: &mut u8) -> f32 {
+    let mean0 = s0 * inv_area;
+    let finite = s0.is_finite() && s1.is_finite() && s2.is_finite();
+    *f |= ((!finite as u8) * flag::INVALID) | (((mean0 <= min_s0) as u8) * flag::DARK);
+    let d = ((s1 * s1 + s2 * s2).sqrt() / s0).clamp(0.0, 1.0);
+    if finite && s0 > 0.0 { d } else { f32::NAN }
+}
+
+/// The shared binning driver: `fill(y, bufs)` writes raw row `y`'s Stokes into
+/// `bufs.r0..r2` and raw flag bits into `bufs.rm` (bit 0 saturated, bit 1 not finite).
+fn binned_dolp<F>(
+    width: usize,
+    bin: usize,
+    min_s0: f32,
+    dolp: &mut [f32],
+    flags: &mut [u8],
+    fill: F,
+) -> Result<()>
+where
+    F: Fn(usize, &mut RowBufs) + Sync,
+{
+    let ow = width / bin;
+    let inv_area = 1.0 / (bin * bin) as f32;
+    dolp.par_chunks_mut(ow)
+        .zip(flags.par_chunks_mut(ow))
+        .enumerate()
+        .for_each_init(
+            || RowBufs::new(width, ow),
+            |b, (oy, (rd, rf))| {
+                if bin == 1 {
+                    fill(oy, b);
+                    for i in 0..ow {
+                        let m = b.rm[i];
+                        let f = &mut rf[i];
+                        *f |= ((m & 1) * flag::SATURATED) | (((m >> 1) & 1) * flag::INVALID);
+                        rd[i] = block_dolp(b.r0[i], b.r1[i], b.r2[i], 1.0, min_s0, f);
+                    }
+                    return;
+                }
+                b.a0.fill(0.0);
+                b.a1.fill(0.0);
+                b.a2.fill(0.0);
+                b.am.fill(0);
+                for dy in 0..bin {
+                    fill(oy * bin + dy, b);
+                    let RowBufs {
+                        r0,
+                        r1,
+                        r2,
+                        rm,
+                        a0,
+                        a1,
+                        a2,
+                        am,
+                    } = b;
+                    for ((((s0, s1), s2), sm), (((t0, t1), t2), tm)) in r0
+                        .chunks_exact(bin)
+                        .zip(r1.chunks_exact(bin))
+                        .zip(r2.chunks_exact(bin))
+                        .zip(rm.chunks_exact(bin))
+                        .zip(
+                            a0.iter_mut()
+                                .zip(a1.iter_mut())
+                                .zip(a2.iter_mut())
+                                .zip(am.iter_mut()),
+                        )
+                    {
+                        *t0 += s0.iter().sum::<f32>();
+                        *t1 += s1.iter().sum::<f32>();
+                        *t2 += s2.iter().sum::<f32>();
+                        *tm |= sm.iter().fold(0u8, |a, &m| a | m);
+                    }
+                }
+                for i in 0..ow {
+                    let m = b.am[i];
+                    let f = &mut rf[i];
+                    *f |= ((m & 1) * flag::SATURATED) | (((m >> 1) & 1) * flag::INVALID);
+                    rd[i] = block_dolp(b.a0[i], b.a1[i], b.a2[i], inv_area, min_s0, f);
+                }
+            },
+        );
+    Ok(())
+}
+
+/// DoLP image of one capture from its polarizer frames (one per angle of `solver`,
+/// `width` pixels wide), binned by `bin`: writes `dolp` (binned size, see
+/// [`binned_size`]) and ORs the capture's signal [`flag`]s into `flags` (callers zero
+/// `flags` once before the first capture). `rules.min_s0` is compared with the block's
+/// mean `S0`.
+pub fn frames_dolp<T: Sample>(
+    solver: &StokesSolver,
+    frames: &[&[T]],
+    width: usize,
+    rules: &PixelRules,
+    bin: usize,
+    dolp: &mut [f32],
+    flags: &mut [u8],
+) -> Result<()> {
+    rules.validate()?;
+    if frames.len() != solver.len() {
+        return Err(CoreError::LengthMismatch {
+            name: "frames",
+            expected: solver.len(),
+            got: frames.len(),
+        });
+    }
+    let n = frames.first().map_or(0, |f| f.len());
+    check_image(width, n)?;
+    for f in frames {
+        check_len("frame", f.len(), n)?;
+    }
+    let (ow, oh) = binned_size(width, n / width, bin)?;
+    check_len("dolp", dolp.len(), ow * oh)?;
+    check_len("flags", flags.len(), ow * oh)?;
+    let coef = solver.coef_f32();
+    binned_dolp(width, bin, rules.min_s0, dolp, flags, |y, b| {
+        let off = y * width;
+        // At most a handful of frames: a fixed array of row slices avoids allocating.
+        const MAX: usize = 16;
+        if frames.len() <= MAX {
+            let mut rows: [&[T]; MAX] = [&[]; MAX];
+            for (r, f) in rows.iter_mut().zip(frames) {
+                *r = &f[off..off + width];
+            }
+            solver.stokes_row_raw(
+                &rows[..frames.len()],
+                &coef,
+                rules,
+                &mut b.r0,
+                &mut b.r1,
+                &mut b.r2,
+                &mut b.rm,
+            );
+        } else {
+            let rows: Vec<&[T]> = frames.iter().map(|f| &f[off..off + width]).collect();
+            solver.stokes_row_raw(
+                &rows, &coef, rules, &mut b.r0, &mut b.r1, &mut b.r2, &mut b.rm,
+            );
+        }
+    })
+}
+
+/// DoLP image of one capture from Stokes images (DoFP captures after demosaicing, or
+/// Stokes captures), binned by `bin`. `mask` (values of [`crate::stokes::mask`]) marks
+/// saturated and invalid pixels; its DARK values are ignored (the dark test is made
+/// on the block mean `S0` against `min_s0`). Outputs as in [`frames_dolp`].
+#[allow(clippy::too_many_arguments)]
+pub fn stokes_dolp(
+    width: usize,
+    s0: &[f32],
+    s1: &[f32],
+    s2: &[f32],
+    stokes_mask: Option<&[u8]>,
+    min_s0: f32,
+    bin: usize,
+    dolp: &mut [f32],
+    flags: &mut [u8],
+) -> Result<()> {
+    let n = s0.len();
+    check_image(width, n)?;
+    check_len("s1", s1.len(), n)?;
+    check_len("s2", s2.len(), n)?;
+    if let Some(m) = stokes_mask {
+        check_len("mask", m.len(), n)?;
+    }
+    crate::error::ensure_finite("min_s0", min_s0 as f64)?;
+    let (ow, oh) = binned_size(width, n / width, bin)?;
+    check_len("dolp", dolp.len(), ow * oh)?;
+    check_len("flags", flags.len(), ow * oh)?;
+    binned_dolp(width, bin, min_s0, dolp, flags, |y, b| {
+        let r = y * width..(y + 1) * width;
+        b.r0.copy_from_slice(&s0[r.clone()]);
+        b.r1.copy_from_slice(&s1[r.clone()]);
+        b.r2.copy_from_slice(&s2[r.clone()]);
+        match stokes_mask {
+            Some(m) => {
+                for (o, &v) in b.rm.iter_mut().zip(&m[r]) {
+                    *o = (v == mask::SATURATED) as u8 | ((v == mask::INVALID) as u8) << 1;
+                }
+            }
+            None => b.rm.fill(0),
+        }
+    })
+}
+
+/// The per-pixel classifier: nearest prototype in `(n, k)` with an optional maximum
+/// distance, and the map's class indices.
+#[derive(Debug, Clone)]
+pub struct PixelClassifier {
+    classifier: Classifier,
+    names: Vec<String>,
+    /// 1-based class index of each prototype.
+    proto_class: Vec<u16>,
+    max_distance: Option<f64>,
+    mahalanobis: bool,
+}
+
+impl PixelClassifier {
+    /// Wrap a classifier; `max_distance` (Euclidean, in `(n, k)` units) rejects pixels
+    /// whose nearest prototype is farther. Errors: more than 65535 classes, or a
+    /// maximum distance that is not finite and positive.
+    pub fn new(classifier: Classifier, max_distance: Option<f64>) -> Result<Self> {
+        if let Some(d) = max_distance
+            && !(d.is_finite() && d > 0.0)
+        {
+            return Err(CoreError::OutOfRange {
+                name: "maximum distance",
+                value: d,
+                expected: "finite and > 0",
+            });
+        }
+        let names: Vec<String> = classifier
+            .prototypes()
+            .iter()
+            .map(|p| p.class.clone())
+            .collect::<BTreeSet<_>>()
+            .into_iter()
+            .collect();
+        if names.len() > u16::MAX as usize {
+            return Err(CoreError::OutOfRange {
+                name: "number of classes",
+                value: names.len() as f64,
+                expected: "<= 65535",
+            });
+        }
+        let proto_class = classifier
+            .prototypes()
+            .iter()
+            .map(|p| {
+                names
+                    .iter()
+                    .position(|n| *n == p.class)
+                    .map_or(0, |i| i as u16 + 1)
+            })
+            .collect();
+        Ok(Self {
+            classifier,
+            names,
+            proto_class,
+            max_distance,
+            mahalanobis: false,
+        })
+    }
+
+    /// Rank prototypes by the Mahalanobis distance
+    /// `d² = Δᵀ (Σ_pixel + Σ_proto)⁻¹ Δ` with the pixel fit's covariance (from `n_se`,
+    /// `k_se`, `nk_corr`) instead of the Euclidean distance; `max_distance` is then in
+    /// standard deviations. Pixels without a usable covariance fall back to Euclidean.
+    pub fn with_mahalanobis(mut self, on: bool) -> Self {
+        self.mahalanobis = on;
+        self
+    }
+
+    /// Classify a pixel's fit ([`Self::classify`], or the Mahalanobis ranking when
+    /// enabled and the fit has a covariance).
+    #[inline]
+    pub fn classify_fit(&self, f: &NkFit) -> std::result::Result<(u16, f64), u8> {
+        if self.mahalanobis {
+            let corr = if f.nk_corr.is_finite() {
+                f.nk_corr
+            } else {
+                0.0
+            };
+            if let Some(cov) = Cov2::from_se(f.n_se, f.k_se, corr.clamp(-1.0, 1.0)) {
+                let mut best = (usize::MAX, f64::INFINITY);
+                for (i, p) in self.classifier.prototypes().iter().enumerate() {
+                    let c = match p.cov {
+                        Some(pc) => cov + pc,
+                        None => cov,
+                    };
+                    if let Some(d2) = c.mahalanobis2(f.n - p.n, f.k - p.k)
+                        && d2 < best.1
+                    {
+                        best = (i, d2);
+                    }
+                }
+                if best.0 != usize::MAX {
+                    let d = best.1.sqrt();
+                    if self.max_distance.is_some_and(|m| d > m) {
+                        return Err(reason::REJECTED);
+                    }
+                    return Ok((self.proto_class.get(best.0).copied().unwrap_or(0), d));
+                }
+            }
+        }
+        self.classify(f.n, f.k)
+    }
+
+    /// Class names, sorted; map index `i >= 1` is `names()[i - 1]`.
+    pub fn names(&self) -> &[String] {
+        &self.names
+    }
+
+    /// The 1-based class index of `(n, k)` and its distance, or `Err(reason)` when
+    /// not classified ([`reason::REJECTED`], or [`reason::FIT_INVALID_INPUT`] for a
+    /// non-finite estimate).
+    #[inline]
+    pub fn classify(&self, n: f64, k: f64) -> std::result::Result<(u16, f64), u8> {
+        let (i, d) = self
+            .classifier
+            .nearest_euclidean(n, k)
+            .ok_or(reason::FIT_INVALID_INPUT)?;
+        if self.max_distance.is_some_and(|m| d > m) {
+            return Err(reason::REJECTED);
+        }
+        Ok((self.proto_class.get(i).copied().unwrap_or(0), d))
+    }
+}
+
+/// The caller-owned output images of [`fit_and_classify`] (all of the map's size).
+#[derive(Debug)]
+pub struct MapOutputs<'a> {
+    /// Fitted `n` (NaN where not fitted).
+    pub n: &'a mut [f32],
+    /// Fitted `k`.
+    pub k: &'a mut [f32],
+    /// Standard error of `n`.
+    pub n_se: &'a mut [f32],
+    /// Standard error of `k`.
+    pub k_se: &'a mut [f32],
+    /// RMS DoLP residual of the fit.
+    pub rms_residual: &'a mut [f32],
+    /// Class index (0 = not classified).
+    pub class: &'a mut [u16],
+    /// Reason ([`reason`]).
+    pub reason: &'a mut [u8],
+}
+
+/// Pixel counts of a map.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct MapCounts {
+    /// Pixels per reason (index = [`reason`] value; index 0 = classified).
+    pub reasons: [u64; reason::COUNT],
+    /// Pixels per class index (index 0 = not classified).
+    pub classes: Vec<u64>,
+}
+
+/// Fit and classify every pixel of a map, in tiles of `tile` pixels.
+///
+/// `dolp` holds one DoLP image per capture (in the plan's β order, each of the map's
+/// size), `flags` the signal [`flag`]s. Pixels with a flag are not fitted (NaN outputs,
+/// reason from [`signal_reason`]); the others are fitted with [`fit_batch`] (parallel)
+/// and classified when the fit status is `ok`. `progress` is called with the number of
+/// pixels done after each tile.
+pub fn fit_and_classify(
+    plan: &FitPlan,
+    classifier: &PixelClassifier,
+    dolp: &[&[f32]],
+    flags: &[u8],
+    tile: usize,
+    out: MapOutputs<'_>,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<MapCounts> {
+    let t_len = plan.len();
+    if dolp.len() != t_len {
+        return Err(CoreError::LengthMismatch {
+            name: "DoLP images (captures)",
+            expected: t_len,
+            got: dolp.len(),
+        });
+    }
+    let npix = flags.len();
+    for d in dolp {
+        check_len("dolp", d.len(), npix)?;
+    }
+    for (name, len) in [
+        ("n", out.n.len()),
+        ("k", out.k.len()),
+        ("n_se", out.n_se.len()),
+        ("k_se", out.k_se.len()),
+        ("rms_residual", out.rms_residual.len()),
+    ] {
+        check_len(name, len, npix)?;
+    }
+    check_len("class", out.class.len(), npix)?;
+    check_len("reason", out.reason.len(), npix)?;
+    let tile = tile.max(1);
+    let mut counts = MapCounts {
+        reasons: [0; reason::COUNT],
+        classes: vec![0; classifier.names().len() + 1],
+    };
+    let cap = tile.min(npix);
+    let mut y: Vec<f64> = Vec::with_capacity(cap * t_len);
+    let mut idx: Vec<usize> = Vec::with_capacity(cap);
+    let mut fits: Vec<NkFit> = vec![NkFit::default(); cap];
+    let mut start = 0usize;
+    while start < npix {
+        let end = (start + tile).min(npix);
+        y.clear();
+        idx.clear();
+        for p in start..end {
+            let f = flags[p];
+            if f == 0 {
+                idx.push(p);
+                y.extend(dolp.iter().map(|d| d[p] as f64));
+            } else {
+                let r = signal_reason(f);
+                out.n[p] = f32::NAN;
+                out.k[p] = f32::NAN;
+                out.n_se[p] = f32::NAN;
+                out.k_se[p] = f32::NAN;
+                out.rms_residual[p] = f32::NAN;
+                out.class[p] = 0;
+                out.reason[p] = r;
+                counts.reasons[r as usize] += 1;
+                counts.classes[0] += 1;
+            }
+        }
+        let m = idx.len();
+        fit_batch(plan, &y, None, &mut fits[..m])?;
+        for (&p, f) in idx.iter().zip(&fits[..m]) {
+            out.n[p] = f.n as f32;
+            out.k[p] = f.k as f32;
+            out.n_se[p] = f.n_se as f32;
+            out.k_se[p] = f.k_se as f32;
+            out.rms_residual[p] = f.rms_residual as f32;
+            let (c, r) = match f.status {
+                FitStatus::Ok => match classifier.classify_fit(f) {
+                    Ok((c, _)) => (c, reason::CLASSIFIED),
+                    Err(r) => (0, r),
+                },
+                FitStatus::IllConditioned => (0, reason::FIT_ILL_CONDITIONED),
+                FitStatus::NotConverged => (0, reason::FIT_NOT_CONVERGED),
+                FitStatus::AtBound => (0, reason::FIT_AT_BOUND),
+                FitStatus::InvalidInput => (0, reason::FIT_INVALID_INPUT),
+            };
+            out.class[p] = c;
+            out.reason[p] = r;
+            counts.reasons[r as usize] += 1;
+            if let Some(cc) = counts.classes.get_mut(c as usize) {
+                *cc += 1;
+            }
+        }
+        progress(end);
+        start = end;
+    }
+    Ok(counts)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::classify::{ClassifierConfig, Prototype};
+    use crate::dop::dop;
+
+    fn proto(class: &str, n: f64, k: f64) -> Prototype {
+        Prototype {
+            class: class.into(),
+            n,
+            k,
+            cov: None,
+            category: None,
+            source: "test".into(),
+        }
+    }
+
+    #[test]
+    fn binned_dolp_of_uniform_frames_and_flags() {
+        // 8 x 4 frames of a pixel with S = (200, 60, -80) + dark 10; one saturated raw.
+        let (w, h) = (8usize, 4usize);
+        let s = [200.0f64, 60.0, -80.0];
+        let angles = [0.0f64, 45.0, 90.0, 135.0];
+        let mut frames: Vec<Vec<f32>> = angles
+            .iter()
+            .map(|a| {
+                let a = 2.0 * a.to_radians();
+                vec![(10.0 + 0.5 * (s[0] + s[1] * a.cos() + s[2] * a.sin())) as f32; w * h]
+            })
+            .collect();
+        frames[1][3] = 1000.0; // block (1, 0) at bin 2
+        let solver = StokesSolver::from_degrees(&angles).unwrap();
+        let rules = PixelRules {
+            dark_level: 10.0,
+            saturation: 1000.0,
+            min_s0: 5.0,
+        };
+        let views: Vec<&[f32]> = frames.iter().map(|f| f.as_slice()).collect();
+        let want = (60.0f32 * 60.0 + 80.0 * 80.0).sqrt() / 200.0;
+        for bin in [1usize, 2, 4] {
+            let (ow, oh) = binned_size(w, h, bin).unwrap();
+            let mut d = vec![0f32; ow * oh];
+            let mut f = vec![0u8; ow * oh];
+            frames_dolp(&solver, &views, w, &rules, bin, &mut d, &mut f).unwrap();
+            let sat_block = 3 / bin;
+            for (i, (&d, &f)) in d.iter().zip(&f).enumerate() {
+                let expect = if i == sat_block { flag::SATURATED } else { 0 };
+                if expect == 0 {
+                    assert!((d - want).abs() < 1e-6, "bin {bin} px {i}: {d}");
+                }
+                assert_eq!(f, expect, "bin {bin} px {i}");
+            }
+        }
+        // Dark: the threshold compares the block mean S0.
+        let rules = PixelRules {
+            min_s0: 200.0,
+            ..rules
+        };
+        let mut d = vec![0f32; 8];
+        let mut f = vec![0u8; 8];
+        frames_dolp(&solver, &views, w, &rules, 2, &mut d, &mut f).unwrap();
+        // Every block but the one holding the saturated raw (whose mean S0 is higher).
+        assert!(
+            f.iter()
+                .enumerate()
+                .all(|(i, &f)| (i == 1) != (f & flag::DARK != 0))
+        );
+        assert!(binned_size(8, 4, 0).is_err() && binned_size(8, 4, 5).is_err());
+    }
+
+    #[test]
+    fn stokes_dolp_matches_frames_dolp() {
+        let (w, h) = (6usize, 4usize);
+        let s0: Vec<f32> = (0..w * h).map(|i| 100.0 + i as f32).collect();
+        let s1: Vec<f32> = (0..w * h).map(|i| 10.0 - i as f32).collect();
+        let s2: Vec<f32> = (0..w * h).map(|i| (i % 5) as f32).collect();
+        let mut m = vec![mask::VALID; w * h];
+        m[7] = mask::INVALID;
+        m[0] = mask::DARK; // ignored: the dark test is on the block mean
+        let mut d = vec![0f32; 6];
+        let mut f = vec![0u8; 6];
+        stokes_dolp(w, &s0, &s1, &s2, Some(&m), 0.0, 2, &mut d, &mut f).unwrap();
+        // Block 0 holds pixels 0, 1, 6, 7 (7 invalid); block 1 holds 2, 3, 8, 9.
+        assert_eq!(f, vec![flag::INVALID, 0, 0, 0, 0, 0]);
+        let sum = |v: &[f32]| [2usize, 3, 8, 9].iter().map(|&i| v[i]).sum::<f32>();
+        let want = (sum(&s1).powi(2) + sum(&s2).powi(2)).sqrt() / sum(&s0);
+        assert!((d[1] - want).abs() < 1e-6, "{} vs {want}", d[1]);
+        // Dark threshold on the block mean S0 (the smallest block mean is 103.5).
+        let mut f = vec![0u8; 6];
+        stokes_dolp(w, &s0, &s1, &s2, None, 103.5, 2, &mut d, &mut f).unwrap();
+        assert_eq!(f, vec![flag::DARK, 0, 0, 0, 0, 0]);
+    }
+
+    #[test]
+    fn fit_and_classify_recovers_classes_and_reasons() {
+        let betas: Vec<f64> = (0..10)
+            .map(|i| ((35.0 + 5.0 * i as f64 + 60.0) / 2.0f64).to_radians())
+            .collect();
+        let plan = FitPlan::new(&betas, Default::default()).unwrap();
+        let cls = Classifier::new(
+            vec![
+                proto("copper", 0.4, 2.95),
+                proto("aluminum", 1.24, 6.6),
+                proto("green_paint", 1.39, 0.34),
+            ],
+            ClassifierConfig::default(),
+        )
+        .unwrap();
+        let pc = PixelClassifier::new(cls, Some(1.0)).unwrap();
+        assert_eq!(pc.names(), ["aluminum", "copper", "green_paint"]);
+        // Pixels: copper, aluminum, green paint, far away (rejected), saturated.
+        let truth = [
+            (0.4, 2.95),
+            (1.24, 6.6),
+            (1.39, 0.34),
+            (3.0, 0.0),
+            (1.0, 1.0),
+        ];
+        let imgs: Vec<Vec<f32>> = betas
+            .iter()
+            .map(|&b| truth.iter().map(|&(n, k)| dop(n, k, b) as f32).collect())
+            .collect();
+        let views: Vec<&[f32]> = imgs.iter().map(|v| v.as_slice()).collect();
+        let flags = [0, 0, 0, 0, flag::SATURATED | flag::DARK];
+        let np = truth.len();
+        let mut o: Vec<Vec<f32>> = vec![vec![0f32; np]; 5];
+        let (mut class, mut why) = (vec![9u16; np], vec![9u8; np]);
+        let [n, k, n_se, k_se, rms] = &mut o[..] else {
+            unreachable!()
+        };
+        let out = MapOutputs {
+            n,
+            k,
+            n_se,
+            k_se,
+            rms_residual: rms,
+            class: &mut class,
+            reason: &mut why,
+        };
+        let counts = fit_and_classify(&plan, &pc, &views, &flags, 2, out, &|_| {}).unwrap();
+        assert_eq!(class, vec![2, 1, 3, 0, 0]);
+        assert_eq!(why, vec![0, 0, 0, reason::REJECTED, reason::SATURATED]);
+        assert_eq!(counts.classes, vec![2, 1, 1, 1]);
+        assert_eq!(counts.reasons[reason::CLASSIFIED as usize], 3);
+        assert!((o[0][0] - 0.4).abs() < 1e-3 && (o[1][1] - 6.6).abs() < 1e-2);
+        assert!(o[0][4].is_nan());
+    }
+}

@@ -1,0 +1,102 @@
+#!/usr/bin/env python3
+"""Run polarid's throughput examples and shared/bench/baselines.py side by side and
+print each figure and the ratio polarid/baseline against the issue-7 targets.
+Called by scripts/bench_compare.sh (which sets up the venv and builds the examples)."""
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+
+
+def run(cmd):
+    print("$ " + " ".join(cmd), file=sys.stderr, flush=True)
+    return subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+
+
+def last_json(text):
+    for line in reversed(text.strip().splitlines()):
+        line = line.strip()
+        if line.startswith("{"):
+            return json.loads(line)
+    raise ValueError("no JSON line in output:\n" + text)
+
+
+def find(d, keys):
+    """First value of any of `keys` found anywhere in nested dict d."""
+    if isinstance(d, dict):
+        for k in keys:
+            if k in d and isinstance(d[k], (int, float)):
+                return float(d[k])
+        for v in d.values():
+            r = find(v, keys)
+            if r is not None:
+                return r
+    return None
+
+
+def row(name, ours, base, target, unit):
+    ratio = ours / base if base else float("nan")
+    ok = "PASS" if target is not None and ratio >= target else ("----" if target is None else "FAIL")
+    tgt = f">= {target:g}x" if target is not None else ""
+    print(f"{name:<44} {ours:>12.1f} {base:>12.1f} {unit:<10} {ratio:>9.1f}x {tgt:>9} {ok}")
+    return ratio
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--baselines", required=True)
+    ap.add_argument("--target-dir", required=True)
+    ap.add_argument("--quick", action="store_true")
+    a = ap.parse_args()
+    py = sys.executable
+    reps = "3" if a.quick else "5"
+    vec_pixels = "200000" if a.quick else "1000000"
+    loop_pixels = "500" if a.quick else "2000"
+    fit_pixels = "200000" if a.quick else "1000000"
+
+    # --- Stokes
+    st = last_json(run([py, a.baselines, "stokes", "--repeats", reps]))["results"]
+    out = run([os.path.join(a.target_dir, "stokes_throughput")])
+    m = re.search(r"stokes\+dolp\+aolp.*?([0-9.]+) Mpixel/s", out)
+    ours_stokes = float(m.group(1)) if m else float("nan")
+    m = re.search(r"bilinear demosaic.*?([0-9.]+) Mpixel/s", out)
+    ours_demosaic = float(m.group(1)) if m else float("nan")
+
+    # --- Fits
+    fv = last_json(run([py, a.baselines, "fit-vec", "--pixels", vec_pixels]))["results"]
+    fl = last_json(run([py, a.baselines, "fit-loop", "--pixels", loop_pixels]))["results"]
+    fl_best = max(fl.values(), key=lambda r: r["fits_per_s"])
+    fit_exe = os.path.join(a.target_dir, "fit_throughput")
+    ours_fit = None
+    if os.path.exists(fit_exe):
+        ours_fit = last_json(run([fit_exe, "--pixels", fit_pixels, "--threads", str(os.cpu_count() or 2), "--seed", "1"]))
+
+    print()
+    print(f"{'figure':<44} {'polarid':>12} {'baseline':>12} {'unit':<10} {'ratio':>10} {'target':>9}")
+    row("Stokes+DoLP+AoLP 2048x2448 vs polanalyser", ours_stokes,
+        st["polanalyser_stokes_dolp_aolp"]["mpix_per_s"], 20, "Mpixel/s")
+    row("Stokes+DoLP+AoLP vs numpy float32", ours_stokes,
+        st["numpy_f32_stokes_dolp_aolp"]["mpix_per_s"], None, "Mpixel/s")
+    row("DoFP demosaic vs polanalyser", ours_demosaic,
+        st["polanalyser_demosaicing_mono"]["mpix_per_s"], None, "Mpixel/s")
+    if ours_fit is None:
+        print(f"(no {fit_exe}: polarid fit throughput not measured)")
+        print(f"fit-vec  {fv['fits_per_s']:.0f} fits/s, global-optimum rate {fv['frac_cost_le_truth']:.4f}")
+        print(f"fit-loop {fl_best['fits_per_s']:.0f} fits/s, global-optimum rate {fl_best['frac_cost_le_truth']:.4f}")
+    else:
+        fps = find(ours_fit, ["fits_per_s", "fits_per_second"])
+        rate = find(ours_fit, ["frac_cost_le_truth", "global_optimum_rate", "frac_global"])
+        row("(n,k) fits vs numpy batched LM (fit-vec)", fps, fv["fits_per_s"], 50, "fits/s")
+        row("(n,k) fits vs scipy loop (fit-loop)", fps, fl_best["fits_per_s"], 2000, "fits/s")
+        if rate is not None:
+            for name, r in (("fit-vec", fv["frac_cost_le_truth"]), ("fit-loop", fl_best["frac_cost_le_truth"])):
+                verdict = "PASS" if rate >= r else "FAIL"
+                print(f"global-optimum rate: polarid {rate:.4f} vs {name} {r:.4f}  {verdict}")
+        print("polarid fit_throughput: " + json.dumps(ours_fit))
+    print("env: " + json.dumps(last_json(json.dumps({"cpus": os.cpu_count()}))))
+
+
+if __name__ == "__main__":
+    main()
