@@ -12,8 +12,14 @@
 use pyo3::prelude::*;
 
 pub mod arrays;
+pub mod classify;
 pub mod errors;
+pub mod files;
+pub mod fit;
 pub mod model;
+pub mod pbrdf;
+pub mod simulate;
+pub mod stokes;
 
 /// Recover the complex refractive index of shiny surfaces from passive polarization
 /// images, and classify the material (Rust extension module of `polarid`).
@@ -21,5 +27,11 @@ pub mod model;
 fn _polarid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     model::register(m)?;
+    stokes::register(m)?;
+    pbrdf::register(m)?;
+    fit::register(m)?;
+    classify::register(m)?;
+    files::register(m)?;
+    simulate::register(m)?;
     Ok(())
 }
