@@ -10,7 +10,7 @@ use polarid_core::fit::{FitBounds, FitOptions, FitPlan, FitStatus, NkFit, fit_ba
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{f64_contiguous, fmt_shape, str_array, to_numpy};
+use crate::arrays::{f64_contiguous, fmt_shape, to_numpy};
 use crate::errors::{PyResultExt, value_error};
 
 /// The status words of a fit, indexed by the `status_code` of `fit_nk`'s batch output.
@@ -135,12 +135,15 @@ fn single_dict<'py>(py: Python<'py>, f: &NkFit) -> PyResult<Bound<'py, PyDict>> 
 ///     strings ``status`` (``ok``, ``not_converged``, ``ill_conditioned``,
 ///     ``at_bound``) and ``reason`` (empty when ok).
 ///
-///     A stack (``dolp`` of shape (..., T)): the same keys holding arrays of shape
-///     ``dolp.shape[:-1]`` (float64; uint32 for the counts; str arrays for ``status``
-///     and ``reason``), plus ``status_code`` (uint8, an index into
-///     ``polarid.FIT_STATUS``). A pixel whose data are unusable (NaN, DoLP outside
-///     [0, 1], se <= 0) gets status ``invalid_input`` and NaN values instead of an
-///     error.
+///     A stack (``dolp`` of shape (..., T)): arrays of shape ``dolp.shape[:-1]``:
+///     ``n``, ``k``, ``n_se``, ``k_se``, ``nk_corr``, ``rms_residual``, ``cost``
+///     (float64), ``iterations``, ``evaluations``, ``starts`` (uint32), ``status`` (str
+///     array) and ``status_code`` (uint8, an index into ``polarid.FIT_STATUS``),
+///     ``reason_code`` (uint8) with ``reasons`` (list of str, ``reasons[0] == ""``):
+///     the reason of pixel i is ``reasons[reason_code[i]]`` (codes rather than a str
+///     array keep large stacks small). A pixel whose data are unusable (NaN, DoLP
+///     outside [0, 1], se <= 0) gets status ``invalid_input`` and NaN values instead of
+///     an error.
 ///
 /// Raises
 /// ------
@@ -220,59 +223,160 @@ pub fn fit_nk<'py>(
     }
     let lead = shape[..shape.len() - 1].to_vec();
     let pixels: usize = lead.iter().product();
-    let fits = py
-        .detach(|| -> Result<Vec<NkFit>, CoreError> {
-            let mut out = vec![NkFit::default(); pixels];
-            fit_batch(&plan, ys, ses, &mut out)?;
-            Ok(out)
-        })
-        .py_err()?;
-    batch_dict(py, &lead, &fits)
+    let out = py.detach(|| batch(&plan, ys, ses, pixels)).py_err()?;
+    batch_dict(py, &lead, out)
 }
 
-fn batch_dict<'py>(
-    py: Python<'py>,
-    lead: &[usize],
-    fits: &[NkFit],
-) -> PyResult<Bound<'py, PyDict>> {
-    let dim = IxDyn(lead);
-    let f64s = |f: fn(&NkFit) -> f64| -> PyResult<ArrayD<f64>> {
-        ArrayD::from_shape_vec(dim.clone(), fits.iter().map(f).collect())
-            .map_err(|e| value_error(e.to_string()))
-    };
-    let u32s = |f: fn(&NkFit) -> u32| -> PyResult<ArrayD<u32>> {
-        ArrayD::from_shape_vec(dim.clone(), fits.iter().map(f).collect())
-            .map_err(|e| value_error(e.to_string()))
-    };
-    let d = PyDict::new(py);
-    d.set_item("n", to_numpy(py, f64s(|f| f.n)?))?;
-    d.set_item("k", to_numpy(py, f64s(|f| f.k)?))?;
-    d.set_item("n_se", to_numpy(py, f64s(|f| f.n_se)?))?;
-    d.set_item("k_se", to_numpy(py, f64s(|f| f.k_se)?))?;
-    d.set_item("nk_corr", to_numpy(py, f64s(|f| f.nk_corr)?))?;
-    d.set_item("rms_residual", to_numpy(py, f64s(|f| f.rms_residual)?))?;
-    d.set_item("cost", to_numpy(py, f64s(|f| f.cost)?))?;
-    d.set_item("iterations", to_numpy(py, u32s(|f| f.iterations)?))?;
-    d.set_item("evaluations", to_numpy(py, u32s(|f| f.evaluations)?))?;
-    d.set_item("starts", to_numpy(py, u32s(|f| f.starts)?))?;
-    let codes = u32s(|f| status_code(f.status) as u32)?;
-    d.set_item("status_code", to_numpy(py, codes.mapv(|c| c as u8)))?;
-    d.set_item("status", str_array(py, &STATUS_NAMES, codes)?)?;
-    // Reasons: a handful of distinct static strings, interned.
-    let mut reasons: Vec<&'static str> = vec![""];
-    let mut rcodes = Vec::with_capacity(fits.len());
-    for f in fits {
-        let i = match reasons.iter().position(|r| *r == f.reason) {
-            Some(i) => i,
-            None => {
-                reasons.push(f.reason);
-                reasons.len() - 1
-            }
-        };
-        rcodes.push(i as u32);
+/// Pixels per parallel task of [`batch`].
+const CHUNK: usize = 256;
+
+/// The columns of a batch fit (struct of arrays).
+#[derive(Default)]
+struct BatchOut {
+    n: Vec<f64>,
+    k: Vec<f64>,
+    n_se: Vec<f64>,
+    k_se: Vec<f64>,
+    nk_corr: Vec<f64>,
+    rms: Vec<f64>,
+    cost: Vec<f64>,
+    iterations: Vec<u32>,
+    evaluations: Vec<u32>,
+    starts: Vec<u32>,
+    status: Vec<u8>,
+    reason: Vec<u8>,
+    /// `reason` codes index this table; 0 is "".
+    reasons: Vec<&'static str>,
+}
+
+/// Fit `pixels` pixels with [`fit_batch`], `CHUNK` at a time in parallel, writing the
+/// results straight into the output columns (no per-pixel intermediate of the whole
+/// stack: large stacks would otherwise spend their time in page faults).
+fn batch(
+    plan: &FitPlan,
+    ys: &[f64],
+    ses: Option<&[f64]>,
+    pixels: usize,
+) -> Result<BatchOut, CoreError> {
+    use rayon::prelude::*;
+    let t = plan.len();
+    if ys.len() != pixels * t {
+        return Err(CoreError::LengthMismatch {
+            name: "dolp",
+            expected: pixels * t,
+            got: ys.len(),
+        });
     }
-    let rcodes =
-        ArrayD::from_shape_vec(dim.clone(), rcodes).map_err(|e| value_error(e.to_string()))?;
-    d.set_item("reason", str_array(py, &reasons, rcodes)?)?;
+    let mut o = BatchOut {
+        n: vec![0.0; pixels],
+        k: vec![0.0; pixels],
+        n_se: vec![0.0; pixels],
+        k_se: vec![0.0; pixels],
+        nk_corr: vec![0.0; pixels],
+        rms: vec![0.0; pixels],
+        cost: vec![0.0; pixels],
+        iterations: vec![0; pixels],
+        evaluations: vec![0; pixels],
+        starts: vec![0; pixels],
+        status: vec![0; pixels],
+        reason: vec![0; pixels],
+        reasons: Vec::new(),
+    };
+    let reasons: Mutex<Vec<&'static str>> = Mutex::new(vec![""]);
+    let err: Mutex<Option<CoreError>> = Mutex::new(None);
+    let c = CHUNK;
+    (
+        o.n.par_chunks_mut(c),
+        o.k.par_chunks_mut(c),
+        o.n_se.par_chunks_mut(c),
+        o.k_se.par_chunks_mut(c),
+        o.nk_corr.par_chunks_mut(c),
+        o.rms.par_chunks_mut(c),
+        o.cost.par_chunks_mut(c),
+        o.iterations.par_chunks_mut(c),
+        o.evaluations.par_chunks_mut(c),
+        o.starts.par_chunks_mut(c),
+        o.status.par_chunks_mut(c),
+        o.reason.par_chunks_mut(c),
+    )
+        .into_par_iter()
+        .enumerate()
+        .for_each_init(
+            || vec![NkFit::default(); c],
+            |buf, (i, (n, k, nse, kse, corr, rms, cost, it, ev, st, code, rc))| {
+                let len = n.len();
+                let y = &ys[i * c * t..(i * c + len) * t];
+                let se = ses.map(|s| &s[i * c * t..(i * c + len) * t]);
+                let buf = &mut buf[..len];
+                if let Err(e) = fit_batch(plan, y, se, buf) {
+                    if let Ok(mut slot) = err.lock() {
+                        *slot = Some(e);
+                    }
+                    return;
+                }
+                for (j, f) in buf.iter().enumerate() {
+                    n[j] = f.n;
+                    k[j] = f.k;
+                    nse[j] = f.n_se;
+                    kse[j] = f.k_se;
+                    corr[j] = f.nk_corr;
+                    rms[j] = f.rms_residual;
+                    cost[j] = f.cost;
+                    it[j] = f.iterations;
+                    ev[j] = f.evaluations;
+                    st[j] = f.starts;
+                    code[j] = status_code(f.status);
+                    rc[j] = if f.reason.is_empty() {
+                        0
+                    } else {
+                        reasons.lock().map_or(0, |mut r| {
+                            match r.iter().position(|x| *x == f.reason) {
+                                Some(p) => p as u8,
+                                None if r.len() < 255 => {
+                                    r.push(f.reason);
+                                    (r.len() - 1) as u8
+                                }
+                                None => 0,
+                            }
+                        })
+                    };
+                }
+            },
+        );
+    if let Some(e) = err.into_inner().ok().flatten() {
+        return Err(e);
+    }
+    o.reasons = reasons.into_inner().unwrap_or_default();
+    Ok(o)
+}
+
+fn batch_dict<'py>(py: Python<'py>, lead: &[usize], o: BatchOut) -> PyResult<Bound<'py, PyDict>> {
+    fn arr<'py, T: numpy::Element>(
+        py: Python<'py>,
+        lead: &[usize],
+        v: Vec<T>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let a = ArrayD::from_shape_vec(IxDyn(lead), v).map_err(|e| value_error(e.to_string()))?;
+        Ok(to_numpy(py, a))
+    }
+    let d = PyDict::new(py);
+    d.set_item("n", arr(py, lead, o.n)?)?;
+    d.set_item("k", arr(py, lead, o.k)?)?;
+    d.set_item("n_se", arr(py, lead, o.n_se)?)?;
+    d.set_item("k_se", arr(py, lead, o.k_se)?)?;
+    d.set_item("nk_corr", arr(py, lead, o.nk_corr)?)?;
+    d.set_item("rms_residual", arr(py, lead, o.rms)?)?;
+    d.set_item("cost", arr(py, lead, o.cost)?)?;
+    d.set_item("iterations", arr(py, lead, o.iterations)?)?;
+    d.set_item("evaluations", arr(py, lead, o.evaluations)?)?;
+    d.set_item("starts", arr(py, lead, o.starts)?)?;
+    let codes = arr(py, lead, o.status)?;
+    let names = py
+        .import("numpy")?
+        .call_method1("array", (STATUS_NAMES.to_vec(),))?;
+    d.set_item("status", names.call_method1("take", (&codes,))?)?;
+    d.set_item("status_code", codes)?;
+    d.set_item("reason_code", arr(py, lead, o.reason)?)?;
+    d.set_item("reasons", o.reasons)?;
     Ok(d)
 }

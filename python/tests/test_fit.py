@@ -40,6 +40,9 @@ def test_batch_equals_single_and_shapes():
             for key in ("n", "k", "n_se", "k_se", "nk_corr", "rms_residual", "cost"):
                 assert b[key][i] == s[key] or (np.isnan(b[key][i]) and np.isnan(s[key])), key
             assert b["status"][i] == s["status"]
+            assert b["reasons"][b["reason_code"][i]] == s["reason"]
+            for key in ("iterations", "evaluations", "starts"):
+                assert b[key][i] == s[key], key
             assert polarid.FIT_STATUS[b["status_code"][i]] == s["status"]
     # (H, W, T) stacks keep their leading shape.
     m = polarid.fit_nk(y[:48].reshape(6, 8, 10), BETA)
@@ -52,8 +55,10 @@ def test_batch_flags_invalid_pixels_instead_of_failing():
     y[1, 3] = np.nan
     y[2, 0] = 1.5
     b = polarid.fit_nk(y, BETA)
-    assert b["status"][1] == "invalid_input" and b["reason"][1] == "non-finite DoLP"
-    assert b["status"][2] == "invalid_input" and b["reason"][2] == "DoLP outside [0, 1]"
+    reason = [b["reasons"][c] for c in b["reason_code"]]
+    assert b["status"][1] == "invalid_input" and reason[1] == "non-finite DoLP"
+    assert b["status"][2] == "invalid_input" and reason[2] == "DoLP outside [0, 1]"
+    assert b["reasons"][0] == "" and b["status_code"][1] == polarid.FIT_STATUS.index("invalid_input")
     assert np.isnan(b["n"][1]) and np.isfinite(b["n"][0])
 
 
@@ -94,7 +99,7 @@ def test_1000x10_identical_to_cli(tmp_path, polarid_cli, with_se):
         want = np.array([float(v) for v in cli[key]])
         np.testing.assert_array_equal(py[key], want, err_msg=key)
     assert list(py["status"]) == cli["status"]
-    assert list(py["reason"]) == cli["reason"]
+    assert [py["reasons"][c] for c in py["reason_code"]] == cli["reason"]
     # and the fit recovers the truth within its standard errors for most pixels
     good = py["status"] == "ok"
     assert good.mean() > 0.9
