@@ -206,7 +206,7 @@ pub fn f64_contiguous<'py>(
     let a = np.call_method1("asarray", (obj,))?;
     check_real(name, &a)?;
     let a = np.call_method1("ascontiguousarray", (a, "float64"))?;
-    Ok(a.extract()?)
+    a.extract()
 }
 
 /// Stokes input of `dolp`/`aolp`: float32 arrays stay float32 (the CLI's kernel), every

@@ -341,11 +341,12 @@ pub fn classify<'py>(
         return Ok(out);
     }
     let dim = IxDyn(&shape);
-    let u = |f: fn(&(u32, f64, u32, f64, f64, u32)) -> u32| -> PyResult<ArrayD<u32>> {
+    type Row = (u32, f64, u32, f64, f64, u32);
+    let u = |f: fn(&Row) -> u32| -> PyResult<ArrayD<u32>> {
         ArrayD::from_shape_vec(dim.clone(), res.iter().map(f).collect())
             .map_err(|e| value_error(e.to_string()))
     };
-    let fl = |f: fn(&(u32, f64, u32, f64, f64, u32)) -> f64| -> PyResult<ArrayD<f64>> {
+    let fl = |f: fn(&Row) -> f64| -> PyResult<ArrayD<f64>> {
         ArrayD::from_shape_vec(dim.clone(), res.iter().map(f).collect())
             .map_err(|e| value_error(e.to_string()))
     };

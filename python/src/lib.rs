@@ -2,7 +2,8 @@
 //!
 //! Layout: one Rust module per topic, each with a `register(m)` function that adds its
 //! `#[pyfunction]`s to the extension module (`model.rs`: the eq. (9) forward model;
-//! `stokes.rs`, `fit.rs`, `classify.rs` ... to come). Shared pieces: `errors.rs` (the
+//! `stokes.rs`: Stokes/DoFP/DoLP/AoLP images; `pbrdf.rs`: eq. (3); `fit.rs`: the
+//! `(n, k)` fit; `classify.rs`; `files.rs`: manifests and `measure`; `simulate.rs`). Shared pieces: `errors.rs` (the
 //! one mapping of `CoreError`/`IoError` to Python exceptions) and `arrays.rs` (array-like
 //! arguments, broadcasting, zero-copy output). The pure-Python package `polarid`
 //! (`python/polarid/`) re-exports the functions and carries the type stubs.

@@ -182,7 +182,7 @@ pub fn simulate<'py>(
     let analyzers: Vec<Analyzer> = if dofp {
         let p = polarid_core::mosaic::Pattern::new(&pattern).py_err()?;
         let a = p.angles_deg().map(f64::to_radians);
-        if tile % 2 != 0 || gap % 2 != 0 {
+        if !tile.is_multiple_of(2) || !gap.is_multiple_of(2) {
             return Err(value_error(format!(
                 "a DoFP mosaic needs an even tile and gap, got tile = {tile}, gap = {gap}"
             )));
