@@ -3,12 +3,15 @@
 # virtualenv .venv-test (created on first use, reused afterwards), with pytest and the
 # pinned baseline environment of ../shared/bench/requirements.txt (numpy, scipy,
 # polanalyser, OpenCV, matplotlib: the comparison tests use them), then run
-# `pytest python/tests -q`.
+# `pytest python/tests -q`. The tests that compare with the command-line program use the
+# release build of `polarid` (built here with `cargo build --release --locked -p
+# polarid-cli`, or given as $POLARID_CLI).
 #
 # Needs only Rust (cargo) and Python >= 3.11 with pip. Environment:
 #   PYTHON          interpreter that creates the venv (default: python3)
 #   POLARID_SHARED  the shared reference folder (default: ../shared next to the repo)
 #   POLARID_VENV    the virtualenv (default: .venv-test at the repository root)
+#   POLARID_CLI     a prebuilt polarid binary (default: build target/release/polarid)
 # Extra arguments are passed to pytest.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -40,6 +43,12 @@ echo "== building and installing polarid (maturin, release, --locked)"
 # --force-reinstall: the version number does not change between builds.
 "${pip[@]}" install -q --force-reinstall --no-deps ./python
 
+if [[ -z "${POLARID_CLI:-}" ]]; then
+    echo "== building the polarid CLI (cargo build --release --locked -p polarid-cli)"
+    cargo build --release --locked -q -p polarid-cli
+    POLARID_CLI="${CARGO_TARGET_DIR:-$root/target}/release/polarid"
+fi
+
 echo "== pytest python/tests"
-export POLARID_SHARED="$shared"
+export POLARID_SHARED="$shared" POLARID_CLI
 exec "$venv/bin/python" -m pytest python/tests -q "$@"

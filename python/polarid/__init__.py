@@ -4,21 +4,67 @@ polarid recovers the complex refractive index ``N = n + ik`` of specular targets
 their degree of linear polarization (DoLP) measured with the light source at several
 known positions, and classifies the material. The numerics are in Rust (the
 ``polarid._polarid`` extension); every function takes numpy arrays (or anything
-``numpy.asarray`` accepts), computes in float64 and releases the GIL while it works.
+``numpy.asarray`` accepts) and releases the GIL while it works.
 
 Conventions (those of the ``polarid`` command-line program): angles in degrees,
-``k >= 0``, ``S1 = I(0) - I(90)``, ``S2 = I(45) - I(135)``. Bad input raises
-``ValueError`` with the same message as the CLI; missing files raise
-``FileNotFoundError``.
+``k >= 0``, ``S1 = I(0) - I(90)``, ``S2 = I(45) - I(135)``, Stokes images with S0, S1,
+S2 on the first axis, AoLP in degrees in [0, 180). Bad input raises ``ValueError`` with
+the same message as the CLI; missing files raise ``FileNotFoundError``.
 
 Functions
 ---------
-dolp_model(n, k, beta_deg)
-    DoLP of specular reflection, paper eq. (9), with numpy broadcasting.
-dolp_model_grad(n, k, beta_deg)
-    ``(P, dP/dn, dP/dk)`` of eq. (9).
+stokes(frames, angles_deg)
+    Stokes images (3, H, W) from polarizer frames (N, H, W).
+demosaic(raw, pattern, method, output)
+    Stokes or per-angle images from a division-of-focal-plane mosaic.
+dolp(s), aolp(s), dolp_aolp(s)
+    DoLP and AoLP (degrees) of Stokes images.
+dolp_model(n, k, beta_deg), dolp_model_grad(n, k, beta_deg)
+    DoLP of specular reflection, paper eq. (9) (and its gradient), with broadcasting.
+pbrdf(n, k, sigma, theta_i, theta_r, phi)
+    The Priest-Meier pBRDF, paper eq. (3): local and global Mueller matrices.
+fit_nk(dolp, beta_deg, dolp_se=None)
+    (n, k) with standard errors for one target or a stack of pixels (eq. 16).
+classify(n, k, library_or_model)
+    Nearest-prototype material classification (paper section 6).
+load_manifest(path), measure(manifest_path)
+    Capture-set manifests and the per-region DoLP measurements of ``polarid measure``.
+simulate(plates, theta_i_deg, ...)
+    Synthetic frames of plates of known (n, k, sigma).
 """
 
-from ._polarid import __version__, dolp_model, dolp_model_grad
+from ._polarid import (
+    FIT_STATUS,
+    __version__,
+    aolp,
+    classify,
+    demosaic,
+    dolp,
+    dolp_aolp,
+    dolp_model,
+    dolp_model_grad,
+    fit_nk,
+    load_manifest,
+    measure,
+    pbrdf,
+    simulate,
+    stokes,
+)
 
-__all__ = ["__version__", "dolp_model", "dolp_model_grad"]
+__all__ = [
+    "FIT_STATUS",
+    "__version__",
+    "aolp",
+    "classify",
+    "demosaic",
+    "dolp",
+    "dolp_aolp",
+    "dolp_model",
+    "dolp_model_grad",
+    "fit_nk",
+    "load_manifest",
+    "measure",
+    "pbrdf",
+    "simulate",
+    "stokes",
+]

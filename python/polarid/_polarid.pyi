@@ -1,21 +1,44 @@
 """Type stubs of the Rust extension module ``polarid._polarid``.
 
-Every numeric argument accepts a float, a nested sequence or a numpy array of any real
-dtype (converted to float64); arguments broadcast together with numpy's rules. A result
-is a ``float`` when all arguments are scalars (or 0-d arrays), else a float64 array.
+Numeric arguments accept a float, a nested sequence or a numpy array of any real dtype;
+element-wise functions broadcast their arguments with numpy's rules and return a
+``float`` when all arguments are scalars (or 0-d arrays), else a float64 array. Image
+functions put S0, S1, S2 (or the per-angle images) on the first axis.
 """
 
-from typing import overload
+import os
+from collections.abc import Sequence
+from typing import Any, Literal, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["__version__", "dolp_model", "dolp_model_grad"]
+__all__ = [
+    "FIT_STATUS",
+    "__version__",
+    "aolp",
+    "classify",
+    "demosaic",
+    "dolp",
+    "dolp_aolp",
+    "dolp_model",
+    "dolp_model_grad",
+    "fit_nk",
+    "load_manifest",
+    "measure",
+    "pbrdf",
+    "simulate",
+    "stokes",
+]
 
 __version__: str
+#: Status words of a fit, indexed by ``fit_nk(...)["status_code"]``.
+FIT_STATUS: list[str]
 
 _F = float | NDArray[np.float64]
+_Path = str | os.PathLike[str]
 
+# --- forward model (eq. 9) ---------------------------------------------------------
 @overload
 def dolp_model(n: float, k: float, beta_deg: float) -> float: ...
 @overload
@@ -24,3 +47,121 @@ def dolp_model(n: ArrayLike, k: ArrayLike, beta_deg: ArrayLike) -> _F: ...
 def dolp_model_grad(n: float, k: float, beta_deg: float) -> tuple[float, float, float]: ...
 @overload
 def dolp_model_grad(n: ArrayLike, k: ArrayLike, beta_deg: ArrayLike) -> tuple[_F, _F, _F]: ...
+
+# --- Stokes images -------------------------------------------------------------------
+@overload
+def stokes(
+    frames: ArrayLike,
+    angles_deg: Sequence[float] | NDArray[Any],
+    *,
+    dark_level: float = 0.0,
+    saturation: float | None = None,
+    min_s0: float = 0.0,
+    return_mask: Literal[False] = False,
+) -> NDArray[np.float32]: ...
+@overload
+def stokes(
+    frames: ArrayLike,
+    angles_deg: Sequence[float] | NDArray[Any],
+    *,
+    dark_level: float = 0.0,
+    saturation: float | None = None,
+    min_s0: float = 0.0,
+    return_mask: Literal[True],
+) -> tuple[NDArray[np.float32], NDArray[np.uint8]]: ...
+@overload
+def demosaic(
+    raw: ArrayLike,
+    pattern: Sequence[float] = (90, 45, 135, 0),
+    method: Literal["bilinear", "superpixel"] = "bilinear",
+    output: Literal["stokes", "angles"] = "stokes",
+    *,
+    dark_level: float = 0.0,
+    saturation: float | None = None,
+    min_s0: float = 0.0,
+    round: bool | None = None,
+    return_mask: Literal[False] = False,
+) -> NDArray[np.float32]: ...
+@overload
+def demosaic(
+    raw: ArrayLike,
+    pattern: Sequence[float] = (90, 45, 135, 0),
+    method: Literal["bilinear", "superpixel"] = "bilinear",
+    output: Literal["stokes"] = "stokes",
+    *,
+    dark_level: float = 0.0,
+    saturation: float | None = None,
+    min_s0: float = 0.0,
+    round: bool | None = None,
+    return_mask: Literal[True],
+) -> tuple[NDArray[np.float32], NDArray[np.uint8]]: ...
+def dolp(s: ArrayLike) -> NDArray[np.float32] | NDArray[np.float64]: ...
+def aolp(s: ArrayLike) -> NDArray[np.float32] | NDArray[np.float64]: ...
+def dolp_aolp(
+    s: ArrayLike,
+) -> tuple[NDArray[np.float32] | NDArray[np.float64], NDArray[np.float32] | NDArray[np.float64]]: ...
+
+# --- pBRDF (eq. 3) ---------------------------------------------------------------------
+def pbrdf(
+    n: ArrayLike,
+    k: ArrayLike,
+    sigma: ArrayLike,
+    theta_i: ArrayLike,
+    theta_r: ArrayLike,
+    phi: ArrayLike,
+) -> dict[str, Any]:
+    """keys: local, global (arrays (..., 3, 3)), beta, facet_tilt (degrees), dolp."""
+
+# --- fit (eq. 16) ----------------------------------------------------------------------
+def fit_nk(
+    dolp: ArrayLike,
+    beta_deg: ArrayLike,
+    dolp_se: ArrayLike | None = None,
+    *,
+    n_range: tuple[float, float] = (0.01, 10.0),
+    k_range: tuple[float, float] = (0.0, 15.0),
+) -> dict[str, Any]:
+    """1-D dolp: floats/ints/str per key; (..., T): arrays (see the docstring)."""
+
+# --- classification --------------------------------------------------------------------
+def classify(
+    n: ArrayLike,
+    k: ArrayLike,
+    library_or_model: _Path | Sequence[tuple[str, float, float] | tuple[str, float, float, str | None]] | None = None,
+    *,
+    n_se: ArrayLike | None = None,
+    k_se: ArrayLike | None = None,
+    nk_corr: ArrayLike | None = None,
+    fit_status: ArrayLike | str | None = None,
+    metric: Literal["euclidean", "mahalanobis"] = "euclidean",
+    neighbours: int = 1,
+    reject: float | None = None,
+    max_distance: float | None = None,
+) -> dict[str, Any]:
+    """keys: predicted, distance, runner_up, runner_up_distance, margin, status."""
+
+# --- files -----------------------------------------------------------------------------
+def load_manifest(path: _Path) -> dict[str, Any]: ...
+def measure(manifest_path: _Path) -> dict[str, NDArray[Any]]: ...
+
+# --- simulation ------------------------------------------------------------------------
+def simulate(
+    plates: Sequence[tuple[float, float, float] | tuple[float, float, float, float] | dict[str, float]],
+    theta_i_deg: ArrayLike,
+    theta_r_deg: ArrayLike | None = None,
+    phi_deg: ArrayLike | None = None,
+    *,
+    angles_deg: Sequence[float] = (0.0, 45.0, 90.0, 135.0),
+    dofp: bool = False,
+    pattern: Sequence[float] = (90.0, 45.0, 135.0, 0.0),
+    tile: int = 16,
+    gap: int = 4,
+    bit_depth: int = 12,
+    full_well_e: float = 10000.0,
+    read_noise_e: float = 3.0,
+    dark_level_dn: float = 0.0,
+    shot_noise: bool = True,
+    fill: float = 0.8,
+    electrons_per_unit: float | None = None,
+    seed: int = 0,
+) -> dict[str, Any]: ...

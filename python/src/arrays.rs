@@ -13,7 +13,9 @@
 //!    numpy without a copy with [`to_python`] (a Python `float` when the result is 0-d).
 
 use ndarray::{ArrayD, ArrayViewD, IxDyn};
-use numpy::{AllowTypeChange, IntoPyArray, PyArrayLikeDyn};
+use numpy::{
+    AllowTypeChange, IntoPyArray, PyArrayLikeDyn, PyReadonlyArrayDyn, PyUntypedArrayMethods,
+};
 use polarid_core::CoreError;
 use pyo3::prelude::*;
 
@@ -97,4 +99,150 @@ fn describe(args: &[(&str, &[usize])]) -> String {
         .map(|(name, s)| format!("{name} {}", fmt_shape(s)))
         .collect();
     parts.join(", ")
+}
+
+/// A raw image stack as the Stokes kernels take it: C-contiguous `u8`, `u16` or `f32`
+/// (any other real dtype is converted to `float32` by numpy).
+pub enum RawArray<'py> {
+    /// 8-bit frames.
+    U8(PyReadonlyArrayDyn<'py, u8>),
+    /// 16-bit frames.
+    U16(PyReadonlyArrayDyn<'py, u16>),
+    /// Float frames.
+    F32(PyReadonlyArrayDyn<'py, f32>),
+}
+
+impl RawArray<'_> {
+    /// Shape of the array.
+    pub fn shape(&self) -> Vec<usize> {
+        match self {
+            RawArray::U8(a) => a.shape().to_vec(),
+            RawArray::U16(a) => a.shape().to_vec(),
+            RawArray::F32(a) => a.shape().to_vec(),
+        }
+    }
+
+    /// True for the integer dtypes.
+    pub fn is_integer(&self) -> bool {
+        !matches!(self, RawArray::F32(_))
+    }
+
+    /// The saturation default of the CLI: the dtype's largest value (255, 65535), or
+    /// `+inf` for floats.
+    pub fn type_max(&self) -> f32 {
+        match self {
+            RawArray::U8(_) => 255.0,
+            RawArray::U16(_) => 65535.0,
+            RawArray::F32(_) => f32::INFINITY,
+        }
+    }
+}
+
+/// Call `$body` with `$s` bound to the contiguous slice of a [`RawArray`], whatever its
+/// sample type.
+#[macro_export]
+macro_rules! with_raw {
+    ($raw:expr, |$s:ident| $body:expr) => {
+        match $raw {
+            $crate::arrays::RawArray::U8(a) => {
+                let $s: &[u8] = a.as_slice()?;
+                $body
+            }
+            $crate::arrays::RawArray::U16(a) => {
+                let $s: &[u16] = a.as_slice()?;
+                $body
+            }
+            $crate::arrays::RawArray::F32(a) => {
+                let $s: &[f32] = a.as_slice()?;
+                $body
+            }
+        }
+    };
+}
+
+fn numpy(py: Python<'_>) -> PyResult<Bound<'_, PyModule>> {
+    py.import("numpy")
+}
+
+/// The numpy dtype kind character of an array-like (`'u'`, `'f'`, ...), after
+/// `numpy.asarray`.
+fn check_real<'py>(name: &str, a: &Bound<'py, PyAny>) -> PyResult<()> {
+    let dtype = a.getattr("dtype")?;
+    let kind: String = dtype.getattr("kind")?.extract()?;
+    if matches!(kind.as_str(), "b" | "i" | "u" | "f") {
+        Ok(())
+    } else {
+        Err(value_error(format!(
+            "{name} must hold real numbers, got an array of dtype {}",
+            dtype.str()?
+        )))
+    }
+}
+
+/// `obj` as a C-contiguous [`RawArray`] (no copy when it already is one).
+pub fn raw_array<'py>(name: &str, obj: &Bound<'py, PyAny>) -> PyResult<RawArray<'py>> {
+    let np = numpy(obj.py())?;
+    let a = np.call_method1("ascontiguousarray", (obj,))?;
+    if let Ok(x) = a.extract::<PyReadonlyArrayDyn<'py, u8>>() {
+        return Ok(RawArray::U8(x));
+    }
+    if let Ok(x) = a.extract::<PyReadonlyArrayDyn<'py, u16>>() {
+        return Ok(RawArray::U16(x));
+    }
+    if let Ok(x) = a.extract::<PyReadonlyArrayDyn<'py, f32>>() {
+        return Ok(RawArray::F32(x));
+    }
+    check_real(name, &a)?;
+    let a = np.call_method1("ascontiguousarray", (a, "float32"))?;
+    Ok(RawArray::F32(a.extract()?))
+}
+
+/// `obj` as a C-contiguous float64 array (numpy converts other real dtypes).
+pub fn f64_contiguous<'py>(
+    name: &str,
+    obj: &Bound<'py, PyAny>,
+) -> PyResult<PyReadonlyArrayDyn<'py, f64>> {
+    let np = numpy(obj.py())?;
+    let a = np.call_method1("asarray", (obj,))?;
+    check_real(name, &a)?;
+    let a = np.call_method1("ascontiguousarray", (a, "float64"))?;
+    a.extract()
+}
+
+/// Stokes input of `dolp`/`aolp`: float32 arrays stay float32 (the CLI's kernel), every
+/// other real dtype becomes float64.
+pub enum FloatArray<'py> {
+    /// float32 input.
+    F32(PyReadonlyArrayDyn<'py, f32>),
+    /// Any other real dtype, as float64.
+    F64(PyReadonlyArrayDyn<'py, f64>),
+}
+
+/// `obj` as a C-contiguous [`FloatArray`].
+pub fn float_array<'py>(name: &str, obj: &Bound<'py, PyAny>) -> PyResult<FloatArray<'py>> {
+    let np = numpy(obj.py())?;
+    let a = np.call_method1("ascontiguousarray", (obj,))?;
+    if let Ok(x) = a.extract::<PyReadonlyArrayDyn<'py, f32>>() {
+        return Ok(FloatArray::F32(x));
+    }
+    Ok(FloatArray::F64(f64_contiguous(name, &a)?))
+}
+
+/// Hand an owned array of any element type to numpy without a copy.
+pub fn to_numpy<'py, T: numpy::Element>(py: Python<'py>, a: ArrayD<T>) -> Bound<'py, PyAny> {
+    a.into_pyarray(py).into_any()
+}
+
+/// A numpy array of strings `names[codes[i]]` (dtype `<U…`), built by numpy's `take`.
+pub fn str_array<'py>(
+    py: Python<'py>,
+    names: &[&str],
+    codes: ArrayD<u32>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let np = numpy(py)?;
+    let table = np.call_method1("array", (names.to_vec(),))?;
+    if names.is_empty() {
+        return np.call_method1("full", (codes.shape().to_vec(), ""));
+    }
+    table.call_method1("take", (codes.into_pyarray(py),))
 }

@@ -2,7 +2,8 @@
 //!
 //! Layout: one Rust module per topic, each with a `register(m)` function that adds its
 //! `#[pyfunction]`s to the extension module (`model.rs`: the eq. (9) forward model;
-//! `stokes.rs`, `fit.rs`, `classify.rs` ... to come). Shared pieces: `errors.rs` (the
+//! `stokes.rs`: Stokes/DoFP/DoLP/AoLP images; `pbrdf.rs`: eq. (3); `fit.rs`: the
+//! `(n, k)` fit; `classify.rs`; `files.rs`: manifests and `measure`; `simulate.rs`). Shared pieces: `errors.rs` (the
 //! one mapping of `CoreError`/`IoError` to Python exceptions) and `arrays.rs` (array-like
 //! arguments, broadcasting, zero-copy output). The pure-Python package `polarid`
 //! (`python/polarid/`) re-exports the functions and carries the type stubs.
@@ -12,8 +13,14 @@
 use pyo3::prelude::*;
 
 pub mod arrays;
+pub mod classify;
 pub mod errors;
+pub mod files;
+pub mod fit;
 pub mod model;
+pub mod pbrdf;
+pub mod simulate;
+pub mod stokes;
 
 /// Recover the complex refractive index of shiny surfaces from passive polarization
 /// images, and classify the material (Rust extension module of `polarid`).
@@ -21,5 +28,11 @@ pub mod model;
 fn _polarid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     model::register(m)?;
+    stokes::register(m)?;
+    pbrdf::register(m)?;
+    fit::register(m)?;
+    classify::register(m)?;
+    files::register(m)?;
+    simulate::register(m)?;
     Ok(())
 }

@@ -22,3 +22,32 @@ def shared() -> Path:
     if not (d / "oracles").is_dir():
         pytest.fail(f"shared reference folder not found at {d} (set POLARID_SHARED)")
     return d
+
+
+def cli_binary() -> Path:
+    """The ``polarid`` command-line program: ``$POLARID_CLI`` if set, else the release
+    build in the repository's ``target/`` (scripts/test_python.sh builds it)."""
+    env = os.environ.get("POLARID_CLI")
+    return Path(env) if env else REPO_ROOT / "target" / "release" / "polarid"
+
+
+@pytest.fixture(scope="session")
+def polarid_cli() -> Path:
+    exe = cli_binary()
+    if not exe.is_file():
+        pytest.fail(
+            f"the polarid CLI was not found at {exe}: run `cargo build --release -p polarid-cli` "
+            "(scripts/test_python.sh does) or set POLARID_CLI"
+        )
+    return exe
+
+
+def read_csv(path) -> dict:
+    """A CSV written by the CLI as a dict of column lists of strings (``#`` comments
+    skipped)."""
+    import csv
+
+    lines = [ln for ln in Path(path).read_text().splitlines() if ln and not ln.startswith("#")]
+    rows = list(csv.reader(lines))
+    header, body = rows[0], rows[1:]
+    return {h: [r[i] for r in body] for i, h in enumerate(header)}
