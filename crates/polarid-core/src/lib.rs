@@ -19,6 +19,7 @@ pub mod error;
 pub mod fit;
 pub mod fresnel;
 pub mod geometry;
+pub mod mixed;
 pub mod mosaic;
 pub mod pbrdf;
 pub mod region;
