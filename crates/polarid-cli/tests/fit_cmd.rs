@@ -171,9 +171,13 @@ fn bad_input_is_exit_2_and_names_the_fault() {
         rows("T", "", 1.5, 0.5, &a, false)
     );
     expect_bad(&text, &["line 12", "dolp", "1.5"], &[]);
-    // Mixed reflectance is issue 10.
-    let text = format!("{HEADER}{}", rows("T", "", 1.5, 0.5, &a, false));
-    expect_bad(&text, &["not available yet"], &["--reflectance", "mixed"]);
+    // Mixed reflectance needs a positive s0 on every row.
+    let text = format!("{HEADER}{}", rows("T", "", 1.5, 0.5, &a, false)).replacen(
+        ",1000,100,0\n",
+        ",0,100,0\n",
+        1,
+    );
+    expect_bad(&text, &["line 2", "s0", "T"], &["--reflectance", "mixed"]);
     // Missing file.
     let st = polarid()
         .args(["fit", "/nonexistent/m.csv"])

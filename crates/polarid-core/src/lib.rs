@@ -20,6 +20,7 @@ pub mod fit;
 pub mod fresnel;
 pub mod geometry;
 pub mod map;
+pub mod mixed;
 pub mod mosaic;
 pub mod pbrdf;
 pub mod region;
