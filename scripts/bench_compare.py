@@ -86,7 +86,14 @@ def main():
         print(f"fit-vec  {fv['fits_per_s']:.0f} fits/s, global-optimum rate {fv['frac_cost_le_truth']:.4f}")
         print(f"fit-loop {fl_best['fits_per_s']:.0f} fits/s, global-optimum rate {fl_best['frac_cost_le_truth']:.4f}")
     else:
-        fps = find(ours_fit, ["fits_per_s", "fits_per_second"])
+        # polarid's figure is its throughput on all cores (the baselines use what
+        # numpy/scipy use); the single-thread figure is printed for reference.
+        res = ours_fit.get("results", {})
+        fps = (res.get("multi_thread") or {}).get("fits_per_s") or find(
+            ours_fit, ["fits_per_s", "fits_per_second"])
+        single = (res.get("single_thread") or {}).get("fits_per_s")
+        if single is not None:
+            print(f"polarid fits/s: {fps:.0f} on all cores, {single:.0f} on one thread")
         rate = find(ours_fit, ["frac_cost_le_truth", "global_optimum_rate", "frac_global"])
         row("(n,k) fits vs numpy batched LM (fit-vec)", fps, fv["fits_per_s"], 50, "fits/s")
         row("(n,k) fits vs scipy loop (fit-loop)", fps, fl_best["fits_per_s"], 2000, "fits/s")
