@@ -25,6 +25,8 @@ pbrdf(n, k, sigma, theta_i, theta_r, phi)
     The Priest-Meier pBRDF, paper eq. (3): local and global Mueller matrices.
 fit_nk(dolp, beta_deg, dolp_se=None)
     (n, k) with standard errors for one target or a stack of pixels (eq. 16).
+fit_mixed(theta_i_deg, theta_r_deg, dolp, s0, ...)
+    Depolarization-aware fit (specular + Lambertian diffuse) with model selection.
 classify(n, k, library_or_model)
     Nearest-prototype material classification (paper section 6).
 load_manifest(path), measure(manifest_path)
@@ -43,6 +45,7 @@ from ._polarid import (
     dolp_aolp,
     dolp_model,
     dolp_model_grad,
+    fit_mixed,
     fit_nk,
     load_manifest,
     measure,
@@ -61,6 +64,7 @@ __all__ = [
     "dolp_aolp",
     "dolp_model",
     "dolp_model_grad",
+    "fit_mixed",
     "fit_nk",
     "load_manifest",
     "measure",

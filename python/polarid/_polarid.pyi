@@ -23,6 +23,7 @@ __all__ = [
     "dolp_aolp",
     "dolp_model",
     "dolp_model_grad",
+    "fit_mixed",
     "fit_nk",
     "load_manifest",
     "measure",
@@ -113,6 +114,24 @@ def pbrdf(
     """keys: local, global (arrays (..., 3, 3)), beta, facet_tilt (degrees), dolp."""
 
 # --- fit (eq. 16) ----------------------------------------------------------------------
+def fit_mixed(
+    theta_i_deg: Sequence[float],
+    theta_r_deg: Sequence[float],
+    dolp: Sequence[float],
+    s0: Sequence[float],
+    *,
+    phi_deg: float = 180.0,
+    dolp_se: Sequence[float] | None = None,
+    estimate_theta_r: bool = False,
+    shadowing: Literal["none", "smith"] = "none",
+    s0_rel_sd: float = 0.02,
+) -> dict[str, Any]:
+    """Specular + Lambertian diffuse fit of one target with BIC model selection.
+
+    Returns ``selected``, ``delta_bic``, ``delta_aic`` and the ``specular`` and ``mixed``
+    fits (dicts: n, k, sigma, rho_d, theta_r_deg, standard errors, status, reason).
+    """
+
 def fit_nk(
     dolp: ArrayLike,
     beta_deg: ArrayLike,

@@ -17,6 +17,7 @@ pub mod classify;
 pub mod errors;
 pub mod files;
 pub mod fit;
+pub mod mixed;
 pub mod model;
 pub mod pbrdf;
 pub mod simulate;
@@ -31,6 +32,7 @@ fn _polarid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     stokes::register(m)?;
     pbrdf::register(m)?;
     fit::register(m)?;
+    mixed::register(m)?;
     classify::register(m)?;
     files::register(m)?;
     simulate::register(m)?;
