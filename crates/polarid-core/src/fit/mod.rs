@@ -1015,6 +1015,22 @@ fn scan_body<const FMA: bool>(
     w: Option<&[f32]>,
     acc: &mut [f32],
 ) -> (usize, f32) {
+    // Unweighted: the same sums without the multiplications by w_t = 1 (bitwise equal).
+    match w {
+        None => scan_lanes::<FMA, false>(curves, gp, y, y, acc),
+        Some(w) => scan_lanes::<FMA, true>(curves, gp, y, w, acc),
+    }
+}
+
+/// [`scan_body`] with the weights `w` (`W`) or without (every weight 1).
+#[inline(always)]
+fn scan_lanes<const FMA: bool, const W: bool>(
+    curves: &[f32],
+    gp: usize,
+    y: &[f32],
+    w: &[f32],
+    acc: &mut [f32],
+) -> (usize, f32) {
     const B: usize = 32;
     const L: usize = 16;
     let mut m = [f32::INFINITY; L];
@@ -1024,16 +1040,18 @@ fn scan_body<const FMA: bool>(
         let mut a = [0f32; B];
         for (t, &yt) in y.iter().enumerate() {
             let row = &curves[t * gp + o..t * gp + o + B];
-            let wt = w.map_or(1.0, |w| w[t]);
+            let wt = if W { w[t] } else { 1.0 };
             if FMA {
                 for l in 0..B {
                     let d = row[l] - yt;
-                    a[l] = (wt * d).mul_add(d, a[l]);
+                    let wd = if W { wt * d } else { d };
+                    a[l] = wd.mul_add(d, a[l]);
                 }
             } else {
                 for l in 0..B {
                     let d = row[l] - yt;
-                    a[l] += wt * d * d;
+                    let wd = if W { wt * d } else { d };
+                    a[l] += wd * d;
                 }
             }
         }
