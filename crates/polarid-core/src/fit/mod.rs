@@ -1095,8 +1095,21 @@ fn find(acc: &[f32], m: &[f32; 16]) -> (usize, f32) {
 #[inline(always)]
 fn argmin_body(acc: &[f32]) -> (usize, f32) {
     const L: usize = 16;
-    let mut m = [f32::INFINITY; L];
-    for c in acc.chunks_exact(L) {
+    // Four independent minimum chains (the minimum is exact, so combining them at the
+    // end gives the same lane minima as one chain).
+    let mut m4 = [[f32::INFINITY; L]; 4];
+    let blocks = acc.chunks_exact(4 * L);
+    let rest = blocks.remainder();
+    for c in blocks {
+        for (q, m) in m4.iter_mut().enumerate() {
+            for l in 0..L {
+                let v = c[q * L + l];
+                m[l] = if v < m[l] { v } else { m[l] };
+            }
+        }
+    }
+    let mut m = m4[0];
+    for c in m4[1..].iter().map(|c| &c[..]).chain(rest.chunks_exact(L)) {
         for l in 0..L {
             m[l] = if c[l] < m[l] { c[l] } else { m[l] };
         }
