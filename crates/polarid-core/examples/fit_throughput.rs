@@ -184,7 +184,14 @@ fn main() {
 
     let (mut le, mut le_strict, mut within, mut ok, mut evals, mut starts) =
         (0usize, 0usize, 0usize, 0usize, 0u64, 0u64);
+    // FNV-1a over the bits of every result: equal checksums mean bitwise-equal fits.
+    let mut checksum = 0xcbf2_9ce4_8422_2325u64;
     for (p, f) in out.iter().enumerate() {
+        for v in [f.n, f.k, f.n_se, f.k_se, f.nk_corr, f.rms_residual, f.cost] {
+            checksum = (checksum ^ v.to_bits()).wrapping_mul(0x100_0000_01b3);
+        }
+        checksum = (checksum ^ u64::from(f.evaluations) ^ (u64::from(f.iterations) << 32))
+            .wrapping_mul(0x100_0000_01b3);
         let yp = &y[p * T..(p + 1) * T];
         let c_true = plan.cost(n_true[p], k_true[p], yp, None);
         let c_fit = plan.cost(f.n, f.k, yp, None);
@@ -203,7 +210,7 @@ fn main() {
     println!(
         "{{\"bench\": \"fit-polarid\", \"pixels\": {}, \"T\": {}, \"noise_sd\": {}, \"seed\": {}, \"threads\": {}, \"plan_build_s\": {:.4}, \
 \"results\": {{\"single_thread\": {}, \"multi_thread\": {}, \"frac_cost_le_truth\": {}, \"frac_cost_le_truth_strict\": {}, \
-\"frac_within_0.05\": {}, \"frac_status_ok\": {}, \"mean_evaluations\": {:.3}, \"mean_starts\": {:.4}}}, \"loadavg_1min\": {}}}",
+\"frac_within_0.05\": {}, \"frac_status_ok\": {}, \"mean_evaluations\": {:.3}, \"mean_starts\": {:.4}, \"checksum\": \"{:016x}\"}}, \"loadavg_1min\": {}}}",
         a.pixels,
         T,
         a.sd,
@@ -218,6 +225,7 @@ fn main() {
         ok as f64 / np,
         evals as f64 / np,
         starts as f64 / np,
+        checksum,
         uptime
     );
 }

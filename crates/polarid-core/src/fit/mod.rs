@@ -240,6 +240,8 @@ pub struct FitPlan {
     jac: Vec<f32>,
     /// Why every fit with this β set is ill-conditioned, if it is.
     issue: Option<&'static str>,
+    /// `1 / (n_max − n_min)`, `1 / (k_max − k_min)` (grid cell lookup).
+    inv_span: (f64, f64),
 }
 
 /// Per-thread scratch memory of a fit (no allocation per fit).
@@ -415,6 +417,7 @@ impl FitPlan {
             coarse_curves,
             jac,
             issue,
+            inv_span: (1.0 / (b.n_max - b.n_min), 1.0 / (b.k_max - b.k_min)),
         })
     }
 
@@ -725,15 +728,31 @@ impl FitPlan {
             cost,
             ..Default::default()
         };
-        for t in 0..t_len {
-            let r = curve[t] as f64 - y[t];
-            let wt = w.map_or(1.0, |w| w[t]);
-            let (a, b) = (jn[t] as f64, jk[t] as f64);
-            ev.h00 += wt * a * a;
-            ev.h01 += wt * a * b;
-            ev.h11 += wt * b * b;
-            ev.g0 += wt * a * r;
-            ev.g1 += wt * b * r;
+        match w {
+            // The same sums with w_t = 1 (bitwise: 1·x = x).
+            None => {
+                for t in 0..t_len {
+                    let r = curve[t] as f64 - y[t];
+                    let (a, b) = (jn[t] as f64, jk[t] as f64);
+                    ev.h00 += a * a;
+                    ev.h01 += a * b;
+                    ev.h11 += b * b;
+                    ev.g0 += a * r;
+                    ev.g1 += b * r;
+                }
+            }
+            Some(w) => {
+                for t in 0..t_len {
+                    let r = curve[t] as f64 - y[t];
+                    let wt = w[t];
+                    let (a, b) = (jn[t] as f64, jk[t] as f64);
+                    ev.h00 += wt * a * a;
+                    ev.h01 += wt * a * b;
+                    ev.h11 += wt * b * b;
+                    ev.g0 += wt * a * r;
+                    ev.g1 += wt * b * r;
+                }
+            }
         }
         let det = ev.h00 * ev.h11 - ev.h01 * ev.h01;
         let (dn, dk) = if det > 1e-12 * ev.h00 * ev.h11 && det > 0.0 {
@@ -796,13 +815,14 @@ impl FitPlan {
     fn cell(&self, n: f64, k: f64) -> (usize, usize) {
         let b = &self.opts.bounds;
         (
-            axis_cell(&self.node_n, b.n_min, b.n_max, n),
-            axis_cell(&self.node_k, b.k_min, b.k_max, k),
+            axis_cell_inv(&self.node_n, b.n_min, self.inv_span.0, n),
+            axis_cell_inv(&self.node_k, b.k_min, self.inv_span.1, k),
         )
     }
 
     /// Exclude the neighbourhoods of coarse node `c` and of the coarse node nearest
     /// `(n, k)` from later candidate searches (±2 grid steps, at least one coarse step).
+    #[inline(always)]
     fn blank(&self, acc: &mut [f32], c: usize, n: f64, k: f64) {
         let (cn, ck) = (self.coarse_i.len(), self.coarse_j.len());
         let (i1, j1) = self.cell(n, k);
@@ -927,10 +947,17 @@ impl FitPlan {
 /// First index of the quadratically spaced `nodes` (see `warp`) holding a value `≥ x`,
 /// at most the last: `nodes.partition_point(|&v| v < x).min(len − 1)`, from the
 /// inverse of the spacing and at most a few corrections.
-#[inline]
+#[cfg(test)]
 fn axis_cell(nodes: &[f64], lo: f64, hi: f64, x: f64) -> usize {
+    axis_cell_inv(nodes, lo, 1.0 / (hi - lo), x)
+}
+
+/// [`axis_cell`] with the inverse span `1 / (hi − lo)` precomputed (a multiplication
+/// instead of a division; the corrections make the result exact either way).
+#[inline]
+fn axis_cell_inv(nodes: &[f64], lo: f64, inv_span: f64, x: f64) -> usize {
     let m = nodes.len();
-    let u = ((x - lo) / (hi - lo)).clamp(0.0, 1.0).sqrt() * (m - 1) as f64;
+    let u = ((x - lo) * inv_span).clamp(0.0, 1.0).sqrt() * (m - 1) as f64;
     let mut i = (u.ceil() as usize).min(m - 1);
     while i > 0 && nodes[i - 1] >= x {
         i -= 1;
@@ -988,6 +1015,22 @@ fn scan_body<const FMA: bool>(
     w: Option<&[f32]>,
     acc: &mut [f32],
 ) -> (usize, f32) {
+    // Unweighted: the same sums without the multiplications by w_t = 1 (bitwise equal).
+    match w {
+        None => scan_lanes::<FMA, false>(curves, gp, y, y, acc),
+        Some(w) => scan_lanes::<FMA, true>(curves, gp, y, w, acc),
+    }
+}
+
+/// [`scan_body`] with the weights `w` (`W`) or without (every weight 1).
+#[inline(always)]
+fn scan_lanes<const FMA: bool, const W: bool>(
+    curves: &[f32],
+    gp: usize,
+    y: &[f32],
+    w: &[f32],
+    acc: &mut [f32],
+) -> (usize, f32) {
     const B: usize = 32;
     const L: usize = 16;
     let mut m = [f32::INFINITY; L];
@@ -997,16 +1040,18 @@ fn scan_body<const FMA: bool>(
         let mut a = [0f32; B];
         for (t, &yt) in y.iter().enumerate() {
             let row = &curves[t * gp + o..t * gp + o + B];
-            let wt = w.map_or(1.0, |w| w[t]);
+            let wt = if W { w[t] } else { 1.0 };
             if FMA {
                 for l in 0..B {
                     let d = row[l] - yt;
-                    a[l] = (wt * d).mul_add(d, a[l]);
+                    let wd = if W { wt * d } else { d };
+                    a[l] = wd.mul_add(d, a[l]);
                 }
             } else {
                 for l in 0..B {
                     let d = row[l] - yt;
-                    a[l] += wt * d * d;
+                    let wd = if W { wt * d } else { d };
+                    a[l] += wd * d;
                 }
             }
         }
@@ -1032,10 +1077,15 @@ fn find(acc: &[f32], m: &[f32; 16]) -> (usize, f32) {
     if !mv.is_finite() {
         return (0, f32::INFINITY);
     }
-    for i in (lb..acc.len()).step_by(16) {
-        if acc[i] == mv {
-            return (i, mv);
+    // A plain counted loop over the residue class (`step_by` costs several times as
+    // many instructions per element here).
+    let col = &acc[lb..];
+    let mut i = 0;
+    while i < col.len() {
+        if col[i] == mv {
+            return (lb + i, mv);
         }
+        i += 16;
     }
     (0, f32::INFINITY)
 }
@@ -1045,8 +1095,21 @@ fn find(acc: &[f32], m: &[f32; 16]) -> (usize, f32) {
 #[inline(always)]
 fn argmin_body(acc: &[f32]) -> (usize, f32) {
     const L: usize = 16;
-    let mut m = [f32::INFINITY; L];
-    for c in acc.chunks_exact(L) {
+    // Four independent minimum chains (the minimum is exact, so combining them at the
+    // end gives the same lane minima as one chain).
+    let mut m4 = [[f32::INFINITY; L]; 4];
+    let blocks = acc.chunks_exact(4 * L);
+    let rest = blocks.remainder();
+    for c in blocks {
+        for (q, m) in m4.iter_mut().enumerate() {
+            for l in 0..L {
+                let v = c[q * L + l];
+                m[l] = if v < m[l] { v } else { m[l] };
+            }
+        }
+    }
+    let mut m = m4[0];
+    for c in m4[1..].iter().map(|c| &c[..]).chain(rest.chunks_exact(L)) {
         for l in 0..L {
             m[l] = if c[l] < m[l] { c[l] } else { m[l] };
         }
