@@ -13,5 +13,6 @@ pub mod manifest;
 pub mod model;
 pub mod scene;
 pub mod table;
+mod toml_span;
 
 pub use error::{IoError, Result};

@@ -59,6 +59,7 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use crate::error::{IoError, Result};
+use crate::toml_span::TomlText;
 
 /// Largest frame side accepted, pixels.
 pub const MAX_SIDE: usize = 16384;
@@ -256,38 +257,23 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
+    fn toml(&self) -> TomlText<'_> {
+        TomlText {
+            path: self.path,
+            text: self.text,
+        }
+    }
+
     fn line(&self, pos: usize) -> usize {
-        let end = pos.min(self.text.len());
-        self.text.as_bytes()[..end]
-            .iter()
-            .filter(|&&b| b == b'\n')
-            .count()
-            + 1
+        self.toml().line(pos)
     }
 
     fn snippet(&self, span: &Range<usize>) -> String {
-        let s = self
-            .text
-            .get(span.clone())
-            .unwrap_or("")
-            .trim()
-            .replace('\n', " ");
-        if s.chars().count() > 60 {
-            let t: String = s.chars().take(57).collect();
-            format!("{t}...")
-        } else {
-            s
-        }
+        self.toml().snippet(span)
     }
 
     fn err(&self, span: &Range<usize>, field: &str, reason: impl Into<String>) -> IoError {
-        IoError::Manifest {
-            path: self.path.to_path_buf(),
-            line: self.line(span.start),
-            field: field.to_string(),
-            value: self.snippet(span),
-            reason: reason.into(),
-        }
+        self.toml().err(span, field, reason)
     }
 
     /// An error about a missing key (no span: line 0 unless `near` is given).
