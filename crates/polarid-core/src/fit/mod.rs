@@ -50,7 +50,9 @@
 //! and `k_se = √(k² + se_u) − k` (the one-sigma upper deviation).
 
 mod crb;
+mod engine;
 mod lm;
+mod scan;
 mod simd;
 
 pub use crb::{Crb, crb, crb_weighted};
@@ -61,7 +63,15 @@ use crate::dop::{BetaTerms, dop_grad_terms, dop_terms};
 use crate::error::{CoreError, Result};
 
 use lm::{Eval, LmSettings};
+use scan::SCAN_BLOCK;
 use simd::Lanes;
+
+/// Instruction sets of the fit kernels (chosen at run time).
+const ISA_PORTABLE: u8 = 0;
+/// AVX2 + FMA.
+const ISA_AVX2: u8 = 1;
+/// AVX-512F (+ AVX2 + FMA).
+const ISA_AVX512: u8 = 2;
 
 /// The box of admissible `(n, k)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -231,11 +241,17 @@ pub struct FitPlan {
     coarse_j: Vec<usize>,
     /// Spacing of the coarse nodes in grid steps.
     stride: usize,
-    /// Padded coarse node count (multiple of 32).
+    /// Padded coarse node count (multiple of [`SCAN_BLOCK`]).
     gc_pad: usize,
     /// DoLP of coarse node `c` (column `c % coarse_i.len()`) at `β_t`:
-    /// `coarse_curves[t * gc_pad + c]` (padding: +∞).
+    /// in blocks of [`SCAN_BLOCK`] nodes, block-major:
+    /// `coarse_curves[(c / SCAN_BLOCK * T + t) * SCAN_BLOCK + c % SCAN_BLOCK]` (padding: 0).
     coarse_curves: Vec<f32>,
+    /// `½ Σ_t curve_c(t)²` of coarse node `c` (padding: +∞): the unweighted scan
+    /// ranks nodes by `½‖c‖² − c·y = (cost − ‖y‖²)/2`.
+    coarse_half_norm: Vec<f32>,
+    /// 0 for coarse nodes, +∞ for padding: the start of the weighted scan's sums.
+    coarse_base: Vec<f32>,
     /// Jacobian of node `g`: `jac[g * 2T + t]` = ∂P/∂n, `jac[g * 2T + T + t]` = ∂P/∂k.
     jac: Vec<f32>,
     /// Why every fit with this β set is ill-conditioned, if it is.
@@ -249,13 +265,20 @@ pub struct FitPlan {
 pub struct FitWorkspace {
     /// Costs of the coarse nodes.
     acc: Vec<f32>,
-    /// Weights `1/se²` (length T).
-    w: Vec<f64>,
-    /// Measurements and weights padded to whole lanes (weight 0 on padding), f64 and f32.
-    yp: Vec<f64>,
-    wp: Vec<f64>,
+    /// Weights `1/se²` of a chunk.
+    wall: Vec<f64>,
+    /// Measurements and weights of one pixel padded to whole lanes (weight 0 on
+    /// padding), f32.
     yf: Vec<f32>,
     wf: Vec<f32>,
+    /// Polishes of a chunk.
+    jobs: Vec<engine::Job>,
+    /// First job and number of jobs of each pixel of a chunk.
+    spans: Vec<(usize, usize)>,
+    /// Results of the polishes.
+    outs: Vec<engine::JobOut>,
+    /// Lane-major measurements of the polishes in flight.
+    lane: engine::LaneScratch,
 }
 
 fn warp(lo: f64, hi: f64, m: usize) -> Vec<f64> {
@@ -378,15 +401,23 @@ impl FitPlan {
         let coarse_i = sub(opts.grid_n);
         let coarse_j = sub(opts.grid_k);
         let gc = coarse_i.len() * coarse_j.len();
-        let gc_pad = gc.div_ceil(32) * 32;
-        let mut coarse_curves = vec![f32::INFINITY; t_len * gc_pad];
+        let gc_pad = gc.div_ceil(SCAN_BLOCK) * SCAN_BLOCK;
+        let mut coarse_curves = vec![0f32; t_len * gc_pad];
+        let mut coarse_half_norm = vec![f32::INFINITY; gc_pad];
+        let mut coarse_base = vec![f32::INFINITY; gc_pad];
         for (cj, &j) in coarse_j.iter().enumerate() {
             for (ci, &i) in coarse_i.iter().enumerate() {
                 let c = cj * coarse_i.len() + ci;
                 let gi = j * opts.grid_n + i;
                 for t in 0..t_len {
-                    coarse_curves[t * gc_pad + c] = node_curves[gi * tp + t];
+                    coarse_curves[(c / SCAN_BLOCK * t_len + t) * SCAN_BLOCK + c % SCAN_BLOCK] =
+                        node_curves[gi * tp + t];
                 }
+                let sq: f64 = (0..t_len)
+                    .map(|t| f64::from(node_curves[gi * tp + t]).powi(2))
+                    .sum();
+                coarse_half_norm[c] = (0.5 * sq) as f32;
+                coarse_base[c] = 0.0;
             }
         }
         let mut sorted = betas.to_vec();
@@ -415,6 +446,8 @@ impl FitPlan {
             stride,
             gc_pad,
             coarse_curves,
+            coarse_half_norm,
+            coarse_base,
             jac,
             issue,
             inv_span: (1.0 / (b.n_max - b.n_min), 1.0 / (b.k_max - b.k_min)),
@@ -456,11 +489,13 @@ impl FitPlan {
         let tp = self.lanes.len;
         FitWorkspace {
             acc: vec![0.0; self.gc_pad],
-            w: vec![0.0; self.len()],
-            yp: vec![0.0; tp],
-            wp: vec![0.0; tp],
+            wall: Vec::new(),
             yf: vec![0.0; tp],
             wf: vec![0.0; tp],
+            jobs: Vec::new(),
+            spans: Vec::new(),
+            outs: Vec::new(),
+            lane: engine::LaneScratch::default(),
         }
     }
 
@@ -514,163 +549,226 @@ impl FitPlan {
                 got: se.len(),
             });
         }
-        if ws.acc.len() != self.gc_pad || ws.w.len() != t_len || ws.yp.len() != self.lanes.len {
-            *ws = self.workspace();
-        }
-        match check_pixel(dolp, dolp_se) {
-            Ok(()) => Ok(self.fit_checked(dolp, dolp_se, ws)),
-            Err(e) => Err(e),
-        }
+        check_pixel(dolp, dolp_se)?;
+        let mut out = [NkFit::default()];
+        self.fit_chunk(dolp, dolp_se, &mut out, ws);
+        Ok(out[0])
     }
 
-    /// The fit proper, on validated data: prepares the padded measurements, then runs
-    /// [`FitPlan::fit_body`] compiled for AVX2 + FMA when the CPU has them.
-    fn fit_checked(&self, y: &[f64], se: Option<&[f64]>, ws: &mut FitWorkspace) -> NkFit {
+    /// Fit the pixels of one batch chunk: `y` (and `se`) hold `out.len()` rows of `T`
+    /// values. Runs [`FitPlan::fit_chunk_body`] compiled for AVX2 + FMA when the CPU has
+    /// them.
+    fn fit_chunk(&self, y: &[f64], se: Option<&[f64]>, out: &mut [NkFit], ws: &mut FitWorkspace) {
+        if ws.acc.len() != self.gc_pad || ws.yf.len() != self.lanes.len {
+            *ws = self.workspace();
+        }
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512f")
+                && std::arch::is_x86_feature_detected!("avx2")
+                && std::arch::is_x86_feature_detected!("fma")
+            {
+                // SAFETY: the CPU supports the features the function is compiled for.
+                return unsafe { self.fit_chunk_avx512(y, se, out, ws) };
+            }
+            if std::arch::is_x86_feature_detected!("avx2")
+                && std::arch::is_x86_feature_detected!("fma")
+            {
+                // SAFETY: the CPU supports the features the function is compiled for.
+                return unsafe { self.fit_chunk_avx2(y, se, out, ws) };
+            }
+        }
+        self.fit_chunk_body::<ISA_PORTABLE>(y, se, out, ws)
+    }
+
+    /// [`FitPlan::fit_chunk_body`] compiled for AVX-512F (selected at run time).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx2,fma")]
+    fn fit_chunk_avx512(
+        &self,
+        y: &[f64],
+        se: Option<&[f64]>,
+        out: &mut [NkFit],
+        ws: &mut FitWorkspace,
+    ) {
+        self.fit_chunk_body::<ISA_AVX512>(y, se, out, ws)
+    }
+
+    /// [`FitPlan::fit_chunk_body`] compiled for AVX2 + FMA (selected at run time).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn fit_chunk_avx2(
+        &self,
+        y: &[f64],
+        se: Option<&[f64]>,
+        out: &mut [NkFit],
+        ws: &mut FitWorkspace,
+    ) {
+        self.fit_chunk_body::<ISA_AVX2>(y, se, out, ws)
+    }
+
+    /// Grid scan and starts of every valid pixel, the polishes of all of them side by
+    /// side (`engine.rs`), then the best polish of each pixel and its uncertainties.
+    /// `ISA`: the instruction set the caller is compiled for (`ISA_*`).
+    #[inline(always)]
+    fn fit_chunk_body<const ISA: u8>(
+        &self,
+        y: &[f64],
+        se: Option<&[f64]>,
+        out: &mut [NkFit],
+        ws: &mut FitWorkspace,
+    ) {
+        let t_len = self.len();
         let FitWorkspace {
             acc,
-            w,
-            yp,
-            wp,
+            wall,
             yf,
             wf,
+            jobs,
+            spans,
+            outs,
+            lane,
         } = ws;
-        let t_len = self.len();
-        let w: Option<&[f64]> = match se {
+        let wall: Option<&[f64]> = match se {
             Some(se) => {
-                for (wt, &s) in w.iter_mut().zip(se) {
-                    *wt = 1.0 / (s * s);
-                }
-                Some(&w[..])
+                wall.clear();
+                wall.extend(se.iter().map(|&s| 1.0 / (s * s)));
+                Some(&wall[..])
             }
             None => None,
         };
-        for t in 0..yp.len() {
+        jobs.clear();
+        spans.clear();
+        for (p, o) in out.iter_mut().enumerate() {
+            let rows = p * t_len..(p + 1) * t_len;
+            let first = jobs.len();
+            match check_pixel(&y[rows.clone()], se.map(|s| &s[rows.clone()])) {
+                Ok(()) => self.prepare::<ISA>(
+                    p,
+                    &y[rows.clone()],
+                    wall.map(|w| &w[rows.clone()]),
+                    yf,
+                    wf,
+                    acc,
+                    jobs,
+                ),
+                Err(e) => *o = NkFit::invalid(invalid_reason(&e)),
+            }
+            spans.push((first, jobs.len() - first));
+        }
+        outs.clear();
+        outs.resize(jobs.len(), engine::JobOut::default());
+        let settings = engine::Settings {
+            bounds: self.opts.bounds,
+            max_iter: self.opts.max_iter,
+            xtol: self.opts.xtol,
+            ftol: self.opts.ftol,
+        };
+        match ISA {
+            #[cfg(target_arch = "x86_64")]
+            ISA_AVX512 => {
+                engine::run::<engine::Avx512>(&self.lanes, t_len, &settings, jobs, y, wall, outs, lane)
+            }
+            #[cfg(target_arch = "x86_64")]
+            ISA_AVX2 => {
+                engine::run::<engine::Avx2>(&self.lanes, t_len, &settings, jobs, y, wall, outs, lane)
+            }
+            _ => engine::run::<engine::Portable>(
+                &self.lanes,
+                t_len,
+                &settings,
+                jobs,
+                y,
+                wall,
+                outs,
+                lane,
+            ),
+        }
+        for (p, o) in out.iter_mut().enumerate() {
+            let (first, count) = spans[p];
+            if count == 0 {
+                continue;
+            }
+            let polished = &outs[first..first + count];
+            let mut best = polished[0];
+            let (mut iters, mut evals) = (0u32, 0u32);
+            for other in polished {
+                iters += other.iters;
+                evals += other.evals;
+                if other.ev.cost < best.ev.cost
+                    || (!best.converged
+                        && other.converged
+                        && other.ev.cost <= best.ev.cost * (1.0 + 1e-9))
+                {
+                    best = *other;
+                }
+            }
+            let rows = p * t_len..(p + 1) * t_len;
+            let mut fit = self.finish(&best, &y[rows.clone()], wall.map(|w| &w[rows]));
+            fit.iterations = iters;
+            fit.evaluations = evals;
+            fit.starts = count as u32;
+            *o = fit;
+        }
+    }
+
+    /// Scan the grid for pixel `p` (validated data `y`, weights `w`) and queue its
+    /// polishes: the best node's, and those of competing basins.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn prepare<const ISA: u8>(
+        &self,
+        p: usize,
+        y: &[f64],
+        w: Option<&[f64]>,
+        yf: &mut [f32],
+        wf: &mut [f32],
+        acc: &mut [f32],
+        jobs: &mut Vec<engine::Job>,
+    ) {
+        let t_len = self.len();
+        for t in 0..yf.len() {
             let (yt, wt) = if t < t_len {
                 (y[t], w.map_or(1.0, |w| w[t]))
             } else {
                 (0.0, 0.0)
             };
-            yp[t] = yt;
-            wp[t] = wt;
             yf[t] = yt as f32;
             wf[t] = wt as f32;
         }
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx2")
-                && std::arch::is_x86_feature_detected!("fma")
-            {
-                // SAFETY: the CPU supports the features the function is compiled for.
-                return unsafe { self.fit_avx2(y, w, yp, wp, yf, wf, acc) };
-            }
-        }
-        self.fit_body::<false>(y, w, yp, wp, yf, wf, acc)
-    }
-
-    /// [`FitPlan::fit_body`] compiled for AVX2 + FMA (selected at run time).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    #[allow(clippy::too_many_arguments)]
-    fn fit_avx2(
-        &self,
-        y: &[f64],
-        w: Option<&[f64]>,
-        yp: &[f64],
-        wp: &[f64],
-        yf: &[f32],
-        wf: &[f32],
-        acc: &mut [f32],
-    ) -> NkFit {
-        self.fit_body::<true>(y, w, yp, wp, yf, wf, acc)
-    }
-
-    /// Coarse scan, local refinement, polish, search for a competing basin, and
-    /// uncertainties (see the module documentation). `FMA`: fused multiply-adds are
-    /// hardware instructions (otherwise separate multiply and add).
-    #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
-    fn fit_body<const FMA: bool>(
-        &self,
-        y: &[f64],
-        w: Option<&[f64]>,
-        yp: &[f64],
-        wp: &[f64],
-        yf: &[f32],
-        wf: &[f32],
-        acc: &mut [f32],
-    ) -> NkFit {
-        let t_len = self.len();
-        let (c0, _) = scan_body::<FMA>(
-            &self.coarse_curves,
-            self.gc_pad,
-            &yf[..t_len],
-            w.map(|_| &wf[..t_len]),
-            acc,
-        );
-        let (g0, cost0) = self.refine(c0, yf, wf);
-        let settings = LmSettings {
-            max_iter: self.opts.max_iter,
-            xtol: self.opts.xtol,
-            ftol: self.opts.ftol,
+        let base = match w {
+            None => &self.coarse_half_norm,
+            Some(_) => &self.coarse_base,
         };
-        let mut best = self.polish_node(g0, cost0, y, w, yp, wp, &settings);
-        let (mut iters, mut evals, mut starts) = (best.iters, best.evals, 1u32);
-        self.blank(acc, c0, best.n, best.k);
-        // Cells of the minima found so far.
-        let mut found = [(0usize, 0usize); 4];
-        found[0] = self.cell(best.n, best.k);
-        let mut n_found = 1;
-        let mut checks = 0;
-        while (starts as usize) < self.opts.max_candidates && checks < 8 {
-            checks += 1;
-            let (c, _) = argmin_body(acc);
-            if !acc.get(c).is_some_and(|v| v.is_finite()) {
-                break;
-            }
-            let (g, cg) = self.refine(c, yf, wf);
-            let (n1, k1, pred) = self.node_step(g, cg as f64, y, w);
-            // Polish only if this basin could beat the current minimum ...
-            if pred > best.ev.cost * 1.02 + 1e-12 {
-                break;
-            }
-            // ... if its quadratic model has its minimum near the node (otherwise the
-            // node is on a slope whose foot is another node) ...
-            let (i1, j1) = self.cell(n1, k1);
-            let (i0, j0, _, _) = self.node(g);
-            if i1.abs_diff(i0) > 2 || j1.abs_diff(j0) > 2 {
-                acc[c] = f32::INFINITY;
-                continue;
-            }
-            // ... and not near a minimum already found.
-            if found[..n_found]
-                .iter()
-                .any(|&(i, j)| i.abs_diff(i1) <= 2 && j.abs_diff(j1) <= 2)
-            {
-                self.blank(acc, c, n1, k1);
-                continue;
-            }
-            let other = self.polish_node(g, cg, y, w, yp, wp, &settings);
-            iters += other.iters;
-            evals += other.evals;
-            starts += 1;
-            self.blank(acc, c, other.n, other.k);
-            if n_found < found.len() {
-                found[n_found] = self.cell(other.n, other.k);
-                n_found += 1;
-            }
-            if other.ev.cost < best.ev.cost
-                || (!best.converged
-                    && other.converged
-                    && other.ev.cost <= best.ev.cost * (1.0 + 1e-9))
-            {
-                best = other;
-            }
+        let wf_opt = w.map(|_| &wf[..t_len]);
+        let (curves, yt) = (&self.coarse_curves[..], &yf[..t_len]);
+        let (c0, _) = match ISA {
+            // SAFETY: the caller is compiled for AVX2 + FMA (`fit_chunk_avx2`).
+            #[cfg(target_arch = "x86_64")]
+            ISA_AVX2 => unsafe { scan::scan_avx2(curves, base, yt, wf_opt, acc) },
+            // SAFETY: the caller is compiled for AVX-512F (`fit_chunk_avx512`).
+            #[cfg(target_arch = "x86_64")]
+            ISA_AVX512 => unsafe { scan::scan_avx512(curves, base, yt, wf_opt, acc) },
+            _ => scan::scan_portable::<false>(curves, base, yt, wf_opt, acc),
+        };
+        let (g0, cost0) = self.refine(c0, yf, wf);
+        jobs.push(self.job(p, g0, cost0, y, w));
+    }
+
+    /// The polish job of pixel `p` from grid node `g` (grid cost `cost`): one
+    /// stored-Jacobian Gauss–Newton step gives the start.
+    #[inline(always)]
+    fn job(&self, p: usize, g: usize, cost: f32, y: &[f64], w: Option<&[f64]>) -> engine::Job {
+        let b = &self.opts.bounds;
+        let k_floor = if b.k_min == 0.0 { lm::K_FLOOR } else { b.k_min };
+        let (n1, k1, _) = self.node_step(g, cost as f64, y, w);
+        let (_, _, nn, kk) = self.node(g);
+        engine::Job {
+            pixel: p,
+            start: (n1, k1.max(k_floor)),
+            node: (nn, kk.max(k_floor)),
+            grid_cost: cost as f64,
         }
-        let mut fit = self.finish(&best, y, w);
-        fit.iterations = iters;
-        fit.evaluations = evals;
-        fit.starts = starts;
-        fit
     }
 
     /// The best grid node within `stride − 1` grid steps of coarse node `c` (at least
@@ -839,7 +937,7 @@ impl FitPlan {
     }
 
     /// Standard errors, correlation and status of a polished minimum.
-    fn finish(&self, out: &lm::LmOut, y: &[f64], w: Option<&[f64]>) -> NkFit {
+    fn finish(&self, out: &engine::JobOut, y: &[f64], w: Option<&[f64]>) -> NkFit {
         let t_len = self.len();
         let b = &self.opts.bounds;
         let ev = &out.ev;
@@ -1003,120 +1101,6 @@ fn inv2(a: f64, b: f64, c: f64) -> Option<(f64, f64, f64)> {
     Some((c / det, -b / det, a / det))
 }
 
-/// The coarse grid scan: `acc[g] = Σ_t w_t (curve_g(t) − y_t)²` for every coarse node,
-/// fused with the search for the best node. Blocks of 32 nodes are accumulated over
-/// all `T` in registers (the compiler vectorises the lane loops) and stored once.
-/// Returns the best node and its cost.
-#[inline(always)]
-fn scan_body<const FMA: bool>(
-    curves: &[f32],
-    gp: usize,
-    y: &[f32],
-    w: Option<&[f32]>,
-    acc: &mut [f32],
-) -> (usize, f32) {
-    // Unweighted: the same sums without the multiplications by w_t = 1 (bitwise equal).
-    match w {
-        None => scan_lanes::<FMA, false>(curves, gp, y, y, acc),
-        Some(w) => scan_lanes::<FMA, true>(curves, gp, y, w, acc),
-    }
-}
-
-/// [`scan_body`] with the weights `w` (`W`) or without (every weight 1).
-#[inline(always)]
-fn scan_lanes<const FMA: bool, const W: bool>(
-    curves: &[f32],
-    gp: usize,
-    y: &[f32],
-    w: &[f32],
-    acc: &mut [f32],
-) -> (usize, f32) {
-    const B: usize = 32;
-    const L: usize = 16;
-    let mut m = [f32::INFINITY; L];
-    let acc = &mut acc[..gp];
-    for (bi, out) in acc.chunks_exact_mut(B).enumerate() {
-        let o = bi * B;
-        let mut a = [0f32; B];
-        for (t, &yt) in y.iter().enumerate() {
-            let row = &curves[t * gp + o..t * gp + o + B];
-            let wt = if W { w[t] } else { 1.0 };
-            if FMA {
-                for l in 0..B {
-                    let d = row[l] - yt;
-                    let wd = if W { wt * d } else { d };
-                    a[l] = wd.mul_add(d, a[l]);
-                }
-            } else {
-                for l in 0..B {
-                    let d = row[l] - yt;
-                    let wd = if W { wt * d } else { d };
-                    a[l] += wd * d;
-                }
-            }
-        }
-        out.copy_from_slice(&a);
-        for l in 0..L {
-            let v = if a[l + L] < a[l] { a[l + L] } else { a[l] };
-            m[l] = if v < m[l] { v } else { m[l] };
-        }
-    }
-    find(acc, &m)
-}
-
-/// Position of the smallest of the lane minima `m` in `acc` (`m[l]` is the minimum
-/// over the positions `≡ l (mod 16)`): only that residue class is searched.
-#[inline(always)]
-fn find(acc: &[f32], m: &[f32; 16]) -> (usize, f32) {
-    let (mut lb, mut mv) = (0, f32::INFINITY);
-    for (l, &v) in m.iter().enumerate() {
-        if v < mv {
-            (lb, mv) = (l, v);
-        }
-    }
-    if !mv.is_finite() {
-        return (0, f32::INFINITY);
-    }
-    // A plain counted loop over the residue class (`step_by` costs several times as
-    // many instructions per element here).
-    let col = &acc[lb..];
-    let mut i = 0;
-    while i < col.len() {
-        if col[i] == mv {
-            return (lb + i, mv);
-        }
-        i += 16;
-    }
-    (0, f32::INFINITY)
-}
-
-/// Index and value of the smallest element of `acc` (length a multiple of 16): a
-/// vectorised lane-wise minimum, then the first position holding it.
-#[inline(always)]
-fn argmin_body(acc: &[f32]) -> (usize, f32) {
-    const L: usize = 16;
-    // Four independent minimum chains (the minimum is exact, so combining them at the
-    // end gives the same lane minima as one chain).
-    let mut m4 = [[f32::INFINITY; L]; 4];
-    let blocks = acc.chunks_exact(4 * L);
-    let rest = blocks.remainder();
-    for c in blocks {
-        for (q, m) in m4.iter_mut().enumerate() {
-            for l in 0..L {
-                let v = c[q * L + l];
-                m[l] = if v < m[l] { v } else { m[l] };
-            }
-        }
-    }
-    let mut m = m4[0];
-    for c in m4[1..].iter().map(|c| &c[..]).chain(rest.chunks_exact(L)) {
-        for l in 0..L {
-            m[l] = if c[l] < m[l] { c[l] } else { m[l] };
-        }
-    }
-    find(acc, &m)
-}
-
 /// Reason a pixel's data cannot be fitted.
 fn check_pixel(dolp: &[f64], dolp_se: Option<&[f64]>) -> Result<()> {
     for &v in dolp {
@@ -1176,23 +1160,13 @@ pub fn fit_batch(
         });
     }
     const CHUNK: usize = 256;
-    let one = |ws: &mut FitWorkspace, y: &[f64], se: Option<&[f64]>, o: &mut NkFit| {
-        *o = match check_pixel(y, se) {
-            Ok(()) => plan.fit_checked(y, se, ws),
-            Err(e) => NkFit::invalid(invalid_reason(&e)),
-        };
-    };
     match dolp_se {
         None => out
             .par_chunks_mut(CHUNK)
             .zip(dolp.par_chunks(CHUNK * t_len))
             .for_each_init(
                 || plan.workspace(),
-                |ws, (o, y)| {
-                    for (o, y) in o.iter_mut().zip(y.chunks_exact(t_len)) {
-                        one(ws, y, None, o);
-                    }
-                },
+                |ws, (o, y)| plan.fit_chunk(y, None, o, ws),
             ),
         Some(se) => out
             .par_chunks_mut(CHUNK)
@@ -1200,15 +1174,7 @@ pub fn fit_batch(
             .zip(se.par_chunks(CHUNK * t_len))
             .for_each_init(
                 || plan.workspace(),
-                |ws, ((o, y), s)| {
-                    for ((o, y), s) in o
-                        .iter_mut()
-                        .zip(y.chunks_exact(t_len))
-                        .zip(s.chunks_exact(t_len))
-                    {
-                        one(ws, y, Some(s), o);
-                    }
-                },
+                |ws, ((o, y), s)| plan.fit_chunk(y, Some(s), o, ws),
             ),
     }
     Ok(())

@@ -52,6 +52,19 @@ impl Lanes {
             num: pad(&|t| 2.0 * t.s2 * t.c),
         }
     }
+
+    /// The first `t_len` values of `sin²β`, `cos β`, `cos²β`, `sin⁴β` and
+    /// `2 sin²β cos β`.
+    #[inline(always)]
+    pub fn terms(&self, t_len: usize) -> (&[f64], &[f64], &[f64], &[f64], &[f64]) {
+        (
+            &self.s2[..t_len],
+            &self.c[..t_len],
+            &self.c2[..t_len],
+            &self.s4[..t_len],
+            &self.num[..t_len],
+        )
+    }
 }
 
 /// Cost `Σ w (P − y)²` and normal equations `Σ w ∇P ∇Pᵀ`, `Σ w ∇P (P − y)` at
