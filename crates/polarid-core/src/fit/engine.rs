@@ -66,6 +66,10 @@ pub(crate) trait Simd: Copy {
     fn not(a: Self::M) -> Self::M;
     /// `m ? a : b` lane by lane.
     fn select(m: Self::M, a: Self::V, b: Self::V) -> Self::V;
+    /// Bit `l` set when lane `l` of `m` is set.
+    fn bits(m: Self::M) -> u8;
+    /// The mask with lane `l` set when bit `l` of `b` is.
+    fn from_bits(b: u8) -> Self::M;
 }
 
 /// [`Simd`] by lane loops (any CPU).
@@ -163,6 +167,20 @@ impl Simd for Portable {
     #[inline(always)]
     fn select(m: [bool; W], a: L, b: L) -> L {
         lanes!(|m, a, b| if m { a } else { b })
+    }
+    #[inline(always)]
+    fn bits(m: [bool; W]) -> u8 {
+        m.iter()
+            .enumerate()
+            .fold(0, |acc, (l, &v)| acc | (u8::from(v) << l))
+    }
+    #[inline(always)]
+    fn from_bits(b: u8) -> [bool; W] {
+        let mut m = [false; W];
+        for (l, v) in m.iter_mut().enumerate() {
+            *v = (b >> l) & 1 == 1;
+        }
+        m
     }
 }
 
@@ -296,6 +314,22 @@ mod x86 {
         fn select(m: Self::M, a: Self::V, b: Self::V) -> Self::V {
             pair!(_mm256_blendv_pd(b, a, m))
         }
+        #[inline(always)]
+        fn bits(m: Self::M) -> u8 {
+            unsafe { (_mm256_movemask_pd(m[0]) | (_mm256_movemask_pd(m[1]) << 4)) as u8 }
+        }
+        #[inline(always)]
+        fn from_bits(b: u8) -> Self::M {
+            unsafe {
+                let sel = _mm256_set_epi64x(8, 4, 2, 1);
+                let lo = _mm256_set1_epi64x(i64::from(b & 15));
+                let hi = _mm256_set1_epi64x(i64::from(b >> 4));
+                [
+                    _mm256_castsi256_pd(_mm256_cmpeq_epi64(_mm256_and_si256(lo, sel), sel)),
+                    _mm256_castsi256_pd(_mm256_cmpeq_epi64(_mm256_and_si256(hi, sel), sel)),
+                ]
+            }
+        }
     }
 
     // SAFETY (every method): as for `Avx2`, with AVX-512F.
@@ -380,6 +414,14 @@ mod x86 {
         fn select(m: __mmask8, a: __m512d, b: __m512d) -> __m512d {
             unsafe { _mm512_mask_blend_pd(m, b, a) }
         }
+        #[inline(always)]
+        fn bits(m: __mmask8) -> u8 {
+            m
+        }
+        #[inline(always)]
+        fn from_bits(b: u8) -> __mmask8 {
+            b
+        }
     }
 }
 
@@ -437,39 +479,53 @@ enum Phase {
 }
 
 /// Cost and normal equations of every lane.
-#[derive(Clone, Copy, Default)]
-struct EvalL {
-    cost: L,
-    h00: L,
-    h01: L,
-    h11: L,
-    g0: L,
-    g1: L,
+struct EvalV<S: Simd> {
+    cost: S::V,
+    h00: S::V,
+    h01: S::V,
+    h11: S::V,
+    g0: S::V,
+    g1: S::V,
 }
 
-impl EvalL {
+impl<S: Simd> Clone for EvalV<S> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<S: Simd> Copy for EvalV<S> {}
+
+impl<S: Simd> EvalV<S> {
+    /// `m ? a : b` for every field.
     #[inline(always)]
-    fn lane(&self, l: usize) -> Eval {
-        Eval {
-            cost: self.cost[l],
-            ss: self.cost[l],
-            h00: self.h00[l],
-            h01: self.h01[l],
-            h11: self.h11[l],
-            g0: self.g0[l],
-            g1: self.g1[l],
+    fn select(m: S::M, a: &Self, b: &Self) -> Self {
+        Self {
+            cost: S::select(m, a.cost, b.cost),
+            h00: S::select(m, a.h00, b.h00),
+            h01: S::select(m, a.h01, b.h01),
+            h11: S::select(m, a.h11, b.h11),
+            g0: S::select(m, a.g0, b.g0),
+            g1: S::select(m, a.g1, b.g1),
         }
     }
+}
 
-    #[inline(always)]
-    fn set(&mut self, l: usize, o: &EvalL) {
-        self.cost[l] = o.cost[l];
-        self.h00[l] = o.h00[l];
-        self.h01[l] = o.h01[l];
-        self.h11[l] = o.h11[l];
-        self.g0[l] = o.g0[l];
-        self.g1[l] = o.g1[l];
-    }
+/// Lane `l` of `v`.
+#[inline(always)]
+fn lane<S: Simd>(v: S::V, l: usize) -> f64 {
+    let mut a = [0.0; W];
+    S::store(v, &mut a);
+    a[l]
+}
+
+/// `v` with lane `l` replaced by `x`.
+#[inline(always)]
+fn with_lane<S: Simd>(v: S::V, l: usize, x: f64) -> S::V {
+    let mut a = [0.0; W];
+    S::store(v, &mut a);
+    a[l] = x;
+    S::load(&a)
 }
 
 /// Cost `Σ w (P − y)²` and normal equations at `(n_l, k_l)` for every lane: eq. (9)
@@ -482,13 +538,11 @@ fn eval_lanes<S: Simd>(
     t_len: usize,
     y: &[f64],
     w: &[f64],
-    n: &L,
-    k: &L,
-    out: &mut EvalL,
-) {
+    vn: S::V,
+    vk: S::V,
+) -> EvalV<S> {
     let (y, w) = (&y[..t_len * W], &w[..t_len * W]);
     let (s2v, cv, c2v, s4v, numv) = lanes.terms(t_len);
-    let (vn, vk) = (S::load(n), S::load(k));
     let nn = S::mul(vn, vn);
     let kk = S::mul(vk, vk);
     let nk = S::mul(vn, vk);
@@ -561,12 +615,14 @@ fn eval_lanes<S: Simd>(
         a_g0 = S::fma(jn, wr, a_g0);
         a_g1 = S::fma(jk, wr, a_g1);
     }
-    S::store(a_cost, &mut out.cost);
-    S::store(a_h00, &mut out.h00);
-    S::store(a_h01, &mut out.h01);
-    S::store(a_h11, &mut out.h11);
-    S::store(a_g0, &mut out.g0);
-    S::store(a_g1, &mut out.g1);
+    EvalV {
+        cost: a_cost,
+        h00: a_h00,
+        h01: a_h01,
+        h11: a_h11,
+        g0: a_g0,
+        g1: a_g1,
+    }
 }
 
 /// The damped step of `lm::step` for every lane, without branches: solve
@@ -574,22 +630,23 @@ fn eval_lanes<S: Simd>(
 /// a bound the descent direction points out of, project into the box, and return the
 /// trial points and the decrease the Gauss–Newton model predicts for them.
 #[inline(always)]
-fn step_lanes<S: Simd>(e: &EvalL, lam: &L, n: &L, k: &L, b: &FitBounds) -> (L, L, L) {
+fn step_lanes<S: Simd>(
+    e: &EvalV<S>,
+    lam: S::V,
+    vn: S::V,
+    vk: S::V,
+    b: &FitBounds,
+) -> (S::V, S::V, S::V) {
     let k_lo = if b.k_min > 0.0 { b.k_min } else { K_FLOOR };
     let (zero, one, two, neg) = (S::splat(0.0), S::splat(1.0), S::splat(2.0), S::splat(-1.0));
-    let (vn, vk) = (S::load(n), S::load(k));
     let in_u = S::and(S::lt(vk, S::splat(K_U)), S::lt(zero, vk));
     let s = S::div(S::splat(0.5), vk);
-    let h00 = S::load(&e.h00);
-    let h01 = S::load(&e.h01);
-    let h11 = S::load(&e.h11);
-    let g0 = S::load(&e.g0);
-    let g1 = S::load(&e.g1);
+    let (h00, h01, h11, g0, g1) = (e.h00, e.h01, e.h11, e.g0, e.g1);
     let h01 = S::select(in_u, S::mul(h01, s), h01);
     let h11 = S::select(in_u, S::mul(h11, S::mul(s, s)), h11);
     let g1 = S::select(in_u, S::mul(g1, s), g1);
     let finite = S::eq(S::mul(S::add(S::add(h00, h01), h11), zero), zero);
-    let damp = S::add(one, S::load(lam));
+    let damp = S::add(one, lam);
     let a00 = S::mul(h00, damp);
     let a11 = S::mul(h11, damp);
     let a01 = h01;
@@ -644,32 +701,20 @@ fn step_lanes<S: Simd>(e: &EvalL, lam: &L, n: &L, k: &L, b: &FitBounds) -> (L, L
         ),
     );
     let p = S::sub(zero, S::add(lin, quad));
-    let mut nt = [0.0; W];
-    let mut kt = [0.0; W];
-    let mut pred = [0.0; W];
-    S::store(S::select(finite, n1, vn), &mut nt);
-    S::store(S::select(finite, k1, vk), &mut kt);
-    S::store(S::select(finite, p, zero), &mut pred);
-    (nt, kt, pred)
-}
-
-/// The lanes' state.
-struct State {
-    job: [usize; W],
-    phase: [Phase; W],
-    n: L,
-    k: L,
-    lam: L,
-    cur: EvalL,
-    tn: L,
-    tk: L,
-    iters: [u32; W],
-    evals: [u32; W],
+    (
+        S::select(finite, n1, vn),
+        S::select(finite, k1, vk),
+        S::select(finite, p, zero),
+    )
 }
 
 /// Run every job of `jobs`, writing `out[j]` for job `j`. `y` holds the measurements
 /// row by row (`T = t_len` values per row; `w` the weights, the same layout, or every
 /// weight 1 when `None`).
+///
+/// Every step of every lane is vector code; only a lane whose polish ends (about one
+/// evaluation in seven) takes a scalar detour to store its result and load the next
+/// job.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn run<S: Simd>(
@@ -688,169 +733,276 @@ pub(crate) fn run<S: Simd>(
     }
     let b = &s.bounds;
     let k_floor = if b.k_min == 0.0 { K_FLOOR } else { b.k_min };
-    let mut st = State {
-        job: [0; W],
-        phase: [Phase::Empty; W],
-        n: [1.0; W],
-        k: [1.0; W],
-        lam: [LAM_0; W],
-        cur: EvalL::default(),
-        tn: [1.0; W],
-        tk: [1.0; W],
-        iters: [0; W],
-        evals: [0; W],
+    let (zero, one) = (S::splat(0.0), S::splat(1.0));
+    // Per-lane job data (written when a lane takes a job).
+    let mut job = [usize::MAX; W];
+    let mut start_n = [1.0; W];
+    let mut start_k = [1.0; W];
+    let mut node_n = [1.0; W];
+    let mut node_k = [1.0; W];
+    let mut grid_cost = [0.0; W];
+    // Phases as lane bits: evaluating the start, evaluating the node, iterating.
+    let (mut start_b, mut node_b, mut lm_b) = (0u8, 0u8, 0u8);
+    // Vector state.
+    let mut n = one;
+    let mut k = one;
+    let mut lam = S::splat(LAM_0);
+    let mut iters = zero;
+    let mut evals = zero;
+    let mut cur = EvalV::<S> {
+        cost: zero,
+        h00: zero,
+        h01: zero,
+        h11: zero,
+        g0: zero,
+        g1: zero,
     };
     let mut next = 0usize;
-    // Load the next job into lane `l` (or leave it empty).
-    let mut load = |st: &mut State, sc: &mut LaneScratch, l: usize| {
-        if next < jobs.len() {
+
+    // End the polishes of the lanes in `done` (converged: bits of `conv`) and give
+    // their lanes the next jobs.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn retire<S: Simd>(
+        done: u8,
+        conv: u8,
+        n: S::V,
+        k: S::V,
+        cur: &EvalV<S>,
+        iters: &mut S::V,
+        evals: &mut S::V,
+        lam: &mut S::V,
+        job: &mut [usize; W],
+        out: &mut [JobOut],
+    ) {
+        let mut a = [[0.0; W]; 10];
+        for (dst, v) in a.iter_mut().zip([
+            n, k, cur.cost, cur.h00, cur.h01, cur.h11, cur.g0, cur.g1, *iters, *evals,
+        ]) {
+            S::store(v, dst);
+        }
+        let mut lam_a = [0.0; W];
+        S::store(*lam, &mut lam_a);
+        for l in 0..W {
+            if done >> l & 1 == 1 {
+                out[job[l]] = JobOut {
+                    n: a[0][l],
+                    k: a[1][l],
+                    ev: Eval {
+                        cost: a[2][l],
+                        ss: a[2][l],
+                        h00: a[3][l],
+                        h01: a[4][l],
+                        h11: a[5][l],
+                        g0: a[6][l],
+                        g1: a[7][l],
+                    },
+                    iters: a[8][l] as u32,
+                    evals: a[9][l] as u32,
+                    converged: conv >> l & 1 == 1,
+                };
+                job[l] = usize::MAX;
+                a[8][l] = 0.0;
+                a[9][l] = 0.0;
+                lam_a[l] = LAM_0;
+            }
+        }
+        *iters = S::load(&a[8]);
+        *evals = S::load(&a[9]);
+        *lam = S::load(&lam_a);
+    }
+
+    // Give every lane without a job the next job of the queue.
+    let mut refill = |job: &mut [usize; W],
+                      start_n: &mut L,
+                      start_k: &mut L,
+                      node_n: &mut L,
+                      node_k: &mut L,
+                      grid_cost: &mut L,
+                      sc: &mut LaneScratch|
+     -> u8 {
+        let mut started = 0u8;
+        for l in 0..W {
+            if job[l] != usize::MAX || next >= jobs.len() {
+                continue;
+            }
             let j = &jobs[next];
-            st.job[l] = next;
-            st.phase[l] = Phase::Start;
-            st.iters[l] = 0;
-            st.evals[l] = 0;
-            st.lam[l] = LAM_0;
+            job[l] = next;
+            next += 1;
+            started |= 1 << l;
+            start_n[l] = j.start.0;
+            start_k[l] = j.start.1.max(k_floor);
+            node_n[l] = j.node.0;
+            node_k[l] = j.node.1.max(k_floor);
+            grid_cost[l] = j.grid_cost;
             let row = &y[j.pixel * t_len..(j.pixel + 1) * t_len];
             for (t, &v) in row.iter().enumerate() {
                 sc.y[t * W + l] = v;
             }
-            if let Some(w) = w {
-                let row = &w[j.pixel * t_len..(j.pixel + 1) * t_len];
-                for (t, &v) in row.iter().enumerate() {
-                    sc.w[t * W + l] = v;
+            match w {
+                Some(w) => {
+                    let row = &w[j.pixel * t_len..(j.pixel + 1) * t_len];
+                    for (t, &v) in row.iter().enumerate() {
+                        sc.w[t * W + l] = v;
+                    }
                 }
-            } else {
-                for t in 0..t_len {
-                    sc.w[t * W + l] = 1.0;
+                None => {
+                    for t in 0..t_len {
+                        sc.w[t * W + l] = 1.0;
+                    }
                 }
             }
-            next += 1;
-        } else {
-            st.phase[l] = Phase::Empty;
         }
+        started
     };
-    let done = |st: &State, out: &mut [JobOut], l: usize, converged: bool| {
-        out[st.job[l]] = JobOut {
-            n: st.n[l],
-            k: st.k[l],
-            ev: st.cur.lane(l),
-            iters: st.iters[l],
-            evals: st.evals[l],
-            converged,
-        };
-    };
-    for l in 0..W {
-        load(&mut st, sc, l);
-    }
-    let mut ev = EvalL::default();
+
+    start_b |= refill(
+        &mut job,
+        &mut start_n,
+        &mut start_k,
+        &mut node_n,
+        &mut node_k,
+        &mut grid_cost,
+        sc,
+    );
+    let (xtol, ftol) = (S::splat(s.xtol), S::splat(s.ftol));
+    let max_iter = S::splat(f64::from(s.max_iter));
     loop {
-        // 1. Trial points (lanes in Levenberg–Marquardt may stop here, before an
-        //    evaluation, and take a new job).
-        let (nt, kt, pred) = step_lanes::<S>(&st.cur, &st.lam, &st.n, &st.k, b);
-        let mut active = false;
-        for l in 0..W {
-            loop {
-                match st.phase[l] {
-                    Phase::Empty => {
-                        st.tn[l] = 1.0;
-                        st.tk[l] = 1.0;
-                    }
-                    Phase::Start => {
-                        let j = &jobs[st.job[l]];
-                        st.tn[l] = j.start.0;
-                        st.tk[l] = j.start.1.max(k_floor);
-                        active = true;
-                    }
-                    Phase::Node => {
-                        let j = &jobs[st.job[l]];
-                        st.tn[l] = j.node.0;
-                        st.tk[l] = j.node.1.max(k_floor);
-                        active = true;
-                    }
-                    Phase::Lm => {
-                        let stop = if st.iters[l] >= s.max_iter {
-                            Some(false)
-                        } else {
-                            st.iters[l] += 1;
-                            let (n, k, c) = (st.n[l], st.k[l], st.cur.cost[l]);
-                            let mv_n = (nt[l] - n).abs();
-                            let mv_k = (kt[l] - k).abs();
-                            if c == 0.0
-                                || (mv_n <= s.xtol * (n.abs() + s.xtol)
-                                    && mv_k <= s.xtol * (k.abs() + 1e-12))
-                                || (st.lam[l] <= 1e-5 && pred[l] >= 0.0 && pred[l] <= s.ftol * c)
-                            {
-                                Some(true)
-                            } else {
-                                None
-                            }
-                        };
-                        match stop {
-                            Some(conv) => {
-                                done(&st, out, l, conv);
-                                load(&mut st, sc, l);
-                                continue;
-                            }
-                            None => {
-                                st.tn[l] = nt[l];
-                                st.tk[l] = kt[l];
-                                active = true;
-                            }
-                        }
-                    }
-                }
-                break;
-            }
+        // 1. Levenberg–Marquardt lanes: the next trial point, or the end of the
+        //    polish (before an evaluation).
+        let lm_m = S::from_bits(lm_b);
+        let (nt, kt, pred) = step_lanes::<S>(&cur, lam, n, k, b);
+        let maxed = S::and(lm_m, S::le(max_iter, iters));
+        let going = S::and(lm_m, S::not(maxed));
+        iters = S::add(iters, S::select(going, one, zero));
+        let still = S::and(
+            S::le(S::abs(S::sub(nt, n)), S::mul(xtol, S::add(S::abs(n), xtol))),
+            S::le(
+                S::abs(S::sub(kt, k)),
+                S::mul(xtol, S::add(S::abs(k), S::splat(1e-12))),
+            ),
+        );
+        let flat = S::and(
+            S::and(S::le(lam, S::splat(1e-5)), S::le(zero, pred)),
+            S::le(pred, S::mul(ftol, cur.cost)),
+        );
+        let stop = S::and(going, S::or(S::or(S::eq(cur.cost, zero), still), flat));
+        let done = S::bits(S::or(maxed, stop));
+        if done != 0 {
+            retire::<S>(
+                done,
+                S::bits(stop),
+                n,
+                k,
+                &cur,
+                &mut iters,
+                &mut evals,
+                &mut lam,
+                &mut job,
+                out,
+            );
+            lm_b &= !done;
+            start_b |= refill(
+                &mut job,
+                &mut start_n,
+                &mut start_k,
+                &mut node_n,
+                &mut node_k,
+                &mut grid_cost,
+                sc,
+            );
         }
-        if !active {
+        let active = start_b | node_b | lm_b;
+        if active == 0 {
             break;
         }
-        // 2. Evaluate every lane at its trial point.
-        eval_lanes::<S>(lanes, t_len, &sc.y, &sc.w, &st.tn, &st.tk, &mut ev);
-        // 3. Accept or reject.
-        for l in 0..W {
-            match st.phase[l] {
-                Phase::Empty => continue,
-                Phase::Start | Phase::Node => {
-                    st.evals[l] += 1;
-                    st.n[l] = st.tn[l];
-                    st.k[l] = st.tk[l];
-                    st.cur.set(l, &ev);
-                    let g = jobs[st.job[l]].grid_cost;
-                    st.phase[l] = if st.phase[l] == Phase::Start
-                        && !(ev.cost[l] <= g * (1.0 + 1e-4) + 1e-12)
-                    {
-                        Phase::Node
-                    } else {
-                        Phase::Lm
+        // 2. Trial points of every lane, and their evaluation.
+        let (start_m, node_m, lm_m) = (
+            S::from_bits(start_b),
+            S::from_bits(node_b),
+            S::from_bits(lm_b),
+        );
+        let tn = S::select(
+            lm_m,
+            nt,
+            S::select(start_m, S::load(&start_n), S::select(node_m, S::load(&node_n), one)),
+        );
+        let tk = S::select(
+            lm_m,
+            kt,
+            S::select(start_m, S::load(&start_k), S::select(node_m, S::load(&node_k), one)),
+        );
+        let ev = eval_lanes::<S>(lanes, t_len, &sc.y, &sc.w, tn, tk);
+        evals = S::add(evals, S::select(S::from_bits(active), one, zero));
+        // 3. Accept or reject. Start and node evaluations are always taken; a start
+        //    worse than its node's grid cost is followed by the node.
+        let first = S::or(start_m, node_m);
+        let bad = S::and(
+            start_m,
+            S::not(S::le(
+                ev.cost,
+                S::add(
+                    S::mul(S::load(&grid_cost), S::splat(1.0 + 1e-4)),
+                    S::splat(1e-12),
+                ),
+            )),
+        );
+        let accept = S::and(lm_m, S::le(ev.cost, cur.cost));
+        let reject = S::and(lm_m, S::not(S::le(ev.cost, cur.cost)));
+        let small_dec = S::le(S::sub(cur.cost, ev.cost), S::mul(ftol, ev.cost));
+        let take = S::or(first, accept);
+        cur = EvalV::select(take, &ev, &cur);
+        n = S::select(take, tn, n);
+        k = S::select(take, tk, k);
+        lam = S::select(
+            accept,
+            S::max(S::mul(lam, S::splat(LAM_DOWN)), S::splat(1e-12)),
+            S::select(reject, S::mul(lam, S::splat(LAM_UP)), lam),
+        );
+        let conv = S::and(accept, S::and(small_dec, S::le(lam, S::splat(1e-3))));
+        let over = S::and(reject, S::lt(S::splat(1e10), lam));
+        let bad_b = S::bits(bad);
+        lm_b |= (start_b & !bad_b) | node_b;
+        node_b = bad_b;
+        start_b = 0;
+        let conv_b = S::bits(conv);
+        let over_b = S::bits(over);
+        if conv_b | over_b != 0 {
+            // No further decrease at this precision: a minimum if the undamped
+            // Gauss–Newton model predicts nothing to gain.
+            let mut ok_b = conv_b;
+            for l in 0..W {
+                if over_b >> l & 1 == 1 {
+                    let e = Eval {
+                        cost: lane::<S>(cur.cost, l),
+                        ss: 0.0,
+                        h00: lane::<S>(cur.h00, l),
+                        h01: lane::<S>(cur.h01, l),
+                        h11: lane::<S>(cur.h11, l),
+                        g0: lane::<S>(cur.g0, l),
+                        g1: lane::<S>(cur.g1, l),
                     };
-                }
-                Phase::Lm => {
-                    st.evals[l] += 1;
-                    let (c_new, c_old) = (ev.cost[l], st.cur.cost[l]);
-                    if c_new <= c_old {
-                        st.n[l] = st.tn[l];
-                        st.k[l] = st.tk[l];
-                        st.cur.set(l, &ev);
-                        st.lam[l] = (st.lam[l] * LAM_DOWN).max(1e-12);
-                        if c_old - c_new <= s.ftol * c_new && st.lam[l] <= 1e-3 {
-                            done(&st, out, l, true);
-                            load(&mut st, sc, l);
-                        }
-                    } else {
-                        st.lam[l] *= LAM_UP;
-                        if st.lam[l] > 1e10 {
-                            // No further decrease at this precision: a minimum if the
-                            // undamped Gauss–Newton model predicts nothing to gain.
-                            let (_, _, p0) =
-                                super::lm::step(&st.cur.lane(l), 0.0, st.n[l], st.k[l], b);
-                            let conv = p0 <= 1e-9 * c_old + 1e-28;
-                            done(&st, out, l, conv);
-                            load(&mut st, sc, l);
-                        }
+                    let (_, _, p0) =
+                        super::lm::step(&e, 0.0, lane::<S>(n, l), lane::<S>(k, l), b);
+                    if p0 <= 1e-9 * e.cost + 1e-28 {
+                        ok_b |= 1 << l;
                     }
                 }
             }
+            let done = conv_b | over_b;
+            retire::<S>(
+                done, ok_b, n, k, &cur, &mut iters, &mut evals, &mut lam, &mut job, out,
+            );
+            lm_b &= !done;
+            start_b |= refill(
+                &mut job,
+                &mut start_n,
+                &mut start_k,
+                &mut node_n,
+                &mut node_k,
+                &mut grid_cost,
+                sc,
+            );
         }
     }
 }

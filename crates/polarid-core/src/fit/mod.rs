@@ -263,8 +263,14 @@ pub struct FitPlan {
 /// Per-thread scratch memory of a fit (no allocation per fit).
 #[derive(Debug, Clone)]
 pub struct FitWorkspace {
-    /// Costs of the coarse nodes.
+    /// Scan values of the coarse nodes (one pixel).
     acc: Vec<f32>,
+    /// Scan values of four pixels.
+    acc4: Vec<f32>,
+    /// f32 measurements of four pixels.
+    yf4: Vec<f32>,
+    /// Valid pixels of a chunk.
+    valid: Vec<usize>,
     /// Weights `1/se²` of a chunk.
     wall: Vec<f64>,
     /// Measurements and weights of one pixel padded to whole lanes (weight 0 on
@@ -489,6 +495,9 @@ impl FitPlan {
         let tp = self.lanes.len;
         FitWorkspace {
             acc: vec![0.0; self.gc_pad],
+            acc4: vec![0.0; 4 * self.gc_pad],
+            yf4: vec![0.0; 4 * self.len()],
+            valid: Vec::new(),
             wall: Vec::new(),
             yf: vec![0.0; tp],
             wf: vec![0.0; tp],
@@ -621,6 +630,9 @@ impl FitPlan {
         let t_len = self.len();
         let FitWorkspace {
             acc,
+            acc4,
+            yf4,
+            valid,
             wall,
             yf,
             wf,
@@ -639,22 +651,70 @@ impl FitPlan {
         };
         jobs.clear();
         spans.clear();
+        spans.resize(out.len(), (0, 0));
+        valid.clear();
         for (p, o) in out.iter_mut().enumerate() {
             let rows = p * t_len..(p + 1) * t_len;
-            let first = jobs.len();
-            match check_pixel(&y[rows.clone()], se.map(|s| &s[rows.clone()])) {
-                Ok(()) => self.prepare::<ISA>(
-                    p,
-                    &y[rows.clone()],
-                    wall.map(|w| &w[rows.clone()]),
-                    yf,
-                    wf,
-                    acc,
-                    jobs,
-                ),
+            match check_pixel(&y[rows.clone()], se.map(|s| &s[rows])) {
+                Ok(()) => valid.push(p),
                 Err(e) => *o = NkFit::invalid(invalid_reason(&e)),
             }
-            spans.push((first, jobs.len() - first));
+        }
+        let gp = self.gc_pad;
+        // Unweighted pixels four at a time (one read of the grid curves per four).
+        let quads = if wall.is_none() && ISA != ISA_PORTABLE {
+            valid.len() / 4
+        } else {
+            0
+        };
+        for q in 0..quads {
+            let ps = [valid[4 * q], valid[4 * q + 1], valid[4 * q + 2], valid[4 * q + 3]];
+            for (i, &p) in ps.iter().enumerate() {
+                for t in 0..t_len {
+                    yf4[i * t_len + t] = y[p * t_len + t] as f32;
+                }
+            }
+            let y4 = [
+                &yf4[..t_len],
+                &yf4[t_len..2 * t_len],
+                &yf4[2 * t_len..3 * t_len],
+                &yf4[3 * t_len..4 * t_len],
+            ];
+            let curves = &self.coarse_curves[..];
+            let base = &self.coarse_half_norm[..];
+            let best = match ISA {
+                // SAFETY: the caller is compiled for AVX2 + FMA (`fit_chunk_avx2`).
+                #[cfg(target_arch = "x86_64")]
+                ISA_AVX2 => unsafe { scan::scan4_avx2(curves, base, y4, acc4) },
+                // SAFETY: the caller is compiled for AVX-512F (`fit_chunk_avx512`).
+                #[cfg(target_arch = "x86_64")]
+                ISA_AVX512 => unsafe { scan::scan4_avx512(curves, base, y4, acc4) },
+                _ => unreachable!("no four-pixel scan without AVX2"),
+            };
+            for (i, &p) in ps.iter().enumerate() {
+                let first = jobs.len();
+                self.pad_pixel(&y[p * t_len..(p + 1) * t_len], None, yf, wf);
+                self.queue(
+                    p,
+                    best[i].0,
+                    &y[p * t_len..(p + 1) * t_len],
+                    None,
+                    yf,
+                    wf,
+                    &acc4[i * gp..(i + 1) * gp],
+                    jobs,
+                );
+                spans[p] = (first, jobs.len() - first);
+            }
+        }
+        for &p in &valid[4 * quads..] {
+            let rows = p * t_len..(p + 1) * t_len;
+            let first = jobs.len();
+            let w = wall.map(|w| &w[rows.clone()]);
+            self.pad_pixel(&y[rows.clone()], w, yf, wf);
+            let c0 = self.scan_one::<ISA>(t_len, w.is_some(), yf, wf, acc);
+            self.queue(p, c0, &y[rows], w, yf, wf, acc, jobs);
+            spans[p] = (first, jobs.len() - first);
         }
         outs.clear();
         outs.resize(jobs.len(), engine::JobOut::default());
@@ -712,20 +772,10 @@ impl FitPlan {
         }
     }
 
-    /// Scan the grid for pixel `p` (validated data `y`, weights `w`) and queue its
-    /// polishes: the best node's, and those of competing basins.
+    /// The f32 measurements and weights of one pixel, padded to whole lanes (weight 0
+    /// on padding).
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
-    fn prepare<const ISA: u8>(
-        &self,
-        p: usize,
-        y: &[f64],
-        w: Option<&[f64]>,
-        yf: &mut [f32],
-        wf: &mut [f32],
-        acc: &mut [f32],
-        jobs: &mut Vec<engine::Job>,
-    ) {
+    fn pad_pixel(&self, y: &[f64], w: Option<&[f64]>, yf: &mut [f32], wf: &mut [f32]) {
         let t_len = self.len();
         for t in 0..yf.len() {
             let (yt, wt) = if t < t_len {
@@ -736,11 +786,25 @@ impl FitPlan {
             yf[t] = yt as f32;
             wf[t] = wt as f32;
         }
-        let base = match w {
-            None => &self.coarse_half_norm,
-            Some(_) => &self.coarse_base,
+    }
+
+    /// Scan the grid for one pixel (padded f32 data from [`FitPlan::pad_pixel`]):
+    /// the best coarse node, `acc` filled.
+    #[inline(always)]
+    fn scan_one<const ISA: u8>(
+        &self,
+        t_len: usize,
+        weighted: bool,
+        yf: &[f32],
+        wf: &[f32],
+        acc: &mut [f32],
+    ) -> usize {
+        let base = if weighted {
+            &self.coarse_base
+        } else {
+            &self.coarse_half_norm
         };
-        let wf_opt = w.map(|_| &wf[..t_len]);
+        let wf_opt = weighted.then(|| &wf[..t_len]);
         let (curves, yt) = (&self.coarse_curves[..], &yf[..t_len]);
         let (c0, _) = match ISA {
             // SAFETY: the caller is compiled for AVX2 + FMA (`fit_chunk_avx2`).
@@ -751,6 +815,24 @@ impl FitPlan {
             ISA_AVX512 => unsafe { scan::scan_avx512(curves, base, yt, wf_opt, acc) },
             _ => scan::scan_portable::<false>(curves, base, yt, wf_opt, acc),
         };
+        c0
+    }
+
+    /// Queue the polishes of pixel `p` whose scan found coarse node `c0` (`acc`: the
+    /// scan's values): the best node's, and those of competing basins.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn queue(
+        &self,
+        p: usize,
+        c0: usize,
+        y: &[f64],
+        w: Option<&[f64]>,
+        yf: &[f32],
+        wf: &[f32],
+        _acc: &[f32],
+        jobs: &mut Vec<engine::Job>,
+    ) {
         let (g0, cost0) = self.refine(c0, yf, wf);
         jobs.push(self.job(p, g0, cost0, y, w));
     }

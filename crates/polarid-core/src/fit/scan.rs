@@ -218,6 +218,137 @@ pub(crate) unsafe fn scan_avx512(
     }
 }
 
+/// Unweighted scans of four pixels at once: every curve vector loaded from memory
+/// serves the four (the block of curves is read once per four pixels instead of once
+/// per pixel). `y[p]`: the `T` measurements of pixel `p`; `acc[p]`: its `acc`. Gives
+/// exactly the results of four calls of [`scan_avx512`] (same operations, same order).
+///
+/// # Safety
+/// The caller is compiled for (and runs on a CPU with) AVX-512F.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub(crate) unsafe fn scan4_avx512(
+    curves: &[f32],
+    base: &[f32],
+    y: [&[f32]; 4],
+    acc: &mut [f32],
+) -> [(usize, f32); 4] {
+    use std::arch::x86_64::*;
+    let t_len = y[0].len();
+    let gp = base.len();
+    let nb = gp / SCAN_BLOCK;
+    assert!(acc.len() >= 4 * gp && curves.len() >= gp * t_len && y.iter().all(|y| y.len() == t_len));
+    // SAFETY: pointers stay inside `curves[..gp·T]`, `base[..gp]`, `acc[..4·gp]`
+    // (asserted); the CPU has AVX-512F (caller's contract).
+    unsafe {
+        let mut mv = [_mm512_set1_ps(f32::INFINITY); 4];
+        for b in 0..nb {
+            let cb = curves.as_ptr().add(b * SCAN_BLOCK * t_len);
+            for h in 0..SCAN_BLOCK / 64 {
+                let o = b * SCAN_BLOCK + h * 64;
+                let bp = base.as_ptr().add(o);
+                let b4 = [
+                    _mm512_loadu_ps(bp),
+                    _mm512_loadu_ps(bp.add(16)),
+                    _mm512_loadu_ps(bp.add(32)),
+                    _mm512_loadu_ps(bp.add(48)),
+                ];
+                let mut a = [b4; 4];
+                for t in 0..t_len {
+                    let r = cb.add(t * SCAN_BLOCK + h * 64);
+                    let c = [
+                        _mm512_loadu_ps(r),
+                        _mm512_loadu_ps(r.add(16)),
+                        _mm512_loadu_ps(r.add(32)),
+                        _mm512_loadu_ps(r.add(48)),
+                    ];
+                    for (p, ap) in a.iter_mut().enumerate() {
+                        let ny = _mm512_set1_ps(-*y[p].get_unchecked(t));
+                        for (i, ai) in ap.iter_mut().enumerate() {
+                            *ai = _mm512_fmadd_ps(c[i], ny, *ai);
+                        }
+                    }
+                }
+                for (p, ap) in a.iter().enumerate() {
+                    let op = acc.as_mut_ptr().add(p * gp + o);
+                    for (i, ai) in ap.iter().enumerate() {
+                        _mm512_storeu_ps(op.add(16 * i), *ai);
+                    }
+                    mv[p] = _mm512_min_ps(
+                        mv[p],
+                        _mm512_min_ps(_mm512_min_ps(ap[0], ap[1]), _mm512_min_ps(ap[2], ap[3])),
+                    );
+                }
+            }
+        }
+        let mut out = [(0usize, 0f32); 4];
+        for p in 0..4 {
+            let mut m = [0f32; L];
+            _mm512_storeu_ps(m.as_mut_ptr(), mv[p]);
+            out[p] = find(&acc[p * gp..(p + 1) * gp], &m);
+        }
+        out
+    }
+}
+
+/// [`scan4_avx512`] with AVX2 + FMA intrinsics (16 nodes at a time: 8 accumulators
+/// for the four pixels). Exactly the results of four calls of [`scan_avx2`].
+///
+/// # Safety
+/// The caller is compiled for (and runs on a CPU with) AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub(crate) unsafe fn scan4_avx2(
+    curves: &[f32],
+    base: &[f32],
+    y: [&[f32]; 4],
+    acc: &mut [f32],
+) -> [(usize, f32); 4] {
+    use std::arch::x86_64::*;
+    let t_len = y[0].len();
+    let gp = base.len();
+    let nb = gp / SCAN_BLOCK;
+    assert!(acc.len() >= 4 * gp && curves.len() >= gp * t_len && y.iter().all(|y| y.len() == t_len));
+    // SAFETY: as in `scan4_avx512`, with AVX2 + FMA.
+    unsafe {
+        let mut m_lo = [_mm256_set1_ps(f32::INFINITY); 4];
+        let mut m_hi = m_lo;
+        for b in 0..nb {
+            let cb = curves.as_ptr().add(b * SCAN_BLOCK * t_len);
+            for h in 0..SCAN_BLOCK / 16 {
+                let o = b * SCAN_BLOCK + h * 16;
+                let bp = base.as_ptr().add(o);
+                let b2 = [_mm256_loadu_ps(bp), _mm256_loadu_ps(bp.add(8))];
+                let mut a = [b2; 4];
+                for t in 0..t_len {
+                    let r = cb.add(t * SCAN_BLOCK + h * 16);
+                    let c = [_mm256_loadu_ps(r), _mm256_loadu_ps(r.add(8))];
+                    for (p, ap) in a.iter_mut().enumerate() {
+                        let ny = _mm256_set1_ps(-*y[p].get_unchecked(t));
+                        ap[0] = _mm256_fmadd_ps(c[0], ny, ap[0]);
+                        ap[1] = _mm256_fmadd_ps(c[1], ny, ap[1]);
+                    }
+                }
+                for (p, ap) in a.iter().enumerate() {
+                    let op = acc.as_mut_ptr().add(p * gp + o);
+                    _mm256_storeu_ps(op, ap[0]);
+                    _mm256_storeu_ps(op.add(8), ap[1]);
+                    m_lo[p] = _mm256_min_ps(m_lo[p], ap[0]);
+                    m_hi[p] = _mm256_min_ps(m_hi[p], ap[1]);
+                }
+            }
+        }
+        let mut out = [(0usize, 0f32); 4];
+        for p in 0..4 {
+            let mut m = [0f32; L];
+            _mm256_storeu_ps(m.as_mut_ptr(), m_lo[p]);
+            _mm256_storeu_ps(m.as_mut_ptr().add(8), m_hi[p]);
+            out[p] = find(&acc[p * gp..(p + 1) * gp], &m);
+        }
+        out
+    }
+}
+
 /// Position of the smallest of the lane minima `m` in `acc` (`m[l]` is the minimum
 /// over the positions `≡ l (mod 16)`): only that residue class is searched. Returns
 /// `(0, +∞)` when every value is +∞ (or NaN).
