@@ -781,8 +781,6 @@ pub(crate) fn run<S: Simd>(
         ]) {
             S::store(v, dst);
         }
-        let mut lam_a = [0.0; W];
-        S::store(*lam, &mut lam_a);
         for l in 0..W {
             if done >> l & 1 == 1 {
                 out[job[l]] = JobOut {
@@ -802,14 +800,12 @@ pub(crate) fn run<S: Simd>(
                     converged: conv >> l & 1 == 1,
                 };
                 job[l] = usize::MAX;
-                a[8][l] = 0.0;
-                a[9][l] = 0.0;
-                lam_a[l] = LAM_0;
             }
         }
-        *iters = S::load(&a[8]);
-        *evals = S::load(&a[9]);
-        *lam = S::load(&lam_a);
+        let m = S::from_bits(done);
+        *iters = S::select(m, S::splat(0.0), *iters);
+        *evals = S::select(m, S::splat(0.0), *evals);
+        *lam = S::select(m, S::splat(LAM_0), *lam);
     }
 
     // Give every lane without a job the next job of the queue.
