@@ -31,6 +31,10 @@ const LAM_UP: f64 = 5.0;
 const LAM_DOWN: f64 = 0.2;
 /// Initial damping.
 const LAM_0: f64 = 1e-6;
+/// Smallest damping after a rejected step: a rejection means the Gauss–Newton model
+/// failed at this scale (typically a curved valley), and climbing there from `1e-6` by
+/// factors of [`LAM_UP`] would cost several rejected evaluations.
+const LAM_REJECT: f64 = 1e-3;
 
 /// The f64x4 operations the engine needs: AVX2 + FMA intrinsics (`Avx2`, only
 /// called from functions compiled for those features) or plain lane loops
@@ -222,7 +226,12 @@ mod x86 {
         #[inline(always)]
         fn load(p: &[f64]) -> Self::V {
             let p = &p[..W];
-            unsafe { [_mm256_loadu_pd(p.as_ptr()), _mm256_loadu_pd(p.as_ptr().add(4))] }
+            unsafe {
+                [
+                    _mm256_loadu_pd(p.as_ptr()),
+                    _mm256_loadu_pd(p.as_ptr().add(4)),
+                ]
+            }
         }
         #[inline(always)]
         fn store(v: Self::V, p: &mut [f64]) {
@@ -466,18 +475,6 @@ pub(crate) struct LaneScratch {
     w: Vec<f64>,
 }
 
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum Phase {
-    /// No job.
-    Empty,
-    /// Evaluating the Gauss–Newton start.
-    Start,
-    /// Evaluating the grid node (the start was worse).
-    Node,
-    /// Levenberg–Marquardt iterations.
-    Lm,
-}
-
 /// Cost and normal equations of every lane.
 struct EvalV<S: Simd> {
     cost: S::V,
@@ -517,15 +514,6 @@ fn lane<S: Simd>(v: S::V, l: usize) -> f64 {
     let mut a = [0.0; W];
     S::store(v, &mut a);
     a[l]
-}
-
-/// `v` with lane `l` replaced by `x`.
-#[inline(always)]
-fn with_lane<S: Simd>(v: S::V, l: usize, x: f64) -> S::V {
-    let mut a = [0.0; W];
-    S::store(v, &mut a);
-    a[l] = x;
-    S::load(&a)
 }
 
 /// Cost `Σ w (P − y)²` and normal equations at `(n_l, k_l)` for every lane: eq. (9)
@@ -729,8 +717,10 @@ pub(crate) fn run<S: Simd>(
 ) {
     if sc.y.len() != t_len * W {
         sc.y = vec![0.0; t_len * W];
-        sc.w = vec![1.0; t_len * W];
     }
+    // Unweighted: every lane's weights stay 1.
+    sc.w.clear();
+    sc.w.resize(t_len * W, 1.0);
     let b = &s.bounds;
     let k_floor = if b.k_min == 0.0 { K_FLOOR } else { b.k_min };
     let (zero, one) = (S::splat(0.0), S::splat(1.0));
@@ -835,17 +825,10 @@ pub(crate) fn run<S: Simd>(
             for (t, &v) in row.iter().enumerate() {
                 sc.y[t * W + l] = v;
             }
-            match w {
-                Some(w) => {
-                    let row = &w[j.pixel * t_len..(j.pixel + 1) * t_len];
-                    for (t, &v) in row.iter().enumerate() {
-                        sc.w[t * W + l] = v;
-                    }
-                }
-                None => {
-                    for t in 0..t_len {
-                        sc.w[t * W + l] = 1.0;
-                    }
+            if let Some(w) = w {
+                let row = &w[j.pixel * t_len..(j.pixel + 1) * t_len];
+                for (t, &v) in row.iter().enumerate() {
+                    sc.w[t * W + l] = v;
                 }
             }
         }
@@ -921,12 +904,20 @@ pub(crate) fn run<S: Simd>(
         let tn = S::select(
             lm_m,
             nt,
-            S::select(start_m, S::load(&start_n), S::select(node_m, S::load(&node_n), one)),
+            S::select(
+                start_m,
+                S::load(&start_n),
+                S::select(node_m, S::load(&node_n), one),
+            ),
         );
         let tk = S::select(
             lm_m,
             kt,
-            S::select(start_m, S::load(&start_k), S::select(node_m, S::load(&node_k), one)),
+            S::select(
+                start_m,
+                S::load(&start_k),
+                S::select(node_m, S::load(&node_k), one),
+            ),
         );
         let ev = eval_lanes::<S>(lanes, t_len, &sc.y, &sc.w, tn, tk);
         evals = S::add(evals, S::select(S::from_bits(active), one, zero));
@@ -953,7 +944,11 @@ pub(crate) fn run<S: Simd>(
         lam = S::select(
             accept,
             S::max(S::mul(lam, S::splat(LAM_DOWN)), S::splat(1e-12)),
-            S::select(reject, S::mul(lam, S::splat(LAM_UP)), lam),
+            S::select(
+                reject,
+                S::max(S::mul(lam, S::splat(LAM_UP)), S::splat(LAM_REJECT)),
+                lam,
+            ),
         );
         let conv = S::and(accept, S::and(small_dec, S::le(lam, S::splat(1e-3))));
         let over = S::and(reject, S::lt(S::splat(1e10), lam));
@@ -978,8 +973,7 @@ pub(crate) fn run<S: Simd>(
                         g0: lane::<S>(cur.g0, l),
                         g1: lane::<S>(cur.g1, l),
                     };
-                    let (_, _, p0) =
-                        super::lm::step(&e, 0.0, lane::<S>(n, l), lane::<S>(k, l), b);
+                    let (_, _, p0) = super::lm::step(&e, 0.0, lane::<S>(n, l), lane::<S>(k, l), b);
                     if p0 <= 1e-9 * e.cost + 1e-28 {
                         ok_b |= 1 << l;
                     }
@@ -999,6 +993,121 @@ pub(crate) fn run<S: Simd>(
                 &mut grid_cost,
                 sc,
             );
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dop::BetaTerms;
+    use rand::rngs::StdRng;
+    use rand::{RngExt, SeedableRng};
+
+    /// Lane `l`'s values of an evaluation.
+    fn lane_eval<S: Simd>(e: &EvalV<S>, l: usize) -> [f64; 6] {
+        [
+            lane::<S>(e.cost, l),
+            lane::<S>(e.h00, l),
+            lane::<S>(e.h01, l),
+            lane::<S>(e.h11, l),
+            lane::<S>(e.g0, l),
+            lane::<S>(e.g1, l),
+        ]
+    }
+
+    /// Evaluate `pts` (eight at a time) with kernel `S`.
+    #[inline(always)]
+    fn eval_all<S: Simd>(lanes: &Lanes, y: &[f64], w: &[f64], pts: &[(f64, f64)]) -> Vec<[f64; 6]> {
+        let t_len = y.len();
+        let mut yl = vec![0.0; t_len * W];
+        let mut wl = vec![0.0; t_len * W];
+        for t in 0..t_len {
+            for l in 0..W {
+                yl[t * W + l] = y[t];
+                wl[t * W + l] = w[t];
+            }
+        }
+        let mut out = vec![];
+        for c in pts.chunks(W) {
+            let mut n = [1.0; W];
+            let mut k = [1.0; W];
+            for (l, &(a, b)) in c.iter().enumerate() {
+                n[l] = a;
+                k[l] = b;
+            }
+            let e = eval_lanes::<S>(lanes, t_len, &yl, &wl, S::load(&n), S::load(&k));
+            out.extend((0..c.len()).map(|l| lane_eval(&e, l)));
+        }
+        out
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn eval_avx2(lanes: &Lanes, y: &[f64], w: &[f64], pts: &[(f64, f64)]) -> Vec<[f64; 6]> {
+        eval_all::<Avx2>(lanes, y, w, pts)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx2,fma")]
+    fn eval_avx512(lanes: &Lanes, y: &[f64], w: &[f64], pts: &[(f64, f64)]) -> Vec<[f64; 6]> {
+        eval_all::<Avx512>(lanes, y, w, pts)
+    }
+
+    /// The lane evaluation of every kernel agrees with the scalar one built on
+    /// `dop_grad_terms`, weighted and unweighted, including `k = 0`, `n < 1` and index
+    /// matching (`n² = k² + sin²β`).
+    #[test]
+    fn lane_eval_matches_scalar_eval() {
+        let betas: Vec<f64> = (0..7).map(|i| 0.3 + 0.17 * i as f64).collect();
+        let terms: Vec<BetaTerms> = betas.iter().map(|&b| BetaTerms::new(b)).collect();
+        let lanes = Lanes::new(&terms);
+        let mut rng = StdRng::seed_from_u64(3);
+        let mut pts: Vec<(f64, f64)> = (0..2000)
+            .map(|_| (rng.random_range(0.01..10.0), rng.random_range(0.0..15.0)))
+            .collect();
+        pts.extend([
+            (1.0, 0.0),
+            (0.3, 0.0),
+            (1.5, 0.0),
+            (0.5, 1e-9),
+            (10.0, 15.0),
+            (terms[2].s2.sqrt(), 0.0),
+        ]);
+        let y: Vec<f64> = (0..7).map(|t| 0.1 * t as f64 + 0.05).collect();
+        let w: Vec<f64> = (0..7).map(|t| 1.0 + t as f64 % 3.0).collect();
+        for weighted in [false, true] {
+            let wv = if weighted { w.clone() } else { vec![1.0; 7] };
+            let mut runs = vec![eval_all::<Portable>(&lanes, &y, &wv, &pts)];
+            #[cfg(target_arch = "x86_64")]
+            {
+                if std::arch::is_x86_feature_detected!("avx2")
+                    && std::arch::is_x86_feature_detected!("fma")
+                {
+                    // SAFETY: the CPU has AVX2 + FMA (checked above).
+                    runs.push(unsafe { eval_avx2(&lanes, &y, &wv, &pts) });
+                }
+                if std::arch::is_x86_feature_detected!("avx512f")
+                    && std::arch::is_x86_feature_detected!("avx2")
+                    && std::arch::is_x86_feature_detected!("fma")
+                {
+                    // SAFETY: the CPU has AVX-512F, AVX2 and FMA (checked above).
+                    runs.push(unsafe { eval_avx512(&lanes, &y, &wv, &pts) });
+                }
+            }
+            for run in &runs {
+                for (i, &(n, k)) in pts.iter().enumerate() {
+                    let b = super::super::lm::eval(&terms, &y, weighted.then_some(&w[..]), n, k);
+                    let want = [b.cost, b.h00, b.h01, b.h11, b.g0, b.g1];
+                    for (x, z) in run[i].iter().zip(want) {
+                        assert!(
+                            (x - z).abs() <= 1e-12 * (x.abs() + z.abs()) + 1e-14,
+                            "({n}, {k}) weighted {weighted}: {:?} vs {want:?}",
+                            run[i]
+                        );
+                    }
+                }
+            }
         }
     }
 }

@@ -7,7 +7,6 @@
 use crate::dop::{BetaTerms, dop_grad_terms};
 
 use super::FitBounds;
-use super::simd::{self, Lanes};
 
 /// Cost and normal equations at one point.
 #[derive(Debug, Clone, Copy, Default)]
@@ -63,31 +62,6 @@ pub(crate) fn eval(terms: &[BetaTerms], y: &[f64], w: Option<&[f64]>, n: f64, k:
     }
     e
 }
-
-/// Outcome of a polish.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct LmOut {
-    pub n: f64,
-    pub k: f64,
-    pub ev: Eval,
-    pub iters: u32,
-    pub evals: u32,
-    pub converged: bool,
-}
-
-/// Solver settings.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct LmSettings {
-    pub max_iter: u32,
-    pub xtol: f64,
-    pub ftol: f64,
-}
-
-/// Damping factor after a rejected step (a milder schedule than ×10/÷10 saves ~0.3
-/// evaluations per fit in curved valleys, where accepted and rejected steps alternate).
-const LAM_UP: f64 = 5.0;
-/// Damping factor after an accepted step.
-const LAM_DOWN: f64 = 0.2;
 
 /// Below this `k` the polish steps in `u = k²` instead of `k`.
 pub(crate) const K_U: f64 = 1.0;
@@ -161,83 +135,4 @@ pub(crate) fn project(n: f64, k: f64, b: &FitBounds) -> (f64, f64) {
     let k = if b.k_min == 0.0 { k.abs() } else { k };
     let k_lo = if b.k_min > 0.0 { b.k_min } else { K_FLOOR };
     (n.clamp(b.n_min, b.n_max), k.clamp(k_lo, b.k_max))
-}
-
-/// Levenberg–Marquardt from `(n, k)` whose evaluation `ev0` is already known.
-///
-/// `y` and `w` are the measurements and weights padded to the lane length of `lanes`
-/// (weight 0 on padding). Stops when the step is below `xtol` (relative), when an
-/// accepted step decreased the cost by at most `ftol` (relative), or, before
-/// evaluating a step, when the Gauss–Newton model predicts a decrease of at most
-/// `ftol` (relative): the minimum is then known to that precision without spending an
-/// evaluation on it.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn polish(
-    lanes: &Lanes,
-    y: &[f64],
-    w: &[f64],
-    b: &FitBounds,
-    s: &LmSettings,
-    n0: f64,
-    k0: f64,
-    ev0: Eval,
-) -> LmOut {
-    let (mut n, mut k) = (n0, k0);
-    let mut cur = ev0;
-    let mut lam = 1e-6;
-    let mut evals = 0u32;
-    let mut iters = 0u32;
-    let mut converged = false;
-    while iters < s.max_iter {
-        iters += 1;
-        if cur.cost == 0.0 {
-            converged = true;
-            break;
-        }
-        let (nt, kt, pred) = step(&cur, lam, n, k, b);
-        let mv_n = (nt - n).abs();
-        let mv_k = (kt - k).abs();
-        // Stationary to within xtol (relative to each parameter's own scale).
-        if mv_n <= s.xtol * (n.abs() + s.xtol) && mv_k <= s.xtol * (k.abs() + 1e-12) {
-            converged = true;
-            break;
-        }
-        // Nothing left to gain at this precision (near-Gauss–Newton step only: its
-        // quadratic model is accurate close to the minimum).
-        if lam <= 1e-5 && pred >= 0.0 && pred <= s.ftol * cur.cost {
-            converged = true;
-            break;
-        }
-        let new = simd::eval(lanes, y, w, nt, kt);
-        evals += 1;
-        if new.cost <= cur.cost {
-            let dec = cur.cost - new.cost;
-            n = nt;
-            k = kt;
-            cur = new;
-            lam = (lam * LAM_DOWN).max(1e-12);
-            if dec <= s.ftol * new.cost && lam <= 1e-3 {
-                converged = true;
-                break;
-            }
-        } else {
-            lam *= LAM_UP;
-            if lam > 1e10 {
-                // No further decrease is possible at this precision: accept as a
-                // minimum if the undamped Gauss–Newton model predicts nothing to gain.
-                let (_, _, pred) = step(&cur, 0.0, n, k, b);
-                converged = pred <= 1e-9 * cur.cost + 1e-28;
-                break;
-            }
-        }
-    }
-    LmOut {
-        n,
-        k,
-        ev: cur,
-        iters,
-        evals,
-        converged,
-    }
 }

@@ -62,7 +62,7 @@ use rayon::prelude::*;
 use crate::dop::{BetaTerms, dop_grad_terms, dop_terms};
 use crate::error::{CoreError, Result};
 
-use lm::{Eval, LmSettings};
+use lm::Eval;
 use scan::SCAN_BLOCK;
 use simd::Lanes;
 
@@ -122,7 +122,7 @@ impl Default for FitOptions {
             bounds: FitBounds::default(),
             grid_n: 32,
             grid_k: 32,
-            max_candidates: 3,
+            max_candidates: 1,
             max_iter: 1000,
             xtol: 1e-10,
             ftol: 1e-12,
@@ -243,6 +243,9 @@ pub struct FitPlan {
     stride: usize,
     /// Padded coarse node count (multiple of [`SCAN_BLOCK`]).
     gc_pad: usize,
+    /// Nodes per band of the scan: [`scan::BAND`] when competing basins are searched
+    /// (`max_candidates > 1`), else the whole grid.
+    band: usize,
     /// DoLP of coarse node `c` (column `c % coarse_i.len()`) at `β_t`:
     /// in blocks of [`SCAN_BLOCK`] nodes, block-major:
     /// `coarse_curves[(c / SCAN_BLOCK * T + t) * SCAN_BLOCK + c % SCAN_BLOCK]` (padding: 0).
@@ -263,10 +266,10 @@ pub struct FitPlan {
 /// Per-thread scratch memory of a fit (no allocation per fit).
 #[derive(Debug, Clone)]
 pub struct FitWorkspace {
-    /// Scan values of the coarse nodes (one pixel).
-    acc: Vec<f32>,
-    /// Scan values of four pixels.
-    acc4: Vec<f32>,
+    /// Band minima of the scan of one pixel.
+    bands: Vec<scan::BandMin>,
+    /// Band minima of the scans of four pixels.
+    bands4: Vec<scan::BandMin>,
     /// f32 measurements of four pixels.
     yf4: Vec<f32>,
     /// Valid pixels of a chunk.
@@ -451,6 +454,11 @@ impl FitPlan {
             coarse_j,
             stride,
             gc_pad,
+            band: if opts.max_candidates > 1 {
+                scan::BAND
+            } else {
+                gc_pad
+            },
             coarse_curves,
             coarse_half_norm,
             coarse_base,
@@ -494,8 +502,8 @@ impl FitPlan {
     pub fn workspace(&self) -> FitWorkspace {
         let tp = self.lanes.len;
         FitWorkspace {
-            acc: vec![0.0; self.gc_pad],
-            acc4: vec![0.0; 4 * self.gc_pad],
+            bands: vec![scan::BandMin::default(); self.gc_pad.div_ceil(self.band)],
+            bands4: vec![scan::BandMin::default(); 4 * (self.gc_pad.div_ceil(self.band))],
             yf4: vec![0.0; 4 * self.len()],
             valid: Vec::new(),
             wall: Vec::new(),
@@ -568,7 +576,7 @@ impl FitPlan {
     /// values. Runs [`FitPlan::fit_chunk_body`] compiled for AVX2 + FMA when the CPU has
     /// them.
     fn fit_chunk(&self, y: &[f64], se: Option<&[f64]>, out: &mut [NkFit], ws: &mut FitWorkspace) {
-        if ws.acc.len() != self.gc_pad || ws.yf.len() != self.lanes.len {
+        if ws.bands.len() != self.gc_pad.div_ceil(self.band) || ws.yf.len() != self.lanes.len {
             *ws = self.workspace();
         }
         #[cfg(target_arch = "x86_64")]
@@ -629,8 +637,8 @@ impl FitPlan {
     ) {
         let t_len = self.len();
         let FitWorkspace {
-            acc,
-            acc4,
+            bands,
+            bands4,
             yf4,
             valid,
             wall,
@@ -660,7 +668,6 @@ impl FitPlan {
                 Err(e) => *o = NkFit::invalid(invalid_reason(&e)),
             }
         }
-        let gp = self.gc_pad;
         // Unweighted pixels four at a time (one read of the grid curves per four).
         let quads = if wall.is_none() && ISA != ISA_PORTABLE {
             valid.len() / 4
@@ -668,10 +675,15 @@ impl FitPlan {
             0
         };
         for q in 0..quads {
-            let ps = [valid[4 * q], valid[4 * q + 1], valid[4 * q + 2], valid[4 * q + 3]];
+            let ps = [
+                valid[4 * q],
+                valid[4 * q + 1],
+                valid[4 * q + 2],
+                valid[4 * q + 3],
+            ];
             for (i, &p) in ps.iter().enumerate() {
                 for t in 0..t_len {
-                    yf4[i * t_len + t] = y[p * t_len + t] as f32;
+                    yf4[i * t_len + t] = -(y[p * t_len + t] as f32);
                 }
             }
             let y4 = [
@@ -682,26 +694,28 @@ impl FitPlan {
             ];
             let curves = &self.coarse_curves[..];
             let base = &self.coarse_half_norm[..];
-            let best = match ISA {
+            let nbands = bands.len();
+            let mut parts = bands4.chunks_exact_mut(nbands);
+            let b4 = [(); 4].map(|_| parts.next().unwrap_or_default());
+            match ISA {
                 // SAFETY: the caller is compiled for AVX2 + FMA (`fit_chunk_avx2`).
                 #[cfg(target_arch = "x86_64")]
-                ISA_AVX2 => unsafe { scan::scan4_avx2(curves, base, y4, acc4) },
+                ISA_AVX2 => unsafe { scan::scan4_avx2(curves, base, y4, self.band, b4) },
                 // SAFETY: the caller is compiled for AVX-512F (`fit_chunk_avx512`).
                 #[cfg(target_arch = "x86_64")]
-                ISA_AVX512 => unsafe { scan::scan4_avx512(curves, base, y4, acc4) },
+                ISA_AVX512 => unsafe { scan::scan4_avx512(curves, base, y4, self.band, b4) },
                 _ => unreachable!("no four-pixel scan without AVX2"),
-            };
+            }
             for (i, &p) in ps.iter().enumerate() {
                 let first = jobs.len();
                 self.pad_pixel(&y[p * t_len..(p + 1) * t_len], None, yf, wf);
                 self.queue(
                     p,
-                    best[i].0,
+                    &bands4[i * nbands..(i + 1) * nbands],
                     &y[p * t_len..(p + 1) * t_len],
                     None,
                     yf,
                     wf,
-                    &acc4[i * gp..(i + 1) * gp],
                     jobs,
                 );
                 spans[p] = (first, jobs.len() - first);
@@ -712,8 +726,8 @@ impl FitPlan {
             let first = jobs.len();
             let w = wall.map(|w| &w[rows.clone()]);
             self.pad_pixel(&y[rows.clone()], w, yf, wf);
-            let c0 = self.scan_one::<ISA>(t_len, w.is_some(), yf, wf, acc);
-            self.queue(p, c0, &y[rows], w, yf, wf, acc, jobs);
+            self.scan_one::<ISA>(t_len, w.is_some(), yf, wf, bands);
+            self.queue(p, bands, &y[rows], w, yf, wf, jobs);
             spans[p] = (first, jobs.len() - first);
         }
         outs.clear();
@@ -726,13 +740,27 @@ impl FitPlan {
         };
         match ISA {
             #[cfg(target_arch = "x86_64")]
-            ISA_AVX512 => {
-                engine::run::<engine::Avx512>(&self.lanes, t_len, &settings, jobs, y, wall, outs, lane)
-            }
+            ISA_AVX512 => engine::run::<engine::Avx512>(
+                &self.lanes,
+                t_len,
+                &settings,
+                jobs,
+                y,
+                wall,
+                outs,
+                lane,
+            ),
             #[cfg(target_arch = "x86_64")]
-            ISA_AVX2 => {
-                engine::run::<engine::Avx2>(&self.lanes, t_len, &settings, jobs, y, wall, outs, lane)
-            }
+            ISA_AVX2 => engine::run::<engine::Avx2>(
+                &self.lanes,
+                t_len,
+                &settings,
+                jobs,
+                y,
+                wall,
+                outs,
+                lane,
+            ),
             _ => engine::run::<engine::Portable>(
                 &self.lanes,
                 t_len,
@@ -789,7 +817,7 @@ impl FitPlan {
     }
 
     /// Scan the grid for one pixel (padded f32 data from [`FitPlan::pad_pixel`]):
-    /// the best coarse node, `acc` filled.
+    /// the best node of every band.
     #[inline(always)]
     fn scan_one<const ISA: u8>(
         &self,
@@ -797,8 +825,8 @@ impl FitPlan {
         weighted: bool,
         yf: &[f32],
         wf: &[f32],
-        acc: &mut [f32],
-    ) -> usize {
+        bands: &mut [scan::BandMin],
+    ) {
         let base = if weighted {
             &self.coarse_base
         } else {
@@ -806,51 +834,106 @@ impl FitPlan {
         };
         let wf_opt = weighted.then(|| &wf[..t_len]);
         let (curves, yt) = (&self.coarse_curves[..], &yf[..t_len]);
-        let (c0, _) = match ISA {
+        match ISA {
             // SAFETY: the caller is compiled for AVX2 + FMA (`fit_chunk_avx2`).
             #[cfg(target_arch = "x86_64")]
-            ISA_AVX2 => unsafe { scan::scan_avx2(curves, base, yt, wf_opt, acc) },
+            ISA_AVX2 => unsafe { scan::scan_avx2(curves, base, yt, wf_opt, self.band, bands) },
             // SAFETY: the caller is compiled for AVX-512F (`fit_chunk_avx512`).
             #[cfg(target_arch = "x86_64")]
-            ISA_AVX512 => unsafe { scan::scan_avx512(curves, base, yt, wf_opt, acc) },
-            _ => scan::scan_portable::<false>(curves, base, yt, wf_opt, acc),
-        };
-        c0
+            ISA_AVX512 => unsafe { scan::scan_avx512(curves, base, yt, wf_opt, self.band, bands) },
+            _ => scan::scan_portable::<false>(curves, base, yt, wf_opt, self.band, bands),
+        }
     }
 
-    /// Queue the polishes of pixel `p` whose scan found coarse node `c0` (`acc`: the
-    /// scan's values): the best node's, and those of competing basins.
+    /// Queue the polishes of pixel `p` from the band minima of its scan: the best
+    /// node's, then (with [`FitOptions::max_candidates`] > 1) those of competing
+    /// basins: the best nodes of other bands (other `k` ranges) that are not next to
+    /// the best node, whose stored-Jacobian Gauss–Newton step stays near them (a
+    /// minimum, not a slope into another basin), does not land in the best node's
+    /// basin, and predicts a cost within 10% of the best node's prediction.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     fn queue(
         &self,
         p: usize,
-        c0: usize,
+        bands: &[scan::BandMin],
         y: &[f64],
         w: Option<&[f64]>,
         yf: &[f32],
         wf: &[f32],
-        _acc: &[f32],
         jobs: &mut Vec<engine::Job>,
     ) {
+        let best = scan::best_of(bands);
+        // Every value +∞ or NaN cannot happen for validated data; node 0 then.
+        let c0 = if best.node == u32::MAX {
+            0
+        } else {
+            best.node as usize
+        };
         let (g0, cost0) = self.refine(c0, yf, wf);
-        jobs.push(self.job(p, g0, cost0, y, w));
+        let (job0, pred0) = self.job(p, g0, cost0, y, w);
+        let land0 = self.cell(job0.start.0, job0.start.1);
+        jobs.push(job0);
+        if self.opts.max_candidates < 2 {
+            return;
+        }
+        let cn = self.coarse_i.len();
+        let (i0, j0) = (c0 % cn, c0 / cn);
+        let mut extra = 0;
+        for bm in bands {
+            if bm.node == u32::MAX || bm.node == best.node {
+                continue;
+            }
+            let c = bm.node as usize;
+            if (c % cn).abs_diff(i0) <= 2 && (c / cn).abs_diff(j0) <= 2 {
+                continue;
+            }
+            let (g, cost) = self.refine(c, yf, wf);
+            let (job, pred) = self.job(p, g, cost, y, w);
+            if pred > pred0 * 1.1 + 1e-12 {
+                continue;
+            }
+            let (i, j, _, _) = self.node(g);
+            let (i1, j1) = self.cell(job.start.0, job.start.1);
+            if i1.abs_diff(i) > 2 || j1.abs_diff(j) > 2 {
+                continue;
+            }
+            if i1.abs_diff(land0.0) <= 2 && j1.abs_diff(land0.1) <= 2 {
+                continue;
+            }
+            jobs.push(job);
+            extra += 1;
+            if extra + 1 >= self.opts.max_candidates {
+                break;
+            }
+        }
     }
 
     /// The polish job of pixel `p` from grid node `g` (grid cost `cost`): one
-    /// stored-Jacobian Gauss–Newton step gives the start.
+    /// stored-Jacobian Gauss–Newton step gives the start; also the cost that step's
+    /// quadratic model predicts.
     #[inline(always)]
-    fn job(&self, p: usize, g: usize, cost: f32, y: &[f64], w: Option<&[f64]>) -> engine::Job {
+    fn job(
+        &self,
+        p: usize,
+        g: usize,
+        cost: f32,
+        y: &[f64],
+        w: Option<&[f64]>,
+    ) -> (engine::Job, f64) {
         let b = &self.opts.bounds;
         let k_floor = if b.k_min == 0.0 { lm::K_FLOOR } else { b.k_min };
-        let (n1, k1, _) = self.node_step(g, cost as f64, y, w);
+        let (n1, k1, pred) = self.node_step(g, cost as f64, y, w);
         let (_, _, nn, kk) = self.node(g);
-        engine::Job {
-            pixel: p,
-            start: (n1, k1.max(k_floor)),
-            node: (nn, kk.max(k_floor)),
-            grid_cost: cost as f64,
-        }
+        (
+            engine::Job {
+                pixel: p,
+                start: (n1, k1.max(k_floor)),
+                node: (nn, kk.max(k_floor)),
+                grid_cost: cost as f64,
+            },
+            pred,
+        )
     }
 
     /// The best grid node within `stride − 1` grid steps of coarse node `c` (at least
@@ -956,39 +1039,6 @@ impl FitPlan {
         (n1, k1, pred)
     }
 
-    /// Start at node `g` (one stored-Jacobian Gauss–Newton step, or the node itself if
-    /// that step does not improve) and polish.
-    #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
-    fn polish_node(
-        &self,
-        g: usize,
-        grid_cost: f32,
-        y: &[f64],
-        w: Option<&[f64]>,
-        yp: &[f64],
-        wp: &[f64],
-        s: &LmSettings,
-    ) -> lm::LmOut {
-        let b = &self.opts.bounds;
-        let (n1, k1, _) = self.node_step(g, grid_cost as f64, y, w);
-        let k_floor = if b.k_min == 0.0 { lm::K_FLOOR } else { b.k_min };
-        let k1 = k1.max(k_floor);
-        let mut ev = simd::eval(&self.lanes, yp, wp, n1, k1);
-        let mut evals = 1;
-        let (mut n0, mut k0) = (n1, k1);
-        if !(ev.cost <= grid_cost as f64 * (1.0 + 1e-4) + 1e-12) {
-            let (_, _, nn, kk) = self.node(g);
-            n0 = nn;
-            k0 = kk.max(k_floor);
-            ev = simd::eval(&self.lanes, yp, wp, n0, k0);
-            evals += 1;
-        }
-        let mut out = lm::polish(&self.lanes, yp, wp, b, s, n0, k0, ev);
-        out.evals += evals;
-        out
-    }
-
     /// Grid cell (column, row) nearest above `(n, k)`: the first node `≥` the value
     /// along each axis (the last node beyond the box).
     #[inline]
@@ -998,24 +1048,6 @@ impl FitPlan {
             axis_cell_inv(&self.node_n, b.n_min, self.inv_span.0, n),
             axis_cell_inv(&self.node_k, b.k_min, self.inv_span.1, k),
         )
-    }
-
-    /// Exclude the neighbourhoods of coarse node `c` and of the coarse node nearest
-    /// `(n, k)` from later candidate searches (±2 grid steps, at least one coarse step).
-    #[inline(always)]
-    fn blank(&self, acc: &mut [f32], c: usize, n: f64, k: f64) {
-        let (cn, ck) = (self.coarse_i.len(), self.coarse_j.len());
-        let (i1, j1) = self.cell(n, k);
-        let s = self.stride;
-        let near = |i: usize, m: usize| ((i + s / 2) / s).min(m - 1);
-        let r = if s == 1 { 2 } else { 1 };
-        for (ic, jc) in [(c % cn, c / cn), (near(i1, cn), near(j1, ck))] {
-            for j in jc.saturating_sub(r)..(jc + r + 1).min(ck) {
-                for i in ic.saturating_sub(r)..(ic + r + 1).min(cn) {
-                    acc[j * cn + i] = f32::INFINITY;
-                }
-            }
-        }
     }
 
     /// Standard errors, correlation and status of a polished minimum.
@@ -1274,4 +1306,103 @@ pub fn fit_nk(betas: &[f64], dolp: &[f64], dolp_se: Option<&[f64]>) -> Result<Nk
         });
     }
     FitPlan::with_defaults(betas)?.fit(dolp, dolp_se)
+}
+
+#[cfg(test)]
+mod isa_tests {
+    use super::*;
+    use crate::dop::dop;
+    use rand::rngs::StdRng;
+    use rand::{RngExt, SeedableRng};
+    use rand_distr::{Distribution, Normal};
+
+    fn data(pixels: usize, t_len: usize, seed: u64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let betas: Vec<f64> = (0..t_len)
+            .map(|i| (40.0 + 30.0 * i as f64 / (t_len - 1) as f64).to_radians())
+            .collect();
+        let mut rng = StdRng::seed_from_u64(seed);
+        let noise = Normal::new(0.0, 0.005).unwrap();
+        let mut y = Vec::new();
+        let mut se = Vec::new();
+        for p in 0..pixels {
+            let (n, k) = (rng.random_range(0.2..4.0), rng.random_range(0.0..10.0));
+            for (t, &b) in betas.iter().enumerate() {
+                y.push((dop(n, k, b) + noise.sample(&mut rng)).clamp(0.0, 1.0));
+                se.push(0.004 + 0.001 * ((p + t) % 3) as f64);
+            }
+        }
+        (betas, y, se)
+    }
+
+    /// Every kernel the CPU has gives the same fits: AVX2 and AVX-512 bit for bit (the
+    /// same fused operations in the same order), the portable kernel (separate
+    /// multiply and add) to rounding. Weighted and unweighted, with and without
+    /// competing-basin starts, for a pixel count that leaves a remainder after the
+    /// four-pixel scans, and for a grid whose bands do not divide it evenly.
+    #[test]
+    fn kernels_agree() {
+        for (opts, t_len) in [
+            (FitOptions::default(), 10),
+            (
+                FitOptions {
+                    max_candidates: 3,
+                    ..Default::default()
+                },
+                7,
+            ),
+            (
+                FitOptions {
+                    grid_n: 20,
+                    grid_k: 22,
+                    max_candidates: 2,
+                    ..Default::default()
+                },
+                5,
+            ),
+        ] {
+            let (betas, y, se) = data(203, t_len, 4);
+            let plan = FitPlan::new(&betas, opts).unwrap();
+            for s in [None, Some(&se[..])] {
+                let mut portable = vec![NkFit::default(); 203];
+                let mut ws = plan.workspace();
+                plan.fit_chunk_body::<ISA_PORTABLE>(&y, s, &mut portable, &mut ws);
+                let mut runs = vec![];
+                #[cfg(target_arch = "x86_64")]
+                {
+                    if std::arch::is_x86_feature_detected!("avx2")
+                        && std::arch::is_x86_feature_detected!("fma")
+                    {
+                        let mut o = vec![NkFit::default(); 203];
+                        // SAFETY: the CPU has AVX2 + FMA (checked above).
+                        unsafe { plan.fit_chunk_avx2(&y, s, &mut o, &mut ws) };
+                        runs.push(o);
+                    }
+                    if std::arch::is_x86_feature_detected!("avx512f")
+                        && std::arch::is_x86_feature_detected!("avx2")
+                        && std::arch::is_x86_feature_detected!("fma")
+                    {
+                        let mut o = vec![NkFit::default(); 203];
+                        // SAFETY: the CPU has AVX-512F, AVX2 and FMA (checked above).
+                        unsafe { plan.fit_chunk_avx512(&y, s, &mut o, &mut ws) };
+                        runs.push(o);
+                    }
+                }
+                if runs.len() == 2 {
+                    assert_eq!(runs[0], runs[1], "AVX2 and AVX-512 differ");
+                }
+                for run in &runs {
+                    for (p, (a, b)) in run.iter().zip(&portable).enumerate() {
+                        assert_eq!(a.status, b.status, "pixel {p}: {a:?} vs {b:?}");
+                        let yp = &y[p * t_len..(p + 1) * t_len];
+                        let sp = s.map(|s| &s[p * t_len..(p + 1) * t_len]);
+                        let (ca, cb) = (plan.cost(a.n, a.k, yp, sp), plan.cost(b.n, b.k, yp, sp));
+                        assert!(
+                            (ca - cb).abs() <= 1e-9 * ca.max(cb) + 1e-15,
+                            "pixel {p}: cost {ca} vs {cb}"
+                        );
+                    }
+                }
+            }
+        }
+    }
 }
