@@ -20,8 +20,8 @@ use super::FitBounds;
 use super::lm::{Eval, K_FLOOR, K_U};
 use super::simd::Lanes;
 
-/// Fits polished side by side (one f64x8 vector, or two f64x4).
-pub(crate) const W: usize = 8;
+/// Fits polished side by side (two f64x8 vectors, or four f64x4).
+pub(crate) const W: usize = 16;
 
 type L = [f64; W];
 
@@ -71,9 +71,9 @@ pub(crate) trait Simd: Copy {
     /// `m ? a : b` lane by lane.
     fn select(m: Self::M, a: Self::V, b: Self::V) -> Self::V;
     /// Bit `l` set when lane `l` of `m` is set.
-    fn bits(m: Self::M) -> u8;
+    fn bits(m: Self::M) -> u32;
     /// The mask with lane `l` set when bit `l` of `b` is.
-    fn from_bits(b: u8) -> Self::M;
+    fn from_bits(b: u32) -> Self::M;
 }
 
 /// [`Simd`] by lane loops (any CPU).
@@ -173,13 +173,13 @@ impl Simd for Portable {
         lanes!(|m, a, b| if m { a } else { b })
     }
     #[inline(always)]
-    fn bits(m: [bool; W]) -> u8 {
+    fn bits(m: [bool; W]) -> u32 {
         m.iter()
             .enumerate()
-            .fold(0, |acc, (l, &v)| acc | (u8::from(v) << l))
+            .fold(0, |acc, (l, &v)| acc | (u32::from(v) << l))
     }
     #[inline(always)]
-    fn from_bits(b: u8) -> [bool; W] {
+    fn from_bits(b: u32) -> [bool; W] {
         let mut m = [false; W];
         for (l, v) in m.iter_mut().enumerate() {
             *v = (b >> l) & 1 == 1;
@@ -209,6 +209,11 @@ mod x86 {
 
     macro_rules! pair {
         ($f:ident($($a:ident),*)) => {
+            unsafe { [$f($($a[0]),*), $f($($a[1]),*), $f($($a[2]),*), $f($($a[3]),*)] }
+        };
+    }
+    macro_rules! pair2 {
+        ($f:ident($($a:ident),*)) => {
             unsafe { [$f($($a[0]),*), $f($($a[1]),*)] }
         };
     }
@@ -217,11 +222,11 @@ mod x86 {
     // AVX2 + FMA and called after a run-time check that the CPU has them; loads and
     // stores go through slices of length W (bounds-checked) before the pointer is used.
     impl Simd for Avx2 {
-        type V = [__m256d; 2];
-        type M = [__m256d; 2];
+        type V = [__m256d; 4];
+        type M = [__m256d; 4];
         #[inline(always)]
         fn splat(x: f64) -> Self::V {
-            unsafe { [_mm256_set1_pd(x); 2] }
+            unsafe { [_mm256_set1_pd(x); 4] }
         }
         #[inline(always)]
         fn load(p: &[f64]) -> Self::V {
@@ -230,6 +235,8 @@ mod x86 {
                 [
                     _mm256_loadu_pd(p.as_ptr()),
                     _mm256_loadu_pd(p.as_ptr().add(4)),
+                    _mm256_loadu_pd(p.as_ptr().add(8)),
+                    _mm256_loadu_pd(p.as_ptr().add(12)),
                 ]
             }
         }
@@ -239,6 +246,8 @@ mod x86 {
             unsafe {
                 _mm256_storeu_pd(p.as_mut_ptr(), v[0]);
                 _mm256_storeu_pd(p.as_mut_ptr().add(4), v[1]);
+                _mm256_storeu_pd(p.as_mut_ptr().add(8), v[2]);
+                _mm256_storeu_pd(p.as_mut_ptr().add(12), v[3]);
             }
         }
         #[inline(always)]
@@ -285,6 +294,8 @@ mod x86 {
                 [
                     _mm256_cmp_pd::<_CMP_LT_OQ>(a[0], b[0]),
                     _mm256_cmp_pd::<_CMP_LT_OQ>(a[1], b[1]),
+                    _mm256_cmp_pd::<_CMP_LT_OQ>(a[2], b[2]),
+                    _mm256_cmp_pd::<_CMP_LT_OQ>(a[3], b[3]),
                 ]
             }
         }
@@ -294,6 +305,8 @@ mod x86 {
                 [
                     _mm256_cmp_pd::<_CMP_LE_OQ>(a[0], b[0]),
                     _mm256_cmp_pd::<_CMP_LE_OQ>(a[1], b[1]),
+                    _mm256_cmp_pd::<_CMP_LE_OQ>(a[2], b[2]),
+                    _mm256_cmp_pd::<_CMP_LE_OQ>(a[3], b[3]),
                 ]
             }
         }
@@ -303,6 +316,8 @@ mod x86 {
                 [
                     _mm256_cmp_pd::<_CMP_EQ_OQ>(a[0], b[0]),
                     _mm256_cmp_pd::<_CMP_EQ_OQ>(a[1], b[1]),
+                    _mm256_cmp_pd::<_CMP_EQ_OQ>(a[2], b[2]),
+                    _mm256_cmp_pd::<_CMP_EQ_OQ>(a[3], b[3]),
                 ]
             }
         }
@@ -316,7 +331,7 @@ mod x86 {
         }
         #[inline(always)]
         fn not(a: Self::M) -> Self::M {
-            let ones = unsafe { [_mm256_castsi256_pd(_mm256_set1_epi64x(-1)); 2] };
+            let ones = unsafe { [_mm256_castsi256_pd(_mm256_set1_epi64x(-1)); 4] };
             pair!(_mm256_xor_pd(a, ones))
         }
         #[inline(always)]
@@ -324,112 +339,144 @@ mod x86 {
             pair!(_mm256_blendv_pd(b, a, m))
         }
         #[inline(always)]
-        fn bits(m: Self::M) -> u8 {
-            unsafe { (_mm256_movemask_pd(m[0]) | (_mm256_movemask_pd(m[1]) << 4)) as u8 }
+        fn bits(m: Self::M) -> u32 {
+            unsafe {
+                (_mm256_movemask_pd(m[0])
+                    | (_mm256_movemask_pd(m[1]) << 4)
+                    | (_mm256_movemask_pd(m[2]) << 8)
+                    | (_mm256_movemask_pd(m[3]) << 12)) as u32
+            }
         }
         #[inline(always)]
-        fn from_bits(b: u8) -> Self::M {
+        fn from_bits(b: u32) -> Self::M {
             unsafe {
                 let sel = _mm256_set_epi64x(8, 4, 2, 1);
-                let lo = _mm256_set1_epi64x(i64::from(b & 15));
-                let hi = _mm256_set1_epi64x(i64::from(b >> 4));
-                [
-                    _mm256_castsi256_pd(_mm256_cmpeq_epi64(_mm256_and_si256(lo, sel), sel)),
-                    _mm256_castsi256_pd(_mm256_cmpeq_epi64(_mm256_and_si256(hi, sel), sel)),
-                ]
+                let part = |q: u32| {
+                    let v = _mm256_set1_epi64x(i64::from((b >> (4 * q)) & 15));
+                    _mm256_castsi256_pd(_mm256_cmpeq_epi64(_mm256_and_si256(v, sel), sel))
+                };
+                [part(0), part(1), part(2), part(3)]
             }
         }
     }
 
     // SAFETY (every method): as for `Avx2`, with AVX-512F.
     impl Simd for Avx512 {
-        type V = __m512d;
-        type M = __mmask8;
+        type V = [__m512d; 2];
+        type M = [__mmask8; 2];
         #[inline(always)]
-        fn splat(x: f64) -> __m512d {
-            unsafe { _mm512_set1_pd(x) }
+        fn splat(x: f64) -> Self::V {
+            unsafe { [_mm512_set1_pd(x); 2] }
         }
         #[inline(always)]
-        fn load(p: &[f64]) -> __m512d {
+        fn load(p: &[f64]) -> Self::V {
             let p = &p[..W];
-            unsafe { _mm512_loadu_pd(p.as_ptr()) }
+            unsafe {
+                [
+                    _mm512_loadu_pd(p.as_ptr()),
+                    _mm512_loadu_pd(p.as_ptr().add(8)),
+                ]
+            }
         }
         #[inline(always)]
-        fn store(v: __m512d, p: &mut [f64]) {
+        fn store(v: Self::V, p: &mut [f64]) {
             let p = &mut p[..W];
-            unsafe { _mm512_storeu_pd(p.as_mut_ptr(), v) }
+            unsafe {
+                _mm512_storeu_pd(p.as_mut_ptr(), v[0]);
+                _mm512_storeu_pd(p.as_mut_ptr().add(8), v[1]);
+            }
         }
         #[inline(always)]
-        fn add(a: __m512d, b: __m512d) -> __m512d {
-            unsafe { _mm512_add_pd(a, b) }
+        fn add(a: Self::V, b: Self::V) -> Self::V {
+            pair2!(_mm512_add_pd(a, b))
         }
         #[inline(always)]
-        fn sub(a: __m512d, b: __m512d) -> __m512d {
-            unsafe { _mm512_sub_pd(a, b) }
+        fn sub(a: Self::V, b: Self::V) -> Self::V {
+            pair2!(_mm512_sub_pd(a, b))
         }
         #[inline(always)]
-        fn mul(a: __m512d, b: __m512d) -> __m512d {
-            unsafe { _mm512_mul_pd(a, b) }
+        fn mul(a: Self::V, b: Self::V) -> Self::V {
+            pair2!(_mm512_mul_pd(a, b))
         }
         #[inline(always)]
-        fn div(a: __m512d, b: __m512d) -> __m512d {
-            unsafe { _mm512_div_pd(a, b) }
+        fn div(a: Self::V, b: Self::V) -> Self::V {
+            pair2!(_mm512_div_pd(a, b))
         }
         #[inline(always)]
-        fn sqrt(a: __m512d) -> __m512d {
-            unsafe { _mm512_sqrt_pd(a) }
+        fn sqrt(a: Self::V) -> Self::V {
+            pair2!(_mm512_sqrt_pd(a))
         }
         #[inline(always)]
-        fn fma(a: __m512d, b: __m512d, c: __m512d) -> __m512d {
-            unsafe { _mm512_fmadd_pd(a, b, c) }
+        fn fma(a: Self::V, b: Self::V, c: Self::V) -> Self::V {
+            pair2!(_mm512_fmadd_pd(a, b, c))
         }
         #[inline(always)]
-        fn abs(a: __m512d) -> __m512d {
-            unsafe { _mm512_abs_pd(a) }
+        fn abs(a: Self::V) -> Self::V {
+            pair2!(_mm512_abs_pd(a))
         }
         #[inline(always)]
-        fn min(a: __m512d, b: __m512d) -> __m512d {
-            unsafe { _mm512_min_pd(a, b) }
+        fn min(a: Self::V, b: Self::V) -> Self::V {
+            pair2!(_mm512_min_pd(a, b))
         }
         #[inline(always)]
-        fn max(a: __m512d, b: __m512d) -> __m512d {
-            unsafe { _mm512_max_pd(a, b) }
+        fn max(a: Self::V, b: Self::V) -> Self::V {
+            pair2!(_mm512_max_pd(a, b))
         }
         #[inline(always)]
-        fn lt(a: __m512d, b: __m512d) -> __mmask8 {
-            unsafe { _mm512_cmp_pd_mask::<_CMP_LT_OQ>(a, b) }
+        fn lt(a: Self::V, b: Self::V) -> Self::M {
+            unsafe {
+                [
+                    _mm512_cmp_pd_mask::<_CMP_LT_OQ>(a[0], b[0]),
+                    _mm512_cmp_pd_mask::<_CMP_LT_OQ>(a[1], b[1]),
+                ]
+            }
         }
         #[inline(always)]
-        fn le(a: __m512d, b: __m512d) -> __mmask8 {
-            unsafe { _mm512_cmp_pd_mask::<_CMP_LE_OQ>(a, b) }
+        fn le(a: Self::V, b: Self::V) -> Self::M {
+            unsafe {
+                [
+                    _mm512_cmp_pd_mask::<_CMP_LE_OQ>(a[0], b[0]),
+                    _mm512_cmp_pd_mask::<_CMP_LE_OQ>(a[1], b[1]),
+                ]
+            }
         }
         #[inline(always)]
-        fn eq(a: __m512d, b: __m512d) -> __mmask8 {
-            unsafe { _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(a, b) }
+        fn eq(a: Self::V, b: Self::V) -> Self::M {
+            unsafe {
+                [
+                    _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(a[0], b[0]),
+                    _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(a[1], b[1]),
+                ]
+            }
         }
         #[inline(always)]
-        fn and(a: __mmask8, b: __mmask8) -> __mmask8 {
-            a & b
+        fn and(a: Self::M, b: Self::M) -> Self::M {
+            [a[0] & b[0], a[1] & b[1]]
         }
         #[inline(always)]
-        fn or(a: __mmask8, b: __mmask8) -> __mmask8 {
-            a | b
+        fn or(a: Self::M, b: Self::M) -> Self::M {
+            [a[0] | b[0], a[1] | b[1]]
         }
         #[inline(always)]
-        fn not(a: __mmask8) -> __mmask8 {
-            !a
+        fn not(a: Self::M) -> Self::M {
+            [!a[0], !a[1]]
         }
         #[inline(always)]
-        fn select(m: __mmask8, a: __m512d, b: __m512d) -> __m512d {
-            unsafe { _mm512_mask_blend_pd(m, b, a) }
+        fn select(m: Self::M, a: Self::V, b: Self::V) -> Self::V {
+            unsafe {
+                [
+                    _mm512_mask_blend_pd(m[0], b[0], a[0]),
+                    _mm512_mask_blend_pd(m[1], b[1], a[1]),
+                ]
+            }
         }
         #[inline(always)]
-        fn bits(m: __mmask8) -> u8 {
-            m
+        fn bits(m: Self::M) -> u32 {
+            u32::from(m[0]) | (u32::from(m[1]) << 8)
         }
         #[inline(always)]
-        fn from_bits(b: u8) -> __mmask8 {
-            b
+        fn from_bits(b: u32) -> Self::M {
+            [b as u8, (b >> 8) as u8]
         }
     }
 }
@@ -732,7 +779,9 @@ pub(crate) fn run<S: Simd>(
     let mut node_k = [1.0; W];
     let mut grid_cost = [0.0; W];
     // Phases as lane bits: evaluating the start, evaluating the node, iterating.
-    let (mut start_b, mut node_b, mut lm_b) = (0u8, 0u8, 0u8);
+    let (mut start_b, mut node_b, mut lm_b) = (0u32, 0u32, 0u32);
+    // Lanes without a job.
+    let mut free_b: u32 = (1u32 << W) - 1;
     // Vector state.
     let mut n = one;
     let mut k = one;
@@ -754,8 +803,8 @@ pub(crate) fn run<S: Simd>(
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn retire<S: Simd>(
-        done: u8,
-        conv: u8,
+        done: u32,
+        conv: u32,
         n: S::V,
         k: S::V,
         cur: &EvalV<S>,
@@ -771,8 +820,11 @@ pub(crate) fn run<S: Simd>(
         ]) {
             S::store(v, dst);
         }
-        for l in 0..W {
-            if done >> l & 1 == 1 {
+        let mut bits = done;
+        while bits != 0 {
+            let l = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            {
                 out[job[l]] = JobOut {
                     n: a[0][l],
                     k: a[1][l],
@@ -805,13 +857,14 @@ pub(crate) fn run<S: Simd>(
                       node_n: &mut L,
                       node_k: &mut L,
                       grid_cost: &mut L,
-                      sc: &mut LaneScratch|
-     -> u8 {
-        let mut started = 0u8;
-        for l in 0..W {
-            if job[l] != usize::MAX || next >= jobs.len() {
-                continue;
-            }
+                      sc: &mut LaneScratch,
+                      free_b: &mut u32|
+     -> u32 {
+        let mut started = 0u32;
+        let mut free = *free_b;
+        while free != 0 && next < jobs.len() {
+            let l = free.trailing_zeros() as usize;
+            free &= free - 1;
             let j = &jobs[next];
             job[l] = next;
             next += 1;
@@ -832,6 +885,7 @@ pub(crate) fn run<S: Simd>(
                 }
             }
         }
+        *free_b &= !started;
         started
     };
 
@@ -843,6 +897,7 @@ pub(crate) fn run<S: Simd>(
         &mut node_k,
         &mut grid_cost,
         sc,
+        &mut free_b,
     );
     let (xtol, ftol) = (S::splat(s.xtol), S::splat(s.ftol));
     let max_iter = S::splat(f64::from(s.max_iter));
@@ -881,6 +936,7 @@ pub(crate) fn run<S: Simd>(
                 out,
             );
             lm_b &= !done;
+            free_b |= done;
             start_b |= refill(
                 &mut job,
                 &mut start_n,
@@ -889,6 +945,7 @@ pub(crate) fn run<S: Simd>(
                 &mut node_k,
                 &mut grid_cost,
                 sc,
+                &mut free_b,
             );
         }
         let active = start_b | node_b | lm_b;
@@ -984,6 +1041,7 @@ pub(crate) fn run<S: Simd>(
                 done, ok_b, n, k, &cur, &mut iters, &mut evals, &mut lam, &mut job, out,
             );
             lm_b &= !done;
+            free_b |= done;
             start_b |= refill(
                 &mut job,
                 &mut start_n,
@@ -992,6 +1050,7 @@ pub(crate) fn run<S: Simd>(
                 &mut node_k,
                 &mut grid_cost,
                 sc,
+                &mut free_b,
             );
         }
     }
