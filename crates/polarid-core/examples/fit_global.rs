@@ -35,11 +35,14 @@ fn main() {
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
         let val = it.next().unwrap_or_else(|| usage("missing value"));
-        let bad = |_| usage(&format!("bad value for {flag}: {val}"));
+        fn num<V: std::str::FromStr>(flag: &str, val: &str) -> V {
+            val.parse()
+                .unwrap_or_else(|_| usage(&format!("bad value for {flag}: {val}")))
+        }
         match flag.as_str() {
-            "--pixels" => pixels = val.parse().unwrap_or_else(bad),
-            "--candidates" => candidates = val.parse().unwrap_or_else(bad),
-            "--seed" => seed = val.parse().unwrap_or_else(bad),
+            "--pixels" => pixels = num(&flag, &val),
+            "--candidates" => candidates = num(&flag, &val),
+            "--seed" => seed = num(&flag, &val),
             _ => usage(&format!("unknown option {flag}")),
         }
     }
@@ -49,9 +52,27 @@ fn main() {
     let deg = |d: f64| d.to_radians();
     // (name, n range, k range, noise sd, betas)
     let cases: Vec<(&str, (f64, f64), (f64, f64), f64, Vec<f64>)> = vec![
-        ("bench", (0.3, 3.0), (0.0, 8.0), 0.005, paper(10, 35.0, 5.0, 60.0)),
-        ("wide", (0.01, 10.0), (0.0, 15.0), 0.005, paper(10, 35.0, 5.0, 60.0)),
-        ("noisy", (0.3, 3.0), (0.0, 8.0), 0.03, paper(10, 35.0, 5.0, 60.0)),
+        (
+            "bench",
+            (0.3, 3.0),
+            (0.0, 8.0),
+            0.005,
+            paper(10, 35.0, 5.0, 60.0),
+        ),
+        (
+            "wide",
+            (0.01, 10.0),
+            (0.0, 15.0),
+            0.005,
+            paper(10, 35.0, 5.0, 60.0),
+        ),
+        (
+            "noisy",
+            (0.3, 3.0),
+            (0.0, 8.0),
+            0.03,
+            paper(10, 35.0, 5.0, 60.0),
+        ),
         (
             "t4",
             (0.3, 3.0),
@@ -59,8 +80,20 @@ fn main() {
             0.005,
             vec![deg(30.0), deg(45.0), deg(55.0), deg(70.0)],
         ),
-        ("narrow", (0.3, 3.0), (0.0, 8.0), 0.005, paper(6, 40.0, 3.0, 50.0)),
-        ("low", (0.3, 3.0), (0.0, 8.0), 0.005, paper(8, 10.0, 5.0, 20.0)),
+        (
+            "narrow",
+            (0.3, 3.0),
+            (0.0, 8.0),
+            0.005,
+            paper(6, 40.0, 3.0, 50.0),
+        ),
+        (
+            "low",
+            (0.3, 3.0),
+            (0.0, 8.0),
+            0.005,
+            paper(8, 10.0, 5.0, 20.0),
+        ),
     ];
     let opts = FitOptions {
         max_candidates: candidates,

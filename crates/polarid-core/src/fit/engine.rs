@@ -568,7 +568,7 @@ fn lane<S: Simd>(v: S::V, l: usize) -> f64 {
 /// `hypot` fallback dropped, exact for bounds below `1e100`, checked by the plan).
 /// `y`, `w`: lane-major, `y[t * W + l]`.
 #[inline(always)]
-fn eval_lanes<S: Simd>(
+fn eval_lanes<S: Simd, const WEIGHTED: bool>(
     lanes: &Lanes,
     t_len: usize,
     y: &[f64],
@@ -640,13 +640,18 @@ fn eval_lanes<S: Simd>(
         let jk = S::select(ok, jk, zero);
         let p = S::select(ok, p, zero);
         let res = S::sub(p, S::load(&y[t * W..]));
-        let wt = S::load(&w[t * W..]);
-        let wr = S::mul(wt, res);
-        let wjn = S::mul(wt, jn);
+        // Unweighted: the same sums without the multiplications by w = 1 (bitwise
+        // equal: 1·x = x).
+        let (wr, wjn, wjk) = if WEIGHTED {
+            let wt = S::load(&w[t * W..]);
+            (S::mul(wt, res), S::mul(wt, jn), S::mul(wt, jk))
+        } else {
+            (res, jn, jk)
+        };
         a_cost = S::fma(wr, res, a_cost);
         a_h00 = S::fma(wjn, jn, a_h00);
         a_h01 = S::fma(wjn, jk, a_h01);
-        a_h11 = S::fma(S::mul(wt, jk), jk, a_h11);
+        a_h11 = S::fma(wjk, jk, a_h11);
         a_g0 = S::fma(jn, wr, a_g0);
         a_g1 = S::fma(jk, wr, a_g1);
     }
@@ -976,7 +981,11 @@ pub(crate) fn run<S: Simd>(
                 S::select(node_m, S::load(&node_k), one),
             ),
         );
-        let ev = eval_lanes::<S>(lanes, t_len, &sc.y, &sc.w, tn, tk);
+        let ev = if w.is_some() {
+            eval_lanes::<S, true>(lanes, t_len, &sc.y, &sc.w, tn, tk)
+        } else {
+            eval_lanes::<S, false>(lanes, t_len, &sc.y, &sc.w, tn, tk)
+        };
         evals = S::add(evals, S::select(S::from_bits(active), one, zero));
         // 3. Accept or reject. Start and node evaluations are always taken; a start
         //    worse than its node's grid cost is followed by the node.
@@ -1095,7 +1104,7 @@ mod tests {
                 n[l] = a;
                 k[l] = b;
             }
-            let e = eval_lanes::<S>(lanes, t_len, &yl, &wl, S::load(&n), S::load(&k));
+            let e = eval_lanes::<S, true>(lanes, t_len, &yl, &wl, S::load(&n), S::load(&k));
             out.extend((0..c.len()).map(|l| lane_eval(&e, l)));
         }
         out
