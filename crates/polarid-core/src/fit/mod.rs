@@ -1098,18 +1098,27 @@ impl FitPlan {
         let use_u = b.k_min == 0.0 && (lin.is_none() || k < k_se_lin);
         let mut singular = false;
         if use_u {
-            // (n, u = k²): ∂P/∂u by a secant over Δu = 1e-6.
-            let du = 1e-6;
-            let k1 = (k * k + du).sqrt();
-            let (mut a00, mut a01, mut a11) = (0.0, 0.0, 0.0);
-            for (t, bt) in self.terms.iter().enumerate() {
-                let d = dop_grad_terms(n, k, bt);
-                let ju = (dop_terms(n, k1, bt) - d.p) / (k1 * k1 - k * k);
-                let wt = w.map_or(1.0, |w| w[t]);
-                a00 += wt * d.dp_dn * d.dp_dn;
-                a01 += wt * d.dp_dn * ju;
-                a11 += wt * ju * ju;
-            }
+            // (n, u = k²): P depends on k through k² only (eq. 14–15), so
+            // ∂P/∂u = (∂P/∂k)/(2k) exactly: the polish's normal equations give the
+            // (n, u) ones for k ≥ 1e-4; closer to 0 (where ∂P/∂k vanishes with k),
+            // ∂P/∂u by a secant over Δu = 1e-6.
+            let (a00, a01, a11) = if out.k >= 1e-4 {
+                let s = 0.5 / out.k;
+                (ev.h00, ev.h01 * s, ev.h11 * s * s)
+            } else {
+                let du = 1e-6;
+                let k1 = (k * k + du).sqrt();
+                let (mut a00, mut a01, mut a11) = (0.0, 0.0, 0.0);
+                for (t, bt) in self.terms.iter().enumerate() {
+                    let d = dop_grad_terms(n, k, bt);
+                    let ju = (dop_terms(n, k1, bt) - d.p) / (k1 * k1 - k * k);
+                    let wt = w.map_or(1.0, |w| w[t]);
+                    a00 += wt * d.dp_dn * d.dp_dn;
+                    a01 += wt * d.dp_dn * ju;
+                    a11 += wt * ju * ju;
+                }
+                (a00, a01, a11)
+            };
             match inv2(a00, a01, a11) {
                 Some((c00, c01, c11)) => {
                     let se_u = (c11 * s2).sqrt();
