@@ -228,7 +228,7 @@ pub fn fit_nk<'py>(
 }
 
 /// Pixels per parallel task of [`batch`].
-const CHUNK: usize = 256;
+const CHUNK: usize = 1024;
 
 /// The columns of a batch fit (struct of arrays).
 #[derive(Default)]

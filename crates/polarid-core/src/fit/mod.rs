@@ -1296,7 +1296,7 @@ pub fn fit_batch(
             got: se.len(),
         });
     }
-    const CHUNK: usize = 256;
+    const CHUNK: usize = 1024;
     match dolp_se {
         None => out
             .par_chunks_mut(CHUNK)
