@@ -886,11 +886,11 @@ impl FitPlan {
         };
         let (g0, cost0) = self.refine(c0, yf, wf);
         let (job0, pred0) = self.job(p, g0, cost0, y, w);
-        let land0 = self.cell(job0.start.0, job0.start.1);
         jobs.push(job0);
         if self.opts.max_candidates < 2 {
             return;
         }
+        let land0 = self.cell(job0.start.0, job0.start.1);
         let cn = self.coarse_i.len();
         let (i0, j0) = (c0 % cn, c0 / cn);
         let mut extra = 0;
