@@ -2,9 +2,10 @@
 //!
 //! Every polish evaluates eq. (9) and its gradient at a trial point, then decides
 //! (accept, reject, stop). Running [`W`] polishes side by side, each lane on its own
-//! fit, turns the evaluation loop over the `T` source positions into straight f64x4
-//! arithmetic (AVX2 + FMA when the caller is compiled for them, see
-//! `FitPlan::fit_checked`) with no padding lanes and no horizontal sums, and the
+//! fit, turns the evaluation loop over the `T` source positions into straight vector
+//! arithmetic (two f64x8 with AVX-512F, four f64x4 with AVX2 + FMA, lane loops
+//! elsewhere; the caller is compiled for the instruction set, see
+//! `FitPlan::fit_chunk`) with no padding lanes and no horizontal sums, and the
 //! Levenberg–Marquardt step into branch-free lane code. A lane whose polish ends takes
 //! the next job of the queue at once ("lane refill"), so lanes do not wait for each
 //! other: a polish is the same sequence of trial points whatever its neighbours do,
@@ -36,19 +37,20 @@ const LAM_0: f64 = 1e-6;
 /// factors of [`LAM_UP`] would cost several rejected evaluations.
 const LAM_REJECT: f64 = 1e-3;
 
-/// The f64x4 operations the engine needs: AVX2 + FMA intrinsics (`Avx2`, only
-/// called from functions compiled for those features) or plain lane loops
+/// The vector operations on [`W`] lanes the engine needs: AVX-512F or AVX2 + FMA
+/// intrinsics (`Avx512`, `Avx2`, only called from functions compiled for those
+/// features) or plain lane loops
 /// ([`Portable`]). Comparisons give masks; `min`/`max` are `a < b ? a : b` /
 /// `a > b ? a : b` (no NaN handling).
 pub(crate) trait Simd: Copy {
-    /// Four f64.
+    /// [`W`] f64.
     type V: Copy;
-    /// Four lane flags.
+    /// [`W`] lane flags.
     type M: Copy;
     fn splat(x: f64) -> Self::V;
-    /// The first four values of `p`.
+    /// The first [`W`] values of `p`.
     fn load(p: &[f64]) -> Self::V;
-    /// Into the first four values of `p`.
+    /// Into the first [`W`] values of `p`.
     fn store(v: Self::V, p: &mut [f64]);
     fn add(a: Self::V, b: Self::V) -> Self::V;
     fn sub(a: Self::V, b: Self::V) -> Self::V;
