@@ -190,14 +190,14 @@ impl Simd for Portable {
     }
 }
 
-/// [`Simd`] with AVX2 + FMA intrinsics, two f64x4 per vector. Only for code inlined
+/// [`Simd`] with AVX2 + FMA intrinsics, four f64x4 per vector. Only for code inlined
 /// into a function compiled with `#[target_feature(enable = "avx2,fma")]`, on a CPU
 /// that has them (the fit checks at run time before it calls such a function).
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy)]
 pub(crate) struct Avx2;
 
-/// [`Simd`] with AVX-512F intrinsics, one f64x8 per vector. Only for code inlined into
+/// [`Simd`] with AVX-512F intrinsics, two f64x8 per vector. Only for code inlined into
 /// a function compiled with `#[target_feature(enable = "avx512f,avx2,fma")]`, on a CPU
 /// that has them.
 #[cfg(target_arch = "x86_64")]
