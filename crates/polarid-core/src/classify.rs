@@ -1,5 +1,5 @@
 //! Material classification from estimated complex indices (paper section 6), and Wolff's
-//! metal/dielectric baseline (paper ref. [1]).
+//! metal/dielectric baseline (paper ref. \[1\]).
 //!
 //! # Nearest neighbour and beyond
 //!

@@ -1187,7 +1187,7 @@ fn axis_cell(nodes: &[f64], lo: f64, hi: f64, x: f64) -> usize {
     axis_cell_inv(nodes, lo, 1.0 / (hi - lo), x)
 }
 
-/// [`axis_cell`] with the inverse span `1 / (hi − lo)` precomputed (a multiplication
+/// `axis_cell` with the inverse span `1 / (hi − lo)` precomputed (a multiplication
 /// instead of a division; the corrections make the result exact either way).
 #[inline]
 fn axis_cell_inv(nodes: &[f64], lo: f64, inv_span: f64, x: f64) -> usize {
