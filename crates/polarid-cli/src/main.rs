@@ -46,6 +46,8 @@ enum Command {
     Classify(cmd::classify::Args),
     /// Leave-one-out evaluation of the classifier on a labelled set of fits.
     Evaluate(cmd::evaluate::Args),
+    /// Build a material library CSV for a wavelength band from refractiveindex.info YAML.
+    Library(cmd::library::Args),
     /// Per-pixel (n, k) and material maps.
     Map(cmd::map::Args),
     /// Simulate captures of plates from the pBRDF and a sensor model.
@@ -71,6 +73,7 @@ fn main() -> ExitCode {
         Command::Train(a) => cmd::train::run(a, &ctx),
         Command::Classify(a) => cmd::classify::run(a, &ctx),
         Command::Evaluate(a) => cmd::evaluate::run(a, &ctx),
+        Command::Library(a) => cmd::library::run(a, &ctx),
         Command::Map(a) => cmd::map::run(a, &ctx),
         Command::Simulate(a) => cmd::simulate::run(a, &ctx),
         Command::Demo(a) => cmd::demo::run(a, &ctx),

@@ -48,12 +48,14 @@ use polarid_core::classify::{Prototype, check_class_name};
 use saphyr::{LoadableYamlNode, Yaml};
 
 use crate::error::{IoError, Result};
-use crate::table::CsvTable;
+use crate::table::{CsvTable, fmt_f64, write_rows};
 
 /// The built-in 650 nm library (refractiveindex.info, CC0), as shipped.
 pub const BUILTIN_CSV: &str = include_str!("../data/library_650nm.csv");
 /// The paper's Table 1 reference values.
 pub const PAPER_2007_CSV: &str = include_str!("../data/paper_2007.csv");
+/// Columns written by [`Library::write_csv`].
+pub const CSV_COLUMNS: [&str; 5] = ["name", "category", "n", "k", "reference"];
 /// Names accepted by [`Library::load`] for the built-in libraries.
 pub const BUILTIN_NAMES: [&str; 2] = ["builtin", "paper2007"];
 
@@ -157,6 +159,37 @@ impl Library {
             });
         }
         Ok(Self { source, materials })
+    }
+
+    /// Write the library as CSV with the columns [`CSV_COLUMNS`] (`name,category,n,k,reference`;
+    /// empty cells for a missing category or reference), readable by [`Library::read_csv`].
+    /// Each line of `comment` is written first as a `#` comment line, which the reader
+    /// skips. `path` names the output in errors.
+    pub fn write_csv<W: std::io::Write + ?Sized>(
+        &self,
+        w: &mut W,
+        path: &Path,
+        comment: Option<&str>,
+    ) -> Result<()> {
+        if let Some(c) = comment {
+            for line in c.lines() {
+                writeln!(w, "# {line}").map_err(|e| IoError::io(path, e))?;
+            }
+        }
+        write_rows(
+            w,
+            path,
+            &CSV_COLUMNS,
+            self.materials.iter().map(|m| {
+                vec![
+                    m.name.clone(),
+                    m.category.clone().unwrap_or_default(),
+                    fmt_f64(m.n),
+                    fmt_f64(m.k),
+                    m.reference.clone().unwrap_or_default(),
+                ]
+            }),
+        )
     }
 
     /// The materials as classification prototypes (class = material name, no covariance,
@@ -564,6 +597,51 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("reserved"), "{e}");
+    }
+
+    #[test]
+    fn library_csv_round_trips() {
+        let lib = Library::builtin().unwrap();
+        let mut buf = Vec::new();
+        lib.write_csv(
+            &mut buf,
+            Path::new("out.csv"),
+            Some("band 610-690 nm\nsecond line"),
+        )
+        .unwrap();
+        let text = String::from_utf8(buf).unwrap();
+        assert!(
+            text.starts_with("# band 610-690 nm\n# second line\nname,category,n,k,reference\n")
+        );
+        let back = Library::from_csv_text("out.csv", &text).unwrap();
+        assert_eq!(back.materials.len(), lib.materials.len());
+        for (a, b) in lib.materials.iter().zip(&back.materials) {
+            assert_eq!(
+                (&a.name, &a.category, a.n, a.k, &a.reference),
+                (&b.name, &b.category, b.n, b.k, &b.reference)
+            );
+        }
+        // A name with a comma and a missing category survive.
+        let lib = Library {
+            source: "x".into(),
+            materials: vec![Material {
+                name: "brass, yellow".into(),
+                category: None,
+                n: 0.5,
+                k: 3.25,
+                reference: Some("a \"quoted\" ref".into()),
+                line: 0,
+            }],
+        };
+        let mut buf = Vec::new();
+        lib.write_csv(&mut buf, Path::new("out.csv"), None).unwrap();
+        let back = Library::from_csv_text("out.csv", std::str::from_utf8(&buf).unwrap()).unwrap();
+        let m = &back.materials[0];
+        assert_eq!(
+            (m.name.as_str(), m.category.as_deref(), m.n, m.k),
+            ("brass, yellow", None, 0.5, 3.25)
+        );
+        assert_eq!(m.reference.as_deref(), Some("a \"quoted\" ref"));
     }
 
     #[test]

@@ -4,6 +4,7 @@ pub mod classify;
 pub mod demo;
 pub mod evaluate;
 pub mod fit;
+pub mod library;
 pub mod map;
 pub mod measure;
 pub mod model;
