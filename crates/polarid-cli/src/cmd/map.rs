@@ -38,9 +38,9 @@ use polarid_io::image::{self, Frame};
 use polarid_io::manifest::{self, Capture, CaptureSource, Manifest};
 use polarid_io::model::Model;
 
-use super::stokes::rules_for;
 use crate::plots::{PlotSize, class_map};
 use crate::{BadInput, Ctx};
+use polarid_io::measure::rules_for;
 
 /// Arguments of `polarid map`.
 #[derive(Debug, clap::Args)]
