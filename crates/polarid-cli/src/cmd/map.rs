@@ -36,11 +36,11 @@ use polarid_io::IoError;
 use polarid_io::atomic::{StagedDir, check_output};
 use polarid_io::image::{self, Frame};
 use polarid_io::manifest::{self, Capture, CaptureSource, Manifest};
+use polarid_io::measure::rules_for;
 use polarid_io::model::Model;
 
 use crate::plots::{PlotSize, class_map};
 use crate::{BadInput, Ctx};
-use polarid_io::measure::rules_for;
 
 /// Arguments of `polarid map`.
 #[derive(Debug, clap::Args)]
