@@ -91,13 +91,13 @@ fn write_capture_set(dir: &Path) -> PathBuf {
         })
         .collect();
     write_gray16(&dir.join("raw.png"), false, W, H, &raw).unwrap();
-    let mut s = [vec![0f32; W * H], vec![0f32; W * H], vec![0f32; W * H]];
+    let mut s = [Vec::new(), Vec::new(), Vec::new()];
     for i in 0..W * H {
         let (p, aolp) = truth(i % W);
         let two = (2.0 * aolp).to_radians();
-        s[0][i] = (S0 + SIGMA * noise.gauss()) as f32;
-        s[1][i] = (S0 * p * two.cos() + SIGMA * noise.gauss()) as f32;
-        s[2][i] = (S0 * p * two.sin() + SIGMA * noise.gauss()) as f32;
+        s[0].push((S0 + SIGMA * noise.gauss()) as f32);
+        s[1].push((S0 * p * two.cos() + SIGMA * noise.gauss()) as f32);
+        s[2].push((S0 * p * two.sin() + SIGMA * noise.gauss()) as f32);
     }
     for (k, d) in s.iter().enumerate() {
         write_tiff_f32(&dir.join(format!("s{k}.tif")), false, W, H, d).unwrap();
