@@ -1,32 +1,23 @@
 //! Capture-set manifests: `load_manifest` (the validated manifest as a dict) and
 //! `measure` (each region's DoLP per capture, the numbers of `polarid measure`).
 //!
-//! `measure` re-implements the thin orchestration of the CLI's `measure_manifest`
-//! (crates/polarid-cli/src/cmd/measure.rs) on the io/core APIs, step for step, so that
-//! it produces the same numbers without depending on the CLI crate: frames → Stokes
-//! (`StokesSolver::compute`, rules from the capture's dark level and saturation),
-//! DoFP → bilinear Stokes without rounding (`mosaic::bilinear_stokes`, sampling
-//! `BilinearDofp`), Stokes TIFFs → `stokes::mask_stokes`; then `region::region_stats` per
-//! region and `geometry::beta`. The test suite compares it with the CLI's CSV.
+//! `measure` calls `polarid_io::measure::measure_manifest`, the pipeline `polarid
+//! measure` runs (crates/polarid-cli/src/cmd/measure.rs), so it produces the same
+//! numbers. The test suite compares it with the CLI's CSV.
 
 use std::ffi::CString;
 use std::path::{Path, PathBuf};
 
 use ndarray::{ArrayD, IxDyn};
-use polarid_core::geometry;
-use polarid_core::mosaic;
-use polarid_core::region::{Sampling, region_stats};
-use polarid_core::stokes::{self, PixelCounts, PixelRules, StokesSolver};
-use polarid_io::IoError;
-use polarid_io::image::{self, Frame};
-use polarid_io::manifest::{self, Capture, CaptureSource, Manifest};
+use polarid_io::manifest::{self, CaptureSource, Manifest};
+use polarid_io::measure::{beta_deg, measure_manifest};
 use polarid_io::table::measurements::Measurement;
 use pyo3::exceptions::PyUserWarning;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use crate::arrays::{str_array, to_numpy};
-use crate::errors::{IntoPyErr, PyResultExt, value_error};
+use crate::errors::{PyResultExt, value_error};
 
 /// Register this module's functions.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -157,218 +148,6 @@ pub fn load_manifest<'py>(
     Ok(d)
 }
 
-fn beta_deg(c: &Capture) -> f64 {
-    geometry::beta(
-        c.theta_i_deg.to_radians(),
-        c.theta_r_deg.to_radians(),
-        c.phi_deg.to_radians(),
-    )
-    .to_degrees()
-}
-
-/// Stokes images of one capture (the CLI's `StokesImages`).
-struct Images {
-    width: usize,
-    height: usize,
-    s0: Vec<f32>,
-    s1: Vec<f32>,
-    s2: Vec<f32>,
-    mask: Vec<u8>,
-    sampling: Sampling,
-}
-
-impl Images {
-    fn alloc(width: usize, height: usize, sampling: Sampling) -> Self {
-        let n = width * height;
-        Self {
-            width,
-            height,
-            s0: vec![0.0; n],
-            s1: vec![0.0; n],
-            s2: vec![0.0; n],
-            mask: vec![0; n],
-            sampling,
-        }
-    }
-}
-
-/// The CLI's `rules_for`: the capture's dark level and saturation (default: the type max).
-fn rules_for(frame: &Frame, dark_level: f64, saturation: Option<f64>) -> PixelRules {
-    PixelRules {
-        dark_level: dark_level as f32,
-        saturation: saturation.map_or(frame.type_max(), |s| s as f32),
-        min_s0: 0.0,
-    }
-}
-
-/// Errors of one capture: IoError (file, or a CoreError wrapped with the file), or a
-/// bare CoreError (the angle set), as the CLI reports them.
-enum MeasureError {
-    Io(IoError),
-    Core(polarid_core::CoreError),
-}
-
-impl From<IoError> for MeasureError {
-    fn from(e: IoError) -> Self {
-        MeasureError::Io(e)
-    }
-}
-
-impl From<polarid_core::CoreError> for MeasureError {
-    fn from(e: polarid_core::CoreError) -> Self {
-        MeasureError::Core(e)
-    }
-}
-
-impl IntoPyErr for MeasureError {
-    fn into_py_err(self) -> PyErr {
-        match self {
-            MeasureError::Io(e) => e.into_py_err(),
-            MeasureError::Core(e) => e.into_py_err(),
-        }
-    }
-}
-
-fn capture_images(c: &Capture) -> Result<Images, MeasureError> {
-    Ok(match &c.source {
-        CaptureSource::Frames(frames) => {
-            let angles: Vec<f64> = frames.iter().map(|f| f.angle_deg).collect();
-            let solver = StokesSolver::from_degrees(&angles)?;
-            let paths: Vec<&Path> = frames.iter().map(|f| f.file.as_path()).collect();
-            let imgs = image::read_frames(&paths)?;
-            let Some(first) = imgs.first() else {
-                return Err(polarid_core::CoreError::TooFew {
-                    what: "frames",
-                    needed: 3,
-                    got: 0,
-                }
-                .into());
-            };
-            let rules = rules_for(first, c.dark_level, c.saturation);
-            let mut o = Images::alloc(first.width, first.height, Sampling::Independent);
-            let views: Vec<&[f32]> = imgs.iter().map(|f| f.data.as_slice()).collect();
-            solver
-                .compute(
-                    &views,
-                    first.width,
-                    &rules,
-                    &mut o.s0,
-                    &mut o.s1,
-                    &mut o.s2,
-                    &mut o.mask,
-                )
-                .map_err(|e| IoError::Core {
-                    path: first.path.clone(),
-                    source: e,
-                })?;
-            o
-        }
-        CaptureSource::Dofp { file, pattern } => {
-            let raw = image::read_frame(file)?;
-            let rules = rules_for(&raw, c.dark_level, c.saturation);
-            let mut o = Images::alloc(raw.width, raw.height, Sampling::BilinearDofp);
-            mosaic::bilinear_stokes(
-                &raw.data,
-                raw.width,
-                pattern,
-                &rules,
-                false,
-                &mut o.s0,
-                &mut o.s1,
-                &mut o.s2,
-                &mut o.mask,
-            )
-            .map_err(|e| IoError::Core {
-                path: raw.path.clone(),
-                source: e,
-            })?;
-            o
-        }
-        CaptureSource::Stokes { s0, s1, s2 } => {
-            let imgs = image::read_frames(&[s0, s1, s2])?;
-            let (w, h) = (imgs[0].width, imgs[0].height);
-            let mut it = imgs.into_iter().map(|f| f.data);
-            let (Some(d0), Some(d1), Some(d2)) = (it.next(), it.next(), it.next()) else {
-                return Err(polarid_core::CoreError::TooFew {
-                    what: "Stokes images",
-                    needed: 3,
-                    got: 0,
-                }
-                .into());
-            };
-            let mut mask = vec![0u8; w * h];
-            let _: PixelCounts =
-                stokes::mask_stokes(w, &d0, &d1, &d2, 0.0, &mut mask).map_err(|e| {
-                    IoError::Core {
-                        path: s0.clone(),
-                        source: e,
-                    }
-                })?;
-            Images {
-                width: w,
-                height: h,
-                s0: d0,
-                s1: d1,
-                s2: d2,
-                mask,
-                sampling: Sampling::Independent,
-            }
-        }
-    })
-}
-
-fn measure_capture(m: &Manifest, c: &Capture) -> Result<Vec<Measurement>, MeasureError> {
-    let img = capture_images(c)?;
-    let beta_deg = beta_deg(c);
-    let first_file = c
-        .source
-        .files()
-        .first()
-        .map(|p| p.display().to_string())
-        .unwrap_or_default();
-    let mut rows = Vec::with_capacity(m.regions.len());
-    for r in &m.regions {
-        let st = region_stats(
-            img.width,
-            &img.s0,
-            &img.s1,
-            &img.s2,
-            &img.mask,
-            r.rect,
-            img.sampling,
-        )
-        .map_err(|e| IoError::Manifest {
-            path: m.path.clone(),
-            line: r.line,
-            field: format!("region[{}].rect", r.index),
-            value: format!(
-                "[{}, {}, {}, {}]",
-                r.rect.x, r.rect.y, r.rect.width, r.rect.height
-            ),
-            reason: format!(
-                "in capture {} (line {}, {first_file}, {}x{} pixels): {e}",
-                c.index, c.line, img.width, img.height
-            ),
-        })?;
-        rows.push(Measurement {
-            target: r.name.clone(),
-            class: r.class.clone(),
-            theta_i_deg: Some(c.theta_i_deg),
-            theta_r_deg: Some(c.theta_r_deg),
-            phi_deg: c.phi_deg,
-            beta_deg,
-            dolp: st.dolp,
-            dolp_se: st.dolp_se.filter(|se| se.is_finite() && *se > 0.0),
-            s0: Some(st.s0() / c.exposure),
-            pixels: Some(st.pixels),
-            rejected: Some(st.rejected),
-            exposure: Some(c.exposure),
-            saturated: Some(st.saturated),
-        });
-    }
-    Ok(rows)
-}
-
 /// Measure every region of every capture of a manifest: the rows of ``polarid measure``.
 ///
 /// For every region and capture: the DoLP of the region's mean Stokes vector, its
@@ -405,15 +184,7 @@ pub fn measure<'py>(
     let p = path_arg(manifest_path)?;
     let m = py.detach(|| manifest::load(&p)).py_err()?;
     warn_all(py, &m)?;
-    let rows = py
-        .detach(|| -> Result<Vec<Measurement>, MeasureError> {
-            let mut rows = Vec::with_capacity(m.captures.len() * m.regions.len());
-            for c in &m.captures {
-                rows.extend(measure_capture(&m, c)?);
-            }
-            Ok(rows)
-        })
-        .py_err()?;
+    let rows = py.detach(|| measure_manifest(&m, &mut |_| {})).py_err()?;
     measurements_dict(py, &rows)
 }
 

@@ -10,6 +10,7 @@ pub mod error;
 pub mod image;
 pub mod library;
 pub mod manifest;
+pub mod measure;
 pub mod model;
 pub mod scene;
 pub mod table;

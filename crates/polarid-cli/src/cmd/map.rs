@@ -36,9 +36,9 @@ use polarid_io::IoError;
 use polarid_io::atomic::{StagedDir, check_output};
 use polarid_io::image::{self, Frame};
 use polarid_io::manifest::{self, Capture, CaptureSource, Manifest};
+use polarid_io::measure::rules_for;
 use polarid_io::model::Model;
 
-use super::stokes::rules_for;
 use crate::plots::{PlotSize, class_map};
 use crate::{BadInput, Ctx};
 

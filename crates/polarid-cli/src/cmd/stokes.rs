@@ -3,16 +3,15 @@
 //!
 //! Writes `s0.tif`, `s1.tif`, `s2.tif`, `dolp.tif`, `aolp.tif` (float32; DoLP and AoLP are
 //! NaN where a pixel is rejected) and the views `dolp.png`, `aolp.png` into the output
-//! directory, all or nothing.
+//! directory, all or nothing. The Stokes images come from [`polarid_io::measure`].
 
 use std::path::{Path, PathBuf};
 
-use anyhow::Context;
-use polarid_core::mosaic::{self, Pattern};
-use polarid_core::region::Sampling;
-use polarid_core::stokes::{self, PixelCounts, PixelRules, StokesSolver};
+use polarid_core::mosaic::Pattern;
+use polarid_core::stokes::{self, StokesSolver};
 use polarid_io::atomic::{StagedDir, check_output};
-use polarid_io::image::{self, Frame};
+use polarid_io::image;
+use polarid_io::measure::{self, StokesImages, dofp_stokes, frames_stokes, rules_for};
 
 use crate::{BadInput, Ctx};
 
@@ -23,6 +22,15 @@ pub enum Demosaic {
     Bilinear,
     /// Half resolution: one Stokes vector per 2x2 super-pixel.
     Superpixel,
+}
+
+impl From<Demosaic> for measure::Demosaic {
+    fn from(d: Demosaic) -> Self {
+        match d {
+            Demosaic::Bilinear => measure::Demosaic::Bilinear,
+            Demosaic::Superpixel => measure::Demosaic::Superpixel,
+        }
+    }
 }
 
 /// Arguments of `polarid stokes`.
@@ -68,126 +76,6 @@ pub struct Args {
     pub output: PathBuf,
 }
 
-/// Stokes images of one capture, with mask and counts.
-pub struct StokesImages {
-    /// Width of the images.
-    pub width: usize,
-    /// Height of the images.
-    pub height: usize,
-    /// S0.
-    pub s0: Vec<f32>,
-    /// S1.
-    pub s1: Vec<f32>,
-    /// S2.
-    pub s2: Vec<f32>,
-    /// Mask (`polarid_core::stokes::mask`).
-    pub mask: Vec<u8>,
-    /// Pixel counts.
-    pub counts: PixelCounts,
-    /// How the pixels relate, for region standard errors.
-    pub sampling: Sampling,
-}
-
-impl StokesImages {
-    fn alloc(width: usize, height: usize, sampling: Sampling) -> Self {
-        let n = width * height;
-        Self {
-            width,
-            height,
-            s0: vec![0.0; n],
-            s1: vec![0.0; n],
-            s2: vec![0.0; n],
-            mask: vec![0; n],
-            counts: PixelCounts::default(),
-            sampling,
-        }
-    }
-}
-
-/// Pixel rules from a dark level and an optional saturation (default: the frames' type
-/// maximum).
-pub fn rules_for(frame: &Frame, dark_level: f64, saturation: Option<f64>) -> PixelRules {
-    PixelRules {
-        dark_level: dark_level as f32,
-        saturation: saturation.map_or(frame.type_max(), |s| s as f32),
-        min_s0: 0.0,
-    }
-}
-
-/// Stokes images from rotating-polarizer frames (same size, checked by the reader).
-pub fn frames_stokes(
-    frames: &[Frame],
-    solver: &StokesSolver,
-    rules: &PixelRules,
-) -> anyhow::Result<StokesImages> {
-    let first = frames.first().context("no frames")?;
-    let mut out = StokesImages::alloc(first.width, first.height, Sampling::Independent);
-    let views: Vec<&[f32]> = frames.iter().map(|f| f.data.as_slice()).collect();
-    out.counts = solver
-        .compute(
-            &views,
-            first.width,
-            rules,
-            &mut out.s0,
-            &mut out.s1,
-            &mut out.s2,
-            &mut out.mask,
-        )
-        .map_err(|e| polarid_io::IoError::Core {
-            path: first.path.clone(),
-            source: e,
-        })?;
-    Ok(out)
-}
-
-/// Stokes images from a DoFP mosaic.
-pub fn dofp_stokes(
-    raw: &Frame,
-    pattern: &Pattern,
-    rules: &PixelRules,
-    demosaic: Demosaic,
-    round: bool,
-) -> anyhow::Result<StokesImages> {
-    let wrap = |e| polarid_io::IoError::Core {
-        path: raw.path.clone(),
-        source: e,
-    };
-    let out = match demosaic {
-        Demosaic::Bilinear => {
-            let mut o = StokesImages::alloc(raw.width, raw.height, Sampling::BilinearDofp);
-            o.counts = mosaic::bilinear_stokes(
-                &raw.data,
-                raw.width,
-                pattern,
-                rules,
-                round,
-                &mut o.s0,
-                &mut o.s1,
-                &mut o.s2,
-                &mut o.mask,
-            )
-            .map_err(wrap)?;
-            o
-        }
-        Demosaic::Superpixel => {
-            let mut o = StokesImages::alloc(raw.width / 2, raw.height / 2, Sampling::Independent);
-            o.counts = mosaic::superpixel_stokes(
-                &raw.data,
-                raw.width,
-                pattern,
-                rules,
-                &mut o.s0,
-                &mut o.s1,
-                &mut o.s2,
-                &mut o.mask,
-            )
-            .map_err(wrap)?;
-            o
-        }
-    };
-    Ok(out)
-}
-
 /// Run `polarid stokes`.
 pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     if !args.dark_level.is_finite() || args.dark_level < 0.0 {
@@ -212,7 +100,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
             let rules = rules_for(&raw, args.dark_level, args.saturation);
             let round = raw.kind.is_integer() && args.demosaic == Demosaic::Bilinear;
             (
-                dofp_stokes(&raw, &pattern, &rules, args.demosaic, round)?,
+                dofp_stokes(&raw, &pattern, &rules, args.demosaic.into(), round)?,
                 vec![raw_path.clone()],
             )
         }

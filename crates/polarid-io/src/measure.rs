@@ -1,0 +1,375 @@
+//! The measure pipeline shared by `polarid measure`, `polarid stokes` and the Python
+//! bindings: capture files → Stokes images → region statistics → [`Measurement`] rows.
+//!
+//! - Rotating-polarizer frames: [`StokesSolver::compute`] with the capture's
+//!   [`rules_for`] (dark level, saturation; default the type's maximum).
+//! - DoFP mosaics: demosaiced by [`dofp_stokes`]; [`measure_manifest`] uses the bilinear
+//!   reconstruction at full resolution (so that region rectangles are in raw pixel
+//!   coordinates), not rounded, whose standard errors use the bilinear variance
+//!   inflation ([`Sampling::BilinearDofp`]).
+//! - Stokes captures (float TIFF) are used as they are: `dark_level` and `saturation` do
+//!   not apply; pixels with `S0 <= 0` or non-finite values are rejected.
+//!
+//! For every region and capture a row holds the DoLP of the region's mean Stokes vector,
+//! its standard error from the pixel scatter (`polarid_core::region`; an SE of 0, from
+//! noiseless data, is left empty), the mean S0 divided by the capture's exposure, the
+//! pixels used, rejected and saturated, and `beta` from the geometry (paper eq. 5).
+//!
+//! Nothing here prints: progress goes through a callback and saturation warnings are
+//! returned as text ([`saturation_warnings`]) for the caller to show.
+
+use std::path::{Path, PathBuf};
+
+use polarid_core::CoreError;
+use polarid_core::geometry;
+use polarid_core::mosaic::{self, Pattern};
+use polarid_core::region::{Sampling, region_stats};
+use polarid_core::stokes::{self, PixelCounts, PixelRules, StokesSolver};
+
+use crate::error::{IoError, Result};
+use crate::image::{self, Frame};
+use crate::manifest::{Capture, CaptureSource, Manifest};
+use crate::table::measurements::Measurement;
+
+/// Fraction of a region's pixels above which [`saturation_warnings`] reports saturation
+/// (1 %).
+pub const SATURATED_WARN: f64 = 0.01;
+
+/// How a DoFP mosaic is turned into Stokes images.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Demosaic {
+    /// Full resolution, bilinear interpolation of each channel (OpenCV's /
+    /// polanalyser's); region standard errors use [`Sampling::BilinearDofp`].
+    Bilinear,
+    /// Half resolution: one Stokes vector per 2x2 super-pixel.
+    Superpixel,
+}
+
+/// Stokes images of one capture, with their pixel mask and counts.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StokesImages {
+    /// Width of the images, pixels.
+    pub width: usize,
+    /// Height of the images, pixels.
+    pub height: usize,
+    /// S0, row-major.
+    pub s0: Vec<f32>,
+    /// S1, row-major.
+    pub s1: Vec<f32>,
+    /// S2, row-major.
+    pub s2: Vec<f32>,
+    /// Pixel mask (values of `polarid_core::stokes::mask`).
+    pub mask: Vec<u8>,
+    /// Pixel counts (valid, saturated, dark, invalid).
+    pub counts: PixelCounts,
+    /// How the pixels relate, for region standard errors.
+    pub sampling: Sampling,
+}
+
+impl StokesImages {
+    /// Zeroed images of `width × height` pixels.
+    pub fn alloc(width: usize, height: usize, sampling: Sampling) -> Self {
+        let n = width * height;
+        Self {
+            width,
+            height,
+            s0: vec![0.0; n],
+            s1: vec![0.0; n],
+            s2: vec![0.0; n],
+            mask: vec![0; n],
+            counts: PixelCounts::default(),
+            sampling,
+        }
+    }
+}
+
+/// Pixel rules from a dark level and an optional saturation (default: the frame's type
+/// maximum); `min_s0` is 0.
+pub fn rules_for(frame: &Frame, dark_level: f64, saturation: Option<f64>) -> PixelRules {
+    PixelRules {
+        dark_level: dark_level as f32,
+        saturation: saturation.map_or(frame.type_max(), |s| s as f32),
+        min_s0: 0.0,
+    }
+}
+
+/// Stokes images from rotating-polarizer frames (one per angle of `solver`, same size:
+/// [`image::read_frames`] checks it).
+///
+/// Errors: [`IoError::Core`] naming the first frame's file when the solver rejects the
+/// frames or rules (or `<no frames>` when `frames` is empty).
+pub fn frames_stokes(
+    frames: &[Frame],
+    solver: &StokesSolver,
+    rules: &PixelRules,
+) -> Result<StokesImages> {
+    let Some(first) = frames.first() else {
+        return Err(IoError::Core {
+            path: PathBuf::from("<no frames>"),
+            source: CoreError::TooFew {
+                what: "frames",
+                needed: solver.len(),
+                got: 0,
+            },
+        });
+    };
+    let mut out = StokesImages::alloc(first.width, first.height, Sampling::Independent);
+    let views: Vec<&[f32]> = frames.iter().map(|f| f.data.as_slice()).collect();
+    out.counts = solver
+        .compute(
+            &views,
+            first.width,
+            rules,
+            &mut out.s0,
+            &mut out.s1,
+            &mut out.s2,
+            &mut out.mask,
+        )
+        .map_err(|e| IoError::Core {
+            path: first.path.clone(),
+            source: e,
+        })?;
+    Ok(out)
+}
+
+/// Stokes images from a DoFP mosaic: [`Demosaic::Bilinear`] at full resolution
+/// (interpolated values rounded to whole DN when `round`, as OpenCV does for integer
+/// frames), or [`Demosaic::Superpixel`] at half resolution (`round` unused).
+///
+/// Errors: [`IoError::Core`] naming the raw file (odd size, bad rules, ...).
+pub fn dofp_stokes(
+    raw: &Frame,
+    pattern: &Pattern,
+    rules: &PixelRules,
+    demosaic: Demosaic,
+    round: bool,
+) -> Result<StokesImages> {
+    let wrap = |e| IoError::Core {
+        path: raw.path.clone(),
+        source: e,
+    };
+    let out = match demosaic {
+        Demosaic::Bilinear => {
+            let mut o = StokesImages::alloc(raw.width, raw.height, Sampling::BilinearDofp);
+            o.counts = mosaic::bilinear_stokes(
+                &raw.data,
+                raw.width,
+                pattern,
+                rules,
+                round,
+                &mut o.s0,
+                &mut o.s1,
+                &mut o.s2,
+                &mut o.mask,
+            )
+            .map_err(wrap)?;
+            o
+        }
+        Demosaic::Superpixel => {
+            let mut o = StokesImages::alloc(raw.width / 2, raw.height / 2, Sampling::Independent);
+            o.counts = mosaic::superpixel_stokes(
+                &raw.data,
+                raw.width,
+                pattern,
+                rules,
+                &mut o.s0,
+                &mut o.s1,
+                &mut o.s2,
+                &mut o.mask,
+            )
+            .map_err(wrap)?;
+            o
+        }
+    };
+    Ok(out)
+}
+
+/// Stokes images read from three float TIFFs (S0, S1, S2 of the same size), masked by
+/// `polarid_core::stokes::mask_stokes` (a pixel is rejected when a component is not
+/// finite or `S0 <= 0`).
+///
+/// Errors: the reader's (missing file, different sizes), [`IoError::Image`] naming an
+/// image that is not 32-bit float, [`IoError::Core`] naming `s0`.
+pub fn read_stokes(s0: &Path, s1: &Path, s2: &Path) -> Result<StokesImages> {
+    let imgs = image::read_frames(&[s0, s1, s2])?;
+    for f in &imgs {
+        image::check_float(f, "a Stokes image")?;
+    }
+    let got = imgs.len();
+    let [f0, f1, f2]: [Frame; 3] = imgs.try_into().map_err(|_| IoError::Core {
+        path: s0.to_path_buf(),
+        source: CoreError::TooFew {
+            what: "Stokes images",
+            needed: 3,
+            got,
+        },
+    })?;
+    let (width, height) = (f0.width, f0.height);
+    let mut mask = vec![0u8; width * height];
+    let counts =
+        stokes::mask_stokes(width, &f0.data, &f1.data, &f2.data, 0.0, &mut mask).map_err(|e| {
+            IoError::Core {
+                path: s0.to_path_buf(),
+                source: e,
+            }
+        })?;
+    Ok(StokesImages {
+        width,
+        height,
+        s0: f0.data,
+        s1: f1.data,
+        s2: f2.data,
+        mask,
+        counts,
+        sampling: Sampling::Independent,
+    })
+}
+
+/// Stokes images of one capture of `m`, as `polarid measure` uses them (DoFP: bilinear,
+/// full resolution, not rounded).
+///
+/// Errors: the image reader's (file named), [`IoError::Manifest`] naming the capture's
+/// `frames` field and the angles when they cannot be inverted (the manifest loader
+/// already rejects them), [`IoError::Core`] naming the file whose data the Stokes
+/// kernels reject.
+pub fn capture_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
+    match &c.source {
+        CaptureSource::Frames(frames) => {
+            let angles: Vec<f64> = frames.iter().map(|f| f.angle_deg).collect();
+            let solver = StokesSolver::from_degrees(&angles).map_err(|e| IoError::Manifest {
+                path: m.path.clone(),
+                line: c.line,
+                field: format!("capture[{}].frames", c.index),
+                value: format!("{angles:?}"),
+                reason: e.to_string(),
+            })?;
+            let paths: Vec<&Path> = frames.iter().map(|f| f.file.as_path()).collect();
+            let imgs = image::read_frames(&paths)?;
+            let Some(first) = imgs.first() else {
+                return frames_stokes(&imgs, &solver, &PixelRules::default());
+            };
+            let rules = rules_for(first, c.dark_level, c.saturation);
+            frames_stokes(&imgs, &solver, &rules)
+        }
+        CaptureSource::Dofp { file, pattern } => {
+            let raw = image::read_frame(file)?;
+            let rules = rules_for(&raw, c.dark_level, c.saturation);
+            dofp_stokes(&raw, pattern, &rules, Demosaic::Bilinear, false)
+        }
+        CaptureSource::Stokes { s0, s1, s2 } => read_stokes(s0, s1, s2),
+    }
+}
+
+/// The capture's scattering angle `beta` in degrees (paper eq. 5) from its
+/// `theta_i_deg`, `theta_r_deg` and `phi_deg`.
+pub fn beta_deg(c: &Capture) -> f64 {
+    geometry::beta(
+        c.theta_i_deg.to_radians(),
+        c.theta_r_deg.to_radians(),
+        c.phi_deg.to_radians(),
+    )
+    .to_degrees()
+}
+
+/// One row per region of `m` (in region order) for capture `c`.
+///
+/// Errors: those of [`capture_images`], and [`IoError::Manifest`] naming the region's
+/// `rect` (line, value) when it leaves the frame or has no usable pixel; the reason
+/// names the capture, its first file and the frame size.
+pub fn measure_capture(m: &Manifest, c: &Capture) -> Result<Vec<Measurement>> {
+    let img = capture_images(m, c)?;
+    let beta_deg = beta_deg(c);
+    let first_file = c
+        .source
+        .files()
+        .first()
+        .map(|p| p.display().to_string())
+        .unwrap_or_default();
+    let mut rows = Vec::with_capacity(m.regions.len());
+    for r in &m.regions {
+        let st = region_stats(
+            img.width,
+            &img.s0,
+            &img.s1,
+            &img.s2,
+            &img.mask,
+            r.rect,
+            img.sampling,
+        )
+        .map_err(|e| IoError::Manifest {
+            path: m.path.clone(),
+            line: r.line,
+            field: format!("region[{}].rect", r.index),
+            value: format!(
+                "[{}, {}, {}, {}]",
+                r.rect.x, r.rect.y, r.rect.width, r.rect.height
+            ),
+            reason: format!(
+                "in capture {} (line {}, {first_file}, {}x{} pixels): {e}",
+                c.index, c.line, img.width, img.height
+            ),
+        })?;
+        rows.push(Measurement {
+            target: r.name.clone(),
+            class: r.class.clone(),
+            theta_i_deg: Some(c.theta_i_deg),
+            theta_r_deg: Some(c.theta_r_deg),
+            phi_deg: c.phi_deg,
+            beta_deg,
+            dolp: st.dolp,
+            // Noiseless data have no scatter; an SE of 0 is left empty (the CSV
+            // contract requires dolp_se > 0 when present).
+            dolp_se: st.dolp_se.filter(|se| se.is_finite() && *se > 0.0),
+            s0: Some(st.s0() / c.exposure),
+            pixels: Some(st.pixels),
+            rejected: Some(st.rejected),
+            exposure: Some(c.exposure),
+            saturated: Some(st.saturated),
+        });
+    }
+    Ok(rows)
+}
+
+/// Measure every region of every capture of a loaded manifest: one row per target per
+/// capture, targets of capture 1 in region order, then capture 2, ... (the rows of
+/// `polarid measure`).
+///
+/// Captures are processed one after the other (each one in parallel inside), so memory
+/// holds one capture at a time; `progress` is called with the number of captures done
+/// after each one.
+///
+/// Errors: those of [`measure_capture`], for the first capture that fails.
+pub fn measure_manifest(m: &Manifest, progress: &mut dyn FnMut(usize)) -> Result<Vec<Measurement>> {
+    let mut rows = Vec::with_capacity(m.captures.len() * m.regions.len());
+    for (i, c) in m.captures.iter().enumerate() {
+        rows.extend(measure_capture(m, c)?);
+        progress(i + 1);
+    }
+    Ok(rows)
+}
+
+/// One message per row of `rows` (as [`measure_manifest`] returned them for `m`) where
+/// more than [`SATURATED_WARN`] of the region's area is saturated, naming the target,
+/// the capture (index and line) and the fraction.
+pub fn saturation_warnings(m: &Manifest, rows: &[Measurement]) -> Vec<String> {
+    let per_capture = m.regions.len().max(1);
+    let mut out = Vec::new();
+    for (i, r) in rows.iter().enumerate() {
+        let (Some(sat), Some(px), Some(rej)) = (r.saturated, r.pixels, r.rejected) else {
+            continue;
+        };
+        let area = px + rej;
+        if area > 0 && sat as f64 > SATURATED_WARN * area as f64 {
+            let cap = m.captures.get(i / per_capture);
+            out.push(format!(
+                "target {:?}, capture {} (line {}): {sat} of {area} pixels ({:.1}%) \
+                 saturated and left out",
+                r.target,
+                cap.map_or(0, |c| c.index),
+                cap.map_or(0, |c| c.line),
+                100.0 * sat as f64 / area as f64
+            ));
+        }
+    }
+    out
+}
