@@ -21,7 +21,7 @@ secs=${1:-60}
 shift || true
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
-    targets=(manifest csv_tables image_frame dofp)
+    targets=(manifest csv_tables image_frame dofp scene)
 fi
 command -v cargo-fuzz >/dev/null || { echo "fuzz.sh: cargo-fuzz not installed (cargo install cargo-fuzz)" >&2; exit 1; }
 flags=(--sanitizer none -O --debug-assertions)
@@ -31,6 +31,7 @@ dict_for() {
     case $1 in
         manifest) echo "-dict=dict/manifest.dict" ;;
         csv_tables) echo "-dict=dict/csv.dict" ;;
+        scene) echo "-dict=dict/scene.dict" ;;
         *) echo "" ;;
     esac
 }

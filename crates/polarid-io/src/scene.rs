@@ -409,11 +409,13 @@ impl Ctx<'_> {
                 if s.is_nan() || s <= 0.0 || b < a {
                     return Err(self.err(&span, field, "need step > 0 and stop >= start"));
                 }
-                let n = ((b - a) / s + 1e-9).floor() as usize + 1;
-                if n > 10_000 {
+                // Count in f64 and bound it before converting: a tiny step gives a count
+                // beyond usize (the conversion saturates, and `+ 1` would overflow).
+                let count = ((b - a) / s + 1e-9).floor() + 1.0;
+                if !(count <= 10_000.0) {
                     return Err(self.err(&span, field, "more than 10000 source positions"));
                 }
-                (0..n).map(|i| a + s * i as f64).collect()
+                (0..count as usize).map(|i| a + s * i as f64).collect()
             }
             other => {
                 return Err(self.err(
@@ -879,5 +881,33 @@ region = [36, 4, 20, 20]
         assert!(e.contains("line 19") && e.contains("`k`"), "{e}");
         let e = parse_err(&GOOD.replace("dark_level_dn = 64", "dark_level_dn = 5000"));
         assert!(e.contains("sensor.dark_level_dn"), "{e}");
+    }
+
+    /// Fuzz finding (fuzz/fuzz_targets/scene.rs): a tiny `step` made the number of source
+    /// positions overflow usize (a panic with overflow checks; without them the count
+    /// wrapped to 0 and the error wrongly said no position was given).
+    #[test]
+    fn theta_i_range_with_a_tiny_step_is_refused() {
+        for step in ["1e-300", "5e-324", "1e-15", "0.0001"] {
+            let e = parse_err(&GOOD.replace("step = 5 }", &format!("step = {step} }}")));
+            assert!(
+                e.contains("line 6")
+                    && e.contains("theta_i_deg")
+                    && e.contains("more than 10000 source positions"),
+                "{step}: {e}"
+            );
+        }
+        // 10000 positions are accepted, 10001 are not (step 2^-7: exact arithmetic).
+        let range = |stop: &str| {
+            GOOD.replace(
+                "{ start = 35, stop = 80, step = 5 }",
+                &format!("{{ start = 0, stop = {stop}, step = 0.0078125 }}"),
+            )
+        };
+        let s = parse(Path::new("s.toml"), &range("78.1171875")).unwrap();
+        assert_eq!(s.theta_i_deg.len(), 10_000);
+        assert_eq!(s.theta_i_deg[9_999], 78.1171875);
+        let e = parse_err(&range("78.125"));
+        assert!(e.contains("more than 10000 source positions"), "{e}");
     }
 }

@@ -71,6 +71,76 @@ impl MethodArgs {
     }
 }
 
+/// Options of Wolff's metal/dielectric baseline, shared by `classify` and `evaluate`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct WolffArgs {
+    /// Also run Wolff's metal/dielectric baseline on these measurements (the CSV given to
+    /// `polarid fit`): `classify` adds columns wolff_class, wolff_fr_max, wolff_beta_deg;
+    /// `evaluate` reports its metal/dielectric accuracy.
+    #[arg(long, value_name = "MEASUREMENTS.csv")]
+    pub wolff: Option<PathBuf>,
+    /// Wolff's threshold on the Fresnel ratio (1 + P)/(1 - P): dielectric above it.
+    #[arg(long, default_value_t = 6.0, requires = "wolff")]
+    pub wolff_threshold: f64,
+    /// Wolff's window of specular angles beta, degrees: MIN,MAX.
+    #[arg(long, value_name = "MIN,MAX", value_delimiter = ',', num_args = 2,
+          default_values_t = [40.0, 70.0], requires = "wolff")]
+    pub wolff_beta: Vec<f64>,
+}
+
+/// Wolff's observations per target, read from a measurements CSV.
+pub type WolffObservations = BTreeMap<String, Vec<WolffObservation>>;
+
+impl WolffArgs {
+    /// The β window in degrees, `(min, max)`.
+    pub fn window_deg(&self) -> (f64, f64) {
+        (
+            self.wolff_beta.first().copied().unwrap_or(40.0),
+            self.wolff_beta.get(1).copied().unwrap_or(70.0),
+        )
+    }
+
+    /// The settings of Wolff's rule, checked (a bad threshold or window is a usage error).
+    pub fn config(&self) -> anyhow::Result<WolffConfig> {
+        let (lo, hi) = self.window_deg();
+        let cfg = WolffConfig {
+            threshold: self.wolff_threshold,
+            beta_min: lo.to_radians(),
+            beta_max: hi.to_radians(),
+        };
+        wolff_classify(&[], &cfg).map_err(|e| BadInput(format!("--wolff-*: {e}")))?;
+        Ok(cfg)
+    }
+
+    /// With `--wolff`: the measurements file, the checked settings and the observations
+    /// per target (every row validated by the measurements reader: a bad file, line,
+    /// column or value is a bad-input error naming them). `None` without `--wolff`.
+    pub fn load(&self) -> anyhow::Result<Option<(&Path, WolffConfig, WolffObservations)>> {
+        let Some(m) = &self.wolff else {
+            return Ok(None);
+        };
+        let cfg = self.config()?;
+        let mut obs = WolffObservations::new();
+        for row in measurements::read(m)? {
+            obs.entry(row.target).or_default().push(WolffObservation {
+                beta: row.beta_deg.to_radians(),
+                dolp: row.dolp,
+            });
+        }
+        Ok(Some((m.as_path(), cfg, obs)))
+    }
+
+    /// A one-line description of the rule's settings, e.g. `Fresnel ratio threshold 6,
+    /// beta in [40, 70] deg`.
+    pub fn describe(&self) -> String {
+        let (lo, hi) = self.window_deg();
+        format!(
+            "Fresnel ratio threshold {}, beta in [{lo}, {hi}] deg",
+            self.wolff_threshold
+        )
+    }
+}
+
 /// Arguments of `polarid classify`.
 #[derive(Debug, clap::Args)]
 #[command(group(clap::ArgGroup::new("prototypes").required(true).args(["model", "library"])))]
@@ -90,17 +160,8 @@ pub struct Args {
     pub output: Option<PathBuf>,
     #[command(flatten)]
     pub method: MethodArgs,
-    /// Also run Wolff's metal/dielectric baseline on these measurements (the CSV given to
-    /// `polarid fit`); adds columns wolff_class, wolff_fr_max, wolff_beta_deg.
-    #[arg(long, value_name = "MEASUREMENTS.csv")]
-    pub wolff: Option<PathBuf>,
-    /// Wolff's threshold on the Fresnel ratio (1 + P)/(1 - P): dielectric above it.
-    #[arg(long, default_value_t = 6.0, requires = "wolff")]
-    pub wolff_threshold: f64,
-    /// Wolff's window of specular angles beta, degrees: MIN,MAX.
-    #[arg(long, value_name = "MIN,MAX", value_delimiter = ',', num_args = 2,
-          default_values_t = [40.0, 70.0], requires = "wolff")]
-    pub wolff_beta: Vec<f64>,
+    #[command(flatten)]
+    pub wolff: WolffArgs,
     /// How many nearest prototypes to list per target in the explanation (standard error).
     #[arg(long, default_value_t = 3)]
     pub explain: usize,
@@ -254,27 +315,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     let clf = Classifier::new(protos, cfg).with_context(|| format!("cannot use {label}"))?;
 
     // Wolff's baseline, per target.
-    let mut wolff: BTreeMap<String, Vec<WolffObservation>> = BTreeMap::new();
-    let wcfg = WolffConfig {
-        threshold: args.wolff_threshold,
-        beta_min: args
-            .wolff_beta
-            .first()
-            .copied()
-            .unwrap_or(40.0)
-            .to_radians(),
-        beta_max: args.wolff_beta.get(1).copied().unwrap_or(70.0).to_radians(),
-    };
-    if let Some(m) = &args.wolff {
-        for row in measurements::read(m)? {
-            wolff.entry(row.target).or_default().push(WolffObservation {
-                beta: row.beta_deg.to_radians(),
-                dolp: row.dolp,
-            });
-        }
-        // Check the settings once, even if no target matches.
-        wolff_classify(&[], &wcfg).map_err(|e| BadInput(format!("--wolff-*: {e}")))?;
-    }
+    let wolff = args.wolff.load()?;
 
     let mut out = Vec::with_capacity(fits.len());
     let mut notes = Vec::new();
@@ -282,12 +323,12 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         let d = clf.classify(&estimate_of(f));
         notes.push(explain(&f.target, &d, &clf, args.explain));
         let mut row = classification_row(f, &d, &clf);
-        if args.wolff.is_some() {
-            let obs = wolff.get(&f.target).map(Vec::as_slice).unwrap_or(&[]);
-            let w = wolff_classify(obs, &wcfg).map_err(|e| {
+        if let Some((wpath, wcfg, wobs)) = &wolff {
+            let obs = wobs.get(&f.target).map(Vec::as_slice).unwrap_or(&[]);
+            let w = wolff_classify(obs, wcfg).map_err(|e| {
                 BadInput(format!(
                     "{}: target {} (line {line} of {}): {e}",
-                    args.wolff.as_deref().unwrap_or(Path::new("")).display(),
+                    wpath.display(),
                     f.target,
                     args.fits.display()
                 ))
@@ -302,8 +343,8 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
                 w.class.name(),
                 w.fr_max,
                 w.used,
-                args.wolff_beta.first().copied().unwrap_or(40.0),
-                args.wolff_beta.get(1).copied().unwrap_or(70.0),
+                args.wolff.window_deg().0,
+                args.wolff.window_deg().1,
                 wcfg.threshold
             ));
         }
@@ -314,7 +355,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     if let Some(m) = &args.model {
         inputs.push(m);
     }
-    if let Some(w) = &args.wolff {
+    if let Some(w) = &args.wolff.wolff {
         inputs.push(w);
     }
     ctx.write_output(out_path.as_deref(), &inputs, |w| {
