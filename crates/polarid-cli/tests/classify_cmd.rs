@@ -1,20 +1,11 @@
 //! `polarid train`, `classify`, `evaluate`: outputs, explanations, exit statuses and
 //! messages.
 
+mod common;
+
+use common::{polarid_in, text};
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn polarid(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_polarid"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
 
 const HEADER: &str = "target,class,n,k,n_se,k_se,nk_corr,rms_residual,measurements,status\n";
 
@@ -77,7 +68,7 @@ fn classify_train_then_classify_reproduces_paper_table2() {
     let d = dir.path();
     write_training(d);
     write_test(d);
-    let o = polarid(d, &["train", "train.csv", "-o", "model.json"]);
+    let o = polarid_in(d, &["train", "train.csv", "-o", "model.json"]);
     assert!(o.status.success(), "{}", text(&o.stderr));
     let err = text(&o.stderr);
     assert!(
@@ -94,7 +85,7 @@ fn classify_train_then_classify_reproduces_paper_table2() {
     assert_eq!(protos[1]["source"]["line"], 3);
     assert_eq!(protos[1]["source"]["target"], "A");
 
-    let o = polarid(d, &["classify", "test.csv", "--model", "model.json"]);
+    let o = polarid_in(d, &["classify", "test.csv", "--model", "model.json"]);
     assert!(o.status.success(), "{}", text(&o.stderr));
     let out = text(&o.stdout);
     let r = rows(&out);
@@ -125,7 +116,7 @@ fn classify_with_builtin_library_says_metal_and_why() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     write_test(d);
-    let o = polarid(
+    let o = polarid_in(
         d,
         &[
             "classify",
@@ -152,7 +143,7 @@ fn classify_with_builtin_library_says_metal_and_why() {
         "{err}"
     );
     // Output exists: refused without --force (exit 2), accepted with it.
-    let o = polarid(
+    let o = polarid_in(
         d,
         &[
             "classify",
@@ -165,7 +156,7 @@ fn classify_with_builtin_library_says_metal_and_why() {
     );
     assert_eq!(o.status.code(), Some(2));
     assert!(text(&o.stderr).contains("output exists"));
-    let o = polarid(
+    let o = polarid_in(
         d,
         &[
             "--force",
@@ -191,7 +182,7 @@ fn classify_mahalanobis_reject_and_user_library() {
         "# my filter\nname,category,n_band,k_band\nal_oxidized,metal,1.5,4.2\nglass,dielectric,1.5,0\n",
     )
     .unwrap();
-    let o = polarid(
+    let o = polarid_in(
         d,
         &[
             "classify",
@@ -219,7 +210,7 @@ fn classify_mahalanobis_reject_and_user_library() {
     let q = (sk * sk * dn * dn - 2.0 * rho * sn * sk * dn * dk + sn * sn * dk * dk) / det;
     assert!((gate - q.sqrt()).abs() < 1e-12, "{gate}");
     // A tight Euclidean threshold rejects both.
-    let o = polarid(
+    let o = polarid_in(
         d,
         &[
             "classify",
@@ -235,7 +226,7 @@ fn classify_mahalanobis_reject_and_user_library() {
     assert_eq!(r[1][col(&r, "status")], "rejected");
     assert_eq!(r[1][col(&r, "nearest")], "al_oxidized");
     // Bad options are usage errors.
-    let o = polarid(
+    let o = polarid_in(
         d,
         &[
             "classify",
@@ -248,9 +239,9 @@ fn classify_mahalanobis_reject_and_user_library() {
     );
     assert_eq!(o.status.code(), Some(2));
     assert!(text(&o.stderr).contains("1.5"), "{}", text(&o.stderr));
-    let o = polarid(d, &["classify", "test.csv"]);
+    let o = polarid_in(d, &["classify", "test.csv"]);
     assert_eq!(o.status.code(), Some(2));
-    let o = polarid(d, &["classify", "test.csv", "--library", "missing.csv"]);
+    let o = polarid_in(d, &["classify", "test.csv", "--library", "missing.csv"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(text(&o.stderr).contains("missing.csv"));
 }
@@ -269,7 +260,7 @@ fn classify_with_wolff_baseline() {
         m.push_str(&format!("T50,{b},{p_al}\nB,{b},{p_gp}\n"));
     }
     std::fs::write(d.join("meas.csv"), m).unwrap();
-    let o = polarid(
+    let o = polarid_in(
         d,
         &[
             "classify",
@@ -301,7 +292,7 @@ fn classify_train_exit_statuses_and_messages() {
         format!("{HEADER}A,,1.5,4.4,0.1,0.1,0,0,5,ok\nB,copper,nan,nan,nan,nan,nan,nan,3,ill_conditioned\n"),
     )
     .unwrap();
-    let o = polarid(d, &["train", "nolabel.csv", "-o", "m.json"]);
+    let o = polarid_in(d, &["train", "nolabel.csv", "-o", "m.json"]);
     assert_eq!(o.status.code(), Some(2));
     let e = text(&o.stderr);
     assert!(
@@ -313,7 +304,7 @@ fn classify_train_exit_statuses_and_messages() {
     assert!(!d.join("m.json").exists());
     // Empty training file.
     std::fs::write(d.join("empty.csv"), HEADER).unwrap();
-    let o = polarid(d, &["train", "empty.csv", "-o", "m.json"]);
+    let o = polarid_in(d, &["train", "empty.csv", "-o", "m.json"]);
     assert_eq!(o.status.code(), Some(2));
     // Reserved class name.
     std::fs::write(
@@ -321,7 +312,7 @@ fn classify_train_exit_statuses_and_messages() {
         format!("{HEADER}A,unknown,1.5,4.4,0.1,0.1,0,0,5,ok\n"),
     )
     .unwrap();
-    let o = polarid(d, &["train", "reserved.csv", "-o", "m.json"]);
+    let o = polarid_in(d, &["train", "reserved.csv", "-o", "m.json"]);
     assert_eq!(o.status.code(), Some(2));
     let e = text(&o.stderr);
     assert!(
@@ -332,7 +323,7 @@ fn classify_train_exit_statuses_and_messages() {
     write_training(d);
     write_test(d);
     assert!(
-        polarid(d, &["train", "train.csv", "-o", "m.json"])
+        polarid_in(d, &["train", "train.csv", "-o", "m.json"])
             .status
             .success()
     );
@@ -340,7 +331,7 @@ fn classify_train_exit_statuses_and_messages() {
         .unwrap()
         .replace("\"format_version\": 1", "\"format_version\": 7");
     std::fs::write(d.join("m7.json"), m).unwrap();
-    let o = polarid(d, &["classify", "test.csv", "--model", "m7.json"]);
+    let o = polarid_in(d, &["classify", "test.csv", "--model", "m7.json"]);
     assert_eq!(o.status.code(), Some(2));
     let e = text(&o.stderr);
     assert!(e.contains("m7.json") && e.contains("version 7"), "{e}");
@@ -366,7 +357,7 @@ fn classify_evaluate_leave_one_out() {
         ),
     )
     .unwrap();
-    let o = polarid(d, &["evaluate", "set.csv", "-o", "cm.csv"]);
+    let o = polarid_in(d, &["evaluate", "set.csv", "-o", "cm.csv"]);
     assert!(o.status.success(), "{}", text(&o.stderr));
     let out = text(&o.stdout);
     assert!(out.contains("accuracy: 1.0000 (7/7)"), "{out}");
@@ -384,7 +375,7 @@ fn classify_evaluate_leave_one_out() {
     assert_eq!(r[1].join(","), "aluminum,3,0,0,3");
     assert_eq!(r[2].join(","), "copper,0,2,0,2");
     // JSON output.
-    let o = polarid(d, &["evaluate", "set.csv", "-o", "cm.json", "--k", "3"]);
+    let o = polarid_in(d, &["evaluate", "set.csv", "-o", "cm.json", "--k", "3"]);
     assert!(o.status.success(), "{}", text(&o.stderr));
     let j: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("cm.json")).unwrap()).unwrap();
@@ -405,7 +396,7 @@ fn classify_evaluate_against_model_names_unknown_classes() {
     let d = dir.path();
     write_training(d);
     assert!(
-        polarid(d, &["train", "train.csv", "-o", "m.json"])
+        polarid_in(d, &["train", "train.csv", "-o", "m.json"])
             .status
             .success()
     );
@@ -417,7 +408,7 @@ fn classify_evaluate_against_model_names_unknown_classes() {
         ),
     )
     .unwrap();
-    let o = polarid(d, &["evaluate", "held.csv", "--model", "m.json"]);
+    let o = polarid_in(d, &["evaluate", "held.csv", "--model", "m.json"]);
     assert!(o.status.success(), "{}", text(&o.stderr));
     let out = text(&o.stdout);
     assert!(out.contains("accuracy: 0.5000 (1/2)"), "{out}");
@@ -430,7 +421,7 @@ fn classify_evaluate_against_model_names_unknown_classes() {
         ),
     )
     .unwrap();
-    let o = polarid(d, &["evaluate", "bad.csv"]);
+    let o = polarid_in(d, &["evaluate", "bad.csv"]);
     assert_eq!(o.status.code(), Some(2));
     let e = text(&o.stderr);
     assert!(
@@ -443,7 +434,7 @@ fn classify_evaluate_against_model_names_unknown_classes() {
         format!("{HEADER}t1,,1.37,3.97,0.1,0.1,0,0,9,ok\n"),
     )
     .unwrap();
-    let o = polarid(d, &["evaluate", "none.csv"]);
+    let o = polarid_in(d, &["evaluate", "none.csv"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(text(&o.stderr).contains("no labelled fits"));
 }

@@ -4,16 +4,12 @@
 //! from polarid's simulator and (when `POLARID_RENDERS` names the directory holding
 //! `paper_lab_60/` and `paper_lab_50/`) on independent Mitsuba 3 renders.
 
+mod common;
+
+use common::polarid;
+
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn polarid(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_polarid"))
-        .args(args)
-        .output()
-        .expect("run polarid")
-}
 
 fn run(args: &[&str]) -> String {
     let out = polarid(args);

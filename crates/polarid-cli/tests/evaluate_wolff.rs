@@ -2,20 +2,12 @@
 //! classifier's leave-one-out accuracy, on simulated captures (`simulate` → `measure` →
 //! `fit`), and its bad-input handling.
 
+mod common;
+
+use common::{polarid_in, text};
+
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn polarid(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_polarid"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
+use std::process::Output;
 
 fn ok(o: &Output, what: &str) {
     assert!(o.status.success(), "{what}: {}", text(&o.stderr));
@@ -55,14 +47,17 @@ fn labelled_set(d: &Path) {
     }
     std::fs::write(d.join("scene.toml"), scene).unwrap();
     ok(
-        &polarid(d, &["simulate", "scene.toml", "-o", "sim"]),
+        &polarid_in(d, &["simulate", "scene.toml", "-o", "sim"]),
         "simulate",
     );
     ok(
-        &polarid(d, &["measure", "sim/manifest.toml", "-o", "meas.csv"]),
+        &polarid_in(d, &["measure", "sim/manifest.toml", "-o", "meas.csv"]),
         "measure",
     );
-    ok(&polarid(d, &["fit", "meas.csv", "-o", "fits.csv"]), "fit");
+    ok(
+        &polarid_in(d, &["fit", "meas.csv", "-o", "fits.csv"]),
+        "fit",
+    );
 }
 
 fn lines_without_comments(s: &str) -> Vec<&str> {
@@ -76,7 +71,7 @@ fn evaluate_reports_wolff_next_to_the_classifier() {
     labelled_set(d);
 
     // Without --wolff: the reference output.
-    let base = polarid(d, &["evaluate", "fits.csv", "-o", "base.csv"]);
+    let base = polarid_in(d, &["evaluate", "fits.csv", "-o", "base.csv"]);
     ok(&base, "evaluate");
     let base_out = text(&base.stdout);
     assert!(base_out.contains("accuracy: 0.8889 (8/9)"), "{base_out}");
@@ -84,7 +79,7 @@ fn evaluate_reports_wolff_next_to_the_classifier() {
 
     // Categories from the built-in library: aluminum, copper metal; N-BK7 dielectric;
     // green paint unknown to it and silicon a semiconductor, so neither is scored.
-    let o = polarid(
+    let o = polarid_in(
         d,
         &["evaluate", "fits.csv", "--wolff", "meas.csv", "-o", "w.csv"],
     );
@@ -133,7 +128,7 @@ fn evaluate_reports_wolff_next_to_the_classifier() {
     );
 
     // Green paint declared a dielectric: scored, and Wolff gets it right; JSON output.
-    let o = polarid(
+    let o = polarid_in(
         d,
         &[
             "evaluate",
@@ -196,7 +191,10 @@ fn evaluate_wolff_unknown_counts_wrong_and_model_categories_come_first() {
         .collect();
     std::fs::write(d.join("meas_no_cu2.csv"), kept).unwrap();
     // A model whose aluminum prototypes carry a category (`train` writes none).
-    ok(&polarid(d, &["train", "fits.csv", "-o", "m.json"]), "train");
+    ok(
+        &polarid_in(d, &["train", "fits.csv", "-o", "m.json"]),
+        "train",
+    );
     let mut m: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("m.json")).unwrap()).unwrap();
     for p in m["prototypes"].as_array_mut().unwrap() {
@@ -205,7 +203,7 @@ fn evaluate_wolff_unknown_counts_wrong_and_model_categories_come_first() {
         }
     }
     std::fs::write(d.join("m.json"), m.to_string()).unwrap();
-    let o = polarid(
+    let o = polarid_in(
         d,
         &[
             "evaluate",
@@ -301,7 +299,7 @@ fn evaluate_wolff_bad_input_exits_2_and_writes_nothing() {
     for (extra, needles) in cases {
         let mut args = vec!["evaluate", "fits.csv", "-o", "out.csv"];
         args.extend_from_slice(extra);
-        let o = polarid(d, &args);
+        let o = polarid_in(d, &args);
         assert_eq!(o.status.code(), Some(2), "{extra:?}: {}", text(&o.stderr));
         let e = text(&o.stderr);
         for n in needles {

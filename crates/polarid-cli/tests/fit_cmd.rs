@@ -1,13 +1,12 @@
 //! `polarid fit`: measurements CSV in, fits CSV out (shared/FORMATS.md).
 
+mod common;
+
+use common::polarid_cmd;
+
 use std::path::Path;
-use std::process::Command;
 
 use polarid_core::dop::dop;
-
-fn polarid() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_polarid"))
-}
 
 /// Measurement rows of a target at θr = 60°, θi = 35…80° (DoLP from eq. 9).
 fn rows(target: &str, class: &str, n: f64, k: f64, theta_is: &[f64], se: bool) -> String {
@@ -57,7 +56,7 @@ fn fits_targets_in_first_appearance_order() {
     }
     let input = write(dir.path(), "m.csv", &text);
     let out = dir.path().join("fits.csv");
-    let st = polarid()
+    let st = polarid_cmd()
         .args(["fit", input.to_str().unwrap(), "-o", out.to_str().unwrap()])
         .output()
         .unwrap();
@@ -95,7 +94,7 @@ fn fits_targets_in_first_appearance_order() {
         text.starts_with("target,class,n,k,n_se,k_se,nk_corr,rms_residual,measurements,status")
     );
     // Without -o: to standard output.
-    let st = polarid()
+    let st = polarid_cmd()
         .args(["fit", input.to_str().unwrap()])
         .output()
         .unwrap();
@@ -111,7 +110,7 @@ fn box_options_and_at_bound_status() {
         rows("Cu", "", 0.4, 2.95, &all_angles(), false)
     );
     let input = write(dir.path(), "m.csv", &text);
-    let st = polarid()
+    let st = polarid_cmd()
         .args(["fit", input.to_str().unwrap(), "--k-range", "0,2"])
         .output()
         .unwrap();
@@ -123,7 +122,7 @@ fn box_options_and_at_bound_status() {
     let out = String::from_utf8_lossy(&st.stdout);
     let line = out.lines().nth(1).unwrap();
     assert!(line.contains(",at_bound,"), "{line}");
-    let st = polarid()
+    let st = polarid_cmd()
         .args(["fit", input.to_str().unwrap(), "--n-range", "3,1"])
         .output()
         .unwrap();
@@ -134,7 +133,7 @@ fn expect_bad(text: &str, needles: &[&str], extra: &[&str]) {
     let dir = tempfile::tempdir().unwrap();
     let input = write(dir.path(), "m.csv", text);
     let out = dir.path().join("fits.csv");
-    let st = polarid()
+    let st = polarid_cmd()
         .args(["fit", input.to_str().unwrap(), "-o", out.to_str().unwrap()])
         .args(extra)
         .output()
@@ -179,7 +178,7 @@ fn bad_input_is_exit_2_and_names_the_fault() {
     );
     expect_bad(&text, &["line 2", "s0", "T"], &["--reflectance", "mixed"]);
     // Missing file.
-    let st = polarid()
+    let st = polarid_cmd()
         .args(["fit", "/nonexistent/m.csv"])
         .output()
         .unwrap();

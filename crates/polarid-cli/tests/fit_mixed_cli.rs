@@ -3,9 +3,12 @@
 //! `polarid_core::simulate::plate_radiance`, and (when POLARID_RENDERS is set) on the
 //! independent Mitsuba renders of `diffuse_paint`.
 
+mod common;
+
+use common::polarid_cmd;
+
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use polarid_core::simulate::{PlateOptics, plate_radiance};
 use polarid_io::table::fits::{self, FitRow};
@@ -27,10 +30,6 @@ impl Gauss {
         let (u, v) = (self.uniform(), self.uniform());
         (-2.0 * u.ln()).sqrt() * (2.0 * PI * v).cos()
     }
-}
-
-fn polarid() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_polarid"))
 }
 
 const HEADER: &str =
@@ -87,7 +86,7 @@ fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
 }
 
 fn run_ok(args: &[&str]) -> String {
-    let st = polarid().args(args).output().unwrap();
+    let st = polarid_cmd().args(args).output().unwrap();
     assert!(
         st.status.success(),
         "{args:?}: {}",
@@ -244,7 +243,7 @@ fn estimate_theta_r_from_the_command_line() {
         "{f:?}"
     );
     // Without --estimate-theta-r the angles are needed: exit 2 naming them.
-    let st = polarid()
+    let st = polarid_cmd()
         .args(["fit", m.to_str().unwrap(), "--reflectance", "mixed"])
         .output()
         .unwrap();
@@ -255,7 +254,7 @@ fn estimate_theta_r_from_the_command_line() {
         "{err}"
     );
     // Options of the mixed fit without it: usage error.
-    let st = polarid()
+    let st = polarid_cmd()
         .args(["fit", m.to_str().unwrap(), "--estimate-theta-r"])
         .output()
         .unwrap();

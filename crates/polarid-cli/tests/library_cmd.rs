@@ -4,9 +4,13 @@
 //! `polarid classify --library`, and bad inputs (exit status 2, file/field/value in the
 //! message, no output left behind).
 
+mod common;
+
+use common::{polarid_in, text};
+
 use std::fs;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 use polarid_io::library::Library;
 use polarid_io::table::CsvTable;
@@ -17,18 +21,6 @@ fn shared() -> PathBuf {
 
 fn db() -> PathBuf {
     shared().join("materials").join("refractiveindex")
-}
-
-fn polarid(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_polarid"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
 }
 
 fn ok(o: &Output) {
@@ -199,7 +191,7 @@ fn library_at_650nm_reproduces_the_builtin_library() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let map = builtin_names_map(d);
-    let o = polarid(
+    let o = polarid_in(
         d,
         &[
             "library",
@@ -252,7 +244,7 @@ fn library_at_532nm_differs_where_it_should() {
     let db = db();
     let db = db.to_str().unwrap();
     // Default names (BOOK_PAGE), to standard output.
-    let o = polarid(d, &["library", db, "--band", "532", "--category", "x"]);
+    let o = polarid_in(d, &["library", db, "--band", "532", "--category", "x"]);
     ok(&o);
     let lib532 = Library::from_csv_text("stdout", &text(&o.stdout)).unwrap();
     assert_eq!(lib532.materials.len(), 39);
@@ -286,7 +278,7 @@ fn library_at_532nm_differs_where_it_should() {
 
     // The 520-545 nm band: gold and copper are far from their 650 nm values (interband
     // absorption), fused silica is not.
-    let o = polarid(d, &["library", db, "--band", "520:545", "-o", "lib532.csv"]);
+    let o = polarid_in(d, &["library", db, "--band", "520:545", "-o", "lib532.csv"]);
     ok(&o);
     let band = Library::read_csv(&d.join("lib532.csv")).unwrap();
     let builtin = Library::builtin().unwrap();
@@ -309,7 +301,7 @@ fn library_at_532nm_differs_where_it_should() {
     let ends: Vec<f64> = ["520", "545"]
         .iter()
         .map(|wl| {
-            let o = polarid(d, &["library", db, "--band", wl]);
+            let o = polarid_in(d, &["library", db, "--band", wl]);
             ok(&o);
             material(
                 &Library::from_csv_text("stdout", &text(&o.stdout)).unwrap(),
@@ -338,7 +330,7 @@ fn library_output_feeds_classify() {
         fs::copy(m.join(src), metals.join(dst)).unwrap();
     }
     // A folder `metal/` gives the category; files given directly take --category.
-    let o = polarid(
+    let o = polarid_in(
         d,
         &[
             "library",
@@ -378,7 +370,7 @@ fn library_output_feeds_classify() {
         ));
     }
     fs::write(d.join("fits.csv"), fits).unwrap();
-    let o = polarid(
+    let o = polarid_in(
         d,
         &[
             "classify",
@@ -412,7 +404,7 @@ fn library_output_feeds_classify() {
         ),
     )
     .unwrap();
-    let o = polarid(d, &["classify", "gold532.csv", "--library", "builtin"]);
+    let o = polarid_in(d, &["classify", "gold532.csv", "--library", "builtin"]);
     ok(&o);
     let t = CsvTable::from_reader(Path::new("stdout"), &o.stdout[..]).unwrap();
     let pred = t.text(0, t.require("predicted").unwrap()).to_string();
@@ -425,7 +417,7 @@ fn skip_missing_skips_with_a_warning() {
     let d = dir.path();
     let db = db();
     // GaAs (Aspnes) stops at 826.6 nm: an error for a 700-900 nm band ...
-    let o = polarid(
+    let o = polarid_in(
         d,
         &[
             "library",
@@ -447,7 +439,7 @@ fn skip_missing_skips_with_a_warning() {
     );
     assert!(listing(d).is_empty(), "{:?}", listing(d));
     // ... skipped, with a warning naming it, under --skip-missing.
-    let o = polarid(
+    let o = polarid_in(
         d,
         &[
             "library",
@@ -591,19 +583,19 @@ fn bad_inputs_exit_2_name_file_field_value_and_write_nothing() {
         let mut all = vec!["library"];
         all.extend(&args);
         all.extend(["-o", "out.csv"]);
-        let o = polarid(d, &all);
+        let o = polarid_in(d, &all);
         bad(&o, &words);
         assert_eq!(listing(d), before, "{args:?} left output behind");
     }
     // An existing output is kept unless --force.
     w("out.csv", "keep\n");
-    let o = polarid(
+    let o = polarid_in(
         d,
         &["library", "in/good.yml", "--band", "500", "-o", "out.csv"],
     );
     bad(&o, &["out.csv", "--force"]);
     assert_eq!(fs::read_to_string(d.join("out.csv")).unwrap(), "keep\n");
-    let o = polarid(
+    let o = polarid_in(
         d,
         &[
             "--force",

@@ -4,20 +4,16 @@
 //! same captures' regions; and (when `POLARID_RENDERS` names the renders directory)
 //! on the independent Mitsuba renders `paper_lab_60`.
 
+mod common;
+
+use common::polarid;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
 use polarid_core::geometry::beta;
 use polarid_core::simulate::{
     Analyzer, PlateOptics, Sensor, UniformRect, plate_radiance, render_frame,
 };
-
-fn polarid(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_polarid"))
-        .args(args)
-        .output()
-        .expect("run polarid")
-}
 
 fn ok(args: &[&str]) {
     let o = polarid(args);

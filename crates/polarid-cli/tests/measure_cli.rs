@@ -1,18 +1,15 @@
 //! `polarid measure` end to end on generated rotating-polarizer, DoFP and Stokes
 //! captures of two uniform plates; errors name the manifest line; no partial output.
 
+mod common;
+
+use common::polarid;
+
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
 use polarid_io::image;
 use polarid_io::table::measurements;
-
-fn polarid(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_polarid"))
-        .args(args)
-        .output()
-        .unwrap()
-}
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()

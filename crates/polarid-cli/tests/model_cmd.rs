@@ -3,19 +3,15 @@
 //! rows give exit status 2, a message naming the file, line, column and value, and no
 //! output file.
 
+mod common;
+
+use common::polarid;
+
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
 const ORACLES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/oracles");
 const EXAMPLES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/model");
-
-fn polarid(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_polarid"))
-        .args(args)
-        .output()
-        .expect("run polarid")
-}
 
 /// Header and numeric rows of a CSV (comments skipped).
 fn read_csv(path: &Path) -> (HashMap<String, usize>, Vec<Vec<f64>>) {

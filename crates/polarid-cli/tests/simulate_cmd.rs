@@ -1,15 +1,12 @@
 //! `polarid simulate`: simulated captures fed back through `measure` and `fit` recover
 //! each plate's (n, k) within 3 standard errors; scene errors exit 2 and create nothing.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn polarid(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_polarid"))
-        .args(args)
-        .output()
-        .expect("run polarid")
-}
+use common::polarid;
+
+use std::path::{Path, PathBuf};
+use std::process::Output;
 
 fn ok(out: &Output, what: &str) {
     assert!(

@@ -1,17 +1,14 @@
 //! `polarid stokes` end to end: generated frames in a tempdir, outputs, exit codes,
 //! messages, and no partial output on failure.
 
+mod common;
+
+use common::polarid;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 use polarid_io::image;
-
-fn polarid(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_polarid"))
-        .args(args)
-        .output()
-        .unwrap()
-}
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
