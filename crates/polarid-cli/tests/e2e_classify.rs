@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::polarid;
+use common::{csv_rows, polarid};
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -23,26 +23,6 @@ fn run(args: &[&str]) -> String {
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
-}
-
-fn csv_rows(path: &Path) -> Vec<HashMap<String, String>> {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
-    let header: Vec<String> = lines
-        .next()
-        .unwrap()
-        .split(',')
-        .map(str::to_string)
-        .collect();
-    lines
-        .map(|l| {
-            header
-                .iter()
-                .cloned()
-                .zip(l.split(',').map(str::to_string))
-                .collect()
-        })
-        .collect()
 }
 
 /// measure + fit a manifest into `dir`; returns the fits CSV.

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::polarid;
+use common::{csv_rows, polarid};
 
 use std::path::{Path, PathBuf};
 use std::process::Output;
@@ -19,27 +19,6 @@ fn ok(out: &Output, what: &str) {
 
 fn scene(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../../examples/scenes/{name}.toml"))
-}
-
-/// Rows of a CSV (no quoted fields), comment lines skipped, as header -> value maps.
-fn csv_rows(path: &Path) -> Vec<std::collections::HashMap<String, String>> {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
-    let header: Vec<String> = lines
-        .next()
-        .unwrap()
-        .split(',')
-        .map(str::to_string)
-        .collect();
-    lines
-        .map(|l| {
-            header
-                .iter()
-                .cloned()
-                .zip(l.split(',').map(str::to_string))
-                .collect()
-        })
-        .collect()
 }
 
 fn num(row: &std::collections::HashMap<String, String>, col: &str) -> f64 {
