@@ -5,6 +5,7 @@ use std::collections::HashMap;
 use std::path::Path;
 
 use ndarray::{ArrayD, ArrayViewD, IxDyn};
+use polarid_core::FitStatus;
 use polarid_core::classify::{
     Classifier, ClassifierConfig, Cov2, Estimate, Metric, Prototype, Reject, UNKNOWN,
 };
@@ -16,7 +17,6 @@ use rayon::prelude::*;
 
 use crate::arrays::{F64Like, broadcast_shape, broadcast_to, fmt_shape, str_array, to_numpy};
 use crate::errors::{PyResultExt, value_error};
-use crate::fit::STATUS_NAMES;
 
 /// Register this module's functions.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -69,9 +69,12 @@ fn prototypes(obj: &Bound<'_, PyAny>) -> PyResult<(Vec<Prototype>, String)> {
     Ok((out, "the prototypes".into()))
 }
 
-/// Fit statuses as `(table of words, code per element)`: strings, or the codes of
-/// `fit_nk`'s `status_code`.
-fn fit_statuses(obj: &Bound<'_, PyAny>, shape: &[usize]) -> PyResult<(Vec<String>, ArrayD<u32>)> {
+/// Fit statuses as `(table of statuses, index into it per element)`: status words, or
+/// the codes of `fit_nk`'s `status_code`.
+fn fit_statuses(
+    obj: &Bound<'_, PyAny>,
+    shape: &[usize],
+) -> PyResult<(Vec<FitStatus>, ArrayD<u32>)> {
     let np = obj.py().import("numpy")?;
     let a = np.call_method1("asarray", (obj,))?;
     let a = np
@@ -84,17 +87,17 @@ fn fit_statuses(obj: &Bound<'_, PyAny>, shape: &[usize]) -> PyResult<(Vec<String
         })?;
     let kind: String = a.getattr("dtype")?.getattr("kind")?.extract()?;
     let flat = np.call_method1("ravel", (a,))?;
-    let (words, codes): (Vec<String>, Vec<i64>) = if matches!(kind.as_str(), "i" | "u") {
+    let (table, codes): (Vec<FitStatus>, Vec<i64>) = if matches!(kind.as_str(), "i" | "u") {
         let codes: Vec<i64> = flat.call_method0("tolist")?.extract()?;
         for &c in &codes {
-            if c < 0 || c as usize >= STATUS_NAMES.len() {
+            if c < 0 || c as usize >= FitStatus::ALL.len() {
                 return Err(value_error(format!(
                     "fit_status code {c} is not a status code (0 to {})",
-                    STATUS_NAMES.len() - 1
+                    FitStatus::ALL.len() - 1
                 )));
             }
         }
-        (STATUS_NAMES.iter().map(|s| s.to_string()).collect(), codes)
+        (FitStatus::ALL.to_vec(), codes)
     } else {
         let kw = PyDict::new(obj.py());
         kw.set_item("return_inverse", true)?;
@@ -102,11 +105,23 @@ fn fit_statuses(obj: &Bound<'_, PyAny>, shape: &[usize]) -> PyResult<(Vec<String
         let res = np.call_method("unique", (flat,), Some(&kw))?;
         let words: Vec<String> = res.get_item(0)?.call_method0("tolist")?.extract()?;
         let codes: Vec<i64> = res.get_item(1)?.call_method0("tolist")?.extract()?;
-        (words, codes)
+        let table = words
+            .iter()
+            .map(|w| {
+                FitStatus::parse(w).ok_or_else(|| {
+                    let known: Vec<&str> = FitStatus::ALL.iter().map(|s| s.as_str()).collect();
+                    value_error(format!(
+                        "fit_status {w:?} is not a fit status (one of {})",
+                        known.join(", ")
+                    ))
+                })
+            })
+            .collect::<PyResult<Vec<_>>>()?;
+        (table, codes)
     };
     let codes = ArrayD::from_shape_vec(IxDyn(shape), codes.into_iter().map(|c| c as u32).collect())
         .map_err(|e| value_error(e.to_string()))?;
-    Ok((words, codes))
+    Ok((table, codes))
 }
 
 /// Classify complex-index estimates by their nearest prototypes (paper section 6).
@@ -242,7 +257,7 @@ pub fn classify<'py>(
             let (w, c) = fit_statuses(s, &shape)?;
             (w, Some(c))
         }
-        None => (vec!["ok".to_string()], None),
+        None => (vec![FitStatus::Ok], None),
     };
 
     // Name tables: classes (and "unknown", ""), decision statuses.
@@ -289,8 +304,8 @@ pub fn classify<'py>(
                     _ => None,
                 };
                 let fit_status = match &fst {
-                    Some(c) => status_words[c[i] as usize].clone(),
-                    None => "ok".to_string(),
+                    Some(c) => status_words[c[i] as usize],
+                    None => FitStatus::Ok,
                 };
                 let d = clf.classify(&Estimate {
                     n: fn_[i],

@@ -13,31 +13,17 @@ use pyo3::types::PyDict;
 use crate::arrays::{f64_contiguous, fmt_shape, to_numpy};
 use crate::errors::{PyResultExt, value_error};
 
-/// The status words of a fit, indexed by the `status_code` of `fit_nk`'s batch output.
-pub const STATUS_NAMES: [&str; 5] = [
-    "ok",
-    "not_converged",
-    "ill_conditioned",
-    "at_bound",
-    "invalid_input",
-];
-
 /// Register this module's functions and constants.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fit_nk, m)?)?;
-    m.add("FIT_STATUS", STATUS_NAMES.to_vec())?;
+    m.add(
+        "FIT_STATUS",
+        FitStatus::ALL
+            .iter()
+            .map(|s| s.as_str())
+            .collect::<Vec<_>>(),
+    )?;
     Ok(())
-}
-
-/// Code of a status in [`STATUS_NAMES`].
-pub fn status_code(s: FitStatus) -> u8 {
-    match s {
-        FitStatus::Ok => 0,
-        FitStatus::NotConverged => 1,
-        FitStatus::IllConditioned => 2,
-        FitStatus::AtBound => 3,
-        FitStatus::InvalidInput => 4,
-    }
 }
 
 /// Key of a cached plan: the β values and the bounds, bit for bit.
@@ -325,7 +311,7 @@ fn batch(
                     it[j] = f.iterations;
                     ev[j] = f.evaluations;
                     st[j] = f.starts;
-                    code[j] = status_code(f.status);
+                    code[j] = f.status.code();
                     rc[j] = if f.reason.is_empty() {
                         0
                     } else {
@@ -371,9 +357,13 @@ fn batch_dict<'py>(py: Python<'py>, lead: &[usize], o: BatchOut) -> PyResult<Bou
     d.set_item("evaluations", arr(py, lead, o.evaluations)?)?;
     d.set_item("starts", arr(py, lead, o.starts)?)?;
     let codes = arr(py, lead, o.status)?;
-    let names = py
-        .import("numpy")?
-        .call_method1("array", (STATUS_NAMES.to_vec(),))?;
+    let names = py.import("numpy")?.call_method1(
+        "array",
+        (FitStatus::ALL
+            .iter()
+            .map(|s| s.as_str())
+            .collect::<Vec<_>>(),),
+    )?;
     d.set_item("status", names.call_method1("take", (&codes,))?)?;
     d.set_item("status_code", codes)?;
     d.set_item("reason_code", arr(py, lead, o.reason)?)?;

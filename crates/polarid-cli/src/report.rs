@@ -138,7 +138,7 @@ pub struct EstimateRow {
     /// Number of measurements fitted.
     pub measurements: usize,
     /// `ok` or why the estimate should not be trusted.
-    pub status: String,
+    pub status: polarid_core::FitStatus,
 }
 
 /// One classification result (the classification CSV's columns).
@@ -422,7 +422,7 @@ impl Report {
                             num(e.nk_corr, 2),
                             num(e.rms_residual, 4),
                             e.measurements.to_string(),
-                            e.status.clone(),
+                            e.status.to_string(),
                         ]
                     })
                     .collect(),
@@ -966,7 +966,7 @@ mod tests {
                     nk_corr: 0.8,
                     rms_residual: 0.0042,
                     measurements: 9,
-                    status: "ok".into(),
+                    status: polarid_core::FitStatus::Ok,
                 })
                 .chain(tests.iter().map(|t| EstimateRow {
                     target: format!("{}{tag}", t.0),
@@ -979,7 +979,7 @@ mod tests {
                     nk_corr: 0.7,
                     rms_residual: 0.005,
                     measurements: 10,
-                    status: "ok".into(),
+                    status: polarid_core::FitStatus::Ok,
                 }))
                 .collect(),
             classification: tests

@@ -81,7 +81,7 @@ fn fits_targets_in_first_appearance_order() {
         fits[1]
     );
     for f in &fits {
-        assert_eq!(f.status, "ok");
+        assert_eq!(f.status, polarid_core::FitStatus::Ok);
         assert_eq!(f.measurements, 10);
         assert_eq!(f.model, "specular");
         assert!(f.n_se.is_finite() && f.k_se.is_finite() && f.nk_corr.abs() <= 1.0);

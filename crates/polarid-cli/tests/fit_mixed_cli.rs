@@ -158,7 +158,7 @@ fn mixed_fit_recovers_diffuse_paint_and_classifies_it() {
         "{p0:?}"
     );
     assert_eq!(p1.model, "mixed");
-    assert_eq!(p1.status, "ok", "{p1:?}");
+    assert_eq!(p1.status, polarid_core::FitStatus::Ok, "{p1:?}");
     assert!(
         (p1.n - 1.39).abs() < 0.1 && (p1.n - 1.39).abs() < 3.0 * p1.n_se,
         "{p1:?}"
@@ -235,7 +235,7 @@ fn estimate_theta_r_from_the_command_line() {
     .unwrap();
     let f = &fits[0];
     eprintln!("{f:?}");
-    assert_eq!(f.status, "ok", "{f:?}");
+    assert_eq!(f.status, polarid_core::FitStatus::Ok, "{f:?}");
     let tr = f.theta_r_deg.unwrap();
     assert!((tr - 60.0).abs() < 1.0, "{f:?}");
     assert!(
@@ -291,12 +291,20 @@ fn depolarized_surface_is_flagged_and_not_classified() {
         run_ok(&args);
         let f = fits::read(&fits_path).unwrap();
         let matte = by_target(&f, "matte");
-        assert_eq!(matte.status, "depolarized", "{extra:?} {matte:?}");
+        assert_eq!(
+            matte.status,
+            polarid_core::FitStatus::Depolarized,
+            "{extra:?} {matte:?}"
+        );
         assert!(
             matte.reason.contains("depolariz") || matte.reason.contains("diffuse"),
             "{matte:?}"
         );
-        assert_eq!(by_target(&f, "al").status, "ok", "{extra:?} {f:?}");
+        assert_eq!(
+            by_target(&f, "al").status,
+            polarid_core::FitStatus::Ok,
+            "{extra:?} {f:?}"
+        );
         let c = classes(&run_ok(&[
             "classify",
             fits_path.to_str().unwrap(),
@@ -370,7 +378,7 @@ fn mitsuba_diffuse_paint_mixed_beats_paper() {
             f.status
         );
         assert_eq!(f.model, "mixed");
-        assert_eq!(f.status, "ok");
+        assert_eq!(f.status, polarid_core::FitStatus::Ok);
         assert!(err(f) < err(p), "{label}: {f:?} not closer than {p:?}");
         assert!(err(f) < 0.1, "{label}: {f:?}");
         let control = by_target(&fits, "paint_specular");

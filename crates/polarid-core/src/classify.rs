@@ -53,6 +53,7 @@
 use std::collections::BTreeMap;
 
 use crate::error::{CoreError, Result};
+use crate::status::FitStatus;
 
 /// The label of an estimate that is not assigned to any class (rejected, unusable fit,
 /// missing covariance). It cannot be used as a class name.
@@ -164,8 +165,8 @@ pub struct Estimate {
     pub k: f64,
     /// Covariance of the estimate (`None` when the fit gave no standard errors).
     pub cov: Option<Cov2>,
-    /// Status of the fit: `ok`, or why it should not be trusted.
-    pub fit_status: String,
+    /// Status of the fit: [`FitStatus::Ok`], or why it should not be trusted.
+    pub fit_status: FitStatus,
 }
 
 impl Estimate {
@@ -175,7 +176,7 @@ impl Estimate {
             n,
             k,
             cov: None,
-            fit_status: "ok".into(),
+            fit_status: FitStatus::Ok,
         }
     }
 }
@@ -287,7 +288,7 @@ pub enum Status {
     /// The predicted class's nearest prototype is beyond the reject threshold.
     Rejected,
     /// The fit's status is not `ok` (the fit status is carried): not classified.
-    FitNotOk(String),
+    FitNotOk(FitStatus),
     /// The Mahalanobis distance (metric or χ² gate) needs a covariance and there is none.
     NoCovariance,
     /// `n` or `k` is not a finite number although the fit says `ok`.
@@ -454,9 +455,9 @@ impl Classifier {
 
     /// Classify one estimate.
     pub fn classify(&self, est: &Estimate) -> Decision {
-        if est.fit_status != "ok" {
+        if !est.fit_status.is_ok() {
             return Decision::unclassified(
-                Status::FitNotOk(est.fit_status.clone()),
+                Status::FitNotOk(est.fit_status),
                 format!(
                     "not classified: the fit's status is `{}`, not `ok`",
                     est.fit_status
@@ -716,7 +717,7 @@ pub struct Evaluation {
     /// Items evaluated (fit status `ok`).
     pub items: Vec<EvalItem>,
     /// Items not evaluated because their fit status is not `ok`: `(target, status)`.
-    pub skipped: Vec<(String, String)>,
+    pub skipped: Vec<(String, FitStatus)>,
     /// True classes that no prototype represents when their items are classified (a
     /// class with a single sample in leave-one-out, or absent from a model): these items
     /// cannot be classified correctly.
@@ -736,7 +737,7 @@ fn check_labels(items: &[Labelled]) -> Result<()> {
 
 fn finish(
     items: Vec<EvalItem>,
-    skipped: Vec<(String, String)>,
+    skipped: Vec<(String, FitStatus)>,
     mut unrep: Vec<String>,
 ) -> Evaluation {
     unrep.sort();
@@ -767,7 +768,7 @@ pub fn leave_one_out(items: &[Labelled], config: ClassifierConfig) -> Result<Eva
     check_labels(items)?;
     let usable: Vec<&Labelled> = items
         .iter()
-        .filter(|i| i.estimate.fit_status == "ok")
+        .filter(|i| i.estimate.fit_status.is_ok())
         .collect();
     if usable.len() < 2 {
         return Err(CoreError::TooFew {
@@ -778,8 +779,8 @@ pub fn leave_one_out(items: &[Labelled], config: ClassifierConfig) -> Result<Eva
     }
     let skipped = items
         .iter()
-        .filter(|i| i.estimate.fit_status != "ok")
-        .map(|i| (i.target.clone(), i.estimate.fit_status.clone()))
+        .filter(|i| !i.estimate.fit_status.is_ok())
+        .map(|i| (i.target.clone(), i.estimate.fit_status))
         .collect();
     let mut out = Vec::with_capacity(usable.len());
     let mut unrep = Vec::new();
@@ -812,8 +813,8 @@ pub fn evaluate(classifier: &Classifier, items: &[Labelled]) -> Result<Evaluatio
     let mut skipped = Vec::new();
     let mut unrep = Vec::new();
     for it in items {
-        if it.estimate.fit_status != "ok" {
-            skipped.push((it.target.clone(), it.estimate.fit_status.clone()));
+        if !it.estimate.fit_status.is_ok() {
+            skipped.push((it.target.clone(), it.estimate.fit_status));
             continue;
         }
         if !classifier.prototypes.iter().any(|p| p.class == it.class) {
@@ -1051,7 +1052,7 @@ mod tests {
             n: 1.2,
             k: 2.3,
             cov: Some(cov),
-            fit_status: "ok".into(),
+            fit_status: FitStatus::Ok,
         };
         let clf = Classifier::new(
             vec![p],
@@ -1093,7 +1094,7 @@ mod tests {
             n: 1.60,
             k: 4.34,
             cov: Cov2::from_se(0.05, 0.05, 0.0),
-            fit_status: "ok".into(),
+            fit_status: FitStatus::Ok,
         };
         // d_M = |(0.04, 0.22)| / 0.05 = 4.47 > 3.035: rejected.
         let d = clf.classify(&est);
@@ -1129,7 +1130,7 @@ mod tests {
     fn non_ok_fits_are_never_classified() {
         let clf = Classifier::new(paper_training(), ClassifierConfig::default()).unwrap();
         let mut est = Estimate::point(1.64, 4.56);
-        est.fit_status = "not_converged".into();
+        est.fit_status = FitStatus::NotConverged;
         let d = clf.classify(&est);
         assert_eq!(d.predicted, UNKNOWN);
         assert_eq!(d.status.label(), "fit_not_converged");
@@ -1165,7 +1166,7 @@ mod tests {
             mk("p1", "paint", 1.4, 0.4),
             Labelled {
                 estimate: Estimate {
-                    fit_status: "depolarized".into(),
+                    fit_status: FitStatus::Depolarized,
                     ..Estimate::point(9.0, 9.0)
                 },
                 ..mk("bad", "al", 0.0, 0.0)
@@ -1175,7 +1176,7 @@ mod tests {
         assert_eq!(ev.items.len(), 5);
         assert_eq!(
             ev.skipped,
-            vec![("bad".to_string(), "depolarized".to_string())]
+            vec![("bad".to_string(), FitStatus::Depolarized)]
         );
         assert_eq!(ev.unrepresented, vec!["paint".to_string()]);
         assert_eq!(ev.confusion.get("al", "al"), 2);

@@ -25,6 +25,8 @@ pub mod mosaic;
 pub mod pbrdf;
 pub mod region;
 pub mod simulate;
+pub mod status;
 pub mod stokes;
 
 pub use error::{CoreError, Result};
+pub use status::FitStatus;

@@ -562,7 +562,9 @@ pub fn fit_and_classify(
                 FitStatus::IllConditioned => (0, reason::FIT_ILL_CONDITIONED),
                 FitStatus::NotConverged => (0, reason::FIT_NOT_CONVERGED),
                 FitStatus::AtBound => (0, reason::FIT_AT_BOUND),
-                FitStatus::InvalidInput => (0, reason::FIT_INVALID_INPUT),
+                // `fit_batch` never reports `depolarized` (a per-target rule of the
+                // table fit); a pixel would count as unusable input.
+                FitStatus::InvalidInput | FitStatus::Depolarized => (0, reason::FIT_INVALID_INPUT),
             };
             out.class[p] = c;
             out.reason[p] = r;

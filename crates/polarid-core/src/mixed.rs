@@ -69,6 +69,7 @@ use crate::error::{CoreError, Result, ensure_finite};
 use crate::fit::FitBounds;
 use crate::fresnel::w_root;
 use crate::geometry::ScatterGeometry;
+pub use crate::status::FitStatus;
 
 use std::f64::consts::PI;
 
@@ -216,36 +217,6 @@ impl MixedModel {
     }
 }
 
-/// Trust status of a radiometric fit ([`MixedStatus::as_str`] is the CSV word).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
-pub enum MixedStatus {
-    /// Converged inside the box; every parameter determined.
-    #[default]
-    Ok,
-    /// Levenberg–Marquardt did not converge.
-    NotConverged,
-    /// The data do not determine the parameters (singular `JᵀJ`, too few captures,
-    /// `θr` not pinned by the intensity lobe).
-    IllConditioned,
-    /// A parameter sits on the edge of its box (other than `k = 0`, `ρd = 0`).
-    AtBound,
-    /// Diffuse light dominates at every capture: `(n, k)` rest on a tiny polarized part.
-    Depolarized,
-}
-
-impl MixedStatus {
-    /// `ok`, `not_converged`, `ill_conditioned`, `at_bound`, `depolarized`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            MixedStatus::Ok => "ok",
-            MixedStatus::NotConverged => "not_converged",
-            MixedStatus::IllConditioned => "ill_conditioned",
-            MixedStatus::AtBound => "at_bound",
-            MixedStatus::Depolarized => "depolarized",
-        }
-    }
-}
-
 /// One radiometric fit.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MixedFit {
@@ -300,7 +271,7 @@ pub struct MixedFit {
     /// Levenberg–Marquardt iterations over all starts.
     pub iterations: u32,
     /// Status.
-    pub status: MixedStatus,
+    pub status: FitStatus,
     /// Why the status is not `ok` (empty when it is).
     pub reason: String,
 }
@@ -1223,7 +1194,7 @@ fn finish(
         specular_share_min: f64::INFINITY,
         specular_share_max: f64::NEG_INFINITY,
         iterations: iters,
-        status: MixedStatus::Ok,
+        status: FitStatus::Ok,
         reason: String::new(),
     };
     let mut singular = false;
@@ -1299,7 +1270,7 @@ fn finish(
     .map(|(_, r)| r);
     let (status, reason) = if fit.specular_share_max < o.min_specular_share {
         (
-            MixedStatus::Depolarized,
+            FitStatus::Depolarized,
             format!(
                 "diffuse light dominates at every source position (specular share <= {:.3} < {})",
                 fit.specular_share_max, o.min_specular_share
@@ -1307,17 +1278,17 @@ fn finish(
         )
     } else if dof == 0 {
         (
-            MixedStatus::IllConditioned,
+            FitStatus::IllConditioned,
             format!("{m} residuals for {p_count} parameters: no degree of freedom"),
         )
     } else if singular {
         (
-            MixedStatus::IllConditioned,
+            FitStatus::IllConditioned,
             "singular J^T J: the DoLP and S0 curves do not determine the parameters".into(),
         )
     } else if est && !(fit.theta_r_se <= o.theta_r_se_max) {
         (
-            MixedStatus::IllConditioned,
+            FitStatus::IllConditioned,
             format!(
                 "theta_r not identifiable: the intensity lobe does not pin the view angle (se {:.2} deg > {:.2} deg)",
                 fit.theta_r_se.to_degrees(),
@@ -1326,13 +1297,13 @@ fn finish(
         )
     } else if !best.converged {
         (
-            MixedStatus::NotConverged,
+            FitStatus::NotConverged,
             "Levenberg-Marquardt did not converge within the iteration limit".into(),
         )
     } else if let Some(r) = at_bound {
-        (MixedStatus::AtBound, r.into())
+        (FitStatus::AtBound, r.into())
     } else {
-        (MixedStatus::Ok, String::new())
+        (FitStatus::Ok, String::new())
     };
     fit.status = status;
     fit.reason = reason;

@@ -5,7 +5,7 @@
 use polarid_core::classify::{Classifier, ClassifierConfig, Estimate, Prototype};
 use polarid_core::fit::fit_nk;
 use polarid_core::mixed::{
-    MixedCapture, MixedModel, MixedOptions, MixedStatus, Shadowing, fit_mixed,
+    FitStatus, MixedCapture, MixedModel, MixedOptions, Shadowing, fit_mixed,
 };
 use polarid_core::simulate::{PlateOptics, plate_radiance};
 use rand::SeedableRng;
@@ -132,7 +132,7 @@ fn mixed_model_recovers_diffuse_paint_where_paper_fails() {
             (paper.n - 1.39).abs() > 0.2 || (paper.k - 0.34).abs() > 0.2,
             "paper model unexpectedly close: {paper:?} ({paper_err})"
         );
-        assert_eq!(m.status, MixedStatus::Ok, "{}", m.reason);
+        assert_eq!(m.status, FitStatus::Ok, "{}", m.reason);
         assert_eq!(rep.selected, MixedModel::Mixed);
         assert!(
             (m.n - 1.39).abs() < 0.1 && (m.n - 1.39).abs() < 3.0 * m.n_se,
@@ -171,7 +171,7 @@ fn pure_specular_data_give_no_diffuse_and_the_papers_nk() {
             "{m:?} vs {paper:?}"
         );
         assert_eq!(rep.selected, MixedModel::Specular, "{rep:?}");
-        assert_eq!(rep.best().status, MixedStatus::Ok, "{rep:?}");
+        assert_eq!(rep.best().status, FitStatus::Ok, "{rep:?}");
         // Noisy (DoLP sd 0.003, S0 1%): statistically the same answer.
         for seed in [7u64, 8, 9] {
             let caps = captures(optics, THETA_R, seed);
@@ -241,7 +241,7 @@ fn unknown_view_angle_is_recovered_when_the_lobe_pins_it() {
         m.status.as_str(),
         m.reason
     );
-    assert_eq!(m.status, MixedStatus::Ok, "{}", m.reason);
+    assert_eq!(m.status, FitStatus::Ok, "{}", m.reason);
     assert!(m.theta_r_estimated);
     let dtr = (m.theta_r.to_degrees() - THETA_R).abs();
     assert!(dtr < 3.0 * m.theta_r_se.to_degrees() && dtr < 1.0, "{m:?}");
@@ -277,7 +277,7 @@ fn unknown_view_angle_is_ill_conditioned_for_a_flat_lobe() {
             f.status.as_str(),
             f.reason
         );
-        assert_eq!(f.status, MixedStatus::IllConditioned, "{f:?}");
+        assert_eq!(f.status, FitStatus::IllConditioned, "{f:?}");
         assert!(f.reason.contains("theta_r"), "{}", f.reason);
     }
 }
@@ -311,12 +311,7 @@ fn a_diffuse_surface_is_depolarized() {
         b.status.as_str(),
         b.reason
     );
-    assert_eq!(
-        rep.mixed.status,
-        MixedStatus::Depolarized,
-        "{:?}",
-        rep.mixed
-    );
+    assert_eq!(rep.mixed.status, FitStatus::Depolarized, "{:?}", rep.mixed);
     assert!(rep.mixed.reason.contains("diffuse"), "{}", rep.mixed.reason);
     // A silver-like metal also has DoLP < 0.02 everywhere (the DoLP-only rule flags
     // it), but its intensity lobe shows it is specular: the mixed model says ok.
@@ -330,7 +325,7 @@ fn a_diffuse_surface_is_depolarized() {
     let dolp: Vec<f64> = caps.iter().map(|c| c.dolp).collect();
     assert!(polarid_core::mixed::depolarized_reason(&dolp, 0.02).is_some());
     let rep = fit_mixed(&caps, &MixedOptions::default()).unwrap();
-    assert_ne!(rep.best().status, MixedStatus::Depolarized, "{rep:?}");
+    assert_ne!(rep.best().status, FitStatus::Depolarized, "{rep:?}");
     assert!(rep.best().specular_share_min > 0.9, "{rep:?}");
 }
 

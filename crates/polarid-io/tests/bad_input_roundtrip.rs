@@ -93,7 +93,7 @@ prop_compose! {
             nk_corr: corr,
             rms_residual: rms,
             measurements: m,
-            status: if ok { "ok".into() } else { "not_converged".into() },
+            status: if ok { polarid_core::FitStatus::Ok } else { polarid_core::FitStatus::NotConverged },
             // The reader trims cells.
             reason: reason.trim().to_string(),
             model: "specular".into(),

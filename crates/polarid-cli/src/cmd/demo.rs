@@ -361,7 +361,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
             format!("{:.2}", p.k),
             pm(f.n, f.n_se),
             pm(f.k, f.k_se),
-            f.status.clone(),
+            f.status.to_string(),
             format!("{pn:.2}, {pk:.2}"),
         ]);
     }
@@ -617,7 +617,7 @@ fn build_report(
             nk_corr: f.nk_corr,
             rms_residual: f.rms_residual,
             measurements: f.measurements as usize,
-            status: f.status.clone(),
+            status: f.status,
         })
         .collect();
     let classification = class_rows

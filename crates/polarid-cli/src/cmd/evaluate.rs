@@ -509,7 +509,7 @@ fn to_json(ev: &Evaluation, mode: &str, metric: &str, k: usize) -> serde_json::V
         "truth": c.truth,
         "predicted": c.predicted,
         "counts": c.counts,
-        "skipped": ev.skipped.iter().map(|(t, s)| serde_json::json!({"target": t, "status": s})).collect::<Vec<_>>(),
+        "skipped": ev.skipped.iter().map(|(t, s)| serde_json::json!({"target": t, "status": s.as_str()})).collect::<Vec<_>>(),
         "unrepresented": ev.unrepresented,
         "items": ev.items.iter().map(|i| serde_json::json!({
             "target": i.target,

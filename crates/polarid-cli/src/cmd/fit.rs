@@ -22,6 +22,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
+use polarid_core::FitStatus;
 use polarid_core::fit::{FitBounds, FitOptions, FitPlan};
 use polarid_core::mixed::{
     self, DEPOLARIZED_MAX_DOLP, MixedCapture, MixedFit, MixedOptions, MixedReport, Shadowing,
@@ -291,12 +292,12 @@ pub fn fit_measurements_with(
             )
         })?;
         let (status, reason) = match mixed::depolarized_reason(&dolp, cfg.depolarized_dolp) {
-            Some(why) if f.status != polarid_core::fit::FitStatus::Ok => (
-                "depolarized".to_string(),
+            Some(why) if !f.status.is_ok() => (
+                FitStatus::Depolarized,
                 format!("{why} (fit status was {}: {})", f.status.as_str(), f.reason),
             ),
-            Some(why) => ("depolarized".to_string(), why),
-            None => (f.status.as_str().to_string(), f.reason.to_string()),
+            Some(why) => (FitStatus::Depolarized, why),
+            None => (f.status, f.reason.to_string()),
         };
         out.push(TargetFit {
             row: FitRow {
@@ -400,7 +401,7 @@ fn mixed_row(g: &Group, class: Option<&str>, f: &MixedFit) -> FitRow {
         nk_corr: f.nk_corr,
         rms_residual: f.rms_dolp,
         measurements: g.rows.len() as u64,
-        status: f.status.as_str().to_string(),
+        status: f.status,
         reason: f.reason.clone(),
         model: f.model.as_str().to_string(),
         sigma: Some(f.sigma),
@@ -544,7 +545,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         }
     }
     let out: Vec<FitRow> = fits.iter().map(|t| t.row.clone()).collect();
-    let not_ok = out.iter().filter(|r| r.status != "ok").count();
+    let not_ok = out.iter().filter(|r| !r.status.is_ok()).count();
     if not_ok > 0 {
         ctx.info(format!(
             "{not_ok} of {} target(s) fitted with a status other than ok (see the status and reason columns)",

@@ -48,7 +48,7 @@ pub fn train_model(
             value: class.into(),
             reason: e.to_string(),
         })?;
-        if f.status != "ok" {
+        if !f.status.is_ok() {
             not_ok.push(format!("{} ({}, line {line})", f.target, f.status));
             continue;
         }

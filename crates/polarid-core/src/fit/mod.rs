@@ -144,43 +144,7 @@ impl Default for FitOptions {
     }
 }
 
-/// How far a fit can be trusted; [`FitStatus::as_str`] is the word written in the
-/// `status` column of the fits CSV.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
-pub enum FitStatus {
-    /// Converged to the global least-squares minimum inside the box.
-    #[default]
-    Ok,
-    /// The polish did not converge within the iteration limit.
-    NotConverged,
-    /// The data do not determine `(n, k)`: fewer than 3 distinct β, too narrow a β
-    /// range, a flat DoLP curve, or a singular `JᵀWJ`.
-    IllConditioned,
-    /// The minimum lies on the edge of the box (other than `k = 0`).
-    AtBound,
-    /// The pixel's data are unusable (non-finite, DoLP outside `[0, 1]`); only from
-    /// [`fit_batch`], single fits return an error instead.
-    InvalidInput,
-}
-
-impl FitStatus {
-    /// One word: `ok`, `not_converged`, `ill_conditioned`, `at_bound`, `invalid_input`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            FitStatus::Ok => "ok",
-            FitStatus::NotConverged => "not_converged",
-            FitStatus::IllConditioned => "ill_conditioned",
-            FitStatus::AtBound => "at_bound",
-            FitStatus::InvalidInput => "invalid_input",
-        }
-    }
-}
-
-impl std::fmt::Display for FitStatus {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
+pub use crate::status::FitStatus;
 
 /// The result of one fit.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

@@ -8,6 +8,7 @@ use std::path::Path;
 
 use super::{CsvTable, fmt_f64, fmt_opt, write_rows};
 use crate::error::Result;
+use polarid_core::FitStatus;
 
 /// Column order of the fits CSV.
 pub const COLUMNS: [&str; 15] = [
@@ -49,8 +50,8 @@ pub struct FitRow {
     pub rms_residual: f64,
     /// Number of measurements used.
     pub measurements: u64,
-    /// `ok`, or why the estimate should not be trusted.
-    pub status: String,
+    /// [`FitStatus::Ok`], or why the estimate should not be trusted.
+    pub status: FitStatus,
     /// Human-readable reason for a status other than `ok` (may be empty).
     pub reason: String,
     /// Reflectance model used (`specular` or `mixed`).
@@ -102,10 +103,20 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<FitRow>> {
         if target.is_empty() {
             return Err(t.err(r, c_target, "empty target name"));
         }
-        let status = t.opt_text(r, c_status).unwrap_or_else(|| "ok".into());
+        let status = match (c_status, t.opt_text(r, c_status)) {
+            (Some(c), Some(word)) => FitStatus::parse(&word).ok_or_else(|| {
+                let words: Vec<&str> = FitStatus::ALL.iter().map(|s| s.as_str()).collect();
+                t.err(
+                    r,
+                    c,
+                    format!("unknown fit status (expected one of {})", words.join(", ")),
+                )
+            })?,
+            _ => FitStatus::Ok,
+        };
         // n, k of a failed fit may be nan; of a usable fit they must be numbers.
         let num = |c: usize| -> Result<f64> {
-            if status != "ok" && t.text(r, c).eq_ignore_ascii_case("nan") {
+            if !status.is_ok() && t.text(r, c).eq_ignore_ascii_case("nan") {
                 Ok(f64::NAN)
             } else {
                 t.f64(r, c)
@@ -157,7 +168,7 @@ pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[FitRow]) -> Resu
                 fmt_f64(f.nk_corr),
                 fmt_f64(f.rms_residual),
                 f.measurements.to_string(),
-                f.status.clone(),
+                f.status.as_str().to_string(),
                 f.reason.clone(),
                 f.model.clone(),
                 fmt_opt(f.sigma),
