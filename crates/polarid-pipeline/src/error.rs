@@ -1,0 +1,65 @@
+//! Errors of the workflows.
+
+use polarid_core::CoreError;
+use polarid_io::IoError;
+use thiserror::Error;
+
+/// Everything that can stop a workflow.
+///
+/// Bad input (a file, a field or an option with an unusable value) is distinguished from
+/// failures of the machine by [`PipelineError::is_bad_input`] (exit status 2 vs 1).
+#[non_exhaustive]
+#[derive(Debug, Error)]
+pub enum PipelineError {
+    /// Reading or writing a file failed, or a file holds a bad value.
+    #[error(transparent)]
+    Io(#[from] IoError),
+    /// The physics or numerics refused the data.
+    #[error(transparent)]
+    Core(#[from] CoreError),
+    /// A configuration value that cannot be used.
+    #[error("{option}: {reason} (value {value})")]
+    Config {
+        /// The option or field, as the user wrote it (e.g. `--bin`, `max_distance`).
+        option: String,
+        /// The offending value.
+        value: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The data of a file cannot support the workflow (e.g. a target with too few
+    /// measurements, a class the model does not know).
+    #[error("{path}: {reason}")]
+    Data {
+        /// The file (or a description of the data's origin).
+        path: String,
+        /// What is wrong, naming the target, line or field.
+        reason: String,
+    },
+}
+
+impl PipelineError {
+    /// True when the user's input or configuration is at fault (exit status 2).
+    pub fn is_bad_input(&self) -> bool {
+        match self {
+            PipelineError::Io(e) => e.is_bad_input(),
+            _ => true,
+        }
+    }
+
+    /// A [`PipelineError::Config`] error.
+    pub fn config(
+        option: impl Into<String>,
+        value: impl ToString,
+        reason: impl Into<String>,
+    ) -> Self {
+        PipelineError::Config {
+            option: option.into(),
+            value: value.to_string(),
+            reason: reason.into(),
+        }
+    }
+}
+
+/// Result alias of the pipeline crate.
+pub type Result<T> = std::result::Result<T, PipelineError>;
