@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Run polarid's throughput examples and shared/bench/baselines.py side by side and
+"""Run polarid's throughput examples and scripts/bench/baselines.py side by side and
 print each figure and the ratio polarid/baseline against the issue-7 targets.
 Called by scripts/bench_compare.sh (which sets up the venv and builds the examples)."""
 import argparse

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Side-by-side speed comparison of polarid with the Python baselines of
-# shared/bench/baselines.py, in ONE run on the same machine (issue 7):
+# scripts/bench/baselines.py, in ONE run on the same machine (issue 7):
 #   - Stokes + DoLP + AoLP of a 2048x2448 4-angle uint16 stack: polarid
 #     (examples/stokes_throughput.rs) vs polanalyser and numpy     target >= 20x polanalyser
 #   - per-pixel (n, k) fits, T = 10, noise sd 0.005: polarid
@@ -16,5 +16,5 @@ cd "$(dirname "$0")/.."
 venv="${BENCH_VENV:-.venv-bench}"
 scripts/setup_bench_env.sh "$venv" >&2
 cargo build --release --locked -q -p polarid-core --examples >&2
-exec "$venv/bin/python" scripts/bench_compare.py --baselines ../shared/bench/baselines.py \
+exec "$venv/bin/python" scripts/bench_compare.py --baselines scripts/bench/baselines.py \
     --target-dir target/release/examples "$@"

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Compare polarid's S0 / DoLP / AoLP with polanalyser 3.0.0 on the real DoFP frames.
 
-For every raw frame in ../shared/data/real-dofp/ (Sony IMX250MZR, pattern 90,45,135,0)
+For every raw frame in data/real-dofp/ (Sony IMX250MZR, pattern 90,45,135,0)
 this runs `polarid stokes --dofp RAW -o TMP` (bilinear demosaicing, OpenCV-exact) and
 polanalyser's `demosaicing(raw, COLOR_PolarMono)` + `calcStokes` + `cvtStokesToDoLP` /
 `cvtStokesToAoLP`, then prints the maximum and mean absolute differences and checks them
@@ -9,7 +9,7 @@ against tolerances. It ends with a line `N passed, N failed` and exits 1 on a fa
 
 Convention differences (documented, converted before comparing):
   * AoLP: polanalyser returns radians in [0, pi); polarid writes degrees in [0, 180)
-    (shared/CONVENTIONS.md). Same sign convention (atan2(S2, S1) / 2), so polarid's value
+    (docs/CONVENTIONS.md). Same sign convention (atan2(S2, S1) / 2), so polarid's value
     is compared with polanalyser's * 180/pi, as an angle modulo 180 degrees.
   * S0: both are (I0 + I45 + I90 + I135) / 2 in raw DN (polanalyser's calcStokes with
     the polarizer Mueller rows (1, cos 2a, sin 2a) / 2), so no rescaling is needed.
@@ -121,7 +121,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--polarid", default=os.path.join(ROOT, "target", "release", "polarid"),
                     help="polarid binary (default target/release/polarid; build it with cargo build --release)")
-    ap.add_argument("--data", default=os.path.join(ROOT, "..", "shared", "data", "real-dofp"))
+    ap.add_argument("--data", default=os.path.join(ROOT, "data", "real-dofp"))
     args = ap.parse_args(argv)
     if not os.path.exists(args.polarid):
         sys.stderr.write(f"compare_polanalyser.py: {args.polarid} not found; run cargo build --release\n")

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Python tests of polarid: build and install the package from this repository into the
 # virtualenv .venv-test (created on first use, reused afterwards), with pytest and the
-# pinned baseline environment of ../shared/bench/requirements.txt (numpy, scipy,
+# pinned baseline environment of scripts/bench/requirements.txt (numpy, scipy,
 # polanalyser, OpenCV, matplotlib: the comparison tests use them), then run
 # `pytest python/tests -q`. The tests that compare with the command-line program use the
 # release build of `polarid` (built here with `cargo build --release --locked -p
@@ -9,7 +9,6 @@
 #
 # Needs only Rust (cargo) and Python >= 3.11 with pip. Environment:
 #   PYTHON          interpreter that creates the venv (default: python3)
-#   POLARID_SHARED  the shared reference folder (default: ../shared next to the repo)
 #   POLARID_VENV    the virtualenv (default: .venv-test at the repository root)
 #   POLARID_CLI     a prebuilt polarid binary (default: build target/release/polarid)
 # Extra arguments are passed to pytest.
@@ -17,7 +16,6 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$(pwd)
 venv=${POLARID_VENV:-$root/.venv-test}
-shared=${POLARID_SHARED:-$root/../shared}
 python=${PYTHON:-python3}
 
 if [[ ! -x "$venv/bin/python" ]] || ! "$venv/bin/python" -c 'import sys' 2>/dev/null; then
@@ -31,12 +29,7 @@ fi
 pip=("$venv/bin/python" -m pip --disable-pip-version-check)
 
 echo "== installing test requirements"
-reqs=(pytest numpy)
-if [[ -f "$shared/bench/requirements.txt" ]]; then
-    reqs+=(-r "$shared/bench/requirements.txt")
-else
-    echo "warning: $shared/bench/requirements.txt not found: the tests that compare with polanalyser will fail or skip" >&2
-fi
+reqs=(pytest numpy -r scripts/bench/requirements.txt)
 "${pip[@]}" install -q "${reqs[@]}"
 
 echo "== building and installing polarid (maturin, release, --locked)"
@@ -50,5 +43,5 @@ if [[ -z "${POLARID_CLI:-}" ]]; then
 fi
 
 echo "== pytest python/tests"
-export POLARID_SHARED="$shared" POLARID_CLI
+export POLARID_CLI
 exec "$venv/bin/python" -m pytest python/tests -q "$@"

@@ -44,7 +44,7 @@ fn warn_all(py: Python<'_>, m: &Manifest) -> PyResult<()> {
     Ok(())
 }
 
-/// Read and validate a capture-set manifest (TOML, shared/FORMATS.md).
+/// Read and validate a capture-set manifest (TOML, docs/FORMATS.md).
 ///
 /// Parameters
 /// ----------

@@ -9,19 +9,16 @@ import pytest
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
 
-def shared_dir() -> Path:
-    """The project's shared reference folder: ``$POLARID_SHARED`` if set, else
-    ``../shared`` next to the repository (as on developers' machines and in CI)."""
-    env = os.environ.get("POLARID_SHARED")
-    return Path(env) if env else REPO_ROOT.parent / "shared"
+#: The repository's reference data (oracles, material library, real camera frames).
+DATA_DIR = REPO_ROOT / "data"
 
 
 @pytest.fixture(scope="session")
-def shared() -> Path:
-    d = shared_dir()
-    if not (d / "oracles").is_dir():
-        pytest.fail(f"shared reference folder not found at {d} (set POLARID_SHARED)")
-    return d
+def data_dir() -> Path:
+    """The ``data/`` folder of the repository (see data/README.md)."""
+    if not (DATA_DIR / "oracles").is_dir():
+        pytest.fail(f"reference data not found at {DATA_DIR} (an incomplete checkout?)")
+    return DATA_DIR
 
 
 def cli_binary() -> Path:

@@ -69,16 +69,16 @@ def test_classify_files(tmp_path):
         polarid.classify(1.0, 1.0, PROTOS, neighbours=0)
 
 
-def load_pbrdf_oracle(shared):
-    path = shared / "oracles" / "pbrdf_reference.csv"
+def load_pbrdf_oracle(data_dir):
+    path = data_dir / "oracles" / "pbrdf_reference.csv"
     lines = [ln for ln in path.read_text().splitlines() if ln and not ln.startswith("#")]
     header = lines[0].split(",")
     rows = np.array([[float(x) for x in ln.split(",")] for ln in lines[1:]])
     return {h: rows[:, i] for i, h in enumerate(header)}
 
 
-def test_pbrdf_oracle(shared):
-    d = load_pbrdf_oracle(shared)
+def test_pbrdf_oracle(data_dir):
+    d = load_pbrdf_oracle(data_dir)
     r = polarid.pbrdf(d["n"], d["k"], d["sigma"], d["theta_i_deg"], d["theta_r_deg"], d["phi_deg"])
     m00 = d["m00"]
     assert r["local"].shape == (300, 3, 3)

@@ -8,9 +8,9 @@ import pytest
 import polarid
 
 
-def load_dop_oracle(shared):
-    """n, k, beta_deg, dop columns of shared/oracles/dop_reference.csv."""
-    path = shared / "oracles" / "dop_reference.csv"
+def load_dop_oracle(data_dir):
+    """n, k, beta_deg, dop columns of data/oracles/dop_reference.csv."""
+    path = data_dir / "oracles" / "dop_reference.csv"
     lines = [ln for ln in path.read_text().splitlines() if ln and not ln.startswith("#")]
     header = lines[0].split(",")
     assert header == ["n", "k", "beta_deg", "dop"]
@@ -19,8 +19,8 @@ def load_dop_oracle(shared):
     return {name: np.ascontiguousarray(rows[:, i]) for i, name in enumerate(header)}
 
 
-def test_oracle_vectorised(shared):
-    d = load_dop_oracle(shared)
+def test_oracle_vectorised(data_dir):
+    d = load_dop_oracle(data_dir)
     p = polarid.dolp_model(d["n"], d["k"], d["beta_deg"])
     assert isinstance(p, np.ndarray)
     assert p.dtype == np.float64 and p.shape == d["dop"].shape
@@ -32,17 +32,17 @@ def test_oracle_vectorised(shared):
     )
 
 
-def test_oracle_scalar_calls_match(shared):
-    d = load_dop_oracle(shared)
+def test_oracle_scalar_calls_match(data_dir):
+    d = load_dop_oracle(data_dir)
     for i in range(0, 435, 7):
         p = polarid.dolp_model(float(d["n"][i]), float(d["k"][i]), float(d["beta_deg"][i]))
         assert type(p) is float
         assert abs(p - d["dop"][i]) <= 1e-12
 
 
-def test_large_array_parallel_path_matches_scalar(shared):
+def test_large_array_parallel_path_matches_scalar(data_dir):
     # > PAR_MIN_LEN elements: the rayon path must give the same numbers as the scalar one.
-    d = load_dop_oracle(shared)
+    d = load_dop_oracle(data_dir)
     reps = 100
     n, k, b = (np.tile(d[c], reps) for c in ("n", "k", "beta_deg"))
     p = polarid.dolp_model(n, k, b)

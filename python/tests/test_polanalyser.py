@@ -50,8 +50,8 @@ def compare(s_pid, s_pa, label):
 
 
 @pytest.mark.parametrize("name", ["fruits", "camera"])
-def test_real_dofp_frames(shared, name):
-    path = shared / "data" / "real-dofp" / f"{name}_IMX250MZR.png"
+def test_real_dofp_frames(data_dir, name):
+    path = data_dir / "real-dofp" / f"{name}_IMX250MZR.png"
     raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     assert raw is not None and raw.dtype == np.uint8 and raw.shape == (2048, 2448)
     imgs = pa.demosaicing(raw, pa.COLOR_PolarMono)

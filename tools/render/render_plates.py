@@ -5,7 +5,7 @@ Renders uniform plates (rough Fresnel reflectors with complex index n + ik, opti
 blended with a depolarizing Lambertian component) lit by a distant unpolarized source in
 the plane of incidence, and writes polarid capture sets: rotating-polarizer frames
 (0/45/90/135 deg), a division-of-focal-plane raw mosaic, ideal float32 Stokes images,
-manifests (shared/FORMATS.md) and the ground truth.
+manifests (docs/FORMATS.md) and the ground truth.
 
 Subcommands (see tools/render/README.md):
 
@@ -14,7 +14,7 @@ Subcommands (see tools/render/README.md):
     render_plates.py verify [--variant V] # Stokes-convention and eq. (9) checks
     render_plates.py smoke                # quick Brewster-angle check (used by setup.sh)
 
-The project's conventions (shared/CONVENTIONS.md): S1 = I(0) - I(90), S2 = I(45) - I(135),
+The project's conventions (docs/CONVENTIONS.md): S1 = I(0) - I(90), S2 = I(45) - I(135),
 polarizer angle counter-clockwise from the displayed image's +x axis. Mitsuba's `stokes`
 integrator output was verified to be in exactly that frame for the sensors built here
 (see `verify`), so the mapping Mitsuba -> project is the identity: S0=S0, S1=S1, S2=S2.
@@ -411,7 +411,7 @@ ANGLES = (0, 45, 90, 135)
 
 
 def polarizer(s0, s1, s2, a_deg):
-    """I(a) = (S0 + S1 cos 2a + S2 sin 2a) / 2 (shared/CONVENTIONS.md)."""
+    """I(a) = (S0 + S1 cos 2a + S2 sin 2a) / 2 (docs/CONVENTIONS.md)."""
     a = math.radians(a_deg)
     return 0.5 * (s0 + s1 * math.cos(2 * a) + s2 * math.sin(2 * a))
 

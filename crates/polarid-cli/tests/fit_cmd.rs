@@ -1,4 +1,4 @@
-//! `polarid fit`: measurements CSV in, fits CSV out (shared/FORMATS.md).
+//! `polarid fit`: measurements CSV in, fits CSV out (docs/FORMATS.md).
 
 mod common;
 

@@ -1,5 +1,5 @@
-//! `polarid library`: building a material library CSV for a band from the shared
-//! refractiveindex.info YAML files — the built-in 650 nm library reproduced, a 532 nm
+//! `polarid library`: building a material library CSV for a band from the
+//! refractiveindex.info YAML files of `data/materials/` — the built-in 650 nm library reproduced, a 532 nm
 //! library checked against hand-interpolated database values, the output used by
 //! `polarid classify --library`, and bad inputs (exit status 2, file/field/value in the
 //! message, no output left behind).
@@ -15,12 +15,13 @@ use std::process::Output;
 use polarid_io::library::Library;
 use polarid_io::table::CsvTable;
 
-fn shared() -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared"))
+/// The repository's reference data folder (`data/`).
+fn data() -> PathBuf {
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../data"))
 }
 
 fn db() -> PathBuf {
-    shared().join("materials").join("refractiveindex")
+    data().join("materials").join("refractiveindex")
 }
 
 fn ok(o: &Output) {
@@ -161,7 +162,7 @@ fn half_unit(v: f64, is_k: bool) -> f64 {
 /// A `--names` map for the built-in library: the built-in CSV's names and categories for
 /// the YAML files it was built from.
 fn builtin_names_map(dir: &Path) -> PathBuf {
-    let t = CsvTable::read(&shared().join("materials").join("library_650nm.csv")).unwrap();
+    let t = CsvTable::read(&data().join("materials").join("library_650nm.csv")).unwrap();
     let (c_name, c_cat, c_db) = (
         t.require("name").unwrap(),
         t.require("category").unwrap(),

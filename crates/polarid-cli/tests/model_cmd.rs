@@ -1,4 +1,4 @@
-//! `polarid model` end to end: it reproduces the oracle files of `shared/oracles/`
+//! `polarid model` end to end: it reproduces the oracle files of `data/oracles/`
 //! (DoP 1e-12; pBRDF each element 1e-9·m00 in both frames, `dolp` 1e-12), and bad
 //! rows give exit status 2, a message naming the file, line, column and value, and no
 //! output file.
@@ -10,7 +10,7 @@ use common::polarid;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-const ORACLES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/oracles");
+const ORACLES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../data/oracles");
 const EXAMPLES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/model");
 
 /// Header and numeric rows of a CSV (comments skipped).

@@ -1,6 +1,6 @@
 //! Fits per second of the (n, k) inversion at T = 10 (θr = 60°, θi = 35…80°), noise
 //! sd 0.005, (n, k) uniform in [0.3, 3] × [0, 8] (the problem of
-//! `shared/bench/baselines.py fit-loop` / `fit-vec`): single fits on one thread, and
+//! `scripts/bench/baselines.py fit-loop` / `fit-vec`): single fits on one thread, and
 //! the rayon batch API on all cores. Throughput is reported in elements = fits.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};

@@ -1,5 +1,5 @@
 //! Throughput of the image kernels on a 1024×1224 4-angle uint16 stack (a quarter of
-//! the 2048×2448 frames of `shared/bench/baselines.py stokes`; the full size is timed by
+//! the 2048×2448 frames of `scripts/bench/baselines.py stokes`; the full size is timed by
 //! `examples/stokes_throughput.rs` and `scripts/bench_compare.sh`):
 //! Stokes from 4 frames (exact 0/45/90/135 kernel, and the general least-squares
 //! kernel on 0/60/120/150), fused Stokes + DoLP/AoLP, DoLP/AoLP from Stokes images,

@@ -1,6 +1,6 @@
 //! How often the (n, k) fit misses the global optimum, on six kinds of problems: a fit
 //! "misses" when its cost is above the cost at the true (n, k) (the criterion of
-//! `shared/bench/baselines.py`, `c_fit <= c_true (1 + 1e-9) + 1e-14`; `strict` uses
+//! `scripts/bench/baselines.py`, `c_fit <= c_true (1 + 1e-9) + 1e-14`; `strict` uses
 //! `1e-12`, `1e-18`). Prints one line per problem: misses, worst cost ratio of a miss,
 //! mean model evaluations and wall time per fit (all cores).
 //!

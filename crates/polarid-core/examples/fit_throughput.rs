@@ -1,5 +1,5 @@
 //! Throughput and global-optimum rate of the per-pixel (n, k) fit on the problem of
-//! `shared/bench/baselines.py fit-loop` / `fit-vec`: T = 10 source positions
+//! `scripts/bench/baselines.py fit-loop` / `fit-vec`: T = 10 source positions
 //! (β = (θi + 60°)/2, θi = 35…80°), truth n ~ U[0.3, 3], k ~ U[0, 8], Gaussian DoLP
 //! noise sd 0.005 (clamped to [0, 1], as a measured DoLP is). Prints one JSON line.
 //!

@@ -1,4 +1,4 @@
-//! Throughput of the Stokes kernels on the stack of `shared/bench/baselines.py stokes`:
+//! Throughput of the Stokes kernels on the stack of `scripts/bench/baselines.py stokes`:
 //! a 4-angle uint16 stack of 2048×2448 pixels. Prints Mpixel/s (best of 5) for
 //! Stokes + DoLP + AoLP (fused), bilinear demosaicing (four channel images), and
 //! DoFP bilinear Stokes. Run: `cargo run --release -p polarid-core --example stokes_throughput`.

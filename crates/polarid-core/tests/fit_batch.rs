@@ -1,6 +1,6 @@
 //! The batch API gives exactly the single-fit results (same code path per pixel, in
 //! parallel), weighted and unweighted, and reaches the global optimum on the problem
-//! of `shared/bench/baselines.py` (n ~ U[0.3, 3], k ~ U[0, 8], T = 10, sd 0.005).
+//! of `scripts/bench/baselines.py` (n ~ U[0.3, 3], k ~ U[0, 8], T = 10, sd 0.005).
 
 use polarid_core::dop::dop;
 use polarid_core::fit::{FitPlan, NkFit, fit_batch};

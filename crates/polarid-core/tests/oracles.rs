@@ -1,4 +1,4 @@
-//! Every row of `shared/oracles/dop_reference.csv` and `shared/oracles/pbrdf_reference.csv`
+//! Every row of `data/oracles/dop_reference.csv` and `data/oracles/pbrdf_reference.csv`
 //! (values from mpmath and NIST SCATMECH, see the oracle README), at the tolerances of
 //! the issue: DoP 1e-12 absolute; pBRDF each element 1e-9·m00 in both frames, `dolp`
 //! 1e-12 absolute.
@@ -7,7 +7,7 @@ use std::collections::HashMap;
 
 use polarid_core::{dop, fresnel, geometry, pbrdf};
 
-const ORACLES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/oracles");
+const ORACLES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../data/oracles");
 
 /// A plain numeric CSV with `#` comments: header names and rows of numbers.
 struct Table {

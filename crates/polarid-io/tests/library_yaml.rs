@@ -1,4 +1,4 @@
-//! The refractiveindex.info YAML reader reproduces `shared/materials/library_650nm.csv`
+//! The refractiveindex.info YAML reader reproduces `data/materials/library_650nm.csv`
 //! (n_650, k_650, n_band, k_band of every row) from the database files it was built from.
 //!
 //! What "to 1e-6" means against this file: its numbers are printed rounded, `n` columns to
@@ -16,8 +16,9 @@ use std::path::PathBuf;
 use polarid_io::library::RiiData;
 use polarid_io::table::CsvTable;
 
-fn shared() -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared"))
+/// The repository's reference data folder (`data/`).
+fn data() -> PathBuf {
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../data"))
 }
 
 /// `db_path` of the CSV → file under `materials/refractiveindex/` (the database's own
@@ -90,7 +91,7 @@ fn half_unit(v: f64, is_k: bool) -> f64 {
 
 #[test]
 fn yaml_reader_reproduces_library_650nm_csv() {
-    let root = shared().join("materials");
+    let root = data().join("materials");
     let t = CsvTable::read(&root.join("library_650nm.csv")).unwrap();
     let col = |c: &str| t.require(c).unwrap();
     let (c_name, c_db) = (col("name"), col("db_path"));
