@@ -56,7 +56,7 @@ pub fn chi2_2dof_quantile(p: f64) -> f64 {
     -2.0 * (-p).ln_1p()
 }
 
-/// Settings of a [`Classifier`].
+/// Settings of a [`Classifier`](super::Classifier).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ClassifierConfig {
     /// Distance metric.
