@@ -1,0 +1,153 @@
+//! The `[[plate]]` tables: unique names, optics `(n, k, σ, ρd)`, a rectangle inside the
+//! frame that overlaps no other plate, and a measured region inside it (by default
+//! [`default_region`]).
+
+use std::collections::HashSet;
+
+use polarid_core::region::Rect;
+use polarid_core::simulate::PlateOptics;
+use toml::Spanned;
+
+use super::Plate;
+use super::context::Ctx;
+use super::raw::RawPlate;
+use crate::error::Result;
+
+/// The default measured region of a plate: the plate inset by an eighth of its smaller
+/// side (at least 2 pixels), with an even corner and even size so that it holds whole
+/// 2×2 DoFP super-pixels.
+pub fn default_region(rect: Rect) -> Option<Rect> {
+    let inset = (rect.width.min(rect.height) / 8).max(2);
+    let x = (rect.x + inset).next_multiple_of(2);
+    let y = (rect.y + inset).next_multiple_of(2);
+    let x1 = (rect.x + rect.width).checked_sub(inset)?;
+    let y1 = (rect.y + rect.height).checked_sub(inset)?;
+    let w = x1.checked_sub(x)? / 2 * 2;
+    let h = y1.checked_sub(y)? / 2 * 2;
+    (w >= 2 && h >= 2).then_some(Rect {
+        x,
+        y,
+        width: w,
+        height: h,
+    })
+}
+
+impl Ctx<'_> {
+    pub(super) fn plates(
+        &self,
+        raw: &[RawPlate],
+        width: usize,
+        height: usize,
+    ) -> Result<Vec<Plate>> {
+        if raw.is_empty() {
+            return Err(self.missing(None, "plate", "[[plate]]: at least one plate is needed"));
+        }
+        let mut plates: Vec<Plate> = Vec::with_capacity(raw.len());
+        let mut names = HashSet::new();
+        for (i, p) in raw.iter().enumerate() {
+            let pre = format!("plate[{}].", i + 1);
+            let f = |k: &str| format!("{pre}{k}");
+            let name_v = p
+                .name
+                .as_ref()
+                .ok_or_else(|| self.missing(None, &f("name"), "plate name"))?;
+            let near = Some(name_v.span());
+            let near = near.as_ref();
+            let name = self.name(name_v, &f("name"))?;
+            if !names.insert(name.clone()) {
+                return Err(self.err(&name_v.span(), &f("name"), "duplicate plate name"));
+            }
+            let class = match &p.class {
+                Some(v) if v.get_ref().trim().is_empty() => None,
+                Some(v) => Some(self.name(v, &f("class"))?),
+                None => None,
+            };
+            let req = |v: &Option<Spanned<f64>>, key: &str, what: &str| {
+                v.as_ref()
+                    .ok_or_else(|| self.missing(near, &f(key), what))
+                    .cloned()
+            };
+            let n = self.num_in(
+                &req(&p.n, "n", "real part of the index `n`")?,
+                &f("n"),
+                |x| x > 0.0 && x <= 100.0,
+                "in (0, 100]",
+            )?;
+            let k = self.num_in(
+                &req(&p.k, "k", "imaginary part of the index `k`")?,
+                &f("k"),
+                |x| (0.0..=100.0).contains(&x),
+                "in [0, 100]",
+            )?;
+            let sigma = self.num_in(
+                &req(&p.sigma, "sigma", "roughness `sigma`")?,
+                &f("sigma"),
+                |x| (1e-3..=10.0).contains(&x),
+                "in [0.001, 10] (slope standard deviation)",
+            )?;
+            let rho_d = match &p.rho_d {
+                Some(v) => {
+                    self.num_in(v, &f("rho_d"), |x| (0.0..=1.0).contains(&x), "in [0, 1]")?
+                }
+                None => 0.0,
+            };
+            let rect_v = p
+                .rect
+                .as_ref()
+                .ok_or_else(|| self.missing(near, &f("rect"), "plate rectangle `rect`"))?;
+            let rect = self.rect(rect_v, &f("rect"))?;
+            if let Err(e) = rect.check(width, height) {
+                return Err(self.err(&rect_v.span(), &f("rect"), e.to_string()));
+            }
+            for q in &plates {
+                let overlap = rect.x < q.rect.x + q.rect.width
+                    && q.rect.x < rect.x + rect.width
+                    && rect.y < q.rect.y + q.rect.height
+                    && q.rect.y < rect.y + rect.height;
+                if overlap {
+                    return Err(self.err(
+                        &rect_v.span(),
+                        &f("rect"),
+                        format!("overlaps plate {:?}", q.name),
+                    ));
+                }
+            }
+            let region = match &p.region {
+                Some(v) => {
+                    let r = self.rect(v, &f("region"))?;
+                    let inside = r.x >= rect.x
+                        && r.y >= rect.y
+                        && r.x + r.width <= rect.x + rect.width
+                        && r.y + r.height <= rect.y + rect.height;
+                    if !inside {
+                        return Err(self.err(
+                            &v.span(),
+                            &f("region"),
+                            format!(
+                                "the region must lie inside the plate's rect [{}, {}, {}, {}]",
+                                rect.x, rect.y, rect.width, rect.height
+                            ),
+                        ));
+                    }
+                    r
+                }
+                None => default_region(rect).ok_or_else(|| {
+                    self.err(
+                        &rect_v.span(),
+                        &f("rect"),
+                        "plate too small for a default region; give `region`",
+                    )
+                })?,
+            };
+            plates.push(Plate {
+                name,
+                class,
+                optics: PlateOptics { n, k, sigma, rho_d },
+                rect,
+                region,
+                line: self.line(name_v.span().start),
+            });
+        }
+        Ok(plates)
+    }
+}
