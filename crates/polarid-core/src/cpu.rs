@@ -75,6 +75,20 @@ pub(crate) enum Isa {
     Avx512(Avx512),
 }
 
+impl Isa {
+    /// The AVX2 + FMA token if this instruction set includes them (AVX-512 does: its
+    /// token is only made when the CPU also has AVX2 and FMA).
+    #[cfg(target_arch = "x86_64")]
+    #[inline]
+    pub(crate) fn avx2_fma(self) -> Option<Avx2Fma> {
+        match self {
+            Isa::Portable => None,
+            Isa::Avx2Fma(t) => Some(t),
+            Isa::Avx512(_) => Some(Avx2Fma { _private: () }),
+        }
+    }
+}
+
 impl CpuFeatures {
     /// The AVX2 + FMA token, if the CPU has both.
     #[cfg(target_arch = "x86_64")]
