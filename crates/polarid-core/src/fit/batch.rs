@@ -12,7 +12,8 @@ use crate::error::{CoreError, Result};
 /// `dolp` holds `pixels × T` values, row-major (pixel `p`'s measurements at
 /// `dolp[p*T .. (p+1)*T]`, in the plan's β order); `dolp_se`, when given, has the same
 /// layout; `out` receives one [`NkFit`] per pixel. Pixels with unusable data get the
-/// status [`FitStatus::InvalidInput`](super::FitStatus::InvalidInput) (and NaN values) rather than failing the batch.
+/// status [`FitStatus::InvalidInput`](super::FitStatus::InvalidInput) (and NaN values)
+/// rather than failing the batch.
 /// Errors: inconsistent lengths.
 pub fn fit_batch(
     plan: &FitPlan,

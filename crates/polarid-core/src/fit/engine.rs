@@ -4,8 +4,10 @@
 //! (accept, reject, stop). Running [`W`] polishes side by side, each lane on its own
 //! fit, turns the evaluation loop over the `T` source positions into straight vector
 //! arithmetic (two f64x8 with AVX-512F, four f64x4 with AVX2 + FMA, lane loops
-//! elsewhere; the caller is compiled for the instruction set, see
-//! `FitPlan::fit_chunk`) with no padding lanes and no horizontal sums, and the
+//! elsewhere: the backends of `simd/`, passed in as the token of [`crate::cpu`] that
+//! proves the CPU has the instructions; the chunk driver, `chunk.rs`, inlines the
+//! engine into a function compiled for them) with no padding lanes and no horizontal
+//! sums, and the
 //! Levenberg–Marquardt step into branch-free lane code. A lane whose polish ends takes
 //! the next job of the queue at once ("lane refill"), so lanes do not wait for each
 //! other: a polish is the same sequence of trial points whatever its neighbours do,

@@ -13,9 +13,9 @@ impl FitPlan {
     /// Queue the polishes of pixel `p` from the band minima of its scan: the best
     /// node's, then (with
     /// [`FitOptions::max_candidates`](super::FitOptions::max_candidates) > 1) those of
-    /// competing basins: the best nodes of other bands (other `k` ranges) that are not next to
-    /// the best node, whose stored-Jacobian Gauss–Newton step stays near them (a
-    /// minimum, not a slope into another basin), does not land in the best node's
+    /// competing basins: the best nodes of other bands (other `k` ranges) that are not
+    /// next to the best node, whose stored-Jacobian Gauss–Newton step stays near them
+    /// (a minimum, not a slope into another basin), does not land in the best node's
     /// basin, and predicts a cost within 10% of the best node's prediction.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]

@@ -313,8 +313,8 @@ impl StokesSolver {
         self.compute_impl(frames, width, rules, s0, s1, s2, mask, None)
     }
 
-    /// [`Self::compute`] fused with [`dolp_aolp`](super::dolp_aolp): also writes `dolp` and `aolp` while
-    /// each row is still in cache.
+    /// [`Self::compute`] fused with [`dolp_aolp`](super::dolp_aolp): also writes `dolp`
+    /// and `aolp` while each row is still in cache.
     #[allow(clippy::too_many_arguments)]
     pub fn compute_with_polar<T: Sample>(
         &self,
