@@ -14,6 +14,7 @@
 #![warn(missing_docs)]
 
 pub mod classify;
+mod cpu;
 pub mod dop;
 pub mod error;
 pub mod fit;

@@ -1,0 +1,310 @@
+//! The chunk driver: grid scan and starts of every valid pixel of a chunk, the
+//! polishes of all of them side by side (`engine.rs`), then the best polish of each
+//! pixel and its uncertainties (`covariance.rs`).
+//!
+//! # Instruction sets
+//! [`FitPlan::fit_chunk`] asks [`cpu_features`] for the widest instruction set and runs
+//! the generic body with that backend: the token of [`crate::cpu`] for AVX-512F or
+//! AVX2 + FMA, [`Portable`] otherwise. For a vector backend the body is inlined into an
+//! `unsafe fn` compiled with `#[target_feature(enable = ...)]` for its features, so the
+//! scan kernels and the engine (all `#[inline(always)]`) become vector code; the call
+//! is sound because the caller holds the token that proves the CPU has them.
+
+use super::engine;
+use super::scan::{self, Scan};
+use super::simd::{Portable, Simd};
+use super::validate::{check_pixel, invalid_reason};
+use super::{FitPlan, NkFit};
+use crate::cpu::{Isa, cpu_features};
+
+/// Per-thread scratch memory of a fit (no allocation per fit).
+#[derive(Debug, Clone)]
+pub struct FitWorkspace {
+    /// Band minima of the scan of one pixel.
+    bands: Vec<scan::BandMin>,
+    /// Band minima of the scans of four pixels.
+    bands4: Vec<scan::BandMin>,
+    /// f32 measurements of four pixels.
+    yf4: Vec<f32>,
+    /// Valid pixels of a chunk.
+    valid: Vec<usize>,
+    /// Weights `1/se²` of a chunk.
+    wall: Vec<f64>,
+    /// Measurements and weights of one pixel padded to whole lanes (weight 0 on
+    /// padding), f32.
+    yf: Vec<f32>,
+    wf: Vec<f32>,
+    /// Polishes of a chunk.
+    jobs: Vec<engine::Job>,
+    /// First job and number of jobs of each pixel of a chunk.
+    spans: Vec<(usize, usize)>,
+    /// Results of the polishes.
+    outs: Vec<engine::JobOut>,
+    /// Lane-major measurements of the polishes in flight.
+    lane: engine::LaneScratch,
+}
+
+impl FitPlan {
+    /// Scratch memory for [`FitPlan::fit_with`].
+    pub fn workspace(&self) -> FitWorkspace {
+        let tp = self.lanes.len;
+        FitWorkspace {
+            bands: vec![scan::BandMin::default(); self.gc_pad.div_ceil(self.band)],
+            bands4: vec![scan::BandMin::default(); 4 * (self.gc_pad.div_ceil(self.band))],
+            yf4: vec![0.0; 4 * self.len()],
+            valid: Vec::new(),
+            wall: Vec::new(),
+            yf: vec![0.0; tp],
+            wf: vec![0.0; tp],
+            jobs: Vec::new(),
+            spans: Vec::new(),
+            outs: Vec::new(),
+            lane: engine::LaneScratch::default(),
+        }
+    }
+
+    /// Fit the pixels of one batch chunk: `y` (and `se`) hold `out.len()` rows of `T`
+    /// values. Runs the widest instruction set the CPU has ([`cpu_features`]).
+    pub(super) fn fit_chunk(
+        &self,
+        y: &[f64],
+        se: Option<&[f64]>,
+        out: &mut [NkFit],
+        ws: &mut FitWorkspace,
+    ) {
+        self.fit_chunk_isa(cpu_features().best(), y, se, out, ws)
+    }
+
+    /// [`FitPlan::fit_chunk`] with the instruction set `isa` (tests compare them).
+    pub(super) fn fit_chunk_isa(
+        &self,
+        isa: Isa,
+        y: &[f64],
+        se: Option<&[f64]>,
+        out: &mut [NkFit],
+        ws: &mut FitWorkspace,
+    ) {
+        if ws.bands.len() != self.gc_pad.div_ceil(self.band) || ws.yf.len() != self.lanes.len {
+            *ws = self.workspace();
+        }
+        match isa {
+            // SAFETY: the token `t` proves the CPU has AVX-512F, AVX2 and FMA.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512(t) => unsafe { self.fit_chunk_avx512(t, y, se, out, ws) },
+            // SAFETY: the token `t` proves the CPU has AVX2 and FMA.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2Fma(t) => unsafe { self.fit_chunk_avx2(t, y, se, out, ws) },
+            Isa::Portable => self.fit_chunk_body(Portable, y, se, out, ws),
+        }
+    }
+
+    /// [`FitPlan::fit_chunk_body`] with the AVX-512 backend, compiled for AVX-512F.
+    ///
+    /// # Safety
+    /// The CPU has AVX-512F, AVX2 and FMA (the caller holds the token `t`, which
+    /// proves it).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx2,fma")]
+    unsafe fn fit_chunk_avx512(
+        &self,
+        t: crate::cpu::Avx512,
+        y: &[f64],
+        se: Option<&[f64]>,
+        out: &mut [NkFit],
+        ws: &mut FitWorkspace,
+    ) {
+        self.fit_chunk_body(t, y, se, out, ws)
+    }
+
+    /// [`FitPlan::fit_chunk_body`] with the AVX2 backend, compiled for AVX2 + FMA.
+    ///
+    /// # Safety
+    /// The CPU has AVX2 and FMA (the caller holds the token `t`, which proves it).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn fit_chunk_avx2(
+        &self,
+        t: crate::cpu::Avx2Fma,
+        y: &[f64],
+        se: Option<&[f64]>,
+        out: &mut [NkFit],
+        ws: &mut FitWorkspace,
+    ) {
+        self.fit_chunk_body(t, y, se, out, ws)
+    }
+
+    /// Grid scan and starts of every valid pixel, the polishes of all of them side by
+    /// side (`engine.rs`), then the best polish of each pixel and its uncertainties.
+    /// `k`: the backend (scan kernels and engine operations) of the instruction set
+    /// the caller is compiled for.
+    #[inline(always)]
+    fn fit_chunk_body<K: Simd + Scan>(
+        &self,
+        k: K,
+        y: &[f64],
+        se: Option<&[f64]>,
+        out: &mut [NkFit],
+        ws: &mut FitWorkspace,
+    ) {
+        let t_len = self.len();
+        let FitWorkspace {
+            bands,
+            bands4,
+            yf4,
+            valid,
+            wall,
+            yf,
+            wf,
+            jobs,
+            spans,
+            outs,
+            lane,
+        } = ws;
+        let wall: Option<&[f64]> = match se {
+            Some(se) => {
+                wall.clear();
+                wall.extend(se.iter().map(|&s| 1.0 / (s * s)));
+                Some(&wall[..])
+            }
+            None => None,
+        };
+        jobs.clear();
+        spans.clear();
+        spans.resize(out.len(), (0, 0));
+        valid.clear();
+        for (p, o) in out.iter_mut().enumerate() {
+            let rows = p * t_len..(p + 1) * t_len;
+            match check_pixel(&y[rows.clone()], se.map(|s| &s[rows])) {
+                Ok(()) => valid.push(p),
+                Err(e) => *o = NkFit::invalid(invalid_reason(&e)),
+            }
+        }
+        // Unweighted pixels four at a time (one read of the grid curves per four).
+        let quads = if wall.is_none() && K::FOUR {
+            valid.len() / 4
+        } else {
+            0
+        };
+        for q in 0..quads {
+            let ps = [
+                valid[4 * q],
+                valid[4 * q + 1],
+                valid[4 * q + 2],
+                valid[4 * q + 3],
+            ];
+            for (i, &p) in ps.iter().enumerate() {
+                for t in 0..t_len {
+                    yf4[i * t_len + t] = -(y[p * t_len + t] as f32);
+                }
+            }
+            let y4 = [
+                &yf4[..t_len],
+                &yf4[t_len..2 * t_len],
+                &yf4[2 * t_len..3 * t_len],
+                &yf4[3 * t_len..4 * t_len],
+            ];
+            let curves = &self.coarse_curves[..];
+            let base = &self.coarse_half_norm[..];
+            let nbands = bands.len();
+            let mut parts = bands4.chunks_exact_mut(nbands);
+            let b4 = [(); 4].map(|_| parts.next().unwrap_or_default());
+            k.scan4(curves, base, y4, self.band, b4);
+            for (i, &p) in ps.iter().enumerate() {
+                let first = jobs.len();
+                self.pad_pixel(&y[p * t_len..(p + 1) * t_len], None, yf, wf);
+                self.queue(
+                    p,
+                    &bands4[i * nbands..(i + 1) * nbands],
+                    &y[p * t_len..(p + 1) * t_len],
+                    None,
+                    yf,
+                    wf,
+                    jobs,
+                );
+                spans[p] = (first, jobs.len() - first);
+            }
+        }
+        for &p in &valid[4 * quads..] {
+            let rows = p * t_len..(p + 1) * t_len;
+            let first = jobs.len();
+            let w = wall.map(|w| &w[rows.clone()]);
+            self.pad_pixel(&y[rows.clone()], w, yf, wf);
+            self.scan_one(k, t_len, w.is_some(), yf, wf, bands);
+            self.queue(p, bands, &y[rows], w, yf, wf, jobs);
+            spans[p] = (first, jobs.len() - first);
+        }
+        outs.clear();
+        outs.resize(jobs.len(), engine::JobOut::default());
+        let settings = engine::Settings {
+            bounds: self.opts.bounds,
+            max_iter: self.opts.max_iter,
+            xtol: self.opts.xtol,
+            ftol: self.opts.ftol,
+        };
+        engine::run(k, &self.lanes, t_len, &settings, jobs, y, wall, outs, lane);
+        for (p, o) in out.iter_mut().enumerate() {
+            let (first, count) = spans[p];
+            if count == 0 {
+                continue;
+            }
+            let polished = &outs[first..first + count];
+            let mut best = polished[0];
+            let (mut iters, mut evals) = (0u32, 0u32);
+            for other in polished {
+                iters += other.iters;
+                evals += other.evals;
+                if other.ev.cost < best.ev.cost
+                    || (!best.converged
+                        && other.converged
+                        && other.ev.cost <= best.ev.cost * (1.0 + 1e-9))
+                {
+                    best = *other;
+                }
+            }
+            let rows = p * t_len..(p + 1) * t_len;
+            let mut fit = self.finish(&best, &y[rows.clone()], wall.map(|w| &w[rows]));
+            fit.iterations = iters;
+            fit.evaluations = evals;
+            fit.starts = count as u32;
+            *o = fit;
+        }
+    }
+
+    /// The f32 measurements and weights of one pixel, padded to whole lanes (weight 0
+    /// on padding).
+    #[inline(always)]
+    fn pad_pixel(&self, y: &[f64], w: Option<&[f64]>, yf: &mut [f32], wf: &mut [f32]) {
+        let t_len = self.len();
+        for t in 0..yf.len() {
+            let (yt, wt) = if t < t_len {
+                (y[t], w.map_or(1.0, |w| w[t]))
+            } else {
+                (0.0, 0.0)
+            };
+            yf[t] = yt as f32;
+            wf[t] = wt as f32;
+        }
+    }
+
+    /// Scan the grid for one pixel (padded f32 data from [`FitPlan::pad_pixel`]):
+    /// the best node of every band.
+    #[inline(always)]
+    fn scan_one<K: Scan>(
+        &self,
+        k: K,
+        t_len: usize,
+        weighted: bool,
+        yf: &[f32],
+        wf: &[f32],
+        bands: &mut [scan::BandMin],
+    ) {
+        let base = if weighted {
+            &self.coarse_base
+        } else {
+            &self.coarse_half_norm
+        };
+        let wf_opt = weighted.then(|| &wf[..t_len]);
+        let (curves, yt) = (&self.coarse_curves[..], &yf[..t_len]);
+        k.scan(curves, base, yt, wf_opt, self.band, bands);
+    }
+}
