@@ -27,6 +27,8 @@ fit_nk(dolp, beta_deg, dolp_se=None)
     (n, k) with standard errors for one target or a stack of pixels (eq. 16).
 fit_mixed(theta_i_deg, theta_r_deg, dolp, s0, ...)
     Depolarization-aware fit (specular + Lambertian diffuse) with model selection.
+fit_table(measurements_csv, reflectance="specular", ...)
+    Every target of a measurements CSV, as ``polarid fit``: a dict of its columns.
 classify(n, k, library_or_model)
     Nearest-prototype material classification (paper section 6).
 load_manifest(path), measure(manifest_path)
@@ -47,6 +49,7 @@ from ._polarid import (
     dolp_model_grad,
     fit_mixed,
     fit_nk,
+    fit_table,
     load_manifest,
     measure,
     pbrdf,
@@ -66,6 +69,7 @@ __all__ = [
     "dolp_model_grad",
     "fit_mixed",
     "fit_nk",
+    "fit_table",
     "load_manifest",
     "measure",
     "pbrdf",

@@ -25,6 +25,7 @@ __all__ = [
     "dolp_model_grad",
     "fit_mixed",
     "fit_nk",
+    "fit_table",
     "load_manifest",
     "measure",
     "pbrdf",
@@ -141,6 +142,28 @@ def fit_nk(
     k_range: tuple[float, float] = (0.0, 15.0),
 ) -> dict[str, Any]:
     """1-D dolp: floats/ints/str per key; (..., T): arrays (see the docstring)."""
+
+# --- fit of a measurements table (polarid fit) ------------------------------------------
+def fit_table(
+    measurements: _Path,
+    *,
+    reflectance: Literal["specular", "mixed"] = "specular",
+    n_range: tuple[float, float] = (0.01, 10.0),
+    k_range: tuple[float, float] = (0.0, 15.0),
+    depolarized_dolp: float = 0.02,
+    estimate_theta_r: bool = False,
+    shadowing: Literal["none", "smith"] = "none",
+    s0_rel_sd: float = 0.02,
+    sigma_range: tuple[float, float] = (0.02, 1.0),
+) -> dict[str, list[Any]]:
+    """Fit every target of a measurements CSV exactly as ``polarid fit`` does.
+
+    Returns the columns of the fits CSV, in its order, one list element per target:
+    ``target``, ``class`` (str or None), ``n``, ``k``, ``n_se``, ``k_se``, ``nk_corr``,
+    ``rms_residual`` (float), ``measurements`` (int), ``status`` (a word of
+    ``FIT_STATUS``), ``reason``, ``model``, ``sigma``, ``rho_d``, ``theta_r_deg``
+    (float or None; mixed fit only).
+    """
 
 # --- classification --------------------------------------------------------------------
 def classify(

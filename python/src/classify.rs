@@ -2,21 +2,21 @@
 //! trained model or a list of prototypes (`polarid_core::classify::Classifier`).
 
 use std::collections::HashMap;
-use std::path::Path;
 
 use ndarray::{ArrayD, ArrayViewD, IxDyn};
 use polarid_core::FitStatus;
 use polarid_core::classify::{
-    Classifier, ClassifierConfig, Cov2, Estimate, Metric, Prototype, Reject, UNKNOWN,
+    ClassifierConfig, Cov2, Estimate, Metric, Prototype, Reject, UNKNOWN,
 };
 use polarid_io::library::Library;
-use polarid_io::model::Model;
+use polarid_pipeline::classify::{PrototypeSource, classifier};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
 use rayon::prelude::*;
 
 use crate::arrays::{F64Like, broadcast_shape, broadcast_to, fmt_shape, str_array, to_numpy};
 use crate::errors::{PyResultExt, value_error};
+use crate::fit::pipeline_err;
 
 /// Register this module's functions.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -36,12 +36,12 @@ fn prototypes(obj: &Bound<'_, PyAny>) -> PyResult<(Vec<Prototype>, String)> {
         None
     };
     if let Some(spec) = spec {
-        if spec.to_ascii_lowercase().ends_with(".json") {
-            let m = Model::read(Path::new(&spec)).py_err()?;
-            return Ok((m.prototypes(), format!("model {spec}")));
-        }
-        let lib = Library::load(&spec).py_err()?;
-        return Ok((lib.prototypes(), format!("library {spec}")));
+        let source = if spec.to_ascii_lowercase().ends_with(".json") {
+            PrototypeSource::Model(spec.into())
+        } else {
+            PrototypeSource::Library(spec)
+        };
+        return source.load().map_err(pipeline_err);
     }
     let mut out = Vec::new();
     for (i, item) in obj.try_iter()?.enumerate() {
@@ -222,8 +222,7 @@ pub fn classify<'py>(
             (lib.prototypes(), "library builtin".into())
         }
     };
-    let clf = Classifier::new(protos, cfg)
-        .map_err(|e| value_error(format!("cannot use {label}: {e}")))?;
+    let clf = classifier(protos, &label, cfg).map_err(pipeline_err)?;
 
     // Broadcast the numeric inputs.
     let nv = n.as_array();

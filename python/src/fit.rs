@@ -1,21 +1,28 @@
 //! The `(n, k)` fit of paper section 5 (eq. 16) for one target or a stack of pixels,
-//! through the public API of `polarid_core::fit` (`FitPlan`, `fit`, `fit_batch`).
+//! through the public API of `polarid_core::fit` (`FitPlan`, `fit`, `fit_batch`), and
+//! the table-level fit of `polarid fit` (`polarid_pipeline::fit`).
 
-use std::sync::{Arc, Mutex};
+use std::path::PathBuf;
+use std::sync::{Arc, LazyLock, Mutex};
 
 use ndarray::{ArrayD, IxDyn};
 use numpy::{PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use polarid_core::CoreError;
 use polarid_core::fit::{FitBounds, FitOptions, FitPlan, FitStatus, NkFit, fit_batch};
+use polarid_pipeline::PipelineError;
+use polarid_pipeline::fit::{
+    FitConfig, PlanCache, Reflectance, check_range, parse_shadowing, read_measurements,
+};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyList};
 
 use crate::arrays::{f64_contiguous, fmt_shape, to_numpy};
-use crate::errors::{PyResultExt, value_error};
+use crate::errors::{IntoPyErr, PyResultExt, value_error};
 
 /// Register this module's functions and constants.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fit_nk, m)?)?;
+    m.add_function(wrap_pyfunction!(fit_table, m)?)?;
     m.add(
         "FIT_STATUS",
         FitStatus::ALL
@@ -26,51 +33,28 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     Ok(())
 }
 
-/// Key of a cached plan: the β values and the bounds, bit for bit.
-type PlanKey = (Vec<u64>, [u64; 4]);
-
 /// The last few plans (building one costs a 32 × 32 grid of model curves, ~0.2 ms at
 /// T = 10: noticeable against a batch of 1000 pixels, so repeated calls with the same
 /// β set reuse it).
-static PLANS: Mutex<Vec<(PlanKey, Arc<FitPlan>)>> = Mutex::new(Vec::new());
+static PLANS: LazyLock<Mutex<PlanCache>> =
+    LazyLock::new(|| Mutex::new(PlanCache::with_capacity(PLAN_CACHE)));
 const PLAN_CACHE: usize = 8;
 
 fn plan_for(betas: &[f64], opts: FitOptions) -> Result<Arc<FitPlan>, CoreError> {
-    let b = opts.bounds;
-    let key: PlanKey = (
-        betas.iter().map(|x| x.to_bits()).collect(),
-        [b.n_min, b.n_max, b.k_min, b.k_max].map(f64::to_bits),
-    );
-    if let Ok(cache) = PLANS.lock()
-        && let Some((_, p)) = cache.iter().find(|(k, _)| *k == key)
-    {
-        return Ok(Arc::clone(p));
+    match PLANS.lock() {
+        Ok(mut cache) => cache.get(betas, opts),
+        Err(_) => FitPlan::new(betas, opts).map(Arc::new),
     }
-    let plan = Arc::new(FitPlan::new(betas, opts)?);
-    if let Ok(mut cache) = PLANS.lock() {
-        if cache.len() >= PLAN_CACHE {
-            cache.remove(0);
-        }
-        cache.push((key, Arc::clone(&plan)));
-    }
-    Ok(plan)
 }
 
-/// `(min, max)` of a search box, with the CLI's rule (`--n-range MIN,MAX`): finite,
-/// `0 <= MIN < MAX`.
-fn check_range(name: &str, (lo, hi): (f64, f64)) -> PyResult<()> {
-    if !(lo.is_finite() && hi.is_finite()) {
-        return Err(value_error(format!(
-            "{name}: {} is not finite",
-            if lo.is_finite() { hi } else { lo }
-        )));
+/// A pipeline error as the Python exception of `errors.rs` (file and core errors keep
+/// their mapping; configuration and data errors are `ValueError`s).
+pub(crate) fn pipeline_err(e: PipelineError) -> PyErr {
+    match e {
+        PipelineError::Io(e) => e.into_py_err(),
+        PipelineError::Core(e) => e.into_py_err(),
+        e => value_error(e.to_string()),
     }
-    if !(lo >= 0.0 && hi > lo) {
-        return Err(value_error(format!(
-            "{name}: need 0 <= MIN < MAX, got {lo},{hi}"
-        )));
-    }
-    Ok(())
 }
 
 fn single_dict<'py>(py: Python<'py>, f: &NkFit) -> PyResult<Bound<'py, PyDict>> {
@@ -152,8 +136,8 @@ pub fn fit_nk<'py>(
     n_range: (f64, f64),
     k_range: (f64, f64),
 ) -> PyResult<Bound<'py, PyDict>> {
-    check_range("n_range", n_range)?;
-    check_range("k_range", k_range)?;
+    check_range("n_range", n_range).map_err(pipeline_err)?;
+    check_range("k_range", k_range).map_err(pipeline_err)?;
     let opts = FitOptions {
         bounds: FitBounds {
             n_min: n_range.0,
@@ -368,5 +352,119 @@ fn batch_dict<'py>(py: Python<'py>, lead: &[usize], o: BatchOut) -> PyResult<Bou
     d.set_item("status_code", codes)?;
     d.set_item("reason_code", arr(py, lead, o.reason)?)?;
     d.set_item("reasons", o.reasons)?;
+    Ok(d)
+}
+
+/// Fit every target of a measurements CSV — the table-level form of ``polarid fit``
+/// (same Rust function, ``polarid_pipeline::fit``: same rows, statuses and numbers).
+///
+/// Rows are grouped by ``target`` (targets keep the order of their first row); each
+/// target needs at least 3 rows. ``reflectance="specular"`` is the paper's DoLP-only fit
+/// (eq. 16) with the ``depolarized`` rule; ``"mixed"`` the specular + Lambertian diffuse
+/// radiometric fit with BIC model selection (needs ``s0``).
+///
+/// Parameters
+/// ----------
+/// measurements : str or os.PathLike
+///     A measurements CSV (written by ``polarid measure``).
+/// reflectance : {"specular", "mixed"}
+/// n_range, k_range : (float, float)
+///     The search box, ``0 <= MIN < MAX`` (``--n-range``, ``--k-range``).
+/// depolarized_dolp : float
+///     Specular fit: status ``depolarized`` when the DoLP stays below this at every
+///     source position (in (0, 1], default 0.02).
+/// estimate_theta_r : bool
+///     Mixed fit: estimate the camera zenith (in-plane captures only).
+/// shadowing : {"none", "smith"}
+///     Mixed fit: shadowing factor of the specular term.
+/// s0_rel_sd : float
+///     Mixed fit: relative standard deviation of ``s0``, in (0, 1].
+/// sigma_range : (float, float)
+///     Mixed fit: search range of the roughness sigma.
+///
+/// Returns
+/// -------
+/// dict
+///     The columns of ``polarid fit``'s CSV, in its order, as lists with one element per
+///     target: ``target`` (str), ``class`` (str or None), ``n``, ``k``, ``n_se``,
+///     ``k_se``, ``nk_corr``, ``rms_residual`` (float, NaN when unknown),
+///     ``measurements`` (int), ``status`` (a word of ``polarid.FIT_STATUS``), ``reason``
+///     (str, empty when ok), ``model`` (``specular`` or ``mixed``), ``sigma``, ``rho_d``,
+///     ``theta_r_deg`` (float or None: mixed fit only; ``theta_r_deg`` when estimated).
+///
+/// Raises
+/// ------
+/// ValueError
+///     A bad option, a bad file (the message of ``polarid fit``, naming the file, target
+///     and lines).
+/// FileNotFoundError
+///     The file does not exist.
+#[pyfunction]
+#[pyo3(signature = (measurements, *, reflectance = "specular", n_range = (0.01, 10.0), k_range = (0.0, 15.0), depolarized_dolp = 0.02, estimate_theta_r = false, shadowing = "none", s0_rel_sd = 0.02, sigma_range = (0.02, 1.0)))]
+#[allow(clippy::too_many_arguments)]
+pub fn fit_table<'py>(
+    py: Python<'py>,
+    measurements: PathBuf,
+    reflectance: &str,
+    n_range: (f64, f64),
+    k_range: (f64, f64),
+    depolarized_dolp: f64,
+    estimate_theta_r: bool,
+    shadowing: &str,
+    s0_rel_sd: f64,
+    sigma_range: (f64, f64),
+) -> PyResult<Bound<'py, PyDict>> {
+    let cfg = FitConfig {
+        reflectance: Reflectance::parse(reflectance).ok_or_else(|| {
+            value_error(format!(
+                "reflectance must be \"specular\" or \"mixed\", got {reflectance:?}"
+            ))
+        })?,
+        n_range,
+        k_range,
+        depolarized_dolp,
+        estimate_theta_r,
+        shadowing: parse_shadowing(shadowing).ok_or_else(|| {
+            value_error(format!(
+                "shadowing must be \"none\" or \"smith\", got {shadowing:?}"
+            ))
+        })?,
+        s0_rel_sd,
+        sigma_range,
+    };
+    cfg.validate().map_err(pipeline_err)?;
+    let out = py
+        .detach(|| {
+            let rows = read_measurements(&measurements)?;
+            polarid_pipeline::fit::fit(
+                &measurements,
+                &rows,
+                &cfg,
+                &polarid_pipeline::progress::no_progress,
+            )
+        })
+        .map_err(pipeline_err)?;
+    let rows: Vec<_> = out.targets.iter().map(|t| &t.row).collect();
+    let d = PyDict::new(py);
+    macro_rules! col {
+        ($name:literal, $f:expr) => {
+            d.set_item($name, PyList::new(py, rows.iter().map($f))?)?;
+        };
+    }
+    col!("target", |r| r.target.clone());
+    col!("class", |r| r.class.clone());
+    col!("n", |r| r.n);
+    col!("k", |r| r.k);
+    col!("n_se", |r| r.n_se);
+    col!("k_se", |r| r.k_se);
+    col!("nk_corr", |r| r.nk_corr);
+    col!("rms_residual", |r| r.rms_residual);
+    col!("measurements", |r| r.measurements);
+    col!("status", |r| r.status.as_str());
+    col!("reason", |r| r.reason.clone());
+    col!("model", |r| r.model.clone());
+    col!("sigma", |r| r.sigma);
+    col!("rho_d", |r| r.rho_d);
+    col!("theta_r_deg", |r| r.theta_r_deg);
     Ok(d)
 }

@@ -3,7 +3,8 @@
 //! DoLP and exposure-normalised S0 across captures, with selection against the paper's
 //! pure-specular model.
 
-use polarid_core::mixed::{MixedCapture, MixedFit, MixedOptions, Shadowing, fit_mixed as core_fit};
+use polarid_core::mixed::{MixedCapture, MixedFit, MixedOptions, fit_mixed as core_fit};
+use polarid_pipeline::fit::parse_shadowing;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -107,15 +108,11 @@ fn fit_mixed<'py>(
             se.len()
         )));
     }
-    let shadowing = match shadowing {
-        "none" => Shadowing::None,
-        "smith" => Shadowing::SmithBeckmann,
-        other => {
-            return Err(value_error(format!(
-                "shadowing must be \"none\" or \"smith\", got {other:?}"
-            )));
-        }
-    };
+    let shadowing = parse_shadowing(shadowing).ok_or_else(|| {
+        value_error(format!(
+            "shadowing must be \"none\" or \"smith\", got {shadowing:?}"
+        ))
+    })?;
     let caps: Vec<MixedCapture> = (0..t)
         .map(|i| {
             MixedCapture::new(

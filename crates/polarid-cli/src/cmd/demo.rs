@@ -17,17 +17,16 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use polarid_core::classify::{Classifier, ClassifierConfig};
-use polarid_core::fit::FitOptions;
 use polarid_io::atomic::{StagedDir, write_atomic};
 use polarid_io::manifest;
-use polarid_io::table::CsvTable;
 use polarid_io::table::classification::{self, ClassificationRow};
 use polarid_io::table::fits::{self, FitRow};
 use polarid_io::table::measurements::{self, Measurement};
+use polarid_pipeline::classify::{classification_row, estimate_of, explain, read_fits};
+use polarid_pipeline::train::train;
 
-use super::classify::{classification_row, estimate_of, explain, read_fits};
+use super::common::PipeResult;
 use super::simulate::simulate_into;
-use super::train::train_model;
 use crate::plots::{self, PlotSize};
 use crate::report::{self, Figure, Report};
 use crate::{BadInput, Ctx};
@@ -297,22 +296,24 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     })?;
 
     // 3. fit: from the measurements file, as `polarid fit` reads it.
-    let table = CsvTable::read(&meas_path)?;
-    let meas = measurements::from_table(&table)?;
-    let meas: Vec<(u64, Measurement)> = table.rows.iter().map(|(l, _)| *l).zip(meas).collect();
-    let fit_rows = super::fit::fit_measurements(
-        Path::new("measurements.csv"),
-        &meas,
-        FitOptions::default(),
-        ctx,
-    )?;
+    let meas = polarid_pipeline::fit::read_measurements(&meas_path).cli()?;
+    let fit_rows = super::common::with_progress(ctx, "fitting", |p| {
+        polarid_pipeline::fit::fit(
+            Path::new("measurements.csv"),
+            &meas,
+            &polarid_pipeline::fit::FitConfig::default(),
+            p,
+        )
+    })
+    .cli()?
+    .rows();
     let fits_path = staged.path("fits.csv")?;
     write_atomic(&fits_path, false, |w| {
         fits::write(w, Path::new("fits.csv"), &fit_rows)
     })?;
 
     // 4. train on the training plates' fits.
-    let all_fits = read_fits(&fits_path)?;
+    let all_fits = read_fits(&fits_path).cli()?;
     let is_training = |t: &str| PLATES.iter().any(|p| p.training && p.target == t);
     let training: Vec<(u64, FitRow)> = all_fits
         .iter()
@@ -324,10 +325,11 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         .filter(|(_, f)| !is_training(&f.target))
         .cloned()
         .collect();
-    let (model, skipped) = train_model(&training, Path::new("fits.csv"), "fits.csv")?;
-    for s in &skipped {
-        ctx.info(format!("skipped labelled fit {s}: its status is not ok"));
+    let trained = train(&training, Path::new("fits.csv"), "fits.csv").cli()?;
+    for w in &trained.warnings {
+        ctx.info(w.to_string());
     }
+    let model = trained.model;
     let model_path = staged.path("model.json")?;
     write_atomic(&model_path, false, |w| {
         model.write(w, Path::new("model.json"))

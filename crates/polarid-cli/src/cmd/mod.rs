@@ -1,6 +1,7 @@
 //! The subcommands, one module each.
 
 pub mod classify;
+pub mod common;
 pub mod demo;
 pub mod evaluate;
 pub mod fit;
@@ -11,3 +12,4 @@ pub mod model;
 pub mod simulate;
 pub mod stokes;
 pub mod train;
+pub mod wolff;

@@ -1,0 +1,130 @@
+//! Pieces shared by the commands that call `polarid_pipeline`: errors and progress of
+//! the pipeline in CLI terms, and the classifier options of `classify` and `evaluate`.
+
+use std::sync::OnceLock;
+
+use clap::ValueEnum;
+use polarid_core::classify::{ClassifierConfig, Confusion, Metric, Reject};
+use polarid_pipeline::{PipelineError, Progress};
+
+use crate::{BadInput, Ctx};
+
+/// A pipeline error as a CLI error with the same message and exit status: file and core
+/// errors keep their type (their exit status follows from it), the rest is a
+/// [`BadInput`] (status 2) or, if not the user's fault, a plain error (status 1).
+pub fn cli_err(e: PipelineError) -> anyhow::Error {
+    match e {
+        PipelineError::Io(e) => e.into(),
+        PipelineError::Core(e) => e.into(),
+        e if e.is_bad_input() => BadInput(e.to_string()).into(),
+        e => anyhow::anyhow!(e.to_string()),
+    }
+}
+
+/// `result.cli()?`: a pipeline result as an `anyhow` one, through [`cli_err`].
+pub trait PipeResult<T> {
+    /// Map the error with [`cli_err`].
+    fn cli(self) -> anyhow::Result<T>;
+}
+
+impl<T> PipeResult<T> for polarid_pipeline::Result<T> {
+    fn cli(self) -> anyhow::Result<T> {
+        self.map_err(cli_err)
+    }
+}
+
+/// Run `f` with a progress callback drawing a bar labelled `what` (hidden unless
+/// standard error is a terminal and not `--quiet`); the bar is cleared at the end.
+pub fn with_progress<T>(ctx: &Ctx, what: &str, f: impl FnOnce(Progress) -> T) -> T {
+    let bar: OnceLock<indicatif::ProgressBar> = OnceLock::new();
+    let cb = |_stage: &str, done: u64, total: u64| {
+        let pb = bar.get_or_init(|| ctx.progress(total, what));
+        if pb.length() != Some(total) {
+            pb.set_length(total);
+        }
+        pb.set_position(done);
+    };
+    let out = f(&cb);
+    if let Some(pb) = bar.get() {
+        pb.finish_and_clear();
+    }
+    out
+}
+
+/// Distance metric on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum MetricArg {
+    /// Euclidean distance in (n, k): the paper's rule.
+    Euclidean,
+    /// Mahalanobis distance with the estimates' (and prototypes') covariance.
+    Mahalanobis,
+}
+
+/// Classifier options shared by `classify` and `evaluate`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct MethodArgs {
+    /// Distance metric.
+    #[arg(long, value_enum, default_value_t = MetricArg::Euclidean)]
+    pub metric: MetricArg,
+    /// Number of nearest prototypes that vote (1: the paper's nearest neighbour; ties in
+    /// votes go to the class with the nearest member).
+    #[arg(long = "k", value_name = "N", default_value_t = 1)]
+    pub neighbours: usize,
+    /// Answer `unknown` when the nearest prototype fails a chi-square gate (2 dof) on the
+    /// Mahalanobis distance at probability P, e.g. 0.99 (needs standard errors).
+    #[arg(long, value_name = "CHI2_P", conflicts_with = "max_distance")]
+    pub reject: Option<f64>,
+    /// Answer `unknown` when the nearest prototype is farther than D (in the metric's
+    /// units).
+    #[arg(long, value_name = "D")]
+    pub max_distance: Option<f64>,
+}
+
+impl MethodArgs {
+    /// The classifier settings, checked (a bad value is a usage error).
+    pub fn config(&self) -> anyhow::Result<ClassifierConfig> {
+        let reject = match (self.reject, self.max_distance) {
+            (Some(p), _) => Reject::Chi2 { p },
+            (None, Some(d)) => Reject::MaxDistance(d),
+            (None, None) => Reject::Never,
+        };
+        let cfg = ClassifierConfig {
+            metric: match self.metric {
+                MetricArg::Euclidean => Metric::Euclidean,
+                MetricArg::Mahalanobis => Metric::Mahalanobis,
+            },
+            k: self.neighbours,
+            reject,
+        };
+        cfg.validate()
+            .map_err(|e| BadInput(format!("invalid classifier option: {e}")))?;
+        Ok(cfg)
+    }
+}
+
+/// A confusion matrix as an aligned text table with a `total` column.
+pub fn matrix(c: &Confusion, corner: &str) -> String {
+    let mut s = String::new();
+    let w0 = c
+        .truth
+        .iter()
+        .map(String::len)
+        .chain([10])
+        .max()
+        .unwrap_or(10);
+    let widths: Vec<usize> = c.predicted.iter().map(|p| p.len().max(5)).collect();
+    s.push_str(&format!("{corner:<w0$}"));
+    for (p, w) in c.predicted.iter().zip(&widths) {
+        s.push_str(&format!("  {p:>w$}"));
+    }
+    s.push_str("  total\n");
+    // ok (c.counts[r]): the confusion matrix has one row of counts per true class.
+    for (r, t) in c.truth.iter().enumerate() {
+        s.push_str(&format!("{t:<w0$}"));
+        for (v, w) in c.counts[r].iter().zip(&widths) {
+            s.push_str(&format!("  {v:>w$}"));
+        }
+        s.push_str(&format!("  {:>5}\n", c.counts[r].iter().sum::<u64>()));
+    }
+    s
+}

@@ -1,0 +1,228 @@
+//! Fits → decisions against a trained model or a material library (paper section 6): the
+//! workflow of `polarid classify`, optionally with Wolff's metal/dielectric baseline
+//! computed from the measurements.
+
+mod explain;
+mod wolff;
+
+use std::path::{Path, PathBuf};
+
+use polarid_core::classify::{Classifier, ClassifierConfig, Cov2, Decision, Estimate, Prototype};
+use polarid_io::library::Library;
+use polarid_io::model::Model;
+use polarid_io::table::CsvTable;
+use polarid_io::table::classification::ClassificationRow;
+use polarid_io::table::fits::{self, FitRow};
+
+pub use explain::explain;
+pub use wolff::{WolffData, WolffSettings};
+
+use crate::{PipelineError, Result, Warning};
+
+/// The estimate of a fit row: covariance from `n_se`, `k_se`, `nk_corr` when usable (a
+/// NaN correlation counts as 0).
+pub fn estimate_of(f: &FitRow) -> Estimate {
+    let corr = if f.nk_corr.is_nan() { 0.0 } else { f.nk_corr };
+    Estimate {
+        n: f.n,
+        k: f.k,
+        cov: Cov2::from_se(f.n_se, f.k_se, corr),
+        fit_status: f.status,
+    }
+}
+
+/// Read a fits CSV with the line number of each row.
+pub fn read_fits(path: &Path) -> Result<Vec<(u64, FitRow)>> {
+    let t = CsvTable::read(path)?;
+    let rows = fits::from_table(&t)?;
+    Ok(t.rows.iter().map(|r| r.0).zip(rows).collect())
+}
+
+/// Where the prototypes come from.
+#[derive(Debug, Clone)]
+pub enum PrototypeSource {
+    /// A model JSON written by `polarid train`.
+    Model(PathBuf),
+    /// A library: `builtin`, `paper2007` or a library CSV (see `polarid_io::library`).
+    Library(String),
+    /// Prototypes given directly, with a label for messages (e.g. `the prototypes`).
+    List(Vec<Prototype>, String),
+}
+
+impl PrototypeSource {
+    /// The prototypes and a label for messages (`model PATH`, `library SPEC`).
+    pub fn load(&self) -> Result<(Vec<Prototype>, String)> {
+        Ok(match self {
+            PrototypeSource::Model(m) => (
+                Model::read(m)?.prototypes(),
+                format!("model {}", m.display()),
+            ),
+            PrototypeSource::Library(spec) => {
+                (Library::load(spec)?.prototypes(), format!("library {spec}"))
+            }
+            PrototypeSource::List(p, label) => (p.clone(), label.clone()),
+        })
+    }
+}
+
+/// Wolff's baseline as requested: the measurements CSV and the settings.
+#[derive(Debug, Clone)]
+pub struct WolffRequest {
+    /// The measurements CSV (the one given to `polarid fit`).
+    pub measurements: PathBuf,
+    /// The rule's settings.
+    pub settings: WolffSettings,
+}
+
+/// Settings of [`classify`].
+#[derive(Debug, Clone, Default)]
+pub struct ClassifyConfig {
+    /// The classifier (metric, neighbours, reject option).
+    pub classifier: ClassifierConfig,
+    /// How many nearest prototypes each explanation lists.
+    pub explain: usize,
+    /// Also run Wolff's metal/dielectric baseline.
+    pub wolff: Option<WolffRequest>,
+}
+
+/// A classifier setting as a [`PipelineError::Config`] naming the setting and value.
+pub fn check_classifier(cfg: &ClassifierConfig) -> Result<()> {
+    cfg.validate().map_err(|e| {
+        let (option, value) = match cfg.reject {
+            _ if cfg.k == 0 => ("k", "0".to_string()),
+            polarid_core::classify::Reject::Chi2 { p } => ("reject", p.to_string()),
+            polarid_core::classify::Reject::MaxDistance(d) => ("max_distance", d.to_string()),
+            _ => ("classifier", format!("{cfg:?}")),
+        };
+        PipelineError::config(option, value, format!("invalid classifier option: {e}"))
+    })
+}
+
+impl ClassifyConfig {
+    /// Check every value ([`PipelineError::Config`] naming it).
+    pub fn validate(&self) -> Result<()> {
+        check_classifier(&self.classifier)?;
+        if let Some(w) = &self.wolff {
+            w.settings.validate()?;
+        }
+        Ok(())
+    }
+}
+
+/// What [`classify`] returns.
+#[derive(Debug, Clone)]
+pub struct ClassifyOutput {
+    /// One row per fit, in input order (with Wolff's columns when requested).
+    pub rows: Vec<ClassificationRow>,
+    /// Explanations: per target one line (and one for Wolff's decision when requested).
+    pub notes: Vec<String>,
+    /// The prototypes' label, e.g. `model model.json`, `library builtin`.
+    pub label: String,
+    /// The classifier used.
+    pub classifier: Classifier,
+    /// Nothing yet; kept for the front ends' uniform handling.
+    pub warnings: Vec<Warning>,
+}
+
+/// The classification CSV row of fit `f` classified as `d` by `clf` (without Wolff's
+/// columns).
+pub fn classification_row(f: &FitRow, d: &Decision, clf: &Classifier) -> ClassificationRow {
+    let category = d
+        .nearest
+        // ok: nb.index is an index into clf.prototypes() (from clf.classify).
+        .and_then(|nb| clf.prototypes()[nb.index].category.clone());
+    ClassificationRow {
+        target: f.target.clone(),
+        class: f.class.clone(),
+        predicted: d.predicted.clone(),
+        distance: d.nearest.map(|_| d.distance),
+        runner_up: d.runner_up.clone(),
+        runner_up_distance: d.runner_up.as_ref().map(|_| d.runner_up_distance),
+        status: d.status.label(),
+        margin: Some(d.margin),
+        nearest: d.nearest_class.clone(),
+        category,
+        metric: clf.config().metric.name().into(),
+        gate: d.gate,
+        votes: d.nearest.map(|_| d.votes as u64),
+        reason: d.reason.clone(),
+        ..Default::default()
+    }
+}
+
+/// A classifier over `protos` (labelled `label` in messages: `cannot use LABEL: ...`).
+pub fn classifier(
+    protos: Vec<Prototype>,
+    label: &str,
+    cfg: ClassifierConfig,
+) -> Result<Classifier> {
+    Classifier::new(protos, cfg).map_err(|e| PipelineError::Data {
+        path: format!("cannot use {label}"),
+        reason: e.to_string(),
+    })
+}
+
+/// Classify every fit (each with its line in `fits_path`; see [`read_fits`]) against the
+/// prototypes of `source`, in input order.
+///
+/// Errors: no fits, unusable prototypes, unreadable files, and with Wolff's baseline
+/// unusable measurements (naming the file, target and line).
+pub fn classify(
+    fits_path: &Path,
+    fits: &[(u64, FitRow)],
+    source: &PrototypeSource,
+    cfg: &ClassifyConfig,
+) -> Result<ClassifyOutput> {
+    cfg.validate()?;
+    if fits.is_empty() {
+        return Err(PipelineError::Data {
+            path: fits_path.display().to_string(),
+            reason: "no fits to classify".into(),
+        });
+    }
+    let (protos, label) = source.load()?;
+    let clf = classifier(protos, &label, cfg.classifier)?;
+    let wolff = cfg
+        .wolff
+        .as_ref()
+        .map(|w| WolffData::load(&w.measurements, w.settings))
+        .transpose()?;
+    let mut rows = Vec::with_capacity(fits.len());
+    let mut notes = Vec::new();
+    for (line, f) in fits {
+        let d = clf.classify(&estimate_of(f));
+        notes.push(explain(&f.target, &d, &clf, cfg.explain));
+        let mut row = classification_row(f, &d, &clf);
+        if let Some(wd) = &wolff {
+            let w = wd.decide(
+                &f.target,
+                &format!(
+                    "target {} (line {line} of {})",
+                    f.target,
+                    fits_path.display()
+                ),
+            )?;
+            row.wolff_class = Some(w.class.name().into());
+            row.wolff_fr_max = Some(w.fr_max);
+            row.wolff_beta_deg = Some(w.beta_at_max.to_degrees());
+            let (lo, hi) = wd.settings.beta_deg;
+            notes.push(format!(
+                "{}: Wolff: {} (largest Fresnel ratio {:.3} over {} measurement(s) with beta in \
+                 [{lo}, {hi}] deg; threshold {})",
+                f.target,
+                w.class.name(),
+                w.fr_max,
+                w.used,
+                wd.config.threshold
+            ));
+        }
+        rows.push(row);
+    }
+    Ok(ClassifyOutput {
+        rows,
+        notes,
+        label,
+        classifier: clf,
+        warnings: Vec::new(),
+    })
+}

@@ -1,0 +1,253 @@
+//! Measurement table → one `(n, k)` fit per target (paper section 5, eq. 16): the
+//! workflow of `polarid fit` and of Python's `polarid.fit_table`.
+//!
+//! Rows are grouped by `target` (targets keep the order of their first row); each
+//! target needs at least 3 measurements, and its rows may not disagree on `class`. When
+//! every row of a target has a `dolp_se`, the fit is weighted by `1/dolp_se²` and the
+//! standard errors follow from them; otherwise it is unweighted and the standard errors
+//! are scaled by the residual.
+//!
+//! [`Reflectance::Specular`] (default) is the paper's DoLP-only fit, one [`FitPlan`] per
+//! distinct β set ([`PlanCache`]). A target whose DoLP stays below
+//! [`FitConfig::depolarized_dolp`] at every source position gets the status
+//! `depolarized` (see [`polarid_core::mixed::depolarized_reason`]): DoLP alone cannot
+//! tell it from a diffuse surface, so it must not be classified.
+//!
+//! [`Reflectance::Mixed`] fits the radiometric model of `polarid_core::mixed` (specular
+//! plus Lambertian diffuse, using `s0`, the exposure-normalised mean S0), selects between
+//! it and the pure-specular radiometric model by BIC, and returns the selected fit as the
+//! row (with `model`, `sigma`, `rho_d`, and `theta_r_deg` when estimated) and both fits
+//! as the target's [`MixedReport`] ([`model_rows`] lays them out as a table).
+
+mod config;
+mod mixed;
+mod plans;
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use polarid_core::FitStatus;
+use polarid_core::fit::FitOptions;
+use polarid_core::mixed::MixedReport;
+use polarid_io::table::CsvTable;
+use polarid_io::table::fits::FitRow;
+use polarid_io::table::measurements::{self, Measurement};
+
+pub use config::{
+    FitConfig, Reflectance, check_range, parse_shadowing, range_problem, shadowing_name,
+};
+pub use mixed::{MODEL_COLUMNS, model_rows};
+pub use plans::PlanCache;
+
+use crate::{PipelineError, Progress, Result, Warning};
+
+/// One fitted target: the fits CSV row and, for the mixed fit, both models.
+#[derive(Debug, Clone)]
+pub struct TargetFit {
+    /// The row of the fits CSV.
+    pub row: FitRow,
+    /// Both radiometric fits and the selection ([`Reflectance::Mixed`] only).
+    pub report: Option<MixedReport>,
+}
+
+/// What [`fit`] returns.
+#[derive(Debug, Clone)]
+pub struct FitOutput {
+    /// One per target, in the order of the targets' first rows.
+    pub targets: Vec<TargetFit>,
+    /// E.g. how many targets have a status other than `ok`.
+    pub warnings: Vec<Warning>,
+}
+
+impl FitOutput {
+    /// The rows of the fits CSV.
+    pub fn rows(&self) -> Vec<FitRow> {
+        self.targets.iter().map(|t| t.row.clone()).collect()
+    }
+}
+
+/// Read a measurements CSV with the line number of each row (for [`fit`]'s messages).
+pub fn read_measurements(path: &Path) -> Result<Vec<(u64, Measurement)>> {
+    let table = CsvTable::read(path)?;
+    let rows = measurements::from_table(&table)?;
+    Ok(table.rows.iter().map(|(line, _)| *line).zip(rows).collect())
+}
+
+/// One target's rows, with their line numbers in the input.
+pub(crate) struct Group<'a> {
+    pub(crate) target: &'a str,
+    pub(crate) rows: Vec<(u64, &'a Measurement)>,
+}
+
+impl Group<'_> {
+    /// The line numbers, for messages: `12, 13`.
+    fn lines(&self) -> String {
+        self.rows
+            .iter()
+            .map(|(l, _)| l.to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}
+
+/// Group rows by target, first-appearance order.
+fn group(rows: &[(u64, Measurement)]) -> Vec<Group<'_>> {
+    let mut groups: Vec<Group> = Vec::new();
+    let mut index: HashMap<&str, usize> = HashMap::new();
+    for (line, m) in rows {
+        let gi = *index.entry(m.target.as_str()).or_insert_with(|| {
+            groups.push(Group {
+                target: m.target.as_str(),
+                rows: Vec::new(),
+            });
+            groups.len() - 1
+        });
+        groups[gi].rows.push((*line, m));
+    }
+    groups
+}
+
+/// A [`PipelineError::Data`] about `path`.
+fn data(path: &Path, reason: String) -> PipelineError {
+    PipelineError::Data {
+        path: path.display().to_string(),
+        reason,
+    }
+}
+
+/// The class of a target: the first non-empty `class`; rows may not disagree.
+fn class_of<'a>(path: &Path, g: &Group<'a>) -> Result<Option<&'a str>> {
+    let mut class: Option<&str> = None;
+    for (line, m) in &g.rows {
+        if let Some(c) = m.class.as_deref().filter(|c| !c.is_empty()) {
+            match class {
+                None => class = Some(c),
+                Some(prev) if prev != c => {
+                    return Err(data(
+                        path,
+                        format!(
+                            "line {line}: target {:?} has class {c:?} but an earlier row says {prev:?}",
+                            g.target
+                        ),
+                    ));
+                }
+                _ => {}
+            }
+        }
+    }
+    Ok(class)
+}
+
+/// Fit every target of a set of measurements (each with the line it came from in
+/// `path`, for messages; see [`read_measurements`]) with the model of `cfg`.
+///
+/// Reports `("fitting", done, targets)` to `progress`. Errors name the file, target and
+/// lines: no rows, a target with fewer than 3 rows, conflicting classes, unusable values
+/// (and for the mixed fit a missing or non-positive `s0`, missing angles).
+pub fn fit(
+    path: &Path,
+    rows: &[(u64, Measurement)],
+    cfg: &FitConfig,
+    progress: Progress,
+) -> Result<FitOutput> {
+    cfg.validate()?;
+    let groups = group(rows);
+    if groups.is_empty() {
+        return Err(data(path, "no measurements".into()));
+    }
+    let total = groups.len() as u64;
+    progress("fitting", 0, total);
+    let opts = cfg.fit_options();
+    let mopts = cfg.mixed_options();
+    let mut plans = PlanCache::unbounded();
+    let mut out = Vec::with_capacity(groups.len());
+    for g in &groups {
+        if g.rows.len() < 3 {
+            return Err(data(
+                path,
+                format!(
+                    "target {:?} has {} measurement(s) ({} {}); at least 3 are needed",
+                    g.target,
+                    g.rows.len(),
+                    if g.rows.len() == 1 { "line" } else { "lines" },
+                    g.lines()
+                ),
+            ));
+        }
+        let class = class_of(path, g)?;
+        let t = match cfg.reflectance {
+            Reflectance::Mixed => mixed::fit_target(path, g, class, &mopts)?,
+            Reflectance::Specular => specular(path, g, class, opts, cfg, &mut plans)?,
+        };
+        out.push(t);
+        progress("fitting", out.len() as u64, total);
+    }
+    let mut warnings = Vec::new();
+    let not_ok = out.iter().filter(|t| !t.row.status.is_ok()).count();
+    if not_ok > 0 {
+        warnings.push(Warning(format!(
+            "{not_ok} of {} target(s) fitted with a status other than ok (see the status and reason columns)",
+            out.len()
+        )));
+    }
+    Ok(FitOutput {
+        targets: out,
+        warnings,
+    })
+}
+
+/// The specular (DoLP-only) fit of one target, with the `depolarized` rule.
+fn specular(
+    path: &Path,
+    g: &Group,
+    class: Option<&str>,
+    opts: FitOptions,
+    cfg: &FitConfig,
+    plans: &mut PlanCache,
+) -> Result<TargetFit> {
+    let betas: Vec<f64> = g
+        .rows
+        .iter()
+        .map(|(_, m)| m.beta_deg.to_radians())
+        .collect();
+    let dolp: Vec<f64> = g.rows.iter().map(|(_, m)| m.dolp).collect();
+    let se: Option<Vec<f64>> = g.rows.iter().map(|(_, m)| m.dolp_se).collect();
+    let plan = plans
+        .get(&betas, opts)
+        .map_err(|e| data(path, format!("target {:?}: {e}", g.target)))?;
+    let f = plan.fit(&dolp, se.as_deref()).map_err(|e| {
+        data(
+            path,
+            format!("target {:?} (lines {}): {e}", g.target, g.lines()),
+        )
+    })?;
+    let (status, reason) =
+        match polarid_core::mixed::depolarized_reason(&dolp, cfg.depolarized_dolp) {
+            Some(why) if !f.status.is_ok() => (
+                FitStatus::Depolarized,
+                format!("{why} (fit status was {}: {})", f.status.as_str(), f.reason),
+            ),
+            Some(why) => (FitStatus::Depolarized, why),
+            None => (f.status, f.reason.to_string()),
+        };
+    Ok(TargetFit {
+        row: FitRow {
+            target: g.target.to_string(),
+            class: class.map(str::to_string),
+            n: f.n,
+            k: f.k,
+            n_se: f.n_se,
+            k_se: f.k_se,
+            nk_corr: f.nk_corr,
+            rms_residual: f.rms_residual,
+            measurements: g.rows.len() as u64,
+            status,
+            reason,
+            model: "specular".into(),
+            sigma: None,
+            rho_d: None,
+            theta_r_deg: None,
+        },
+        report: None,
+    })
+}
