@@ -28,8 +28,8 @@ use polarid_io::table::measurements::{self, Measurement};
 use super::classify::{classification_row, estimate_of, explain, read_fits};
 use super::simulate::simulate_into;
 use super::train::train_model;
-use crate::plots::{self, PlotSize};
-use crate::report::{self, Figure, Report};
+use crate::render::plots::{self, PlotSize};
+use crate::render::report::{self, Figure, Report};
 use crate::{BadInput, Ctx};
 
 /// Arguments of `polarid demo`.
