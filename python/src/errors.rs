@@ -1,7 +1,8 @@
 //! The one place where polarid's Rust errors become Python exceptions.
 //!
 //! Every binding converts with [`PyResultExt::py_err`] (`result.py_err()?`), so that
-//! Python users see exactly the message the CLI prints (the `Display` of the error):
+//! Python users see exactly the message the CLI prints: the error and its causes joined
+//! by `: `, built by the same function ([`polarid_io::error::chain_message`]):
 //!
 //! | Rust error | Python exception |
 //! | --- | --- |
@@ -13,11 +14,15 @@
 //! | [`IoError::Io`], anything else (disk full ...) | `OSError` |
 //! | [`IoError::OutputExists`] | `FileExistsError` |
 //! | every other [`IoError`] (bad file content: CSV, manifest, image, model) | `ValueError` |
+//! | [`PipelineError::Io`], [`PipelineError::Core`] | as the error it wraps |
+//! | every other [`PipelineError`] (configuration, data) | `ValueError` |
 
 use std::io::ErrorKind;
 
 use polarid_core::CoreError;
 use polarid_io::IoError;
+use polarid_io::error::chain_message;
+use polarid_pipeline::PipelineError;
 use pyo3::PyErr;
 use pyo3::exceptions::{
     PyFileExistsError, PyFileNotFoundError, PyIsADirectoryError, PyOSError, PyPermissionError,
@@ -26,19 +31,20 @@ use pyo3::exceptions::{
 
 /// Conversion of a polarid error into the Python exception documented in this module.
 pub trait IntoPyErr {
-    /// The Python exception, with the error's `Display` text as its message.
+    /// The Python exception, with the error's full message (its `Display`, then its
+    /// causes) as its message.
     fn into_py_err(self) -> PyErr;
 }
 
 impl IntoPyErr for CoreError {
     fn into_py_err(self) -> PyErr {
-        PyValueError::new_err(self.to_string())
+        PyValueError::new_err(chain_message(&self))
     }
 }
 
 impl IntoPyErr for IoError {
     fn into_py_err(self) -> PyErr {
-        let msg = self.to_string();
+        let msg = chain_message(&self);
         match &self {
             IoError::Io { source, .. } => match source.kind() {
                 ErrorKind::NotFound => PyFileNotFoundError::new_err(msg),
@@ -53,8 +59,18 @@ impl IntoPyErr for IoError {
     }
 }
 
-/// `result.py_err()?` turns a `Result<T, CoreError>` or `Result<T, IoError>` into a
-/// `PyResult<T>`.
+impl IntoPyErr for PipelineError {
+    fn into_py_err(self) -> PyErr {
+        match self {
+            PipelineError::Io(e) => e.into_py_err(),
+            PipelineError::Core(e) => e.into_py_err(),
+            other => PyValueError::new_err(chain_message(&other)),
+        }
+    }
+}
+
+/// `result.py_err()?` turns a `Result<T, CoreError>`, `Result<T, IoError>` or
+/// `Result<T, PipelineError>` into a `PyResult<T>`.
 pub trait PyResultExt<T> {
     /// Map the error with [`IntoPyErr`].
     fn py_err(self) -> pyo3::PyResult<T>;

@@ -6,6 +6,7 @@ use std::path::Path;
 
 use polarid_core::CoreError;
 use polarid_io::IoError;
+use polarid_pipeline::PipelineError;
 
 /// Options common to every command.
 #[derive(Debug, Clone)]
@@ -101,31 +102,27 @@ impl std::fmt::Display for BadInput {
 impl std::error::Error for BadInput {}
 
 /// Exit status for an error: 2 when the user's input or usage is at fault, 1 otherwise.
+///
+/// The first polarid error in the chain decides (a [`PipelineError`] is asked before the
+/// error it wraps transparently, which its chain does not list).
 pub fn exit_status(e: &anyhow::Error) -> u8 {
+    let status = |bad_input: bool| if bad_input { 2 } else { 1 };
     for cause in e.chain() {
         if cause.is::<BadInput>() || cause.is::<CoreError>() {
             return 2;
         }
         if let Some(io) = cause.downcast_ref::<IoError>() {
-            return if io.is_bad_input() { 2 } else { 1 };
+            return status(io.is_bad_input());
+        }
+        if let Some(p) = cause.downcast_ref::<PipelineError>() {
+            return status(p.is_bad_input());
         }
     }
     1
 }
 
-/// The error and its causes, joined by `: `, leaving out a cause whose text the message
-/// already contains (library errors repeat their source in their own message).
+/// The error and its causes, joined by `: ` ([`polarid_io::error::chain_message`], the
+/// text the Python package raises too): each level is printed once.
 pub fn error_message(e: &anyhow::Error) -> String {
-    let mut msg = String::new();
-    for cause in e.chain() {
-        let text = cause.to_string();
-        if msg.contains(&text) {
-            continue;
-        }
-        if !msg.is_empty() {
-            msg.push_str(": ");
-        }
-        msg.push_str(&text);
-    }
-    msg
+    polarid_io::error::chain_message(e.as_ref())
 }

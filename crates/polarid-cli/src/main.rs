@@ -6,9 +6,7 @@
 
 mod cmd;
 mod ctx;
-mod plots;
-mod report;
-mod views;
+mod render;
 
 use std::process::ExitCode;
 

@@ -1,5 +1,10 @@
-//! Errors of the I/O crate.
+//! Errors of the I/O crate, and [`chain_message`], the one way an error and its causes
+//! are shown to users (CLI and Python).
+//!
+//! Each error's `Display` says only its own level (the file, line, field and value at
+//! fault); an underlying error is its `source()`, never repeated in the message.
 
+use std::error::Error as StdError;
 use std::path::PathBuf;
 
 use polarid_core::CoreError;
@@ -11,13 +16,13 @@ use thiserror::Error;
 #[non_exhaustive]
 #[derive(Debug, Error)]
 pub enum IoError {
-    /// The operating system refused to read or write a file.
-    #[error("{path}: {source}")]
+    /// The operating system refused to read or write a file. The message names the
+    /// file; the operating system's reason is the [`source`](StdError::source).
+    #[error("{path}")]
     Io {
         /// The file.
         path: PathBuf,
-        /// The underlying error (shown in this error's message, so not chained as a
-        /// source: `{:#}` would print it twice).
+        /// The underlying error (chained as this error's source).
         source: std::io::Error,
     },
     /// An image file that cannot be used (format, colour, pages, size, corruption).
@@ -84,12 +89,13 @@ pub enum IoError {
         /// The file.
         path: PathBuf,
     },
-    /// A core error, with the file it came from.
-    #[error("{path}: {source}")]
+    /// A core error, with the file it came from. The message names the file; the core
+    /// error is the [`source`](StdError::source).
+    #[error("{path}")]
     Core {
         /// The file whose data caused it.
         path: PathBuf,
-        /// The core error (shown in this error's message).
+        /// The core error (chained as this error's source).
         source: CoreError,
     },
 }
@@ -120,5 +126,70 @@ impl IoError {
     }
 }
 
+/// `err` and its chain of causes ([`source`](StdError::source)), joined by `": "`: the
+/// full message users see, e.g. `"scene.toml: No such file or directory (os error 2)"`.
+///
+/// Every error is shown once: each level's `Display` carries only its own part, so
+/// nothing is left out or de-duplicated here.
+pub fn chain_message(err: &dyn StdError) -> String {
+    let mut msg = err.to_string();
+    let mut cause = err.source();
+    while let Some(c) = cause {
+        msg.push_str(": ");
+        msg.push_str(&c.to_string());
+        cause = c.source();
+    }
+    msg
+}
+
 /// Result alias of the I/O crate.
 pub type Result<T> = std::result::Result<T, IoError>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn io_error_is_chained_and_printed_once() {
+        let os = std::io::Error::new(std::io::ErrorKind::NotFound, "no such file (test)");
+        let e = IoError::io("scene.toml", os);
+        assert_eq!(e.to_string(), "scene.toml");
+        let source = e.source().map(ToString::to_string);
+        assert_eq!(source.as_deref(), Some("no such file (test)"));
+        let msg = chain_message(&e);
+        assert_eq!(msg, "scene.toml: no such file (test)");
+        assert_eq!(msg.matches("no such file (test)").count(), 1, "{msg}");
+    }
+
+    #[test]
+    fn core_error_is_chained_and_printed_once() {
+        let e = IoError::Core {
+            path: "raw.png".into(),
+            source: CoreError::TooFew {
+                what: "frames",
+                needed: 3,
+                got: 0,
+            },
+        };
+        assert_eq!(e.to_string(), "raw.png");
+        let msg = chain_message(&e);
+        assert_eq!(msg, "raw.png: need at least 3 frames, got 0");
+        assert_eq!(msg.matches("need at least").count(), 1, "{msg}");
+    }
+
+    #[test]
+    fn every_level_of_a_longer_chain_is_shown_once_in_order() {
+        #[derive(Debug, Error)]
+        #[error("reading the model")]
+        struct Outer(#[source] IoError);
+        let inner = IoError::io("m.json", std::io::Error::other("disk on fire"));
+        let msg = chain_message(&Outer(inner));
+        assert_eq!(msg, "reading the model: m.json: disk on fire");
+        // A message that happens to contain its cause's text is not shortened.
+        #[derive(Debug, Error)]
+        #[error("m.json")]
+        struct Same(#[source] IoError);
+        let msg = chain_message(&Same(IoError::io("m.json", std::io::Error::other("x"))));
+        assert_eq!(msg, "m.json: m.json: x");
+    }
+}

@@ -312,8 +312,6 @@ fn stokes_kernels_name_the_file_and_report_sizes() {
     assert_eq!((sp.width, sp.height, sp.s0.len()), (3, 2, 6));
     let solver = polarid_core::stokes::StokesSolver::from_degrees(&[0.0, 45.0, 90.0]).unwrap();
     let e = measure::frames_stokes(&[], &solver, &rules).unwrap_err();
-    assert!(
-        e.to_string().contains("need at least 3 frames, got 0"),
-        "{e}"
-    );
+    let msg = polarid_io::error::chain_message(&e);
+    assert!(msg.contains("need at least 3 frames, got 0"), "{msg}");
 }

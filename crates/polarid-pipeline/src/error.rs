@@ -8,6 +8,9 @@ use thiserror::Error;
 ///
 /// Bad input (a file, a field or an option with an unusable value) is distinguished from
 /// failures of the machine by [`PipelineError::is_bad_input`] (exit status 2 vs 1).
+///
+/// The wrappers are transparent (message and source are the wrapped error's), so the
+/// full message users see, [`polarid_io::error::chain_message`], names each level once.
 #[non_exhaustive]
 #[derive(Debug, Error)]
 pub enum PipelineError {
@@ -63,3 +66,28 @@ impl PipelineError {
 
 /// Result alias of the pipeline crate.
 pub type Result<T> = std::result::Result<T, PipelineError>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use polarid_io::error::chain_message;
+
+    #[test]
+    fn transparent_wrappers_add_nothing_to_the_message() {
+        let io = IoError::io("a.csv", std::io::Error::other("disk on fire"));
+        let e = PipelineError::from(io);
+        assert_eq!(chain_message(&e), "a.csv: disk on fire");
+        assert!(!e.is_bad_input());
+        let core = CoreError::TooFew {
+            what: "frames",
+            needed: 3,
+            got: 1,
+        };
+        assert_eq!(
+            chain_message(&PipelineError::from(core)),
+            "need at least 3 frames, got 1"
+        );
+        let c = PipelineError::config("--bin", 0, "must be at least 1");
+        assert_eq!(chain_message(&c), "--bin: must be at least 1 (value 0)");
+    }
+}

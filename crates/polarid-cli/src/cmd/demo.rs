@@ -27,8 +27,8 @@ use polarid_pipeline::train::train;
 
 use super::common::PipeResult;
 use super::simulate::simulate_into;
-use crate::plots::{self, PlotSize};
-use crate::report::{self, Figure, Report};
+use crate::render::plots::{self, PlotSize};
+use crate::render::report::{self, Figure, Report};
 use crate::{BadInput, Ctx};
 
 /// Arguments of `polarid demo`.

@@ -39,7 +39,7 @@ use polarid_io::manifest::{self, Capture, CaptureSource, Manifest};
 use polarid_io::measure::rules_for;
 use polarid_io::model::Model;
 
-use crate::plots::{PlotSize, class_map};
+use crate::render::plots::{PlotSize, class_map};
 use crate::{BadInput, Ctx};
 
 /// Arguments of `polarid map`.

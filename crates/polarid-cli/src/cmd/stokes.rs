@@ -157,7 +157,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         Some(m) => {
             return Err(BadInput(format!("--dolp-max must be > 0, got {m}")).into());
         }
-        None => crate::views::auto_dolp_max(&dolp),
+        None => crate::render::views::auto_dolp_max(&dolp),
     };
 
     let names = [
@@ -177,9 +177,9 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     ] {
         image::write_tiff_f32(&staged.path(name)?, true, w, h, data)?;
     }
-    let (vw, vh, px) = crate::views::dolp_view(w, h, &dolp, dolp_max);
+    let (vw, vh, px) = crate::render::views::dolp_view(w, h, &dolp, dolp_max);
     image::write_rgb8_png(&staged.path("dolp.png")?, true, vw, vh, &px)?;
-    let (vw, vh, px) = crate::views::aolp_view(w, h, &aolp, &dolp, dolp_max);
+    let (vw, vh, px) = crate::render::views::aolp_view(w, h, &aolp, &dolp, dolp_max);
     image::write_rgb8_png(&staged.path("aolp.png")?, true, vw, vh, &px)?;
     staged.commit()?;
     let c = img.counts;

@@ -9,44 +9,14 @@
 //! Rejected pixels (NaN) are black. `max` defaults to a round value just above the 99th
 //! percentile of the DoLP image ([`auto_dolp_max`]), because real scenes are often only
 //! a few percent polarized.
+//!
+//! The colours come from [`crate::render::colormap`], the map the plots use too.
 
-/// Viridis anchor colours at t = 0, 1/8, …, 1 (matplotlib's map, sampled).
-const VIRIDIS: [[f32; 3]; 9] = [
-    [68.0, 1.0, 84.0],
-    [71.0, 44.0, 122.0],
-    [59.0, 81.0, 139.0],
-    [44.0, 113.0, 142.0],
-    [33.0, 144.0, 141.0],
-    [39.0, 173.0, 129.0],
-    [92.0, 200.0, 99.0],
-    [170.0, 220.0, 50.0],
-    [253.0, 231.0, 37.0],
-];
+use super::colormap::{self, hsv};
 
-/// Viridis colour of `t` in `[0, 1]` (clamped), piecewise linear between 9 anchors.
-pub fn viridis(t: f32) -> [u8; 3] {
-    let t = if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) } * 8.0;
-    let i = (t.floor() as usize).min(7);
-    let f = t - i as f32;
-    let (a, b) = (VIRIDIS[i], VIRIDIS[i + 1]);
-    std::array::from_fn(|k| (a[k] + (b[k] - a[k]) * f).round() as u8)
-}
-
-/// RGB of hue `h` (degrees), saturation `s` and value `v` in `[0, 1]`.
-pub fn hsv(h: f32, s: f32, v: f32) -> [u8; 3] {
-    let h = h.rem_euclid(360.0) / 60.0;
-    let c = v * s;
-    let x = c * (1.0 - ((h % 2.0) - 1.0).abs());
-    let (r, g, b) = match h as u32 {
-        0 => (c, x, 0.0),
-        1 => (x, c, 0.0),
-        2 => (0.0, c, x),
-        3 => (0.0, x, c),
-        4 => (x, 0.0, c),
-        _ => (c, 0.0, x),
-    };
-    let m = v - c;
-    [r + m, g + m, b + m].map(|u| (u * 255.0).round().clamp(0.0, 255.0) as u8)
+/// The DoLP colour map: [`colormap::viridis`] of `t` in `[0, 1]`.
+fn viridis(t: f32) -> [u8; 3] {
+    colormap::viridis(f64::from(t))
 }
 
 /// A round upper limit for the DoLP colour scale: the smallest of 0.01, 0.02, 0.05,

@@ -1,0 +1,73 @@
+//! Plots for reports and commands, each rendered to PNG and SVG from plain data.
+//!
+//! - [`dolp_vs_beta`]: measured DoLP against β with standard-error bars and the fitted
+//!   paper eq. (9) curve, one colour per target;
+//! - [`nk_plane`]: the (n, k) plane with class prototypes, test estimates with 1-σ
+//!   covariance ellipses and the nearest-neighbour decision regions (paper § 6);
+//! - [`class_map`]: a material map (class index image, 0 = unclassified) with a legend;
+//! - [`scalar_map`]: a scalar image (n, k, DoLP, ...) in the viridis colour map with a
+//!   colour bar.
+//!
+//! Every function returns a [`Rendered`] (PNG bytes and SVG text of the same drawing);
+//! [`Rendered::write`] writes `STEM.png` and `STEM.svg`. Text is drawn with the bundled
+//! DejaVu Sans font (`assets/fonts/`, registered with plotters' `ab_glyph` table), so
+//! plots render on machines without system fonts. Empty data draws a "no data" notice
+//! rather than failing; inconsistent data (an image buffer of the wrong length) is an
+//! error. Angles are in degrees, as everywhere outside the numerical code.
+//!
+//! Modules: [`style`] (font, sizes, colours, legend), [`canvas`] (PNG + SVG rendering,
+//! chart frame), one module per figure ([`dolp`], [`nk`], [`maps`]). The output type,
+//! [`Rendered`], is shared with the report and lives in [`crate::render`].
+
+use anyhow::{Result, bail};
+
+pub use crate::render::Rendered;
+pub use dolp::{DolpPoint, DolpSeries, dolp_vs_beta, eq9_curve};
+pub use maps::class_map;
+// No command draws a scalar map yet (the report's tests do).
+#[allow(unused_imports)]
+pub use maps::scalar_map;
+pub use nk::{NkEstimate, Prototype, nk_plane};
+
+mod canvas;
+mod dolp;
+mod maps;
+mod nk;
+mod style;
+#[cfg(test)]
+mod tests;
+
+/// Pixel size of a plot (the SVG has the same size in user units).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PlotSize {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+}
+
+impl PlotSize {
+    /// The default report size, 1000 × 640 pixels: legible when shown at 100 % in the
+    /// HTML report and when scaled down to a page width.
+    pub const REPORT: PlotSize = PlotSize {
+        width: 1000,
+        height: 640,
+    };
+
+    fn check(self) -> Result<()> {
+        if !(320..=8000).contains(&self.width) || !(240..=8000).contains(&self.height) {
+            bail!(
+                "plot size {}x{} is out of range (320..=8000 by 240..=8000 pixels)",
+                self.width,
+                self.height
+            );
+        }
+        Ok(())
+    }
+}
+
+impl Default for PlotSize {
+    fn default() -> Self {
+        Self::REPORT
+    }
+}
