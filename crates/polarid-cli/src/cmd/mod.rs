@@ -11,3 +11,4 @@ pub mod model;
 pub mod simulate;
 pub mod stokes;
 pub mod train;
+pub mod bridge;
