@@ -80,14 +80,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         super::classify::MetricArg::Euclidean => Metric::Euclidean,
         super::classify::MetricArg::Mahalanobis => Metric::Mahalanobis,
     };
-    let cfg = MapConfig::new(
-        args.bin,
-        args.min_s0,
-        args.max_distance,
-        metric,
-        args.tile,
-    )
-    .cli()?;
+    let cfg = MapConfig::new(args.bin, args.min_s0, args.max_distance, metric, args.tile).cli()?;
     let m = manifest::load(&args.manifest)?;
     for w in &m.warnings {
         ctx.info(format!("polarid: warning: {w}"));
@@ -105,8 +98,10 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     }
 
     let bars = Bars::new(ctx);
-    let r = map::map_manifest(&cfg, &m, &model, &args.model, &|s, d, t| bars.report(s, d, t))
-        .cli()?;
+    let r = map::map_manifest(&cfg, &m, &model, &args.model, &|s, d, t| {
+        bars.report(s, d, t)
+    })
+    .cli()?;
     drop(bars);
     // r.warnings are the manifest's, printed above.
     write_outputs(&args, &r, ctx)?;

@@ -1,5 +1,6 @@
 //! The subcommands, one module each.
 
+pub mod bridge;
 pub mod classify;
 pub mod demo;
 pub mod evaluate;
@@ -11,4 +12,3 @@ pub mod model;
 pub mod simulate;
 pub mod stokes;
 pub mod train;
-pub mod bridge;

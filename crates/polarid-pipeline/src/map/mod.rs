@@ -262,15 +262,14 @@ pub fn map_manifest(
     let mut thresholds = Vec::with_capacity(m.captures.len());
     for (i, c) in m.captures.iter().enumerate() {
         let mut d = Vec::new();
-        let th = capture::capture_dolp(c, cfg, &mut dims, &mut d, &mut flags).map_err(|e| {
-            match e {
+        let th =
+            capture::capture_dolp(c, cfg, &mut dims, &mut d, &mut flags).map_err(|e| match e {
                 e @ PipelineError::Config { .. } => e,
                 e => PipelineError::Data {
                     path: format!("capture {} (line {})", c.index, c.line),
                     reason: e.to_string(),
                 },
-            }
-        })?;
+            })?;
         thresholds.push(th);
         dolp.push(d);
         progress("captures (DoLP)", i as u64 + 1, ncap);
