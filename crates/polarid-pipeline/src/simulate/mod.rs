@@ -207,9 +207,17 @@ pub fn frame_file(scene: &Scene, capture: usize, frame: usize) -> String {
     }
 }
 
-/// The radiance, exposure and truth of every capture of a scene: the [`RenderSpec`],
-/// the relative exposures, the truth rows and the warnings.
-fn plan(scene: &Scene) -> Result<(RenderSpec, Vec<f64>, Vec<TruthRow>, Vec<Warning>)> {
+/// The radiance, exposure and truth of every capture of a scene.
+struct Plan {
+    spec: RenderSpec,
+    /// Relative exposure of every capture.
+    exposures: Vec<f64>,
+    truth: Vec<TruthRow>,
+    warnings: Vec<Warning>,
+}
+
+/// Plan the simulation of a scene (no rendering yet).
+fn plan(scene: &Scene) -> Result<Plan> {
     let sensor = &scene.sensor;
     let (tr, phi) = (scene.theta_r_deg.to_radians(), scene.phi_deg.to_radians());
     let angles: Vec<f64> = scene
@@ -300,7 +308,12 @@ fn plan(scene: &Scene) -> Result<(RenderSpec, Vec<f64>, Vec<TruthRow>, Vec<Warni
         analyzers,
         sensor: *sensor,
     };
-    Ok((spec, exposures, truth, warnings))
+    Ok(Plan {
+        spec,
+        exposures,
+        truth,
+        warnings,
+    })
 }
 
 /// Simulate `scene` into `staged` under `prefix` (`""` or a directory name ending in
@@ -313,7 +326,12 @@ pub fn simulate_into(
     prefix: &str,
     progress: Progress<'_>,
 ) -> Result<Simulated> {
-    let (spec, exposures, truth, warnings) = plan(scene)?;
+    let Plan {
+        spec,
+        exposures,
+        truth,
+        warnings,
+    } = plan(scene)?;
     let na = spec.analyzers.len();
     let jobs: Vec<(usize, usize)> = (0..spec.rects.len())
         .flat_map(|c| (0..na).map(move |a| (c, a)))
