@@ -336,3 +336,52 @@ pub fn map_manifest(
         warnings: m.warnings.iter().map(|w| Warning(w.clone())).collect(),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn config_names_the_option_and_value() {
+        let ok = MapConfig::new(2, Some(5.0), Some(0.5), Metric::Mahalanobis, 100).unwrap();
+        assert_eq!((ok.bin(), ok.metric()), (2, Metric::Mahalanobis));
+        for (r, option, value) in [
+            (
+                MapConfig::new(0, None, None, Metric::Euclidean, 1),
+                "--bin",
+                "0",
+            ),
+            (
+                MapConfig::new(65, None, None, Metric::Euclidean, 1),
+                "--bin",
+                "65",
+            ),
+            (
+                MapConfig::new(1, Some(f64::NAN), None, Metric::Euclidean, 1),
+                "--min-s0",
+                "NaN",
+            ),
+            (
+                MapConfig::new(1, None, Some(-1.0), Metric::Euclidean, 1),
+                "--max-distance",
+                "-1",
+            ),
+            (
+                MapConfig::new(1, None, None, Metric::Euclidean, 0),
+                "--tile",
+                "0",
+            ),
+        ] {
+            match r {
+                Err(PipelineError::Config {
+                    option: o,
+                    value: v,
+                    ..
+                }) => assert_eq!((o.as_str(), v.as_str()), (option, value)),
+                other => panic!("{option}: {other:?}"),
+            }
+        }
+        assert_eq!(Metric::parse("euclidean").unwrap(), Metric::Euclidean);
+        assert!(Metric::parse("cosine").is_err());
+    }
+}

@@ -384,3 +384,63 @@ pub fn simulate_into(
         warnings,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+    use std::sync::atomic::{AtomicU64, Ordering};
+
+    const SCENE: &str = r#"
+width = 16
+height = 8
+theta_r_deg = 45.0
+theta_i_deg = [40, 45, 50]
+seed = 3
+[[plate]]
+name = "a"
+n = 1.5
+k = 0.0
+sigma = 0.2
+rect = [0, 0, 8, 8]
+"#;
+
+    #[test]
+    fn simulate_into_writes_the_set_and_reports_progress() {
+        let dir = tempfile::tempdir().unwrap();
+        let scene = polarid_io::scene::parse(&dir.path().join("s.toml"), SCENE).unwrap();
+        let out = dir.path().join("out");
+        let staged = StagedDir::new(&out, false).unwrap();
+        let calls = AtomicU64::new(0);
+        let sim = simulate_into(&scene, &staged, "x/", &|s, _, t| {
+            assert_eq!((s, t), ("frames", 12));
+            calls.fetch_add(1, Ordering::Relaxed);
+        })
+        .unwrap();
+        staged.commit().unwrap();
+        assert_eq!((sim.captures, sim.frames, sim.truth.len()), (3, 12, 3));
+        assert_eq!(calls.load(Ordering::Relaxed), 12);
+        assert_eq!(sim.manifest, "x/manifest.toml");
+        for f in ["manifest.toml", "truth.csv", "scene.toml", "i45/pol090.png"] {
+            assert!(Path::new(&out.join("x").join(f)).is_file(), "{f}");
+        }
+        let m = polarid_io::manifest::load(&out.join("x/manifest.toml")).unwrap();
+        assert_eq!(m.captures.len(), 3);
+    }
+
+    #[test]
+    fn render_into_is_seeded_and_checks_sizes() {
+        let dir = tempfile::tempdir().unwrap();
+        let scene = polarid_io::scene::parse(&dir.path().join("s.toml"), SCENE).unwrap();
+        let spec = plan(&scene).unwrap().spec;
+        let mut a = vec![0u16; 12 * 16 * 8];
+        let mut b = a.clone();
+        let seed = |c: usize, f: usize| (c * 10 + f) as u64;
+        render_into(&spec, &seed, &mut a, &crate::progress::no_progress).unwrap();
+        render_into(&spec, &seed, &mut b, &crate::progress::no_progress).unwrap();
+        assert_eq!(a, b);
+        assert!(a.iter().any(|&v| v > 0));
+        let mut short = vec![0u16; 5];
+        assert!(render_into(&spec, &seed, &mut short, &crate::progress::no_progress).is_err());
+    }
+}
