@@ -35,6 +35,8 @@ load_manifest(path), measure(manifest_path)
     Capture-set manifests and the per-region DoLP measurements of ``polarid measure``.
 simulate(plates, theta_i_deg, ...)
     Synthetic frames of plates of known (n, k, sigma).
+map_manifest(manifest_path, model, bin=1, ...)
+    Per-pixel (n, k) and material maps of a capture set: ``polarid map`` as arrays.
 """
 
 from ._polarid import (
@@ -56,6 +58,7 @@ from ._polarid import (
     simulate,
     stokes,
 )
+from ._polarid import map_manifest
 
 __all__ = [
     "FIT_STATUS",
@@ -76,3 +79,4 @@ __all__ = [
     "simulate",
     "stokes",
 ]
+__all__ += ["map_manifest"]

@@ -207,3 +207,17 @@ def simulate(
     electrons_per_unit: float | None = None,
     seed: int = 0,
 ) -> dict[str, Any]: ...
+
+# --- maps ------------------------------------------------------------------------------
+def map_manifest(
+    manifest_path: _Path,
+    model: _Path,
+    *,
+    bin: int = 1,
+    min_s0: float | None = None,
+    max_distance: float | None = None,
+    metric: Literal["euclidean", "mahalanobis"] = "euclidean",
+    tile: int = 65536,
+) -> dict[str, Any]:
+    """keys: n, k, n_se, k_se, rms_residual (float32 (H, W)), class, reason (uint8 codes),
+    class_names, reason_names, class_counts, reason_counts, summary."""

@@ -26,7 +26,8 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     Ok(())
 }
 
-fn path_arg(obj: &Bound<'_, PyAny>) -> PyResult<PathBuf> {
+/// A path argument (`str` or `os.PathLike`).
+pub(crate) fn path_arg(obj: &Bound<'_, PyAny>) -> PyResult<PathBuf> {
     let s: String = obj
         .py()
         .import("os")?
@@ -35,7 +36,8 @@ fn path_arg(obj: &Bound<'_, PyAny>) -> PyResult<PathBuf> {
     Ok(PathBuf::from(s))
 }
 
-fn warn_all(py: Python<'_>, m: &Manifest) -> PyResult<()> {
+/// Issue the manifest's warnings as `UserWarning`.
+pub(crate) fn warn_all(py: Python<'_>, m: &Manifest) -> PyResult<()> {
     let cat = py.get_type::<PyUserWarning>();
     for w in &m.warnings {
         let msg = CString::new(w.replace('\0', " ")).map_err(|e| value_error(e.to_string()))?;

@@ -17,6 +17,7 @@ pub mod classify;
 pub mod errors;
 pub mod files;
 pub mod fit;
+pub mod map;
 pub mod mixed;
 pub mod model;
 pub mod pbrdf;
@@ -36,5 +37,6 @@ fn _polarid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     classify::register(m)?;
     files::register(m)?;
     simulate::register(m)?;
+    map::register(m)?;
     Ok(())
 }

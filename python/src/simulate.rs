@@ -1,11 +1,12 @@
 //! A minimal in-memory simulator: plates of known `(n, k, σ)` lit from several source
-//! zeniths and seen by a noisy polarization camera (`polarid_core::simulate`).
+//! zeniths and seen by a noisy polarization camera (`polarid_core::simulate`), rendered
+//! by the renderer of `polarid simulate` (`polarid_pipeline::simulate::render_into`).
 
 use ndarray::{ArrayD, IxDyn};
 use polarid_core::CoreError;
-use polarid_core::simulate::{
-    Analyzer, PlateOptics, Sensor, UniformRect, plate_radiance, render_frame,
-};
+use polarid_core::simulate::{Analyzer, PlateOptics, Sensor, UniformRect, plate_radiance};
+use polarid_pipeline::progress::no_progress;
+use polarid_pipeline::simulate::{RenderSpec, render_into};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
@@ -218,7 +219,7 @@ pub fn simulate<'py>(
             let mut dolp = vec![0f64; c * np_];
             let mut beta = vec![0f64; c];
             let mut epus = vec![0f64; c];
-            let mut frames = vec![0u16; c * na * w * h];
+            let mut all_rects = Vec::with_capacity(c);
             for ci in 0..c {
                 polarid_core::error::ensure_finite("phi_deg", ph[ci])?;
                 let (a, b, p) = (
@@ -250,13 +251,23 @@ pub fn simulate<'py>(
                     None => 0.0,
                 };
                 epus[ci] = epu;
-                for (ai, an) in analyzers.iter().enumerate() {
-                    let fi = ci * na + ai;
-                    let buf = &mut frames[fi * w * h..(fi + 1) * w * h];
-                    let s = seed ^ (fi as u64 + 1).wrapping_mul(0xD1B5_4A32_D192_ED03);
-                    render_frame(w, h, &rects, [0.0; 3], *an, &sensor, epu, s, buf)?;
-                }
+                all_rects.push(rects);
             }
+            // The frames: the pipeline's renderer (parallel, one seed per frame).
+            let spec = RenderSpec {
+                width: w,
+                height: h,
+                background: [0.0; 3],
+                rects: all_rects,
+                electrons_per_unit: epus.clone(),
+                analyzers,
+                sensor,
+            };
+            let mut frames = vec![0u16; c * na * w * h];
+            let frame_seed = |ci: usize, ai: usize| {
+                seed ^ ((ci * na + ai) as u64 + 1).wrapping_mul(0xD1B5_4A32_D192_ED03)
+            };
+            render_into(&spec, &frame_seed, &mut frames, &no_progress)?;
             Ok((radiance, dolp, beta, epus, frames))
         })
         .py_err()?;

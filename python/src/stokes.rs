@@ -11,7 +11,9 @@ use pyo3::types::PyTuple;
 
 use crate::arrays::{FloatArray, PAR_MIN_LEN, float_array, fmt_shape, raw_array, to_numpy};
 use crate::errors::{PyResultExt, value_error};
+use crate::map::PipeResultExt;
 use crate::with_raw;
+use polarid_pipeline::map::rules::check_levels;
 
 /// Register this module's functions.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -24,25 +26,14 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
 }
 
 /// Pixel rules as the CLI builds them (`polarid stokes --dark-level --saturation`),
-/// with the CLI's checks.
+/// with the CLI's checks (`polarid_pipeline::map::rules::check_levels`).
 pub fn pixel_rules(
     dark_level: f64,
     saturation: Option<f64>,
     type_max: f32,
     min_s0: f64,
 ) -> PyResult<PixelRules> {
-    if !dark_level.is_finite() || dark_level < 0.0 {
-        return Err(value_error(format!(
-            "dark_level must be a finite number >= 0, got {dark_level}"
-        )));
-    }
-    if let Some(s) = saturation
-        && (!s.is_finite() || s <= dark_level)
-    {
-        return Err(value_error(format!(
-            "saturation must be a finite number above the dark level, got {s}"
-        )));
-    }
+    check_levels(dark_level, saturation).py_pipe()?;
     if !min_s0.is_finite() {
         return Err(CoreError::NonFinite {
             name: "min_s0",

@@ -1,5 +1,6 @@
 //! The subcommands, one module each.
 
+pub mod bridge;
 pub mod classify;
 pub mod common;
 pub mod demo;

@@ -13,6 +13,9 @@ use polarid_io::atomic::{StagedDir, check_output};
 use polarid_io::image;
 use polarid_io::measure::{self, StokesImages, dofp_stokes, frames_stokes, rules_for};
 
+use polarid_pipeline::map::rules::check_levels;
+
+use super::bridge::CliResult;
 use crate::{BadInput, Ctx};
 
 /// How a DoFP mosaic is turned into Stokes images.
@@ -78,21 +81,7 @@ pub struct Args {
 
 /// Run `polarid stokes`.
 pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
-    if !args.dark_level.is_finite() || args.dark_level < 0.0 {
-        return Err(BadInput(format!(
-            "--dark-level must be a finite number >= 0, got {}",
-            args.dark_level
-        ))
-        .into());
-    }
-    if let Some(s) = args.saturation
-        && (!s.is_finite() || s <= args.dark_level)
-    {
-        return Err(BadInput(format!(
-            "--saturation must be a finite number above the dark level, got {s}"
-        ))
-        .into());
-    }
+    check_levels(args.dark_level, args.saturation).cli()?;
     let (img, inputs): (StokesImages, Vec<PathBuf>) = match (&args.dofp, args.frames.is_empty()) {
         (Some(raw_path), true) => {
             let pattern = Pattern::new(&args.pattern)?;

@@ -1,0 +1,352 @@
+//! refractiveindex.info YAML → a material library for a filter band (`polarid library`).
+//!
+//! Each file gives one material: the arithmetic means of `n` and of `k` over the band,
+//! sampled every `step` nm ([`RiiData::band_mean`], the method of the built-in 650 nm
+//! library: band 610:690, step 1 reproduces it). Nothing is extrapolated: a file whose
+//! data do not cover the whole band is an error naming the file, the band and the data's
+//! range, or is skipped with a warning when the configuration says so.
+//!
+//! Names: by default the file stem, prefixed with the material folder in the database's
+//! layout `shelf/BOOK/nk/PAGE.yml` (`main/Au/nk/Johnson.yml` → `Au_Johnson`), blanks
+//! replaced by `_`. A names map (CSV, columns `file,name`, optional `category`,
+//! `reference`) names files explicitly; `file` is matched against the end of each YAML
+//! path, whole components only (`main/Au/nk/Johnson.yml` or `Au/nk/Johnson.yml`).
+//!
+//! Categories: the map's `category`, else the nearest folder named `metal`, `dielectric`,
+//! `semiconductor` or `other` between a file and the directory input it was found in (that
+//! directory included), else the configuration's category, else empty.
+//!
+//! [`build_library`] returns the materials; writing the library CSV (with
+//! [`LibraryConfig::comment`]) is the caller's.
+
+mod sources;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use polarid_core::classify::check_class_name;
+use polarid_io::IoError;
+use polarid_io::library::{Material, RiiData};
+
+pub use sources::default_name;
+
+use crate::error::{PipelineError, Result};
+use crate::progress::{Progress, Warning};
+
+/// Largest number of samples of one band mean (guards against `step = 1e-9`).
+pub const MAX_SAMPLES: f64 = 1e6;
+
+/// A wavelength band in nm, `lo <= hi` (`lo == hi`: one wavelength).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Band {
+    /// Lower end, nm.
+    pub lo: f64,
+    /// Upper end, nm.
+    pub hi: f64,
+}
+
+impl std::fmt::Display for Band {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.lo == self.hi {
+            write!(f, "{} nm", self.lo)
+        } else {
+            write!(f, "{}–{} nm", self.lo, self.hi)
+        }
+    }
+}
+
+/// Parse `LO:HI` or `WL` (nm) into a [`Band`]; both ends finite and > 0, `LO <= HI`.
+/// The error is a sentence for a command-line parser.
+pub fn parse_band(s: &str) -> std::result::Result<Band, String> {
+    let num = |t: &str, what: &str| -> std::result::Result<f64, String> {
+        let v: f64 = t
+            .trim()
+            .parse()
+            .map_err(|_| format!("{what} {t:?} is not a number (expected LO:HI or WL in nm)"))?;
+        if !(v.is_finite() && v > 0.0) {
+            return Err(format!("{what} {t:?} must be a finite wavelength > 0 nm"));
+        }
+        Ok(v)
+    };
+    let band = match s.split_once(':') {
+        Some((a, b)) => Band {
+            lo: num(a, "LO")?,
+            hi: num(b, "HI")?,
+        },
+        None => {
+            let wl = num(s, "WL")?;
+            Band { lo: wl, hi: wl }
+        }
+    };
+    if band.hi < band.lo {
+        return Err(format!(
+            "empty band: HI {} nm is below LO {} nm",
+            band.hi, band.lo
+        ));
+    }
+    Ok(band)
+}
+
+/// Sample wavelengths (nm) of the band mean: first and last, and their count, exactly as
+/// [`RiiData::band_mean`] takes them.
+fn samples(band: Band, step: f64) -> (f64, f64, usize) {
+    let count = ((band.hi - band.lo) / step + 1e-9).floor() as usize + 1;
+    (band.lo, band.lo + (count - 1) as f64 * step, count)
+}
+
+/// The validated options of a library build.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LibraryConfig {
+    band: Band,
+    step: f64,
+    category: Option<String>,
+    skip_missing: bool,
+}
+
+impl LibraryConfig {
+    /// Check the options: a band of finite wavelengths > 0 with `lo <= hi`, a sampling
+    /// step > 0 nm giving at most [`MAX_SAMPLES`] samples, a non-empty default
+    /// `category`; `skip_missing` skips files that do not cover the band (with a
+    /// warning) instead of failing. Errors name `--band`, `--step`, `--category`.
+    pub fn new(
+        band: Band,
+        step: f64,
+        category: Option<String>,
+        skip_missing: bool,
+    ) -> Result<Self> {
+        let ok = |x: f64| x.is_finite() && x > 0.0;
+        if !(ok(band.lo) && ok(band.hi) && band.lo <= band.hi) {
+            return Err(PipelineError::config(
+                "--band",
+                format!("{}:{}", band.lo, band.hi),
+                "must be LO:HI with finite wavelengths 0 < LO <= HI nm",
+            ));
+        }
+        if !ok(step) {
+            return Err(PipelineError::config(
+                "--step",
+                step,
+                "must be a step > 0 nm",
+            ));
+        }
+        let (_, _, count) = samples(band, step);
+        if count as f64 > MAX_SAMPLES {
+            return Err(PipelineError::config(
+                "--step",
+                step,
+                format!("gives {count} samples over the band {band} (at most {MAX_SAMPLES})"),
+            ));
+        }
+        if let Some(c) = &category
+            && c.trim().is_empty()
+        {
+            return Err(PipelineError::config(
+                "--category",
+                format!("{c:?}"),
+                "must be a non-empty category name",
+            ));
+        }
+        Ok(Self {
+            band,
+            step,
+            category,
+            skip_missing,
+        })
+    }
+
+    /// The band.
+    pub fn band(&self) -> Band {
+        self.band
+    }
+
+    /// Number of samples of every band mean.
+    pub fn samples(&self) -> usize {
+        samples(self.band, self.step).2
+    }
+
+    /// The comment line of the library CSV: the data's origin and the sampling.
+    pub fn comment(&self) -> String {
+        let count = self.samples();
+        let sampling = if count == 1 {
+            format!("n, k at {} nm", self.band.lo)
+        } else {
+            format!(
+                "n, k over {}: mean of {count} samples every {} nm",
+                self.band, self.step
+            )
+        };
+        format!(
+            "polarid library: refractiveindex.info data (CC0; cite M. N. Polyanskiy, Sci. \
+             Data 11, 94 (2024) and each file's REFERENCES). {sampling}; tabulated data \
+             linearly interpolated, k = 0 where only n is given"
+        )
+    }
+}
+
+/// The result of [`build_library`].
+#[derive(Debug, Clone)]
+pub struct LibraryBuild {
+    /// The materials, in input order.
+    pub materials: Vec<Material>,
+    /// Every YAML file read (folders expanded), in order.
+    pub files: Vec<PathBuf>,
+    /// The files skipped because their data do not cover the band.
+    pub warnings: Vec<Warning>,
+}
+
+fn nm(x_um: f64) -> String {
+    format!("{:.1}", x_um * 1e3)
+}
+
+/// Build a library from YAML files or folders of them (`inputs`) and an optional names
+/// map (CSV). Progress stage `"files"`.
+pub fn build_library(
+    cfg: &LibraryConfig,
+    inputs: &[PathBuf],
+    names_map: Option<&Path>,
+    progress: Progress<'_>,
+) -> Result<LibraryBuild> {
+    let srcs = sources::sources(inputs)?;
+    let mapped = match names_map {
+        Some(map) => sources::read_names(map, &srcs)?,
+        None => BTreeMap::new(),
+    };
+    let band = cfg.band;
+    let (first, last, _) = samples(band, cfg.step);
+    let mut materials: Vec<Material> = Vec::new();
+    let mut warnings = Vec::new();
+    let mut names: BTreeMap<String, PathBuf> = BTreeMap::new();
+    for (i, s) in srcs.iter().enumerate() {
+        progress("files", i as u64, srcs.len() as u64);
+        let data = RiiData::read(&s.path)?;
+        let (lo_um, hi_um) = data.range_um();
+        if !(first / 1e3 >= lo_um && last / 1e3 <= hi_um) {
+            let what = format!(
+                "band {band} is not covered by the data, whose range is {}–{} nm \
+                 (no extrapolation)",
+                nm(lo_um),
+                nm(hi_um)
+            );
+            if cfg.skip_missing {
+                warnings.push(Warning(format!("{}: {what}; skipped", s.path.display())));
+                continue;
+            }
+            return Err(IoError::Model {
+                path: s.path.clone(),
+                reason: format!("{what}; choose another band or pass --skip-missing"),
+            }
+            .into());
+        }
+        let (n, k) = data.band_mean(band.lo, band.hi, cfg.step)?;
+        if !(n > 0.0 && k >= 0.0) {
+            return Err(IoError::Model {
+                path: s.path.clone(),
+                reason: format!(
+                    "band mean n = {n}, k = {k} over {band} is not a usable index \
+                     (need n > 0, k >= 0)"
+                ),
+            }
+            .into());
+        }
+        let m = mapped.get(&i).cloned().unwrap_or_default();
+        let name = m.name.unwrap_or_else(|| default_name(&s.path));
+        let data_err = |reason: String| PipelineError::Data {
+            path: s.path.display().to_string(),
+            reason,
+        };
+        check_class_name(&name)
+            .map_err(|e| data_err(format!("default name {name:?}: {e}; name it with --names")))?;
+        if let Some(prev) = names.insert(name.clone(), s.path.clone()) {
+            return Err(data_err(format!(
+                "name {name:?} is also the name of {}; name them with --names MAP.csv",
+                prev.display()
+            )));
+        }
+        let category = m
+            .category
+            .or_else(|| sources::folder_category(s))
+            .or_else(|| cfg.category.clone());
+        let reference = m.reference.or_else(|| Some(s.rel.display().to_string()));
+        materials.push(Material {
+            name,
+            category,
+            n,
+            k,
+            reference,
+            line: 0,
+        });
+    }
+    progress("files", srcs.len() as u64, srcs.len() as u64);
+    if materials.is_empty() {
+        return Err(PipelineError::config(
+            "--band",
+            band,
+            "is covered by no input file (every file was skipped)",
+        ));
+    }
+    Ok(LibraryBuild {
+        materials,
+        files: srcs.into_iter().map(|s| s.path).collect(),
+        warnings,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn band_syntax() {
+        assert_eq!(
+            parse_band("520:545"),
+            Ok(Band {
+                lo: 520.0,
+                hi: 545.0
+            })
+        );
+        assert_eq!(
+            parse_band("532"),
+            Ok(Band {
+                lo: 532.0,
+                hi: 532.0
+            })
+        );
+        assert!(parse_band("545:520").unwrap_err().contains("empty band"));
+        assert!(parse_band("5x0:545").unwrap_err().contains("\"5x0\""));
+        assert!(parse_band("-5").unwrap_err().contains("> 0"));
+        assert!(parse_band("nan").is_err());
+    }
+
+    #[test]
+    fn samples_match_band_mean() {
+        let b = Band {
+            lo: 610.0,
+            hi: 690.0,
+        };
+        assert_eq!(samples(b, 1.0), (610.0, 690.0, 81));
+        assert_eq!(samples(b, 30.0), (610.0, 670.0, 3));
+        assert_eq!(
+            samples(
+                Band {
+                    lo: 532.0,
+                    hi: 532.0
+                },
+                1.0
+            ),
+            (532.0, 532.0, 1)
+        );
+    }
+
+    #[test]
+    fn config_checks() {
+        let b = Band {
+            lo: 500.0,
+            hi: 800.0,
+        };
+        assert!(LibraryConfig::new(b, 1.0, None, false).is_ok());
+        let e = LibraryConfig::new(b, 1e-9, None, false).unwrap_err();
+        assert!(e.to_string().contains("--step") && e.to_string().contains("samples"));
+        assert!(LibraryConfig::new(b, 1.0, Some(" ".into()), false).is_err());
+        assert!(LibraryConfig::new(b, -1.0, None, false).is_err());
+    }
+}

@@ -1,0 +1,387 @@
+//! Manifest → per-pixel `(n, k)` and material maps (`polarid map`, `polarid.map_manifest`).
+//!
+//! Pipeline (`polarid_core::map`): for each capture in turn, the frames are read, the
+//! per-pixel (or per `b × b` block) Stokes vector and DoLP computed, and only the DoLP
+//! (f32) kept, with the signal flags (saturated, dark, invalid) ORed over the captures
+//! (progress stage `"captures (DoLP)"`). Then every unflagged pixel's DoLP values over
+//! the captures are fitted for (n, k) (eq. 9, `fit_batch`, in tiles of pixels) and
+//! classified by the nearest prototype of the model (stage `"pixels (fit)"`). Peak
+//! memory is about `T` DoLP images plus one capture's frames.
+//!
+//! Dark threshold: a pixel (block) is "dark" when its mean dark-subtracted `S0` in DN is
+//! at or below `min_s0` in any capture; by default 1 % of the range from the dark level
+//! to the saturation level of integer frames (0 for float frames). For Stokes captures
+//! (float TIFF, `S0` in DN / exposure) the threshold is divided by the capture's
+//! exposure.
+//!
+//! Nothing is written here: [`map_manifest`] returns the images and counts
+//! ([`MapResult`]), and the caller writes them (`polarid map` writes TIFFs, PNG/SVG and
+//! JSON; the Python binding returns numpy arrays).
+
+mod capture;
+pub mod rules;
+mod summary;
+
+use std::path::Path;
+use std::time::Instant;
+
+use polarid_core::classify::{Classifier, ClassifierConfig, UNKNOWN};
+use polarid_core::fit::{FitOptions, FitPlan};
+use polarid_core::geometry;
+use polarid_core::map::{self, MapCounts, MapOutputs, PixelClassifier, reason};
+use polarid_io::IoError;
+use polarid_io::manifest::Manifest;
+use polarid_io::model::Model;
+
+pub use polarid_core::map::reason::NAMES as REASON_NAMES;
+pub use summary::RegionSummary;
+
+use crate::error::{PipelineError, Result};
+use crate::progress::{Progress, Warning};
+
+/// Distance to the prototypes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Metric {
+    /// Euclidean distance in the `(n, k)` plane (the paper's rule).
+    #[default]
+    Euclidean,
+    /// Mahalanobis distance with each pixel's fit covariance plus the prototype's
+    /// (`max_distance` is then in standard deviations).
+    Mahalanobis,
+}
+
+impl Metric {
+    /// `euclidean` or `mahalanobis`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Metric::Euclidean => "euclidean",
+            Metric::Mahalanobis => "mahalanobis",
+        }
+    }
+
+    /// Parse `euclidean` or `mahalanobis` (error naming `--metric`).
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "euclidean" => Ok(Metric::Euclidean),
+            "mahalanobis" => Ok(Metric::Mahalanobis),
+            _ => Err(PipelineError::config(
+                "--metric",
+                format!("{s:?}"),
+                "must be \"euclidean\" or \"mahalanobis\"",
+            )),
+        }
+    }
+}
+
+/// Default pixels per fitting tile.
+pub const DEFAULT_TILE: usize = 65536;
+
+/// The validated options of a map (built by [`MapConfig::new`] before any work).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MapConfig {
+    bin: usize,
+    min_s0: Option<f64>,
+    max_distance: Option<f64>,
+    metric: Metric,
+    tile: usize,
+}
+
+impl MapConfig {
+    /// Check the options: `bin` in `1..=64` (sum of `bin × bin` blocks before the DoLP),
+    /// `min_s0` (dark threshold, DN) finite, `max_distance` (reject pixels whose nearest
+    /// prototype is farther) finite and > 0, `tile` (pixels per fitting tile) >= 1.
+    /// Errors are [`PipelineError::Config`] naming the CLI option (`--bin`, ...).
+    pub fn new(
+        bin: usize,
+        min_s0: Option<f64>,
+        max_distance: Option<f64>,
+        metric: Metric,
+        tile: usize,
+    ) -> Result<Self> {
+        if bin == 0 || bin > 64 {
+            return Err(PipelineError::config("--bin", bin, "must be in 1..=64"));
+        }
+        if let Some(v) = min_s0
+            && !v.is_finite()
+        {
+            return Err(PipelineError::config(
+                "--min-s0",
+                v,
+                "must be a finite number",
+            ));
+        }
+        if let Some(d) = max_distance
+            && !(d.is_finite() && d > 0.0)
+        {
+            return Err(PipelineError::config(
+                "--max-distance",
+                d,
+                "must be finite and > 0",
+            ));
+        }
+        if tile == 0 {
+            return Err(PipelineError::config("--tile", tile, "must be at least 1"));
+        }
+        Ok(Self {
+            bin,
+            min_s0,
+            max_distance,
+            metric,
+            tile,
+        })
+    }
+
+    /// The binning factor.
+    pub fn bin(&self) -> usize {
+        self.bin
+    }
+
+    /// The metric.
+    pub fn metric(&self) -> Metric {
+        self.metric
+    }
+}
+
+/// The maps of [`map_manifest`]: images of `width × height` pixels, row-major.
+#[derive(Debug, Clone)]
+pub struct MapResult {
+    /// Frame width, pixels.
+    pub frame_width: usize,
+    /// Frame height, pixels.
+    pub frame_height: usize,
+    /// Binning factor.
+    pub bin: usize,
+    /// Map width (`frame_width / bin`).
+    pub width: usize,
+    /// Map height.
+    pub height: usize,
+    /// Fitted `n` (NaN where not fitted).
+    pub n: Vec<f32>,
+    /// Fitted `k` (NaN where not fitted).
+    pub k: Vec<f32>,
+    /// Standard error of `n`.
+    pub n_se: Vec<f32>,
+    /// Standard error of `k`.
+    pub k_se: Vec<f32>,
+    /// RMS DoLP residual of the fit.
+    pub rms_residual: Vec<f32>,
+    /// Class index: 0 not classified, `i >= 1` is `class_names[i - 1]`.
+    pub class: Vec<u16>,
+    /// Why a pixel is (not) classified: index into [`REASON_NAMES`].
+    pub reason: Vec<u8>,
+    /// Class names, sorted (map index `i >= 1` is `class_names[i - 1]`).
+    pub class_names: Vec<String>,
+    /// Pixel counts per reason and per class index.
+    pub counts: MapCounts,
+    /// β (eq. 5) of every capture, degrees.
+    pub beta_deg: Vec<f64>,
+    /// The dark threshold used for every capture, DN.
+    pub min_s0_dn: Vec<f32>,
+    /// The maximum distance of the configuration.
+    pub max_distance: Option<f64>,
+    /// The metric of the configuration.
+    pub metric: Metric,
+    /// Per labelled region of the manifest, its pixels per class.
+    pub regions: Vec<RegionSummary>,
+    /// Seconds spent on the DoLP stage.
+    pub seconds_dolp: f64,
+    /// Seconds spent fitting and classifying.
+    pub seconds_fit: f64,
+    /// The manifest's warnings (unknown keys ...).
+    pub warnings: Vec<Warning>,
+}
+
+impl MapResult {
+    /// The name of class index `i` (`unknown` for 0).
+    pub fn class_name(&self, i: usize) -> &str {
+        match i {
+            0 => UNKNOWN,
+            i => self.class_names.get(i - 1).map_or(UNKNOWN, String::as_str),
+        }
+    }
+
+    /// Number of classified pixels.
+    pub fn classified(&self) -> u64 {
+        self.counts.reasons[reason::CLASSIFIED as usize]
+    }
+}
+
+/// The per-pixel classifier of a model (read from `model_path`) under a configuration.
+pub fn pixel_classifier(
+    cfg: &MapConfig,
+    model: &Model,
+    model_path: &Path,
+) -> Result<PixelClassifier> {
+    let core_err = |e| IoError::Core {
+        path: model_path.to_path_buf(),
+        source: e,
+    };
+    let classifier =
+        Classifier::new(model.prototypes(), ClassifierConfig::default()).map_err(core_err)?;
+    let pc = PixelClassifier::new(classifier, cfg.max_distance).map_err(core_err)?;
+    Ok(pc.with_mahalanobis(cfg.metric == Metric::Mahalanobis))
+}
+
+/// Map a loaded manifest with a model (`model_path` names it in errors): DoLP per capture, then fit and classify every
+/// pixel (see the module documentation). Progress stages: `"captures (DoLP)"` (one
+/// step per capture), `"pixels (fit)"` (pixels done).
+pub fn map_manifest(
+    cfg: &MapConfig,
+    m: &Manifest,
+    model: &Model,
+    model_path: &Path,
+    progress: Progress<'_>,
+) -> Result<MapResult> {
+    let pc = pixel_classifier(cfg, model, model_path)?;
+    let names: Vec<String> = pc.names().to_vec();
+
+    // Geometry: one β per capture (eq. 5), the fit plan shared by every pixel.
+    let betas: Vec<f64> = m
+        .captures
+        .iter()
+        .map(|c| {
+            geometry::beta(
+                c.theta_i_deg.to_radians(),
+                c.theta_r_deg.to_radians(),
+                c.phi_deg.to_radians(),
+            )
+        })
+        .collect();
+    let plan = FitPlan::new(&betas, FitOptions::default()).map_err(|e| IoError::Core {
+        path: m.path.clone(),
+        source: e,
+    })?;
+
+    // Stage 1: DoLP per capture (one capture's frames in memory at a time).
+    let t0 = Instant::now();
+    let ncap = m.captures.len() as u64;
+    progress("captures (DoLP)", 0, ncap);
+    let mut dims = None;
+    let mut flags: Vec<u8> = Vec::new();
+    let mut dolp: Vec<Vec<f32>> = Vec::with_capacity(m.captures.len());
+    let mut thresholds = Vec::with_capacity(m.captures.len());
+    for (i, c) in m.captures.iter().enumerate() {
+        let mut d = Vec::new();
+        let th =
+            capture::capture_dolp(c, cfg, &mut dims, &mut d, &mut flags).map_err(|e| match e {
+                e @ PipelineError::Config { .. } => e,
+                e => PipelineError::Data {
+                    path: format!("capture {} (line {})", c.index, c.line),
+                    reason: e.to_string(),
+                },
+            })?;
+        thresholds.push(th);
+        dolp.push(d);
+        progress("captures (DoLP)", i as u64 + 1, ncap);
+    }
+    let Some(d) = dims else {
+        return Err(PipelineError::Data {
+            path: m.path.display().to_string(),
+            reason: "the manifest has no capture".into(),
+        });
+    };
+    let t_dolp = t0.elapsed().as_secs_f64();
+
+    // Stage 2: fit and classify, in tiles.
+    let npix = d.out_w * d.out_h;
+    let img = || vec![0f32; npix];
+    let (mut n, mut k, mut n_se, mut k_se, mut rms) = (img(), img(), img(), img(), img());
+    let mut class = vec![0u16; npix];
+    let mut why = vec![0u8; npix];
+    let counts = {
+        let views: Vec<&[f32]> = dolp.iter().map(|v| v.as_slice()).collect();
+        let outputs = MapOutputs {
+            n: &mut n,
+            k: &mut k,
+            n_se: &mut n_se,
+            k_se: &mut k_se,
+            rms_residual: &mut rms,
+            class: &mut class,
+            reason: &mut why,
+        };
+        let report = |done: usize| progress("pixels (fit)", done as u64, npix as u64);
+        map::fit_and_classify(&plan, &pc, &views, &flags, cfg.tile, outputs, &report).map_err(
+            |e| IoError::Core {
+                path: m.path.clone(),
+                source: e,
+            },
+        )?
+    };
+    drop(dolp);
+    drop(flags);
+    let t_fit = t0.elapsed().as_secs_f64() - t_dolp;
+    let regions = summary::region_summary(m, d, cfg.bin, &class, &names);
+    Ok(MapResult {
+        frame_width: d.width,
+        frame_height: d.height,
+        bin: cfg.bin,
+        width: d.out_w,
+        height: d.out_h,
+        n,
+        k,
+        n_se,
+        k_se,
+        rms_residual: rms,
+        class,
+        reason: why,
+        class_names: names,
+        counts,
+        beta_deg: betas.iter().map(|b| b.to_degrees()).collect(),
+        min_s0_dn: thresholds,
+        max_distance: cfg.max_distance,
+        metric: cfg.metric,
+        regions,
+        seconds_dolp: t_dolp,
+        seconds_fit: t_fit,
+        warnings: m.warnings.iter().map(|w| Warning(w.clone())).collect(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn config_names_the_option_and_value() {
+        let ok = MapConfig::new(2, Some(5.0), Some(0.5), Metric::Mahalanobis, 100).unwrap();
+        assert_eq!((ok.bin(), ok.metric()), (2, Metric::Mahalanobis));
+        for (r, option, value) in [
+            (
+                MapConfig::new(0, None, None, Metric::Euclidean, 1),
+                "--bin",
+                "0",
+            ),
+            (
+                MapConfig::new(65, None, None, Metric::Euclidean, 1),
+                "--bin",
+                "65",
+            ),
+            (
+                MapConfig::new(1, Some(f64::NAN), None, Metric::Euclidean, 1),
+                "--min-s0",
+                "NaN",
+            ),
+            (
+                MapConfig::new(1, None, Some(-1.0), Metric::Euclidean, 1),
+                "--max-distance",
+                "-1",
+            ),
+            (
+                MapConfig::new(1, None, None, Metric::Euclidean, 0),
+                "--tile",
+                "0",
+            ),
+        ] {
+            match r {
+                Err(PipelineError::Config {
+                    option: o,
+                    value: v,
+                    ..
+                }) => assert_eq!((o.as_str(), v.as_str()), (option, value)),
+                other => panic!("{option}: {other:?}"),
+            }
+        }
+        assert_eq!(Metric::parse("euclidean").unwrap(), Metric::Euclidean);
+        assert!(Metric::parse("cosine").is_err());
+    }
+}

@@ -1,0 +1,165 @@
+//! The map's summary: pixel counts per class and per reason, and per labelled region of
+//! the manifest the share of its pixels given each class (`map_summary.json`).
+
+use polarid_core::classify::UNKNOWN;
+use polarid_core::map::reason;
+use polarid_io::manifest::Manifest;
+use serde_json::{Value, json};
+
+use super::MapResult;
+use super::capture::Dims;
+
+/// What a labelled region of the manifest became in the map.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RegionSummary {
+    /// Region name.
+    pub name: String,
+    /// The region's rectangle `[x, y, width, height]`, frame pixels.
+    pub rect: [usize; 4],
+    /// Map pixels (blocks) entirely inside the rectangle.
+    pub pixels: u64,
+    /// Pixels per class name (`unknown` for not classified), classes with pixels only,
+    /// in class-index order.
+    pub classes: Vec<(String, u64)>,
+    /// The region's labelled class, if any.
+    pub class: Option<String>,
+    /// Pixels given the labelled class (0 without a label).
+    pub correct: u64,
+}
+
+impl RegionSummary {
+    /// `correct / pixels`, `None` without a label or pixels.
+    pub fn correct_fraction(&self) -> Option<f64> {
+        (self.class.is_some() && self.pixels > 0).then(|| self.correct as f64 / self.pixels as f64)
+    }
+
+    fn to_json(&self) -> Value {
+        let per: serde_json::Map<String, Value> = self
+            .classes
+            .iter()
+            .map(|(n, c)| (n.clone(), json!(c)))
+            .collect();
+        let mut v = json!({
+            "name": self.name,
+            "rect": self.rect,
+            "pixels": self.pixels,
+            "classes": per,
+        });
+        if let Some(cls) = &self.class {
+            v["class"] = json!(cls);
+            v["correct"] = json!(self.correct);
+            v["correct_fraction"] = self.correct_fraction().map_or(Value::Null, |f| json!(f));
+        }
+        v
+    }
+}
+
+/// Per labelled region: the share of its (binned) pixels given each class.
+pub(crate) fn region_summary(
+    m: &Manifest,
+    d: Dims,
+    bin: usize,
+    class: &[u16],
+    names: &[String],
+) -> Vec<RegionSummary> {
+    let label = |i: usize| {
+        if i == 0 {
+            UNKNOWN.to_string()
+        } else {
+            names.get(i - 1).cloned().unwrap_or_default()
+        }
+    };
+    m.regions
+        .iter()
+        .map(|r| {
+            // Blocks entirely inside the rectangle.
+            let x0 = r.rect.x.div_ceil(bin);
+            let y0 = r.rect.y.div_ceil(bin);
+            let x1 = ((r.rect.x + r.rect.width) / bin).min(d.out_w);
+            let y1 = ((r.rect.y + r.rect.height) / bin).min(d.out_h);
+            let mut counts = vec![0u64; names.len() + 1];
+            for y in y0..y1.max(y0) {
+                for x in x0..x1.max(x0) {
+                    if let Some(c) = class.get(y * d.out_w + x)
+                        && let Some(n) = counts.get_mut(*c as usize)
+                    {
+                        *n += 1;
+                    }
+                }
+            }
+            let correct = r.class.as_ref().map_or(0, |cls| {
+                names
+                    .iter()
+                    .position(|n| n == cls)
+                    .map_or(0, |i| counts[i + 1])
+            });
+            RegionSummary {
+                name: r.name.clone(),
+                rect: [r.rect.x, r.rect.y, r.rect.width, r.rect.height],
+                pixels: counts.iter().sum(),
+                classes: counts
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, n)| **n > 0)
+                    .map(|(i, n)| (label(i), *n))
+                    .collect(),
+                class: r.class.clone(),
+                correct,
+            }
+        })
+        .collect()
+}
+
+impl MapResult {
+    /// The summary as JSON (the content of `map_summary.json` without the input paths
+    /// and timings, which the caller adds): size, binning, thresholds, metric, pixel
+    /// counts per reason and per class, and the regions.
+    pub fn summary_json(&self) -> Value {
+        let reasons: serde_json::Map<String, Value> = reason::NAMES
+            .iter()
+            .zip(self.counts.reasons)
+            .map(|(n, c)| (n.to_string(), json!(c)))
+            .collect();
+        let class_counts: Vec<Value> = self
+            .counts
+            .classes
+            .iter()
+            .enumerate()
+            .map(|(i, c)| {
+                json!({
+                    "index": i,
+                    "name": self.class_name(i),
+                    "pixels": c,
+                })
+            })
+            .collect();
+        json!({
+            "frame_width": self.frame_width,
+            "frame_height": self.frame_height,
+            "bin": self.bin,
+            "width": self.width,
+            "height": self.height,
+            "captures": self.beta_deg.len(),
+            "beta_deg": self.beta_deg,
+            "min_s0_dn": self.min_s0_dn,
+            "max_distance": self.max_distance,
+            "metric": self.metric.as_str(),
+            "pixels": self.width * self.height,
+            "classified": self.classified(),
+            "reasons": reasons,
+            "reason_codes": reason::NAMES,
+            "classes": class_counts,
+            "regions": self.regions.iter().map(RegionSummary::to_json).collect::<Vec<_>>(),
+        })
+    }
+
+    /// `classes.json`: class index (as a string) → name, `"0": "unknown"`.
+    pub fn classes_json(&self) -> Value {
+        let mut m = serde_json::Map::new();
+        m.insert("0".into(), json!(UNKNOWN));
+        for (i, n) in self.class_names.iter().enumerate() {
+            m.insert((i + 1).to_string(), json!(n));
+        }
+        Value::Object(m)
+    }
+}

@@ -1,0 +1,446 @@
+//! Scene → simulated captures (`polarid simulate`, the demo's capture sets), and the
+//! frame renderer shared with `polarid.simulate` (Python).
+//!
+//! For every source zenith of the scene, the radiance Stokes vector of each plate
+//! follows from the Priest–Meier pBRDF (paper eq. 3) plus an optional Lambertian
+//! depolarized term (`polarid_core::simulate::plate_radiance`); the sensor model adds
+//! shot and read noise, quantizes and saturates. The output is the frames, a capture
+//! manifest (`shared/FORMATS.md`) that `polarid measure` reads, `truth.csv` (the
+//! noise-free DoLP and S0 of every plate per capture) and a copy of the scene.
+//!
+//! **Files.** Simulation inherently produces files (the manifest names them), and a set
+//! of 2048×2448 frames does not fit in memory, so [`simulate_into`] writes each frame as
+//! soon as it is rendered into a [`StagedDir`] *given by the caller*, under a prefix:
+//! the caller decides where the set goes and commits the staging directory (or drops it,
+//! leaving nothing behind). The in-memory renderer [`render_into`] serves callers that
+//! want arrays (the Python binding).
+//!
+//! Units: with relative exposure `x`, a radiance `I` behind the polarizer gives
+//! `x · I · full_well` expected electrons; the manifest records `x` as the capture's
+//! `exposure`, so `S0 / exposure` in DN (what `measure` writes) equals the radiance times
+//! `2^bits − 1 − dark_level` whatever the exposure; `truth.csv`'s `s0` is in these units.
+
+mod files;
+
+use polarid_core::CoreError;
+use polarid_core::dop::dop;
+use polarid_core::geometry;
+use polarid_core::simulate::{
+    Analyzer, Sensor, UniformRect, frame_seed, peak_intensity, plate_radiance, render_frame,
+    stokes_dolp,
+};
+use polarid_io::IoError;
+use polarid_io::atomic::{StagedDir, write_atomic};
+use polarid_io::image;
+use polarid_io::scene::{CaptureKind, Scene};
+use polarid_io::table::fmt_f64;
+use rayon::prelude::*;
+
+pub use files::{manifest_text, write_truth};
+
+use crate::error::Result;
+use crate::progress::{Progress, Warning};
+
+/// Noise-free values of one plate in one capture (a row of `truth.csv`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TruthRow {
+    /// Plate (target) name.
+    pub target: String,
+    /// Plate class, if any.
+    pub class: Option<String>,
+    /// Source zenith, degrees.
+    pub theta_i_deg: f64,
+    /// Camera zenith, degrees.
+    pub theta_r_deg: f64,
+    /// `phi_r − phi_i`, degrees.
+    pub phi_deg: f64,
+    /// β (eq. 5), degrees.
+    pub beta_deg: f64,
+    /// Noise-free DoLP of the plate's radiance.
+    pub dolp: f64,
+    /// Noise-free S0, DN per unit exposure (the units of `measure`'s `s0`).
+    pub s0: f64,
+    /// Eq. (9) DoLP of the plate's index at β (equals `dolp` when `rho_d = 0`).
+    pub dolp_eq9_specular: f64,
+    /// The capture's relative exposure.
+    pub exposure: f64,
+    /// Expected electrons of the plate's brightest polarizer angle.
+    pub peak_electrons: f64,
+}
+
+/// What [`simulate_into`] wrote.
+#[derive(Debug, Clone)]
+pub struct Simulated {
+    /// Staged name of the manifest (`PREFIX/manifest.toml`).
+    pub manifest: String,
+    /// Number of captures.
+    pub captures: usize,
+    /// Number of image files.
+    pub frames: usize,
+    /// The noise-free values, per capture then per plate (also in `truth.csv`).
+    pub truth: Vec<TruthRow>,
+    /// Dim or saturated plates.
+    pub warnings: Vec<Warning>,
+}
+
+/// Uniform plates seen by a sensor: what [`render_into`] renders, `C` captures ×
+/// `A` analyzers frames of `width × height` pixels.
+#[derive(Debug, Clone)]
+pub struct RenderSpec {
+    /// Frame width, pixels.
+    pub width: usize,
+    /// Frame height, pixels.
+    pub height: usize,
+    /// Background radiance Stokes vector.
+    pub background: [f64; 3],
+    /// The plates of every capture (radiance per unit exposure).
+    pub rects: Vec<Vec<UniformRect>>,
+    /// Expected electrons per unit radiance of every capture.
+    pub electrons_per_unit: Vec<f64>,
+    /// The analyzers of every capture (polarizer angles, or one DoFP mosaic).
+    pub analyzers: Vec<Analyzer>,
+    /// The sensor.
+    pub sensor: Sensor,
+}
+
+impl RenderSpec {
+    /// Render frame `analyzer` of capture `capture` into `buf` (`width × height`).
+    fn render(
+        &self,
+        capture: usize,
+        analyzer: usize,
+        seed: u64,
+        buf: &mut [u16],
+    ) -> std::result::Result<(), CoreError> {
+        let (Some(rects), Some(&epu), Some(&an)) = (
+            self.rects.get(capture),
+            self.electrons_per_unit.get(capture),
+            self.analyzers.get(analyzer),
+        ) else {
+            return Err(CoreError::LengthMismatch {
+                name: "captures or analyzers of the render",
+                expected: self.rects.len(),
+                got: capture + 1,
+            });
+        };
+        render_frame(
+            self.width,
+            self.height,
+            rects,
+            self.background,
+            an,
+            &self.sensor,
+            epu,
+            seed,
+            buf,
+        )
+    }
+}
+
+/// Render every frame of `spec` into `out` (`C × A × height × width`, capture-major),
+/// in parallel; `seed(capture, analyzer)` gives each frame's noise seed, so the output
+/// is the same for given seeds. Progress stage `"frames"`.
+pub fn render_into(
+    spec: &RenderSpec,
+    seed: &(dyn Fn(usize, usize) -> u64 + Sync),
+    out: &mut [u16],
+    progress: Progress<'_>,
+) -> std::result::Result<(), CoreError> {
+    let npix = spec.width * spec.height;
+    let na = spec.analyzers.len();
+    let total = (spec.rects.len() * na) as u64;
+    if out.len() != total as usize * npix {
+        return Err(CoreError::LengthMismatch {
+            name: "frames buffer",
+            expected: total as usize * npix,
+            got: out.len(),
+        });
+    }
+    if npix == 0 || na == 0 {
+        return Ok(());
+    }
+    let done = std::sync::atomic::AtomicU64::new(0);
+    out.par_chunks_mut(npix)
+        .enumerate()
+        .try_for_each(|(fi, buf)| {
+            let (ci, ai) = (fi / na, fi % na);
+            spec.render(ci, ai, seed(ci, ai), buf)?;
+            let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            progress("frames", d, total);
+            Ok(())
+        })
+}
+
+/// Directory name of capture `i` (0-based) at source zenith `theta_i`: `i35`, `i37p5`;
+/// prefixed by the capture number when two captures share a zenith.
+pub fn capture_dir(scene: &Scene, i: usize) -> String {
+    let t = scene.theta_i_deg[i];
+    let base = format!("i{}", fmt_f64(t).replace('.', "p"));
+    let dup = scene.theta_i_deg.iter().filter(|&&x| x == t).count() > 1;
+    if dup {
+        format!("c{:02}_{base}", i + 1)
+    } else {
+        base
+    }
+}
+
+/// A polarizer angle in a file name: `000`, `045`, `022p5`.
+fn fmt_angle(a: f64) -> String {
+    if a.fract() == 0.0 && (0.0..1000.0).contains(&a) {
+        format!("{:03}", a as u32)
+    } else {
+        fmt_f64(a).replace(['.', '-'], "p")
+    }
+}
+
+/// The file of frame `frame` of capture `capture` (relative to the set's directory):
+/// `i35/pol045.png`, or `i35/raw.tif` for a DoFP mosaic.
+pub fn frame_file(scene: &Scene, capture: usize, frame: usize) -> String {
+    let dir = capture_dir(scene, capture);
+    let ext = scene.format.extension();
+    match &scene.capture {
+        CaptureKind::Frames { angles_deg } => {
+            let a = angles_deg.get(frame).copied().unwrap_or(f64::NAN);
+            format!("{dir}/pol{}.{ext}", fmt_angle(a))
+        }
+        CaptureKind::Dofp { .. } => format!("{dir}/raw.{ext}"),
+    }
+}
+
+/// The radiance, exposure and truth of every capture of a scene.
+struct Plan {
+    spec: RenderSpec,
+    /// Relative exposure of every capture.
+    exposures: Vec<f64>,
+    truth: Vec<TruthRow>,
+    warnings: Vec<Warning>,
+}
+
+/// Plan the simulation of a scene (no rendering yet).
+fn plan(scene: &Scene) -> Result<Plan> {
+    let sensor = &scene.sensor;
+    let (tr, phi) = (scene.theta_r_deg.to_radians(), scene.phi_deg.to_radians());
+    let angles: Vec<f64> = scene
+        .capture
+        .angles_deg()
+        .iter()
+        .map(|a| a.to_radians())
+        .collect();
+    let label = |e: CoreError| IoError::Core {
+        path: scene.path.clone(),
+        source: e,
+    };
+    let mut rects: Vec<Vec<UniformRect>> = Vec::with_capacity(scene.theta_i_deg.len());
+    let mut exposures = Vec::with_capacity(scene.theta_i_deg.len());
+    let mut truth = Vec::new();
+    let mut warnings = Vec::new();
+    for &ti_deg in &scene.theta_i_deg {
+        let ti = ti_deg.to_radians();
+        let mut caps = Vec::with_capacity(scene.plates.len());
+        for p in &scene.plates {
+            let s = plate_radiance(&p.optics, ti, tr, phi).map_err(label)?;
+            caps.push(UniformRect {
+                x: p.rect.x,
+                y: p.rect.y,
+                width: p.rect.width,
+                height: p.rect.height,
+                stokes: s,
+            });
+        }
+        let stokes: Vec<[f64; 3]> = caps.iter().map(|r| r.stokes).collect();
+        let exposure = scene
+            .exposure
+            .resolve(peak_intensity(&stokes, &angles))
+            .map_err(label)?;
+        let epu = sensor.electrons_per_unit(exposure);
+        let beta = geometry::beta(ti, tr, phi);
+        for (p, r) in scene.plates.iter().zip(&caps) {
+            let peak_e = epu * peak_intensity(&[r.stokes], &angles);
+            if peak_e < 100.0 {
+                warnings.push(Warning(format!(
+                    "plate {:?} at theta_i = {ti_deg} deg is dim: {peak_e:.0} electrons at its \
+                     brightest (its specular lobe misses the camera, or another plate is much \
+                     brighter); its DoLP will be noisy",
+                    p.name
+                )));
+            } else if peak_e > sensor.full_well_e {
+                warnings.push(Warning(format!(
+                    "plate {:?} at theta_i = {ti_deg} deg saturates ({peak_e:.0} electrons \
+                     expected, full well {})",
+                    p.name, sensor.full_well_e
+                )));
+            }
+            truth.push(TruthRow {
+                target: p.name.clone(),
+                class: p.class.clone(),
+                theta_i_deg: ti_deg,
+                theta_r_deg: scene.theta_r_deg,
+                phi_deg: scene.phi_deg,
+                beta_deg: beta.to_degrees(),
+                dolp: stokes_dolp(&r.stokes),
+                s0: r.stokes[0] * sensor.dn_per_unit(),
+                dolp_eq9_specular: dop(p.optics.n, p.optics.k, beta),
+                exposure,
+                peak_electrons: peak_e,
+            });
+        }
+        rects.push(caps);
+        exposures.push(exposure);
+    }
+    let analyzers = match &scene.capture {
+        CaptureKind::Frames { angles_deg } => angles_deg
+            .iter()
+            .map(|a| Analyzer::Uniform(a.to_radians()))
+            .collect(),
+        CaptureKind::Dofp { pattern } => {
+            vec![Analyzer::Mosaic(pattern.angles_deg().map(f64::to_radians))]
+        }
+    };
+    let spec = RenderSpec {
+        width: scene.width,
+        height: scene.height,
+        background: [scene.background, 0.0, 0.0],
+        electrons_per_unit: exposures
+            .iter()
+            .map(|&x| sensor.electrons_per_unit(x))
+            .collect(),
+        rects,
+        analyzers,
+        sensor: *sensor,
+    };
+    Ok(Plan {
+        spec,
+        exposures,
+        truth,
+        warnings,
+    })
+}
+
+/// Simulate `scene` into `staged` under `prefix` (`""` or a directory name ending in
+/// `/`): the frames, `manifest.toml`, `truth.csv` and `scene.toml`. Frames render in
+/// parallel and are written as they come (progress stage `"frames"`); the result is
+/// the same for a given scene (seeded noise). The caller commits `staged`.
+pub fn simulate_into(
+    scene: &Scene,
+    staged: &StagedDir,
+    prefix: &str,
+    progress: Progress<'_>,
+) -> Result<Simulated> {
+    let Plan {
+        spec,
+        exposures,
+        truth,
+        warnings,
+    } = plan(scene)?;
+    let na = spec.analyzers.len();
+    let jobs: Vec<(usize, usize)> = (0..spec.rects.len())
+        .flat_map(|c| (0..na).map(move |a| (c, a)))
+        .collect();
+    let (w, h) = (spec.width, spec.height);
+    let done = std::sync::atomic::AtomicU64::new(0);
+    jobs.par_iter().try_for_each(|&(ci, fi)| -> Result<()> {
+        let mut buf = vec![0u16; w * h];
+        spec.render(
+            ci,
+            fi,
+            frame_seed(scene.seed, ci as u64, fi as u64),
+            &mut buf,
+        )
+        .map_err(|e| IoError::Core {
+            path: scene.path.clone(),
+            source: e,
+        })?;
+        let path = staged.path(&format!("{prefix}{}", frame_file(scene, ci, fi)))?;
+        if spec.sensor.bit_depth <= 8 {
+            let b: Vec<u8> = buf.iter().map(|&v| v as u8).collect();
+            image::write_gray8(&path, false, w, h, &b)?;
+        } else {
+            image::write_gray16(&path, false, w, h, &buf)?;
+        }
+        let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        progress("frames", d, jobs.len() as u64);
+        Ok(())
+    })?;
+
+    let text = manifest_text(scene, &exposures);
+    let manifest = format!("{prefix}manifest.toml");
+    let mpath = staged.path(&manifest)?;
+    write_atomic(&mpath, false, |w| {
+        w.write_all(text.as_bytes())
+            .map_err(|e| IoError::io(&mpath, e))
+    })?;
+    let tpath = staged.path(&format!("{prefix}truth.csv"))?;
+    write_atomic(&tpath, false, |w| write_truth(w, &tpath, &truth))?;
+    let spath = staged.path(&format!("{prefix}scene.toml"))?;
+    write_atomic(&spath, false, |w| {
+        w.write_all(scene.text.as_bytes())
+            .map_err(|e| IoError::io(&spath, e))
+    })?;
+    Ok(Simulated {
+        manifest,
+        captures: scene.theta_i_deg.len(),
+        frames: jobs.len(),
+        truth,
+        warnings,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+    use std::sync::atomic::{AtomicU64, Ordering};
+
+    const SCENE: &str = r#"
+width = 16
+height = 8
+theta_r_deg = 45.0
+theta_i_deg = [40, 45, 50]
+seed = 3
+[[plate]]
+name = "a"
+n = 1.5
+k = 0.0
+sigma = 0.2
+rect = [0, 0, 8, 8]
+"#;
+
+    #[test]
+    fn simulate_into_writes_the_set_and_reports_progress() {
+        let dir = tempfile::tempdir().unwrap();
+        let scene = polarid_io::scene::parse(&dir.path().join("s.toml"), SCENE).unwrap();
+        let out = dir.path().join("out");
+        let staged = StagedDir::new(&out, false).unwrap();
+        let calls = AtomicU64::new(0);
+        let sim = simulate_into(&scene, &staged, "x/", &|s, _, t| {
+            assert_eq!((s, t), ("frames", 12));
+            calls.fetch_add(1, Ordering::Relaxed);
+        })
+        .unwrap();
+        staged.commit().unwrap();
+        assert_eq!((sim.captures, sim.frames, sim.truth.len()), (3, 12, 3));
+        assert_eq!(calls.load(Ordering::Relaxed), 12);
+        assert_eq!(sim.manifest, "x/manifest.toml");
+        for f in ["manifest.toml", "truth.csv", "scene.toml", "i45/pol090.png"] {
+            assert!(Path::new(&out.join("x").join(f)).is_file(), "{f}");
+        }
+        let m = polarid_io::manifest::load(&out.join("x/manifest.toml")).unwrap();
+        assert_eq!(m.captures.len(), 3);
+    }
+
+    #[test]
+    fn render_into_is_seeded_and_checks_sizes() {
+        let dir = tempfile::tempdir().unwrap();
+        let scene = polarid_io::scene::parse(&dir.path().join("s.toml"), SCENE).unwrap();
+        let spec = plan(&scene).unwrap().spec;
+        let mut a = vec![0u16; 12 * 16 * 8];
+        let mut b = a.clone();
+        let seed = |c: usize, f: usize| (c * 10 + f) as u64;
+        render_into(&spec, &seed, &mut a, &crate::progress::no_progress).unwrap();
+        render_into(&spec, &seed, &mut b, &crate::progress::no_progress).unwrap();
+        assert_eq!(a, b);
+        assert!(a.iter().any(|&v| v > 0));
+        let mut short = vec![0u16; 5];
+        assert!(render_into(&spec, &seed, &mut short, &crate::progress::no_progress).is_err());
+    }
+}

@@ -1,0 +1,170 @@
+//! Per-pixel `(n, k)` and material maps of a capture set (`map_manifest`), and the
+//! conversion of `polarid_pipeline` errors into Python exceptions.
+//!
+//! `map_manifest` calls `polarid_pipeline::map::map_manifest`, the function `polarid
+//! map` calls, so the arrays equal the CLI's TIFFs (python/tests/test_map_manifest.py).
+
+use ndarray::{ArrayD, IxDyn};
+use polarid_io::manifest;
+use polarid_io::model::Model;
+use polarid_pipeline::PipelineError;
+use polarid_pipeline::map::{self, MapConfig, Metric, REASON_NAMES};
+use polarid_pipeline::progress::no_progress;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::arrays::to_numpy;
+use crate::errors::{IntoPyErr, value_error};
+use crate::files::{path_arg, warn_all};
+
+/// Register this module's functions.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(map_manifest, m)?)?;
+    Ok(())
+}
+
+/// A pipeline error as a Python exception: I/O and core errors as in `crate::errors`;
+/// a configuration error is a `ValueError` reading `option reason, got value` with the
+/// option spelled as the Python keyword (`--min-s0` → `min_s0`); other bad data is a
+/// `ValueError` with the CLI's message.
+pub fn pipeline_err(e: PipelineError) -> PyErr {
+    match e {
+        PipelineError::Io(e) => e.into_py_err(),
+        PipelineError::Core(e) => e.into_py_err(),
+        PipelineError::Config {
+            option,
+            value,
+            reason,
+        } => {
+            let name = option.trim_start_matches("--").replace('-', "_");
+            value_error(format!("{name} {reason}, got {value}"))
+        }
+        e => value_error(e.to_string()),
+    }
+}
+
+/// `result.py_pipe()?`: [`pipeline_err`] on a pipeline result.
+pub trait PipeResultExt<T> {
+    /// Convert the error with [`pipeline_err`].
+    fn py_pipe(self) -> PyResult<T>;
+}
+
+impl<T> PipeResultExt<T> for Result<T, PipelineError> {
+    fn py_pipe(self) -> PyResult<T> {
+        self.map_err(pipeline_err)
+    }
+}
+
+fn image<'py, T: numpy::Element>(
+    py: Python<'py>,
+    h: usize,
+    w: usize,
+    v: Vec<T>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let a = ArrayD::from_shape_vec(IxDyn(&[h, w]), v).map_err(|e| value_error(e.to_string()))?;
+    Ok(to_numpy(py, a))
+}
+
+/// Per-pixel ``(n, k)`` and material maps of a capture set: ``polarid map`` as arrays.
+///
+/// For each capture, the (binned) DoLP of every pixel; then every pixel that is not
+/// saturated, dark or invalid in any capture is fitted for (n, k) (paper eq. 9) and
+/// classified by the nearest prototype of the model. Same code as ``polarid map
+/// MANIFEST --model MODEL`` (its TIFFs hold the very same numbers). The GIL is released.
+///
+/// Parameters
+/// ----------
+/// manifest_path : str or os.PathLike
+///     The capture-set manifest (TOML).
+/// model : str or os.PathLike
+///     A model JSON written by ``polarid train``.
+/// bin : int, default 1
+///     Sum ``bin`` × ``bin`` blocks of pixels before the DoLP (1 to 64).
+/// min_s0 : float, optional
+///     Dark threshold on a block's mean dark-subtracted S0, DN (default: 1 % of the range
+///     from the dark level to saturation for integer frames, 0 for float frames).
+/// max_distance : float, optional
+///     Leave pixels whose nearest prototype is farther unclassified (``rejected``).
+/// metric : {"euclidean", "mahalanobis"}
+///     Distance to the prototypes (``mahalanobis``: with each pixel's fit covariance;
+///     ``max_distance`` is then in standard deviations).
+/// tile : int, default 65536
+///     Pixels per fitting tile (memory of the fit stage ≈ 200 bytes per pixel).
+///
+/// Returns
+/// -------
+/// dict
+///     ``n``, ``k``, ``n_se``, ``k_se``, ``rms_residual``: float32 (H, W), NaN where not
+///     fitted; ``class``: uint8 (H, W) class codes (uint16 above 255 classes), 0 = not
+///     classified, code ``i`` is ``class_names[i]``; ``reason``: uint8 (H, W), why a pixel
+///     is (not) classified, code ``i`` is ``reason_names[i]``; ``class_names`` (list,
+///     ``"unknown"`` first), ``reason_names`` (list, ``"classified"`` first);
+///     ``class_counts``, ``reason_counts``: int64 pixel counts per code; ``summary``:
+///     the content of ``map_summary.json`` without the input paths and timings (size,
+///     binning, thresholds, per-region class shares).
+///
+/// Raises
+/// ------
+/// FileNotFoundError
+///     A missing manifest or model.
+/// ValueError
+///     An invalid option (``bin must be in 1..=64, got 0``), manifest, model or image.
+#[pyfunction]
+#[pyo3(signature = (manifest_path, model, *, bin = 1, min_s0 = None, max_distance = None, metric = "euclidean", tile = map::DEFAULT_TILE))]
+#[allow(clippy::too_many_arguments)]
+pub fn map_manifest<'py>(
+    py: Python<'py>,
+    manifest_path: &Bound<'py, PyAny>,
+    model: &Bound<'py, PyAny>,
+    bin: usize,
+    min_s0: Option<f64>,
+    max_distance: Option<f64>,
+    metric: &str,
+    tile: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    let metric = Metric::parse(metric).py_pipe()?;
+    let cfg = MapConfig::new(bin, min_s0, max_distance, metric, tile).py_pipe()?;
+    let mpath = path_arg(manifest_path)?;
+    let model_path = path_arg(model)?;
+    let m = py
+        .detach(|| manifest::load(&mpath))
+        .map_err(IntoPyErr::into_py_err)?;
+    warn_all(py, &m)?;
+    let mdl = py
+        .detach(|| Model::read(&model_path))
+        .map_err(IntoPyErr::into_py_err)?;
+    let r = py
+        .detach(|| map::map_manifest(&cfg, &m, &mdl, &model_path, &no_progress))
+        .py_pipe()?;
+    let summary = r.summary_json().to_string();
+    let (h, w) = (r.height, r.width);
+    let d = PyDict::new(py);
+    let mut names = vec![r.class_name(0).to_string()];
+    names.extend(r.class_names.iter().cloned());
+    d.set_item("class_names", names)?;
+    d.set_item("reason_names", REASON_NAMES.to_vec())?;
+    let counts = |v: Vec<i64>| -> PyResult<Bound<'py, PyAny>> {
+        let a =
+            ArrayD::from_shape_vec(IxDyn(&[v.len()]), v).map_err(|e| value_error(e.to_string()))?;
+        Ok(to_numpy(py, a))
+    };
+    let classes: Vec<i64> = r.counts.classes.iter().map(|&c| c as i64).collect();
+    let reasons: Vec<i64> = r.counts.reasons.iter().map(|&c| c as i64).collect();
+    d.set_item("class_counts", counts(classes)?)?;
+    d.set_item("reason_counts", counts(reasons)?)?;
+    let json = py.import("json")?;
+    d.set_item("summary", json.call_method1("loads", (summary,))?)?;
+    if r.class_names.len() <= u8::MAX as usize {
+        let c8: Vec<u8> = r.class.iter().map(|&c| c as u8).collect();
+        d.set_item("class", image(py, h, w, c8)?)?;
+    } else {
+        d.set_item("class", image(py, h, w, r.class)?)?;
+    }
+    d.set_item("reason", image(py, h, w, r.reason)?)?;
+    d.set_item("n", image(py, h, w, r.n)?)?;
+    d.set_item("k", image(py, h, w, r.k)?)?;
+    d.set_item("n_se", image(py, h, w, r.n_se)?)?;
+    d.set_item("k_se", image(py, h, w, r.k_se)?)?;
+    d.set_item("rms_residual", image(py, h, w, r.rms_residual)?)?;
+    Ok(d)
+}
