@@ -16,7 +16,6 @@ use rayon::prelude::*;
 
 use crate::arrays::{F64Like, broadcast_shape, broadcast_to, fmt_shape, str_array, to_numpy};
 use crate::errors::{PyResultExt, value_error};
-use crate::fit::pipeline_err;
 
 /// Register this module's functions.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -41,7 +40,7 @@ fn prototypes(obj: &Bound<'_, PyAny>) -> PyResult<(Vec<Prototype>, String)> {
         } else {
             PrototypeSource::Library(spec)
         };
-        return source.load().map_err(pipeline_err);
+        return source.load().py_err();
     }
     let mut out = Vec::new();
     for (i, item) in obj.try_iter()?.enumerate() {
@@ -222,7 +221,7 @@ pub fn classify<'py>(
             (lib.prototypes(), "library builtin".into())
         }
     };
-    let clf = classifier(protos, &label, cfg).map_err(pipeline_err)?;
+    let clf = classifier(protos, &label, cfg).py_err()?;
 
     // Broadcast the numeric inputs.
     let nv = n.as_array();

@@ -64,6 +64,15 @@ impl IntoPyErr for PipelineError {
         match self {
             PipelineError::Io(e) => e.into_py_err(),
             PipelineError::Core(e) => e.into_py_err(),
+            // The option as the Python keyword (`--min-s0` -> `min_s0`).
+            PipelineError::Config {
+                option,
+                value,
+                reason,
+            } => {
+                let name = option.trim_start_matches("--").replace('-', "_");
+                PyValueError::new_err(format!("{name} {reason}, got {value}"))
+            }
             other => PyValueError::new_err(chain_message(&other)),
         }
     }

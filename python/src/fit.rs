@@ -9,7 +9,6 @@ use ndarray::{ArrayD, IxDyn};
 use numpy::{PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use polarid_core::CoreError;
 use polarid_core::fit::{FitBounds, FitOptions, FitPlan, FitStatus, NkFit, fit_batch};
-use polarid_pipeline::PipelineError;
 use polarid_pipeline::fit::{
     FitConfig, PlanCache, Reflectance, check_range, parse_shadowing, read_measurements,
 };
@@ -17,7 +16,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use crate::arrays::{f64_contiguous, fmt_shape, to_numpy};
-use crate::errors::{IntoPyErr, PyResultExt, value_error};
+use crate::errors::{PyResultExt, value_error};
 
 /// Register this module's functions and constants.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -44,16 +43,6 @@ fn plan_for(betas: &[f64], opts: FitOptions) -> Result<Arc<FitPlan>, CoreError> 
     match PLANS.lock() {
         Ok(mut cache) => cache.get(betas, opts),
         Err(_) => FitPlan::new(betas, opts).map(Arc::new),
-    }
-}
-
-/// A pipeline error as the Python exception of `errors.rs` (file and core errors keep
-/// their mapping; configuration and data errors are `ValueError`s).
-pub(crate) fn pipeline_err(e: PipelineError) -> PyErr {
-    match e {
-        PipelineError::Io(e) => e.into_py_err(),
-        PipelineError::Core(e) => e.into_py_err(),
-        e => value_error(e.to_string()),
     }
 }
 
@@ -136,8 +125,8 @@ pub fn fit_nk<'py>(
     n_range: (f64, f64),
     k_range: (f64, f64),
 ) -> PyResult<Bound<'py, PyDict>> {
-    check_range("n_range", n_range).map_err(pipeline_err)?;
-    check_range("k_range", k_range).map_err(pipeline_err)?;
+    check_range("n_range", n_range).py_err()?;
+    check_range("k_range", k_range).py_err()?;
     let opts = FitOptions {
         bounds: FitBounds {
             n_min: n_range.0,
@@ -432,7 +421,7 @@ pub fn fit_table<'py>(
         s0_rel_sd,
         sigma_range,
     };
-    cfg.validate().map_err(pipeline_err)?;
+    cfg.validate().py_err()?;
     let out = py
         .detach(|| {
             let rows = read_measurements(&measurements)?;
@@ -443,7 +432,7 @@ pub fn fit_table<'py>(
                 &polarid_pipeline::progress::no_progress,
             )
         })
-        .map_err(pipeline_err)?;
+        .py_err()?;
     let rows: Vec<_> = out.targets.iter().map(|t| &t.row).collect();
     let d = PyDict::new(py);
     macro_rules! col {

@@ -7,52 +7,19 @@
 use ndarray::{ArrayD, IxDyn};
 use polarid_io::manifest;
 use polarid_io::model::Model;
-use polarid_pipeline::PipelineError;
 use polarid_pipeline::map::{self, MapConfig, Metric, REASON_NAMES};
 use polarid_pipeline::progress::no_progress;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::arrays::to_numpy;
-use crate::errors::{IntoPyErr, value_error};
+use crate::errors::{IntoPyErr, PyResultExt, value_error};
 use crate::files::{path_arg, warn_all};
 
 /// Register this module's functions.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(map_manifest, m)?)?;
     Ok(())
-}
-
-/// A pipeline error as a Python exception: I/O and core errors as in `crate::errors`;
-/// a configuration error is a `ValueError` reading `option reason, got value` with the
-/// option spelled as the Python keyword (`--min-s0` → `min_s0`); other bad data is a
-/// `ValueError` with the CLI's message.
-pub fn pipeline_err(e: PipelineError) -> PyErr {
-    match e {
-        PipelineError::Io(e) => e.into_py_err(),
-        PipelineError::Core(e) => e.into_py_err(),
-        PipelineError::Config {
-            option,
-            value,
-            reason,
-        } => {
-            let name = option.trim_start_matches("--").replace('-', "_");
-            value_error(format!("{name} {reason}, got {value}"))
-        }
-        e => value_error(e.to_string()),
-    }
-}
-
-/// `result.py_pipe()?`: [`pipeline_err`] on a pipeline result.
-pub trait PipeResultExt<T> {
-    /// Convert the error with [`pipeline_err`].
-    fn py_pipe(self) -> PyResult<T>;
-}
-
-impl<T> PipeResultExt<T> for Result<T, PipelineError> {
-    fn py_pipe(self) -> PyResult<T> {
-        self.map_err(pipeline_err)
-    }
 }
 
 fn image<'py, T: numpy::Element>(
@@ -122,8 +89,8 @@ pub fn map_manifest<'py>(
     metric: &str,
     tile: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let metric = Metric::parse(metric).py_pipe()?;
-    let cfg = MapConfig::new(bin, min_s0, max_distance, metric, tile).py_pipe()?;
+    let metric = Metric::parse(metric).py_err()?;
+    let cfg = MapConfig::new(bin, min_s0, max_distance, metric, tile).py_err()?;
     let mpath = path_arg(manifest_path)?;
     let model_path = path_arg(model)?;
     let m = py
@@ -135,7 +102,7 @@ pub fn map_manifest<'py>(
         .map_err(IntoPyErr::into_py_err)?;
     let r = py
         .detach(|| map::map_manifest(&cfg, &m, &mdl, &model_path, &no_progress))
-        .py_pipe()?;
+        .py_err()?;
     let summary = r.summary_json().to_string();
     let (h, w) = (r.height, r.width);
     let d = PyDict::new(py);

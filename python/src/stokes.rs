@@ -11,7 +11,6 @@ use pyo3::types::PyTuple;
 
 use crate::arrays::{FloatArray, PAR_MIN_LEN, float_array, fmt_shape, raw_array, to_numpy};
 use crate::errors::{PyResultExt, value_error};
-use crate::map::PipeResultExt;
 use crate::with_raw;
 use polarid_pipeline::map::rules::check_levels;
 
@@ -33,7 +32,7 @@ pub fn pixel_rules(
     type_max: f32,
     min_s0: f64,
 ) -> PyResult<PixelRules> {
-    check_levels(dark_level, saturation).py_pipe()?;
+    check_levels(dark_level, saturation).py_err()?;
     if !min_s0.is_finite() {
         return Err(CoreError::NonFinite {
             name: "min_s0",

@@ -20,14 +20,24 @@ pub enum PipelineError {
     /// The physics or numerics refused the data.
     #[error(transparent)]
     Core(#[from] CoreError),
-    /// A configuration value that cannot be used.
-    #[error("{option}: {reason} (value {value})")]
+    /// A configuration value that cannot be used; reads `OPTION REASON, got VALUE`
+    /// (e.g. `--bin must be in 1..=64, got 0`).
+    #[error("{option} {reason}, got {value}")]
     Config {
         /// The option or field, as the user wrote it (e.g. `--bin`, `max_distance`).
         option: String,
         /// The offending value.
         value: String,
         /// What is wrong.
+        reason: String,
+    },
+    /// A `MIN,MAX` search range that cannot be used; reads `OPTION: REASON` (e.g.
+    /// `n_range: need 0 <= MIN < MAX, got 2,1`: the reason quotes the range).
+    #[error("{option}: {reason}")]
+    Range {
+        /// The option or field (`--n-range`, `n_range`).
+        option: String,
+        /// What is wrong, with the range as given.
         reason: String,
     },
     /// The data of a file cannot support the workflow (e.g. a target with too few

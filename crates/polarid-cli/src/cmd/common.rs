@@ -1,17 +1,19 @@
-//! Pieces shared by the commands that call `polarid_pipeline`: errors and progress of
-//! the pipeline in CLI terms, and the classifier options of `classify` and `evaluate`.
+//! Pieces shared by the commands that call `polarid_pipeline`: the pipeline's errors as
+//! the CLI's (exit statuses and messages), its progress reports as progress bars, its
+//! warnings on standard error, and the classifier options of `classify` and `evaluate`.
 
-use std::sync::OnceLock;
+use std::sync::{Mutex, OnceLock};
 
 use clap::ValueEnum;
 use polarid_core::classify::{ClassifierConfig, Confusion, Metric, Reject};
-use polarid_pipeline::{PipelineError, Progress};
+use polarid_pipeline::{PipelineError, Progress, Warning};
 
 use crate::{BadInput, Ctx};
 
 /// A pipeline error as a CLI error with the same message and exit status: file and core
-/// errors keep their type (their exit status follows from it), the rest is a
-/// [`BadInput`] (status 2) or, if not the user's fault, a plain error (status 1).
+/// errors keep their type (their exit status follows from it), the rest (a configuration
+/// error reads `OPTION REASON, got VALUE`) is a [`BadInput`] (status 2) or, if not the
+/// user's fault, a plain error (status 1).
 pub fn cli_err(e: PipelineError) -> anyhow::Error {
     match e {
         PipelineError::Io(e) => e.into(),
@@ -49,6 +51,56 @@ pub fn with_progress<T>(ctx: &Ctx, what: &str, f: impl FnOnce(Progress) -> T) ->
         pb.finish_and_clear();
     }
     out
+}
+
+/// Print warnings (`polarid: warning: ...`) unless `--quiet`.
+pub fn warn_all<'a>(ctx: &Ctx, warnings: impl IntoIterator<Item = &'a Warning>) {
+    for w in warnings {
+        ctx.info(format!("polarid: warning: {w}"));
+    }
+}
+
+/// Progress bars for a pipeline's [`polarid_pipeline::Progress`] reports: one bar per
+/// stage, replaced when the stage changes, cleared on drop.
+pub struct Bars<'a> {
+    ctx: &'a Ctx,
+    current: Mutex<Option<(String, indicatif::ProgressBar)>>,
+}
+
+impl<'a> Bars<'a> {
+    /// No bar yet.
+    pub fn new(ctx: &'a Ctx) -> Self {
+        Self {
+            ctx,
+            current: Mutex::new(None),
+        }
+    }
+
+    /// The progress callback: `(stage, done, total)`.
+    pub fn report(&self, stage: &str, done: u64, total: u64) {
+        let Ok(mut cur) = self.current.lock() else {
+            return;
+        };
+        if cur.as_ref().is_none_or(|(s, _)| s != stage) {
+            if let Some((_, pb)) = cur.take() {
+                pb.finish_and_clear();
+            }
+            *cur = Some((stage.to_string(), self.ctx.progress(total, stage)));
+        }
+        if let Some((_, pb)) = cur.as_ref() {
+            pb.set_position(done);
+        }
+    }
+}
+
+impl Drop for Bars<'_> {
+    fn drop(&mut self) {
+        if let Ok(mut cur) = self.current.lock()
+            && let Some((_, pb)) = cur.take()
+        {
+            pb.finish_and_clear();
+        }
+    }
 }
 
 /// Distance metric on the command line.

@@ -24,7 +24,7 @@ use std::path::{Path, PathBuf};
 use polarid_io::library::Library;
 use polarid_pipeline::library::{Band, LibraryConfig, build_library, parse_band};
 
-use super::bridge::{Bars, CliResult, warn_all};
+use super::common::{Bars, PipeResult, warn_all};
 use crate::Ctx;
 
 fn parse_step(s: &str) -> Result<f64, String> {

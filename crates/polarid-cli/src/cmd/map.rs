@@ -23,7 +23,7 @@ use polarid_io::manifest;
 use polarid_io::model::Model;
 use polarid_pipeline::map::{self, MapConfig, MapResult, Metric};
 
-use super::bridge::{Bars, CliResult};
+use super::common::{Bars, PipeResult};
 use crate::Ctx;
 use crate::render::plots::{PlotSize, class_map};
 

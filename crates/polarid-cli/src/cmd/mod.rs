@@ -1,6 +1,5 @@
 //! The subcommands, one module each.
 
-pub mod bridge;
 pub mod classify;
 pub mod common;
 pub mod demo;

@@ -13,7 +13,7 @@ use polarid_io::atomic::StagedDir;
 use polarid_io::scene::{self, CaptureKind, ImageFormat, Scene};
 use polarid_pipeline::simulate::{self as pipeline, Simulated};
 
-use super::bridge::{Bars, CliResult, warn_all};
+use super::common::{Bars, PipeResult, warn_all};
 use crate::Ctx;
 
 /// Arguments of `polarid simulate`.

@@ -15,7 +15,7 @@ use polarid_io::measure::{self, StokesImages, dofp_stokes, frames_stokes, rules_
 
 use polarid_pipeline::map::rules::check_levels;
 
-use super::bridge::CliResult;
+use super::common::PipeResult;
 use crate::{BadInput, Ctx};
 
 /// How a DoFP mosaic is turned into Stokes images.

@@ -94,7 +94,11 @@ pub fn check_classifier(cfg: &ClassifierConfig) -> Result<()> {
             polarid_core::classify::Reject::MaxDistance(d) => ("max_distance", d.to_string()),
             _ => ("classifier", format!("{cfg:?}")),
         };
-        PipelineError::config(option, value, format!("invalid classifier option: {e}"))
+        PipelineError::config(
+            option,
+            value,
+            format!("is not usable (invalid classifier option: {e})"),
+        )
     })
 }
 

@@ -68,11 +68,10 @@ pub fn range_problem((lo, hi): (f64, f64)) -> Option<String> {
 /// Check a search range with [`range_problem`]; the error names `option` and the range.
 pub fn check_range(option: &str, range: (f64, f64)) -> Result<()> {
     match range_problem(range) {
-        Some(reason) => Err(PipelineError::config(
-            option,
-            format!("{},{}", range.0, range.1),
+        Some(reason) => Err(PipelineError::Range {
+            option: option.to_string(),
             reason,
-        )),
+        }),
         None => Ok(()),
     }
 }
@@ -82,7 +81,7 @@ fn check_unit(option: &str, v: f64) -> Result<()> {
     if v > 0.0 && v <= 1.0 {
         Ok(())
     } else {
-        Err(PipelineError::config(option, v, "need a value in (0, 1]"))
+        Err(PipelineError::config(option, v, "must be in (0, 1]"))
     }
 }
 
