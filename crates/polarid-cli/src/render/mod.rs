@@ -17,6 +17,7 @@ use anyhow::{Context, Result, bail};
 
 pub mod base64;
 pub mod colormap;
+pub mod demo;
 pub mod plots;
 pub mod report;
 pub mod views;

@@ -21,7 +21,6 @@
 
 use anyhow::{Result, bail};
 
-pub use crate::render::Rendered;
 pub use dolp::{DolpPoint, DolpSeries, dolp_vs_beta, eq9_curve};
 pub use maps::class_map;
 // No command draws a scalar map yet (the report's tests do).

@@ -9,6 +9,7 @@ use super::maps::*;
 use super::nk::*;
 use super::style::*;
 use super::*;
+use crate::render::Rendered;
 
 fn decode(png: &[u8]) -> image::DynamicImage {
     image::load_from_memory_with_format(png, image::ImageFormat::Png)

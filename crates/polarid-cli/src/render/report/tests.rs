@@ -19,7 +19,7 @@ fn escapes() {
 const EVIL: &str = "<script>alert('x')</script> & \"q\" | *b*";
 
 /// A report filled with synthetic data in the shape of the paper's Tables 1 and 2.
-pub(crate) fn sample_report(evil: bool) -> (Report, Vec<(String, plots::Rendered)>) {
+pub(crate) fn sample_report(evil: bool) -> (Report, Vec<(String, crate::render::Rendered)>) {
     let train = [
         ("green paint", 1.39, 0.34, 1.47, 0.47, 40.0, 80.0),
         ("aluminum", 1.24, 6.60, 1.64, 4.56, 35.0, 80.0),

@@ -1,1 +1,0 @@
-//! (being moved here from the CLI: see the crate documentation)
