@@ -364,3 +364,46 @@ pub fn incidence_angle_deg(pos: &SolarPosition, normal: [f64; 3]) -> Result<f64>
     let c = (s[0] * normal[0] + s[1] * normal[1] + s[2] * normal[2]) / len;
     Ok(c.clamp(-1.0, 1.0).acos().to_degrees())
 }
+
+/// A typical maximum degree of linear polarization of a clear, blue sky (at 90° from
+/// the sun): 0.75. Measured values are about 0.7–0.8 on very clear days, lower with
+/// haze, thin cloud, a bright ground or a low sun; an overcast sky is nearly unpolarized.
+pub const CLEAR_SKY_MAX_DOLP: f64 = 0.75;
+
+/// Degree of linear polarization of the skylight coming from `sky_direction` (scene
+/// frame, from the site towards the sky; any length) in the single-scattering Rayleigh
+/// model: `max_dolp · sin²γ / (1 + cos²γ)`, where `γ` is the angle between that
+/// direction and the sun ([`sun_direction`]). Zero towards the sun and the antisolar
+/// point, `max_dolp` at 90° from the sun; the skylight's electric vector is
+/// perpendicular to the plane through the sun, the site and the sky point.
+///
+/// A first estimate only (the real sky has neutral points, multiple scattering and
+/// aerosols): use it to judge whether the sky that a target mirrors towards the camera is
+/// strongly polarized, not to correct measurements. See `docs/SUN.md`.
+///
+/// # Errors
+/// `max_dolp` outside [0, 1] or not finite (named `max_dolp`); a non-finite or zero
+/// `sky_direction` (named `sky_direction`).
+pub fn rayleigh_sky_dolp(
+    pos: &SolarPosition,
+    sky_direction: [f64; 3],
+    max_dolp: f64,
+) -> Result<f64> {
+    ensure_range("max_dolp", max_dolp, 0.0, 1.0, "0 to 1")?;
+    for c in sky_direction {
+        ensure_finite("sky_direction", c)?;
+    }
+    let v = sky_direction;
+    let len2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+    if !(len2 > 0.0 && len2.is_finite()) {
+        return Err(CoreError::OutOfRange {
+            name: "sky_direction",
+            value: len2.sqrt(),
+            expected: "a non-zero, finite length",
+        });
+    }
+    let s = sun_direction(pos);
+    let cos_g = ((s[0] * v[0] + s[1] * v[1] + s[2] * v[2]) / len2.sqrt()).clamp(-1.0, 1.0);
+    let cos2 = cos_g * cos_g;
+    Ok(max_dolp * (1.0 - cos2) / (1.0 + cos2))
+}

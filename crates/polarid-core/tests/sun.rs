@@ -3,8 +3,8 @@
 
 use polarid_core::CoreError;
 use polarid_core::sun::{
-    REFRACTION_CUTOFF_DEG, Site, SolarPosition, delta_t_estimate_s, incidence_angle_deg,
-    julian_day, solar_position, sun_direction,
+    CLEAR_SKY_MAX_DOLP, REFRACTION_CUTOFF_DEG, Site, SolarPosition, delta_t_estimate_s,
+    incidence_angle_deg, julian_day, rayleigh_sky_dolp, solar_position, sun_direction,
 };
 
 /// 2003-10-17T12:30:30-07:00 = 2003-10-17T19:30:30Z.
@@ -370,4 +370,36 @@ fn invalid_normals_are_refused() {
     let d = sun_direction(&p);
     assert!(incidence_angle_deg(&p, d).unwrap() < 1e-5);
     assert!((incidence_angle_deg(&p, d.map(|c| -c)).unwrap() - 180.0).abs() < 1e-5);
+}
+
+#[test]
+fn rayleigh_sky_polarization_peaks_at_ninety_degrees_from_the_sun() {
+    let p = spa_reference();
+    let s = sun_direction(&p);
+    // Towards the sun and the antisolar point: unpolarized.
+    assert!(rayleigh_sky_dolp(&p, s, CLEAR_SKY_MAX_DOLP).unwrap() < 1e-12);
+    assert!(rayleigh_sky_dolp(&p, s.map(|c| -c), 0.8).unwrap() < 1e-12);
+    // 90° from the sun (a horizontal direction perpendicular to its azimuth, or any
+    // direction orthogonal to s): the maximum.
+    let perp = [s[1], -s[0], 0.0];
+    let d = rayleigh_sky_dolp(&p, perp, CLEAR_SKY_MAX_DOLP).unwrap();
+    assert!((d - CLEAR_SKY_MAX_DOLP).abs() < 1e-12, "{d}");
+    // The zenith, 50.1° from the sun: sin²γ/(1+cos²γ) = 0.4172 of the maximum.
+    let z = rayleigh_sky_dolp(&p, [0.0, 0.0, 3.0], 1.0).unwrap();
+    let g = p.zenith_deg.to_radians();
+    assert!((z - g.sin().powi(2) / (1.0 + g.cos().powi(2))).abs() < 1e-12);
+    assert!((z - 0.4172).abs() < 1e-3, "{z}");
+    // Errors name the argument.
+    let e = rayleigh_sky_dolp(&p, perp, 1.5).unwrap_err();
+    assert_eq!(out_of_range(e), ("max_dolp", 1.5));
+    let e = rayleigh_sky_dolp(&p, [0.0; 3], 0.7).unwrap_err();
+    assert_eq!(out_of_range(e), ("sky_direction", 0.0));
+    let e = rayleigh_sky_dolp(&p, [0.0, f64::NAN, 1.0], 0.7).unwrap_err();
+    assert!(matches!(
+        e,
+        CoreError::NonFinite {
+            name: "sky_direction",
+            ..
+        }
+    ));
 }
