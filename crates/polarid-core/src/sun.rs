@@ -30,8 +30,8 @@
 //! against NREL reference data to 0.0003°. The crate is maintained (several releases in
 //! 2026, a changelog with accuracy fixes), declares `rust-version = 1.85` (ours: 1.89),
 //! has no dependencies with the features we use, and compiles in about 2 s. An own
-//! implementation would have meant about 1000 lines of periodic-term tables to
-//! transcribe and keep; the crate was preferred.
+//! implementation would have meant about 800 lines of periodic-term tables and
+//! algorithm to transcribe and keep; the crate was preferred.
 //!
 //! # Conventions
 //!
@@ -250,6 +250,22 @@ pub fn delta_t_estimate_s(unix_seconds_utc: f64) -> Result<f64> {
 ///   [`CoreError::OutOfRange`] named `unix_seconds_utc`;
 /// - `delta_t_s` not finite or beyond ±[`MAX_ABS_DELTA_T_S`]: named `delta_t_s`;
 /// - anything else the algorithm refuses: [`CoreError::SolarPosition`].
+///
+/// # Example
+/// The SPA report's reference case, 2003-10-17T12:30:30-07:00 at Golden, Colorado:
+/// ```
+/// use polarid_core::sun::{Site, solar_position, sun_direction};
+///
+/// let mut site = Site::new(39.742476, -105.1786, 1830.14);
+/// site.pressure_mbar = 820.0;
+/// site.temperature_c = 11.0;
+/// let sun = solar_position(1_066_419_030.0, Some(67.0), &site)?;
+/// assert!((sun.zenith_deg - 50.11162).abs() < 1e-3);
+/// assert!((sun.azimuth_deg - 194.34024).abs() < 1e-3);
+/// let [east, north, up] = sun_direction(&sun);
+/// assert!(east < 0.0 && north < 0.0 && up > 0.0); // south-south-west, above the horizon
+/// # Ok::<(), polarid_core::CoreError>(())
+/// ```
 pub fn solar_position(
     unix_seconds_utc: f64,
     delta_t_s: Option<f64>,
