@@ -97,6 +97,15 @@ pub enum CoreError {
         /// Why.
         reason: String,
     },
+    /// The solar-position algorithm refused its (already validated) inputs or gave a
+    /// non-finite result; `reason` is its message.
+    #[error("solar position at unix time {unix_seconds} s: {reason}")]
+    SolarPosition {
+        /// The time, in seconds since 1970-01-01T00:00:00Z.
+        unix_seconds: f64,
+        /// The algorithm's message.
+        reason: String,
+    },
 }
 
 /// Result alias of the core crate.

@@ -28,6 +28,7 @@ pub mod region;
 pub mod simulate;
 pub mod status;
 pub mod stokes;
+pub mod sun;
 
 pub use error::{CoreError, Result};
 pub use status::FitStatus;

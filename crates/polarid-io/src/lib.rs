@@ -14,6 +14,7 @@ pub mod measure;
 pub mod model;
 pub mod scene;
 pub mod table;
+pub mod time;
 mod toml_span;
 
 pub use error::{IoError, Result};
