@@ -2,7 +2,7 @@
 //!
 //! A thin layer over `polarid-core` and `polarid-io`: argument parsing, progress, and
 //! the mapping of errors to exit statuses (0 success, 2 bad input or usage, 1 any other
-//! failure), as in `shared/FORMATS.md`.
+//! failure), as in `docs/FORMATS.md`.
 
 mod cmd;
 mod ctx;

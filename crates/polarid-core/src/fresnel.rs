@@ -2,7 +2,7 @@
 //! `N = n + ik` (`k >= 0`), at the local incidence angle `β` — the `M` of the paper's
 //! eq. (3) and (6).
 //!
-//! Conventions (those of NIST SCATMECH, used by `shared/oracles/`):
+//! Conventions (those of NIST SCATMECH, used by `data/oracles/`):
 //!
 //! - `w = √(N² − sin²β)`, principal branch with `Im w >= 0` (`w = A + iB`, with `A`,
 //!   `B` of eq. (12), (13)).

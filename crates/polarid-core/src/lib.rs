@@ -5,8 +5,8 @@
 //! the (n, k) inversion and classification. No file I/O and no printing: kernels write
 //! into caller-owned buffers and return [`Result`].
 //!
-//! Conventions (geometry, Stokes, angles) are those of `shared/CONVENTIONS.md`,
-//! repeated in the project's `docs/CONVENTIONS.md`: angles are radians inside this crate,
+//! Conventions (geometry, Stokes, angles) are those of the project's
+//! `docs/CONVENTIONS.md`: angles are radians inside this crate,
 //! `N = n + ik` with `k >= 0`, `S1 = I(0°) − I(90°)`, `S2 = I(45°) − I(135°)`.
 //!
 //! Equation numbers refer to Thilak, Creusere & Voelz, "Material classification using

@@ -11,7 +11,7 @@
 //! deviation of the facet slope along one axis. No shadowing or masking.
 //!
 //! Two polarization frames are provided (SCATMECH's `"plane"` and `"psps"`; see
-//! `shared/oracles/README.md`):
+//! `data/oracles/README.md`):
 //!
 //! - **local** (facet) frame: for both beams `s` is perpendicular to the plane that
 //!   contains the incident and reflected directions (`s ∥ u_i × u_r`) and `p = k × s`,

@@ -1,7 +1,7 @@
 //! # polarid-io
 //!
 //! Files for polarid: grayscale PNG/TIFF frames, float32 TIFF outputs, the capture-set
-//! manifest (TOML), the CSV tables of `shared/FORMATS.md`, trained models (JSON),
+//! manifest (TOML), the CSV tables of `docs/FORMATS.md`, trained models (JSON),
 //! material libraries (CSV, refractiveindex.info YAML) and atomic output writing.
 #![warn(missing_docs)]
 

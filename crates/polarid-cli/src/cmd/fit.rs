@@ -1,6 +1,6 @@
 //! `polarid fit MEASUREMENTS.csv [-o fits.csv] [--reflectance specular|mixed]`:
 //! the complex index `(n, k)` of every target from its DoLP measurements (paper
-//! section 5, eq. 16), written as the fits CSV of `shared/FORMATS.md`.
+//! section 5, eq. 16), written as the fits CSV of `docs/FORMATS.md`.
 //!
 //! The work (grouping by target, the specular fit with the `depolarized` rule, the mixed
 //! radiometric fit with model selection) is `polarid_pipeline::fit`; see its

@@ -38,7 +38,7 @@ fn parse_step(s: &str) -> Result<f64, String> {
 #[derive(Debug, clap::Args)]
 #[command(after_help = "\
 Examples:
-  polarid library ../shared/materials/refractiveindex --band 520:545 -o lib_532.csv
+  polarid library data/materials/refractiveindex --band 520:545 -o lib_532.csv
   polarid library main/Au/nk/Johnson.yml main/Cu/nk/Johnson.yml --band 532 --category metal
   polarid library mats/ --band 700:900 --step 5 --names names.csv --skip-missing -o nir.csv
 

@@ -5,7 +5,7 @@
 //! [`polarid_pipeline::map`], shared with the Python package (`polarid.map_manifest`);
 //! this command parses the options, calls it and writes the outputs.
 //!
-//! Outputs (shared/FORMATS.md): float32 TIFF `n.tif`, `k.tif`, `n_se.tif`, `k_se.tif`,
+//! Outputs (docs/FORMATS.md): float32 TIFF `n.tif`, `k.tif`, `n_se.tif`, `k_se.tif`,
 //! `rms_residual.tif` (NaN where not fitted); `class.tif` (u8, or u16 above 255
 //! classes; 0 = not classified); `classes.json` (index → name, `"0": "unknown"`);
 //! `class.png` (+ `class.svg`, colours with a legend); `reason.tif` (u8, why a pixel is
@@ -30,7 +30,7 @@ use crate::render::plots::{PlotSize, class_map};
 /// Arguments of `polarid map`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The capture-set manifest (TOML, shared/FORMATS.md).
+    /// The capture-set manifest (TOML, docs/FORMATS.md).
     pub manifest: PathBuf,
     /// Trained model (JSON) written by `polarid train`.
     #[arg(long, value_name = "MODEL.json")]

@@ -35,7 +35,7 @@ use crate::Ctx;
 /// Arguments of `polarid measure`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The capture-set manifest (TOML, shared/FORMATS.md).
+    /// The capture-set manifest (TOML, docs/FORMATS.md).
     pub manifest: PathBuf,
     /// Output CSV (default: standard output).
     #[arg(short = 'o', long, value_name = "CSV")]

@@ -1,7 +1,7 @@
 //! `polarid simulate SCENE.toml -o DIR`: synthetic captures of plates of known optics.
 //!
 //! The workflow is [`polarid_pipeline::simulate`]: `DIR` receives the frames, a capture
-//! manifest (`shared/FORMATS.md`) that `polarid measure` reads, `truth.csv` (the
+//! manifest (`docs/FORMATS.md`) that `polarid measure` reads, `truth.csv` (the
 //! noise-free DoLP and S0 of every plate per capture) and a copy of the scene. Everything
 //! is written into a staging directory first (the pipeline writes the frames into it as
 //! they are rendered), so a failure leaves nothing behind.

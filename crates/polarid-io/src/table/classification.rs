@@ -1,7 +1,7 @@
 //! Classification CSV — written by `classify`.
 //!
 //! `target,class,predicted,distance,runner_up,runner_up_distance,status` (the columns of
-//! `shared/FORMATS.md`), then polarid's extra columns: `margin` (runner-up distance minus
+//! `docs/FORMATS.md`), then polarid's extra columns: `margin` (runner-up distance minus
 //! distance), `nearest` (class of the nearest prototype, also when rejected), `category`
 //! (of that prototype, e.g. `metal`, for library prototypes), `metric`, `gate` (the
 //! statistic compared with the reject threshold), `votes` (k-NN votes for the class),

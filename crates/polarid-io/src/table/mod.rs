@@ -1,4 +1,4 @@
-//! The CSV tables of `shared/FORMATS.md`.
+//! The CSV tables of `docs/FORMATS.md`.
 //!
 //! Readers find columns by name, ignore unknown columns and skip lines that start with
 //! `#`; every parse error names the file, the line, the column and the value.

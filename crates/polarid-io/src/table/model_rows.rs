@@ -1,4 +1,4 @@
-//! Rows of `polarid model` (`shared/FORMATS.md`): the inputs of the forward model and
+//! Rows of `polarid model` (`docs/FORMATS.md`): the inputs of the forward model and
 //! the columns it writes.
 //!
 //! Two kinds of input rows, told apart by the header:
@@ -8,7 +8,7 @@
 //!   Output: those columns, then `beta_deg,facet_tilt_deg,m00,m01,m02,m10,m11,m12,m20,
 //!   m21,m22,m01_psps,m02_psps,m10_psps,m11_psps,m12_psps,m20_psps,m21_psps,m22_psps,
 //!   dolp` ([`PBRDF_COMPUTED`]). `m00_psps` is not written: `m00` is the same in both
-//!   frames (as in `shared/oracles/pbrdf_reference.csv`).
+//!   frames (as in `data/oracles/pbrdf_reference.csv`).
 //! - **DoP rows** — columns `n,k,beta_deg`. Output: those columns, then `dop`.
 //!
 //! Validation (each error names the file, the line, the column and the value):

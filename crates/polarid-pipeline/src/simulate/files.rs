@@ -36,7 +36,7 @@ fn toml_str(s: &str) -> String {
     o
 }
 
-/// The capture-set manifest of a simulated scene (`shared/FORMATS.md`), with the
+/// The capture-set manifest of a simulated scene (`docs/FORMATS.md`), with the
 /// relative exposure of every capture.
 pub fn manifest_text(scene: &Scene, exposures: &[f64]) -> String {
     let sensor = &scene.sensor;

@@ -5,7 +5,7 @@
 //! follows from the Priest–Meier pBRDF (paper eq. 3) plus an optional Lambertian
 //! depolarized term (`polarid_core::simulate::plate_radiance`); the sensor model adds
 //! shot and read noise, quantizes and saturates. The output is the frames, a capture
-//! manifest (`shared/FORMATS.md`) that `polarid measure` reads, `truth.csv` (the
+//! manifest (`docs/FORMATS.md`) that `polarid measure` reads, `truth.csv` (the
 //! noise-free DoLP and S0 of every plate per capture) and a copy of the scene.
 //!
 //! **Files.** Simulation inherently produces files (the manifest names them), and a set
