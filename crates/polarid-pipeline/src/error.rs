@@ -98,6 +98,6 @@ mod tests {
             "need at least 3 frames, got 1"
         );
         let c = PipelineError::config("--bin", 0, "must be at least 1");
-        assert_eq!(chain_message(&c), "--bin: must be at least 1 (value 0)");
+        assert_eq!(chain_message(&c), "--bin must be at least 1, got 0");
     }
 }

@@ -151,7 +151,7 @@ fn errors_name_file_target_and_lines() {
     };
     let e = fit::fit(p, &rows, &bad_range, &no_progress).unwrap_err();
     assert!(
-        matches!(&e, PipelineError::Config { option, .. } if option == "n_range"),
+        matches!(&e, PipelineError::Range { option, .. } if option == "n_range"),
         "{e}"
     );
     assert!(e.to_string().contains("need 0 <= MIN < MAX, got 2,1"));
@@ -161,7 +161,7 @@ fn errors_name_file_target_and_lines() {
     }
     .validate()
     .unwrap_err();
-    assert!(e.to_string().starts_with("estimate_theta_r:"), "{e}");
+    assert!(e.to_string().starts_with("estimate_theta_r needs reflectance mixed"), "{e}");
     // Nothing to train on.
     let fits: Vec<(u64, _)> = vec![(2, Default::default())];
     let e = train::train(&fits, Path::new("fits.csv"), "fits.csv").unwrap_err();
