@@ -106,6 +106,94 @@ pub enum CoreError {
         /// The algorithm's message.
         reason: String,
     },
+    // --- Calibrated geometry (camera, planes, sources): `geometry::camera` and
+    // `geometry::scene_geometry`. Keep these variants together.
+    /// A vector that must be finite and of non-zero length is not.
+    #[error("{name} = {value:?} must be a finite vector of non-zero length")]
+    InvalidVector {
+        /// Name of the vector.
+        name: &'static str,
+        /// The offending vector.
+        value: [f64; 3],
+    },
+    /// A focal length that is not finite and positive.
+    #[error("focal length (fx, fy) = ({fx}, {fy}) pixels must be finite and > 0")]
+    InvalidFocalLength {
+        /// Focal length along columns, pixels.
+        fx: f64,
+        /// Focal length along rows, pixels.
+        fy: f64,
+    },
+    /// A camera orientation from `look_at` and `up` that does not define a rotation.
+    #[error("camera at {position:?} looking at {look_at:?} with up {up:?}: {reason}")]
+    DegenerateLookAt {
+        /// Camera position.
+        position: [f64; 3],
+        /// Point looked at.
+        look_at: [f64; 3],
+        /// Up vector.
+        up: [f64; 3],
+        /// Why (coincident points, up parallel to the viewing direction).
+        reason: &'static str,
+    },
+    /// A camera rotation matrix that is not a proper rotation.
+    #[error("rotation {rows:?} is not a rotation matrix: {reason}")]
+    NotARotation {
+        /// The matrix, row by row.
+        rows: [[f64; 3]; 3],
+        /// Why (not orthonormal within 1e-6, determinant not +1), with the deviation.
+        reason: String,
+    },
+    /// The camera is not on the side of a plane that its normal points to.
+    #[error(
+        "camera at {position:?} is not in front of the plane (height {height} along the normal; must be > 0)"
+    )]
+    CameraBehindPlane {
+        /// Camera position.
+        position: [f64; 3],
+        /// Signed distance of the camera from the plane along its normal.
+        height: f64,
+    },
+    /// The ray of a pixel does not meet its plane in front of the camera.
+    #[error(
+        "the ray of pixel ({u}, {v}) does not meet the plane in front of the camera \
+         (cosine between ray and normal {cos_normal}; must be < 0)"
+    )]
+    RayMissesPlane {
+        /// Column of the pixel.
+        u: f64,
+        /// Row of the pixel.
+        v: f64,
+        /// Cosine between the ray direction and the plane's normal (`>= 0`: the ray is
+        /// parallel to the plane or leaves it).
+        cos_normal: f64,
+    },
+    /// The source is on or below the horizon of the plane at a pixel's hit point.
+    #[error(
+        "the source is below the horizon of the plane at pixel ({u}, {v}) \
+         (incidence angle {theta_i_deg} degrees; must be < 90)"
+    )]
+    SourceBelowHorizon {
+        /// Column of the pixel.
+        u: f64,
+        /// Row of the pixel.
+        v: f64,
+        /// Source zenith angle about the plane's normal, degrees.
+        theta_i_deg: f64,
+    },
+    /// The distortion model cannot be inverted at a pixel (outside its valid field).
+    #[error(
+        "lens distortion cannot be inverted at pixel ({u}, {v}) (residual {residual_px} pixels)"
+    )]
+    UndistortFailed {
+        /// Column of the pixel.
+        u: f64,
+        /// Row of the pixel.
+        v: f64,
+        /// Remaining error of the inverse, pixels.
+        residual_px: f64,
+    },
+    // --- end of calibrated geometry variants.
 }
 
 /// Result alias of the core crate.

@@ -277,6 +277,7 @@ pub fn beta_deg(c: &Capture) -> f64 {
 /// `rect` (line, value) when it leaves the frame or has no usable pixel; the reason
 /// names the capture, its first file and the frame size.
 pub fn measure_capture(m: &Manifest, c: &Capture) -> Result<Vec<Measurement>> {
+    calibrated_not_implemented(m, c)?;
     let img = capture_images(m, c)?;
     let beta_deg = beta_deg(c);
     let first_file = c
@@ -328,6 +329,27 @@ pub fn measure_capture(m: &Manifest, c: &Capture) -> Result<Vec<Measurement>> {
         });
     }
     Ok(rows)
+}
+
+// TODO(issue 15, next session): measure captures with calibrated geometry (per-pixel
+// θi, θr, φ, β from `polarid_core::geometry::ViewGeometry::fill`) and replace this
+// guard. Until then such a capture is refused rather than measured with wrong angles.
+/// Refuse a capture with calibrated geometry (a `source` under a `[camera]`): its
+/// measurement is not implemented yet. [`IoError::Manifest`] naming the capture's
+/// `source`.
+fn calibrated_not_implemented(m: &Manifest, c: &Capture) -> Result<()> {
+    match &c.illumination {
+        None => Ok(()),
+        Some(s) => Err(IoError::Manifest {
+            path: m.path.clone(),
+            line: c.line,
+            field: format!("capture[{}].source", c.index),
+            value: format!("{s:?}"),
+            reason: "measurement with calibrated geometry ([camera], per-pixel angles) \
+                     is not implemented yet"
+                .into(),
+        }),
+    }
 }
 
 /// Measure every region of every capture of a loaded manifest: one row per target per

@@ -161,7 +161,11 @@ fn errors_name_file_target_and_lines() {
     }
     .validate()
     .unwrap_err();
-    assert!(e.to_string().starts_with("estimate_theta_r needs reflectance mixed"), "{e}");
+    assert!(
+        e.to_string()
+            .starts_with("estimate_theta_r needs reflectance mixed"),
+        "{e}"
+    );
     // Nothing to train on.
     let fits: Vec<(u64, _)> = vec![(2, Default::default())];
     let e = train::train(&fits, Path::new("fits.csv"), "fits.csv").unwrap_err();

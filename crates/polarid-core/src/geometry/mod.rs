@@ -12,6 +12,18 @@
 //! `u_i − u_r`, which is exact to a few ulps for every geometry (no `acos` near ±1):
 //! `cos β = |u_i + u_r|/2`, `sin β = |u_i − u_r|/2`,
 //! `tan θ = |h_xy| / h_z`.
+//!
+//! Calibrated geometry (a real camera, a lamp at a finite distance, a distant source):
+//! [`camera::PinholeCamera`] turns a pixel into a ray, [`scene_geometry::ViewGeometry`]
+//! meets it with a [`scene_geometry::Plane`] and gives every pixel its own `θi`, `θr`,
+//! `φ` and `β` ([`scene_geometry::PixelGeometry`], [`scene_geometry::ViewGeometry::fill`]).
+
+pub mod camera;
+pub mod scene_geometry;
+mod vec3;
+
+pub use camera::{Distortion, Intrinsics, PinholeCamera};
+pub use scene_geometry::{GeometryMaps, PixelGeometry, Plane, Source, ViewGeometry};
 
 /// Unit vector of zenith angle `zenith` (from `+z`) and azimuth `azimuth` (from `+x`
 /// towards `+y`), radians: `(sin θ cos φ, sin θ sin φ, cos θ)`.

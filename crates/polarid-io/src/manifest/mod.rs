@@ -28,6 +28,14 @@
 //! (`capture[2].frames[1].file` is the first frame of the second `[[capture]]`).
 //! Unknown keys are not errors (FORMATS.md lets users extend files) but are listed in
 //! [`Manifest::warnings`] so that a typo does not pass unnoticed.
+//!
+//! Calibrated geometry (optional, [`calibration`]): a `[camera]` table, `[[plane]]`
+//! tables, a `[site]` table, a `plane` per region and a `source` per capture instead of
+//! the capture's angles. See [`calibration`] for the tables and their rules.
+
+pub mod calibration;
+
+pub use calibration::{CameraOrientation, CameraSpec, PlaneSpec, SiteSpec, SourceSpec};
 
 use std::collections::HashSet;
 use std::ops::Range;
@@ -57,6 +65,14 @@ pub struct Manifest {
     pub saturation: Option<f64>,
     /// Informational wavelength, nm.
     pub wavelength_nm: Option<f64>,
+    /// The calibrated camera (`[camera]`), if any: then every capture has a
+    /// [`Capture::illumination`] and no angles of its own.
+    pub camera: Option<CameraSpec>,
+    /// The target planes (`[[plane]]`), never empty: without `[[plane]]` tables, one
+    /// plane named `default` through the origin with normal `+z`.
+    pub planes: Vec<PlaneSpec>,
+    /// The observing site (`[site]`), if any (needed by `sun` sources).
+    pub site: Option<SiteSpec>,
     /// The targets.
     pub regions: Vec<Region>,
     /// The captures, in file order.
@@ -79,6 +95,9 @@ pub struct Region {
     pub line: usize,
     /// 1-based index among the `[[region]]` tables.
     pub index: usize,
+    /// Index into [`Manifest::planes`] of the plane the region lies on (its `plane`
+    /// name; default the first plane).
+    pub plane: usize,
 }
 
 /// One capture (source position).
@@ -90,12 +109,17 @@ pub struct Capture {
     pub line: usize,
     /// Optional label.
     pub name: Option<String>,
-    /// Source zenith angle, degrees.
+    /// Source zenith angle, degrees (NaN for a capture with calibrated geometry: see
+    /// [`Capture::illumination`]).
     pub theta_i_deg: f64,
-    /// Camera zenith angle, degrees (the capture's own or the top-level one).
+    /// Camera zenith angle, degrees (the capture's own or the top-level one; NaN with
+    /// calibrated geometry).
     pub theta_r_deg: f64,
-    /// `phi_r − phi_i`, degrees.
+    /// `phi_r − phi_i`, degrees (NaN with calibrated geometry).
     pub phi_deg: f64,
+    /// The light source of a capture with calibrated geometry (its `source` key, given
+    /// when the manifest has a `[camera]`); `None` for far-field captures.
+    pub illumination: Option<SourceSpec>,
     /// Relative exposure (S0 is divided by it), default 1.
     pub exposure: f64,
     /// Dark level, DN.
@@ -335,6 +359,9 @@ impl<'a> Parser<'a> {
                 "wavelength_nm",
                 "region",
                 "capture",
+                "camera",
+                "plane",
+                "site",
             ],
             "",
         );
@@ -364,6 +391,28 @@ impl<'a> Parser<'a> {
             other => other.map(|x| x.0),
         };
 
+        // Calibrated geometry.
+        let camera = self.camera(root)?;
+        let planes = self.planes(root, camera.as_ref())?;
+        let site = self.site(root)?;
+        if camera.is_some()
+            && let Some(v) = self
+                .get(root, "theta_r_deg")
+                .or_else(|| self.get(root, "phi_deg"))
+        {
+            let key = if self.get(root, "theta_r_deg").is_some() {
+                "theta_r_deg"
+            } else {
+                "phi_deg"
+            };
+            return Err(self.err(
+                &v.span(),
+                key,
+                "with [camera], the angles come from the calibrated geometry: \
+                 remove the angle or the [camera] table",
+            ));
+        }
+
         // Regions.
         let mut regions = Vec::new();
         let mut names = HashSet::new();
@@ -374,7 +423,7 @@ impl<'a> Parser<'a> {
         for (i, rv) in region_vals.iter().enumerate() {
             let pre = format!("region[{}].", i + 1);
             let t = self.table(rv, &format!("region[{}]", i + 1))?;
-            self.warn_unknown(t, &["name", "rect", "class"], &pre);
+            self.warn_unknown(t, &["name", "rect", "class", "plane"], &pre);
             let name_v = self.get(t, "name").ok_or_else(|| {
                 self.err(&rv.span(), &format!("{pre}name"), "missing region name")
             })?;
@@ -453,6 +502,7 @@ impl<'a> Parser<'a> {
                 class,
                 line: self.line(rect_v.span().start),
                 index: i + 1,
+                plane: self.region_plane(t, &pre, &planes)?,
             });
         }
         if regions.is_empty() {
@@ -470,10 +520,22 @@ impl<'a> Parser<'a> {
         };
         let mut captures = Vec::new();
         for (i, cv) in cap_vals.iter().enumerate() {
-            captures.push(self.capture(i + 1, cv, theta_r_deg, phi_deg, dark_level, saturation)?);
+            captures.push(self.capture(
+                i + 1,
+                cv,
+                theta_r_deg,
+                phi_deg,
+                dark_level,
+                saturation,
+                camera.is_some(),
+                site.is_some(),
+            )?);
         }
         if captures.is_empty() {
             return Err(self.err(&whole, "capture", "no [[capture]]: at least one is needed"));
+        }
+        if let Some(cam) = &camera {
+            self.check_geometry(cam, &planes, &regions, &captures, cap_vals)?;
         }
         Ok(Manifest {
             path: self.path.to_path_buf(),
@@ -482,6 +544,9 @@ impl<'a> Parser<'a> {
             dark_level,
             saturation,
             wavelength_nm,
+            camera,
+            planes,
+            site,
             regions,
             captures,
             warnings: self.warnings.take(),
@@ -497,6 +562,7 @@ impl<'a> Parser<'a> {
             .map_or(0, |i| i + 1)
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn capture(
         &self,
         index: usize,
@@ -505,6 +571,8 @@ impl<'a> Parser<'a> {
         phi_top: f64,
         dark_top: f64,
         sat_top: Option<f64>,
+        calibrated: bool,
+        has_site: bool,
     ) -> Result<Capture> {
         let pre = format!("capture[{index}].");
         let t = self.table(cv, &format!("capture[{index}]"))?;
@@ -521,6 +589,7 @@ impl<'a> Parser<'a> {
                 "frames",
                 "dofp",
                 "stokes",
+                "source",
             ],
             &pre,
         );
@@ -534,24 +603,30 @@ impl<'a> Parser<'a> {
             Some(v) => Some(self.string(v, &format!("{pre}name"))?),
             None => None,
         };
-        let theta_i_deg = self.angle(t, "theta_i_deg", &pre)?.ok_or_else(|| {
-            self.err(
-                &span,
-                &format!("{pre}theta_i_deg"),
-                "missing source zenith angle",
-            )
-        })?;
-        let theta_r_deg = match self.angle(t, "theta_r_deg", &pre)?.or(theta_r_top) {
-            Some(v) => v,
-            None => {
-                return Err(self.err(
+        let illumination = self.capture_source(t, &pre, &span, calibrated, has_site)?;
+        let (theta_i_deg, theta_r_deg, phi_deg) = if illumination.is_some() {
+            (f64::NAN, f64::NAN, f64::NAN)
+        } else {
+            let theta_i_deg = self.angle(t, "theta_i_deg", &pre)?.ok_or_else(|| {
+                self.err(
                     &span,
-                    &format!("{pre}theta_r_deg"),
-                    "no camera zenith angle: set theta_r_deg at the top or in the capture",
-                ));
-            }
+                    &format!("{pre}theta_i_deg"),
+                    "missing source zenith angle",
+                )
+            })?;
+            let theta_r_deg = match self.angle(t, "theta_r_deg", &pre)?.or(theta_r_top) {
+                Some(v) => v,
+                None => {
+                    return Err(self.err(
+                        &span,
+                        &format!("{pre}theta_r_deg"),
+                        "no camera zenith angle: set theta_r_deg at the top or in the capture",
+                    ));
+                }
+            };
+            let phi_deg = self.opt_num(t, "phi_deg", &pre)?.map_or(phi_top, |x| x.0);
+            (theta_i_deg, theta_r_deg, phi_deg)
         };
-        let phi_deg = self.opt_num(t, "phi_deg", &pre)?.map_or(phi_top, |x| x.0);
         let exposure = match self.opt_num(t, "exposure", &pre)? {
             Some((v, s)) if v <= 0.0 => {
                 return Err(self.err(&s, &format!("{pre}exposure"), "exposure must be > 0"));
@@ -690,6 +765,7 @@ impl<'a> Parser<'a> {
             theta_i_deg,
             theta_r_deg,
             phi_deg,
+            illumination,
             exposure,
             dark_level,
             saturation,
