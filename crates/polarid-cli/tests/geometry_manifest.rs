@@ -248,3 +248,31 @@ fn unknown_plane_name() {
         &["unknown plane", "bench", "\"table\""],
     );
 }
+
+#[test]
+fn valid_calibrated_manifest_is_refused_cleanly_by_map() {
+    let d = tempfile::tempdir().unwrap();
+    write_stokes(d.path());
+    std::fs::write(
+        d.path().join("m.toml"),
+        format!("{CAMERA}\n{REGION}\n{CAPTURE}"),
+    )
+    .unwrap();
+    // A model: train on a two-row fits file.
+    std::fs::write(
+        d.path().join("fits.csv"),
+        "target,class,n,k\na,aluminum,1.24,6.6\nc,copper,0.4,2.95\n",
+    )
+    .unwrap();
+    let o = polarid_in(d.path(), &["train", "fits.csv", "-o", "model.json"]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let o = polarid_in(
+        d.path(),
+        &["map", "m.toml", "--model", "model.json", "-o", "out"],
+    );
+    let err = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("capture[1].source"), "{err}");
+    assert!(err.contains("not implemented yet"), "{err}");
+    assert!(!d.path().join("out").exists(), "partial output left behind");
+}

@@ -335,9 +335,9 @@ pub fn measure_capture(m: &Manifest, c: &Capture) -> Result<Vec<Measurement>> {
 // θi, θr, φ, β from `polarid_core::geometry::ViewGeometry::fill`) and replace this
 // guard. Until then such a capture is refused rather than measured with wrong angles.
 /// Refuse a capture with calibrated geometry (a `source` under a `[camera]`): its
-/// measurement is not implemented yet. [`IoError::Manifest`] naming the capture's
-/// `source`.
-fn calibrated_not_implemented(m: &Manifest, c: &Capture) -> Result<()> {
+/// measurement (and map) is not implemented yet. [`IoError::Manifest`] naming the
+/// capture's `source`. TODO(issue 15): replace by per-pixel geometry.
+pub fn calibrated_not_implemented(m: &Manifest, c: &Capture) -> Result<()> {
     match &c.illumination {
         None => Ok(()),
         Some(s) => Err(IoError::Manifest {
@@ -345,8 +345,8 @@ fn calibrated_not_implemented(m: &Manifest, c: &Capture) -> Result<()> {
             line: c.line,
             field: format!("capture[{}].source", c.index),
             value: format!("{s:?}"),
-            reason: "measurement with calibrated geometry ([camera], per-pixel angles) \
-                     is not implemented yet"
+            reason: "measurement and maps with calibrated geometry ([camera], per-pixel \
+                     angles) are not implemented yet"
                 .into(),
         }),
     }

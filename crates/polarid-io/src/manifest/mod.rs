@@ -1,4 +1,4 @@
-//! The capture-set manifest (TOML) of `shared/FORMATS.md`: one scene, one fixed camera,
+//! The capture-set manifest (TOML) of `docs/FORMATS.md`: one scene, one fixed camera,
 //! the source moved between captures; several targets (regions) may share the frame.
 //!
 //! ```toml

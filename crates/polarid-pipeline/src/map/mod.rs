@@ -236,6 +236,9 @@ pub fn map_manifest(
     let names: Vec<String> = pc.names().to_vec();
 
     // Geometry: one β per capture (eq. 5), the fit plan shared by every pixel.
+    for c in &m.captures {
+        polarid_io::measure::calibrated_not_implemented(m, c)?;
+    }
     let betas: Vec<f64> = m
         .captures
         .iter()
