@@ -1,7 +1,7 @@
 //! Capture-set manifests: `load_manifest` (the validated manifest as a dict) and
 //! `measure` (each region's DoLP per capture, the numbers of `polarid measure`).
 //!
-//! `measure` calls `polarid_io::measure::measure_manifest`, the pipeline `polarid
+//! `measure` calls `polarid_pipeline::measure::measure`, the pipeline `polarid
 //! measure` runs (crates/polarid-cli/src/cmd/measure.rs), so it produces the same
 //! numbers. The test suite compares it with the CLI's CSV.
 
@@ -10,8 +10,9 @@ use std::path::{Path, PathBuf};
 
 use ndarray::{ArrayD, IxDyn};
 use polarid_io::manifest::{self, CaptureSource, Manifest};
-use polarid_io::measure::{beta_deg, measure_manifest};
+use polarid_io::measure::beta_deg;
 use polarid_io::table::measurements::Measurement;
+use polarid_pipeline::progress::no_progress;
 use pyo3::exceptions::PyUserWarning;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
@@ -38,8 +39,16 @@ pub(crate) fn path_arg(obj: &Bound<'_, PyAny>) -> PyResult<PathBuf> {
 
 /// Issue the manifest's warnings as `UserWarning`.
 pub(crate) fn warn_all(py: Python<'_>, m: &Manifest) -> PyResult<()> {
+    warn_texts(py, m.warnings.iter().map(String::as_str))
+}
+
+/// Issue each text as a `UserWarning` (the CLI prints the same texts on standard error).
+pub(crate) fn warn_texts<'a>(
+    py: Python<'_>,
+    texts: impl IntoIterator<Item = &'a str>,
+) -> PyResult<()> {
     let cat = py.get_type::<PyUserWarning>();
-    for w in &m.warnings {
+    for w in texts {
         let msg = CString::new(w.replace('\0', " ")).map_err(|e| value_error(e.to_string()))?;
         PyErr::warn(py, cat.as_any(), &msg, 2)?;
     }
@@ -186,8 +195,11 @@ pub fn measure<'py>(
     let p = path_arg(manifest_path)?;
     let m = py.detach(|| manifest::load(&p)).py_err()?;
     warn_all(py, &m)?;
-    let rows = py.detach(|| measure_manifest(&m, &mut |_| {})).py_err()?;
-    measurements_dict(py, &rows)
+    let out = py
+        .detach(|| polarid_pipeline::measure::measure(&m, &no_progress))
+        .py_err()?;
+    warn_texts(py, out.warnings.iter().map(|w| w.0.as_str()))?;
+    measurements_dict(py, &out.rows)
 }
 
 /// The columns of measurement rows as numpy arrays.

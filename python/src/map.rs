@@ -7,7 +7,7 @@
 use ndarray::{ArrayD, IxDyn};
 use polarid_io::manifest;
 use polarid_io::model::Model;
-use polarid_pipeline::map::{self, MapConfig, Metric, REASON_NAMES};
+use polarid_pipeline::map::{self, MapConfig, REASON_NAMES};
 use polarid_pipeline::progress::no_progress;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -89,7 +89,7 @@ pub fn map_manifest<'py>(
     metric: &str,
     tile: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let metric = Metric::parse(metric).py_err()?;
+    let metric = map::parse_metric(metric).py_err()?;
     let cfg = MapConfig::new(bin, min_s0, max_distance, metric, tile).py_err()?;
     let mpath = path_arg(manifest_path)?;
     let model_path = path_arg(model)?;

@@ -12,7 +12,7 @@
 //!
 //! | workflow | module |
 //! |---|---|
-//! | frames → Stokes images → region DoLP rows | [`measure`] (re-exported from `polarid_io::measure`) |
+//! | frames → Stokes images → region DoLP rows | [`measure`] (kernels from `polarid_io::measure`) |
 //! | measurement table → one `(n, k)` fit per target | [`fit`] |
 //! | labelled fits → prototypes (model) | [`train`] |
 //! | fits → decisions against a model or library | [`classify`] |
@@ -30,10 +30,10 @@ pub mod evaluate;
 pub mod fit;
 pub mod library;
 pub mod map;
+pub mod measure;
 pub mod progress;
 pub mod simulate;
 pub mod train;
 
 pub use error::{PipelineError, Result};
-pub use polarid_io::measure;
 pub use progress::{Progress, Warning};

@@ -27,9 +27,10 @@
 use std::path::{Path, PathBuf};
 
 use polarid_io::manifest::{self, Manifest};
-use polarid_io::measure;
 use polarid_io::table::measurements::{self, Measurement};
+use polarid_pipeline::measure;
 
+use super::common::{Bars, PipeResult, warn_all};
 use crate::Ctx;
 
 /// Arguments of `polarid measure`.
@@ -43,16 +44,15 @@ pub struct Args {
 }
 
 /// Measure every region of every capture of a loaded manifest (one row per target per
-/// capture, captures in manifest order) with [`polarid_io::measure::measure_manifest`],
+/// capture, captures in manifest order) with [`polarid_pipeline::measure::measure`],
 /// showing a progress bar over the captures and a warning per saturated region.
 pub fn measure_manifest(m: &Manifest, ctx: &Ctx) -> anyhow::Result<Vec<Measurement>> {
-    let pb = ctx.progress(m.captures.len() as u64, "captures");
-    let rows = measure::measure_manifest(m, &mut |done| pb.set_position(done as u64))?;
-    pb.finish_and_clear();
-    for w in measure::saturation_warnings(m, &rows) {
-        ctx.info(format!("polarid: warning: {w}"));
-    }
-    Ok(rows)
+    let out = {
+        let bars = Bars::new(ctx);
+        measure::measure(m, &|s, d, t| bars.report(s, d, t)).cli()?
+    };
+    warn_all(ctx, &out.warnings);
+    Ok(out.rows)
 }
 
 /// Run `polarid measure`.

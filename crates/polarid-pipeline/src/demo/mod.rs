@@ -24,7 +24,6 @@ use std::path::Path;
 use polarid_core::classify::{Classifier, ClassifierConfig};
 use polarid_io::atomic::{StagedDir, write_atomic};
 use polarid_io::manifest;
-use polarid_io::measure;
 use polarid_io::model::Model;
 use polarid_io::table::classification::{self, ClassificationRow};
 use polarid_io::table::fits::{self, FitRow};
@@ -35,6 +34,7 @@ pub use tables::{paper_tables, pm, text_table};
 
 use crate::classify::{classification_row, estimate_of, explain, read_fits};
 use crate::fit::{FitConfig, fit, read_measurements};
+use crate::measure::measure;
 use crate::progress::{Progress, Warning};
 use crate::train::train;
 use crate::{PipelineError, Result};
@@ -107,15 +107,9 @@ pub fn run(staged: &StagedDir, progress: Progress) -> Result<DemoOutput> {
     let mut rows: Vec<Measurement> = Vec::new();
     for m in &manifests {
         let man = manifest::load(&staged.path(m)?)?;
-        let total = man.captures.len() as u64;
-        let got =
-            measure::measure_manifest(&man, &mut |done| progress("captures", done as u64, total))?;
-        warnings.extend(
-            measure::saturation_warnings(&man, &got)
-                .into_iter()
-                .map(Warning),
-        );
-        rows.extend(got);
+        let got = measure(&man, progress)?;
+        warnings.extend(got.warnings);
+        rows.extend(got.rows);
     }
     let meas_path = stage(staged, "measurements.csv", |w| {
         measurements::write(w, Path::new("measurements.csv"), &rows)

@@ -39,37 +39,21 @@ pub use summary::RegionSummary;
 use crate::error::{PipelineError, Result};
 use crate::progress::{Progress, Warning};
 
-/// Distance to the prototypes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Metric {
-    /// Euclidean distance in the `(n, k)` plane (the paper's rule).
-    #[default]
-    Euclidean,
-    /// Mahalanobis distance with each pixel's fit covariance plus the prototype's
-    /// (`max_distance` is then in standard deviations).
-    Mahalanobis,
-}
+/// Distance to the prototypes: the classifier's metric (Euclidean in `(n, k)`, the
+/// paper's rule; or Mahalanobis with each pixel's fit covariance plus the prototype's,
+/// `max_distance` then being in standard deviations).
+pub use polarid_core::classify::Metric;
 
-impl Metric {
-    /// `euclidean` or `mahalanobis`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Metric::Euclidean => "euclidean",
-            Metric::Mahalanobis => "mahalanobis",
-        }
-    }
-
-    /// Parse `euclidean` or `mahalanobis` (error naming `--metric`).
-    pub fn parse(s: &str) -> Result<Self> {
-        match s {
-            "euclidean" => Ok(Metric::Euclidean),
-            "mahalanobis" => Ok(Metric::Mahalanobis),
-            _ => Err(PipelineError::config(
-                "--metric",
-                format!("{s:?}"),
-                "must be \"euclidean\" or \"mahalanobis\"",
-            )),
-        }
+/// Parse `euclidean` or `mahalanobis` (error naming `--metric`).
+pub fn parse_metric(s: &str) -> Result<Metric> {
+    match s {
+        "euclidean" => Ok(Metric::Euclidean),
+        "mahalanobis" => Ok(Metric::Mahalanobis),
+        _ => Err(PipelineError::config(
+            "--metric",
+            format!("{s:?}"),
+            "must be \"euclidean\" or \"mahalanobis\"",
+        )),
     }
 }
 
@@ -384,7 +368,7 @@ mod tests {
                 other => panic!("{option}: {other:?}"),
             }
         }
-        assert_eq!(Metric::parse("euclidean").unwrap(), Metric::Euclidean);
-        assert!(Metric::parse("cosine").is_err());
+        assert_eq!(parse_metric("euclidean").unwrap(), Metric::Euclidean);
+        assert!(parse_metric("cosine").is_err());
     }
 }

@@ -143,7 +143,7 @@ impl MapResult {
             "beta_deg": self.beta_deg,
             "min_s0_dn": self.min_s0_dn,
             "max_distance": self.max_distance,
-            "metric": self.metric.as_str(),
+            "metric": self.metric.name(),
             "pixels": self.width * self.height,
             "classified": self.classified(),
             "reasons": reasons,
