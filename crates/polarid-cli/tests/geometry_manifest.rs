@@ -276,3 +276,64 @@ fn valid_calibrated_manifest_is_refused_cleanly_by_map() {
     assert!(err.contains("not implemented yet"), "{err}");
     assert!(!d.path().join("out").exists(), "partial output left behind");
 }
+
+const SITE: &str = r#"[site]
+latitude_deg = 39.742476
+longitude_deg = -105.1786
+elevation_m = 1830.14
+pressure_mbar = 820.0
+temperature_c = 11.0
+"#;
+
+fn sun_capture(time: &str) -> String {
+    CAPTURE.replace("position = [-0.4, 0.0, 0.6]", &format!("sun = \"{time}\""))
+}
+
+#[test]
+fn sun_at_night() {
+    let night = "2003-10-17T23:30:30-07:00";
+    expect_bad(
+        "sun at night",
+        &format!("{CAMERA}\n{SITE}\n{REGION}\n{}", sun_capture(night)),
+        "capture[1].source.sun",
+        &["below the horizon", night, "elevation -"],
+    );
+}
+
+#[test]
+fn sun_with_a_bad_time() {
+    let bad = "2003-10-17 12:30:30";
+    expect_bad(
+        "bad sun time",
+        &format!("{CAMERA}\n{SITE}\n{REGION}\n{}", sun_capture(bad)),
+        "capture[1].source.sun",
+        &[bad, "RFC 3339"],
+    );
+}
+
+#[test]
+fn sun_below_a_planes_horizon() {
+    // The sun is to the south-south-west (azimuth 194°, elevation 40°); a plane tilted
+    // towards the north puts it below the plane's horizon.
+    let plane = "[[plane]]\nname = \"north\"\npoint = [0, 0, 0]\nnormal = [0, 1, 1]\n";
+    expect_bad(
+        "sun below the plane",
+        &format!(
+            "{CAMERA}\n{SITE}\n{plane}\n{REGION}\n{}",
+            sun_capture("2003-10-17T12:30:30-07:00")
+        ),
+        "capture[1].source.sun",
+        &["below the horizon", "target \"A\""],
+    );
+}
+
+#[test]
+fn valid_sun_source_is_refused_cleanly() {
+    let (code, err) = measure(&format!(
+        "{CAMERA}\n{SITE}\n{REGION}\n{}",
+        sun_capture("2003-10-17T12:30:30-07:00")
+    ));
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("capture[1].source"), "{err}");
+    assert!(err.contains("not implemented yet"), "{err}");
+}

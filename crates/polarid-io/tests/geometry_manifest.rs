@@ -77,15 +77,22 @@ fn calibrated_tables_parse_and_convert() {
         panic!("{:?}", s[1]);
     };
     assert!((dir[0] + h).abs() < 1e-15 && dir[1] == 0.0 && (dir[2] - h).abs() < 1e-15);
-    assert_eq!(
-        s[2],
-        Some(SourceSpec::Sun("2003-10-17T12:30:30-07:00".into()))
-    );
+    let Some(SourceSpec::Sun {
+        time, direction, ..
+    }) = &s[2]
+    else {
+        panic!("{:?}", s[2]);
+    };
+    assert_eq!(time, "2003-10-17T12:30:30-07:00");
     assert_eq!(
         s[0].as_ref().unwrap().to_source(),
         Some(Source::Position([-0.35, 0.0, 0.606]))
     );
-    assert_eq!(s[2].as_ref().unwrap().to_source(), None);
+    // The sun is resolved at load time (it used to be left to the caller: `None`).
+    assert_eq!(
+        s[2].as_ref().unwrap().to_source(),
+        Some(Source::Direction(*direction))
+    );
     assert!(m.captures.iter().all(|c| c.theta_i_deg.is_nan()));
 }
 
@@ -132,4 +139,86 @@ fn rotation_form_and_site_ranges() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("field `site.longitude_deg`"), "{e}");
+}
+
+/// A manifest with the SPA report's site (NREL/TP-560-34302, table A4.1) and one sun
+/// capture at `time`.
+fn sun_manifest(time: &str) -> String {
+    format!(
+        "[camera]\nfocal_px = [100, 100]\nprincipal_point_px = [10, 10]\n\
+         position = [0, 0, 1]\nrotation = [[1, 0, 0], [0, -1, 0], [0, 0, -1]]\n\
+         [site]\nlatitude_deg = 39.742476\nlongitude_deg = -105.1786\n\
+         elevation_m = 1830.14\npressure_mbar = 820\ntemperature_c = 11\n\
+         [[region]]\nname = \"A\"\nrect = [0, 0, 20, 20]\n\
+         [[capture]]\nsource = {{ sun = \"{time}\" }}\n\
+         stokes = {{ s0 = \"s.tif\", s1 = \"s.tif\", s2 = \"s.tif\" }}\n"
+    )
+}
+
+#[test]
+fn sun_source_resolves_to_the_spa_reports_direction() {
+    let d = tempfile::tempdir().unwrap();
+    std::fs::write(d.path().join("s.tif"), b"x").unwrap();
+    let m = manifest::parse(
+        &d.path().join("m.toml"),
+        &sun_manifest("2003-10-17T12:30:30-07:00"),
+    )
+    .unwrap();
+    let Some(SourceSpec::Sun {
+        time,
+        unix_seconds,
+        zenith_deg,
+        azimuth_deg,
+        direction,
+    }) = m.captures[0].illumination.clone()
+    else {
+        panic!("{:?}", m.captures[0].illumination);
+    };
+    assert_eq!(time, "2003-10-17T12:30:30-07:00");
+    assert_eq!(unix_seconds, 1_066_419_030.0);
+    assert!((zenith_deg - 50.1116).abs() < 1e-3, "zenith {zenith_deg}");
+    assert!(
+        (azimuth_deg - 194.340).abs() < 1e-3,
+        "azimuth {azimuth_deg}"
+    );
+    // From the direction itself: zenith = acos z, azimuth = atan2(x, y) from north eastward.
+    let z = direction[2].acos().to_degrees();
+    let az = direction[0]
+        .atan2(direction[1])
+        .to_degrees()
+        .rem_euclid(360.0);
+    assert!((z - 50.1116).abs() < 1e-3, "zenith from direction {z}");
+    assert!((az - 194.340).abs() < 1e-3, "azimuth from direction {az}");
+    let (sz, cz) = zenith_deg.to_radians().sin_cos();
+    let (sa, ca) = azimuth_deg.to_radians().sin_cos();
+    for (a, b) in direction.iter().zip([sz * sa, sz * ca, cz]) {
+        assert!((a - b).abs() < 1e-12, "{direction:?}");
+    }
+    assert_eq!(
+        m.captures[0].illumination.as_ref().unwrap().to_source(),
+        Some(Source::Direction(direction))
+    );
+}
+
+#[test]
+fn sun_at_night_and_bad_times_are_refused() {
+    let d = tempfile::tempdir().unwrap();
+    std::fs::write(d.path().join("s.tif"), b"x").unwrap();
+    let path = d.path().join("m.toml");
+    let night = "2003-10-17T23:30:30-07:00";
+    let e = manifest::parse(&path, &sun_manifest(night))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("field `capture[1].source.sun`"), "{e}");
+    assert!(e.contains(night) && e.contains("below the horizon"), "{e}");
+    assert!(e.contains("elevation -"), "{e}");
+    assert!(e.contains("line 16"), "{e}");
+    for bad in ["2003-10-17 12:30:30", "2003-13-17T12:30:30Z", "yesterday"] {
+        let e = manifest::parse(&path, &sun_manifest(bad))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("field `capture[1].source.sun`"), "{bad}: {e}");
+        assert!(e.contains(bad), "{bad}: {e}");
+        assert!(e.contains("line 16"), "{bad}: {e}");
+    }
 }

@@ -35,17 +35,22 @@
 //! without `[camera]`, and a `sun` source without `[site]`, are errors. The geometry is
 //! checked at load time ([`Parser::check_geometry`]): the camera must be in front of
 //! every plane, the rays of every region's corners and centre must meet its plane, and
-//! a `position` or `direction` source must be above the plane's horizon. A `sun` time
-//! is stored as written; it is resolved to a direction by the caller.
+//! every source must be above the plane's horizon. A `sun` time is parsed (RFC 3339,
+//! [`crate::time::parse_rfc3339`]) and resolved at load time to the sun's apparent
+//! direction seen from `[site]` ([`polarid_core::sun::solar_position`] with the site's
+//! pressure and temperature for refraction and the estimated ΔT); a sun at or below the
+//! horizon (refracted elevation ≤ 0) is an error naming `capture[i].source.sun`.
 
 use std::ops::Range;
 
 use polarid_core::CoreError;
 use polarid_core::geometry::{Distortion, Intrinsics, PinholeCamera, Plane, Source, ViewGeometry};
+use polarid_core::sun::{Site, solar_position, sun_direction};
 use toml::de::DeValue;
 
 use super::{Capture, Parser, Region, Result, Table, Val};
 use crate::error::IoError;
+use crate::time::parse_rfc3339;
 
 /// How the camera is oriented.
 #[derive(Debug, Clone, PartialEq)]
@@ -132,19 +137,32 @@ pub enum SourceSpec {
     Position([f64; 3]),
     /// A distant source in this direction (unit vector, normalized at load time).
     Direction([f64; 3]),
-    /// The sun at this time (RFC 3339, stored as written), seen from `[site]`.
-    Sun(String),
+    /// The sun at this time, seen from `[site]`, resolved when the manifest was loaded.
+    Sun {
+        /// The time as written (RFC 3339).
+        time: String,
+        /// The time as Unix seconds (UTC).
+        unix_seconds: f64,
+        /// The sun's apparent (refracted) topocentric zenith angle, degrees, in (0, 90).
+        zenith_deg: f64,
+        /// The sun's topocentric azimuth, degrees from north eastward, in [0, 360).
+        azimuth_deg: f64,
+        /// Unit vector towards the sun, scene frame x east, y north, z up:
+        /// `(sin z sin az, sin z cos az, cos z)`.
+        direction: [f64; 3],
+    },
 }
 
 impl SourceSpec {
-    /// The core source, or `None` for [`SourceSpec::Sun`] (the caller resolves the
-    /// sun's direction from the time and the site).
+    /// The core source: a [`SourceSpec::Sun`] gives [`Source::Direction`] towards the
+    /// sun. Always `Some` (kept an `Option` for callers written against earlier versions,
+    /// where the sun was not resolved).
     pub fn to_source(&self) -> Option<Source> {
-        match self {
-            SourceSpec::Position(p) => Some(Source::Position(*p)),
-            SourceSpec::Direction(d) => Some(Source::Direction(*d)),
-            SourceSpec::Sun(_) => None,
-        }
+        Some(match self {
+            SourceSpec::Position(p) => Source::Position(*p),
+            SourceSpec::Direction(d) => Source::Direction(*d),
+            SourceSpec::Sun { direction, .. } => Source::Direction(*direction),
+        })
     }
 
     /// The key it was given with (`position`, `direction`, `sun`).
@@ -152,7 +170,7 @@ impl SourceSpec {
         match self {
             SourceSpec::Position(_) => "position",
             SourceSpec::Direction(_) => "direction",
-            SourceSpec::Sun(_) => "sun",
+            SourceSpec::Sun { .. } => "sun",
         }
     }
 }
@@ -492,7 +510,7 @@ impl Parser<'_> {
         pre: &str,
         span: &Range<usize>,
         calibrated: bool,
-        has_site: bool,
+        site: Option<&SiteSpec>,
     ) -> Result<Option<SourceSpec>> {
         let field = format!("{pre}source");
         let angle_keys = ["theta_i_deg", "theta_r_deg", "phi_deg"];
@@ -562,16 +580,54 @@ impl Parser<'_> {
                 if s.trim().is_empty() {
                     return Err(self.err(&v.span(), &kfield, "empty time"));
                 }
-                if !has_site {
+                let Some(site) = site else {
                     return Err(self.err(
                         &v.span(),
                         &kfield,
                         "a `sun` source needs a [site] table (latitude_deg, longitude_deg, ...)",
                     ));
-                }
-                SourceSpec::Sun(s)
+                };
+                self.sun(s, site, v, &kfield)?
             }
         }))
+    }
+
+    /// A `sun` source: parse the time and resolve the sun's direction at `site`.
+    fn sun(&self, time: String, site: &SiteSpec, v: &Val<'_>, field: &str) -> Result<SourceSpec> {
+        let unix_seconds =
+            parse_rfc3339(&time).map_err(|e| self.err(&v.span(), field, e.to_string()))?;
+        let core_site = Site {
+            latitude_deg: site.latitude_deg,
+            longitude_deg: site.longitude_deg,
+            elevation_m: site.elevation_m,
+            pressure_mbar: site.pressure_mbar,
+            temperature_c: site.temperature_c,
+        };
+        let pos = solar_position(unix_seconds, None, &core_site).map_err(|e| {
+            self.err(
+                &v.span(),
+                field,
+                format!("cannot compute the sun's position at {time:?} from [site]: {e}"),
+            )
+        })?;
+        if !pos.is_up() {
+            return Err(self.err(
+                &v.span(),
+                field,
+                format!(
+                    "the sun is below the horizon at {time} seen from [site] \
+                     (elevation {:.3} degrees, zenith {:.3} degrees)",
+                    pos.elevation_deg, pos.zenith_deg
+                ),
+            ));
+        }
+        Ok(SourceSpec::Sun {
+            time,
+            unix_seconds,
+            zenith_deg: pos.zenith_deg,
+            azimuth_deg: pos.azimuth_deg,
+            direction: sun_direction(&pos),
+        })
     }
 
     /// Check every region against every capture's source: the rays of its corners and

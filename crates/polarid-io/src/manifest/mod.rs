@@ -528,7 +528,7 @@ impl<'a> Parser<'a> {
                 dark_level,
                 saturation,
                 camera.is_some(),
-                site.is_some(),
+                site.as_ref(),
             )?);
         }
         if captures.is_empty() {
@@ -572,7 +572,7 @@ impl<'a> Parser<'a> {
         dark_top: f64,
         sat_top: Option<f64>,
         calibrated: bool,
-        has_site: bool,
+        site: Option<&SiteSpec>,
     ) -> Result<Capture> {
         let pre = format!("capture[{index}].");
         let t = self.table(cv, &format!("capture[{index}]"))?;
@@ -603,7 +603,7 @@ impl<'a> Parser<'a> {
             Some(v) => Some(self.string(v, &format!("{pre}name"))?),
             None => None,
         };
-        let illumination = self.capture_source(t, &pre, &span, calibrated, has_site)?;
+        let illumination = self.capture_source(t, &pre, &span, calibrated, site)?;
         let (theta_i_deg, theta_r_deg, phi_deg) = if illumination.is_some() {
             (f64::NAN, f64::NAN, f64::NAN)
         } else {
