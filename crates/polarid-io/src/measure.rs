@@ -28,7 +28,7 @@ use polarid_core::stokes::{self, PixelCounts, PixelRules, StokesSolver};
 
 use crate::error::{IoError, Result};
 use crate::image::{self, Frame};
-use crate::manifest::{Capture, CaptureSource, Manifest};
+use crate::manifest::{Capture, CaptureSource, Manifest, SourceSpec};
 use crate::table::measurements::Measurement;
 
 /// Fraction of a region's pixels above which [`saturation_warnings`] reports saturation
@@ -344,7 +344,11 @@ pub fn calibrated_not_implemented(m: &Manifest, c: &Capture) -> Result<()> {
             path: m.path.clone(),
             line: c.line,
             field: format!("capture[{}].source", c.index),
-            value: format!("{s:?}"),
+            value: match s {
+                SourceSpec::Position(p) => format!("{{ position = {p:?} }}"),
+                SourceSpec::Direction(d) => format!("{{ direction = {d:?} }}"),
+                SourceSpec::Sun { time, .. } => format!("{{ sun = {time:?} }}"),
+            },
             reason: "measurement and maps with calibrated geometry ([camera], per-pixel \
                      angles) are not implemented yet"
                 .into(),
