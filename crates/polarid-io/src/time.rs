@@ -71,9 +71,9 @@ pub fn parse_rfc3339_timestamp(text: &str) -> Result<Timestamp, TimeError> {
     let mut p = Cursor { s: text, b, i: 0 };
 
     let year = p.digits(4, "year").map_err(&fail)?;
-    p.expect(b'-', "'-' after the year").map_err(&fail)?;
+    p.expect_byte(b'-', "'-' after the year").map_err(&fail)?;
     let month = p.digits(2, "month").map_err(&fail)?;
-    p.expect(b'-', "'-' after the month").map_err(&fail)?;
+    p.expect_byte(b'-', "'-' after the month").map_err(&fail)?;
     let day = p.digits(2, "day").map_err(&fail)?;
     match p.next() {
         Some(b'T' | b't' | b' ') => {}
@@ -90,9 +90,9 @@ pub fn parse_rfc3339_timestamp(text: &str) -> Result<Timestamp, TimeError> {
         }
     }
     let hour = p.digits(2, "hour").map_err(&fail)?;
-    p.expect(b':', "':' after the hour").map_err(&fail)?;
+    p.expect_byte(b':', "':' after the hour").map_err(&fail)?;
     let minute = p.digits(2, "minute").map_err(&fail)?;
-    p.expect(b':', "':' after the minute").map_err(&fail)?;
+    p.expect_byte(b':', "':' after the minute").map_err(&fail)?;
     let second = p.digits(2, "second").map_err(&fail)?;
     let mut nanosecond: u32 = 0;
     if p.peek() == Some(b'.') {
@@ -115,7 +115,7 @@ pub fn parse_rfc3339_timestamp(text: &str) -> Result<Timestamp, TimeError> {
         Some(b'Z' | b'z') => 0,
         Some(sign @ (b'+' | b'-')) => {
             let oh = p.digits(2, "offset hour").map_err(&fail)?;
-            p.expect(b':', "':' in the offset (±hh:mm)")
+            p.expect_byte(b':', "':' in the offset (±hh:mm)")
                 .map_err(&fail)?;
             let om = p.digits(2, "offset minute").map_err(&fail)?;
             if oh > 23 {
@@ -254,7 +254,7 @@ impl Cursor<'_> {
         Ok(v)
     }
 
-    fn expect(&mut self, c: u8, what: &str) -> Result<(), String> {
+    fn expect_byte(&mut self, c: u8, what: &str) -> Result<(), String> {
         match self.next() {
             Some(x) if x == c => Ok(()),
             Some(_) => Err(format!(
