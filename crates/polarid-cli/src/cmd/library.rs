@@ -4,7 +4,7 @@
 //!
 //! The workflow is [`polarid_pipeline::library`]; this command parses the options and
 //! writes the CSV. Each file gives one material: the arithmetic means of `n` and of `k` over the band,
-//! sampled every `--step` nm ([`RiiData::band_mean`], the method of the built-in 650 nm
+//! sampled every `--step` nm ([`RiiData::band_mean`](polarid_io::library::RiiData::band_mean), the method of the built-in 650 nm
 //! library: `--band 610:690 --step 1` reproduces it). Nothing is extrapolated: a file whose
 //! data do not cover the whole band is an error naming the file, the band and the data's
 //! range (exit status 2), or is skipped with a warning under `--skip-missing`.

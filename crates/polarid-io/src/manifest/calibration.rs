@@ -33,7 +33,7 @@
 //! Rules: with `[camera]` every capture gives `source` and no `theta_i_deg`,
 //! `theta_r_deg` or `phi_deg` (nor the top level `theta_r_deg`, `phi_deg`); a `source`
 //! without `[camera]`, and a `sun` source without `[site]`, are errors. The geometry is
-//! checked at load time ([`Parser::check_geometry`]): the camera must be in front of
+//! checked at load time (`Parser::check_geometry`): the camera must be in front of
 //! every plane, the rays of every region's corners and centre must meet its plane, and
 //! every source must be above the plane's horizon. A `sun` time is parsed (RFC 3339,
 //! [`crate::time::parse_rfc3339`]) and resolved at load time to the sun's apparent

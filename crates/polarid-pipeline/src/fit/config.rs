@@ -85,9 +85,9 @@ fn check_unit(option: &str, v: f64) -> Result<()> {
     }
 }
 
-/// How [`fit`] models the reflection; the defaults are those of `polarid fit`.
+/// How [`fit`](super::fit()) models the reflection; the defaults are those of `polarid fit`.
 ///
-/// Checked by [`FitConfig::validate`] (called by [`fit`]); an error names the field as
+/// Checked by [`FitConfig::validate`] (called by [`fit`](super::fit())); an error names the field as
 /// the Python keyword (`n_range`, `s0_rel_sd`...).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FitConfig {

@@ -7,7 +7,7 @@
 //! standard errors follow from them; otherwise it is unweighted and the standard errors
 //! are scaled by the residual.
 //!
-//! [`Reflectance::Specular`] (default) is the paper's DoLP-only fit, one [`FitPlan`] per
+//! [`Reflectance::Specular`] (default) is the paper's DoLP-only fit, one [`FitPlan`](polarid_core::fit::FitPlan) per
 //! distinct β set ([`PlanCache`]). A target whose DoLP stays below
 //! [`FitConfig::depolarized_dolp`] at every source position gets the status
 //! `depolarized` (see [`polarid_core::mixed::depolarized_reason`]): DoLP alone cannot

@@ -8,8 +8,8 @@
 //! - [`scalar_map`]: a scalar image (n, k, DoLP, ...) in the viridis colour map with a
 //!   colour bar.
 //!
-//! Every function returns a [`Rendered`] (PNG bytes and SVG text of the same drawing);
-//! [`Rendered::write`] writes `STEM.png` and `STEM.svg`. Text is drawn with the bundled
+//! Every function returns a [`Rendered`](crate::render::Rendered) (PNG bytes and SVG text of the same drawing);
+//! [`Rendered::write`](crate::render::Rendered::write) writes `STEM.png` and `STEM.svg`. Text is drawn with the bundled
 //! DejaVu Sans font (`assets/fonts/`, registered with plotters' `ab_glyph` table), so
 //! plots render on machines without system fonts. Empty data draws a "no data" notice
 //! rather than failing; inconsistent data (an image buffer of the wrong length) is an
@@ -17,7 +17,7 @@
 //!
 //! Modules: [`style`] (font, sizes, colours, legend), [`canvas`] (PNG + SVG rendering,
 //! chart frame), one module per figure ([`dolp`], [`nk`], [`maps`]). The output type,
-//! [`Rendered`], is shared with the report and lives in [`crate::render`].
+//! [`Rendered`](crate::render::Rendered), is shared with the report and lives in [`crate::render`].
 
 use anyhow::{Result, bail};
 
