@@ -27,44 +27,33 @@ pub(super) fn quad_block<T: Sample, const POLAR: bool>(
     let sat = rules.saturation;
     let min_s0 = rules.min_s0;
     let (mut n_sat, mut n_dark, mut n_inv) = (0u32, 0u32, 0u32);
-    if POLAR {
-        let (rd, ra) = (&mut rd[..n], &mut ra[..n]);
-        for i in 0..n {
-            let (a, b, c, d) = (
-                q0[i].to_f32(),
-                q1[i].to_f32(),
-                q2[i].to_f32(),
-                q3[i].to_f32(),
-            );
-            let (v0, v1, v2, m) = quad_pixel(a, b, c, d, dark2, sat, min_s0);
-            r0[i] = v0;
-            r1[i] = v1;
-            r2[i] = v2;
-            rm[i] = m;
-            n_sat += (m == mask::SATURATED) as u32;
-            n_dark += (m == mask::DARK) as u32;
-            n_inv += (m == mask::INVALID) as u32;
+    // `POLAR` is a constant: the branch below costs nothing per pixel, and the
+    // non-polar instance never touches `rd`, `ra` (which may then be empty).
+    let (rd, ra) = if POLAR {
+        (&mut rd[..n], &mut ra[..n])
+    } else {
+        (&mut rd[..0], &mut ra[..0])
+    };
+    for i in 0..n {
+        let (a, b, c, d) = (
+            q0[i].to_f32(),
+            q1[i].to_f32(),
+            q2[i].to_f32(),
+            q3[i].to_f32(),
+        );
+        let (v0, v1, v2, m) = quad_pixel(a, b, c, d, dark2, sat, min_s0);
+        r0[i] = v0;
+        r1[i] = v1;
+        r2[i] = v2;
+        rm[i] = m;
+        n_sat += (m == mask::SATURATED) as u32;
+        n_dark += (m == mask::DARK) as u32;
+        n_inv += (m == mask::INVALID) as u32;
+        if POLAR {
             let (pd, pa) = dolp_aolp_pixel(v0, v1, v2);
             let ok = m == mask::VALID;
             rd[i] = if ok { pd } else { f32::NAN };
             ra[i] = if ok { pa } else { f32::NAN };
-        }
-    } else {
-        for i in 0..n {
-            let (a, b, c, d) = (
-                q0[i].to_f32(),
-                q1[i].to_f32(),
-                q2[i].to_f32(),
-                q3[i].to_f32(),
-            );
-            let (v0, v1, v2, m) = quad_pixel(a, b, c, d, dark2, sat, min_s0);
-            r0[i] = v0;
-            r1[i] = v1;
-            r2[i] = v2;
-            rm[i] = m;
-            n_sat += (m == mask::SATURATED) as u32;
-            n_dark += (m == mask::DARK) as u32;
-            n_inv += (m == mask::INVALID) as u32;
         }
     }
     let rejected = (n_sat + n_dark + n_inv) as u64;
