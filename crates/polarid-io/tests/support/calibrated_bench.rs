@@ -224,21 +224,26 @@ pub fn clean_with(m: &Manifest, plates: &[Plate], lamp: [f64; 3], sigma: f64) ->
     Clean { s, truth }
 }
 
+/// SplitMix64's output function.
+fn mix(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
 /// A small deterministic generator (SplitMix64) with Gaussian draws (Box–Muller).
 pub struct Rng(u64);
 
 impl Rng {
-    /// Seeded generator.
+    /// Seeded generator: the seed is hashed into the state, so that the streams of
+    /// nearby seeds do not overlap.
     pub fn new(seed: u64) -> Self {
-        Self(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0xD1B5_4A32_D192_ED03)
+        Self(mix(seed ^ 0xD1B5_4A32_D192_ED03).wrapping_add(mix(seed.wrapping_add(1))))
     }
 
     fn next_u64(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        mix(self.0)
     }
 
     /// Uniform in (0, 1).
@@ -259,6 +264,11 @@ pub const READ_NOISE: f64 = 3.0;
 /// Stokes images of `clean` with the noise of four polarizer frames (variance
 /// `gain · I + READ_NOISE²`); `gain = 0` gives the noise-free images.
 pub fn noisy(clean: &Clean, gain: f64, seed: u64) -> StokesImages {
+    noisy_with(clean, gain, READ_NOISE, seed)
+}
+
+/// [`noisy`] with read noise `read` (DN).
+pub fn noisy_with(clean: &Clean, gain: f64, read: f64, seed: u64) -> StokesImages {
     let mut rng = Rng::new(seed);
     let mut out = StokesImages::alloc(W, H, Sampling::Independent);
     for (p, v) in clean.s.iter().enumerate() {
@@ -267,7 +277,7 @@ pub fn noisy(clean: &Clean, gain: f64, seed: u64) -> StokesImages {
             let a = 2.0 * a.to_radians();
             let ideal = 0.5 * (v[0] + v[1] * a.cos() + v[2] * a.sin());
             let sd = if gain > 0.0 {
-                (gain * ideal.max(0.0) + READ_NOISE * READ_NOISE).sqrt()
+                (gain * ideal.max(0.0) + read * read).sqrt()
             } else {
                 0.0
             };
