@@ -92,3 +92,69 @@ fn critical_angle_and_total_reflection_are_zero() {
     let g = dop_beta_derivs(1.5, 0.0, 1.5f64.atan());
     assert!(g.dp_dbeta.abs() < 1e-9 && g.d2p_dbeta2 < -1.0, "{g:?}");
 }
+
+/// The residual error of the second-order spread model over plates whose β is spread
+/// uniformly (weights 1) or under a lobe (weights `e^{4u}` across the plate, `u` in
+/// [−½, ½]: 7× brighter at one edge), for β spreads (SD) of 1°, 2°, 3°, over
+/// β̄ = 20°…80°; printed for docs/GEOMETRY.md and bounded here.
+#[test]
+fn spread_truncation_table() {
+    let materials = [
+        ("aluminium 650", 1.2, 7.0),
+        ("gold 450", 1.38, 1.92),
+        ("copper 450", 1.01, 2.58),
+        ("glass", 1.52, 0.0),
+    ];
+    for (name, n, k) in materials {
+        for sd_deg in [1.0f64, 2.0, 3.0] {
+            let mut worst = [0.0f64; 4]; // uniform plain, uniform corrected, lobe plain, lobe corrected
+            for lobe in [false, true] {
+                for bd in (20..=80).map(f64::from) {
+                    // 2001 pixels across the plate, u in [−½, ½], β linear in u.
+                    let m = 2001;
+                    let us: Vec<f64> = (0..m).map(|i| i as f64 / (m - 1) as f64 - 0.5).collect();
+                    let w: Vec<f64> = us
+                        .iter()
+                        .map(|&u| if lobe { (4.0 * u).exp() } else { 1.0 })
+                        .collect();
+                    let sw: f64 = w.iter().sum();
+                    let mu: f64 = us.iter().zip(&w).map(|(u, w)| u * w).sum::<f64>() / sw;
+                    let var: f64 = us
+                        .iter()
+                        .zip(&w)
+                        .map(|(u, w)| w * (u - mu).powi(2))
+                        .sum::<f64>()
+                        / sw;
+                    // Scale so that the weighted SD is sd_deg and the weighted mean is bd.
+                    let scale = sd_deg.to_radians() / var.sqrt();
+                    let beta = |u: f64| bd.to_radians() + (u - mu) * scale;
+                    let exact: f64 = us
+                        .iter()
+                        .zip(&w)
+                        .map(|(&u, w)| w * dop(n, k, beta(u)))
+                        .sum::<f64>()
+                        / sw;
+                    let b = bd.to_radians();
+                    let plain = (exact - dop(n, k, b)).abs();
+                    let corr = (exact - dop_spread(n, k, b, sd_deg.to_radians())).abs();
+                    let o = if lobe { 2 } else { 0 };
+                    worst[o] = worst[o].max(plain);
+                    worst[o + 1] = worst[o + 1].max(corr);
+                }
+            }
+            println!(
+                "{name:14} sd {sd_deg}°: uniform {:.1e} -> {:.1e}, lobe {:.1e} -> {:.1e}",
+                worst[0], worst[1], worst[2], worst[3]
+            );
+            // The correction removes most of the error wherever it matters.
+            assert!(
+                worst[1] < 0.25 * worst[0] + 1e-5,
+                "{name} {sd_deg}: {worst:?}"
+            );
+            assert!(
+                worst[3] < 0.5 * worst[2] + 1e-5,
+                "{name} {sd_deg}: {worst:?}"
+            );
+        }
+    }
+}

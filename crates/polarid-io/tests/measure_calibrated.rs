@@ -254,3 +254,88 @@ fn csv_has_the_calibrated_columns() {
     let back: Vec<Measurement> = measurements::from_table(&t).unwrap();
     assert_eq!(back, rows);
 }
+
+/// How much averaging in the image frame would depolarize a region, on the issue's
+/// bench (a 40° lens 0.8 m from the plates, a lamp 0.7 m away, 10 cm plates, side plates
+/// out of the plane of incidence): `1 − |Σ w e^{2iψ}| / Σ w`, the factor lost by the
+/// image-frame mean of s-polarized light (weights uniform). Printed for
+/// docs/GEOMETRY.md.
+#[test]
+fn image_frame_averaging_loss_on_a_bench() {
+    let (w, h) = (640usize, 480usize);
+    let f = 0.5 * w as f64 / 20f64.to_radians().tan();
+    let cam_pos = [
+        0.8 * 50f64.to_radians().sin(),
+        0.0,
+        0.8 * 50f64.to_radians().cos(),
+    ];
+    let camera = PinholeCamera::look_at(
+        Intrinsics {
+            fx: f,
+            fy: f,
+            cx: (w as f64 - 1.0) / 2.0,
+            cy: (h as f64 - 1.0) / 2.0,
+        },
+        Distortion::from_array([0.0; 5]),
+        cam_pos,
+        [0.0, 0.0, 0.0],
+        [0.0, 0.0, 1.0],
+    )
+    .unwrap();
+    let vg = geometry::ViewGeometry::new(camera, geometry::Plane::horizontal()).unwrap();
+    let lamp = geometry::Source::Position([
+        -0.7 * 45f64.to_radians().sin(),
+        0.0,
+        0.7 * 45f64.to_radians().cos(),
+    ]);
+    let mut max_loss: f64 = 0.0;
+    for (name, yc) in [("centre", 0.0), ("side 0.15 m", 0.15), ("side 0.3 m", 0.3)] {
+        // The plate's 10 cm square: its pixels from the projection of its corners.
+        let corners: Vec<[f64; 2]> = [(-0.05, -0.05), (0.05, -0.05), (-0.05, 0.05), (0.05, 0.05)]
+            .iter()
+            .map(|&(dx, dy)| camera.project([dx, yc + dy, 0.0]).unwrap())
+            .collect();
+        let x0 = corners
+            .iter()
+            .map(|c| c[0])
+            .fold(f64::INFINITY, f64::min)
+            .ceil() as usize;
+        let x1 = corners.iter().map(|c| c[0]).fold(0.0, f64::max).floor() as usize;
+        let y0 = corners
+            .iter()
+            .map(|c| c[1])
+            .fold(f64::INFINITY, f64::min)
+            .ceil() as usize;
+        let y1 = corners.iter().map(|c| c[1]).fold(0.0, f64::max).floor() as usize;
+        let (mut c2, mut s2, mut n) = (0.0, 0.0, 0.0);
+        let (mut bmin, mut bmax, mut pmin, mut pmax) = (9.0f64, 0.0f64, 9.0f64, -9.0f64);
+        let mut phi_sum = 0.0;
+        for v in y0..=y1 {
+            for u in x0..=x1 {
+                let g = vg.pixel(u as f64, v as f64, &lamp).unwrap();
+                c2 += (2.0 * g.poi_angle).cos();
+                s2 += (2.0 * g.poi_angle).sin();
+                n += 1.0;
+                bmin = bmin.min(g.beta);
+                bmax = bmax.max(g.beta);
+                pmin = pmin.min(g.poi_angle);
+                pmax = pmax.max(g.poi_angle);
+                phi_sum += g.phi;
+            }
+        }
+        let loss = 1.0 - c2.hypot(s2) / n;
+        max_loss = max_loss.max(loss);
+        println!(
+            "{name}: {} px, beta {:.2}..{:.2} deg, phi {:.1} deg, poi angle {:.2}..{:.2} deg, image-frame loss {:.2e} (DoLP 0.9 -> {:.4})",
+            n,
+            bmin.to_degrees(),
+            bmax.to_degrees(),
+            (phi_sum / n).to_degrees(),
+            pmin.to_degrees(),
+            pmax.to_degrees(),
+            loss,
+            0.9 * (1.0 - loss)
+        );
+    }
+    assert!(max_loss > 1e-4 && max_loss < 0.1, "{max_loss}");
+}
