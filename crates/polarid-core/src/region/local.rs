@@ -327,6 +327,7 @@ fn detrended_se(
 /// Solve the leading `q × q` block of a symmetric positive definite system by Cholesky;
 /// `None` when a pivot falls below `1e-12` of its diagonal (the regressors are
 /// collinear).
+#[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN-safe on purpose
 fn solve_spd(a: &[[f64; 3]; 3], b: &[f64; 3], q: usize) -> Option<[f64; 3]> {
     let mut l = [[0.0f64; 3]; 3];
     for i in 0..q {
