@@ -430,6 +430,57 @@ fn region_geometry(
     }
 }
 
+/// The β (eq. 5, degrees) of every pixel of a `width × height` image lit by capture `c`
+/// of `m` and seen on plane `plane` (an index into [`Manifest::planes`]), row-major; NaN
+/// where a pixel has no geometry (its ray misses the plane, or the source is below the
+/// plane's horizon there). `None` for a far-field capture (one β: [`beta_deg`]). For
+/// drawing a capture's geometry (the report's β map).
+///
+/// Errors: [`IoError::Manifest`] naming `capture[j].source` when the manifest has no
+/// camera or `plane` is not one of its planes (or the camera is behind it).
+pub fn beta_map(
+    m: &Manifest,
+    c: &Capture,
+    plane: usize,
+    width: usize,
+    height: usize,
+) -> Result<Option<Vec<f32>>> {
+    let Some(spec) = &c.illumination else {
+        return Ok(None);
+    };
+    let err = |reason: String| IoError::Manifest {
+        path: m.path.clone(),
+        line: c.line,
+        field: format!("capture[{}].source", c.index),
+        value: source_text(spec),
+        reason,
+    };
+    let camera = m
+        .camera
+        .as_ref()
+        .ok_or_else(|| err("a source needs a [camera] table".into()))?
+        .to_camera();
+    let source = spec
+        .to_source()
+        .ok_or_else(|| err("the source could not be resolved".into()))?;
+    let vg = m
+        .planes
+        .get(plane)
+        .ok_or_else(|| err(format!("no plane with index {plane}")))?
+        .to_plane()
+        .and_then(|p| ViewGeometry::new(camera, p))
+        .map_err(|e| err(e.to_string()))?;
+    let mut out = vec![f32::NAN; width * height];
+    for (v, row) in out.chunks_mut(width.max(1)).enumerate() {
+        for (u, px) in row.iter_mut().enumerate() {
+            if let Ok(g) = vg.pixel(u as f64, v as f64, &source) {
+                *px = g.beta.to_degrees() as f32;
+            }
+        }
+    }
+    Ok(Some(out))
+}
+
 /// The rows of a capture with calibrated geometry ([`region_stats_local`] per region).
 fn calibrated_rows(
     m: &Manifest,

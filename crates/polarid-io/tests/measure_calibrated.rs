@@ -211,7 +211,7 @@ fn bad_geometry_names_region_and_capture() {
     let spec = m.camera.as_mut().unwrap();
     let k = spec.camera.intrinsics();
     spec.camera = PinholeCamera::look_at(
-        Intrinsics { ..k },
+        k,
         Distortion::from_array([0.0; 5]),
         [0.45, 0.0, 0.32],
         [-1.0, 0.0, 0.25],
@@ -338,4 +338,48 @@ fn image_frame_averaging_loss_on_a_bench() {
         );
     }
     assert!(max_loss > 1e-4 && max_loss < 0.1, "{max_loss}");
+}
+
+/// The β map of a capture (for the report): the geometry's β at every pixel, NaN where
+/// the ray misses the plane; none for a far-field capture.
+#[test]
+fn beta_map_of_a_capture() {
+    let d = tempfile::tempdir().unwrap();
+    let lamps = lamps();
+    let mut m = load(d.path(), &PLATES, &lamps);
+    let map = polarid_io::measure::beta_map(&m, &m.captures[0], 0, bench::W, bench::H)
+        .unwrap()
+        .unwrap();
+    let cam = m.camera.as_ref().unwrap().to_camera();
+    let vg = geometry::ViewGeometry::new(cam, m.planes[0].to_plane().unwrap()).unwrap();
+    let src = geometry::Source::Position(lamps[0]);
+    for (u, v) in [(0usize, 0usize), (20, 30), (79, 59)] {
+        let want = vg
+            .pixel(u as f64, v as f64, &src)
+            .unwrap()
+            .beta
+            .to_degrees();
+        assert!((map[v * bench::W + u] as f64 - want).abs() < 1e-4);
+    }
+    // A camera looking at the horizon: the top rows miss the bench.
+    let spec = m.camera.as_mut().unwrap();
+    let k = spec.camera.intrinsics();
+    spec.camera = PinholeCamera::look_at(
+        k,
+        Distortion::from_array([0.0; 5]),
+        [0.45, 0.0, 0.32],
+        [-1.0, 0.0, 0.25],
+        [0.0, 0.0, 1.0],
+    )
+    .unwrap();
+    let map = polarid_io::measure::beta_map(&m, &m.captures[0], 0, bench::W, bench::H)
+        .unwrap()
+        .unwrap();
+    assert!(map[0].is_nan() && map[(bench::H - 1) * bench::W].is_finite());
+    m.captures[0].illumination = None;
+    assert!(
+        polarid_io::measure::beta_map(&m, &m.captures[0], 0, bench::W, bench::H)
+            .unwrap()
+            .is_none()
+    );
 }
