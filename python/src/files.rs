@@ -163,9 +163,13 @@ pub fn load_manifest<'py>(
 ///
 /// For every region and capture: the DoLP of the region's mean Stokes vector, its
 /// standard error from the pixel scatter, the mean S0 divided by the capture's exposure,
-/// the pixels used and rejected, and beta (eq. 5). Same code path and the same numbers
-/// as ``polarid measure MANIFEST`` (DoFP captures: bilinear, full resolution, not
-/// rounded). The GIL is released; each capture is processed in parallel.
+/// the pixels used and rejected, and beta (eq. 5). Captures with calibrated geometry
+/// (``[camera]`` and a ``source``) are measured with per-pixel geometry: the mean Stokes
+/// vector in each pixel's plane-of-incidence frame, the S0-weighted geometry and its
+/// spread ``beta_sd_deg``, ``aolp_deg`` and ``aolp_poi_deg`` (docs/GEOMETRY.md). Same
+/// code path and the same numbers as ``polarid measure MANIFEST`` (DoFP captures:
+/// bilinear, full resolution, not rounded). The GIL is released; each capture is
+/// processed in parallel.
 ///
 /// Parameters
 /// ----------
@@ -178,7 +182,9 @@ pub fn load_manifest<'py>(
 ///     ``target``, ``class`` (str arrays; ``""`` for no class), ``theta_i_deg``,
 ///     ``theta_r_deg``, ``phi_deg``, ``beta_deg``, ``dolp``, ``dolp_se`` (NaN where the
 ///     CSV cell is empty: noiseless data), ``s0``, ``exposure`` (float64), ``pixels``,
-///     ``rejected``, ``saturated`` (int64).
+///     ``rejected``, ``saturated`` (int64), and ``beta_sd_deg``, ``aolp_deg``,
+///     ``aolp_poi_deg`` (float64; NaN for far-field captures, whose CSV has no such
+///     columns).
 ///
 /// Raises
 /// ------
@@ -251,5 +257,8 @@ pub fn measurements_dict<'py>(
     d.set_item("rejected", i(&|r| r.rejected)?)?;
     d.set_item("exposure", f(&|r| r.exposure.unwrap_or(nan))?)?;
     d.set_item("saturated", i(&|r| r.saturated)?)?;
+    d.set_item("beta_sd_deg", f(&|r| r.beta_sd_deg.unwrap_or(nan))?)?;
+    d.set_item("aolp_deg", f(&|r| r.aolp_deg.unwrap_or(nan))?)?;
+    d.set_item("aolp_poi_deg", f(&|r| r.aolp_poi_deg.unwrap_or(nan))?)?;
     Ok(d)
 }

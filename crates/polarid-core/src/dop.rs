@@ -196,6 +196,91 @@ pub fn dop_grad(n: f64, k: f64, beta: f64) -> DopGrad {
     dop_grad_terms(n, k, &BetaTerms::new(beta))
 }
 
+/// `P(β)` of eq. (9) and its first two derivatives with respect to the incidence angle
+/// `β` (radians), at fixed `n`, `k`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct DopBetaDerivs {
+    /// `P(n, k, β)`, eq. (9).
+    pub p: f64,
+    /// `∂P/∂β`, per radian.
+    pub dp_dbeta: f64,
+    /// `∂²P/∂β²`, per radian².
+    pub d2p_dbeta2: f64,
+}
+
+/// `P(n, k, β)` of eq. (9) with its analytic first and second derivatives in `β`
+/// (radians).
+///
+/// Used for the region forward model `E_w[P(β)] ≈ P(β̄) + ½ P''(β̄) s_β²` of a region
+/// whose pixels see different `β` (docs/GEOMETRY.md). With `s = sin β`, `c = cos β`,
+/// `t = s²` (so `t' = 2sc`, `t'' = 2(c² − s²)`), eq. (12)–(15) give, writing
+/// `R = √C = A² + B²`,
+///
+/// ```text
+/// dR/dt = −D/R            d²R/dt² = 4n²k²/R³
+/// dA/dt = −A/(2R)         d²A/dt² = A (R − 2D)/(4R³)
+/// ```
+///
+/// and eq. (9) is `P = 2 f A / Q` with `f = s²c` (`f' = s(2c² − s²)`,
+/// `f'' = c(2c² − 7s²)`) and `Q = c²R + s⁴`; the quotient rule then gives
+/// `P' = (N' − P Q')/Q` and `P'' = (N'' − 2P'Q' − P Q'')/Q` with `N = 2fA`.
+///
+/// Where `R = 0` (the critical angle of a transparent medium, `k = 0`, `n = sin β`,
+/// at which the derivatives are unbounded) `P = 0` and zero derivatives are returned,
+/// as [`dop_grad`] does. Under total reflection (`k = 0`, `sin β > n`) `P = 0` and its
+/// derivatives are 0.
+#[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN-safe on purpose
+pub fn dop_beta_derivs(n: f64, k: f64, beta: f64) -> DopBetaDerivs {
+    let t = BetaTerms::new(beta);
+    let Parts { a, b, r, q } = parts(n, k, &t);
+    if !(r > 0.0) || !(q > 0.0) {
+        return DopBetaDerivs::default();
+    }
+    let p = p_value(a, b, &t, 1.0 / q);
+    let (s, c) = beta.sin_cos();
+    let (s2, c2) = (t.s2, t.c2);
+    let d = n * n - k * k - s2; // eq. (15)
+    let nk2 = 4.0 * (n * k) * (n * k);
+    let sc = s * c;
+    let cos2 = c2 - s2;
+    let r3 = r * r * r;
+    // A(β) and R(β) by the chain rule through t = sin²β.
+    let da = -a * sc / r;
+    let d2a = a * (r - 2.0 * d) * s2 * c2 / r3 - a * cos2 / r;
+    let dr = -2.0 * sc * d / r;
+    let d2r = 16.0 * nk2 * s2 * c2 / (4.0 * r3) - 2.0 * d * cos2 / r;
+    // Q = c²R + s⁴.
+    let dq = -2.0 * sc * r + c2 * dr + 4.0 * s2 * sc;
+    let d2q = -2.0 * cos2 * r - 4.0 * sc * dr + c2 * d2r + 12.0 * s2 * c2 - 4.0 * s2 * s2;
+    // N = 2 f A, f = s²c.
+    let f = s2 * c;
+    let df = s * (2.0 * c2 - s2);
+    let d2f = c * (2.0 * c2 - 7.0 * s2);
+    let dn = 2.0 * (df * a + f * da);
+    let d2n = 2.0 * (d2f * a + 2.0 * df * da + f * d2a);
+    let dp = (dn - p * dq) / q;
+    let d2p = (d2n - 2.0 * dp * dq - p * d2q) / q;
+    DopBetaDerivs {
+        p,
+        dp_dbeta: dp,
+        d2p_dbeta2: d2p,
+    }
+}
+
+/// The mean of `P` over pixels whose `β` has weighted mean `beta` and weighted standard
+/// deviation `beta_sd` (radians), to second order:
+/// `E_w[P(β)] ≈ P(β̄) + ½ P''(β̄) s_β²` (the first-order term vanishes because `β̄` is
+/// the weighted mean). `beta_sd = 0` gives `P(β̄)` of eq. (9) exactly. The truncation
+/// error is of order `P⁽³⁾ m₃/6 + P⁽⁴⁾ m₄/24` (third and fourth central moments of β;
+/// docs/GEOMETRY.md quantifies it).
+pub fn dop_spread(n: f64, k: f64, beta: f64, beta_sd: f64) -> f64 {
+    if beta_sd == 0.0 {
+        return dop(n, k, beta);
+    }
+    let d = dop_beta_derivs(n, k, beta);
+    d.p + 0.5 * d.d2p_dbeta2 * beta_sd * beta_sd
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -15,20 +15,29 @@
 //! noiseless data, is left empty), the mean S0 divided by the capture's exposure, the
 //! pixels used, rejected and saturated, and `beta` from the geometry (paper eq. 5).
 //!
+//! **Calibrated captures** (a `source` under a `[camera]`): every pixel of a region gets
+//! its own `β`, `θi`, `θr`, `φ` and plane-of-incidence angle from
+//! [`ViewGeometry::fill`] (the region's plane, the capture's source), and the row comes
+//! from [`region_stats_local`]: the DoLP of the mean Stokes vector taken in each pixel's
+//! plane-of-incidence frame, the S0-weighted mean geometry (`theta_i_deg`,
+//! `theta_r_deg`, `phi_deg`, `beta_deg`) with `beta_sd_deg`, `aolp_deg` (image frame)
+//! and `aolp_poi_deg` (from the plane of incidence; 90 for a single interface), and a
+//! standard error from the scatter with the trend in β removed (docs/GEOMETRY.md).
+//!
 //! Nothing here prints: progress goes through a callback and saturation warnings are
 //! returned as text ([`saturation_warnings`]) for the caller to show.
 
 use std::path::{Path, PathBuf};
 
 use polarid_core::CoreError;
-use polarid_core::geometry;
+use polarid_core::geometry::{self, GeometryMaps, PinholeCamera, Source, ViewGeometry};
 use polarid_core::mosaic::{self, Pattern};
-use polarid_core::region::{Sampling, region_stats};
+use polarid_core::region::{RegionGeometry, Sampling, region_stats, region_stats_local};
 use polarid_core::stokes::{self, PixelCounts, PixelRules, StokesSolver};
 
 use crate::error::{IoError, Result};
 use crate::image::{self, Frame};
-use crate::manifest::{Capture, CaptureSource, Manifest, SourceSpec};
+use crate::manifest::{Capture, CaptureSource, Manifest, Region, SourceSpec};
 use crate::table::measurements::Measurement;
 
 /// Fraction of a region's pixels above which [`saturation_warnings`] reports saturation
@@ -271,21 +280,47 @@ pub fn beta_deg(c: &Capture) -> f64 {
     .to_degrees()
 }
 
-/// One row per region of `m` (in region order) for capture `c`.
+/// One row per region of `m` (in region order) for capture `c`: far-field or, for a
+/// capture with a `source` (calibrated geometry), per-pixel geometry (module docs).
 ///
-/// Errors: those of [`capture_images`], and [`IoError::Manifest`] naming the region's
-/// `rect` (line, value) when it leaves the frame or has no usable pixel; the reason
-/// names the capture, its first file and the frame size.
+/// Errors: those of [`capture_images`] and [`measure_images`].
 pub fn measure_capture(m: &Manifest, c: &Capture) -> Result<Vec<Measurement>> {
-    calibrated_not_implemented(m, c)?;
     let img = capture_images(m, c)?;
-    let beta_deg = beta_deg(c);
+    measure_images(m, c, &img)
+}
+
+/// One row per region of `m` (in region order) from `img`, the Stokes images of capture
+/// `c` (as [`capture_images`] makes them).
+///
+/// Errors: [`IoError::Manifest`] naming the region's `rect` (line, value) when it leaves
+/// the frame, has no usable pixel, or (calibrated geometry) has a pixel whose ray misses
+/// its plane; the reason names the capture, its first file and the frame size. A source
+/// below the plane's horizon at some pixel of a region names the capture's `source`
+/// field and the target.
+pub fn measure_images(m: &Manifest, c: &Capture, img: &StokesImages) -> Result<Vec<Measurement>> {
     let first_file = c
         .source
         .files()
         .first()
         .map(|p| p.display().to_string())
         .unwrap_or_default();
+    let rect_err = |r: &Region, reason: String| IoError::Manifest {
+        path: m.path.clone(),
+        line: r.line,
+        field: format!("region[{}].rect", r.index),
+        value: format!(
+            "[{}, {}, {}, {}]",
+            r.rect.x, r.rect.y, r.rect.width, r.rect.height
+        ),
+        reason: format!(
+            "in capture {} (line {}, {first_file}, {}x{} pixels): {reason}",
+            c.index, c.line, img.width, img.height
+        ),
+    };
+    if let Some(spec) = &c.illumination {
+        return calibrated_rows(m, c, spec, img, &rect_err);
+    }
+    let beta_deg = beta_deg(c);
     let mut rows = Vec::with_capacity(m.regions.len());
     for r in &m.regions {
         let st = region_stats(
@@ -297,19 +332,7 @@ pub fn measure_capture(m: &Manifest, c: &Capture) -> Result<Vec<Measurement>> {
             r.rect,
             img.sampling,
         )
-        .map_err(|e| IoError::Manifest {
-            path: m.path.clone(),
-            line: r.line,
-            field: format!("region[{}].rect", r.index),
-            value: format!(
-                "[{}, {}, {}, {}]",
-                r.rect.x, r.rect.y, r.rect.width, r.rect.height
-            ),
-            reason: format!(
-                "in capture {} (line {}, {first_file}, {}x{} pixels): {e}",
-                c.index, c.line, img.width, img.height
-            ),
-        })?;
+        .map_err(|e| rect_err(r, e.to_string()))?;
         rows.push(Measurement {
             target: r.name.clone(),
             class: r.class.clone(),
@@ -326,17 +349,213 @@ pub fn measure_capture(m: &Manifest, c: &Capture) -> Result<Vec<Measurement>> {
             rejected: Some(st.rejected),
             exposure: Some(c.exposure),
             saturated: Some(st.saturated),
+            beta_sd_deg: None,
+            aolp_deg: None,
+            aolp_poi_deg: None,
         });
     }
     Ok(rows)
 }
 
-// TODO(issue 15, next session): measure captures with calibrated geometry (per-pixel
-// θi, θr, φ, β from `polarid_core::geometry::ViewGeometry::fill`) and replace this
-// guard. Until then such a capture is refused rather than measured with wrong angles.
-/// Refuse a capture with calibrated geometry (a `source` under a `[camera]`): its
-/// measurement (and map) is not implemented yet. [`IoError::Manifest`] naming the
-/// capture's `source`. TODO(issue 15): replace by per-pixel geometry.
+/// The source of a capture as written in the manifest (`{ position = [..] }`, ...).
+fn source_text(s: &SourceSpec) -> String {
+    match s {
+        SourceSpec::Position(p) => format!("{{ position = {p:?} }}"),
+        SourceSpec::Direction(d) => format!("{{ direction = {d:?} }}"),
+        SourceSpec::Sun { time, .. } => format!("{{ sun = {time:?} }}"),
+    }
+}
+
+/// The per-pixel geometry of region `r` (its plane, `camera`) lit by `source`: five
+/// maps over its rectangle, `[β | θi | θr | φ | ψ]`, radians.
+///
+/// Errors: [`IoError::Manifest`] naming the region's `rect` (a pixel whose ray misses
+/// the plane) or, for a source below the plane's horizon at some pixel, the capture's
+/// `source` field and the target.
+fn region_geometry(
+    m: &Manifest,
+    c: &Capture,
+    spec: &SourceSpec,
+    camera: PinholeCamera,
+    source: &Source,
+    r: &Region,
+    rect_err: &dyn Fn(&Region, String) -> IoError,
+) -> Result<Vec<f64>> {
+    let plane_spec = m.planes.get(r.plane);
+    let plane_name = plane_spec.map_or("", |p| p.name.as_str());
+    let vg = plane_spec
+        .ok_or(CoreError::InvalidRegion {
+            x: r.rect.x,
+            y: r.rect.y,
+            width: r.rect.width,
+            height: r.rect.height,
+            reason: format!("has no plane (index {})", r.plane),
+        })
+        .and_then(|p| p.to_plane())
+        .and_then(|p| ViewGeometry::new(camera, p))
+        .map_err(|e| rect_err(r, format!("{e} (plane {plane_name:?})")))?;
+    let area = r.rect.width * r.rect.height;
+    let mut maps = vec![0.0f64; 5 * area];
+    let (beta, rest) = maps.split_at_mut(area);
+    let (theta_i, rest) = rest.split_at_mut(area);
+    let (theta_r, rest) = rest.split_at_mut(area);
+    let (phi, poi) = rest.split_at_mut(area);
+    let filled = vg.fill(
+        r.rect,
+        source,
+        GeometryMaps {
+            beta,
+            theta_i,
+            theta_r,
+            phi,
+            poi_angle: Some(poi),
+        },
+    );
+    match filled {
+        Ok(()) => Ok(maps),
+        Err(e @ CoreError::SourceBelowHorizon { .. }) => Err(IoError::Manifest {
+            path: m.path.clone(),
+            line: c.line,
+            field: format!("capture[{}].source.{}", c.index, spec.key()),
+            value: source_text(spec),
+            reason: format!(
+                "for target {:?} (region[{}], plane {plane_name:?}): {e}",
+                r.name, r.index
+            ),
+        }),
+        Err(e) => Err(rect_err(
+            r,
+            format!("{e} (plane {plane_name:?}, source {})", source_text(spec)),
+        )),
+    }
+}
+
+/// The β (eq. 5, degrees) of every pixel of a `width × height` image lit by capture `c`
+/// of `m` and seen on plane `plane` (an index into [`Manifest::planes`]), row-major; NaN
+/// where a pixel has no geometry (its ray misses the plane, or the source is below the
+/// plane's horizon there). `None` for a far-field capture (one β: [`beta_deg`]). For
+/// drawing a capture's geometry (the report's β map).
+///
+/// Errors: [`IoError::Manifest`] naming `capture[j].source` when the manifest has no
+/// camera or `plane` is not one of its planes (or the camera is behind it).
+pub fn beta_map(
+    m: &Manifest,
+    c: &Capture,
+    plane: usize,
+    width: usize,
+    height: usize,
+) -> Result<Option<Vec<f32>>> {
+    let Some(spec) = &c.illumination else {
+        return Ok(None);
+    };
+    let err = |reason: String| IoError::Manifest {
+        path: m.path.clone(),
+        line: c.line,
+        field: format!("capture[{}].source", c.index),
+        value: source_text(spec),
+        reason,
+    };
+    let camera = m
+        .camera
+        .as_ref()
+        .ok_or_else(|| err("a source needs a [camera] table".into()))?
+        .to_camera();
+    let source = spec
+        .to_source()
+        .ok_or_else(|| err("the source could not be resolved".into()))?;
+    let vg = m
+        .planes
+        .get(plane)
+        .ok_or_else(|| err(format!("no plane with index {plane}")))?
+        .to_plane()
+        .and_then(|p| ViewGeometry::new(camera, p))
+        .map_err(|e| err(e.to_string()))?;
+    let mut out = vec![f32::NAN; width * height];
+    for (v, row) in out.chunks_mut(width.max(1)).enumerate() {
+        for (u, px) in row.iter_mut().enumerate() {
+            if let Ok(g) = vg.pixel(u as f64, v as f64, &source) {
+                *px = g.beta.to_degrees() as f32;
+            }
+        }
+    }
+    Ok(Some(out))
+}
+
+/// The rows of a capture with calibrated geometry ([`region_stats_local`] per region).
+fn calibrated_rows(
+    m: &Manifest,
+    c: &Capture,
+    spec: &SourceSpec,
+    img: &StokesImages,
+    rect_err: &dyn Fn(&Region, String) -> IoError,
+) -> Result<Vec<Measurement>> {
+    let no_geometry = |reason: &str| IoError::Manifest {
+        path: m.path.clone(),
+        line: c.line,
+        field: format!("capture[{}].source", c.index),
+        value: source_text(spec),
+        reason: reason.into(),
+    };
+    let camera = m
+        .camera
+        .as_ref()
+        .ok_or_else(|| no_geometry("a source needs a [camera] table"))?
+        .to_camera();
+    let source = spec
+        .to_source()
+        .ok_or_else(|| no_geometry("the source could not be resolved"))?;
+    let mut rows = Vec::with_capacity(m.regions.len());
+    for r in &m.regions {
+        r.rect
+            .check(img.width, img.height)
+            .map_err(|e| rect_err(r, e.to_string()))?;
+        let maps = region_geometry(m, c, spec, camera, &source, r, rect_err)?;
+        let area = r.rect.width * r.rect.height;
+        let geom = RegionGeometry {
+            beta: &maps[..area],
+            theta_i: &maps[area..2 * area],
+            theta_r: &maps[2 * area..3 * area],
+            phi: &maps[3 * area..4 * area],
+            poi_angle: &maps[4 * area..],
+        };
+        let st = region_stats_local(
+            img.width,
+            &img.s0,
+            &img.s1,
+            &img.s2,
+            &img.mask,
+            r.rect,
+            img.sampling,
+            &geom,
+        )
+        .map_err(|e| rect_err(r, e.to_string()))?;
+        let finite_deg = |x: f64| x.is_finite().then(|| x.to_degrees());
+        rows.push(Measurement {
+            target: r.name.clone(),
+            class: r.class.clone(),
+            theta_i_deg: Some(st.theta_i.to_degrees()),
+            theta_r_deg: Some(st.theta_r.to_degrees()),
+            phi_deg: st.phi.to_degrees(),
+            beta_deg: st.beta.to_degrees(),
+            dolp: st.stats.dolp,
+            dolp_se: st.stats.dolp_se.filter(|se| se.is_finite() && *se > 0.0),
+            s0: Some(st.stats.s0() / c.exposure),
+            pixels: Some(st.stats.pixels),
+            rejected: Some(st.stats.rejected),
+            exposure: Some(c.exposure),
+            saturated: Some(st.stats.saturated),
+            beta_sd_deg: Some(st.beta_sd.to_degrees()),
+            aolp_deg: finite_deg(st.aolp),
+            aolp_poi_deg: finite_deg(st.aolp_poi),
+        });
+    }
+    Ok(rows)
+}
+
+// TODO(issue 15): `measure` no longer uses this guard (calibrated captures are
+// measured with per-pixel geometry); `map` still does until it has per-pixel geometry.
+/// Refuse a capture with calibrated geometry (a `source` under a `[camera]`): its map
+/// is not implemented yet. [`IoError::Manifest`] naming the capture's `source`.
 pub fn calibrated_not_implemented(m: &Manifest, c: &Capture) -> Result<()> {
     match &c.illumination {
         None => Ok(()),
@@ -344,12 +563,8 @@ pub fn calibrated_not_implemented(m: &Manifest, c: &Capture) -> Result<()> {
             path: m.path.clone(),
             line: c.line,
             field: format!("capture[{}].source", c.index),
-            value: match s {
-                SourceSpec::Position(p) => format!("{{ position = {p:?} }}"),
-                SourceSpec::Direction(d) => format!("{{ direction = {d:?} }}"),
-                SourceSpec::Sun { time, .. } => format!("{{ sun = {time:?} }}"),
-            },
-            reason: "measurement and maps with calibrated geometry ([camera], per-pixel \
+            value: source_text(s),
+            reason: "maps with calibrated geometry ([camera], per-pixel \
                      angles) are not implemented yet"
                 .into(),
         }),

@@ -45,6 +45,12 @@ prop_compose! {
         rejected in proptest::option::of(any::<u64>()),
         exposure in proptest::option::of(1e-6..1e6f64),
         saturated in proptest::option::of(any::<u64>()),
+        // The optional columns of calibrated captures, each present or not.
+        extra in (
+            proptest::option::of(prop_oneof![0.0..90.0f64, Just(0.0)]),
+            proptest::option::of(0.0..180.0f64),
+            proptest::option::of(0.0..180.0f64),
+        ),
     ) -> Measurement {
         Measurement {
             target,
@@ -60,6 +66,9 @@ prop_compose! {
             rejected,
             exposure,
             saturated,
+            beta_sd_deg: extra.0,
+            aolp_deg: extra.1,
+            aolp_poi_deg: extra.2,
         }
     }
 }

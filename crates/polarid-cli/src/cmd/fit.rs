@@ -5,7 +5,9 @@
 //! The work (grouping by target, the specular fit with the `depolarized` rule, the mixed
 //! radiometric fit with model selection) is `polarid_pipeline::fit`; see its
 //! documentation. `--models FILE` writes both radiometric fits of every target with their
-//! information criteria (`--reflectance mixed`).
+//! information criteria (`--reflectance mixed`). Rows with `beta_sd_deg` (regions of
+//! calibrated captures) are fitted with the model `P(β̄) + ½ P''(β̄) s_β²` of the
+//! region's spread of β (docs/GEOMETRY.md).
 
 use std::path::PathBuf;
 

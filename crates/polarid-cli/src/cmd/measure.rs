@@ -22,6 +22,12 @@
 //! and `saturation` do not apply; pixels with `S0 <= 0` or non-finite values are
 //! rejected.
 //!
+//! Captures with calibrated geometry (`[camera]` and a `source`) are measured with
+//! per-pixel geometry: the region's mean Stokes vector in each pixel's
+//! plane-of-incidence frame, its S0-weighted `theta_i_deg`, `theta_r_deg`, `phi_deg`,
+//! `beta_deg` and `beta_sd_deg`, and `aolp_deg`, `aolp_poi_deg` (docs/GEOMETRY.md);
+//! those three columns are written only when some row has them.
+//!
 //! The pipeline itself is [`polarid_io::measure`], shared with the Python bindings.
 
 use std::path::{Path, PathBuf};

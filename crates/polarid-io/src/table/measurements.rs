@@ -1,7 +1,10 @@
 //! Measurements CSV — written by `measure`, read by `fit`.
 //!
 //! `target,class,theta_i_deg,theta_r_deg,phi_deg,beta_deg,dolp,dolp_se,s0,pixels,rejected`
-//! (extra columns written by polarid: `exposure`, `saturated`).
+//! (extra columns written by polarid: `exposure`, `saturated`), then the optional
+//! columns [`OPTIONAL_COLUMNS`] (`beta_sd_deg`, `aolp_deg`, `aolp_poi_deg`), each
+//! written only when some row has a value for it (rows of calibrated captures), so a
+//! far-field file keeps exactly the columns above.
 
 use std::io::Write;
 use std::path::Path;
@@ -27,6 +30,10 @@ pub const COLUMNS: [&str; 13] = [
     "exposure",
     "saturated",
 ];
+
+/// The optional columns, in output order: written after [`COLUMNS`], each one only when
+/// some row has a value.
+pub const OPTIONAL_COLUMNS: [&str; 3] = ["beta_sd_deg", "aolp_deg", "aolp_poi_deg"];
 
 /// One row: a target's DoLP in one capture.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -57,11 +64,22 @@ pub struct Measurement {
     pub exposure: Option<f64>,
     /// Pixels rejected because they were saturated (part of `rejected`).
     pub saturated: Option<u64>,
+    /// S0-weighted standard deviation of β over the region's pixels, degrees
+    /// (calibrated geometry; `None`/0: one β).
+    pub beta_sd_deg: Option<f64>,
+    /// AoLP of the region's mean Stokes vector in the image, degrees, `[0, 180)`.
+    pub aolp_deg: Option<f64>,
+    /// AoLP of the region's mean Stokes vector in the pixels' plane-of-incidence frames,
+    /// measured from the plane of incidence, degrees, `[0, 180)` (90 for a single
+    /// interface).
+    pub aolp_poi_deg: Option<f64>,
 }
 
 /// Read a measurements CSV. Needs `target`, `dolp` and either `beta_deg` or
-/// `theta_i_deg` and `theta_r_deg` (`phi_deg` defaults to 180). Angles must be finite and
-/// in `[0, 90)`, `dolp` in `[0, 1]`, `dolp_se` positive.
+/// `theta_i_deg` and `theta_r_deg` (`phi_deg` defaults to 180; `beta_deg` then follows
+/// from eq. 5, also out of the plane of incidence). Angles must be finite and in
+/// `[0, 90)`, `dolp` in `[0, 1]`, `dolp_se` positive; the optional `beta_sd_deg` in
+/// `[0, 90)`, `aolp_deg` and `aolp_poi_deg` in `[0, 180)`.
 pub fn read(path: &Path) -> Result<Vec<Measurement>> {
     let t = CsvTable::read(path)?;
     from_table(&t)
@@ -94,6 +112,9 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
     let c_rej = t.col("rejected");
     let c_exp = t.col("exposure");
     let c_sat = t.col("saturated");
+    let c_bsd = t.col("beta_sd_deg");
+    let c_aolp = t.col("aolp_deg");
+    let c_apoi = t.col("aolp_poi_deg");
     let mut out = Vec::with_capacity(t.rows.len());
     for r in 0..t.rows.len() {
         let target = t.text(r, c_target).to_string();
@@ -142,6 +163,18 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
         {
             return Err(t.err(r, c, "standard error must be > 0"));
         }
+        let in_range = |c: Option<usize>, hi: f64, what: &str| -> Result<Option<f64>> {
+            let v = t.opt_f64(r, c)?;
+            if let (Some(v), Some(c)) = (v, c)
+                && !(0.0..hi).contains(&v)
+            {
+                return Err(t.err(r, c, format!("{what} outside [0, {hi}) degrees")));
+            }
+            Ok(v)
+        };
+        let beta_sd_deg = in_range(c_bsd, 90.0, "spread of beta")?;
+        let aolp_deg = in_range(c_aolp, 180.0, "AoLP")?;
+        let aolp_poi_deg = in_range(c_apoi, 180.0, "AoLP")?;
         out.push(Measurement {
             target,
             class: t.opt_text(r, c_class),
@@ -156,19 +189,30 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
             rejected: t.opt_u64(r, c_rej)?,
             exposure: t.opt_f64(r, c_exp)?,
             saturated: t.opt_u64(r, c_sat)?,
+            beta_sd_deg,
+            aolp_deg,
+            aolp_poi_deg,
         });
     }
     Ok(out)
 }
 
-/// Write measurements in the documented column order.
+/// Write measurements in the documented column order: [`COLUMNS`], then those of
+/// [`OPTIONAL_COLUMNS`] that some row has a value for.
 pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[Measurement]) -> Result<()> {
+    let optional: [fn(&Measurement) -> Option<f64>; 3] =
+        [|m| m.beta_sd_deg, |m| m.aolp_deg, |m| m.aolp_poi_deg];
+    let present: Vec<usize> = (0..optional.len())
+        .filter(|&i| rows.iter().any(|m| optional[i](m).is_some()))
+        .collect();
+    let mut headers: Vec<&str> = COLUMNS.to_vec();
+    headers.extend(present.iter().map(|&i| OPTIONAL_COLUMNS[i]));
     write_rows(
         w,
         path,
-        &COLUMNS,
+        &headers,
         rows.iter().map(|m| {
-            vec![
+            let mut cells = vec![
                 m.target.clone(),
                 m.class.clone().unwrap_or_default(),
                 fmt_opt(m.theta_i_deg),
@@ -182,7 +226,53 @@ pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[Measurement]) ->
                 m.rejected.map(|v| v.to_string()).unwrap_or_default(),
                 fmt_opt(m.exposure),
                 m.saturated.map(|v| v.to_string()).unwrap_or_default(),
-            ]
+            ];
+            cells.extend(present.iter().map(|&i| fmt_opt(optional[i](m))));
+            cells
         }),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn header(rows: &[Measurement]) -> String {
+        let mut buf = Vec::new();
+        write(&mut buf, Path::new("m.csv"), rows).unwrap();
+        String::from_utf8(buf)
+            .unwrap()
+            .lines()
+            .next()
+            .unwrap()
+            .to_string()
+    }
+
+    #[test]
+    fn optional_columns_only_when_some_row_has_them() {
+        let far = Measurement {
+            target: "A".into(),
+            phi_deg: 180.0,
+            beta_deg: 45.0,
+            dolp: 0.5,
+            ..Default::default()
+        };
+        assert_eq!(header(std::slice::from_ref(&far)), COLUMNS.join(","));
+        let cal = Measurement {
+            aolp_poi_deg: Some(90.0),
+            beta_sd_deg: Some(1.5),
+            ..far.clone()
+        };
+        assert_eq!(
+            header(&[far.clone(), cal]),
+            format!("{},beta_sd_deg,aolp_poi_deg", COLUMNS.join(","))
+        );
+        let text = "target,dolp,beta_deg,beta_sd_deg,aolp_poi_deg\nA,0.5,45,-1,90\n";
+        let t = CsvTable::from_reader(Path::new("m.csv"), text.as_bytes()).unwrap();
+        let e = from_table(&t).unwrap_err().to_string();
+        assert!(e.contains("beta_sd_deg") && e.contains("\"-1\""), "{e}");
+        let text = "target,dolp,beta_deg,aolp_poi_deg\nA,0.5,45,180\n";
+        let t = CsvTable::from_reader(Path::new("m.csv"), text.as_bytes()).unwrap();
+        assert!(from_table(&t).is_err());
+    }
 }

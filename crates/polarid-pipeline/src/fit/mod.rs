@@ -8,7 +8,10 @@
 //! are scaled by the residual.
 //!
 //! [`Reflectance::Specular`] (default) is the paper's DoLP-only fit, one [`FitPlan`](polarid_core::fit::FitPlan) per
-//! distinct β set ([`PlanCache`]). A target whose DoLP stays below
+//! distinct β set ([`PlanCache`]). Rows with a `beta_sd_deg` (regions of calibrated
+//! captures, which span a range of β) are fitted with the second-order spread model
+//! `P(β̄) + ½ P''(β̄) s_β²` ([`spread`], docs/GEOMETRY.md); a target none of whose rows
+//! has a spread is fitted exactly as before. A target whose DoLP stays below
 //! [`FitConfig::depolarized_dolp`] at every source position gets the status
 //! `depolarized` (see [`polarid_core::mixed::depolarized_reason`]): DoLP alone cannot
 //! tell it from a diffuse surface, so it must not be classified.
@@ -22,6 +25,7 @@
 mod config;
 mod mixed;
 mod plans;
+pub mod spread;
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -38,6 +42,7 @@ pub use config::{
 };
 pub use mixed::{MODEL_COLUMNS, model_rows};
 pub use plans::PlanCache;
+pub use spread::{fit_with_spread, spread_corrections};
 
 use crate::{PipelineError, Progress, Result, Warning};
 
@@ -183,6 +188,17 @@ pub fn fit(
         progress("fitting", out.len() as u64, total);
     }
     let mut warnings = Vec::new();
+    if cfg.reflectance == Reflectance::Mixed
+        && rows
+            .iter()
+            .any(|(_, m)| m.beta_sd_deg.is_some_and(|s| s > 0.0))
+    {
+        warnings.push(Warning(
+            "the mixed fit uses each row's mean geometry and does not model the spread of \
+             beta within a region (beta_sd_deg); the specular fit does"
+                .into(),
+        ));
+    }
     let not_ok = out.iter().filter(|t| !t.row.status.is_ok()).count();
     if not_ok > 0 {
         warnings.push(Warning(format!(
@@ -212,10 +228,15 @@ fn specular(
         .collect();
     let dolp: Vec<f64> = g.rows.iter().map(|(_, m)| m.dolp).collect();
     let se: Option<Vec<f64>> = g.rows.iter().map(|(_, m)| m.dolp_se).collect();
+    let spread: Vec<f64> = g
+        .rows
+        .iter()
+        .map(|(_, m)| m.beta_sd_deg.unwrap_or(0.0).to_radians())
+        .collect();
     let plan = plans
         .get(&betas, opts)
         .map_err(|e| data(path, format!("target {:?}: {e}", g.target)))?;
-    let f = plan.fit(&dolp, se.as_deref()).map_err(|e| {
+    let (f, _) = fit_with_spread(&plan, &dolp, se.as_deref(), &spread).map_err(|e| {
         data(
             path,
             format!("target {:?} (lines {}): {e}", g.target, g.lines()),

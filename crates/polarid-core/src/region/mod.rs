@@ -29,6 +29,16 @@
 //!   component and covariance (the channels are independent). This is exact for an even
 //!   width and height away from the frame border (each parity class of the cell is then
 //!   equally represented), up to edge terms of relative size `~ 1/w + 1/h`.
+//!
+//! **Calibrated captures** ([`local`]): when every pixel has its own geometry, the
+//! Stokes vectors are averaged in each pixel's plane-of-incidence frame, the region's
+//! geometry is the S0-weighted mean over its pixels, and the standard error leaves out
+//! the deterministic trend of the polarization in β ([`region_stats_local`],
+//! docs/GEOMETRY.md).
+
+pub mod local;
+
+pub use local::{LocalRegionStats, RegionGeometry, region_stats_local};
 
 use crate::error::{CoreError, Result};
 use crate::stokes::mask;
