@@ -308,6 +308,45 @@ impl PerspectiveScene {
         Ok(best.map(|(_, i)| i))
     }
 
+    /// The plate seen by every pixel of a `width × height` frame, written into `out`
+    /// (row-major; 0 for the background, `i + 1` for plate `i`), in parallel over rows.
+    ///
+    /// Errors: [`CoreError::InvalidDimensions`], [`CoreError::LengthMismatch`], and those
+    /// of [`PinholeCamera::ray`] for the first failing row.
+    pub fn plate_map(&self, width: usize, height: usize, out: &mut [u16]) -> Result<()> {
+        if width == 0 || height == 0 {
+            return Err(CoreError::InvalidDimensions {
+                width,
+                height,
+                reason: "empty frame".into(),
+            });
+        }
+        if out.len() != width * height {
+            return Err(CoreError::LengthMismatch {
+                name: "plate map",
+                expected: width * height,
+                got: out.len(),
+            });
+        }
+        let first_error = out
+            .par_chunks_mut(width)
+            .enumerate()
+            .filter_map(|(row, p)| {
+                for (col, px) in p.iter_mut().enumerate() {
+                    match self.plate_at(col as f64, row as f64) {
+                        Ok(i) => *px = i.map_or(0, |i| i as u16 + 1),
+                        Err(e) => return Some((row, e)),
+                    }
+                }
+                None
+            })
+            .min_by_key(|(row, _)| *row);
+        match first_error {
+            Some((_, e)) => Err(e),
+            None => Ok(()),
+        }
+    }
+
     /// What pixel `(u, v)` sees under `light` (module documentation), or `None` for the
     /// background.
     ///

@@ -54,6 +54,7 @@
 //! `top` (the top-level keys and `theta_i_deg`), `camera` (`[sensor]`, `[exposure]`,
 //! `[capture]`), `plates` (`[[plate]]` and [`default_region`]).
 
+mod calibrated;
 mod camera;
 mod context;
 mod plates;
@@ -64,7 +65,9 @@ mod types;
 use std::path::Path;
 
 pub use plates::default_region;
-pub use types::{CaptureKind, ImageFormat, MAX_SIDE, Plate, Scene};
+pub use types::{
+    Calibrated, CaptureKind, Geometry, ImageFormat, MAX_SIDE, Placement, Plate, Scene, SceneSource,
+};
 
 use crate::error::{IoError, Result};
 use context::Ctx;
@@ -125,9 +128,17 @@ region = [36, 4, 20, 20]
     fn parses_a_scene_with_defaults() {
         let s = parse(Path::new("s.toml"), GOOD).unwrap();
         assert_eq!((s.width, s.height), (64, 32));
-        assert_eq!(s.theta_i_deg.len(), 10);
-        assert_eq!(s.theta_i_deg[9], 80.0);
-        assert_eq!(s.phi_deg, 180.0);
+        let Geometry::FarField {
+            theta_i_deg,
+            phi_deg,
+            ..
+        } = &s.geometry
+        else {
+            panic!("far field expected")
+        };
+        assert_eq!(theta_i_deg.len(), 10);
+        assert_eq!(theta_i_deg[9], 80.0);
+        assert_eq!(*phi_deg, 180.0);
         assert_eq!(s.exposure, Exposure::Auto { fraction: 0.7 });
         assert_eq!(s.sensor.dark_level_dn, 64.0);
         assert_eq!(s.sensor.bit_depth, 12);

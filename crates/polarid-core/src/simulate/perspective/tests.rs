@@ -329,6 +329,9 @@ fn nearest_plate_hides_and_background_is_dark() {
         )
         .unwrap();
     let counts = [0u16, 1, 2].map(|k| pl.iter().filter(|&&p| p == k).count());
+    let mut pm = vec![7u16; w * h];
+    scene.plate_map(w, h, &mut pm).unwrap();
+    assert_eq!(pm, pl, "plate_map agrees with render");
     assert!(counts.iter().all(|&c| c > 100), "{counts:?}");
     assert!(
         st.iter()
