@@ -140,7 +140,7 @@ impl Ctx<'_> {
         let capture = self.capture(raw.capture.as_ref())?;
         let (geometry, plates) = if raw.camera.is_some() {
             let (c, plates) = self.calibrated(&raw, width, height)?;
-            (Geometry::Calibrated(c), plates)
+            (Geometry::Calibrated(Box::new(c)), plates)
         } else {
             for (k, span) in [
                 ("plane", raw.plane.as_ref().map(|v| v.span())),

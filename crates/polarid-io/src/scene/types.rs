@@ -127,7 +127,7 @@ pub enum Geometry {
         theta_i_deg: Vec<f64>,
     },
     /// A calibrated camera, plates on planes, and lamps or distant sources.
-    Calibrated(Calibrated),
+    Calibrated(Box<Calibrated>),
 }
 
 /// One plate of a scene.

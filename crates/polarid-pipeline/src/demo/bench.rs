@@ -41,6 +41,10 @@ pub const BENCH_SCENE: &str = include_str!("../../../../examples/scenes/bench_la
 /// Prefix of the test set's target names.
 pub const TEST_PREFIX: &str = "test_";
 
+/// The training captures whose β maps the report shows: the lamp in the plane of
+/// incidence (capture 1) and out of it (capture 6).
+pub const BETA_MAP_CAPTURES: [usize; 2] = [0, 5];
+
 /// Binning of the demo's map (`polarid map --bin 4`).
 pub const MAP_BIN: usize = 4;
 
@@ -119,6 +123,11 @@ pub struct BenchOutput {
     pub notes: Vec<String>,
     /// The test set's map (4 × 4 binning, the trained model).
     pub map: MapResult,
+    /// Frame size of the renders, pixels.
+    pub size: (usize, usize),
+    /// β maps (degrees, NaN off the plates) of two training captures: the capture's
+    /// directory name and the map (`size.0 × size.1`, row-major).
+    pub beta_maps: Vec<(String, Vec<f32>)>,
     /// The tables (fits against the truth, classification, map) as text.
     pub tables: String,
     /// Simulation, measurement and training warnings.
@@ -142,8 +151,13 @@ pub fn run_bench(staged: &StagedDir, progress: Progress) -> Result<BenchOutput> 
     let mut manifests = Vec::new();
     let mut scenes = Vec::new();
     let mut truth = Vec::new();
+    let mut beta_maps = Vec::new();
+    let mut size = (0, 0);
     // 1. Simulate the training and the test sets.
-    let sets = [("train", BENCH_SCENE.to_string()), ("test", test_scene_text())];
+    let sets = [
+        ("train", BENCH_SCENE.to_string()),
+        ("test", test_scene_text()),
+    ];
     for (i, (set, text)) in sets.iter().enumerate() {
         progress("simulating", i as u64, sets.len() as u64);
         let dir = format!("captures/{set}/");
@@ -151,6 +165,13 @@ pub fn run_bench(staged: &StagedDir, progress: Progress) -> Result<BenchOutput> 
         let scene = polarid_io::scene::parse(&scene_path, text)
             .map_err(|e| internal(&scene_path.display().to_string(), &e))?;
         let sim = crate::simulate::simulate_into(&scene, staged, &dir, progress)?;
+        if i == 0 {
+            size = (scene.width, scene.height);
+            for c in BETA_MAP_CAPTURES {
+                let name = crate::simulate::capture_dir(&scene, c);
+                beta_maps.push((name, crate::simulate::beta_map(&scene, c)?));
+            }
+        }
         warnings.extend(sim.warnings);
         truth.extend(sim.truth);
         manifests.push(sim.manifest);
@@ -187,7 +208,8 @@ pub fn run_bench(staged: &StagedDir, progress: Progress) -> Result<BenchOutput> 
 
     // 4. train on the training set, 5. classify the test set.
     let all_fits = read_fits(&fits_path)?;
-    let (tests, training): (Vec<(u64, FitRow)>, Vec<(u64, FitRow)>) = all_fits
+    type Fits = Vec<(u64, FitRow)>;
+    let (tests, training): (Fits, Fits) = all_fits
         .iter()
         .cloned()
         .partition(|(_, f)| f.target.starts_with(TEST_PREFIX));
@@ -239,6 +261,8 @@ pub fn run_bench(staged: &StagedDir, progress: Progress) -> Result<BenchOutput> 
         classification: class_rows,
         notes,
         map,
+        size,
+        beta_maps,
         tables,
         warnings,
     })
@@ -269,7 +293,10 @@ mod tests {
         assert_eq!(mirrored, 4);
         for (p, q) in train.plates.iter().zip(&test.plates) {
             assert_eq!(format!("{TEST_PREFIX}{}", p.name), q.name);
-            assert_eq!((&p.class, p.optics, p.region), (&q.class, q.optics, q.region));
+            assert_eq!(
+                (&p.class, p.optics, p.region),
+                (&q.class, q.optics, q.region)
+            );
         }
         // The example file is the scene of the demo's training set.
         let example = Path::new(env!("CARGO_MANIFEST_DIR"))

@@ -239,3 +239,45 @@ pub(super) fn simulate(
         warnings,
     })
 }
+
+/// β (eq. 5, degrees) of every pixel of capture `capture` (0-based) of a calibrated
+/// scene, `width × height` row-major; NaN where the pixel sees no plate or an unlit one.
+/// For reports: where each plate sits on the DoLP curve.
+///
+/// Errors: [`crate::PipelineError::Data`] for a far-field scene or a capture out of
+/// range; the renderer's errors.
+pub fn beta_map(scene: &Scene, capture: usize) -> Result<Vec<f32>> {
+    let bad = |reason: String| crate::PipelineError::Data {
+        path: scene.path.display().to_string(),
+        reason,
+    };
+    let cal = scene
+        .calibrated()
+        .ok_or_else(|| bad("a β map needs a calibrated scene".into()))?;
+    let src = cal
+        .sources
+        .get(capture)
+        .ok_or_else(|| bad(format!("no capture {} in the scene", capture + 1)))?;
+    let label = |e: CoreError| IoError::Core {
+        path: scene.path.clone(),
+        source: e,
+    };
+    let ps = perspective_scene(scene, cal).map_err(label)?;
+    let light = src.light();
+    let (w, h) = (scene.width, scene.height);
+    let mut out = vec![f32::NAN; w * h];
+    out.par_chunks_mut(w)
+        .enumerate()
+        .try_for_each(|(row, line)| {
+            for (col, b) in line.iter_mut().enumerate() {
+                if let Some(hit) = ps.pixel(col as f64, row as f64, &light)?
+                    && hit.irradiance > 0.0
+                {
+                    *b = hit.geometry.beta.to_degrees() as f32;
+                }
+            }
+            Ok(())
+        })
+        .map_err(label)?;
+    Ok(out)
+}

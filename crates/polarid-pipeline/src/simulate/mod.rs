@@ -37,6 +37,7 @@ use polarid_io::scene::{CaptureKind, Geometry, Scene};
 use polarid_io::table::fmt_f64;
 use rayon::prelude::*;
 
+pub use calibrated::beta_map;
 pub use files::{manifest_text, write_truth};
 
 use crate::error::Result;
@@ -441,7 +442,7 @@ fn write_text_files(
             .map_err(|e| IoError::io(&mpath, e))
     })?;
     let tpath = staged.path(&format!("{prefix}truth.csv"))?;
-    write_atomic(&tpath, false, |w| write_truth(w, &tpath, &truth))?;
+    write_atomic(&tpath, false, |w| write_truth(w, &tpath, truth))?;
     let spath = staged.path(&format!("{prefix}scene.toml"))?;
     write_atomic(&spath, false, |w| {
         w.write_all(scene.text.as_bytes())
