@@ -281,3 +281,90 @@ pub fn beta_map(scene: &Scene, capture: usize) -> Result<Vec<f32>> {
         .map_err(label)?;
     Ok(out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use polarid_io::manifest;
+
+    const SCENE: &str = r#"width = 96
+height = 64
+seed = 2
+format = "tiff"
+[capture]
+kind = "dofp"
+[camera]
+focal_px = 130.0
+principal_point_px = [47.5, 31.5]
+distortion = [-0.1, 0.0, 0.0, 0.0]
+position = [-0.5, 0.0, 0.6]
+look_at = [0.0, 0.0, 0.0]
+up = [0.0, 0.0, 1.0]
+[[source]]
+position = [0.4, 0.1, 0.5]
+[[source]]
+direction = [0.5, 0.0, 0.8]
+name = "far"
+[[plate]]
+name = "a"
+n = 1.5
+k = 0.0
+sigma = 0.2
+center = [0.0, 0.0, 0.0]
+size = 0.2
+[[plate]]
+name = "b"
+n = 0.3
+k = 3.0
+sigma = 0.2
+center = [0.0, 0.25, 0.0]
+size = [0.2, 0.15]
+"#;
+
+    fn run(dir: &std::path::Path) -> Simulated {
+        let scene = polarid_io::scene::parse(&dir.join("s.toml"), SCENE).unwrap();
+        let staged = StagedDir::new(&dir.join("out"), false).unwrap();
+        let sim = super::super::simulate_into(&scene, &staged, "", &crate::progress::no_progress)
+            .unwrap();
+        staged.commit().unwrap();
+        sim
+    }
+
+    #[test]
+    fn dofp_calibrated_scene_is_deterministic_and_loads() {
+        let (a, b) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+        let sim = run(a.path());
+        run(b.path());
+        assert_eq!((sim.captures, sim.frames, sim.truth.len()), (2, 2, 4));
+        for f in ["manifest.toml", "truth.csv", "c01/raw.tif", "far/raw.tif"] {
+            let (x, y) = (a.path().join("out").join(f), b.path().join("out").join(f));
+            assert_eq!(std::fs::read(x).unwrap(), std::fs::read(y).unwrap(), "{f}");
+        }
+        let m = manifest::load(&a.path().join("out/manifest.toml")).unwrap();
+        assert_eq!(m.planes[0].name, "default");
+        assert_eq!(m.captures[1].name.as_deref(), Some("far"));
+        assert!(matches!(
+            m.captures[0].source,
+            manifest::CaptureSource::Dofp { .. }
+        ));
+        // Regions hold whole 2 × 2 super-pixels.
+        for r in &m.regions {
+            assert_eq!((r.rect.x % 2, r.rect.y % 2), (0, 0));
+            assert_eq!((r.rect.width % 2, r.rect.height % 2), (0, 0));
+        }
+        // The distant source lights every point at the same incidence: θi over the
+        // region equals the source's zenith (the table is horizontal).
+        let far = &sim.truth[2];
+        let zen = (0.8f64 / 0.5f64.hypot(0.8)).acos().to_degrees();
+        assert!((far.theta_i_deg - zen).abs() < 1e-9, "{}", far.theta_i_deg);
+        let c = far.calibrated.as_ref().unwrap();
+        assert_eq!((c.capture.as_str(), c.n, c.k), ("far", 1.5, 0.0));
+        let map = beta_map(
+            &polarid_io::scene::parse(&a.path().join("s.toml"), SCENE).unwrap(),
+            1,
+        )
+        .unwrap();
+        let on = map.iter().filter(|b| b.is_finite()).count();
+        assert!(on > 500 && on < 96 * 64, "{on}");
+    }
+}
