@@ -56,7 +56,7 @@ fn root<'i>(p: &Parser<'_>, text: &'i str) -> Result<toml::Spanned<DeTable<'i>>>
 /// errors) with the manifest's rules and messages (docs/FORMATS.md, "Calibrated
 /// geometry"). Unknown keys inside them are ignored here (the caller decides).
 ///
-/// Errors: [`IoError::Manifest`] naming the line and the field (`camera.up`,
+/// Errors: [`IoError::Manifest`](crate::IoError::Manifest) naming the line and the field (`camera.up`,
 /// `plane[2].normal`, `site.latitude_deg`, ...).
 pub fn parse_geometry_tables(path: &Path, text: &str) -> Result<GeometryTables> {
     let p = parser(path, text);
@@ -78,7 +78,7 @@ pub fn parse_geometry_tables(path: &Path, text: &str) -> Result<GeometryTables> 
 /// ignored here. Fields are named `KEY[i].position` (1-based). An absent `key` gives an
 /// empty list.
 ///
-/// Errors: [`IoError::Manifest`] naming the line and the field.
+/// Errors: [`IoError::Manifest`](crate::IoError::Manifest) naming the line and the field.
 pub fn parse_sources(
     path: &Path,
     text: &str,

@@ -43,6 +43,14 @@
 //! region = [16, 16, 96, 96]     # optional measured region (default: an inset of rect)
 //! ```
 //!
+//! **Calibrated scenes** (a `[camera]` table instead of the angles; `calibrated`):
+//! `[camera]`, `[[plane]]` and `[site]` as in a manifest (read by the manifest's own
+//! parser, [`crate::manifest::shared`]), one `[[source]]` per capture (`position`,
+//! `direction` or `sun`, optional `intensity` and `name`), and plates placed by
+//! `plane`, `center`, `size` and `axis` instead of `rect`; each plate's rectangle and
+//! measured region follow from tracing the camera's pixels ([`Geometry::Calibrated`],
+//! [`Placement`]).
+//!
 //! Errors are [`IoError::Manifest`] naming the file, the 1-based line, the dotted field
 //! (`plate[2].sigma`; indices 1-based) and the value. Unknown keys are errors (a scene is
 //! an input the simulator acts on, so a typo must not silently change the physics).
@@ -52,7 +60,8 @@
 //! `types` (the validated [`Scene`] and its parts), `raw` (the TOML as deserialized, with
 //! spans), `context` (error construction and value checks that name file, line and field),
 //! `top` (the top-level keys and `theta_i_deg`), `camera` (`[sensor]`, `[exposure]`,
-//! `[capture]`), `plates` (`[[plate]]` and [`default_region`]).
+//! `[capture]`), `plates` (`[[plate]]` and [`default_region`]), `calibrated` (the
+//! calibrated geometry and the placed plates).
 
 mod calibrated;
 mod camera;

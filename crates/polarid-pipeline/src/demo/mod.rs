@@ -16,7 +16,7 @@
 //! explanations, the text of Tables 1 and 2 — is what a front end needs for its plots,
 //! report and printout. Deterministic (fixed seeds).
 //!
-//! [`bench`] is the second demo (`polarid demo --bench`): a lamp-and-lens bench with
+//! [`bench`](mod@bench) is the second demo (`polarid demo --bench`): a lamp-and-lens bench with
 //! calibrated geometry, from renders to a material map.
 
 pub mod bench;

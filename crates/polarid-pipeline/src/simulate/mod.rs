@@ -15,6 +15,13 @@
 //! leaving nothing behind). The in-memory renderer [`render_into`] serves callers that
 //! want arrays (the Python binding).
 //!
+//! **Calibrated scenes** (`[camera]`, plates on planes, lamps or the sun) are rendered
+//! per pixel by `polarid_core::simulate::perspective` (module `calibrated`): one Stokes
+//! map per capture, frames from it, a calibrated manifest (`[camera]`, `[[plane]]`,
+//! `[site]`, a `source` per capture, regions on their planes) and a `truth.csv` with
+//! each plate's (n, k) and the spread of β over its region ([`CalibratedTruth`]).
+//! [`beta_map`] gives a capture's per-pixel β for reports.
+//!
 //! Units: with relative exposure `x`, a radiance `I` behind the polarizer gives
 //! `x · I · full_well` expected electrons; the manifest records `x` as the capture's
 //! `exposure`, so `S0 / exposure` in DN (what `measure` writes) equals the radiance times
