@@ -9,7 +9,7 @@ use std::path::Path;
 
 use libfuzzer_sys::fuzz_target;
 use polarid_core::simulate::Exposure;
-use polarid_io::scene::{self, CaptureKind, MAX_SIDE};
+use polarid_io::scene::{self, CaptureKind, Geometry, MAX_SIDE};
 
 fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else {
@@ -19,10 +19,25 @@ fuzz_target!(|data: &[u8]| {
         return;
     };
     assert!((2..=MAX_SIDE).contains(&s.width) && (2..=MAX_SIDE).contains(&s.height));
-    assert!((0.0..90.0).contains(&s.theta_r_deg));
-    assert!(s.phi_deg.is_finite());
-    assert!(!s.theta_i_deg.is_empty());
-    assert!(s.theta_i_deg.iter().all(|t| (0.0..90.0).contains(t)));
+    let calibrated = match &s.geometry {
+        Geometry::FarField {
+            theta_r_deg,
+            phi_deg,
+            theta_i_deg,
+        } => {
+            assert!((0.0..90.0).contains(theta_r_deg));
+            assert!(phi_deg.is_finite());
+            assert!(!theta_i_deg.is_empty());
+            assert!(theta_i_deg.iter().all(|t| (0.0..90.0).contains(t)));
+            false
+        }
+        Geometry::Calibrated(c) => {
+            assert!(!c.sources.is_empty() && !c.planes.is_empty());
+            assert!(c.sources.iter().all(|s| s.intensity > 0.0 && s.intensity.is_finite()));
+            true
+        }
+    };
+    assert!(s.captures() > 0);
     assert!(s.wavelength_nm.is_none_or(|w| w > 0.0 && w.is_finite()));
     assert!(s.background >= 0.0 && s.background.is_finite());
     let sn = &s.sensor;
@@ -55,8 +70,20 @@ fuzz_target!(|data: &[u8]| {
         assert!(g.x >= r.x && g.y >= r.y);
         assert!(g.x + g.width <= r.x + r.width && g.y + g.height <= r.y + r.height);
         assert!(p.line >= 1 && p.line <= text.lines().count().max(1));
+        assert_eq!(p.placement.is_some(), calibrated);
         for q in &s.plates[..i] {
             assert_ne!(p.name, q.name);
+            if calibrated {
+                // Plates may hide each other; their regions never overlap.
+                let (a, b) = (&p.region, &q.region);
+                assert!(
+                    !(a.x < b.x + b.width
+                        && b.x < a.x + a.width
+                        && a.y < b.y + b.height
+                        && b.y < a.y + a.height)
+                );
+                continue;
+            }
             let overlap = r.x < q.rect.x + q.rect.width
                 && q.rect.x < r.x + r.width
                 && r.y < q.rect.y + q.rect.height

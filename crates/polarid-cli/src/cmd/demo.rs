@@ -1,33 +1,39 @@
 //! `polarid demo [-o DIR]`: the paper's experiment (section 7) in simulation, end to end
-//! (the workflow is [`polarid_pipeline::demo`]).
+//! (the workflow is [`polarid_pipeline::demo`]); `polarid demo --bench [-o DIR]`: a
+//! lamp-and-lens bench with calibrated geometry, from renders to a material map
+//! ([`polarid_pipeline::demo::bench`]).
 //!
-//! The analogues of Tables 1 and 2 go to standard output; `DIR` receives the captures,
-//! the CSVs, `model.json`, the plots and `report.html` / `report.md`. Deterministic
-//! (fixed seeds); a failure leaves nothing.
+//! The tables go to standard output; `DIR` receives the captures, the CSVs,
+//! `model.json`, the plots and `report.html` / `report.md` (and `map/` for the bench).
+//! Deterministic (fixed seeds); a failure leaves nothing.
 
 use std::fmt::Write as _;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use polarid_io::atomic::{StagedDir, write_atomic};
-use polarid_pipeline::demo::{self, PLATES, SIDE};
+use polarid_pipeline::demo::{self, PLATES, SIDE, bench};
 
 use super::common::{Bars, PipeResult, warn_all};
+use crate::render::bench as bench_render;
 use crate::render::demo::{figures, report};
 use crate::{BadInput, Ctx};
 
 /// Arguments of `polarid demo`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Output directory (captures, CSVs, model, plots, report).
-    #[arg(short, long, value_name = "DIR", default_value = "polarid-demo")]
-    pub output: PathBuf,
+    /// Output directory (captures, CSVs, model, plots, report) [default: polarid-demo,
+    /// or polarid-bench with --bench].
+    #[arg(short, long, value_name = "DIR")]
+    pub output: Option<PathBuf>,
+    /// The lamp-and-lens bench (calibrated geometry: a 40° lens, a lamp at 0.55-0.9 m,
+    /// five plates) instead of the paper's experiment; ends with a material map.
+    #[arg(long)]
+    pub bench: bool,
 }
 
-/// Run `polarid demo`.
-pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
-    let start = std::time::Instant::now();
-    let out = &args.output;
+/// The staging directory of a demo writing `DIR/report.html`.
+fn staging(out: &Path, ctx: &Ctx) -> anyhow::Result<StagedDir> {
     if out.is_file() {
         return Err(BadInput(format!(
             "{}: the output must be a directory, and this is a file",
@@ -41,7 +47,38 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         }
         .into());
     }
-    let staged = StagedDir::new(out, ctx.force)?;
+    Ok(StagedDir::new(out, ctx.force)?)
+}
+
+/// The staged directory `sub` (created), for writers that take a directory.
+fn staged_dir(staged: &StagedDir, sub: &str) -> anyhow::Result<PathBuf> {
+    let keep = staged.path(&format!("{sub}/.keep"))?;
+    let dir = keep.parent().map(Path::to_path_buf).unwrap_or_default();
+    let _ = std::fs::remove_file(&keep);
+    Ok(dir)
+}
+
+/// Write `text` to standard output (a closed pipe is not an error).
+fn print(text: &str) -> anyhow::Result<()> {
+    let mut stdout = std::io::stdout().lock();
+    match stdout
+        .write_all(text.as_bytes())
+        .and_then(|()| stdout.flush())
+    {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        r => Ok(r?),
+    }
+}
+
+/// Run `polarid demo`.
+pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
+    if args.bench {
+        return run_bench(args.output.as_deref(), ctx);
+    }
+    let start = std::time::Instant::now();
+    let out = args.output.unwrap_or_else(|| PathBuf::from("polarid-demo"));
+    let out = &out;
+    let staged = staging(out, ctx)?;
     ctx.info(format!(
         "polarid demo: simulating {} capture sets ({SIDE}x{SIDE} pixels, 12-bit) into {}",
         PLATES.len(),
@@ -55,9 +92,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
 
     // Plots and report.
     let figs = figures(&res)?;
-    let plot_dir = staged.path("plots/.keep")?;
-    let plot_dir = plot_dir.parent().map(Path::to_path_buf).unwrap_or_default();
-    let _ = std::fs::remove_file(plot_dir.join(".keep"));
+    let plot_dir = staged_dir(&staged, "plots")?;
     for (fig, stem) in figs.iter().zip(["dolp_training", "dolp_test", "nk_plane"]) {
         fig.write(&plot_dir, stem)?;
     }
@@ -84,16 +119,61 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         out.join("report.html").display(),
         out.display()
     );
-    let mut stdout = std::io::stdout().lock();
-    match stdout
-        .write_all(so.as_bytes())
-        .and_then(|()| stdout.flush())
-    {
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {}
-        r => r?,
-    }
+    print(&so)?;
     ctx.info(format!(
         "polarid demo: done in {:.1} s",
+        start.elapsed().as_secs_f64()
+    ));
+    Ok(())
+}
+
+/// Run `polarid demo --bench`.
+fn run_bench(output: Option<&Path>, ctx: &Ctx) -> anyhow::Result<()> {
+    let start = std::time::Instant::now();
+    let out = output.map_or_else(|| PathBuf::from("polarid-bench"), Path::to_path_buf);
+    let staged = staging(&out, ctx)?;
+    ctx.info(format!(
+        "polarid demo --bench: a lamp-and-lens bench (2 renders of 9 captures, calibrated \
+         geometry) into {}",
+        out.display()
+    ));
+    let res = {
+        let bars = Bars::new(ctx);
+        bench::run_bench(&staged, &|s, d, t| bars.report(s, d, t)).cli()?
+    };
+    warn_all(ctx, &res.warnings);
+    let figs = bench_render::figures(&res)?;
+    let plot_dir = staged_dir(&staged, "plots")?;
+    for f in &figs {
+        f.plot.write(&plot_dir, &f.stem)?;
+    }
+    let map_dir = staged_dir(&staged, "map")?;
+    bench_render::write_map(&map_dir, &res.map)?;
+    if let Some(f) = figs.iter().find(|f| f.stem == "class_map") {
+        f.plot.write(&map_dir, "class")?;
+    }
+    let stage_dir = plot_dir.parent().map(Path::to_path_buf).unwrap_or_default();
+    bench_render::report(&res, &figs).write(&stage_dir, "report")?;
+    let text = format!(
+        "{}
+{}
+",
+        res.tables,
+        res.notes.join("\n")
+    );
+    let tables_path = staged.path("tables.txt")?;
+    write_atomic(&tables_path, false, |w| {
+        w.write_all(text.as_bytes())
+            .map_err(|e| polarid_io::IoError::io(&tables_path, e))
+    })?;
+    staged.commit()?;
+    print(&format!(
+        "{text}\nReport: {}  (also report.md; CSVs, model.json, map/ and the captures in {})\n",
+        out.join("report.html").display(),
+        out.display()
+    ))?;
+    ctx.info(format!(
+        "polarid demo --bench: done in {:.1} s",
         start.elapsed().as_secs_f64()
     ));
     Ok(())

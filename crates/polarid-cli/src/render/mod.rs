@@ -16,6 +16,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 
 pub mod base64;
+pub mod bench;
 pub mod colormap;
 pub mod demo;
 pub mod plots;

@@ -177,7 +177,7 @@ impl SourceSpec {
 
 impl Parser<'_> {
     /// `N` finite numbers.
-    fn numbers<const N: usize>(&self, v: &Val<'_>, field: &str) -> Result<[f64; N]> {
+    pub(super) fn numbers<const N: usize>(&self, v: &Val<'_>, field: &str) -> Result<[f64; N]> {
         let items = self.array(v, field)?;
         if items.len() != N {
             return Err(self.err(
@@ -593,7 +593,13 @@ impl Parser<'_> {
     }
 
     /// A `sun` source: parse the time and resolve the sun's direction at `site`.
-    fn sun(&self, time: String, site: &SiteSpec, v: &Val<'_>, field: &str) -> Result<SourceSpec> {
+    pub(super) fn sun(
+        &self,
+        time: String,
+        site: &SiteSpec,
+        v: &Val<'_>,
+        field: &str,
+    ) -> Result<SourceSpec> {
         let unix_seconds =
             parse_rfc3339(&time).map_err(|e| self.err(&v.span(), field, e.to_string()))?;
         let core_site = Site {

@@ -34,6 +34,7 @@
 //! the capture's angles. See [`calibration`] for the tables and their rules.
 
 pub mod calibration;
+pub mod shared;
 
 pub use calibration::{CameraOrientation, CameraSpec, PlaneSpec, SiteSpec, SourceSpec};
 

@@ -43,6 +43,14 @@
 //! region = [16, 16, 96, 96]     # optional measured region (default: an inset of rect)
 //! ```
 //!
+//! **Calibrated scenes** (a `[camera]` table instead of the angles; `calibrated`):
+//! `[camera]`, `[[plane]]` and `[site]` as in a manifest (read by the manifest's own
+//! parser, [`crate::manifest::shared`]), one `[[source]]` per capture (`position`,
+//! `direction` or `sun`, optional `intensity` and `name`), and plates placed by
+//! `plane`, `center`, `size` and `axis` instead of `rect`; each plate's rectangle and
+//! measured region follow from tracing the camera's pixels ([`Geometry::Calibrated`],
+//! [`Placement`]).
+//!
 //! Errors are [`IoError::Manifest`] naming the file, the 1-based line, the dotted field
 //! (`plate[2].sigma`; indices 1-based) and the value. Unknown keys are errors (a scene is
 //! an input the simulator acts on, so a typo must not silently change the physics).
@@ -52,8 +60,10 @@
 //! `types` (the validated [`Scene`] and its parts), `raw` (the TOML as deserialized, with
 //! spans), `context` (error construction and value checks that name file, line and field),
 //! `top` (the top-level keys and `theta_i_deg`), `camera` (`[sensor]`, `[exposure]`,
-//! `[capture]`), `plates` (`[[plate]]` and [`default_region`]).
+//! `[capture]`), `plates` (`[[plate]]` and [`default_region`]), `calibrated` (the
+//! calibrated geometry and the placed plates).
 
+mod calibrated;
 mod camera;
 mod context;
 mod plates;
@@ -64,7 +74,9 @@ mod types;
 use std::path::Path;
 
 pub use plates::default_region;
-pub use types::{CaptureKind, ImageFormat, MAX_SIDE, Plate, Scene};
+pub use types::{
+    Calibrated, CaptureKind, Geometry, ImageFormat, MAX_SIDE, Placement, Plate, Scene, SceneSource,
+};
 
 use crate::error::{IoError, Result};
 use context::Ctx;
@@ -125,9 +137,17 @@ region = [36, 4, 20, 20]
     fn parses_a_scene_with_defaults() {
         let s = parse(Path::new("s.toml"), GOOD).unwrap();
         assert_eq!((s.width, s.height), (64, 32));
-        assert_eq!(s.theta_i_deg.len(), 10);
-        assert_eq!(s.theta_i_deg[9], 80.0);
-        assert_eq!(s.phi_deg, 180.0);
+        let Geometry::FarField {
+            theta_i_deg,
+            phi_deg,
+            ..
+        } = &s.geometry
+        else {
+            panic!("far field expected")
+        };
+        assert_eq!(theta_i_deg.len(), 10);
+        assert_eq!(theta_i_deg[9], 80.0);
+        assert_eq!(*phi_deg, 180.0);
         assert_eq!(s.exposure, Exposure::Auto { fraction: 0.7 });
         assert_eq!(s.sensor.dark_level_dn, 64.0);
         assert_eq!(s.sensor.bit_depth, 12);

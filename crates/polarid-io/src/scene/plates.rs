@@ -32,7 +32,76 @@ pub fn default_region(rect: Rect) -> Option<Rect> {
     })
 }
 
+/// What every plate gives, far field or calibrated: name, class, optics, line.
+pub(super) struct PlateBasics {
+    pub(super) name: String,
+    pub(super) class: Option<String>,
+    pub(super) optics: PlateOptics,
+    pub(super) line: usize,
+    pub(super) name_span: std::ops::Range<usize>,
+}
+
 impl Ctx<'_> {
+    /// The name (unique among `names`), class and optics of plate `i` (0-based).
+    pub(super) fn plate_basics(
+        &self,
+        p: &RawPlate,
+        i: usize,
+        names: &mut HashSet<String>,
+    ) -> Result<PlateBasics> {
+        let pre = format!("plate[{}].", i + 1);
+        let f = |k: &str| format!("{pre}{k}");
+        let name_v = p
+            .name
+            .as_ref()
+            .ok_or_else(|| self.missing(None, &f("name"), "plate name"))?;
+        let near = Some(name_v.span());
+        let near = near.as_ref();
+        let name = self.name(name_v, &f("name"))?;
+        if !names.insert(name.clone()) {
+            return Err(self.err(&name_v.span(), &f("name"), "duplicate plate name"));
+        }
+        let class = match &p.class {
+            Some(v) if v.get_ref().trim().is_empty() => None,
+            Some(v) => Some(self.name(v, &f("class"))?),
+            None => None,
+        };
+        let req = |v: &Option<Spanned<f64>>, key: &str, what: &str| {
+            v.as_ref()
+                .ok_or_else(|| self.missing(near, &f(key), what))
+                .cloned()
+        };
+        let n = self.num_in(
+            &req(&p.n, "n", "real part of the index `n`")?,
+            &f("n"),
+            |x| x > 0.0 && x <= 100.0,
+            "in (0, 100]",
+        )?;
+        let k = self.num_in(
+            &req(&p.k, "k", "imaginary part of the index `k`")?,
+            &f("k"),
+            |x| (0.0..=100.0).contains(&x),
+            "in [0, 100]",
+        )?;
+        let sigma = self.num_in(
+            &req(&p.sigma, "sigma", "roughness `sigma`")?,
+            &f("sigma"),
+            |x| (1e-3..=10.0).contains(&x),
+            "in [0.001, 10] (slope standard deviation)",
+        )?;
+        let rho_d = match &p.rho_d {
+            Some(v) => self.num_in(v, &f("rho_d"), |x| (0.0..=1.0).contains(&x), "in [0, 1]")?,
+            None => 0.0,
+        };
+        Ok(PlateBasics {
+            name,
+            class,
+            optics: PlateOptics { n, k, sigma, rho_d },
+            line: self.line(name_v.span().start),
+            name_span: name_v.span(),
+        })
+    }
+
     pub(super) fn plates(
         &self,
         raw: &[RawPlate],
@@ -47,50 +116,23 @@ impl Ctx<'_> {
         for (i, p) in raw.iter().enumerate() {
             let pre = format!("plate[{}].", i + 1);
             let f = |k: &str| format!("{pre}{k}");
-            let name_v = p
-                .name
-                .as_ref()
-                .ok_or_else(|| self.missing(None, &f("name"), "plate name"))?;
-            let near = Some(name_v.span());
+            let b = self.plate_basics(p, i, &mut names)?;
+            let near = Some(b.name_span.clone());
             let near = near.as_ref();
-            let name = self.name(name_v, &f("name"))?;
-            if !names.insert(name.clone()) {
-                return Err(self.err(&name_v.span(), &f("name"), "duplicate plate name"));
+            let placement_keys = [
+                ("plane", p.plane.as_ref().map(|v| v.span())),
+                ("center", p.center.as_ref().map(|v| v.span())),
+                ("size", p.size.as_ref().map(|v| v.span())),
+                ("axis", p.axis.as_ref().map(|v| v.span())),
+            ];
+            if let Some((k, Some(span))) = placement_keys.iter().find(|(_, s)| s.is_some()) {
+                return Err(self.err(
+                    span,
+                    &f(k),
+                    "plates are placed on planes only in calibrated scenes (with a [camera] \
+                     table); a far-field plate takes `rect`",
+                ));
             }
-            let class = match &p.class {
-                Some(v) if v.get_ref().trim().is_empty() => None,
-                Some(v) => Some(self.name(v, &f("class"))?),
-                None => None,
-            };
-            let req = |v: &Option<Spanned<f64>>, key: &str, what: &str| {
-                v.as_ref()
-                    .ok_or_else(|| self.missing(near, &f(key), what))
-                    .cloned()
-            };
-            let n = self.num_in(
-                &req(&p.n, "n", "real part of the index `n`")?,
-                &f("n"),
-                |x| x > 0.0 && x <= 100.0,
-                "in (0, 100]",
-            )?;
-            let k = self.num_in(
-                &req(&p.k, "k", "imaginary part of the index `k`")?,
-                &f("k"),
-                |x| (0.0..=100.0).contains(&x),
-                "in [0, 100]",
-            )?;
-            let sigma = self.num_in(
-                &req(&p.sigma, "sigma", "roughness `sigma`")?,
-                &f("sigma"),
-                |x| (1e-3..=10.0).contains(&x),
-                "in [0.001, 10] (slope standard deviation)",
-            )?;
-            let rho_d = match &p.rho_d {
-                Some(v) => {
-                    self.num_in(v, &f("rho_d"), |x| (0.0..=1.0).contains(&x), "in [0, 1]")?
-                }
-                None => 0.0,
-            };
             let rect_v = p
                 .rect
                 .as_ref()
@@ -140,12 +182,13 @@ impl Ctx<'_> {
                 })?,
             };
             plates.push(Plate {
-                name,
-                class,
-                optics: PlateOptics { n, k, sigma, rho_d },
+                name: b.name,
+                class: b.class,
+                optics: b.optics,
                 rect,
                 region,
-                line: self.line(name_v.span().start),
+                placement: None,
+                line: b.line,
             });
         }
         Ok(plates)

@@ -22,6 +22,60 @@ pub(super) struct RawScene {
     pub(super) capture: Option<RawCapture>,
     #[serde(default)]
     pub(super) plate: Vec<RawPlate>,
+    pub(super) camera: Option<Spanned<RawCamera>>,
+    pub(super) plane: Option<Spanned<Vec<RawPlane>>>,
+    pub(super) site: Option<Spanned<RawSite>>,
+    pub(super) source: Option<Spanned<Vec<RawSource>>>,
+}
+
+/// `[camera]`: only the keys are checked here (the values by the manifest's parser,
+/// `manifest::shared`).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+#[allow(dead_code)]
+pub(super) struct RawCamera {
+    pub(super) focal_px: Option<toml::Value>,
+    pub(super) principal_point_px: Option<toml::Value>,
+    pub(super) distortion: Option<toml::Value>,
+    pub(super) position: Option<toml::Value>,
+    pub(super) look_at: Option<toml::Value>,
+    pub(super) up: Option<toml::Value>,
+    pub(super) rotation: Option<toml::Value>,
+}
+
+/// `[[plane]]`: keys only (values: the manifest's parser).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+#[allow(dead_code)]
+pub(super) struct RawPlane {
+    pub(super) name: Option<toml::Value>,
+    pub(super) point: Option<toml::Value>,
+    pub(super) normal: Option<toml::Value>,
+}
+
+/// `[site]`: keys only (values: the manifest's parser).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+#[allow(dead_code)]
+pub(super) struct RawSite {
+    pub(super) latitude_deg: Option<toml::Value>,
+    pub(super) longitude_deg: Option<toml::Value>,
+    pub(super) elevation_m: Option<toml::Value>,
+    pub(super) pressure_mbar: Option<toml::Value>,
+    pub(super) temperature_c: Option<toml::Value>,
+}
+
+/// `[[source]]`: where (one of `position`, `direction`, `sun`; checked by the manifest's
+/// parser), how strong, and an optional capture name.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+#[allow(dead_code)]
+pub(super) struct RawSource {
+    pub(super) position: Option<toml::Value>,
+    pub(super) direction: Option<toml::Value>,
+    pub(super) sun: Option<toml::Value>,
+    pub(super) intensity: Option<Spanned<f64>>,
+    pub(super) name: Option<Spanned<String>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -61,4 +115,8 @@ pub(super) struct RawPlate {
     pub(super) rho_d: Option<Spanned<f64>>,
     pub(super) rect: Option<Spanned<Vec<i64>>>,
     pub(super) region: Option<Spanned<Vec<i64>>>,
+    pub(super) plane: Option<Spanned<String>>,
+    pub(super) center: Option<Spanned<Vec<f64>>>,
+    pub(super) size: Option<Spanned<toml::Value>>,
+    pub(super) axis: Option<Spanned<Vec<f64>>>,
 }

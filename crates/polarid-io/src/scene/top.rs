@@ -7,7 +7,7 @@ use toml::Spanned;
 
 use super::context::Ctx;
 use super::raw::RawScene;
-use super::{ImageFormat, MAX_SIDE, Scene};
+use super::{Geometry, ImageFormat, MAX_SIDE, Scene};
 use crate::error::{IoError, Result};
 
 impl Ctx<'_> {
@@ -112,20 +112,6 @@ impl Ctx<'_> {
         };
         let width = side(&raw.width, "width")?;
         let height = side(&raw.height, "height")?;
-        let theta_r_deg = match &raw.theta_r_deg {
-            Some(v) => self.zenith(v, "theta_r_deg")?,
-            None => return Err(self.missing(None, "theta_r_deg", "camera zenith angle")),
-        };
-        let phi_deg = match &raw.phi_deg {
-            Some(v) => self.num(v, "phi_deg")?,
-            None => 180.0,
-        };
-        let theta_i_deg = match &raw.theta_i_deg {
-            Some(v) => self.theta_i(v)?,
-            None => {
-                return Err(self.missing(None, "theta_i_deg", "source zenith angles"));
-            }
-        };
         let wavelength_nm = match &raw.wavelength_nm {
             Some(v) => Some(self.num_in(v, "wavelength_nm", |x| x > 0.0, "> 0")?),
             None => None,
@@ -152,16 +138,55 @@ impl Ctx<'_> {
         let sensor = self.sensor(raw.sensor.as_ref())?;
         let exposure = self.exposure(raw.exposure.as_ref())?;
         let capture = self.capture(raw.capture.as_ref())?;
-        let plates = self.plates(&raw.plate, width, height)?;
+        let (geometry, plates) = if raw.camera.is_some() {
+            let (c, plates) = self.calibrated(&raw, width, height)?;
+            (Geometry::Calibrated(Box::new(c)), plates)
+        } else {
+            for (k, span) in [
+                ("plane", raw.plane.as_ref().map(|v| v.span())),
+                ("site", raw.site.as_ref().map(|v| v.span())),
+                ("source", raw.source.as_ref().map(|v| v.span())),
+            ] {
+                if let Some(span) = span {
+                    return Err(self.err(
+                        &span,
+                        k,
+                        "[[plane]], [site] and [[source]] describe a calibrated scene: add a \
+                         [camera] table, or give theta_r_deg and theta_i_deg instead",
+                    ));
+                }
+            }
+            let theta_r_deg = match &raw.theta_r_deg {
+                Some(v) => self.zenith(v, "theta_r_deg")?,
+                None => return Err(self.missing(None, "theta_r_deg", "camera zenith angle")),
+            };
+            let phi_deg = match &raw.phi_deg {
+                Some(v) => self.num(v, "phi_deg")?,
+                None => 180.0,
+            };
+            let theta_i_deg = match &raw.theta_i_deg {
+                Some(v) => self.theta_i(v)?,
+                None => {
+                    return Err(self.missing(None, "theta_i_deg", "source zenith angles"));
+                }
+            };
+            let plates = self.plates(&raw.plate, width, height)?;
+            (
+                Geometry::FarField {
+                    theta_r_deg,
+                    phi_deg,
+                    theta_i_deg,
+                },
+                plates,
+            )
+        };
         Ok(Scene {
             path: self.path.to_path_buf(),
             text: self.text.to_string(),
             name,
             width,
             height,
-            theta_r_deg,
-            phi_deg,
-            theta_i_deg,
+            geometry,
             wavelength_nm,
             background,
             seed,
@@ -203,8 +228,11 @@ mod tests {
             )
         };
         let s = parse(Path::new("s.toml"), &range("78.1171875")).unwrap();
-        assert_eq!(s.theta_i_deg.len(), 10_000);
-        assert_eq!(s.theta_i_deg[9_999], 78.1171875);
+        let crate::scene::Geometry::FarField { theta_i_deg, .. } = &s.geometry else {
+            panic!("far field expected")
+        };
+        assert_eq!(theta_i_deg.len(), 10_000);
+        assert_eq!(theta_i_deg[9_999], 78.1171875);
         let e = parse_err(&range("78.125"));
         assert!(e.contains("more than 10000 source positions"), "{e}");
     }

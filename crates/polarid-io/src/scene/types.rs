@@ -1,11 +1,14 @@
-//! The validated scene: frame, camera and source geometry, sensor, exposure, capture
-//! kind and plates.
+//! The validated scene: frame, camera and source geometry (far field, or calibrated),
+//! sensor, exposure, capture kind and plates.
 
 use std::path::PathBuf;
 
+use polarid_core::geometry::Source;
 use polarid_core::mosaic::Pattern;
 use polarid_core::region::Rect;
-use polarid_core::simulate::{Exposure, PlateOptics, Sensor};
+use polarid_core::simulate::{Exposure, Light, PlateOptics, Sensor};
+
+use crate::manifest::{CameraSpec, PlaneSpec, SiteSpec, SourceSpec};
 
 /// Largest frame side accepted, pixels.
 pub const MAX_SIDE: usize = 16384;
@@ -54,6 +57,79 @@ impl CaptureKind {
     }
 }
 
+/// Where a plate of a calibrated scene lies (scene frame, scene length units).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Placement {
+    /// Index into [`Calibrated::planes`] of the plane it lies on.
+    pub plane: usize,
+    /// Its centre, on the plane.
+    pub center: [f64; 3],
+    /// The direction of its width, in the plane (unit vector); the height runs along
+    /// `normal × axis`.
+    pub axis: [f64; 3],
+    /// Width and height.
+    pub size: [f64; 2],
+}
+
+/// One light source of a calibrated scene: one capture.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneSource {
+    /// Where the light is (as the manifest writes it: `position`, `direction`, `sun`).
+    pub spec: SourceSpec,
+    /// A lamp's radiant intensity, or a distant source's irradiance (default 1).
+    pub intensity: f64,
+    /// Optional capture name (its directory and the manifest's capture `name`).
+    pub name: Option<String>,
+    /// 1-based line of the source in the scene file.
+    pub line: usize,
+}
+
+impl SceneSource {
+    /// The core light: a `sun` is a distant source towards the sun.
+    pub fn light(&self) -> Light {
+        let source = match &self.spec {
+            SourceSpec::Position(p) => Source::Position(*p),
+            SourceSpec::Direction(d) => Source::Direction(*d),
+            SourceSpec::Sun { direction, .. } => Source::Direction(*direction),
+        };
+        Light {
+            source,
+            power: self.intensity,
+        }
+    }
+}
+
+/// The calibrated geometry of a scene: a pinhole camera, planes, an optional site and
+/// the light sources (one capture each).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Calibrated {
+    /// The camera (`[camera]`, as in a manifest).
+    pub camera: CameraSpec,
+    /// The planes (`[[plane]]`; the default plane when none is given).
+    pub planes: Vec<PlaneSpec>,
+    /// The site (`[site]`), needed by `sun` sources.
+    pub site: Option<SiteSpec>,
+    /// The light sources, one capture each, in order.
+    pub sources: Vec<SceneSource>,
+}
+
+/// How the scene's geometry is given.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Geometry {
+    /// The paper's far field: one camera zenith, one azimuth difference, and a list of
+    /// source zeniths, the same for every pixel.
+    FarField {
+        /// Camera zenith, degrees.
+        theta_r_deg: f64,
+        /// `phi_r − phi_i`, degrees (180: in the plane of incidence).
+        phi_deg: f64,
+        /// Source zeniths, degrees, one capture each (in order).
+        theta_i_deg: Vec<f64>,
+    },
+    /// A calibrated camera, plates on planes, and lamps or distant sources.
+    Calibrated(Box<Calibrated>),
+}
+
 /// One plate of a scene.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Plate {
@@ -63,10 +139,14 @@ pub struct Plate {
     pub class: Option<String>,
     /// Index, roughness and diffuse albedo.
     pub optics: PlateOptics,
-    /// The plate's rectangle in the frame.
+    /// The plate's rectangle in the frame (calibrated scenes: the bounding box of the
+    /// pixels that see it).
     pub rect: Rect,
-    /// The measured region (inside `rect`).
+    /// The measured region (inside `rect`; calibrated scenes: every pixel of it sees the
+    /// plate).
     pub region: Rect,
+    /// Where the plate lies (calibrated scenes only).
+    pub placement: Option<Placement>,
     /// Line of the plate's `name` in the scene file.
     pub line: usize,
 }
@@ -84,12 +164,8 @@ pub struct Scene {
     pub width: usize,
     /// Frame height, pixels.
     pub height: usize,
-    /// Camera zenith, degrees.
-    pub theta_r_deg: f64,
-    /// `phi_r − phi_i`, degrees.
-    pub phi_deg: f64,
-    /// Source zeniths, degrees, one capture each (in order).
-    pub theta_i_deg: Vec<f64>,
+    /// The camera and source geometry.
+    pub geometry: Geometry,
     /// Informational wavelength, nm.
     pub wavelength_nm: Option<f64>,
     /// Unpolarized background radiance (same units as the plates' radiance).
@@ -106,4 +182,22 @@ pub struct Scene {
     pub capture: CaptureKind,
     /// The plates, in file order.
     pub plates: Vec<Plate>,
+}
+
+impl Scene {
+    /// Number of captures (source positions).
+    pub fn captures(&self) -> usize {
+        match &self.geometry {
+            Geometry::FarField { theta_i_deg, .. } => theta_i_deg.len(),
+            Geometry::Calibrated(c) => c.sources.len(),
+        }
+    }
+
+    /// The calibrated geometry, if the scene has one.
+    pub fn calibrated(&self) -> Option<&Calibrated> {
+        match &self.geometry {
+            Geometry::Calibrated(c) => Some(c),
+            Geometry::FarField { .. } => None,
+        }
+    }
 }

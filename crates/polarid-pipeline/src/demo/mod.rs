@@ -15,7 +15,12 @@
 //! file as the next command would. What it returns — the rows, the model, the
 //! explanations, the text of Tables 1 and 2 — is what a front end needs for its plots,
 //! report and printout. Deterministic (fixed seeds).
+//!
+//! [`bench`](mod@bench) is the second demo (`polarid demo --bench`): a lamp-and-lens bench with
+//! calibrated geometry, from renders to a material map.
 
+pub mod bench;
+mod bench_tables;
 mod plates;
 mod tables;
 

@@ -4,7 +4,8 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use polarid_io::IoError;
-use polarid_io::scene::{CaptureKind, Scene};
+use polarid_io::manifest::{CameraOrientation, SourceSpec};
+use polarid_io::scene::{Calibrated, CaptureKind, Geometry, Scene};
 use polarid_io::table::{fmt_f64, write_rows};
 
 use super::{TruthRow, capture_dir, frame_file};
@@ -63,23 +64,59 @@ pub fn manifest_text(scene: &Scene, exposures: &[f64]) -> String {
         sensor.read_noise_e,
         if sensor.shot_noise { "on" } else { "off" }
     );
-    let _ = writeln!(m, "theta_r_deg = {}", toml_num(scene.theta_r_deg));
-    let _ = writeln!(m, "phi_deg = {}", toml_num(scene.phi_deg));
+    let theta_i: &[f64] = match &scene.geometry {
+        Geometry::FarField {
+            theta_r_deg,
+            phi_deg,
+            theta_i_deg,
+        } => {
+            let _ = writeln!(m, "theta_r_deg = {}", toml_num(*theta_r_deg));
+            let _ = writeln!(m, "phi_deg = {}", toml_num(*phi_deg));
+            theta_i_deg
+        }
+        Geometry::Calibrated(_) => &[],
+    };
+    let cal = scene.calibrated();
     let _ = writeln!(m, "dark_level = {}", toml_num(sensor.dark_level_dn));
     let _ = writeln!(m, "saturation = {}", toml_num(sensor.max_dn()));
     if let Some(wl) = scene.wavelength_nm {
         let _ = writeln!(m, "wavelength_nm = {}", toml_num(wl));
     }
+    if let Some(c) = cal {
+        geometry_tables(&mut m, c);
+    }
     for p in &scene.plates {
         let r = p.region;
         let _ = writeln!(m, "\n[[region]]\nname = {}", toml_str(&p.name));
         let _ = writeln!(m, "rect = [{}, {}, {}, {}]", r.x, r.y, r.width, r.height);
+        if let (Some(c), Some(pl)) = (cal, &p.placement)
+            && let Some(plane) = c.planes.get(pl.plane)
+        {
+            let _ = writeln!(m, "plane = {}", toml_str(&plane.name));
+        }
         if let Some(c) = &p.class {
             let _ = writeln!(m, "class = {}", toml_str(c));
         }
     }
-    for (ci, (&ti, &x)) in scene.theta_i_deg.iter().zip(exposures).enumerate() {
-        let _ = writeln!(m, "\n[[capture]]\ntheta_i_deg = {}", toml_num(ti));
+    for (ci, &x) in exposures.iter().enumerate() {
+        match cal.and_then(|c| c.sources.get(ci)) {
+            Some(s) => {
+                let _ = writeln!(m, "\n[[capture]]");
+                if let Some(n) = &s.name {
+                    let _ = writeln!(m, "name = {}", toml_str(n));
+                }
+                let src = match &s.spec {
+                    SourceSpec::Position(p) => format!("position = {}", toml_vec(p)),
+                    SourceSpec::Direction(d) => format!("direction = {}", toml_vec(d)),
+                    SourceSpec::Sun { time, .. } => format!("sun = {}", toml_str(time)),
+                };
+                let _ = writeln!(m, "source = {{ {src} }}");
+            }
+            None => {
+                let ti = theta_i.get(ci).copied().unwrap_or(f64::NAN);
+                let _ = writeln!(m, "\n[[capture]]\ntheta_i_deg = {}", toml_num(ti));
+            }
+        }
         let _ = writeln!(m, "exposure = {}", toml_num(x));
         match &scene.capture {
             CaptureKind::Frames { angles_deg } => {
@@ -112,6 +149,52 @@ pub fn manifest_text(scene: &Scene, exposures: &[f64]) -> String {
     m
 }
 
+/// `[x, y, z]` as TOML numbers.
+fn toml_vec(v: &[f64]) -> String {
+    let parts: Vec<String> = v.iter().map(|&x| toml_num(x)).collect();
+    format!("[{}]", parts.join(", "))
+}
+
+/// The `[camera]`, `[[plane]]` and `[site]` tables of a calibrated scene (FORMATS.md,
+/// "Calibrated geometry").
+fn geometry_tables(m: &mut String, c: &Calibrated) {
+    let cam = &c.camera;
+    let _ = writeln!(m, "\n[camera]");
+    let _ = writeln!(m, "focal_px = {}", toml_vec(&cam.focal_px));
+    let _ = writeln!(
+        m,
+        "principal_point_px = {}",
+        toml_vec(&cam.principal_point_px)
+    );
+    if cam.distortion.iter().any(|&d| d != 0.0) {
+        let _ = writeln!(m, "distortion = {}", toml_vec(&cam.distortion));
+    }
+    let _ = writeln!(m, "position = {}", toml_vec(&cam.position));
+    match &cam.orientation {
+        CameraOrientation::LookAt { look_at, up } => {
+            let _ = writeln!(m, "look_at = {}", toml_vec(look_at));
+            let _ = writeln!(m, "up = {}", toml_vec(up));
+        }
+        CameraOrientation::Rotation(r) => {
+            let rows: Vec<String> = r.iter().map(|row| toml_vec(row)).collect();
+            let _ = writeln!(m, "rotation = [{}]", rows.join(", "));
+        }
+    }
+    for p in &c.planes {
+        let _ = writeln!(m, "\n[[plane]]\nname = {}", toml_str(&p.name));
+        let _ = writeln!(m, "point = {}", toml_vec(&p.point));
+        let _ = writeln!(m, "normal = {}", toml_vec(&p.normal));
+    }
+    if let Some(s) = &c.site {
+        let _ = writeln!(m, "\n[site]");
+        let _ = writeln!(m, "latitude_deg = {}", toml_num(s.latitude_deg));
+        let _ = writeln!(m, "longitude_deg = {}", toml_num(s.longitude_deg));
+        let _ = writeln!(m, "elevation_m = {}", toml_num(s.elevation_m));
+        let _ = writeln!(m, "pressure_mbar = {}", toml_num(s.pressure_mbar));
+        let _ = writeln!(m, "temperature_c = {}", toml_num(s.temperature_c));
+    }
+}
+
 /// Write `truth.csv` (a comment line, then one row per capture and plate).
 pub fn write_truth(
     w: &mut dyn std::io::Write,
@@ -122,24 +205,40 @@ pub fn write_truth(
         b"# noise-free plate values; s0 in DN / exposure (the units of `polarid measure`)\n",
     )
     .map_err(|e| IoError::io(path, e))?;
+    let calibrated = !truth.is_empty() && truth.iter().all(|t| t.calibrated.is_some());
+    let mut header = vec![
+        "target",
+        "class",
+        "theta_i_deg",
+        "theta_r_deg",
+        "phi_deg",
+        "beta_deg",
+        "dolp",
+        "s0",
+        "dolp_eq9_specular",
+        "exposure",
+        "peak_electrons",
+    ];
+    if calibrated {
+        header.extend([
+            "capture",
+            "n",
+            "k",
+            "sigma",
+            "rho_d",
+            "beta_sd_deg",
+            "beta_min_deg",
+            "beta_max_deg",
+            "dolp_eq9_mean",
+            "pixels",
+        ]);
+    }
     write_rows(
         w,
         path,
-        &[
-            "target",
-            "class",
-            "theta_i_deg",
-            "theta_r_deg",
-            "phi_deg",
-            "beta_deg",
-            "dolp",
-            "s0",
-            "dolp_eq9_specular",
-            "exposure",
-            "peak_electrons",
-        ],
+        &header,
         truth.iter().map(|t| {
-            vec![
+            let mut row = vec![
                 t.target.clone(),
                 t.class.clone().unwrap_or_default(),
                 fmt_f64(t.theta_i_deg),
@@ -151,7 +250,22 @@ pub fn write_truth(
                 fmt_f64(t.dolp_eq9_specular),
                 fmt_f64(t.exposure),
                 fmt_f64(t.peak_electrons),
-            ]
+            ];
+            if let (true, Some(c)) = (calibrated, &t.calibrated) {
+                row.extend([
+                    c.capture.clone(),
+                    fmt_f64(c.n),
+                    fmt_f64(c.k),
+                    fmt_f64(c.sigma),
+                    fmt_f64(c.rho_d),
+                    fmt_f64(c.beta_sd_deg),
+                    fmt_f64(c.beta_min_deg),
+                    fmt_f64(c.beta_max_deg),
+                    fmt_f64(c.dolp_eq9_mean),
+                    c.pixels.to_string(),
+                ]);
+            }
+            row
         }),
     )
 }

@@ -15,11 +15,19 @@
 //! leaving nothing behind). The in-memory renderer [`render_into`] serves callers that
 //! want arrays (the Python binding).
 //!
+//! **Calibrated scenes** (`[camera]`, plates on planes, lamps or the sun) are rendered
+//! per pixel by `polarid_core::simulate::perspective` (module `calibrated`): one Stokes
+//! map per capture, frames from it, a calibrated manifest (`[camera]`, `[[plane]]`,
+//! `[site]`, a `source` per capture, regions on their planes) and a `truth.csv` with
+//! each plate's (n, k) and the spread of β over its region ([`CalibratedTruth`]).
+//! [`beta_map`] gives a capture's per-pixel β for reports.
+//!
 //! Units: with relative exposure `x`, a radiance `I` behind the polarizer gives
 //! `x · I · full_well` expected electrons; the manifest records `x` as the capture's
 //! `exposure`, so `S0 / exposure` in DN (what `measure` writes) equals the radiance times
 //! `2^bits − 1 − dark_level` whatever the exposure; `truth.csv`'s `s0` is in these units.
 
+mod calibrated;
 mod files;
 
 use polarid_core::CoreError;
@@ -32,10 +40,11 @@ use polarid_core::simulate::{
 use polarid_io::IoError;
 use polarid_io::atomic::{StagedDir, write_atomic};
 use polarid_io::image;
-use polarid_io::scene::{CaptureKind, Scene};
+use polarid_io::scene::{CaptureKind, Geometry, Scene};
 use polarid_io::table::fmt_f64;
 use rayon::prelude::*;
 
+pub use calibrated::beta_map;
 pub use files::{manifest_text, write_truth};
 
 use crate::error::Result;
@@ -66,6 +75,37 @@ pub struct TruthRow {
     pub exposure: f64,
     /// Expected electrons of the plate's brightest polarizer angle.
     pub peak_electrons: f64,
+    /// Calibrated scenes: the capture, the plate's optics and the spread of the
+    /// region's geometry (`None` for far-field scenes).
+    pub calibrated: Option<CalibratedTruth>,
+}
+
+/// The extra truth of a plate in a capture of a calibrated scene. The angles of
+/// [`TruthRow`] are then the means over the region's pixels (φ a circular mean), `dolp`
+/// the DoLP of the region's summed noise-free Stokes vector (what `measure` estimates),
+/// `s0` the region's mean S0, and `dolp_eq9_specular` eq. (9) at the mean β.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CalibratedTruth {
+    /// The capture's directory name (its source `name`, or `c01`, `c02`, ...).
+    pub capture: String,
+    /// Real part of the plate's index.
+    pub n: f64,
+    /// Imaginary part of the plate's index.
+    pub k: f64,
+    /// The plate's roughness σ.
+    pub sigma: f64,
+    /// The plate's diffuse albedo.
+    pub rho_d: f64,
+    /// Standard deviation of β over the region's pixels, degrees.
+    pub beta_sd_deg: f64,
+    /// Smallest β over the region, degrees.
+    pub beta_min_deg: f64,
+    /// Largest β over the region, degrees.
+    pub beta_max_deg: f64,
+    /// Mean over the region's pixels of their own eq. (9) DoLP.
+    pub dolp_eq9_mean: f64,
+    /// Pixels of the region.
+    pub pixels: usize,
 }
 
 /// What [`simulate_into`] wrote.
@@ -171,16 +211,26 @@ pub fn render_into(
         })
 }
 
-/// Directory name of capture `i` (0-based) at source zenith `theta_i`: `i35`, `i37p5`;
-/// prefixed by the capture number when two captures share a zenith.
+/// Directory name of capture `i` (0-based): for a far-field scene, after the source
+/// zenith (`i35`, `i37p5`; prefixed by the capture number when two captures share a
+/// zenith); for a calibrated scene, the source's `name`, or `c01`, `c02`, ...
 pub fn capture_dir(scene: &Scene, i: usize) -> String {
-    let t = scene.theta_i_deg[i];
-    let base = format!("i{}", fmt_f64(t).replace('.', "p"));
-    let dup = scene.theta_i_deg.iter().filter(|&&x| x == t).count() > 1;
-    if dup {
-        format!("c{:02}_{base}", i + 1)
-    } else {
-        base
+    match &scene.geometry {
+        Geometry::FarField { theta_i_deg, .. } => {
+            let t = theta_i_deg.get(i).copied().unwrap_or(f64::NAN);
+            let base = format!("i{}", fmt_f64(t).replace('.', "p"));
+            let dup = theta_i_deg.iter().filter(|&&x| x == t).count() > 1;
+            if dup {
+                format!("c{:02}_{base}", i + 1)
+            } else {
+                base
+            }
+        }
+        Geometry::Calibrated(c) => c
+            .sources
+            .get(i)
+            .and_then(|s| s.name.clone())
+            .unwrap_or_else(|| format!("c{:02}", i + 1)),
     }
 }
 
@@ -216,10 +266,22 @@ struct Plan {
     warnings: Vec<Warning>,
 }
 
-/// Plan the simulation of a scene (no rendering yet).
+/// Plan the simulation of a far-field scene (no rendering yet).
 fn plan(scene: &Scene) -> Result<Plan> {
     let sensor = &scene.sensor;
-    let (tr, phi) = (scene.theta_r_deg.to_radians(), scene.phi_deg.to_radians());
+    let Geometry::FarField {
+        theta_r_deg,
+        phi_deg,
+        theta_i_deg,
+    } = &scene.geometry
+    else {
+        return Err(crate::PipelineError::Data {
+            path: scene.path.display().to_string(),
+            reason: "internal error: a calibrated scene has no far-field plan".into(),
+        });
+    };
+    let (theta_r_deg, phi_deg) = (*theta_r_deg, *phi_deg);
+    let (tr, phi) = (theta_r_deg.to_radians(), phi_deg.to_radians());
     let angles: Vec<f64> = scene
         .capture
         .angles_deg()
@@ -230,11 +292,11 @@ fn plan(scene: &Scene) -> Result<Plan> {
         path: scene.path.clone(),
         source: e,
     };
-    let mut rects: Vec<Vec<UniformRect>> = Vec::with_capacity(scene.theta_i_deg.len());
-    let mut exposures = Vec::with_capacity(scene.theta_i_deg.len());
+    let mut rects: Vec<Vec<UniformRect>> = Vec::with_capacity(theta_i_deg.len());
+    let mut exposures = Vec::with_capacity(theta_i_deg.len());
     let mut truth = Vec::new();
     let mut warnings = Vec::new();
-    for &ti_deg in &scene.theta_i_deg {
+    for &ti_deg in theta_i_deg {
         let ti = ti_deg.to_radians();
         let mut caps = Vec::with_capacity(scene.plates.len());
         for p in &scene.plates {
@@ -274,14 +336,15 @@ fn plan(scene: &Scene) -> Result<Plan> {
                 target: p.name.clone(),
                 class: p.class.clone(),
                 theta_i_deg: ti_deg,
-                theta_r_deg: scene.theta_r_deg,
-                phi_deg: scene.phi_deg,
+                theta_r_deg,
+                phi_deg,
                 beta_deg: beta.to_degrees(),
                 dolp: stokes_dolp(&r.stokes),
                 s0: r.stokes[0] * sensor.dn_per_unit(),
                 dolp_eq9_specular: dop(p.optics.n, p.optics.k, beta),
                 exposure,
                 peak_electrons: peak_e,
+                calibrated: None,
             });
         }
         rects.push(caps);
@@ -326,6 +389,9 @@ pub fn simulate_into(
     prefix: &str,
     progress: Progress<'_>,
 ) -> Result<Simulated> {
+    if let Geometry::Calibrated(cal) = &scene.geometry {
+        return calibrated::simulate(scene, cal, staged, prefix, progress);
+    }
     let Plan {
         spec,
         exposures,
@@ -350,19 +416,32 @@ pub fn simulate_into(
             path: scene.path.clone(),
             source: e,
         })?;
-        let path = staged.path(&format!("{prefix}{}", frame_file(scene, ci, fi)))?;
-        if spec.sensor.bit_depth <= 8 {
-            let b: Vec<u8> = buf.iter().map(|&v| v as u8).collect();
-            image::write_gray8(&path, false, w, h, &b)?;
-        } else {
-            image::write_gray16(&path, false, w, h, &buf)?;
-        }
+        let name = format!("{prefix}{}", frame_file(scene, ci, fi));
+        write_frame(staged, &name, &spec.sensor, w, h, &buf)?;
         let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
         progress("frames", d, jobs.len() as u64);
         Ok(())
     })?;
 
     let text = manifest_text(scene, &exposures);
+    write_text_files(scene, staged, prefix, &text, &truth)?;
+    Ok(Simulated {
+        manifest: format!("{prefix}manifest.toml"),
+        captures: scene.captures(),
+        frames: jobs.len(),
+        truth,
+        warnings,
+    })
+}
+
+/// Write `manifest.toml` (`text`), `truth.csv` and `scene.toml` under `prefix`.
+fn write_text_files(
+    scene: &Scene,
+    staged: &StagedDir,
+    prefix: &str,
+    text: &str,
+    truth: &[TruthRow],
+) -> Result<()> {
     let manifest = format!("{prefix}manifest.toml");
     let mpath = staged.path(&manifest)?;
     write_atomic(&mpath, false, |w| {
@@ -370,19 +449,33 @@ pub fn simulate_into(
             .map_err(|e| IoError::io(&mpath, e))
     })?;
     let tpath = staged.path(&format!("{prefix}truth.csv"))?;
-    write_atomic(&tpath, false, |w| write_truth(w, &tpath, &truth))?;
+    write_atomic(&tpath, false, |w| write_truth(w, &tpath, truth))?;
     let spath = staged.path(&format!("{prefix}scene.toml"))?;
     write_atomic(&spath, false, |w| {
         w.write_all(scene.text.as_bytes())
             .map_err(|e| IoError::io(&spath, e))
     })?;
-    Ok(Simulated {
-        manifest,
-        captures: scene.theta_i_deg.len(),
-        frames: jobs.len(),
-        truth,
-        warnings,
-    })
+    Ok(())
+}
+
+/// Write frame `buf` (`w × h`) to the staged file `name`: 8-bit for sensors of at most 8
+/// bits, else 16-bit.
+fn write_frame(
+    staged: &StagedDir,
+    name: &str,
+    sensor: &Sensor,
+    w: usize,
+    h: usize,
+    buf: &[u16],
+) -> Result<()> {
+    let path = staged.path(name)?;
+    if sensor.bit_depth <= 8 {
+        let b: Vec<u8> = buf.iter().map(|&v| v as u8).collect();
+        image::write_gray8(&path, false, w, h, &b)?;
+    } else {
+        image::write_gray16(&path, false, w, h, buf)?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]
