@@ -102,6 +102,7 @@ mod chunk;
 mod covariance;
 mod crb;
 mod engine;
+mod grid;
 #[cfg(test)]
 mod isa_tests;
 mod lanes;
