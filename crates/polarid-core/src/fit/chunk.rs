@@ -17,6 +17,25 @@ use super::validate::{check_pixel, invalid_reason};
 use super::{FitPlan, NkFit};
 use crate::cpu::{Isa, cpu_features};
 
+/// The best of the polishes of one pixel (the lowest cost; a converged polish over one
+/// that is not when their costs agree to 1e-9), and the iterations and evaluations of
+/// all of them.
+#[inline(always)]
+pub(super) fn best_polish(polished: &[engine::JobOut]) -> (engine::JobOut, u32, u32) {
+    let mut best = polished[0];
+    let (mut iters, mut evals) = (0u32, 0u32);
+    for other in polished {
+        iters += other.iters;
+        evals += other.evals;
+        if other.ev.cost < best.ev.cost
+            || (!best.converged && other.converged && other.ev.cost <= best.ev.cost * (1.0 + 1e-9))
+        {
+            best = *other;
+        }
+    }
+    (best, iters, evals)
+}
+
 /// Per-thread scratch memory of a fit (no allocation per fit).
 #[derive(Debug, Clone)]
 pub struct FitWorkspace {
@@ -259,20 +278,7 @@ impl FitPlan {
             if count == 0 {
                 continue;
             }
-            let polished = &outs[first..first + count];
-            let mut best = polished[0];
-            let (mut iters, mut evals) = (0u32, 0u32);
-            for other in polished {
-                iters += other.iters;
-                evals += other.evals;
-                if other.ev.cost < best.ev.cost
-                    || (!best.converged
-                        && other.converged
-                        && other.ev.cost <= best.ev.cost * (1.0 + 1e-9))
-                {
-                    best = *other;
-                }
-            }
+            let (best, iters, evals) = best_polish(&outs[first..first + count]);
             let rows = p * t_len..(p + 1) * t_len;
             let mut fit = self.finish(&best, &y[rows.clone()], wall.map(|w| &w[rows]));
             fit.iterations = iters;

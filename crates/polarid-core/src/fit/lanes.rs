@@ -17,7 +17,7 @@ pub(crate) fn num(t: &BetaTerms) -> f64 {
 }
 
 /// The β terms of eq. (9), padded to a multiple of [`LANES`].
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub(crate) struct Lanes {
     /// Padded length.
     pub len: usize,
