@@ -194,8 +194,8 @@ impl Grid {
         match w {
             // The same sums with w_t = 1 (bitwise: 1·x = x).
             None => {
-                for t in 0..t_len {
-                    let r = nodes.curve(g, t) as f64 - y[t];
+                for (t, &yt) in y[..t_len].iter().enumerate() {
+                    let r = nodes.curve(g, t) as f64 - yt;
                     let (jn, jk) = nodes.jac(g, t);
                     let (a, b) = (jn as f64, jk as f64);
                     ev.h00 += a * a;
