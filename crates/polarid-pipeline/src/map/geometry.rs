@@ -133,3 +133,120 @@ fn plane_of_pixels(m: &Manifest, d: Dims, bin: usize) -> Vec<u16> {
     }
     plane
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use polarid_core::geometry::Source;
+
+    /// A calibrated manifest (camera 0.8 m from the bench, looking at it 60° from the
+    /// normal, principal point high in the frame so that the top rows see the sky), a
+    /// second plane tilted by 20° holding region `tilted`, and two lamps.
+    fn manifest(dir: &std::path::Path) -> Manifest {
+        std::fs::write(dir.join("s.tif"), b"").unwrap();
+        let text = r#"
+[camera]
+focal_px = 100.0
+principal_point_px = [31.5, 60.0]
+position = [0.69282032302755, 0.0, 0.4]
+look_at = [0.0, 0.0, 0.0]
+up = [0.0, 0.0, 1.0]
+
+[[plane]]
+name = "bench"
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+
+[[plane]]
+name = "tilted"
+point = [0.0, 0.0, 0.0]
+normal = [0.34202014332567, 0.0, 0.93969262078591]
+
+[[region]]
+name = "a"
+rect = [4, 70, 20, 10]
+
+[[region]]
+name = "t"
+rect = [40, 70, 20, 10]
+plane = "tilted"
+
+[[capture]]
+source = { position = [-0.35, 0.0, 0.6] }
+stokes = { s0 = "s.tif", s1 = "s.tif", s2 = "s.tif" }
+
+[[capture]]
+source = { position = [-0.5, 0.1, 0.45] }
+stokes = { s0 = "s.tif", s1 = "s.tif", s2 = "s.tif" }
+"#;
+        polarid_io::manifest::parse(&dir.join("m.toml"), text).unwrap()
+    }
+
+    /// β of every map pixel is the geometry of its block centre on its plane (the
+    /// region's plane inside a region's rectangle, else the first); rays that miss the
+    /// plane give NaN; the ranges are those of the finite values.
+    #[test]
+    fn beta_maps_follow_block_centres_and_planes() {
+        let tmp = tempfile::tempdir().unwrap();
+        let m = manifest(tmp.path());
+        let cam = m.camera.as_ref().unwrap().to_camera();
+        let views: Vec<ViewGeometry> = m
+            .planes
+            .iter()
+            .map(|p| ViewGeometry::new(cam, p.to_plane().unwrap()).unwrap())
+            .collect();
+        let (w, h) = (64usize, 96usize);
+        for bin in [1usize, 2, 4] {
+            let d = Dims {
+                width: w,
+                height: h,
+                out_w: w / bin,
+                out_h: h / bin,
+            };
+            let done = std::sync::Mutex::new(vec![]);
+            let b = beta_maps(&m, d, bin, &|i| done.lock().unwrap().push(i)).unwrap();
+            assert_eq!(*done.lock().unwrap(), vec![1, 2]);
+            assert_eq!(b.beta.len(), 2);
+            let half = (bin as f64 - 1.0) / 2.0;
+            let mut sky = 0;
+            for (ci, c) in m.captures.iter().enumerate() {
+                let src = c.illumination.as_ref().unwrap().to_source().unwrap();
+                for y in 0..d.out_h {
+                    for x in 0..d.out_w {
+                        let (u, v) = ((x * bin) as f64 + half, (y * bin) as f64 + half);
+                        // Region "t" (columns 40..60, rows 70..80) is on the tilted plane.
+                        let on_t = (39.5..59.5).contains(&u) && (69.5..79.5).contains(&v);
+                        let g = views[usize::from(on_t)].pixel(u, v, &src);
+                        let got = b.beta[ci][y * d.out_w + x];
+                        match g {
+                            Ok(g) => assert_eq!(got, g.beta as f32, "bin {bin} ({x}, {y})"),
+                            Err(_) => {
+                                assert!(got.is_nan(), "bin {bin} ({x}, {y}): {got}");
+                                sky += 1;
+                            }
+                        }
+                    }
+                }
+                let finite: Vec<f64> = b.beta[ci]
+                    .iter()
+                    .filter(|v| v.is_finite())
+                    .map(|&v| v as f64)
+                    .collect();
+                let lo = finite.iter().copied().fold(f64::INFINITY, f64::min);
+                let hi = finite.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                assert_eq!(b.range[ci], [lo, hi]);
+            }
+            // The top rows look above the horizon (in both captures).
+            assert!(
+                sky >= 2 * d.out_w,
+                "bin {bin}: {sky} pixels without geometry"
+            );
+            // The tilted plane changes β inside region "t".
+            let (x, y) = (50 / bin, 75 / bin);
+            let (u, v) = ((x * bin) as f64 + half, (y * bin) as f64 + half);
+            let src = Source::Position([-0.35, 0.0, 0.6]);
+            let bench = views[0].pixel(u, v, &src).unwrap().beta as f32;
+            assert!((b.beta[0][y * d.out_w + x] - bench).abs() > 0.01);
+        }
+    }
+}
