@@ -143,10 +143,10 @@ fn single_dict<'py>(py: Python<'py>, f: &NkFit) -> PyResult<Bound<'py, PyDict>> 
 /// few are cached, so repeated calls with the same angles do not rebuild it.
 ///
 /// With a β per pixel the grid scan that picks each pixel's basin reads model curves
-/// at the angles rounded to 0.1° (cached per angle, so they serve every pixel), and
+/// at the angles rounded to 0.25° (cached per angle, so they serve every pixel), and
 /// the Levenberg–Marquardt polish uses each pixel's exact angles
 /// (``polarid_core::fit::fit_batch_pixel_beta``); the statuses and standard errors
-/// follow the same rules. It runs at about half the speed of the shared-angle fit.
+/// follow the same rules. It runs at 40–60% of the speed of the shared-angle fit.
 #[pyfunction]
 #[pyo3(signature = (dolp, beta_deg, dolp_se = None, *, n_range = (0.01, 10.0), k_range = (0.0, 15.0)))]
 pub fn fit_nk<'py>(

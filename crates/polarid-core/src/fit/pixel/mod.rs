@@ -10,16 +10,19 @@
 //! 1. **Scan and starts from quantised columns.** The grid scan only has to pick the
 //!    basin, so it does not need the exact angles: the node curves of a pixel are read,
 //!    one source position at a time, from *columns*: the DoLP and Jacobian of every
-//!    grid node at a quantised angle `β_q = q·Δ` (`Δ` = [`BETA_QUANTUM_DEG`] by
-//!    default; the DoLP error of rounding β is at most `|∂P/∂β|·Δ/2`, below 0.003 at
-//!    0.1°). A column depends on one angle, not on the β set, so the cache holds a few
-//!    hundred columns for a whole map (one per `Δ` of the angles it contains, 12 kB
-//!    each at the default grid), built once (~30 µs each) and reused by every pixel
-//!    and capture: a cache keyed by the quantised *set* of `T` angles would need a new
-//!    plan (the whole grid at `T` angles, ~0.3 ms, the time of ~400 fits) for almost
-//!    every few pixels. The scan is the weighted scan of `scan/columns.rs` (unit
-//!    weights when unweighted), then the grid refinement and stored-Jacobian
-//!    Gauss–Newton start, with the columns' Jacobians.
+//!    grid node at a quantised angle `β_q = q·Δ` (`Δ` = [`BETA_QUANTUM_DEG`] = 0.25° by
+//!    default). Rounding β by at most `Δ/2` moves the DoLP by `|∂P/∂β|·Δ/2`: at most
+//!    0.007 for `n ≥ 1.2` or `k ≥ 0.5` at β in 10–80° (more only near the critical
+//!    angle of `n < 1`, `k ≈ 0`). A column depends on one angle, not on the β set, so
+//!    the cache holds a few hundred columns at most for a whole map (one per `Δ` of the
+//!    angles it contains, 16 kB each at the default grid), built once (~30 µs each) and
+//!    reused by every pixel and capture; a cache keyed by the quantised *set* of `T`
+//!    angles would need a new plan (the whole grid at `T` angles, ~0.3 ms, the time of
+//!    ~300 fits) every few pixels, as the angles of different captures change in
+//!    different directions across the image. The scan is [`Scan::scan_rows`] (the
+//!    weighted scan with rows gathered from the columns, unit weights when unweighted),
+//!    then the grid refinement and the stored-Jacobian Gauss–Newton start with the
+//!    columns' Jacobians.
 //! 2. **Polish with the exact angles.** The Levenberg–Marquardt polish
 //!    (`engine.rs`) loads each pixel's own β terms into its lane when the lane takes
 //!    the pixel's job, lane-major like the measurements, and evaluates eq. (9) at the
@@ -33,8 +36,16 @@
 //! (a start from the exact grid; otherwise the same minimum to the polish's
 //! tolerance).
 //!
-//! Measured with `examples/pixel_beta_throughput.rs` (see there): ~70–80% of the
-//! throughput of the shared-β fit on the same pixels.
+//! Throughput (`examples/pixel_beta_throughput.rs`, T = 10, angles drifting by ±5°
+//! across the image, one thread of a busy 2-core machine): ~1.7–2.2 µs of CPU per fit
+//! against ~0.8–1.0 µs for the shared-β fit, i.e. 40–60% of its throughput, with 6.3
+//! model evaluations per fit instead of 5.9. The difference is the scan (no curve read
+//! serves four pixels, as it does with one β set), the cache misses of gathering each
+//! pixel's node from `T` columns, and the sines and cosines of every pixel's angles.
+//! A quantum of 0.1° gives 6.2 evaluations but 2.5× the columns and more cache
+//! misses (slower); 0.5° gives 6.4.
+//!
+//! [`Scan::scan_rows`]: super::scan::Scan
 
 mod chunk;
 mod columns;
@@ -51,7 +62,7 @@ use chunk::PixelWorkspace;
 use columns::{ColumnCache, ColumnView};
 
 /// Default quantum of the angles of the per-pixel fit's scan columns, degrees.
-pub const BETA_QUANTUM_DEG: f64 = 0.1;
+pub const BETA_QUANTUM_DEG: f64 = 0.25;
 
 /// Pixels per parallel task.
 const CHUNK: usize = 1024;

@@ -81,7 +81,10 @@ fn per_pixel_driver_matches_the_shared_fit_at_equal_angles() {
     let pp = PixelBetaPlan::with_defaults().unwrap();
     let q = BETA_QUANTUM_DEG.to_radians();
     let t_len = 7;
-    let beta: Vec<f64> = (0..t_len).map(|t| (380 + 55 * t) as f64 * q).collect();
+    // 40° + 5.5° t, on the columns' grid.
+    let beta: Vec<f64> = (0..t_len)
+        .map(|t| ((40.0 + 5.5 * t as f64) / BETA_QUANTUM_DEG).round() * q)
+        .collect();
     let plan = FitPlan::with_defaults(&beta).unwrap();
     let (_, y, se, _) = data(600, t_len, 0.0, 2);
     // Fresh noise-free DoLP at these angles would do as well; reuse the noisy data.
@@ -309,7 +312,10 @@ fn quantum_option() {
             .is_err()
     );
     let (b, y, _, _) = data(300, 6, 4.0, 6);
-    let fine = PixelBetaPlan::with_defaults().unwrap();
+    let fine = PixelBetaPlan::with_defaults()
+        .unwrap()
+        .with_beta_quantum_deg(0.05)
+        .unwrap();
     let coarse = PixelBetaPlan::with_defaults()
         .unwrap()
         .with_beta_quantum_deg(0.5)
