@@ -56,8 +56,11 @@ def test_per_pixel_angles_recover_nk():
     assert (f["status"] == "ok").mean() > 0.95
     c_fit, c_true = cost(y, f["n"], f["k"], beta), cost(y, n, k, beta)
     assert (c_fit <= c_true * (1 + 1e-9) + 1e-14).all()
+    ok = f["status"] == "ok"
+    within = (np.abs(f["n"] - n) <= 3 * f["n_se"]) & (np.abs(f["k"] - k) <= 3 * f["k_se"])
+    assert within[ok].mean() > 0.9
     err = np.hypot(f["n"] - n, f["k"] - k)
-    assert np.median(err) < 0.05
+    assert np.median(err) < 0.1
     # One set of angles (the image centre's) for every pixel: far worse.
     shared = polarid.fit_nk(y, BETA)
     assert np.median(np.hypot(shared["n"] - n, shared["k"] - k)) > 4 * np.median(err)
@@ -95,6 +98,11 @@ PLATES = [("copper", 1.01, 2.58, (8, 10, 36, 28)), ("gold", 1.38, 1.92, (52, 10,
           ("titanium", 1.90, 2.60, (8, 44, 36, 28)), ("paint", 1.50, 0.30, (52, 44, 36, 28))]
 
 
+def vec(v):
+    """A TOML array of floats."""
+    return "[" + ", ".join(repr(float(x)) for x in v) + "]"
+
+
 def pixel_beta(lamp, u=None, v=None):
     """β (degrees) at image points (u, v) (default: every pixel centre) of the bench
     plane z = 0 lit from `lamp`: the camera looks at the origin with +z up; β is half the
@@ -125,7 +133,7 @@ def bench(tmp_path_factory):
     rng = np.random.default_rng(15)
     s0 = 30000.0
     head = (f"[camera]\nfocal_px = {FOCAL}\nprincipal_point_px = [{CX}, {CY}]\n"
-            f"position = {list(CAMERA)}\nlook_at = [0.0, 0.0, 0.0]\nup = [0.0, 0.0, 1.0]\n")
+            f"position = {vec(CAMERA)}\nlook_at = [0.0, 0.0, 0.0]\nup = [0.0, 0.0, 1.0]\n")
     regions = "".join(f'\n[[region]]\nname = "{name}"\nrect = [{x + 2}, {y + 2}, {w - 4}, {h - 4}]\n'
                       f'class = "{name}"\n' for name, _, _, (x, y, w, h) in PLATES)
     cal, far = head + regions, regions
@@ -146,7 +154,7 @@ def bench(tmp_path_factory):
             cv2.imwrite(str(d / name), np.clip(np.rint(i_a) + 100, 0, 65535).astype(np.uint16))
             files.append(f'  {{ angle_deg = {a}.0, file = "{name}" }},\n')
         frames = "frames = [\n" + "".join(files) + "]\n"
-        cal += f"\n[[capture]]\nsource = {{ position = {list(lamp)} }}\n{frames}"
+        cal += f"\n[[capture]]\nsource = {{ position = {vec(lamp)} }}\n{frames}"
         # Far field: the angles at the image centre, in the plane of incidence.
         b0 = float(pixel_beta(lamp)[H // 2, W // 2])
         far += f"\n[[capture]]\ntheta_i_deg = {b0}\ntheta_r_deg = {b0}\nphi_deg = 180.0\n{frames}"
@@ -175,18 +183,25 @@ def test_map_manifest_calibrated(bench):
     np.testing.assert_allclose(r["beta_deg"], betas, atol=1e-4)
     for (lo, hi), b in zip(r["summary"]["beta_range_deg"], betas):
         assert abs(lo - b.min()) < 1e-4 and abs(hi - b.max()) < 1e-4
+    miss = {}
     for name, n, k, rect in PLATES:
         cls = interior(r["class"], rect)
         assert (np.asarray(r["class_names"])[cls] == name).mean() >= 0.99, name
-        assert abs(np.median(interior(r["n"], rect)) - n) < 0.01, name
-        assert abs(np.median(interior(r["k"], rect)) - k) < 0.02, name
+        miss[name] = (abs(np.median(interior(r["n"], rect)) - n), abs(np.median(interior(r["k"], rect)) - k))
+        assert miss[name][0] < 0.01 and miss[name][1] < 0.02, (name, miss[name])
     # The same frames with one β per capture (the image centre's): far off.
     f = polarid.map_manifest(d / "far_field.toml", d / "model.json")
     assert "geometry" not in f["summary"] and "beta_deg" not in f
     assert "no_geometry" not in f["reason_names"]
-    misses = [abs(np.median(interior(f["n"], rect)) - n) + abs(np.median(interior(f["k"], rect)) - k)
-              for _, n, k, rect in PLATES]
-    assert min(misses) > 0.1, misses
+    for name, n, k, rect in PLATES:
+        dn = abs(np.median(interior(f["n"], rect)) - n)
+        dk = abs(np.median(interior(f["k"], rect)) - k)
+        # Every plate: far worse than with its own angles.
+        assert dn + dk > 5 * sum(miss[name]) + 0.02, (name, dn, dk, miss[name])
+        if name != "paint":
+            # Off by more than 0.5 in n + k. (The paint touches the image centre, where
+            # the far-field angles are right: its k is off by ~1 standard error.)
+            assert dn + dk > 0.5, (name, dn, dk)
     # With 2 × 2 blocks: the geometry at the blocks' centres (block (x, y) at pixel
     # (2x + 0.5, 2y + 0.5) of the files).
     r2 = polarid.map_manifest(d / "calibrated.toml", d / "model.json", bin=2)
