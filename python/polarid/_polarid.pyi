@@ -141,7 +141,11 @@ def fit_nk(
     n_range: tuple[float, float] = (0.01, 10.0),
     k_range: tuple[float, float] = (0.0, 15.0),
 ) -> dict[str, Any]:
-    """1-D dolp: floats/ints/str per key; (..., T): arrays (see the docstring)."""
+    """1-D dolp: floats/ints/str per key; (..., T): arrays (see the docstring).
+
+    ``beta_deg``: shape (T,), one angle per measurement shared by every pixel; or an
+    array broadcastable to ``dolp.shape``, a β per pixel and measurement (calibrated
+    geometry)."""
 
 # --- fit of a measurements table (polarid fit) ------------------------------------------
 def fit_table(
@@ -220,4 +224,6 @@ def map_manifest(
     tile: int = 65536,
 ) -> dict[str, Any]:
     """keys: n, k, n_se, k_se, rms_residual (float32 (H, W)), class, reason (uint8 codes),
-    class_names, reason_names, class_counts, reason_counts, summary."""
+    class_names, reason_names, class_counts, reason_counts, summary; with calibrated
+    geometry ([camera], a source per capture) also beta_deg (float32 (T, H, W), every
+    pixel's β per capture, NaN without geometry) and the reason no_geometry."""

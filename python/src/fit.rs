@@ -8,7 +8,10 @@ use std::sync::{Arc, LazyLock, Mutex};
 use ndarray::{ArrayD, IxDyn};
 use numpy::{PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use polarid_core::CoreError;
-use polarid_core::fit::{FitBounds, FitOptions, FitPlan, FitStatus, NkFit, fit_batch};
+use polarid_core::fit::{
+    FitBounds, FitOptions, FitPlan, FitStatus, NkFit, PixelBetaPlan, fit_batch,
+    fit_batch_pixel_beta,
+};
 use polarid_pipeline::fit::{
     FitConfig, PlanCache, Reflectance, check_range, parse_shadowing, read_measurements,
 };
@@ -46,6 +49,22 @@ fn plan_for(betas: &[f64], opts: FitOptions) -> Result<Arc<FitPlan>, CoreError> 
     }
 }
 
+/// The per-pixel-β plan of the last options used (its column cache serves the next
+/// calls with the same options).
+static PIXEL_PLAN: LazyLock<Mutex<Option<Arc<PixelBetaPlan>>>> = LazyLock::new(|| Mutex::new(None));
+
+fn pixel_plan_for(opts: FitOptions) -> Result<Arc<PixelBetaPlan>, CoreError> {
+    let mut slot = PIXEL_PLAN.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(p) = slot.as_ref()
+        && *p.options() == opts
+    {
+        return Ok(Arc::clone(p));
+    }
+    let p = Arc::new(PixelBetaPlan::new(opts)?);
+    *slot = Some(Arc::clone(&p));
+    Ok(p)
+}
+
 fn single_dict<'py>(py: Python<'py>, f: &NkFit) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("n", f.n)?;
@@ -76,8 +95,15 @@ fn single_dict<'py>(py: Python<'py>, f: &NkFit) -> PyResult<Bound<'py, PyDict>> 
 ///     DoLP values in [0, 1] measured at the T angles ``beta_deg``. 1-D: one target.
 ///     More dimensions: a stack of pixels (e.g. (P, T) or (H, W, T)), each fitted
 ///     independently in parallel with the GIL released.
-/// beta_deg : array_like, shape (T,)
-///     Local incidence angles β (eq. 5), degrees, in (0, 90); T >= 3.
+/// beta_deg : array_like, shape (T,) or broadcastable to ``dolp.shape``
+///     Local incidence angles β (eq. 5), degrees, in (0, 90); T >= 3. 1-D: one angle
+///     per measurement, shared by every pixel (the far field). More dimensions: a β per
+///     pixel and measurement (calibrated geometry: a lens and a lamp at a finite
+///     distance give every pixel its own angles), broadcast to the shape of ``dolp``
+///     (e.g. ``(H, W, T)`` for a ``(H, W, T)`` stack, or ``(1, W, T)`` for angles
+///     that only vary along the columns). A pixel with an angle that is not finite or
+///     outside (0, 90) gets status ``invalid_input``; one with fewer than 3 distinct
+///     angles or a range below 3° ``ill_conditioned``.
 /// dolp_se : array_like, optional
 ///     Standard errors of ``dolp`` (> 0), broadcastable to its shape. When given the
 ///     fit is weighted and the standard errors follow from them; otherwise they are
@@ -115,6 +141,12 @@ fn single_dict<'py>(py: Python<'py>, f: &NkFit) -> PyResult<Bound<'py, PyDict>> 
 /// -----
 /// The plan (grid of model curves) depends only on ``beta_deg`` and the box; the last
 /// few are cached, so repeated calls with the same angles do not rebuild it.
+///
+/// With a β per pixel the grid scan that picks each pixel's basin reads model curves
+/// at the angles rounded to 0.25° (cached per angle, so they serve every pixel), and
+/// the Levenberg–Marquardt polish uses each pixel's exact angles
+/// (``polarid_core::fit::fit_batch_pixel_beta``); the statuses and standard errors
+/// follow the same rules. It runs at 40–60% of the speed of the shared-angle fit.
 #[pyfunction]
 #[pyo3(signature = (dolp, beta_deg, dolp_se = None, *, n_range = (0.01, 10.0), k_range = (0.0, 15.0)))]
 pub fn fit_nk<'py>(
@@ -136,18 +168,45 @@ pub fn fit_nk<'py>(
         },
         ..Default::default()
     };
-    let beta = f64_contiguous("beta_deg", beta_deg)?;
-    if beta.ndim() != 1 {
-        return Err(value_error(format!(
-            "beta_deg must be 1-D (one angle per measurement), got shape {}",
-            fmt_shape(beta.shape())
-        )));
-    }
-    let betas: Vec<f64> = beta.as_slice()?.iter().map(|b| b.to_radians()).collect();
     let y = f64_contiguous("dolp", dolp)?;
     let shape = y.shape().to_vec();
-    let t = betas.len();
-    if shape.last() != Some(&t) {
+    // beta_deg: 1-D, one angle per measurement; or a β per pixel, broadcast to dolp.
+    let beta_arr = py.import("numpy")?.call_method1("asarray", (beta_deg,))?;
+    let beta_ndim: usize = beta_arr.getattr("ndim")?.extract()?;
+    let per_pixel = beta_ndim > 1;
+    let (betas, beta_full): (Vec<f64>, Option<PyReadonlyArrayDyn<'py, f64>>) = if per_pixel {
+        let b = py
+            .import("numpy")?
+            .call_method1("broadcast_to", (&beta_arr, shape.clone()))
+            .map_err(|_| {
+                let bs: Vec<usize> = beta_arr
+                    .getattr("shape")
+                    .and_then(|s| s.extract())
+                    .unwrap_or_default();
+                value_error(format!(
+                    "beta_deg of shape {} cannot be broadcast to the shape {} of dolp",
+                    fmt_shape(&bs),
+                    fmt_shape(&shape)
+                ))
+            })?;
+        (Vec::new(), Some(f64_contiguous("beta_deg", &b)?))
+    } else {
+        let beta = f64_contiguous("beta_deg", &beta_arr)?;
+        if beta.ndim() != 1 {
+            return Err(value_error(format!(
+                "beta_deg must be 1-D (one angle per measurement) or broadcastable to dolp, got shape {}",
+                fmt_shape(beta.shape())
+            )));
+        }
+        let v = beta.as_slice()?.iter().map(|b| b.to_radians()).collect();
+        (v, None)
+    };
+    let t = if per_pixel {
+        shape.last().copied().unwrap_or(0)
+    } else {
+        betas.len()
+    };
+    if shape.last() != Some(&t) || (per_pixel && shape.len() < 2) {
         return Err(value_error(format!(
             "dolp of shape {} does not match beta_deg: its last axis must have {t} values (one per angle)",
             fmt_shape(&shape)
@@ -175,14 +234,36 @@ pub fn fit_nk<'py>(
         Some(s) => Some(s.as_slice()?),
         None => None,
     };
+    let lead = shape[..shape.len() - 1].to_vec();
+    let pixels: usize = lead.iter().product();
+    if let Some(bf) = &beta_full {
+        if t < 3 {
+            return Err(value_error(format!(
+                "beta_deg needs at least 3 angles per pixel, got {t}"
+            )));
+        }
+        let bs = bf.as_slice()?;
+        let out = py
+            .detach(|| {
+                let plan = pixel_plan_for(opts)?;
+                let brad: Vec<f64> = bs.iter().map(|b| b.to_radians()).collect();
+                let fit = |y: &[f64], se: Option<&[f64]>, first: usize, out: &mut [NkFit]| {
+                    let b = &brad[first * t..(first + out.len()) * t];
+                    fit_batch_pixel_beta(&plan, b, y, se, out)
+                };
+                batch(t, &fit, ys, ses, pixels)
+            })
+            .py_err()?;
+        return batch_dict(py, &lead, out);
+    }
     let plan = py.detach(|| plan_for(&betas, opts)).py_err()?;
     if shape.len() == 1 {
         let f = py.detach(|| plan.fit(ys, ses)).py_err()?;
         return single_dict(py, &f);
     }
-    let lead = shape[..shape.len() - 1].to_vec();
-    let pixels: usize = lead.iter().product();
-    let out = py.detach(|| batch(&plan, ys, ses, pixels)).py_err()?;
+    let fit =
+        |y: &[f64], se: Option<&[f64]>, _: usize, out: &mut [NkFit]| fit_batch(&plan, y, se, out);
+    let out = py.detach(|| batch(t, &fit, ys, ses, pixels)).py_err()?;
     batch_dict(py, &lead, out)
 }
 
@@ -208,17 +289,22 @@ struct BatchOut {
     reasons: Vec<&'static str>,
 }
 
-/// Fit `pixels` pixels with [`fit_batch`], `CHUNK` at a time in parallel, writing the
-/// results straight into the output columns (no per-pixel intermediate of the whole
-/// stack: large stacks would otherwise spend their time in page faults).
+/// A batch fit of `out.len()` pixels starting at pixel `first` of the stack, `y` (and
+/// `se`) their rows: [`fit_batch`] or [`fit_batch_pixel_beta`].
+type FitFn<'a> =
+    dyn Fn(&[f64], Option<&[f64]>, usize, &mut [NkFit]) -> Result<(), CoreError> + Sync + 'a;
+
+/// Fit `pixels` pixels of `t` measurements with `fit`, `CHUNK` at a time in parallel,
+/// writing the results straight into the output columns (no per-pixel intermediate of
+/// the whole stack: large stacks would otherwise spend their time in page faults).
 fn batch(
-    plan: &FitPlan,
+    t: usize,
+    fit: &FitFn<'_>,
     ys: &[f64],
     ses: Option<&[f64]>,
     pixels: usize,
 ) -> Result<BatchOut, CoreError> {
     use rayon::prelude::*;
-    let t = plan.len();
     if ys.len() != pixels * t {
         return Err(CoreError::LengthMismatch {
             name: "dolp",
@@ -267,7 +353,7 @@ fn batch(
                 let y = &ys[i * c * t..(i * c + len) * t];
                 let se = ses.map(|s| &s[i * c * t..(i * c + len) * t]);
                 let buf = &mut buf[..len];
-                if let Err(e) = fit_batch(plan, y, se, buf) {
+                if let Err(e) = fit(y, se, i * c, buf) {
                     if let Ok(mut slot) = err.lock() {
                         *slot = Some(e);
                     }

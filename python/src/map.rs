@@ -7,7 +7,7 @@
 use ndarray::{ArrayD, IxDyn};
 use polarid_io::manifest;
 use polarid_io::model::Model;
-use polarid_pipeline::map::{self, MapConfig, REASON_NAMES};
+use polarid_pipeline::map::{self, MapConfig};
 use polarid_pipeline::progress::no_progress;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -39,6 +39,13 @@ fn image<'py, T: numpy::Element>(
 /// classified by the nearest prototype of the model. Same code as ``polarid map
 /// MANIFEST --model MODEL`` (its TIFFs hold the very same numbers). The GIL is released.
 ///
+/// A manifest with calibrated geometry (``[camera]``, ``[[plane]]``, a ``source`` per
+/// capture) is mapped with a β per pixel and capture: where the ray through the centre
+/// of the pixel's ``bin`` × ``bin`` block (coordinates of the files as stored) meets
+/// its plane (the plane of the first region whose rectangle contains that centre, else
+/// the first plane). Pixels without a geometry in some capture (the ray misses the
+/// plane, the source is below its horizon) get the reason ``no_geometry``.
+///
 /// Parameters
 /// ----------
 /// manifest_path : str or os.PathLike
@@ -68,7 +75,11 @@ fn image<'py, T: numpy::Element>(
 ///     ``"unknown"`` first), ``reason_names`` (list, ``"classified"`` first);
 ///     ``class_counts``, ``reason_counts``: int64 pixel counts per code; ``summary``:
 ///     the content of ``map_summary.json`` without the input paths and timings (size,
-///     binning, thresholds, per-region class shares).
+///     binning, thresholds, per-region class shares; with calibrated geometry also
+///     ``geometry`` and each capture's ``beta_range_deg``). With calibrated geometry
+///     also ``beta_deg``: float32 (T, H, W), every pixel's β per capture in degrees
+///     (NaN without geometry). ``reason_names`` lists ``no_geometry`` for calibrated
+///     maps only.
 ///
 /// Raises
 /// ------
@@ -109,14 +120,17 @@ pub fn map_manifest<'py>(
     let mut names = vec![r.class_name(0).to_string()];
     names.extend(r.class_names.iter().cloned());
     d.set_item("class_names", names)?;
-    d.set_item("reason_names", REASON_NAMES.to_vec())?;
+    d.set_item("reason_names", r.reason_names().to_vec())?;
     let counts = |v: Vec<i64>| -> PyResult<Bound<'py, PyAny>> {
         let a =
             ArrayD::from_shape_vec(IxDyn(&[v.len()]), v).map_err(|e| value_error(e.to_string()))?;
         Ok(to_numpy(py, a))
     };
     let classes: Vec<i64> = r.counts.classes.iter().map(|&c| c as i64).collect();
-    let reasons: Vec<i64> = r.counts.reasons.iter().map(|&c| c as i64).collect();
+    let reasons: Vec<i64> = r.counts.reasons[..r.reason_names().len()]
+        .iter()
+        .map(|&c| c as i64)
+        .collect();
     d.set_item("class_counts", counts(classes)?)?;
     d.set_item("reason_counts", counts(reasons)?)?;
     let json = py.import("json")?;
@@ -133,5 +147,12 @@ pub fn map_manifest<'py>(
     d.set_item("n_se", image(py, h, w, r.n_se)?)?;
     d.set_item("k_se", image(py, h, w, r.k_se)?)?;
     d.set_item("rms_residual", image(py, h, w, r.rms_residual)?)?;
+    if r.calibrated {
+        let t = r.beta_maps_deg.len();
+        let flat: Vec<f32> = r.beta_maps_deg.into_iter().flatten().collect();
+        let a = ArrayD::from_shape_vec(IxDyn(&[t, h, w]), flat)
+            .map_err(|e| value_error(e.to_string()))?;
+        d.set_item("beta_deg", to_numpy(py, a))?;
+    }
     Ok(d)
 }

@@ -14,9 +14,15 @@
 //!    value of its block reached the saturation level, a value is not finite, or the
 //!    block's mean dark-subtracted `S0` is at or below the dark threshold
 //!    ([`flag`]; reasons in [`reason`]).
-//! 3. **(n, k) fit** of the remaining pixels' `T` DoLP values against paper eq. (9) with
-//!    the shared [`FitPlan`] ([`fit_batch`], unweighted, covariance scaled by the reduced
-//!    χ²), in tiles of pixels so that the fit's working memory stays small.
+//! 3. **(n, k) fit** of the remaining pixels' `T` DoLP values against paper eq. (9),
+//!    unweighted (covariance scaled by the reduced χ²), in tiles of pixels so that the
+//!    fit's working memory stays small ([`fit_and_classify`]). The local incidence
+//!    angles ([`Betas`]) are one per capture (the far field: one [`FitPlan`] shared by
+//!    every pixel, [`fit_batch`]) or one per pixel and capture (calibrated geometry:
+//!    β images from [`crate::geometry::ViewGeometry::fill`], [`fit_batch_pixel_beta`]);
+//!    a pixel without a finite β in some capture (its ray misses its plane, or the
+//!    source is below the plane's horizon there) is not fitted
+//!    ([`reason::NO_GEOMETRY`]).
 //! 4. **Class**: the nearest prototype in `(n, k)` (paper section 6, Euclidean
 //!    distance, [`Classifier::nearest_euclidean`]), optionally rejected beyond a maximum
 //!    distance. Pixels whose fit status is not `ok` are not classified.
@@ -30,7 +36,7 @@ use rayon::prelude::*;
 
 use crate::classify::{Classifier, Cov2};
 use crate::error::{CoreError, Result};
-use crate::fit::{FitPlan, FitStatus, NkFit, fit_batch};
+use crate::fit::{FitPlan, FitStatus, NkFit, PixelBetaPlan, fit_batch, fit_batch_pixel_beta};
 use crate::stokes::{PixelRules, Sample, StokesSolver, check_image, check_len, mask};
 
 /// Signal flag bits accumulated per pixel over the captures (OR of every capture).
@@ -63,8 +69,11 @@ pub mod reason {
     pub const FIT_INVALID_INPUT: u8 = 7;
     /// The nearest prototype is farther than the maximum distance.
     pub const REJECTED: u8 = 8;
+    /// No geometry (calibrated maps only): in some capture the pixel's ray misses its
+    /// plane or the source is below the plane's horizon, so it has no β there.
+    pub const NO_GEOMETRY: u8 = 9;
     /// Number of reasons.
-    pub const COUNT: usize = 9;
+    pub const COUNT: usize = 10;
     /// The word of each reason (index = reason value), as written in summaries.
     pub const NAMES: [&str; COUNT] = [
         "classified",
@@ -76,6 +85,7 @@ pub mod reason {
         "fit_at_bound",
         "fit_invalid_input",
         "rejected",
+        "no_geometry",
     ];
 }
 
@@ -447,6 +457,28 @@ impl PixelClassifier {
     }
 }
 
+/// The local incidence angles `β` (eq. 5) of a map's fit.
+#[derive(Debug, Clone, Copy)]
+pub enum Betas<'a> {
+    /// One β per capture (the far field): the plan of that β set, shared by every
+    /// pixel.
+    Shared(&'a FitPlan),
+    /// A β per pixel and capture (calibrated geometry).
+    PerPixel {
+        /// The grid and column cache of the fit (its options apply).
+        plan: &'a PixelBetaPlan,
+        /// One β image per capture (radians, in the order of the DoLP images, each of
+        /// the map's size); NaN (any non-finite value) where the pixel has no geometry.
+        beta: &'a [&'a [f32]],
+    },
+}
+
+impl<'a> From<&'a FitPlan> for Betas<'a> {
+    fn from(plan: &'a FitPlan) -> Self {
+        Betas::Shared(plan)
+    }
+}
+
 /// The caller-owned output images of [`fit_and_classify`] (all of the map's size).
 #[derive(Debug)]
 pub struct MapOutputs<'a> {
@@ -477,13 +509,18 @@ pub struct MapCounts {
 
 /// Fit and classify every pixel of a map, in tiles of `tile` pixels.
 ///
-/// `dolp` holds one DoLP image per capture (in the plan's β order, each of the map's
-/// size), `flags` the signal [`flag`]s. Pixels with a flag are not fitted (NaN outputs,
-/// reason from [`signal_reason`]); the others are fitted with [`fit_batch`] (parallel)
-/// and classified when the fit status is `ok`. `progress` is called with the number of
-/// pixels done after each tile.
+/// `betas`: the angles, one per capture ([`Betas::Shared`]) or per pixel and capture
+/// ([`Betas::PerPixel`]). `dolp` holds one DoLP image per capture (in the β order,
+/// each of the map's size), `flags` the signal [`flag`]s. Pixels without a finite β
+/// in some capture (per-pixel angles only) are not fitted (NaN outputs, reason
+/// [`reason::NO_GEOMETRY`]), nor are pixels with a flag (reason from
+/// [`signal_reason`]); the others are fitted with [`fit_batch`] or
+/// [`fit_batch_pixel_beta`] (parallel) and classified when the fit status is `ok`.
+/// `progress` is called with the number of pixels done after each tile.
+///
+/// Errors: inconsistent numbers or sizes of images.
 pub fn fit_and_classify(
-    plan: &FitPlan,
+    betas: Betas<'_>,
     classifier: &PixelClassifier,
     dolp: &[&[f32]],
     flags: &[u8],
@@ -491,7 +528,16 @@ pub fn fit_and_classify(
     out: MapOutputs<'_>,
     progress: &(dyn Fn(usize) + Sync),
 ) -> Result<MapCounts> {
-    let t_len = plan.len();
+    let npix = flags.len();
+    let t_len = match betas {
+        Betas::Shared(plan) => plan.len(),
+        Betas::PerPixel { beta, .. } => {
+            for b in beta {
+                check_len("beta", b.len(), npix)?;
+            }
+            beta.len()
+        }
+    };
     if dolp.len() != t_len {
         return Err(CoreError::LengthMismatch {
             name: "DoLP images (captures)",
@@ -499,7 +545,6 @@ pub fn fit_and_classify(
             got: dolp.len(),
         });
     }
-    let npix = flags.len();
     for d in dolp {
         check_len("dolp", d.len(), npix)?;
     }
@@ -521,20 +566,29 @@ pub fn fit_and_classify(
     };
     let cap = tile.min(npix);
     let mut y: Vec<f64> = Vec::with_capacity(cap * t_len);
+    let mut b: Vec<f64> = Vec::new();
     let mut idx: Vec<usize> = Vec::with_capacity(cap);
     let mut fits: Vec<NkFit> = vec![NkFit::default(); cap];
     let mut start = 0usize;
     while start < npix {
         let end = (start + tile).min(npix);
         y.clear();
+        b.clear();
         idx.clear();
         for p in start..end {
-            let f = flags[p];
-            if f == 0 {
+            let r = match betas {
+                Betas::PerPixel { beta, .. } if beta.iter().any(|b| !b[p].is_finite()) => {
+                    reason::NO_GEOMETRY
+                }
+                _ => signal_reason(flags[p]),
+            };
+            if r == reason::CLASSIFIED {
                 idx.push(p);
                 y.extend(dolp.iter().map(|d| d[p] as f64));
+                if let Betas::PerPixel { beta, .. } = betas {
+                    b.extend(beta.iter().map(|b| b[p] as f64));
+                }
             } else {
-                let r = signal_reason(f);
                 out.n[p] = f32::NAN;
                 out.k[p] = f32::NAN;
                 out.n_se[p] = f32::NAN;
@@ -547,7 +601,12 @@ pub fn fit_and_classify(
             }
         }
         let m = idx.len();
-        fit_batch(plan, &y, None, &mut fits[..m])?;
+        match betas {
+            Betas::Shared(plan) => fit_batch(plan, &y, None, &mut fits[..m])?,
+            Betas::PerPixel { plan, .. } => {
+                fit_batch_pixel_beta(plan, &b, &y, None, &mut fits[..m])?
+            }
+        }
         for (&p, f) in idx.iter().zip(&fits[..m]) {
             out.n[p] = f.n as f32;
             out.k[p] = f.k as f32;
@@ -718,12 +777,149 @@ mod tests {
             class: &mut class,
             reason: &mut why,
         };
-        let counts = fit_and_classify(&plan, &pc, &views, &flags, 2, out, &|_| {}).unwrap();
+        let counts =
+            fit_and_classify((&plan).into(), &pc, &views, &flags, 2, out, &|_| {}).unwrap();
         assert_eq!(class, vec![2, 1, 3, 0, 0]);
         assert_eq!(why, vec![0, 0, 0, reason::REJECTED, reason::SATURATED]);
         assert_eq!(counts.classes, vec![2, 1, 1, 1]);
         assert_eq!(counts.reasons[reason::CLASSIFIED as usize], 3);
         assert!((o[0][0] - 0.4).abs() < 1e-3 && (o[1][1] - 6.6).abs() < 1e-2);
         assert!(o[0][4].is_nan());
+    }
+
+    /// Per-pixel angles: every pixel's DoLP at its own angles gives back its `(n, k)`
+    /// and class; a pixel without a finite β is `no_geometry` (before its signal
+    /// flags); angles equal to the shared ones give the shared map bit for bit.
+    #[test]
+    fn fit_and_classify_with_per_pixel_angles() {
+        let t_len = 6;
+        let cls = Classifier::new(
+            vec![
+                proto("copper", 0.4, 2.95),
+                proto("aluminum", 1.24, 6.6),
+                proto("green_paint", 1.39, 0.34),
+            ],
+            ClassifierConfig::default(),
+        )
+        .unwrap();
+        let pc = PixelClassifier::new(cls, Some(1.0)).unwrap();
+        let truth = [
+            (0.4, 2.95),
+            (1.24, 6.6),
+            (1.39, 0.34),
+            (0.4, 2.95),
+            (1.0, 1.0),
+            (1.0, 1.0),
+        ];
+        let np = truth.len();
+        // β_t(p): 40° + 6° t, shifted by up to 4° from pixel to pixel.
+        let mut beta: Vec<Vec<f32>> = (0..t_len)
+            .map(|t| {
+                (0..np)
+                    .map(|p| {
+                        (40.0 + 6.0 * t as f64 + 4.0 * (p as f64 * 0.7 + t as f64).sin())
+                            .to_radians() as f32
+                    })
+                    .collect()
+            })
+            .collect();
+        beta[2][4] = f32::NAN;
+        let imgs: Vec<Vec<f32>> = (0..t_len)
+            .map(|t| {
+                truth
+                    .iter()
+                    .enumerate()
+                    .map(|(p, &(n, k))| {
+                        let b = if beta[t][p].is_finite() {
+                            beta[t][p] as f64
+                        } else {
+                            0.8
+                        };
+                        dop(n, k, b) as f32
+                    })
+                    .collect()
+            })
+            .collect();
+        let views: Vec<&[f32]> = imgs.iter().map(|v| v.as_slice()).collect();
+        let bviews: Vec<&[f32]> = beta.iter().map(|v| v.as_slice()).collect();
+        let flags = [0, 0, 0, 0, flag::DARK, flag::SATURATED];
+        let pp = PixelBetaPlan::with_defaults().unwrap();
+        let run = |betas: Betas<'_>| {
+            let mut o: Vec<Vec<f32>> = vec![vec![0f32; np]; 5];
+            let (mut class, mut why) = (vec![9u16; np], vec![9u8; np]);
+            let [n, k, n_se, k_se, rms] = &mut o[..] else {
+                unreachable!()
+            };
+            let out = MapOutputs {
+                n,
+                k,
+                n_se,
+                k_se,
+                rms_residual: rms,
+                class: &mut class,
+                reason: &mut why,
+            };
+            let counts = fit_and_classify(betas, &pc, &views, &flags, 4, out, &|_| {}).unwrap();
+            (o, class, why, counts)
+        };
+        let (o, class, why, counts) = run(Betas::PerPixel {
+            plan: &pp,
+            beta: &bviews,
+        });
+        assert_eq!(class, vec![2, 1, 3, 2, 0, 0]);
+        assert_eq!(
+            why,
+            vec![0, 0, 0, 0, reason::NO_GEOMETRY, reason::SATURATED]
+        );
+        assert_eq!(counts.reasons[reason::NO_GEOMETRY as usize], 1);
+        for p in 0..4 {
+            let (n, k) = truth[p];
+            assert!(
+                (o[0][p] as f64 - n).abs() < 1e-4 && (o[1][p] as f64 - k).abs() < 1e-3,
+                "pixel {p}: {} {}",
+                o[0][p],
+                o[1][p]
+            );
+        }
+        assert!(o[0][4].is_nan());
+        // Wrong lengths.
+        let short: Vec<&[f32]> = bviews.iter().map(|b| &b[..3]).collect();
+        let mut o = vec![vec![0f32; np]; 5];
+        let (mut class, mut why) = (vec![0u16; np], vec![0u8; np]);
+        let [n, k, n_se, k_se, rms] = &mut o[..] else {
+            unreachable!()
+        };
+        let out = MapOutputs {
+            n,
+            k,
+            n_se,
+            k_se,
+            rms_residual: rms,
+            class: &mut class,
+            reason: &mut why,
+        };
+        let bad = Betas::PerPixel {
+            plan: &pp,
+            beta: &short,
+        };
+        assert!(fit_and_classify(bad, &pc, &views, &flags, 4, out, &|_| {}).is_err());
+        // Equal angles everywhere: the shared map, bit for bit.
+        let same: Vec<Vec<f32>> = (0..t_len).map(|t| vec![beta[t][0]; np]).collect();
+        let sviews: Vec<&[f32]> = same.iter().map(|v| v.as_slice()).collect();
+        let plan =
+            FitPlan::with_defaults(&same.iter().map(|v| v[0] as f64).collect::<Vec<_>>()).unwrap();
+        let per = run(Betas::PerPixel {
+            plan: &pp,
+            beta: &sviews,
+        });
+        let shared = run((&plan).into());
+        assert_eq!(per.1, shared.1);
+        assert_eq!(per.2, shared.2);
+        for (a, b) in per.0.iter().zip(&shared.0) {
+            assert_eq!(
+                a.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                b.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+            );
+        }
     }
 }

@@ -3,7 +3,9 @@
 //!
 //! The workflow (DoLP per capture, fit and classify every pixel, region summary) is
 //! [`polarid_pipeline::map`], shared with the Python package (`polarid.map_manifest`);
-//! this command parses the options, calls it and writes the outputs.
+//! this command parses the options, calls it and writes the outputs. A manifest with
+//! calibrated geometry (`[camera]`, a `source` per capture) is mapped with a β per
+//! pixel and capture (pixels without geometry: reason `no_geometry`).
 //!
 //! Outputs (docs/FORMATS.md): float32 TIFF `n.tif`, `k.tif`, `n_se.tif`, `k_se.tif`,
 //! `rms_residual.tif` (NaN where not fitted); `class.tif` (u8, or u16 above 255

@@ -17,6 +17,25 @@ use super::validate::{check_pixel, invalid_reason};
 use super::{FitPlan, NkFit};
 use crate::cpu::{Isa, cpu_features};
 
+/// The best of the polishes of one pixel (the lowest cost; a converged polish over one
+/// that is not when their costs agree to 1e-9), and the iterations and evaluations of
+/// all of them.
+#[inline(always)]
+pub(super) fn best_polish(polished: &[engine::JobOut]) -> (engine::JobOut, u32, u32) {
+    let mut best = polished[0];
+    let (mut iters, mut evals) = (0u32, 0u32);
+    for other in polished {
+        iters += other.iters;
+        evals += other.evals;
+        if other.ev.cost < best.ev.cost
+            || (!best.converged && other.converged && other.ev.cost <= best.ev.cost * (1.0 + 1e-9))
+        {
+            best = *other;
+        }
+    }
+    (best, iters, evals)
+}
+
 /// Per-thread scratch memory of a fit (no allocation per fit).
 #[derive(Debug, Clone)]
 pub struct FitWorkspace {
@@ -49,8 +68,8 @@ impl FitPlan {
     pub fn workspace(&self) -> FitWorkspace {
         let tp = self.lanes.len;
         FitWorkspace {
-            bands: vec![scan::BandMin::default(); self.gc_pad.div_ceil(self.band)],
-            bands4: vec![scan::BandMin::default(); 4 * (self.gc_pad.div_ceil(self.band))],
+            bands: vec![scan::BandMin::default(); self.grid.bands()],
+            bands4: vec![scan::BandMin::default(); 4 * self.grid.bands()],
             yf4: vec![0.0; 4 * self.len()],
             valid: Vec::new(),
             wall: Vec::new(),
@@ -84,7 +103,7 @@ impl FitPlan {
         out: &mut [NkFit],
         ws: &mut FitWorkspace,
     ) {
-        if ws.bands.len() != self.gc_pad.div_ceil(self.band) || ws.yf.len() != self.lanes.len {
+        if ws.bands.len() != self.grid.bands() || ws.yf.len() != self.lanes.len {
             *ws = self.workspace();
         }
         match isa {
@@ -208,11 +227,12 @@ impl FitPlan {
             let nbands = bands.len();
             let mut parts = bands4.chunks_exact_mut(nbands);
             let b4 = [(); 4].map(|_| parts.next().unwrap_or_default());
-            k.scan4(curves, base, y4, self.band, b4);
+            k.scan4(curves, base, y4, self.grid.band, b4);
             for (i, &p) in ps.iter().enumerate() {
                 let first = jobs.len();
                 self.pad_pixel(&y[p * t_len..(p + 1) * t_len], None, yf, wf);
-                self.queue(
+                self.grid.queue(
+                    self,
                     p,
                     &bands4[i * nbands..(i + 1) * nbands],
                     &y[p * t_len..(p + 1) * t_len],
@@ -230,37 +250,35 @@ impl FitPlan {
             let w = wall.map(|w| &w[rows.clone()]);
             self.pad_pixel(&y[rows.clone()], w, yf, wf);
             self.scan_one(k, t_len, w.is_some(), yf, wf, bands);
-            self.queue(p, bands, &y[rows], w, yf, wf, jobs);
+            self.grid.queue(self, p, bands, &y[rows], w, yf, wf, jobs);
             spans[p] = (first, jobs.len() - first);
         }
         outs.clear();
         outs.resize(jobs.len(), engine::JobOut::default());
         let settings = engine::Settings {
-            bounds: self.opts.bounds,
-            max_iter: self.opts.max_iter,
-            xtol: self.opts.xtol,
-            ftol: self.opts.ftol,
+            bounds: self.grid.opts.bounds,
+            max_iter: self.grid.opts.max_iter,
+            xtol: self.grid.opts.xtol,
+            ftol: self.grid.opts.ftol,
         };
-        engine::run(k, &self.lanes, t_len, &settings, jobs, y, wall, outs, lane);
+        engine::run::<K, false>(
+            k,
+            &self.lanes,
+            &[],
+            t_len,
+            &settings,
+            jobs,
+            y,
+            wall,
+            outs,
+            lane,
+        );
         for (p, o) in out.iter_mut().enumerate() {
             let (first, count) = spans[p];
             if count == 0 {
                 continue;
             }
-            let polished = &outs[first..first + count];
-            let mut best = polished[0];
-            let (mut iters, mut evals) = (0u32, 0u32);
-            for other in polished {
-                iters += other.iters;
-                evals += other.evals;
-                if other.ev.cost < best.ev.cost
-                    || (!best.converged
-                        && other.converged
-                        && other.ev.cost <= best.ev.cost * (1.0 + 1e-9))
-                {
-                    best = *other;
-                }
-            }
+            let (best, iters, evals) = best_polish(&outs[first..first + count]);
             let rows = p * t_len..(p + 1) * t_len;
             let mut fit = self.finish(&best, &y[rows.clone()], wall.map(|w| &w[rows]));
             fit.iterations = iters;
@@ -299,12 +317,12 @@ impl FitPlan {
         bands: &mut [scan::BandMin],
     ) {
         let base = if weighted {
-            &self.coarse_base
+            &self.grid.coarse_base
         } else {
             &self.coarse_half_norm
         };
         let wf_opt = weighted.then(|| &wf[..t_len]);
         let (curves, yt) = (&self.coarse_curves[..], &yf[..t_len]);
-        k.scan(curves, base, yt, wf_opt, self.band, bands);
+        k.scan(curves, base, yt, wf_opt, self.grid.band, bands);
     }
 }

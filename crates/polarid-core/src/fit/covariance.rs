@@ -4,20 +4,37 @@
 //! (see "Uncertainty" in the module documentation of [`crate::fit`]).
 
 use super::engine;
+use super::grid::Grid;
 use super::lm;
 use super::{FitPlan, FitStatus, NkFit};
-use crate::dop::{dop_grad_terms, dop_terms};
+use crate::dop::{BetaTerms, dop_grad_terms, dop_terms};
 
 impl FitPlan {
     /// Standard errors, correlation and status of a polished minimum.
+    #[inline]
     pub(super) fn finish(&self, out: &engine::JobOut, y: &[f64], w: Option<&[f64]>) -> NkFit {
-        let t_len = self.len();
+        self.grid.finish(&self.terms, self.issue, out, y, w)
+    }
+}
+
+impl Grid {
+    /// Standard errors, correlation and status of a polished minimum of a fit at the
+    /// angles of `terms`; `issue`: why that β set is ill-conditioned, if it is.
+    pub(super) fn finish(
+        &self,
+        terms: &[BetaTerms],
+        issue: Option<&'static str>,
+        out: &engine::JobOut,
+        y: &[f64],
+        w: Option<&[f64]>,
+    ) -> NkFit {
+        let t_len = terms.len();
         let b = &self.opts.bounds;
         let ev = &out.ev;
         let (n, k) = (out.n, out.k);
         // The lane evaluation returns the weighted cost; the rms residual is unweighted.
         let ss = match w {
-            Some(_) => lm::eval(&self.terms, y, None, n, k).ss,
+            Some(_) => lm::eval(terms, y, None, n, k).ss,
             None => ev.cost,
         };
         let s2 = match w {
@@ -54,7 +71,7 @@ impl FitPlan {
                 let du = 1e-6;
                 let k1 = (k * k + du).sqrt();
                 let (mut a00, mut a01, mut a11) = (0.0, 0.0, 0.0);
-                for (t, bt) in self.terms.iter().enumerate() {
+                for (t, bt) in terms.iter().enumerate() {
                     let d = dop_grad_terms(n, k, bt);
                     let ju = (dop_terms(n, k1, bt) - d.p) / (k1 * k1 - k * k);
                     let wt = w.map_or(1.0, |w| w[t]);
@@ -90,7 +107,7 @@ impl FitPlan {
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
                 (a.min(v), b.max(v))
             });
-        let (status, reason) = if let Some(r) = self.issue {
+        let (status, reason) = if let Some(r) = issue {
             (FitStatus::IllConditioned, r)
         } else if ymax - ymin <= 1e-9 {
             (

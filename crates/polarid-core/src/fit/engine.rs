@@ -20,9 +20,10 @@
 //! accepted relative decrease below `ftol`, iteration limit).
 
 use super::FitBounds;
-use super::lanes::Lanes;
+use super::lanes::{self, Lanes};
 use super::lm::{Eval, K_FLOOR, K_U};
 use super::simd::{Simd, W};
+use crate::dop::BetaTerms;
 
 type L = [f64; W];
 
@@ -70,12 +71,45 @@ pub(crate) struct Settings {
     pub ftol: f64,
 }
 
+/// The β terms of eq. (9) at one source position of one pixel, as the lane evaluation
+/// reads them (a fit with a β per pixel, see [`run`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct LaneTerms {
+    /// `sin²β`.
+    pub s2: f64,
+    /// `cos β`.
+    pub c: f64,
+    /// `cos²β`.
+    pub c2: f64,
+    /// `sin⁴β`.
+    pub s4: f64,
+    /// `2 sin²β cos β`.
+    pub num: f64,
+}
+
+impl LaneTerms {
+    /// The terms of `bt` (the arithmetic of [`Lanes::new`], so that a pixel's terms
+    /// equal the shared ones bit for bit at the same β).
+    #[inline]
+    pub fn new(bt: &BetaTerms) -> Self {
+        Self {
+            s2: bt.s2,
+            c: bt.c,
+            c2: bt.c2,
+            s4: bt.s4,
+            num: lanes::num(bt),
+        }
+    }
+}
+
 /// Lane-major copies of the measurements of the jobs in the lanes:
-/// `y[t * W + l]`, `w[t * W + l]`.
+/// `y[t * W + l]`, `w[t * W + l]`; with a β per pixel also their β terms
+/// (`b[i][t * W + l]`, `i` = `sin²β`, `cos β`, `cos²β`, `sin⁴β`, `2 sin²β cos β`).
 #[derive(Debug, Clone, Default)]
 pub(crate) struct LaneScratch {
     y: Vec<f64>,
     w: Vec<f64>,
+    b: [Vec<f64>; 5],
 }
 
 /// Cost and normal equations of every lane.
@@ -122,19 +156,27 @@ fn lane<S: Simd>(s: S, v: S::V, l: usize) -> f64 {
 /// Cost `Σ w (P − y)²` and normal equations at `(n_l, k_l)` for every lane: eq. (9)
 /// and its analytic gradient in the arithmetic of [`crate::dop::dop_grad_terms`] (the
 /// `hypot` fallback dropped, exact for bounds below `1e100`, checked by the plan).
-/// `y`, `w`: lane-major, `y[t * W + l]`.
+/// `y`, `w`: lane-major, `y[t * W + l]`. The β terms: `PIX = false`, those of `lanes`,
+/// shared by every lane; `PIX = true`, each lane's own from `pb` (lane-major, see
+/// [`LaneScratch`]; `lanes` is then not read).
 #[inline(always)]
-fn eval_lanes<S: Simd, const WEIGHTED: bool>(
+#[allow(clippy::too_many_arguments)]
+fn eval_lanes<S: Simd, const WEIGHTED: bool, const PIX: bool>(
     s: S,
     lanes: &Lanes,
     t_len: usize,
     y: &[f64],
     w: &[f64],
+    pb: &[Vec<f64>; 5],
     vn: S::V,
     vk: S::V,
 ) -> EvalV<S> {
     let (y, w) = (&y[..t_len * W], &w[..t_len * W]);
-    let (s2v, cv, c2v, s4v, numv) = lanes.terms(t_len);
+    let (s2v, cv, c2v, s4v, numv) = if PIX {
+        (&[][..], &[][..], &[][..], &[][..], &[][..])
+    } else {
+        lanes.terms(t_len)
+    };
     let nn = s.mul(vn, vn);
     let kk = s.mul(vk, vk);
     let nk = s.mul(vn, vk);
@@ -156,13 +198,23 @@ fn eval_lanes<S: Simd, const WEIGHTED: bool>(
     let mut a_g0 = zero;
     let mut a_g1 = zero;
     for t in 0..t_len {
-        let (s2, c, c2, s4, num) = (
-            s.splat(s2v[t]),
-            s.splat(cv[t]),
-            s.splat(c2v[t]),
-            s.splat(s4v[t]),
-            s.splat(numv[t]),
-        );
+        let (s2, c, c2, s4, num) = if PIX {
+            (
+                s.load(&pb[0][t * W..]),
+                s.load(&pb[1][t * W..]),
+                s.load(&pb[2][t * W..]),
+                s.load(&pb[3][t * W..]),
+                s.load(&pb[4][t * W..]),
+            )
+        } else {
+            (
+                s.splat(s2v[t]),
+                s.splat(cv[t]),
+                s.splat(c2v[t]),
+                s.splat(s4v[t]),
+                s.splat(numv[t]),
+            )
+        };
         let d = s.sub(d0, s2); // eq. (15)
         let r = s.sqrt(s.fma(d, d, q4)); // √C, eq. (14)
         let rho = s.sqrt(s.mul(s.add(r, s.abs(d)), half));
@@ -310,14 +362,21 @@ fn step_lanes<S: Simd>(
 /// row by row (`T = t_len` values per row; `w` the weights, the same layout, or every
 /// weight 1 when `None`).
 ///
+/// The β terms: `PIX = false`, those of `lanes`, shared by every job (`pix` is not
+/// read); `PIX = true`, every pixel's own, `pix` row by row like `y` (`lanes` is not
+/// read), copied into the lane's slots of the scratch when a lane takes a job. The
+/// arithmetic is the same either way, so a pixel whose terms equal the shared ones
+/// gets the same result bit for bit.
+///
 /// Every step of every lane is vector code; only a lane whose polish ends (about one
 /// evaluation in seven) takes a scalar detour to store its result and load the next
 /// job.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn run<S: Simd>(
+pub(crate) fn run<S: Simd, const PIX: bool>(
     s: S,
     lanes: &Lanes,
+    pix: &[LaneTerms],
     t_len: usize,
     set: &Settings,
     jobs: &[Job],
@@ -328,6 +387,13 @@ pub(crate) fn run<S: Simd>(
 ) {
     if sc.y.len() != t_len * W {
         sc.y = vec![0.0; t_len * W];
+    }
+    if PIX {
+        for v in sc.b.iter_mut() {
+            // Lanes without a job keep harmless terms (β = 45°).
+            v.clear();
+            v.resize(t_len * W, 0.5);
+        }
     }
     // Unweighted: every lane's weights stay 1.
     sc.w.clear();
@@ -449,6 +515,16 @@ pub(crate) fn run<S: Simd>(
                     sc.w[t * W + l] = v;
                 }
             }
+            if PIX {
+                let row = &pix[j.pixel * t_len..(j.pixel + 1) * t_len];
+                for (t, b) in row.iter().enumerate() {
+                    sc.b[0][t * W + l] = b.s2;
+                    sc.b[1][t * W + l] = b.c;
+                    sc.b[2][t * W + l] = b.c2;
+                    sc.b[3][t * W + l] = b.s4;
+                    sc.b[4][t * W + l] = b.num;
+                }
+            }
         }
         *free_b &= !started;
         started
@@ -539,9 +615,9 @@ pub(crate) fn run<S: Simd>(
             ),
         );
         let ev = if w.is_some() {
-            eval_lanes::<S, true>(s, lanes, t_len, &sc.y, &sc.w, tn, tk)
+            eval_lanes::<S, true, PIX>(s, lanes, t_len, &sc.y, &sc.w, &sc.b, tn, tk)
         } else {
-            eval_lanes::<S, false>(s, lanes, t_len, &sc.y, &sc.w, tn, tk)
+            eval_lanes::<S, false, PIX>(s, lanes, t_len, &sc.y, &sc.w, &sc.b, tn, tk)
         };
         evals = s.add(evals, s.select(s.mask(active), one, zero));
         // 3. Accept or reject. Start and node evaluations are always taken; a start
@@ -669,7 +745,16 @@ mod tests {
                 n[l] = a;
                 k[l] = b;
             }
-            let e = eval_lanes::<S, true>(s, lanes, t_len, &yl, &wl, s.load(&n), s.load(&k));
+            let e = eval_lanes::<S, true, false>(
+                s,
+                lanes,
+                t_len,
+                &yl,
+                &wl,
+                &Default::default(),
+                s.load(&n),
+                s.load(&k),
+            );
             out.extend((0..c.len()).map(|l| lane_eval(s, &e, l)));
         }
         out

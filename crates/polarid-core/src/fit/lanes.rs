@@ -10,8 +10,14 @@ pub(crate) const LANES: usize = 4;
 /// Largest `n_max`, `k_max` for which the lane evaluation cannot overflow.
 pub(crate) const MAX_BOUND: f64 = 1e100;
 
+/// `2 sin²β cos β`, the numerator of eq. (9) without `A`.
+#[inline(always)]
+pub(crate) fn num(t: &BetaTerms) -> f64 {
+    2.0 * t.s2 * t.c
+}
+
 /// The β terms of eq. (9), padded to a multiple of [`LANES`].
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub(crate) struct Lanes {
     /// Padded length.
     pub len: usize,
@@ -38,7 +44,7 @@ impl Lanes {
             c: pad(&|t| t.c),
             c2: pad(&|t| t.c2),
             s4: pad(&|t| t.s4),
-            num: pad(&|t| 2.0 * t.s2 * t.c),
+            num: pad(&|t| num(t)),
         }
     }
 

@@ -56,6 +56,13 @@
 //! solution on a bound other than `k = 0` is reported with status
 //! [`FitStatus::AtBound`]: no fit leaves the box, and none sits on its edge silently.
 //!
+//! # A β per pixel
+//! With calibrated geometry every pixel has its own angles; [`fit_batch_pixel_beta`]
+//! with a [`PixelBetaPlan`] fits such batches by the same method and rules: the scan
+//! reads the node curves of each pixel from a cache of *columns* (the grid at one
+//! quantised angle, [`BETA_QUANTUM_DEG`]) and only picks the basin; the polish loads
+//! each pixel's exact β terms into its lane (see the `pixel` module's documentation).
+//!
 //! # Uncertainty
 //! The covariance is `(JᵀWJ)⁻¹`, multiplied by the reduced χ² `χ²/(T − 2)` when no
 //! standard errors are given. Near `k = 0` the model depends on `k` only through `k²`
@@ -70,10 +77,11 @@
 //! |-----------------|-------------------------------------------------------------------|
 //! | `options.rs`    | [`FitBounds`], [`FitOptions`]                                     |
 //! | `result.rs`     | [`NkFit`] (the status type is [`crate::status::FitStatus`])       |
-//! | `plan.rs`       | [`FitPlan`]: angle checks, the `(n, k)` grid, the scan layout     |
+//! | `grid.rs`       | the `(n, k)` grid and the scan layout (options only, no angles)   |
+//! | `plan.rs`       | [`FitPlan`]: angle checks, node curves and Jacobians of a β set   |
 //! | `scan/`         | the grid scan, one kernel file per instruction set                |
 //! | `starts.rs`     | grid refinement, stored-Jacobian starts, competing basins         |
-//! | `engine.rs`     | the lane-parallel Levenberg–Marquardt polishes                    |
+//! | `engine.rs`     | the lane-parallel Levenberg–Marquardt polishes (shared or per-lane β) |
 //! | `simd/`         | the engine's vector operations, one backend file per instruction set |
 //! | `lanes.rs`      | the β terms padded to whole lanes                                 |
 //! | `lm.rs`         | scalar cost, normal equations and damped step                     |
@@ -82,6 +90,7 @@
 //! | `chunk.rs`      | the chunk driver and its instruction-set dispatch                 |
 //! | `single.rs`     | [`FitPlan::fit`], [`FitPlan::fit_with`], [`fit_nk`]               |
 //! | `batch.rs`      | [`fit_batch`] (rayon)                                             |
+//! | `pixel/`        | [`PixelBetaPlan`], [`fit_batch_pixel_beta`]: a β per pixel (column cache, chunk driver) |
 //! | `crb.rs`        | the Cramér–Rao bound ([`crb()`], [`Crb`])                           |
 //!
 //! # Reference
@@ -102,11 +111,13 @@ mod chunk;
 mod covariance;
 mod crb;
 mod engine;
+mod grid;
 #[cfg(test)]
 mod isa_tests;
 mod lanes;
 mod lm;
 mod options;
+mod pixel;
 mod plan;
 mod result;
 mod scan;
@@ -120,6 +131,7 @@ pub use batch::fit_batch;
 pub use chunk::FitWorkspace;
 pub use crb::{Crb, crb, crb_weighted};
 pub use options::{FitBounds, FitOptions};
+pub use pixel::{BETA_QUANTUM_DEG, PixelBetaPlan, fit_batch_pixel_beta};
 pub use plan::{DISTINCT_BETA_TOL, FitPlan, MIN_BETA_SPAN};
 pub use result::NkFit;
 pub use single::fit_nk;

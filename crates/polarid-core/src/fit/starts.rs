@@ -5,11 +5,49 @@
 
 use super::FitPlan;
 use super::engine;
+use super::grid::Grid;
 use super::lanes;
 use super::lm::{self, Eval};
 use super::scan;
 
-impl FitPlan {
+/// The node curves and Jacobians of the β set of one fit: a [`FitPlan`]'s, or those of
+/// one pixel's β gathered from the columns of the per-pixel fit (`pixel/`).
+pub(super) trait Nodes {
+    /// Number of measurements `T`.
+    fn t_len(&self) -> usize;
+    /// `T` padded to whole [`lanes::LANES`].
+    fn t_pad(&self) -> usize;
+    /// DoLP of grid node `g` at position `t < t_pad()` (0 on padding).
+    fn curve(&self, g: usize, t: usize) -> f32;
+    /// Jacobian of grid node `g` at position `t < t_len()`: `∂P/∂n` and `∂P/∂k` (or
+    /// `∂P/∂u` below [`lm::K_U`]).
+    fn jac(&self, g: usize, t: usize) -> (f32, f32);
+}
+
+impl Nodes for FitPlan {
+    #[inline(always)]
+    fn t_len(&self) -> usize {
+        self.betas.len()
+    }
+    #[inline(always)]
+    fn t_pad(&self) -> usize {
+        self.lanes.len
+    }
+    #[inline(always)]
+    fn curve(&self, g: usize, t: usize) -> f32 {
+        self.node_curves[g * self.lanes.len + t]
+    }
+    #[inline(always)]
+    fn jac(&self, g: usize, t: usize) -> (f32, f32) {
+        let t_len = self.betas.len();
+        (
+            self.jac[g * 2 * t_len + t],
+            self.jac[g * 2 * t_len + t_len + t],
+        )
+    }
+}
+
+impl Grid {
     /// Queue the polishes of pixel `p` from the band minima of its scan: the best
     /// node's, then (with
     /// [`FitOptions::max_candidates`](super::FitOptions::max_candidates) > 1) those of
@@ -19,8 +57,9 @@ impl FitPlan {
     /// basin, and predicts a cost within 10% of the best node's prediction.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn queue(
+    pub(super) fn queue<N: Nodes>(
         &self,
+        nodes: &N,
         p: usize,
         bands: &[scan::BandMin],
         y: &[f64],
@@ -36,8 +75,8 @@ impl FitPlan {
         } else {
             best.node as usize
         };
-        let (g0, cost0) = self.refine(c0, yf, wf);
-        let (job0, pred0) = self.job(p, g0, cost0, y, w);
+        let (g0, cost0) = self.refine(nodes, c0, yf, wf);
+        let (job0, pred0) = self.job(nodes, p, g0, cost0, y, w);
         jobs.push(job0);
         if self.opts.max_candidates < 2 {
             return;
@@ -54,8 +93,8 @@ impl FitPlan {
             if (c % cn).abs_diff(i0) <= 2 && (c / cn).abs_diff(j0) <= 2 {
                 continue;
             }
-            let (g, cost) = self.refine(c, yf, wf);
-            let (job, pred) = self.job(p, g, cost, y, w);
+            let (g, cost) = self.refine(nodes, c, yf, wf);
+            let (job, pred) = self.job(nodes, p, g, cost, y, w);
             if pred > pred0 * 1.1 + 1e-12 {
                 continue;
             }
@@ -79,8 +118,9 @@ impl FitPlan {
     /// stored-Jacobian Gauss–Newton step gives the start; also the cost that step's
     /// quadratic model predicts.
     #[inline(always)]
-    fn job(
+    fn job<N: Nodes>(
         &self,
+        nodes: &N,
         p: usize,
         g: usize,
         cost: f32,
@@ -89,7 +129,7 @@ impl FitPlan {
     ) -> (engine::Job, f64) {
         let b = &self.opts.bounds;
         let k_floor = if b.k_min == 0.0 { lm::K_FLOOR } else { b.k_min };
-        let (n1, k1, pred) = self.node_step(g, cost as f64, y, w);
+        let (n1, k1, pred) = self.node_step(nodes, g, cost as f64, y, w);
         let (_, _, nn, kk) = self.node(g);
         (
             engine::Job {
@@ -105,9 +145,9 @@ impl FitPlan {
     /// The best grid node within `stride − 1` grid steps of coarse node `c` (at least
     /// the coarse node itself), and its cost `Σ_t w_t (curve_g(t) − y_t)²` in f32.
     #[inline(always)]
-    fn refine(&self, c: usize, yf: &[f32], wf: &[f32]) -> (usize, f32) {
+    fn refine<N: Nodes>(&self, nodes: &N, c: usize, yf: &[f32], wf: &[f32]) -> (usize, f32) {
         const L: usize = lanes::LANES;
-        let tp = self.lanes.len;
+        let tp = nodes.t_pad();
         let cn = self.coarse_i.len();
         let (ic, jc) = (self.coarse_i[c % cn], self.coarse_j[c / cn]);
         let h = self.stride.saturating_sub(1);
@@ -117,12 +157,11 @@ impl FitPlan {
         for j in jc.saturating_sub(h)..(jc + h + 1).min(gk) {
             for i in ic.saturating_sub(h)..(ic + h + 1).min(gn) {
                 let g = j * gn + i;
-                let curve = &self.node_curves[g * tp..(g + 1) * tp];
                 let mut a = [0f32; L];
                 for ch in 0..tp / L {
                     for l in 0..L {
                         let t = ch * L + l;
-                        let d = curve[t] - yf[t];
+                        let d = nodes.curve(g, t) - yf[t];
                         a[l] += wf[t] * d * d;
                     }
                 }
@@ -138,13 +177,16 @@ impl FitPlan {
     /// One Gauss–Newton step from node `g` with its stored Jacobian: the start point
     /// and the cost its quadratic model predicts there.
     #[inline(always)]
-    fn node_step(&self, g: usize, cost: f64, y: &[f64], w: Option<&[f64]>) -> (f64, f64, f64) {
-        let t_len = self.len();
-        let tp = self.lanes.len;
+    fn node_step<N: Nodes>(
+        &self,
+        nodes: &N,
+        g: usize,
+        cost: f64,
+        y: &[f64],
+        w: Option<&[f64]>,
+    ) -> (f64, f64, f64) {
+        let t_len = nodes.t_len();
         let (_, _, n, k) = self.node(g);
-        let jn = &self.jac[g * 2 * t_len..g * 2 * t_len + t_len];
-        let jk = &self.jac[g * 2 * t_len + t_len..(g + 1) * 2 * t_len];
-        let curve = &self.node_curves[g * tp..g * tp + t_len];
         let mut ev = Eval {
             cost,
             ..Default::default()
@@ -152,9 +194,10 @@ impl FitPlan {
         match w {
             // The same sums with w_t = 1 (bitwise: 1·x = x).
             None => {
-                for t in 0..t_len {
-                    let r = curve[t] as f64 - y[t];
-                    let (a, b) = (jn[t] as f64, jk[t] as f64);
+                for (t, &yt) in y[..t_len].iter().enumerate() {
+                    let r = nodes.curve(g, t) as f64 - yt;
+                    let (jn, jk) = nodes.jac(g, t);
+                    let (a, b) = (jn as f64, jk as f64);
                     ev.h00 += a * a;
                     ev.h01 += a * b;
                     ev.h11 += b * b;
@@ -164,9 +207,10 @@ impl FitPlan {
             }
             Some(w) => {
                 for t in 0..t_len {
-                    let r = curve[t] as f64 - y[t];
+                    let r = nodes.curve(g, t) as f64 - y[t];
                     let wt = w[t];
-                    let (a, b) = (jn[t] as f64, jk[t] as f64);
+                    let (jn, jk) = nodes.jac(g, t);
+                    let (a, b) = (jn as f64, jk as f64);
                     ev.h00 += wt * a * a;
                     ev.h01 += wt * a * b;
                     ev.h11 += wt * b * b;

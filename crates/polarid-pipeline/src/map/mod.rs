@@ -4,9 +4,22 @@
 //! per-pixel (or per `b × b` block) Stokes vector and DoLP computed, and only the DoLP
 //! (f32) kept, with the signal flags (saturated, dark, invalid) ORed over the captures
 //! (progress stage `"captures (DoLP)"`). Then every unflagged pixel's DoLP values over
-//! the captures are fitted for (n, k) (eq. 9, `fit_batch`, in tiles of pixels) and
-//! classified by the nearest prototype of the model (stage `"pixels (fit)"`). Peak
-//! memory is about `T` DoLP images plus one capture's frames.
+//! the captures are fitted for (n, k) (eq. 9, in tiles of pixels) and classified by the
+//! nearest prototype of the model (stage `"pixels (fit)"`). Peak memory is about `T`
+//! DoLP images plus one capture's frames (and `T` β images with calibrated geometry).
+//!
+//! # Angles
+//! - **Far field** (a manifest with angles per capture): one β per capture (eq. 5 from
+//!   `theta_i_deg`, `theta_r_deg`, `phi_deg`), shared by every pixel (`fit_batch`).
+//! - **Calibrated geometry** (a manifest with `[camera]` and a `source` per capture): a
+//!   β per pixel and capture (stage `"captures (geometry)"`, module `geometry`), from
+//!   where the ray through the centre of the pixel's `b × b` block (coordinates of the
+//!   files as stored: the raw mosaic for DoFP; pixel centres at integers) meets the
+//!   pixel's plane: the plane of the first region (manifest order) whose rectangle
+//!   contains that centre, else the first `[[plane]]`. The fit is
+//!   `fit_batch_pixel_beta`. A pixel without geometry in some capture (its ray misses
+//!   its plane, or the source is below the plane's horizon) is not classified: reason
+//!   `no_geometry`. The summary gives each capture's β range (`beta_range_deg`).
 //!
 //! Dark threshold: a pixel (block) is "dark" when its mean dark-subtracted `S0` in DN is
 //! at or below `min_s0` in any capture; by default 1 % of the range from the dark level
@@ -19,6 +32,7 @@
 //! JSON; the Python binding returns numpy arrays).
 
 mod capture;
+mod geometry;
 pub mod rules;
 mod summary;
 
@@ -26,9 +40,8 @@ use std::path::Path;
 use std::time::Instant;
 
 use polarid_core::classify::{Classifier, ClassifierConfig, UNKNOWN};
-use polarid_core::fit::{FitOptions, FitPlan};
-use polarid_core::geometry;
-use polarid_core::map::{self, MapCounts, MapOutputs, PixelClassifier, reason};
+use polarid_core::fit::{FitOptions, FitPlan, PixelBetaPlan};
+use polarid_core::map::{self, Betas, MapCounts, MapOutputs, PixelClassifier, reason};
 use polarid_io::IoError;
 use polarid_io::manifest::Manifest;
 use polarid_io::model::Model;
@@ -157,8 +170,18 @@ pub struct MapResult {
     pub class_names: Vec<String>,
     /// Pixel counts per reason and per class index.
     pub counts: MapCounts,
-    /// β (eq. 5) of every capture, degrees.
+    /// Whether the angles are per pixel (calibrated geometry) rather than per capture
+    /// (far field).
+    pub calibrated: bool,
+    /// β (eq. 5) of every capture, degrees; with calibrated geometry the mean over the
+    /// map's pixels that have one (NaN when none has).
     pub beta_deg: Vec<f64>,
+    /// Calibrated geometry: the smallest and largest β of every capture over the map's
+    /// pixels, degrees (NaN when no pixel has a geometry); empty in the far field.
+    pub beta_range_deg: Vec<[f64; 2]>,
+    /// Calibrated geometry: β of every map pixel, one image per capture, degrees
+    /// (f32, NaN where the pixel has no geometry); empty in the far field.
+    pub beta_maps_deg: Vec<Vec<f32>>,
     /// The dark threshold used for every capture, DN.
     pub min_s0_dn: Vec<f32>,
     /// The maximum distance of the configuration.
@@ -187,6 +210,16 @@ impl MapResult {
     /// Number of classified pixels.
     pub fn classified(&self) -> u64 {
         self.counts.reasons[reason::CLASSIFIED as usize]
+    }
+
+    /// The reasons a pixel of this map can have ([`REASON_NAMES`], index = code):
+    /// `no_geometry` only with calibrated geometry.
+    pub fn reason_names(&self) -> &'static [&'static str] {
+        if self.calibrated {
+            &REASON_NAMES
+        } else {
+            &REASON_NAMES[..reason::NO_GEOMETRY as usize]
+        }
     }
 }
 
@@ -219,25 +252,28 @@ pub fn map_manifest(
     let pc = pixel_classifier(cfg, model, model_path)?;
     let names: Vec<String> = pc.names().to_vec();
 
-    // Geometry: one β per capture (eq. 5), the fit plan shared by every pixel.
-    for c in &m.captures {
-        polarid_io::measure::calibrated_not_implemented(m, c)?;
-    }
-    let betas: Vec<f64> = m
-        .captures
-        .iter()
-        .map(|c| {
-            geometry::beta(
-                c.theta_i_deg.to_radians(),
-                c.theta_r_deg.to_radians(),
-                c.phi_deg.to_radians(),
-            )
-        })
-        .collect();
-    let plan = FitPlan::new(&betas, FitOptions::default()).map_err(|e| IoError::Core {
+    // Far field: one β per capture (eq. 5), the fit plan shared by every pixel.
+    let core_err = |e| IoError::Core {
         path: m.path.clone(),
         source: e,
-    })?;
+    };
+    let calibrated = m.camera.is_some();
+    let plan = if calibrated {
+        None
+    } else {
+        let betas: Vec<f64> = m
+            .captures
+            .iter()
+            .map(|c| {
+                polarid_core::geometry::beta(
+                    c.theta_i_deg.to_radians(),
+                    c.theta_r_deg.to_radians(),
+                    c.phi_deg.to_radians(),
+                )
+            })
+            .collect();
+        Some(FitPlan::new(&betas, FitOptions::default()).map_err(core_err)?)
+    };
 
     // Stage 1: DoLP per capture (one capture's frames in memory at a time).
     let t0 = Instant::now();
@@ -267,6 +303,21 @@ pub fn map_manifest(
             reason: "the manifest has no capture".into(),
         });
     };
+
+    // Calibrated geometry: β per pixel and capture.
+    let beta_maps = if calibrated {
+        progress("captures (geometry)", 0, ncap);
+        geometry::beta_maps(m, d, cfg.bin, &|i| {
+            progress("captures (geometry)", i as u64, ncap)
+        })?
+    } else {
+        geometry::BetaMaps::default()
+    };
+    let pixel_plan = if calibrated {
+        Some(PixelBetaPlan::new(FitOptions::default()).map_err(core_err)?)
+    } else {
+        None
+    };
     let t_dolp = t0.elapsed().as_secs_f64();
 
     // Stage 2: fit and classify, in tiles.
@@ -277,6 +328,20 @@ pub fn map_manifest(
     let mut why = vec![0u8; npix];
     let counts = {
         let views: Vec<&[f32]> = dolp.iter().map(|v| v.as_slice()).collect();
+        let beta_views: Vec<&[f32]> = beta_maps.beta.iter().map(|v| v.as_slice()).collect();
+        let betas = match (&plan, &pixel_plan) {
+            (Some(plan), _) => Betas::Shared(plan),
+            (None, Some(pp)) => Betas::PerPixel {
+                plan: pp,
+                beta: &beta_views,
+            },
+            (None, None) => {
+                return Err(PipelineError::Data {
+                    path: m.path.display().to_string(),
+                    reason: "internal error: no angles for the fit".into(),
+                });
+            }
+        };
         let outputs = MapOutputs {
             n: &mut n,
             k: &mut k,
@@ -287,12 +352,8 @@ pub fn map_manifest(
             reason: &mut why,
         };
         let report = |done: usize| progress("pixels (fit)", done as u64, npix as u64);
-        map::fit_and_classify(&plan, &pc, &views, &flags, cfg.tile, outputs, &report).map_err(
-            |e| IoError::Core {
-                path: m.path.clone(),
-                source: e,
-            },
-        )?
+        map::fit_and_classify(betas, &pc, &views, &flags, cfg.tile, outputs, &report)
+            .map_err(core_err)?
     };
     drop(dolp);
     drop(flags);
@@ -313,7 +374,21 @@ pub fn map_manifest(
         reason: why,
         class_names: names,
         counts,
-        beta_deg: betas.iter().map(|b| b.to_degrees()).collect(),
+        calibrated,
+        beta_deg: match &plan {
+            Some(p) => p.betas().iter().map(|b| b.to_degrees()).collect(),
+            None => beta_maps.beta.iter().map(|b| mean_deg(b)).collect(),
+        },
+        beta_range_deg: beta_maps
+            .range
+            .iter()
+            .map(|r| [r[0].to_degrees(), r[1].to_degrees()])
+            .collect(),
+        beta_maps_deg: beta_maps
+            .beta
+            .into_iter()
+            .map(|b| b.into_iter().map(|v| v.to_degrees()).collect())
+            .collect(),
         min_s0_dn: thresholds,
         max_distance: cfg.max_distance,
         metric: cfg.metric,
@@ -322,6 +397,15 @@ pub fn map_manifest(
         seconds_fit: t_fit,
         warnings: m.warnings.iter().map(|w| Warning(w.clone())).collect(),
     })
+}
+
+/// The mean of the finite values of a β image (radians), degrees (NaN when none).
+fn mean_deg(b: &[f32]) -> f64 {
+    let (s, n) = b
+        .iter()
+        .filter(|v| v.is_finite())
+        .fold((0.0, 0usize), |(s, n), &v| (s + v as f64, n + 1));
+    (s / n as f64).to_degrees()
 }
 
 #[cfg(test)]

@@ -2,7 +2,6 @@
 //! the manifest the share of its pixels given each class (`map_summary.json`).
 
 use polarid_core::classify::UNKNOWN;
-use polarid_core::map::reason;
 use polarid_io::manifest::Manifest;
 use serde_json::{Value, json};
 
@@ -52,6 +51,11 @@ impl RegionSummary {
         }
         v
     }
+}
+
+/// `x`, or null when it is not finite (JSON has no NaN).
+fn finite(x: f64) -> Value {
+    if x.is_finite() { json!(x) } else { Value::Null }
 }
 
 /// Per labelled region: the share of its (binned) pixels given each class.
@@ -113,9 +117,13 @@ pub(crate) fn region_summary(
 impl MapResult {
     /// The summary as JSON (the content of `map_summary.json` without the input paths
     /// and timings, which the caller adds): size, binning, thresholds, metric, pixel
-    /// counts per reason and per class, and the regions.
+    /// counts per reason and per class, and the regions. With calibrated geometry also
+    /// `"geometry": "calibrated"`, each capture's β range (`beta_range_deg`) and the
+    /// reason `no_geometry` (far-field summaries list only the reasons they can have,
+    /// as before it existed).
     pub fn summary_json(&self) -> Value {
-        let reasons: serde_json::Map<String, Value> = reason::NAMES
+        let names = self.reason_names();
+        let reasons: serde_json::Map<String, Value> = names
             .iter()
             .zip(self.counts.reasons)
             .map(|(n, c)| (n.to_string(), json!(c)))
@@ -133,7 +141,7 @@ impl MapResult {
                 })
             })
             .collect();
-        json!({
+        let mut v = json!({
             "frame_width": self.frame_width,
             "frame_height": self.frame_height,
             "bin": self.bin,
@@ -147,10 +155,21 @@ impl MapResult {
             "pixels": self.width * self.height,
             "classified": self.classified(),
             "reasons": reasons,
-            "reason_codes": reason::NAMES,
+            "reason_codes": names,
             "classes": class_counts,
             "regions": self.regions.iter().map(RegionSummary::to_json).collect::<Vec<_>>(),
-        })
+        });
+        if self.calibrated {
+            v["geometry"] = json!("calibrated");
+            v["beta_range_deg"] = json!(
+                self.beta_range_deg
+                    .iter()
+                    .map(|r| r.iter().map(|&x| finite(x)).collect::<Vec<_>>())
+                    .collect::<Vec<_>>()
+            );
+            v["beta_deg"] = json!(self.beta_deg.iter().map(|&x| finite(x)).collect::<Vec<_>>());
+        }
+        v
     }
 
     /// `classes.json`: class index (as a string) → name, `"0": "unknown"`.

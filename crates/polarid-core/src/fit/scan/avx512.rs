@@ -39,6 +39,91 @@ impl Scan for Avx512 {
     ) {
         scan4_avx512(self, curves, base, ny, band, bands)
     }
+
+    #[inline(always)]
+    fn scan_rows(
+        self,
+        rows: &[&[f32]],
+        base: &[f32],
+        y: &[f32],
+        w: Option<&[f32]>,
+        band: usize,
+        bands: &mut [BandMin],
+    ) {
+        scan_rows_avx512(self, rows, base, y, w, band, bands)
+    }
+}
+
+/// [`Scan::scan_rows`] with AVX-512F intrinsics: a block of 128 nodes (eight f32x16
+/// accumulators) per pass over the rows.
+///
+/// Safe: the `Avx512` token proves the CPU has AVX-512F; every pointer is checked against
+/// the asserted slice lengths.
+#[inline(always)]
+fn scan_rows_avx512(
+    tok: Avx512,
+    rows: &[&[f32]],
+    base: &[f32],
+    y: &[f32],
+    w: Option<&[f32]>,
+    band: usize,
+    bands: &mut [BandMin],
+) {
+    let t_len = rows.len();
+    let gp = base.len();
+    let nb = gp / SCAN_BLOCK;
+    assert!(
+        rows.iter().all(|r| r.len() >= gp)
+            && y.len() >= t_len
+            && w.is_none_or(|w| w.len() >= t_len)
+            && bands.len() >= gp.div_ceil(band)
+            && band.is_multiple_of(SCAN_BLOCK)
+    );
+    // SAFETY: every pointer stays inside `rows[t][..gp]` and `base[..gp]`
+    // (asserted); the CPU has AVX-512F (the token).
+    unsafe {
+        let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+        let mut m = _mm512_set1_ps(f32::INFINITY);
+        let mut ix = _mm512_set1_epi32(-1);
+        for b in 0..nb {
+            let o = b * SCAN_BLOCK;
+            let bp = base.as_ptr().add(o);
+            let mut a = [_mm512_setzero_ps(); 8];
+            for (i, ai) in a.iter_mut().enumerate() {
+                *ai = _mm512_loadu_ps(bp.add(16 * i));
+            }
+            for (t, row) in rows.iter().enumerate() {
+                let r = row.as_ptr().add(o);
+                let yt = _mm512_set1_ps(*y.get_unchecked(t));
+                match w {
+                    None => {
+                        for (i, ai) in a.iter_mut().enumerate() {
+                            let d = _mm512_sub_ps(_mm512_loadu_ps(r.add(16 * i)), yt);
+                            *ai = _mm512_fmadd_ps(d, d, *ai);
+                        }
+                    }
+                    Some(w) => {
+                        let wt = _mm512_set1_ps(*w.get_unchecked(t));
+                        for (i, ai) in a.iter_mut().enumerate() {
+                            let d = _mm512_sub_ps(_mm512_loadu_ps(r.add(16 * i)), yt);
+                            *ai = _mm512_fmadd_ps(_mm512_mul_ps(wt, d), d, *ai);
+                        }
+                    }
+                }
+            }
+            for (i, ai) in a.iter().enumerate() {
+                let lt = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(*ai, m);
+                m = _mm512_mask_mov_ps(m, lt, *ai);
+                let idx = _mm512_add_epi32(iota, _mm512_set1_epi32((o + 16 * i) as i32));
+                ix = _mm512_mask_mov_epi32(ix, lt, idx);
+            }
+            if ((b + 1) * SCAN_BLOCK).is_multiple_of(band) || b + 1 == nb {
+                bands[b * SCAN_BLOCK / band] = reduce512(tok, m, ix);
+                m = _mm512_set1_ps(f32::INFINITY);
+                ix = _mm512_set1_epi32(-1);
+            }
+        }
+    }
 }
 
 /// [`reduce`](super::reduce) of sixteen lanes with AVX-512F.

@@ -114,11 +114,106 @@ pub(crate) trait Scan: Copy {
         band: usize,
         bands: [&mut [BandMin]; 4],
     );
+
+    /// Scan of one pixel whose node curves are not stored together but come one source
+    /// position at a time from separate rows (the fit with a β per pixel, `pixel/`:
+    /// row `t` is the column of the pixel's quantised `β_t`): `rows[t]` holds the
+    /// DoLP of every coarse node in scan order (at least `base.len()` values, 0 on
+    /// padding), `base` is 0 for a node and +∞ for padding. The value of a node is
+    /// `Σ_t w_t (c_t − y_t)²`, or `Σ_t (c_t − y_t)²` with `w = None` (the ranking of
+    /// the unweighted scans), summed in `t` order with one fused multiply-add per term
+    /// (a separate multiply and add in the portable kernel).
+    fn scan_rows(
+        self,
+        rows: &[&[f32]],
+        base: &[f32],
+        y: &[f32],
+        w: Option<&[f32]>,
+        band: usize,
+        bands: &mut [BandMin],
+    );
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cpu::{Isa, cpu_features};
+    use crate::fit::simd::Portable;
+
+    /// [`Scan::scan_rows`] with instruction set `isa`.
+    fn scan_rows_isa(
+        isa: Isa,
+        rows: &[&[f32]],
+        base: &[f32],
+        y: &[f32],
+        w: Option<&[f32]>,
+        band: usize,
+        bands: &mut [BandMin],
+    ) {
+        match isa {
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512(t) => t.scan_rows(rows, base, y, w, band, bands),
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2Fma(t) => t.scan_rows(rows, base, y, w, band, bands),
+            Isa::Portable => Portable.scan_rows(rows, base, y, w, band, bands),
+        }
+    }
+
+    /// Every kernel's row scan finds the band minima of a direct computation in the
+    /// same arithmetic (fused multiply-adds for the vector kernels, separate for the
+    /// portable one), bit for bit, ties to the first node, weighted and unweighted.
+    #[test]
+    fn row_scans_find_the_band_minima() {
+        let gp = 3 * SCAN_BLOCK;
+        let gc = gp - 50;
+        let t_len = 5;
+        let cols: Vec<Vec<f32>> = (0..t_len)
+            .map(|t| {
+                (0..gp)
+                    .map(|c| {
+                        if c < gc {
+                            // Repeating values: ties between nodes.
+                            ((c * 37 + t * 11) % 101) as f32 / 101.0
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        let rows: Vec<&[f32]> = cols.iter().map(|c| c.as_slice()).collect();
+        let mut base = vec![f32::INFINITY; gp];
+        base[..gc].fill(0.0);
+        let y: Vec<f32> = (0..t_len).map(|t| 0.1 + 0.15 * t as f32).collect();
+        let wv: Vec<f32> = (0..t_len).map(|t| 1.0 + t as f32).collect();
+        for isa in cpu_features().all() {
+            let fused = !matches!(isa, Isa::Portable);
+            for w in [None, Some(&wv[..])] {
+                for band in [SCAN_BLOCK, 2 * SCAN_BLOCK, gp] {
+                    let mut bands = vec![BandMin::default(); gp.div_ceil(band)];
+                    scan_rows_isa(isa, &rows, &base, &y, w, band, &mut bands);
+                    for (bi, got) in bands.iter().enumerate() {
+                        let mut want = BandMin::default();
+                        for c in bi * band..((bi + 1) * band).min(gc) {
+                            let mut v = 0f32;
+                            for (t, col) in cols.iter().enumerate() {
+                                let d = col[c] - y[t];
+                                let wd = w.map_or(d, |w| w[t] * d);
+                                v = if fused { wd.mul_add(d, v) } else { v + wd * d };
+                            }
+                            if v < want.value {
+                                want = BandMin {
+                                    value: v,
+                                    node: c as u32,
+                                };
+                            }
+                        }
+                        assert_eq!(*got, want, "{isa:?} band {bi} of {band}");
+                    }
+                }
+            }
+        }
+    }
 
     /// The lane reduction picks the smallest value, then the smallest node.
     #[test]

@@ -35,6 +35,63 @@ impl Scan for Portable {
             scan_portable::<true>(curves, base, y, None, band, b);
         }
     }
+
+    #[inline(always)]
+    fn scan_rows(
+        self,
+        rows: &[&[f32]],
+        base: &[f32],
+        y: &[f32],
+        w: Option<&[f32]>,
+        band: usize,
+        bands: &mut [BandMin],
+    ) {
+        scan_rows_portable(rows, base, y, w, band, bands)
+    }
+}
+
+/// [`Scan::scan_rows`] in plain Rust (separate multiply and add).
+#[inline(always)]
+fn scan_rows_portable(
+    rows: &[&[f32]],
+    base: &[f32],
+    y: &[f32],
+    w: Option<&[f32]>,
+    band: usize,
+    bands: &mut [BandMin],
+) {
+    const BL: usize = 32;
+    let gp = base.len();
+    let mut m = [f32::INFINITY; L];
+    let mut ix = [u32::MAX; L];
+    for b in 0..gp / SCAN_BLOCK {
+        for h in 0..SCAN_BLOCK / BL {
+            let g0 = b * SCAN_BLOCK + h * BL;
+            let mut a = [0f32; BL];
+            a.copy_from_slice(&base[g0..g0 + BL]);
+            for (t, row) in rows.iter().enumerate() {
+                let row = &row[g0..g0 + BL];
+                let yt = y[t];
+                let wt = w.map_or(1.0, |w| w[t]);
+                for l in 0..BL {
+                    let d = row[l] - yt;
+                    let wd = if w.is_some() { wt * d } else { d };
+                    a[l] += wd * d;
+                }
+            }
+            for (l, &v) in a.iter().enumerate() {
+                if v < m[l % L] {
+                    m[l % L] = v;
+                    ix[l % L] = (g0 + l) as u32;
+                }
+            }
+        }
+        if ((b + 1) * SCAN_BLOCK).is_multiple_of(band) || b + 1 == gp / SCAN_BLOCK {
+            bands[b * SCAN_BLOCK / band] = reduce(&m, &ix);
+            m = [f32::INFINITY; L];
+            ix = [u32::MAX; L];
+        }
+    }
 }
 
 /// Scan of one pixel (see the module documentation of `scan`). `bands` receives one

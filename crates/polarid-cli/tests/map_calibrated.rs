@@ -1,0 +1,435 @@
+//! `polarid map` with calibrated geometry: a synthetic bench (a pinhole camera 0.8 m
+//! from a bench plane, looking at it 62° from its normal with the horizon in view, a
+//! lamp 0.7 m away at eight positions, four of them out of the plane of incidence) and
+//! four uniform plates of known `(n, k)`. The frames are generated here from
+//! `polarid_core` physics: every pixel's β from `ViewGeometry::pixel` (pixel centres
+//! at integers), its DoLP from eq. (9) (`polarid_core::dop`) and its AoLP
+//! perpendicular to the plane of incidence (`poi_angle + 90°`), four polarizer frames
+//! (float32) with Gaussian noise.
+//!
+//! The map recovers every plate's `(n, k)` pixel by pixel and classifies it; the sky
+//! (rays that miss the plane) is `no_geometry`; the same frames treated as far-field
+//! captures (one β per capture, from the angles at the image centre) give `(n, k)`
+//! many standard errors off.
+
+mod common;
+
+use common::polarid;
+
+use std::path::{Path, PathBuf};
+
+use polarid_core::dop::dop;
+use polarid_core::geometry::{Distortion, Intrinsics, PinholeCamera, Plane, Source, ViewGeometry};
+
+const W: usize = 160;
+const H: usize = 160;
+const FOCAL: f64 = 200.0;
+const CX: f64 = 79.5;
+/// The principal point sits low in the frame: the top rows look above the horizon.
+const CY: f64 = 110.0;
+const CAMERA: [f64; 3] = [0.706_366_4, 0.0, 0.375_578_8];
+const LAMP_R: f64 = 0.7;
+/// Lamp zenith angles (degrees, on the side opposite the camera) and y offsets (m).
+const LAMPS: [(f64, f64); 8] = [
+    (18.0, 0.0),
+    (25.0, 0.08),
+    (32.0, 0.0),
+    (39.0, -0.08),
+    (46.0, 0.0),
+    (53.0, 0.08),
+    (60.0, 0.0),
+    (67.0, -0.08),
+];
+/// S0 of a plate pixel, and the noise sd of a frame value.
+const S0: f64 = 2000.0;
+const NOISE: f64 = 2.0;
+
+/// Gaussian noise from a small deterministic generator (SplitMix64, Box–Muller): the
+/// CLI tests have no random-number dependency.
+struct Noise(u64);
+
+impl Noise {
+    fn uniform(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^= z >> 31;
+        ((z >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    }
+
+    /// A normal deviate with standard deviation `sd`.
+    fn normal(&mut self, sd: f64) -> f64 {
+        let (u1, u2) = (self.uniform(), self.uniform());
+        sd * (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    }
+}
+
+/// A plate: name, class, `(n, k)`, rectangle `[x, y, width, height]` (pixels).
+struct Plate {
+    name: &'static str,
+    class: &'static str,
+    n: f64,
+    k: f64,
+    rect: [usize; 4],
+}
+
+fn plates() -> Vec<Plate> {
+    let p = |name, class, n, k, rect| Plate {
+        name,
+        class,
+        n,
+        k,
+        rect,
+    };
+    vec![
+        p("copper", "copper", 1.01, 2.58, [14, 78, 60, 38]),
+        p("gold", "gold", 1.38, 1.92, [86, 78, 60, 38]),
+        p("titanium", "titanium", 1.90, 2.60, [14, 120, 60, 38]),
+        p("paint", "paint", 1.50, 0.30, [86, 120, 60, 38]),
+    ]
+}
+
+fn camera() -> PinholeCamera {
+    PinholeCamera::look_at(
+        Intrinsics {
+            fx: FOCAL,
+            fy: FOCAL,
+            cx: CX,
+            cy: CY,
+        },
+        Distortion::from_array([0.0; 5]),
+        CAMERA,
+        [0.0, 0.0, 0.0],
+        [0.0, 0.0, 1.0],
+    )
+    .unwrap()
+}
+
+fn lamp(i: usize) -> [f64; 3] {
+    let (zen, y) = LAMPS[i];
+    let z = zen.to_radians();
+    [-LAMP_R * z.sin(), y, LAMP_R * z.cos()]
+}
+
+fn ok(args: &[&str]) {
+    let o = polarid(args);
+    assert!(
+        o.status.success(),
+        "polarid {args:?} failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
+/// The plate of pixel `(x, y)`, if any.
+fn plate_at(plates: &[Plate], x: usize, y: usize) -> Option<&Plate> {
+    plates.iter().find(|p| {
+        let r = p.rect;
+        x >= r[0] && x < r[0] + r[2] && y >= r[1] && y < r[1] + r[3]
+    })
+}
+
+/// Write the frames of every capture and two manifests: `calibrated.toml` (`[camera]`,
+/// a `source` per capture) and `far_field.toml` (each capture's angles at the image
+/// centre). Also the model (the four true `(n, k)`).
+fn write_scene(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
+    let plates = plates();
+    let view = ViewGeometry::new(camera(), Plane::horizontal()).unwrap();
+    let mut noise = Noise(15);
+    let mut cal = format!(
+        "[camera]\nfocal_px = {FOCAL:?}\nprincipal_point_px = [{CX:?}, {CY:?}]\nposition = {CAMERA:?}\nlook_at = [0.0, 0.0, 0.0]\nup = [0.0, 0.0, 1.0]\n"
+    );
+    let mut far = String::new();
+    for p in &plates {
+        let r = p.rect;
+        let region = format!(
+            "\n[[region]]\nname = \"{}\"\nrect = [{}, {}, {}, {}]\nclass = \"{}\"\n",
+            p.name,
+            r[0] + 2,
+            r[1] + 2,
+            r[2] - 4,
+            r[3] - 4,
+            p.class
+        );
+        cal += &region;
+        far += &region;
+    }
+    for i in 0..LAMPS.len() {
+        let source = Source::Position(lamp(i));
+        let mut frames = vec![vec![0f32; W * H]; 4];
+        for y in 0..H {
+            for x in 0..W {
+                let Some(p) = plate_at(&plates, x, y) else {
+                    continue;
+                };
+                let g = view.pixel(x as f64, y as f64, &source).unwrap();
+                let dolp = dop(p.n, p.k, g.beta);
+                let aolp = g.poi_angle + std::f64::consts::FRAC_PI_2;
+                let (s1, s2) = (
+                    S0 * dolp * (2.0 * aolp).cos(),
+                    S0 * dolp * (2.0 * aolp).sin(),
+                );
+                for (f, a) in frames.iter_mut().zip([0.0f64, 45.0, 90.0, 135.0]) {
+                    let a = 2.0 * a.to_radians();
+                    let v = 0.5 * (S0 + s1 * a.cos() + s2 * a.sin()) + noise.normal(NOISE);
+                    f[y * W + x] = v as f32;
+                }
+            }
+        }
+        let mut list = String::from("frames = [\n");
+        for (f, a) in frames.iter().zip([0, 45, 90, 135]) {
+            let name = format!("c{i}_{a}.tif");
+            polarid_io::image::write_tiff_f32(&dir.join(&name), true, W, H, f).unwrap();
+            list += &format!("  {{ angle_deg = {a}.0, file = \"{name}\" }},\n");
+        }
+        list += "]\n";
+        cal += &format!(
+            "\n[[capture]]\nsource = {{ position = {:?} }}\n{list}",
+            lamp(i)
+        );
+        // Far field: the angles at the image centre.
+        let g = view
+            .pixel((W as f64 - 1.0) / 2.0, (H as f64 - 1.0) / 2.0, &source)
+            .unwrap();
+        far += &format!(
+            "\n[[capture]]\ntheta_i_deg = {:?}\ntheta_r_deg = {:?}\nphi_deg = {:?}\n{list}",
+            g.theta_i.to_degrees(),
+            g.theta_r.to_degrees(),
+            g.phi.to_degrees()
+        );
+    }
+    let (mc, mf) = (dir.join("calibrated.toml"), dir.join("far_field.toml"));
+    std::fs::write(&mc, cal).unwrap();
+    std::fs::write(&mf, far).unwrap();
+    let protos: Vec<String> = plates
+        .iter()
+        .map(|p| {
+            format!(
+                "{{\"class\": \"{}\", \"n\": {}, \"k\": {}, \"covariance\": null, \"category\": null, \"source\": {{\"file\": \"truth\", \"line\": 1, \"target\": \"{}\"}}}}",
+                p.class, p.n, p.k, p.name
+            )
+        })
+        .collect();
+    let model = dir.join("model.json");
+    std::fs::write(
+        &model,
+        format!(
+            "{{\"format\": \"polarid-model\", \"format_version\": 1, \"created_by\": \"test\", \"prototypes\": [{}]}}\n",
+            protos.join(", ")
+        ),
+    )
+    .unwrap();
+    (mc, mf, model)
+}
+
+/// Run `polarid map` into `dir/out`.
+fn map(manifest: &Path, model: &Path, out: &Path, bin: usize) {
+    ok(&[
+        "map",
+        manifest.to_str().unwrap(),
+        "--model",
+        model.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--bin",
+        &bin.to_string(),
+        "--min-s0",
+        "200",
+    ]);
+}
+
+fn read(out: &Path, name: &str) -> (usize, Vec<f32>) {
+    let f = polarid_io::image::read_frame(&out.join(name)).unwrap();
+    (f.width, f.data)
+}
+
+/// Per plate, over its interior pixels (3 pixels inside the rectangle) in a map of
+/// binning `bin`: the share classified right, the median `n` and `k`, the share whose
+/// truth lies within 3 reported standard errors (in `n` and in `k`; a pixel without a
+/// fit counts as outside), and the median standard errors.
+struct PlateScore {
+    name: &'static str,
+    correct: f64,
+    n: f64,
+    k: f64,
+    within: f64,
+    n_se: f64,
+    k_se: f64,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn scores(out: &Path, bin: usize) -> Vec<PlateScore> {
+    let (w, class) = read(out, "class.tif");
+    let names: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("classes.json")).unwrap()).unwrap();
+    let (_, n) = read(out, "n.tif");
+    let (_, k) = read(out, "k.tif");
+    let (_, n_se) = read(out, "n_se.tif");
+    let (_, k_se) = read(out, "k_se.tif");
+    plates()
+        .iter()
+        .map(|p| {
+            let r = p.rect;
+            let mut idx = vec![];
+            for y in 0..class.len() / w {
+                for x in 0..w {
+                    let (x0, y0) = (x * bin, y * bin);
+                    if x0 >= r[0] + 3
+                        && y0 >= r[1] + 3
+                        && x0 + bin <= r[0] + r[2] - 3
+                        && y0 + bin <= r[1] + r[3] - 3
+                    {
+                        idx.push(y * w + x);
+                    }
+                }
+            }
+            assert!(!idx.is_empty(), "{}", p.name);
+            let m = idx.len() as f64;
+            let name_of = |c: f32| {
+                names[(c as u16).to_string()]
+                    .as_str()
+                    .unwrap_or("?")
+                    .to_string()
+            };
+            let correct = idx
+                .iter()
+                .filter(|&&i| name_of(class[i]) == p.class)
+                .count() as f64
+                / m;
+
+            let within = idx
+                .iter()
+                .filter(|&&i| {
+                    (n[i] as f64 - p.n).abs() <= 3.0 * n_se[i] as f64
+                        && (k[i] as f64 - p.k).abs() <= 3.0 * k_se[i] as f64
+                })
+                .count() as f64
+                / m;
+            let col = |v: &[f32]| {
+                median(
+                    idx.iter()
+                        .map(|&i| v[i] as f64)
+                        .filter(|x| x.is_finite())
+                        .collect(),
+                )
+            };
+            PlateScore {
+                name: p.name,
+                correct,
+                n: col(&n),
+                k: col(&k),
+                within,
+                n_se: col(&n_se),
+                k_se: col(&k_se),
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn calibrated_map_recovers_every_pixel_where_the_far_field_misses() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let (cal, far, model) = write_scene(dir);
+    let plates = plates();
+
+    // Calibrated, full resolution.
+    let out = dir.join("cal1");
+    map(&cal, &model, &out, 1);
+    for (s, p) in scores(&out, 1).iter().zip(&plates) {
+        eprintln!(
+            "calibrated {}: {:.1}% right, n {:.4} (truth {}), k {:.4} (truth {}), {:.1}% within 3 SE (median SE {:.4}, {:.4})",
+            s.name,
+            100.0 * s.correct,
+            s.n,
+            p.n,
+            s.k,
+            p.k,
+            100.0 * s.within,
+            s.n_se,
+            s.k_se
+        );
+        assert!(s.correct >= 0.99, "{}: {:.3} right", s.name, s.correct);
+        // The standard errors are scaled by the residual of 8 − 2 = 6 degrees of
+        // freedom: |error|/SE follows Student's t with 6 dof, within 3 for ≈ 97.6%
+        // (n and k are correlated at ~0.99: jointly about the same).
+        assert!(s.within >= 0.94, "{}: {:.3} within 3 SE", s.name, s.within);
+        assert!(
+            (s.n - p.n).abs() < 0.01 && (s.k - p.k).abs() < 0.02,
+            "{}: median ({}, {})",
+            s.name,
+            s.n,
+            s.k
+        );
+    }
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("map_summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["geometry"], "calibrated");
+    assert_eq!(summary["reason_codes"][9], "no_geometry");
+    let ranges = summary["beta_range_deg"].as_array().unwrap();
+    assert_eq!(ranges.len(), LAMPS.len());
+    for r in ranges {
+        let (lo, hi) = (r[0].as_f64().unwrap(), r[1].as_f64().unwrap());
+        assert!(
+            lo > 0.0 && hi < 90.0 && hi - lo > 5.0,
+            "beta range {lo}..{hi}"
+        );
+    }
+    // The sky: every pixel of the top rows misses the plane.
+    let (w, reason) = read(&out, "reason.tif");
+    let sky = (0..w).filter(|&x| reason[x] == 9.0).count();
+    assert_eq!(sky, w, "top row: {:?}", &reason[..w]);
+    let total_sky = reason.iter().filter(|&&r| r == 9.0).count() as u64;
+    assert_eq!(
+        summary["reasons"]["no_geometry"].as_u64().unwrap(),
+        total_sky
+    );
+
+    // Calibrated, 2 × 2 blocks (geometry at the blocks' centres).
+    let out2 = dir.join("cal2");
+    map(&cal, &model, &out2, 2);
+    for (s, p) in scores(&out2, 2).iter().zip(&plates) {
+        assert!(
+            s.correct >= 0.99,
+            "bin 2 {}: {:.3} right",
+            s.name,
+            s.correct
+        );
+        assert!(
+            (s.n - p.n).abs() < 0.01 && (s.k - p.k).abs() < 0.02,
+            "bin 2 {}: median ({}, {})",
+            s.name,
+            s.n,
+            s.k
+        );
+    }
+
+    // The same frames as far-field captures: (n, k) many standard errors off.
+    let outf = dir.join("far");
+    map(&far, &model, &outf, 1);
+    for (s, p) in scores(&outf, 1).iter().zip(&plates) {
+        eprintln!(
+            "far field {}: {:.1}% right, n {:.4} (truth {}), k {:.4} (truth {}), {:.1}% within 3 SE (median SE {:.4}, {:.4})",
+            s.name,
+            100.0 * s.correct,
+            s.n,
+            p.n,
+            s.k,
+            p.k,
+            100.0 * s.within,
+            s.n_se,
+            s.k_se
+        );
+        assert!(
+            s.within < 0.5,
+            "far field {}: {:.3} within 3 SE",
+            s.name,
+            s.within
+        );
+    }
+}
