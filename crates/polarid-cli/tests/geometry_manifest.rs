@@ -1,7 +1,7 @@
 //! Calibrated geometry in manifests (`[camera]`, `[[plane]]`, `[site]`, `source`):
 //! `polarid measure` refuses bad geometry with exit status 2 and a message naming the
 //! field (valid calibrated manifests are measured: measure_calibrated_cli.rs), and
-//! `polarid map` refuses a valid calibrated manifest cleanly (not implemented yet).
+//! `polarid map` accepts a valid calibrated manifest (maps themselves: map_calibrated.rs).
 
 mod common;
 
@@ -243,7 +243,7 @@ fn unknown_plane_name() {
 }
 
 #[test]
-fn valid_calibrated_manifest_is_refused_cleanly_by_map() {
+fn valid_calibrated_manifest_passes_map_geometry_checks() {
     let d = tempfile::tempdir().unwrap();
     write_stokes(d.path());
     std::fs::write(
@@ -263,10 +263,11 @@ fn valid_calibrated_manifest_is_refused_cleanly_by_map() {
         d.path(),
         &["map", "m.toml", "--model", "model.json", "-o", "out"],
     );
+    // One capture: the geometry is accepted, and the map stops at the fit's own rule
+    // (three source positions), with nothing written.
     let err = text(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
-    assert!(err.contains("capture[1].source"), "{err}");
-    assert!(err.contains("not implemented yet"), "{err}");
+    assert!(err.contains("need at least 3 DoLP measurements"), "{err}");
     assert!(!d.path().join("out").exists(), "partial output left behind");
 }
 

@@ -457,43 +457,32 @@ fn bad_calibrated_scenes_exit_2_and_write_nothing() {
 }
 
 #[test]
-fn demo_bench_runs_or_stops_cleanly_at_calibrated_measurement() {
+fn demo_bench_runs_end_to_end() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("bench");
     let o = polarid(&["demo", "--bench", "-o", out.to_str().unwrap()]);
-    if o.status.success() {
-        for f in [
-            "report.html",
-            "report.md",
-            "tables.txt",
-            "measurements.csv",
-            "fits.csv",
-            "model.json",
-            "classification.csv",
-            "map/map_summary.json",
-            "map/class.png",
-            "plots/beta_c01.png",
-            "captures/train/manifest.toml",
-            "captures/test/truth.csv",
-        ] {
-            assert!(out.join(f).is_file(), "{f}");
-        }
-        let class = csv_rows(&out.join("classification.csv"));
-        assert_eq!(class.len(), 5);
-        let right = class
-            .iter()
-            .filter(|c| c["class"] == c["predicted"])
-            .count();
-        assert!(right >= 4, "{class:?}");
-    } else {
-        // Until measurement with calibrated geometry lands: exit 2 at the first
-        // calibrated capture, nothing left behind.
-        let err = text(&o.stderr);
-        assert_eq!(o.status.code(), Some(2), "{err}");
-        assert!(
-            err.contains("capture[1].source") && err.contains("not implemented"),
-            "{err}"
-        );
-        assert!(!out.exists());
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    for f in [
+        "report.html",
+        "report.md",
+        "tables.txt",
+        "measurements.csv",
+        "fits.csv",
+        "model.json",
+        "classification.csv",
+        "map/map_summary.json",
+        "map/class.png",
+        "plots/beta_c01.png",
+        "captures/train/manifest.toml",
+        "captures/test/truth.csv",
+    ] {
+        assert!(out.join(f).is_file(), "{f}");
     }
+    let class = csv_rows(&out.join("classification.csv"));
+    assert_eq!(class.len(), 5);
+    let right = class
+        .iter()
+        .filter(|c| c["class"] == c["predicted"])
+        .count();
+    assert!(right >= 4, "{class:?}");
 }

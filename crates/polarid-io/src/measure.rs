@@ -552,25 +552,6 @@ fn calibrated_rows(
     Ok(rows)
 }
 
-// TODO(issue 15): `measure` no longer uses this guard (calibrated captures are
-// measured with per-pixel geometry); `map` still does until it has per-pixel geometry.
-/// Refuse a capture with calibrated geometry (a `source` under a `[camera]`): its map
-/// is not implemented yet. [`IoError::Manifest`] naming the capture's `source`.
-pub fn calibrated_not_implemented(m: &Manifest, c: &Capture) -> Result<()> {
-    match &c.illumination {
-        None => Ok(()),
-        Some(s) => Err(IoError::Manifest {
-            path: m.path.clone(),
-            line: c.line,
-            field: format!("capture[{}].source", c.index),
-            value: source_text(s),
-            reason: "maps with calibrated geometry ([camera], per-pixel \
-                     angles) are not implemented yet"
-                .into(),
-        }),
-    }
-}
-
 /// Measure every region of every capture of a loaded manifest: one row per target per
 /// capture, targets of capture 1 in region order, then capture 2, ... (the rows of
 /// `polarid measure`).
