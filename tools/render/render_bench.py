@@ -14,6 +14,7 @@ Subcommands (see tools/render/README.md):
     render_bench.py render BENCH.toml --wavelength 450 -o OUTDIR [--variant V] [--force]
     render_bench.py check OUTDIR      # re-measure the files; per-pixel eq. (9) and projection
     render_bench.py verify-bench      # sensor / projection / Stokes-frame / eq. (9) checks
+    render_bench.py reference OUTDIR [--dofp] [--map 4]   # numpy per-pixel fits (a yardstick)
 
 Geometry is computed here in Python (numpy), independently of polarid's Rust code:
 the OpenCV pinhole model, ray-plane intersections, the angles of docs/CONVENTIONS.md
@@ -1036,6 +1037,196 @@ def cmd_verify(args):
     sys.exit(0 if ok else 1)
 
 
+# ----------------------------------------------------------------------------------------
+# reference: what a per-pixel geometry model recovers from the files (numpy, not polarid)
+# ----------------------------------------------------------------------------------------
+
+
+def _load_captures(root, man, kind):
+    """Per capture: lamp, dark-subtracted S0/S1/S2 per unit exposure, saturated mask."""
+    dark, sat = float(man.get("dark_level", 0.0)), float(man["saturation"])
+    out = []
+    for c in man["capture"]:
+        if kind == "dofp":
+            raw = rp.read_image(os.path.join(root, c["dofp"]["file"]))
+            I = demosaic_bilinear(raw - dark, c["dofp"]["pattern"])
+            bad = raw >= sat
+            bad = bad | np.roll(bad, 1, 0) | np.roll(bad, -1, 0)
+            bad = bad | np.roll(bad, 1, 1) | np.roll(bad, -1, 1)
+        else:
+            fr = {int(f["angle_deg"]): rp.read_image(os.path.join(root, f["file"])) for f in c["frames"]}
+            bad = np.zeros(next(iter(fr.values())).shape, bool)
+            for a in fr:
+                bad |= fr[a] >= sat
+            I = {a: v - dark for a, v in fr.items()}
+        ex = float(c.get("exposure", 1.0))
+        s0 = 0.5 * (I[0] + I[45] + I[90] + I[135]) / ex
+        out.append((np.array(c["source"]["position"], float), s0, (I[0] - I[90]) / ex, (I[45] - I[135]) / ex,
+                    bad, ex))
+    return out
+
+
+def _lm_fit(model, y, se, x0, lo=(0.01, 0.0), hi=(10.0, 10.0)):
+    """Levenberg-Marquardt on (model(x) - y)/se with box bounds; returns x, SE, rms."""
+    def res(x):
+        return (model(x) - y) / se
+
+    def jac(x, r):
+        J = np.zeros((len(r), 2))
+        for q in range(2):
+            h = 1e-6 * max(1.0, abs(x[q]))
+            xp = x.copy()
+            xp[q] = x[q] + h if x[q] + h <= hi[q] else x[q] - h
+            J[:, q] = (res(xp) - r) / (xp[q] - x[q])
+        return J
+
+    x = np.array(x0, float)
+    r = res(x)
+    lam = 1e-3
+    for _ in range(100):
+        J = jac(x, r)
+        A, g = J.T @ J, J.T @ r
+        xn = np.clip(x - np.linalg.solve(A + lam * np.diag(np.diag(A) + 1e-12), g), lo, hi)
+        rn = res(xn)
+        if rn @ rn < r @ r:
+            done = np.abs(xn - x).max() < 1e-10
+            x, r, lam = xn, rn, lam / 3
+            if done:
+                break
+        else:
+            lam *= 5
+            if lam > 1e8:
+                break
+    J = jac(x, r)
+    cov = np.linalg.pinv(J.T @ J)
+    return x, np.sqrt(np.maximum(np.diag(cov), 0.0)), float(np.sqrt(np.mean(r**2)))
+
+
+def cmd_reference(args):
+    """Region fits with a per-pixel forward model: the region's mean Stokes vector is
+    predicted as the S0-weighted sum of every pixel's eq. (9) DoLP at its own beta, along
+    the s direction of its own plane of incidence in the renders' Stokes frame (the
+    measured S0 as the weights), and (n, k) fitted over the captures by least squares with
+    the region DoLP's delta-method SE (x 8/3 for bilinear DoFP, cf. polarid_core::region).
+    An independent yardstick for polarid's results on the same files, not polarid."""
+    root = os.path.abspath(args.dir)
+    with open(os.path.join(root, "truth.json")) as f:
+        truth = json.load(f)
+    fn = "manifest_dofp.toml" if args.dofp else "manifest.toml"
+    with open(os.path.join(root, fn), "rb") as f:
+        man = tomllib.load(f)
+    cam = camera_from_manifest(man)
+    planes = {p["name"]: (np.array(p["point"], float), unit(p["normal"])) for p in man["plane"]}
+    caps = _load_captures(root, man, "dofp" if args.dofp else "frames")
+    se_factor = 8.0 / 3.0 if args.dofp else 1.0
+    bview = type("B", (), {"camera": cam})()
+    print(f"{os.path.basename(root)} {fn}: region fits with per-pixel geometry (numpy reference)")
+    prototypes = []
+    for p, reg in zip(truth["plates"], man["region"]):
+        x, y, w, h = reg["rect"]
+        vv, uu = np.mgrid[y:y + h, x:x + w].astype(float)
+        pt, nrm = planes[reg["plane"]]
+        d = cam.rays(uu, vv)
+        X = cam.position + (((pt - cam.position) @ nrm) / (d @ nrm))[..., None] * d
+        rows = []
+        for L, s0, s1, s2, bad, ex in caps:
+            sl = (slice(y, y + h), slice(x, x + w))
+            ok = ~bad[sl] & (s0[sl] * ex > 20.0)
+            if ok.sum() < 50:
+                continue
+            _, _, _, beta, _, ui, ur = angles_at(X, np.broadcast_to(nrm, X.shape), L, cam.position)
+            ang = np.radians(mitsuba_stokes_angle(bview, d, unit(np.cross(ui, ur))))
+            dl, se = rp._dolp_se(s0[sl][ok], s1[sl][ok], s2[sl][ok])
+            rows.append((beta[ok], np.clip(s0[sl][ok], 0, None), np.exp(2j * ang[ok]), dl, se * se_factor))
+        yv = np.array([r[3] for r in rows])
+        sev = np.array([r[4] for r in rows])
+
+        def model(xx, rows=rows, step=1):
+            return np.array([abs((r[1][::step] * dop_eq9_array(xx[0], xx[1], r[0][::step]) * r[2][::step]).sum())
+                             / r[1][::step].sum() for r in rows])
+
+        step = max(1, min(len(r[0]) for r in rows) // 100)
+        best = None
+        for n0 in np.linspace(0.05, 3.0, 60):
+            for k0 in np.linspace(0.0, 8.0, 41):
+                c = float((((model((n0, k0), step=step) - yv) / sev) ** 2).sum())
+                if best is None or c < best[0]:
+                    best = (c, n0, k0)
+        xx, sexx, rms = _lm_fit(model, yv, sev, best[1:])
+        dn, dk = xx[0] - p["n"], xx[1] - p["k"]
+        tn, tk = max(0.03, 3 * sexx[0]), max(0.06, 3 * sexx[1])
+        print(f"  {p['name']:15s} truth {p['n']:.3f}+{p['k']:.3f}i  fit {xx[0]:.4f}+{xx[1]:.4f}i  "
+              f"se {sexx[0]:.4f}, {sexx[1]:.4f}  dn {dn:+.4f} dk {dk:+.4f}  rms {rms:.2f}  captures {len(rows)}  "
+              f"{'within' if abs(dn) <= tn and abs(dk) <= tk else 'OUTSIDE'} max(0.03, 3 SE) / max(0.06, 3 SE)")
+        prototypes.append((p["class"], xx[0], xx[1]))
+    if args.map:
+        reference_map(root, truth, man, cam, caps, prototypes, int(args.map))
+
+
+def reference_map(root, truth, man, cam, caps, prototypes, B):
+    """B x B blocks entirely on one plate (labels.tif): (n, k) by a grid search of eq. (9)
+    at the block's S0-weighted beta over the captures where the block's mean S0 is at
+    least 1 % of the range (as map's default --min-s0) and nothing saturates (DoLP SE
+    from shot and read noise), then the nearest prototype (Euclidean, the region fits
+    above as the trained model)."""
+    import tifffile
+
+    lab = tifffile.imread(os.path.join(root, "labels.tif")).astype(int)
+    H, W = lab.shape
+
+    def blocks(a):
+        return a[:H // B * B, :W // B * B].reshape(H // B, B, W // B, B).transpose(0, 2, 1, 3).reshape(
+            H // B, W // B, B * B)
+
+    bl = blocks(lab)
+    sel = (bl == bl[..., :1]).all(-1) & (bl[..., 0] > 0)
+    plate_of = bl[sel][:, 0] - 1
+    planes = {p["name"]: (np.array(p["point"], float), unit(p["normal"])) for p in man["plane"]}
+    U, V = np.meshgrid(np.arange(W, dtype=float), np.arange(H, dtype=float))
+    d = cam.rays(U, V)
+    X = np.full(d.shape, np.nan)
+    N = np.full(d.shape, np.nan)
+    for i, p in enumerate(truth["plates"]):
+        pt, nrm = planes[p["plane"]]
+        m = lab == i + 1
+        X[m] = cam.position + (((pt - cam.position) @ nrm) / (d[m] @ nrm))[:, None] * d[m]
+        N[m] = nrm
+    ng, kg = np.arange(0.01, 3.0, 0.02), np.arange(0.0, 8.0, 0.04)
+    NN, KK = (a.ravel() for a in np.meshgrid(ng, kg, indexing="ij"))
+    bgrid = np.radians(np.arange(0.0, 90.0, 0.05))
+    table = np.stack([dop_eq9_array(NN, KK, bb) for bb in bgrid], 1).astype(np.float32)
+    chi = np.zeros((len(plate_of), len(NN)), np.float32)
+    nlit = np.zeros(len(plate_of), int)
+    sensor = truth["sensor"]
+    full = sensor["saturation_dn"] - sensor["dark_level_dn"]
+    for L, s0, s1, s2, bad, ex in caps:
+        beta = angles_at(X, N, L, cam.position)[3]
+        S0, S1, S2, BB = (blocks(a)[sel] for a in (s0 * ex, s1 * ex, s2 * ex, beta))
+        m0 = S0.sum(1)
+        lit = (m0 / (B * B) >= 0.01 * full) & ~blocks(bad)[sel].any(1)
+        P = np.hypot(S1.sum(1), S2.sum(1)) / np.maximum(m0, 1e-9)
+        var = np.clip(S0, 0, None) / sensor["electrons_per_dn"] + 2 * sensor["read_noise_dn"] ** 2
+        se = np.sqrt(var.sum(1)) / np.maximum(m0, 1e-9)
+        wb = np.clip(S0, 0, None)
+        bm = (wb * BB).sum(1) / np.maximum(wb.sum(1), 1e-9)
+        idx = np.clip(np.rint(np.degrees(bm) / 0.05).astype(int), 0, len(bgrid) - 1)
+        for j in np.nonzero(lit)[0]:
+            chi[j] += ((table[:, idx[j]] - P[j]) / se[j]) ** 2
+        nlit += lit
+    best = chi.argmin(1)
+    nf, kf = NN[best], KK[best]
+    dist = np.stack([np.hypot(nf - n, kf - k) for _, n, k in prototypes], 1)
+    pred = np.array([prototypes[i][0] for i in dist.argmin(1)])
+    want = np.array([truth["plates"][i]["class"] for i in plate_of])
+    ok = nlit >= 3
+    print(f"  map emulation, {B}x{B} blocks: {len(ok)} plate blocks, {100 * ok.mean():.1f} % classified "
+          f"(>= 3 lit captures), {100 * (pred[ok] == want[ok]).mean():.2f} % of those right")
+    for i, p in enumerate(truth["plates"]):
+        s = (plate_of == i) & ok
+        print(f"    {p['name']:15s} {int((plate_of == i).sum()):4d} blocks, {int(s.sum()):4d} classified, "
+              f"{100 * (pred[s] == want[s]).mean():6.2f} % right")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -1050,8 +1241,12 @@ def main():
     c.add_argument("dir")
     v = sub.add_parser("verify-bench", help="sensor, Stokes-frame and eq. (9) checks of the bench renderer")
     v.add_argument("--variant", default="auto")
+    f = sub.add_parser("reference", help="numpy per-pixel-geometry region fits of a set (a yardstick)")
+    f.add_argument("dir")
+    f.add_argument("--dofp", action="store_true", help="use manifest_dofp.toml instead of manifest.toml")
+    f.add_argument("--map", metavar="B", help="also emulate a B x B binned map classified with the region fits")
     args = ap.parse_args()
-    {"render": cmd_render, "check": cmd_check, "verify-bench": cmd_verify}[args.cmd](args)
+    {"render": cmd_render, "check": cmd_check, "verify-bench": cmd_verify, "reference": cmd_reference}[args.cmd](args)
 
 
 if __name__ == "__main__":
