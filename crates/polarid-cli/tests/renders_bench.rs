@@ -168,6 +168,22 @@ fn bench_camera_and_pixel_geometry_match_the_renders() {
     };
     for set in sets {
         let t = truth(&set);
+        // Every manifest of the set reads without a warning (unknown keys) or an error.
+        let mut names = vec![
+            "manifest.toml".to_string(),
+            "manifest_dofp.toml".into(),
+            "manifest_stokes.toml".into(),
+            "farfield_center.toml".into(),
+        ];
+        for p in t["plates"].as_array().unwrap() {
+            names.push(format!("farfield/{}.toml", p["name"].as_str().unwrap()));
+        }
+        for name in &names {
+            let m = polarid_io::manifest::load(&set.join(name))
+                .unwrap_or_else(|e| panic!("{}/{name}: {e}", set.display()));
+            assert!(m.warnings.is_empty(), "{name}: {:?}", m.warnings);
+            assert_eq!(m.captures.len(), t["captures"].as_array().unwrap().len());
+        }
         let m = polarid_io::manifest::load(&set.join("manifest.toml")).expect("manifest loads");
         let camera = m.camera.as_ref().expect("[camera]").to_camera();
         let mut worst_px: f64 = 0.0;
@@ -318,6 +334,66 @@ fn score_map(set: &Path, out: &Path, bin: usize) -> (usize, usize, usize, Vec<St
         })
         .collect();
     (total, classified, right, lines)
+}
+
+/// The scoring of the map test on a map made from the labels themselves (every plate
+/// block classified right), and on an empty one (nothing classified): checks the test's
+/// own machinery on the renders while `map` cannot read calibrated manifests yet.
+#[test]
+fn bench_map_scoring_self_check() {
+    let Some(sets) = bench_sets("bench_map_scoring_self_check") else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    for set in &sets {
+        let t = truth(set);
+        let labels = polarid_io::image::read_frame(&set.join("labels.tif")).expect("labels.tif");
+        let plates = t["plates"].as_array().unwrap();
+        let mut classes: Vec<&str> = plates
+            .iter()
+            .map(|p| p["class"].as_str().unwrap())
+            .collect();
+        classes.sort();
+        classes.dedup();
+        let mut names = serde_json::Map::new();
+        names.insert("0".into(), "unknown".into());
+        for (i, c) in classes.iter().enumerate() {
+            names.insert((i + 1).to_string(), (*c).into());
+        }
+        let (w, h) = (labels.width / 4, labels.height / 4);
+        let perfect: Vec<u16> = (0..w * h)
+            .map(|i| {
+                let l = labels.data[(i / w) * 4 * labels.width + (i % w) * 4] as usize;
+                if l == 0 {
+                    0
+                } else {
+                    let c = plates[l - 1]["class"].as_str().unwrap();
+                    1 + classes.iter().position(|x| *x == c).unwrap() as u16
+                }
+            })
+            .collect();
+        for (tag, data) in [("perfect", perfect), ("empty", vec![0u16; w * h])] {
+            let out = tmp.path().join(tag);
+            std::fs::create_dir_all(&out).unwrap();
+            polarid_io::image::write_gray16(&out.join("class.tif"), true, w, h, &data).unwrap();
+            std::fs::write(
+                out.join("classes.json"),
+                serde_json::Value::Object(names.clone()).to_string(),
+            )
+            .unwrap();
+            let (total, classified, right, _) = score_map(set, &out, 4);
+            eprintln!(
+                "{} {tag}: {total} plate blocks, {classified} classified, {right} right",
+                set.display()
+            );
+            assert!(total > 1000, "{total} plate blocks");
+            if tag == "perfect" {
+                assert_eq!((classified, right), (total, total));
+            } else {
+                assert_eq!((classified, right), (0, 0));
+            }
+        }
+    }
 }
 
 /// Acceptance: `polarid map --bin 4` with the model trained on the set's own region fits
