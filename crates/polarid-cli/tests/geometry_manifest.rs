@@ -250,12 +250,18 @@ fn unknown_plane_name() {
 }
 
 #[test]
-fn valid_calibrated_manifest_is_refused_cleanly_by_map() {
+fn valid_calibrated_manifest_is_mapped() {
     let d = tempfile::tempdir().unwrap();
     write_stokes(d.path());
+    // Three lamp positions (a map needs at least 3 captures).
+    let more: String = ["[-0.3, 0.1, 0.6]", "[-0.5, -0.1, 0.5]"]
+        .iter()
+        .map(|p| CAPTURE.replace("[-0.4, 0.0, 0.6]", p))
+        .collect::<Vec<_>>()
+        .join("\n");
     std::fs::write(
         d.path().join("m.toml"),
-        format!("{CAMERA}\n{REGION}\n{CAPTURE}"),
+        format!("{CAMERA}\n{REGION}\n{CAPTURE}\n{more}"),
     )
     .unwrap();
     // A model: train on a two-row fits file.
@@ -270,11 +276,32 @@ fn valid_calibrated_manifest_is_refused_cleanly_by_map() {
         d.path(),
         &["map", "m.toml", "--model", "model.json", "-o", "out"],
     );
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let summary = std::fs::read_to_string(d.path().join("out").join("map_summary.json")).unwrap();
+    assert!(
+        summary.contains("\"geometry\": \"calibrated\""),
+        "{summary}"
+    );
+    // Fewer than 3 captures: refused before any work, nothing written.
+    std::fs::write(
+        d.path().join("one.toml"),
+        format!("{CAMERA}\n{REGION}\n{CAPTURE}"),
+    )
+    .unwrap();
+    let o = polarid_in(
+        d.path(),
+        &["map", "one.toml", "--model", "model.json", "-o", "out1"],
+    );
     let err = text(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
-    assert!(err.contains("capture[1].source"), "{err}");
-    assert!(err.contains("not implemented yet"), "{err}");
-    assert!(!d.path().join("out").exists(), "partial output left behind");
+    assert!(
+        err.contains("one.toml") && err.contains("at least 3"),
+        "{err}"
+    );
+    assert!(
+        !d.path().join("out1").exists(),
+        "partial output left behind"
+    );
 }
 
 const SITE: &str = r#"[site]
