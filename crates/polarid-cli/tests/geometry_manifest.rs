@@ -1,7 +1,6 @@
 //! Calibrated geometry in manifests (`[camera]`, `[[plane]]`, `[site]`, `source`):
 //! `polarid measure` refuses bad geometry with exit status 2 and a message naming the
-//! field (valid calibrated manifests are measured: measure_calibrated_cli.rs), and
-//! `polarid map` accepts a valid calibrated manifest (maps themselves: map_calibrated.rs).
+//! field, and refuses a valid calibrated manifest cleanly (not implemented yet).
 
 mod common;
 
@@ -61,6 +60,14 @@ fn expect_bad(name: &str, manifest: &str, field: &str, words: &[&str]) {
     for w in words {
         assert!(err.contains(w), "{name}: expected {w:?} in: {err}");
     }
+}
+
+#[test]
+fn valid_calibrated_manifest_is_refused_cleanly() {
+    let (code, err) = measure(&format!("{CAMERA}\n{REGION}\n{CAPTURE}"));
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("capture[1].source"), "{err}");
+    assert!(err.contains("not implemented yet"), "{err}");
 }
 
 #[test]
@@ -243,12 +250,18 @@ fn unknown_plane_name() {
 }
 
 #[test]
-fn valid_calibrated_manifest_passes_map_geometry_checks() {
+fn valid_calibrated_manifest_is_mapped() {
     let d = tempfile::tempdir().unwrap();
     write_stokes(d.path());
+    // Three lamp positions (a map needs at least 3 captures).
+    let more: String = ["[-0.3, 0.1, 0.6]", "[-0.5, -0.1, 0.5]"]
+        .iter()
+        .map(|p| CAPTURE.replace("[-0.4, 0.0, 0.6]", p))
+        .collect::<Vec<_>>()
+        .join("\n");
     std::fs::write(
         d.path().join("m.toml"),
-        format!("{CAMERA}\n{REGION}\n{CAPTURE}"),
+        format!("{CAMERA}\n{REGION}\n{CAPTURE}\n{more}"),
     )
     .unwrap();
     // A model: train on a two-row fits file.
@@ -263,12 +276,32 @@ fn valid_calibrated_manifest_passes_map_geometry_checks() {
         d.path(),
         &["map", "m.toml", "--model", "model.json", "-o", "out"],
     );
-    // One capture: the geometry is accepted, and the map stops at the fit's own rule
-    // (three source positions), with nothing written.
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let summary = std::fs::read_to_string(d.path().join("out").join("map_summary.json")).unwrap();
+    assert!(
+        summary.contains("\"geometry\": \"calibrated\""),
+        "{summary}"
+    );
+    // Fewer than 3 captures: refused before any work, nothing written.
+    std::fs::write(
+        d.path().join("one.toml"),
+        format!("{CAMERA}\n{REGION}\n{CAPTURE}"),
+    )
+    .unwrap();
+    let o = polarid_in(
+        d.path(),
+        &["map", "one.toml", "--model", "model.json", "-o", "out1"],
+    );
     let err = text(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
-    assert!(err.contains("need at least 3 DoLP measurements"), "{err}");
-    assert!(!d.path().join("out").exists(), "partial output left behind");
+    assert!(
+        err.contains("one.toml") && err.contains("at least 3"),
+        "{err}"
+    );
+    assert!(
+        !d.path().join("out1").exists(),
+        "partial output left behind"
+    );
 }
 
 const SITE: &str = r#"[site]
@@ -319,4 +352,15 @@ fn sun_below_a_planes_horizon() {
         "capture[1].source.sun",
         &["below the horizon", "target \"A\""],
     );
+}
+
+#[test]
+fn valid_sun_source_is_refused_cleanly() {
+    let (code, err) = measure(&format!(
+        "{CAMERA}\n{SITE}\n{REGION}\n{}",
+        sun_capture("2003-10-17T12:30:30-07:00")
+    ));
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("capture[1].source"), "{err}");
+    assert!(err.contains("not implemented yet"), "{err}");
 }

@@ -259,6 +259,15 @@ pub fn map_manifest(
     };
     let calibrated = m.camera.is_some();
     let plan = if calibrated {
+        // Checked before any work, as the far-field plan checks it.
+        if m.captures.len() < 3 {
+            return Err(core_err(polarid_core::CoreError::TooFew {
+                what: "DoLP measurements (source positions)",
+                needed: 3,
+                got: m.captures.len(),
+            })
+            .into());
+        }
         None
     } else {
         let betas: Vec<f64> = m
