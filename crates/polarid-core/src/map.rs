@@ -525,7 +525,7 @@ pub fn fit_and_classify(
     dolp: &[&[f32]],
     flags: &[u8],
     tile: usize,
-    out: MapOutputs<'_>,
+    mut out: MapOutputs<'_>,
     progress: &(dyn Fn(usize) + Sync),
 ) -> Result<MapCounts> {
     let npix = flags.len();
@@ -569,12 +569,17 @@ pub fn fit_and_classify(
     let mut b: Vec<f64> = Vec::new();
     let mut idx: Vec<usize> = Vec::with_capacity(cap);
     let mut fits: Vec<NkFit> = vec![NkFit::default(); cap];
+    // Per-pixel angles: pixels with some captures left out (DoLP NaN: dark or
+    // saturated there) are fitted on the others, grouped by the set of captures used.
+    let mut partial: Vec<(u64, usize)> = Vec::new();
+    let (mut py, mut pb): (Vec<f64>, Vec<f64>) = (Vec::new(), Vec::new());
     let mut start = 0usize;
     while start < npix {
         let end = (start + tile).min(npix);
         y.clear();
         b.clear();
         idx.clear();
+        partial.clear();
         for p in start..end {
             let r = match betas {
                 Betas::PerPixel { beta, .. } if beta.iter().any(|b| !b[p].is_finite()) => {
@@ -582,22 +587,25 @@ pub fn fit_and_classify(
                 }
                 _ => signal_reason(flags[p]),
             };
-            if r == reason::CLASSIFIED {
+            let used = match betas {
+                Betas::PerPixel { .. } if t_len < 64 => dolp
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, d)| !d[p].is_nan())
+                    .fold(0u64, |m, (t, _)| m | (1 << t)),
+                _ => u64::MAX,
+            };
+            let all = used == u64::MAX || used == (1u64 << t_len) - 1;
+            if r == reason::CLASSIFIED && !all {
+                partial.push((used, p));
+            } else if r == reason::CLASSIFIED {
                 idx.push(p);
                 y.extend(dolp.iter().map(|d| d[p] as f64));
                 if let Betas::PerPixel { beta, .. } = betas {
                     b.extend(beta.iter().map(|b| b[p] as f64));
                 }
             } else {
-                out.n[p] = f32::NAN;
-                out.k[p] = f32::NAN;
-                out.n_se[p] = f32::NAN;
-                out.k_se[p] = f32::NAN;
-                out.rms_residual[p] = f32::NAN;
-                out.class[p] = 0;
-                out.reason[p] = r;
-                counts.reasons[r as usize] += 1;
-                counts.classes[0] += 1;
+                write_skip(&mut out, &mut counts, p, r);
             }
         }
         let m = idx.len();
@@ -608,34 +616,87 @@ pub fn fit_and_classify(
             }
         }
         for (&p, f) in idx.iter().zip(&fits[..m]) {
-            out.n[p] = f.n as f32;
-            out.k[p] = f.k as f32;
-            out.n_se[p] = f.n_se as f32;
-            out.k_se[p] = f.k_se as f32;
-            out.rms_residual[p] = f.rms_residual as f32;
-            let (c, r) = match f.status {
-                FitStatus::Ok => match classifier.classify_fit(f) {
-                    Ok((c, _)) => (c, reason::CLASSIFIED),
-                    Err(r) => (0, r),
-                },
-                FitStatus::IllConditioned => (0, reason::FIT_ILL_CONDITIONED),
-                FitStatus::NotConverged => (0, reason::FIT_NOT_CONVERGED),
-                FitStatus::AtBound => (0, reason::FIT_AT_BOUND),
-                // `fit_batch` never reports `depolarized` (a per-target rule of the
-                // table fit); a pixel would count as unusable input.
-                FitStatus::InvalidInput | FitStatus::Depolarized => (0, reason::FIT_INVALID_INPUT),
-            };
-            out.class[p] = c;
-            out.reason[p] = r;
-            counts.reasons[r as usize] += 1;
-            if let Some(cc) = counts.classes.get_mut(c as usize) {
-                *cc += 1;
+            write_fit(classifier, &mut out, &mut counts, p, f);
+        }
+        if let Betas::PerPixel { plan, beta } = betas {
+            partial.sort_unstable();
+            for group in partial.chunk_by(|a, b| a.0 == b.0) {
+                let used = group[0].0;
+                let ts: Vec<usize> = (0..t_len).filter(|t| used & (1 << t) != 0).collect();
+                if ts.len() < 3 {
+                    // Not reached: the caller flags pixels with fewer than 3 usable
+                    // captures; counted as dark if it ever is.
+                    for &(_, p) in group {
+                        write_skip(&mut out, &mut counts, p, reason::DARK);
+                    }
+                    continue;
+                }
+                py.clear();
+                pb.clear();
+                for &(_, p) in group {
+                    py.extend(ts.iter().map(|&t| dolp[t][p] as f64));
+                    pb.extend(ts.iter().map(|&t| beta[t][p] as f64));
+                }
+                let g = group.len();
+                if fits.len() < g {
+                    fits.resize(g, NkFit::default());
+                }
+                fit_batch_pixel_beta(plan, &pb, &py, None, &mut fits[..g])?;
+                for (&(_, p), f) in group.iter().zip(&fits[..g]) {
+                    write_fit(classifier, &mut out, &mut counts, p, f);
+                }
             }
         }
         progress(end);
         start = end;
     }
     Ok(counts)
+}
+
+/// Record a pixel that is not fitted, for `reason`.
+fn write_skip(out: &mut MapOutputs<'_>, counts: &mut MapCounts, p: usize, r: u8) {
+    out.n[p] = f32::NAN;
+    out.k[p] = f32::NAN;
+    out.n_se[p] = f32::NAN;
+    out.k_se[p] = f32::NAN;
+    out.rms_residual[p] = f32::NAN;
+    out.class[p] = 0;
+    out.reason[p] = r;
+    counts.reasons[r as usize] += 1;
+    counts.classes[0] += 1;
+}
+
+/// Record a pixel's fit and its classification.
+fn write_fit(
+    classifier: &PixelClassifier,
+    out: &mut MapOutputs<'_>,
+    counts: &mut MapCounts,
+    p: usize,
+    f: &NkFit,
+) {
+    out.n[p] = f.n as f32;
+    out.k[p] = f.k as f32;
+    out.n_se[p] = f.n_se as f32;
+    out.k_se[p] = f.k_se as f32;
+    out.rms_residual[p] = f.rms_residual as f32;
+    let (c, r) = match f.status {
+        FitStatus::Ok => match classifier.classify_fit(f) {
+            Ok((c, _)) => (c, reason::CLASSIFIED),
+            Err(r) => (0, r),
+        },
+        FitStatus::IllConditioned => (0, reason::FIT_ILL_CONDITIONED),
+        FitStatus::NotConverged => (0, reason::FIT_NOT_CONVERGED),
+        FitStatus::AtBound => (0, reason::FIT_AT_BOUND),
+        // `fit_batch` never reports `depolarized` (a per-target rule of the
+        // table fit); a pixel would count as unusable input.
+        FitStatus::InvalidInput | FitStatus::Depolarized => (0, reason::FIT_INVALID_INPUT),
+    };
+    out.class[p] = c;
+    out.reason[p] = r;
+    counts.reasons[r as usize] += 1;
+    if let Some(cc) = counts.classes.get_mut(c as usize) {
+        *cc += 1;
+    }
 }
 
 #[cfg(test)]

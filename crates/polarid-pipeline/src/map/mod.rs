@@ -292,16 +292,50 @@ pub fn map_manifest(
     let mut flags: Vec<u8> = Vec::new();
     let mut dolp: Vec<Vec<f32>> = Vec::with_capacity(m.captures.len());
     let mut thresholds = Vec::with_capacity(m.captures.len());
+    // Calibrated geometry: a lamp at a finite distance moves the specular lobe across
+    // the scene, so a pixel is typically lit in some captures and dark in others. Its
+    // dark captures are left out of its own fit (DoLP NaN) instead of excluding the
+    // pixel; the far-field rule (dark in any capture: not fitted) is unchanged.
+    // Likewise a capture in which the pixel saturates. A pixel left with fewer than 3
+    // usable captures is not fitted, with the reason (dark, saturated) of its drops.
+    let mut capture_flags: Vec<u8> = Vec::new();
+    let mut dropped: Vec<u8> = Vec::new();
     for (i, c) in m.captures.iter().enumerate() {
         let mut d = Vec::new();
-        let th =
-            capture::capture_dolp(c, cfg, &mut dims, &mut d, &mut flags).map_err(|e| match e {
-                e @ PipelineError::Config { .. } => e,
-                e => PipelineError::Data {
-                    path: format!("capture {} (line {})", c.index, c.line),
-                    reason: e.to_string(),
-                },
-            })?;
+        let f = if calibrated {
+            capture_flags.iter_mut().for_each(|f| *f = 0);
+            &mut capture_flags
+        } else {
+            &mut flags
+        };
+        let th = capture::capture_dolp(c, cfg, &mut dims, &mut d, f).map_err(|e| match e {
+            e @ PipelineError::Config { .. } => e,
+            e => PipelineError::Data {
+                path: format!("capture {} (line {})", c.index, c.line),
+                reason: e.to_string(),
+            },
+        })?;
+        if calibrated {
+            if flags.is_empty() {
+                flags.resize(capture_flags.len(), 0);
+            }
+            if dropped.is_empty() {
+                dropped.resize(capture_flags.len(), 0);
+            }
+            let drop = map::flag::DARK | map::flag::SATURATED;
+            for (((f, g), cf), v) in flags
+                .iter_mut()
+                .zip(dropped.iter_mut())
+                .zip(&capture_flags)
+                .zip(d.iter_mut())
+            {
+                if cf & drop != 0 {
+                    *v = f32::NAN;
+                }
+                *g |= cf & drop;
+                *f |= cf & !drop;
+            }
+        }
         thresholds.push(th);
         dolp.push(d);
         progress("captures (DoLP)", i as u64 + 1, ncap);
@@ -312,6 +346,13 @@ pub fn map_manifest(
             reason: "the manifest has no capture".into(),
         });
     };
+    if calibrated {
+        for (p, (f, g)) in flags.iter_mut().zip(&dropped).enumerate() {
+            if dolp.iter().filter(|d| !d[p].is_nan()).count() < 3 {
+                *f |= g;
+            }
+        }
+    }
 
     // Calibrated geometry: β per pixel and capture.
     let beta_maps = if calibrated {
