@@ -82,7 +82,7 @@ pub use classifier::{Classifier, NEAR_ZERO_SIGMAS};
 pub use config::{ClassifierConfig, DEFAULT_CONFIDENCE, Metric, Reject, Rule, chi2_2dof_quantile};
 pub use cov::{Cov2, ONE_SIDED_RATIO};
 pub use decision::{Candidate, Decision, Neighbour, Status};
-pub use evaluate::{Confusion, EvalItem, Evaluation, Labelled, evaluate, leave_one_out};
+pub use evaluate::{Confusion, EvalItem, Evaluation, Labelled, SetStats, evaluate, leave_one_out};
 pub use points::{Estimate, Prototype, class_categories};
 pub use wolff::{
     WolffClass, WolffConfig, WolffDecision, WolffObservation, fresnel_ratio, wolff_classify,
