@@ -179,12 +179,15 @@ def classify(
     k_se: ArrayLike | None = None,
     nk_corr: ArrayLike | None = None,
     fit_status: ArrayLike | str | None = None,
-    metric: Literal["euclidean", "mahalanobis"] = "euclidean",
+    rule: Literal["set", "nearest"] | None = None,
+    confidence: float = 0.95,
+    metric: Literal["euclidean", "mahalanobis"] | None = None,
     neighbours: int = 1,
     reject: float | None = None,
     max_distance: float | None = None,
 ) -> dict[str, Any]:
-    """keys: predicted, distance, runner_up, runner_up_distance, margin, status."""
+    """keys: predicted, distance, runner_up, runner_up_distance, margin, status,
+    candidates, n_candidates, category."""
 
 # --- files -----------------------------------------------------------------------------
 def load_manifest(path: _Path) -> dict[str, Any]: ...

@@ -6,7 +6,7 @@ use std::collections::HashMap;
 use ndarray::{ArrayD, ArrayViewD, IxDyn};
 use polarid_core::FitStatus;
 use polarid_core::classify::{
-    ClassifierConfig, Cov2, Estimate, Metric, Prototype, Reject, UNKNOWN,
+    AMBIGUOUS, ClassifierConfig, Cov2, Estimate, Metric, Prototype, Reject, UNKNOWN,
 };
 use polarid_io::library::Library;
 use polarid_pipeline::classify::{PrototypeSource, classifier};
@@ -145,7 +145,19 @@ fn fit_statuses(
 ///     Fit status per estimate (``fit_nk``'s ``status`` or ``status_code``); estimates
 ///     whose fit is not ``ok`` are not classified (``predicted = "unknown"``, status
 ///     ``fit_<status>``). Default: all ``ok``.
-/// metric : {"euclidean", "mahalanobis"}
+/// rule : {"set", "nearest"}, optional
+///     ``set``: every material consistent with the estimate at ``confidence`` (squared
+///     Mahalanobis distance <= -2 ln(1 - confidence), in (n, u = k^2) near k = 0; see
+///     docs/CLASSIFY.md): one -> it, several -> ``"ambiguous"``, none -> ``"unknown"``
+///     (status ``rejected``). ``nearest``: the paper's nearest neighbour. Default: ``set``
+///     when ``n_se`` and ``k_se`` are given and no option of the nearest rule
+///     (``metric``, ``neighbours``, ``reject``, ``max_distance``) is, else ``nearest``
+///     (the set needs standard errors).
+/// confidence : float, default 0.95
+///     Confidence of the consistent set, in (0, 1). The set (``candidates``) is
+///     returned under both rules when standard errors are given.
+/// metric : {"euclidean", "mahalanobis"}, optional
+///     Distance of the nearest rule (default euclidean); the set rule is Mahalanobis.
 /// neighbours : int, default 1
 ///     Number of nearest prototypes that vote (ties go to the class with the nearest
 ///     member).
@@ -158,13 +170,17 @@ fn fit_statuses(
 /// Returns
 /// -------
 /// dict
-///     ``predicted`` (class name, or ``"unknown"``), ``distance`` (to the nearest
-///     prototype of the predicted class), ``runner_up`` (nearest other class; ``""``
-///     when there is none), ``runner_up_distance``, ``margin``
-///     (``runner_up_distance - distance``), ``status`` (``ok``, ``rejected``,
-///     ``fit_<status>``, ``no_covariance``, ``invalid_estimate``). Strings and floats
-///     for scalar input (``runner_up`` is None when there is none), else arrays of the
-///     broadcast shape (str arrays for the names, NaN distances where unclassified).
+///     ``predicted`` (class name, ``"ambiguous"`` or ``"unknown"``), ``distance`` (to
+///     the nearest prototype of the predicted class), ``runner_up`` (nearest other
+///     class; ``""`` when there is none), ``runner_up_distance``, ``margin``
+///     (``runner_up_distance - distance``), ``status`` (``ok``, ``ambiguous``,
+///     ``rejected``, ``fit_<status>``, ``no_covariance``, ``invalid_estimate``),
+///     ``candidates`` (the consistent materials, best first), ``n_candidates`` and
+///     ``category`` (the candidates' common category, e.g. ``"metal"``). Strings, floats
+///     and a list of str for scalar input (``runner_up`` and ``category`` are None when
+///     there is none), else arrays of the broadcast shape (str arrays for the names,
+///     ``candidates`` as ``;``-joined str, ``""`` for none; NaN distances where
+///     unclassified).
 ///
 /// Raises
 /// ------
@@ -174,7 +190,7 @@ fn fit_statuses(
 /// FileNotFoundError
 ///     A library or model file that does not exist.
 #[pyfunction]
-#[pyo3(signature = (n, k, library_or_model = None, *, n_se = None, k_se = None, nk_corr = None, fit_status = None, metric = "euclidean", neighbours = 1, reject = None, max_distance = None))]
+#[pyo3(signature = (n, k, library_or_model = None, *, n_se = None, k_se = None, nk_corr = None, fit_status = None, rule = None, confidence = 0.95, metric = None, neighbours = 1, reject = None, max_distance = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn classify<'py>(
     py: Python<'py>,
@@ -185,15 +201,51 @@ pub fn classify<'py>(
     k_se: Option<F64Like<'py>>,
     nk_corr: Option<F64Like<'py>>,
     fit_status: Option<&Bound<'py, PyAny>>,
-    metric: &str,
+    rule: Option<&str>,
+    confidence: f64,
+    metric: Option<&str>,
     neighbours: usize,
     reject: Option<f64>,
     max_distance: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let metric = match metric {
+    let set_rule = match rule {
+        Some("set") => true,
+        Some("nearest") => false,
+        None => {
+            n_se.is_some()
+                && k_se.is_some()
+                && metric.is_none()
+                && neighbours == 1
+                && reject.is_none()
+                && max_distance.is_none()
+        }
+        Some(r) => {
+            return Err(value_error(format!(
+                "rule must be \"set\" or \"nearest\", got {r:?}"
+            )));
+        }
+    };
+    if !(confidence > 0.0 && confidence < 1.0) {
+        return Err(value_error(format!(
+            "confidence must be in (0, 1), got {confidence}"
+        )));
+    }
+    if set_rule
+        && (metric == Some("euclidean")
+            || neighbours != 1
+            || reject.is_some()
+            || max_distance.is_some())
+    {
+        return Err(value_error(
+            "metric=\"euclidean\", neighbours, reject and max_distance are options of \
+             rule=\"nearest\"; the set rule uses the Mahalanobis distance and rejects by \
+             confidence",
+        ));
+    }
+    let metric = match metric.unwrap_or("euclidean") {
         "euclidean" => Metric::Euclidean,
         "mahalanobis" => Metric::Mahalanobis,
-        _ => {
+        metric => {
             return Err(value_error(format!(
                 "metric must be \"euclidean\" or \"mahalanobis\", got {metric:?}"
             )));
@@ -207,10 +259,16 @@ pub fn classify<'py>(
         (None, Some(d)) => Reject::MaxDistance(d),
         (None, None) => Reject::Never,
     };
-    let cfg = ClassifierConfig {
-        metric,
-        k: neighbours,
-        reject,
+    let cfg = if set_rule {
+        ClassifierConfig::set(confidence)
+    } else {
+        ClassifierConfig {
+            metric,
+            k: neighbours,
+            reject,
+            confidence,
+            ..ClassifierConfig::default()
+        }
     };
     cfg.validate()
         .map_err(|e| value_error(format!("invalid classifier option: {e}")))?;
@@ -259,7 +317,7 @@ pub fn classify<'py>(
     };
 
     // Name tables: classes (and "unknown", ""), decision statuses.
-    let mut classes: Vec<String> = vec![String::new(), UNKNOWN.to_string()];
+    let mut classes: Vec<String> = vec![String::new(), UNKNOWN.to_string(), AMBIGUOUS.into()];
     for p in clf.prototypes() {
         if !classes.contains(&p.class) {
             classes.push(p.class.clone());
@@ -270,10 +328,16 @@ pub fn classify<'py>(
         .enumerate()
         .map(|(i, c)| (c.as_str(), i as u32))
         .collect();
-    let mut labels: Vec<String> = ["ok", "rejected", "no_covariance", "invalid_estimate"]
-        .iter()
-        .map(|s| s.to_string())
-        .collect();
+    let mut labels: Vec<String> = [
+        "ok",
+        "rejected",
+        "no_covariance",
+        "invalid_estimate",
+        "ambiguous",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
     for w in &status_words {
         labels.push(format!("fit_{w}"));
     }
@@ -290,7 +354,8 @@ pub fn classify<'py>(
     let fsc = bsc.as_ref().map(flat);
     let fst: Option<Vec<u32>> = status_codes.map(|c| c.iter().copied().collect());
     let len = fn_.len();
-    let res: Vec<(u32, f64, u32, f64, f64, u32)> = py.detach(|| {
+    type Set = (Vec<String>, Option<String>);
+    let res: Vec<((u32, f64, u32, f64, f64, u32), Set)> = py.detach(|| {
         (0..len)
             .into_par_iter()
             .map(|i| {
@@ -313,28 +378,36 @@ pub fn classify<'py>(
                 });
                 let ci = |c: &str| class_idx.get(c).copied().unwrap_or(1);
                 let ru = d.runner_up.as_deref().map_or(0, ci);
+                let set = (
+                    d.candidates.iter().map(|c| c.class.clone()).collect(),
+                    d.set_category.clone(),
+                );
                 (
-                    ci(&d.predicted),
-                    if d.nearest.is_some() {
-                        d.distance
-                    } else {
-                        f64::NAN
-                    },
-                    ru,
-                    if d.runner_up.is_some() {
-                        d.runner_up_distance
-                    } else {
-                        f64::NAN
-                    },
-                    d.margin,
-                    label_idx
-                        .get(d.status.label().as_str())
-                        .copied()
-                        .unwrap_or(3),
+                    (
+                        ci(&d.predicted),
+                        if d.nearest.is_some() {
+                            d.distance
+                        } else {
+                            f64::NAN
+                        },
+                        ru,
+                        if d.runner_up.is_some() {
+                            d.runner_up_distance
+                        } else {
+                            f64::NAN
+                        },
+                        d.margin,
+                        label_idx
+                            .get(d.status.label().as_str())
+                            .copied()
+                            .unwrap_or(3),
+                    ),
+                    set,
                 )
             })
             .collect()
     });
+    let (res, sets): (Vec<(u32, f64, u32, f64, f64, u32)>, Vec<Set>) = res.into_iter().unzip();
 
     let out = PyDict::new(py);
     if shape.is_empty() {
@@ -351,6 +424,10 @@ pub fn classify<'py>(
         out.set_item("runner_up_distance", r.3)?;
         out.set_item("margin", r.4)?;
         out.set_item("status", &labels[r.5 as usize])?;
+        let (cands, cat) = sets.into_iter().next().unwrap_or_default();
+        out.set_item("n_candidates", cands.len())?;
+        out.set_item("candidates", cands)?;
+        out.set_item("category", cat)?;
         return Ok(out);
     }
     let dim = IxDyn(&shape);
@@ -371,5 +448,34 @@ pub fn classify<'py>(
     out.set_item("runner_up_distance", to_numpy(py, fl(|r| r.3)?))?;
     out.set_item("margin", to_numpy(py, fl(|r| r.4)?))?;
     out.set_item("status", str_array(py, &label_refs, u(|r| r.5)?)?)?;
+    // Candidates (`;`-joined) and categories as str arrays over tables of distinct values.
+    let mut joined: Vec<String> = vec![String::new()];
+    let mut cats: Vec<String> = vec![String::new()];
+    let mut jc = Vec::with_capacity(sets.len());
+    let mut cc = Vec::with_capacity(sets.len());
+    let mut nc = Vec::with_capacity(sets.len());
+    for (cands, cat) in &sets {
+        let j = cands.join(";");
+        let ji = joined.iter().position(|x| *x == j).unwrap_or_else(|| {
+            joined.push(j);
+            joined.len() - 1
+        });
+        let c = cat.clone().unwrap_or_default();
+        let ki = cats.iter().position(|x| *x == c).unwrap_or_else(|| {
+            cats.push(c);
+            cats.len() - 1
+        });
+        jc.push(ji as u32);
+        cc.push(ki as u32);
+        nc.push(cands.len() as u32);
+    }
+    let arr = |v: Vec<u32>| {
+        ArrayD::from_shape_vec(dim.clone(), v).map_err(|e| value_error(e.to_string()))
+    };
+    let jr: Vec<&str> = joined.iter().map(String::as_str).collect();
+    let cr: Vec<&str> = cats.iter().map(String::as_str).collect();
+    out.set_item("candidates", str_array(py, &jr, arr(jc)?)?)?;
+    out.set_item("category", str_array(py, &cr, arr(cc)?)?)?;
+    out.set_item("n_candidates", to_numpy(py, arr(nc)?))?;
     Ok(out)
 }

@@ -45,7 +45,8 @@ def test_classify_builtin_matches_cli(tmp_path, polarid_cli):
             fh.write(f"T{i},{float(n[i])!r},{float(k[i])!r},0.05,0.1,0.3,0.001,5,ok\n")
     for lib in ("builtin", "paper2007"):
         out = tmp_path / f"{lib}.csv"
-        subprocess.run([str(polarid_cli), "classify", str(fits), "--library", lib, "-o", str(out)],
+        subprocess.run([str(polarid_cli), "classify", str(fits), "--library", lib, "--rule", "nearest",
+                        "-o", str(out)],
                        check=True, capture_output=True)
         cli = read_csv(out)
         py = polarid.classify(n, k, lib)
@@ -67,6 +68,34 @@ def test_classify_files(tmp_path):
         polarid.classify(1.0, 1.0, PROTOS, metric="cosine")
     with pytest.raises(ValueError, match="invalid classifier option"):
         polarid.classify(1.0, 1.0, PROTOS, neighbours=0)
+
+
+def test_classify_sets():
+    # Between aluminium and a second metal: both consistent -> ambiguous, common category.
+    protos = PROTOS + [("tin", 1.3, 6.9, "metal")]
+    d = polarid.classify(1.25, 6.95, protos, n_se=0.1, k_se=0.1, nk_corr=0.0)
+    assert d["predicted"] == "ambiguous" and d["status"] == "ambiguous"
+    assert d["candidates"] == ["aluminium", "tin"] or d["candidates"] == ["tin", "aluminium"]
+    assert d["n_candidates"] == 2 and d["category"] == "metal"
+    # Tight: one; far: none.
+    d = polarid.classify(1.2, 7.0, protos, n_se=0.01, k_se=0.01)
+    assert d["predicted"] == "aluminium" and d["candidates"] == ["aluminium"]
+    r = polarid.classify([1.2, 3.0], [7.0, 3.0], protos, n_se=0.01, k_se=0.01)
+    assert list(r["predicted"]) == ["aluminium", "unknown"] and r["status"][1] == "rejected"
+    assert list(r["candidates"]) == ["aluminium", ""] and list(r["n_candidates"]) == [1, 0]
+    # Nearest rule keeps the paper's answer and still reports the set.
+    d = polarid.classify(1.25, 6.95, protos, n_se=0.1, k_se=0.1, rule="nearest")
+    assert d["predicted"] in ("aluminium", "tin") and d["n_candidates"] == 2
+    # Higher confidence never shrinks the set.
+    a = polarid.classify(1.25, 6.8, protos, n_se=0.05, k_se=0.1, confidence=0.5)
+    b = polarid.classify(1.25, 6.8, protos, n_se=0.05, k_se=0.1, confidence=0.999)
+    assert set(a["candidates"]) <= set(b["candidates"])
+    with pytest.raises(ValueError, match="confidence must be in"):
+        polarid.classify(1.0, 1.0, PROTOS, n_se=0.1, k_se=0.1, confidence=1.5)
+    with pytest.raises(ValueError, match="rule must be"):
+        polarid.classify(1.0, 1.0, PROTOS, rule="vote")
+    with pytest.raises(ValueError, match="options of"):
+        polarid.classify(1.0, 1.0, PROTOS, rule="set", metric="euclidean")
 
 
 def load_pbrdf_oracle(data_dir):

@@ -85,7 +85,17 @@ fn classify_train_then_classify_reproduces_paper_table2() {
     assert_eq!(protos[1]["source"]["line"], 3);
     assert_eq!(protos[1]["source"]["target"], "A");
 
-    let o = polarid_in(d, &["classify", "test.csv", "--model", "model.json"]);
+    let o = polarid_in(
+        d,
+        &[
+            "classify",
+            "--rule",
+            "nearest",
+            "test.csv",
+            "--model",
+            "model.json",
+        ],
+    );
     assert!(o.status.success(), "{}", text(&o.stderr));
     let out = text(&o.stdout);
     let r = rows(&out);
@@ -120,6 +130,8 @@ fn classify_with_builtin_library_says_metal_and_why() {
         d,
         &[
             "classify",
+            "--rule",
+            "nearest",
             "test.csv",
             "--library",
             "builtin",
@@ -147,6 +159,8 @@ fn classify_with_builtin_library_says_metal_and_why() {
         d,
         &[
             "classify",
+            "--rule",
+            "nearest",
             "test.csv",
             "--library",
             "builtin",
@@ -161,6 +175,8 @@ fn classify_with_builtin_library_says_metal_and_why() {
         &[
             "--force",
             "classify",
+            "--rule",
+            "nearest",
             "test.csv",
             "--library",
             "builtin",
@@ -186,6 +202,8 @@ fn classify_mahalanobis_reject_and_user_library() {
         d,
         &[
             "classify",
+            "--rule",
+            "nearest",
             "test.csv",
             "--library",
             "lib.csv",
@@ -214,6 +232,8 @@ fn classify_mahalanobis_reject_and_user_library() {
         d,
         &[
             "classify",
+            "--rule",
+            "nearest",
             "test.csv",
             "--library",
             "lib.csv",
@@ -230,6 +250,8 @@ fn classify_mahalanobis_reject_and_user_library() {
         d,
         &[
             "classify",
+            "--rule",
+            "nearest",
             "test.csv",
             "--library",
             "lib.csv",
@@ -239,9 +261,19 @@ fn classify_mahalanobis_reject_and_user_library() {
     );
     assert_eq!(o.status.code(), Some(2));
     assert!(text(&o.stderr).contains("1.5"), "{}", text(&o.stderr));
-    let o = polarid_in(d, &["classify", "test.csv"]);
+    let o = polarid_in(d, &["classify", "--rule", "nearest", "test.csv"]);
     assert_eq!(o.status.code(), Some(2));
-    let o = polarid_in(d, &["classify", "test.csv", "--library", "missing.csv"]);
+    let o = polarid_in(
+        d,
+        &[
+            "classify",
+            "--rule",
+            "nearest",
+            "test.csv",
+            "--library",
+            "missing.csv",
+        ],
+    );
     assert_eq!(o.status.code(), Some(2));
     assert!(text(&o.stderr).contains("missing.csv"));
 }
@@ -264,6 +296,8 @@ fn classify_with_wolff_baseline() {
         d,
         &[
             "classify",
+            "--rule",
+            "nearest",
             "test.csv",
             "--library",
             "builtin",
@@ -331,7 +365,12 @@ fn classify_train_exit_statuses_and_messages() {
         .unwrap()
         .replace("\"format_version\": 1", "\"format_version\": 7");
     std::fs::write(d.join("m7.json"), m).unwrap();
-    let o = polarid_in(d, &["classify", "test.csv", "--model", "m7.json"]);
+    let o = polarid_in(
+        d,
+        &[
+            "classify", "--rule", "nearest", "test.csv", "--model", "m7.json",
+        ],
+    );
     assert_eq!(o.status.code(), Some(2));
     let e = text(&o.stderr);
     assert!(e.contains("m7.json") && e.contains("version 7"), "{e}");
@@ -357,7 +396,10 @@ fn classify_evaluate_leave_one_out() {
         ),
     )
     .unwrap();
-    let o = polarid_in(d, &["evaluate", "set.csv", "-o", "cm.csv"]);
+    let o = polarid_in(
+        d,
+        &["evaluate", "--rule", "nearest", "set.csv", "-o", "cm.csv"],
+    );
     assert!(o.status.success(), "{}", text(&o.stderr));
     let out = text(&o.stdout);
     assert!(out.contains("accuracy: 1.0000 (7/7)"), "{out}");
@@ -367,7 +409,7 @@ fn classify_evaluate_leave_one_out() {
     );
     let cm = std::fs::read_to_string(d.join("cm.csv")).unwrap();
     assert!(
-        cm.starts_with("# leave-one-out, metric euclidean, k = 1: accuracy 1 (7/7)"),
+        cm.starts_with("# leave-one-out, rule nearest, metric euclidean, k = 1: accuracy 1 (7/7)"),
         "{cm}"
     );
     let r = rows(&cm);
@@ -375,7 +417,12 @@ fn classify_evaluate_leave_one_out() {
     assert_eq!(r[1].join(","), "aluminum,3,0,0,3");
     assert_eq!(r[2].join(","), "copper,0,2,0,2");
     // JSON output.
-    let o = polarid_in(d, &["evaluate", "set.csv", "-o", "cm.json", "--k", "3"]);
+    let o = polarid_in(
+        d,
+        &[
+            "evaluate", "--rule", "nearest", "set.csv", "-o", "cm.json", "--k", "3",
+        ],
+    );
     assert!(o.status.success(), "{}", text(&o.stderr));
     let j: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("cm.json")).unwrap()).unwrap();
@@ -408,7 +455,12 @@ fn classify_evaluate_against_model_names_unknown_classes() {
         ),
     )
     .unwrap();
-    let o = polarid_in(d, &["evaluate", "held.csv", "--model", "m.json"]);
+    let o = polarid_in(
+        d,
+        &[
+            "evaluate", "--rule", "nearest", "held.csv", "--model", "m.json",
+        ],
+    );
     assert!(o.status.success(), "{}", text(&o.stderr));
     let out = text(&o.stdout);
     assert!(out.contains("accuracy: 0.5000 (1/2)"), "{out}");
@@ -421,7 +473,7 @@ fn classify_evaluate_against_model_names_unknown_classes() {
         ),
     )
     .unwrap();
-    let o = polarid_in(d, &["evaluate", "bad.csv"]);
+    let o = polarid_in(d, &["evaluate", "--rule", "nearest", "bad.csv"]);
     assert_eq!(o.status.code(), Some(2));
     let e = text(&o.stderr);
     assert!(
@@ -434,7 +486,7 @@ fn classify_evaluate_against_model_names_unknown_classes() {
         format!("{HEADER}t1,,1.37,3.97,0.1,0.1,0,0,9,ok\n"),
     )
     .unwrap();
-    let o = polarid_in(d, &["evaluate", "none.csv"]);
+    let o = polarid_in(d, &["evaluate", "--rule", "nearest", "none.csv"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(text(&o.stderr).contains("no labelled fits"));
 }

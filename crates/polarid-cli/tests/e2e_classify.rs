@@ -52,7 +52,16 @@ fn filter_fits(from: &Path, to: &Path, keep: impl Fn(&str) -> bool) {
 /// Classify `fits` against `model`; returns (target, class, predicted, margin) rows and
 /// prints them.
 fn classify(fits: &Path, model: &Path, out: &Path, label: &str) -> Vec<HashMap<String, String>> {
-    run(&["classify", s(fits), "--model", s(model), "-o", s(out)]);
+    run(&[
+        "classify",
+        "--rule",
+        "nearest",
+        s(fits),
+        "--model",
+        s(model),
+        "-o",
+        s(out),
+    ]);
     let rows = csv_rows(out);
     let f = csv_rows(fits);
     for r in &rows {

@@ -71,7 +71,12 @@ fn evaluate_reports_wolff_next_to_the_classifier() {
     labelled_set(d);
 
     // Without --wolff: the reference output.
-    let base = polarid_in(d, &["evaluate", "fits.csv", "-o", "base.csv"]);
+    let base = polarid_in(
+        d,
+        &[
+            "evaluate", "--rule", "nearest", "fits.csv", "-o", "base.csv",
+        ],
+    );
     ok(&base, "evaluate");
     let base_out = text(&base.stdout);
     assert!(base_out.contains("accuracy: 0.8889 (8/9)"), "{base_out}");
@@ -81,7 +86,9 @@ fn evaluate_reports_wolff_next_to_the_classifier() {
     // green paint unknown to it and silicon a semiconductor, so neither is scored.
     let o = polarid_in(
         d,
-        &["evaluate", "fits.csv", "--wolff", "meas.csv", "-o", "w.csv"],
+        &[
+            "evaluate", "--rule", "nearest", "fits.csv", "--wolff", "meas.csv", "-o", "w.csv",
+        ],
     );
     ok(&o, "evaluate --wolff");
     let out = text(&o.stdout);
@@ -132,6 +139,8 @@ fn evaluate_reports_wolff_next_to_the_classifier() {
         d,
         &[
             "evaluate",
+            "--rule",
+            "nearest",
             "fits.csv",
             "--wolff",
             "meas.csv",
@@ -207,6 +216,8 @@ fn evaluate_wolff_unknown_counts_wrong_and_model_categories_come_first() {
         d,
         &[
             "evaluate",
+            "--rule",
+            "nearest",
             "fits.csv",
             "--model",
             "m.json",
@@ -297,7 +308,7 @@ fn evaluate_wolff_bad_input_exits_2_and_writes_nothing() {
         ),
     ];
     for (extra, needles) in cases {
-        let mut args = vec!["evaluate", "fits.csv", "-o", "out.csv"];
+        let mut args = vec!["evaluate", "--rule", "nearest", "fits.csv", "-o", "out.csv"];
         args.extend_from_slice(extra);
         let o = polarid_in(d, &args);
         assert_eq!(o.status.code(), Some(2), "{extra:?}: {}", text(&o.stderr));

@@ -193,6 +193,8 @@ fn mixed_fit_recovers_diffuse_paint_and_classifies_it() {
     let lib = library(dir.path());
     let c = classes(&run_ok(&[
         "classify",
+        "--rule",
+        "nearest",
         mixed.to_str().unwrap(),
         "--library",
         lib.to_str().unwrap(),
@@ -307,6 +309,8 @@ fn depolarized_surface_is_flagged_and_not_classified() {
         );
         let c = classes(&run_ok(&[
             "classify",
+            "--rule",
+            "nearest",
             fits_path.to_str().unwrap(),
             "--library",
             lib.to_str().unwrap(),
@@ -387,6 +391,8 @@ fn mitsuba_diffuse_paint_mixed_beats_paper() {
         let out = dir.path().join(name);
         let c = classes(&run_ok(&[
             "classify",
+            "--rule",
+            "nearest",
             out.to_str().unwrap(),
             "--library",
             lib.to_str().unwrap(),

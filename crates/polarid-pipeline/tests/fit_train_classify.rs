@@ -85,15 +85,26 @@ fn fit_train_classify_evaluate() {
     assert_eq!(c.notes.len(), 4);
     assert_eq!(c.label, "the model");
 
-    let ev = evaluate::evaluate(
+    // The paper's nearest rule: every held-out target goes to its class.
+    let nearest = EvaluateConfig {
+        classifier: polarid_core::classify::ClassifierConfig::default(),
+        ..Default::default()
+    };
+    let ev = evaluate::evaluate(Path::new("fits.csv"), &fits, None, &nearest).unwrap();
+    assert_eq!(ev.mode, "leave-one-out");
+    assert_eq!(ev.evaluation.accuracy, 1.0);
+    // The default set rule: noise-free fits have tiny standard errors, so al1 and al2
+    // (or cu1 and cu2) are distinct materials: each held-out target is `unknown`.
+    let sets = evaluate::evaluate(
         Path::new("fits.csv"),
         &fits,
         None,
         &EvaluateConfig::default(),
     )
     .unwrap();
-    assert_eq!(ev.mode, "leave-one-out");
-    assert_eq!(ev.evaluation.accuracy, 1.0);
+    let st = sets.evaluation.sets.as_ref().unwrap();
+    assert_eq!((st.tested, st.empty), (4, 4));
+    assert_eq!(sets.evaluation.confusion.get("aluminum", "unknown"), 2);
     assert!(ev.wolff.is_none() && ev.warnings.is_empty());
 }
 

@@ -34,7 +34,8 @@ pub struct Args {
     pub method: MethodArgs,
     #[command(flatten)]
     pub wolff: WolffArgs,
-    /// How many nearest prototypes to list per target in the explanation (standard error).
+    /// How many nearest prototypes to list per target in the explanation (standard error);
+    /// the consistent set is listed whole.
     #[arg(long, default_value_t = 3)]
     pub explain: usize,
 }
@@ -60,13 +61,23 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     ctx.write_output(out_path.as_deref(), &inputs, |w| {
         classification::write(w, out_path.as_deref().unwrap_or(Path::new("-")), &out.rows)
     })?;
+    let count = |s: &str| out.rows.iter().filter(|r| r.status == s).count();
     ctx.info(format!(
-        "classified {} target(s) against {} ({} prototypes, {} metric, k = {})",
+        "classified {} target(s) against {} ({} prototypes, rule {}, {} metric{}): {} ok, {} \
+         ambiguous, {} rejected, {} other",
         out.rows.len(),
         out.label,
         out.classifier.prototypes().len(),
-        classifier.metric.name(),
-        classifier.k
+        classifier.rule.name(),
+        classifier.distance_metric().name(),
+        match classifier.rule {
+            polarid_core::classify::Rule::Set => format!(", confidence {}", classifier.confidence),
+            polarid_core::classify::Rule::Nearest => format!(", k = {}", classifier.k),
+        },
+        count("ok"),
+        count("ambiguous"),
+        count("rejected"),
+        out.rows.len() - count("ok") - count("ambiguous") - count("rejected")
     ));
     for w in &out.warnings {
         ctx.info(format!("polarid: warning: {w}"));

@@ -5,7 +5,7 @@
 use std::sync::{Mutex, OnceLock};
 
 use clap::ValueEnum;
-use polarid_core::classify::{ClassifierConfig, Confusion, Metric, Reject};
+use polarid_core::classify::{ClassifierConfig, Confusion, Metric, Reject, Rule};
 use polarid_pipeline::{PipelineError, Progress, Warning};
 
 use crate::{BadInput, Ctx};
@@ -112,12 +112,31 @@ pub enum MetricArg {
     Mahalanobis,
 }
 
+/// Decision rule on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum RuleArg {
+    /// Every material consistent with the estimate at --confidence: one → it, several →
+    /// `ambiguous`, none → `unknown` (Mahalanobis distance; needs standard errors).
+    Set,
+    /// The paper's nearest neighbour (with --metric, --k, --reject, --max-distance).
+    Nearest,
+}
+
 /// Classifier options shared by `classify` and `evaluate`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct MethodArgs {
-    /// Distance metric.
-    #[arg(long, value_enum, default_value_t = MetricArg::Euclidean)]
-    pub metric: MetricArg,
+    /// Decision rule (see docs/CLASSIFY.md): `set` (the default) answers with every
+    /// material consistent with the estimate; `nearest` is the paper's rule.
+    #[arg(long, value_enum, default_value_t = RuleArg::Set)]
+    pub rule: RuleArg,
+    /// Confidence of the consistent set, in (0, 1): a material is consistent when its
+    /// squared Mahalanobis distance is at most -2 ln(1 - P) (chi-square, 2 dof).
+    #[arg(long, value_name = "P", default_value_t = 0.95)]
+    pub confidence: f64,
+    /// Distance metric of the nearest rule (default euclidean, the paper's); the set rule
+    /// uses the Mahalanobis distance.
+    #[arg(long, value_enum)]
+    pub metric: Option<MetricArg>,
     /// Number of nearest prototypes that vote (1: the paper's nearest neighbour; ties in
     /// votes go to the class with the nearest member).
     #[arg(long = "k", value_name = "N", default_value_t = 1)]
@@ -133,8 +152,33 @@ pub struct MethodArgs {
 }
 
 impl MethodArgs {
-    /// The classifier settings, checked (a bad value is a usage error).
+    /// The classifier settings, checked (a bad value is a usage error naming the option
+    /// and the value).
     pub fn config(&self) -> anyhow::Result<ClassifierConfig> {
+        if !(self.confidence > 0.0 && self.confidence < 1.0) {
+            return Err(BadInput(format!(
+                "--confidence must be in (0, 1), got {}",
+                self.confidence
+            ))
+            .into());
+        }
+        if self.rule == RuleArg::Set {
+            let bad = match (self.metric, self.neighbours, self.reject, self.max_distance) {
+                (Some(MetricArg::Euclidean), ..) => Some(("--metric", "euclidean".to_string())),
+                (_, k, ..) if k != 1 => Some(("--k", k.to_string())),
+                (_, _, Some(p), _) => Some(("--reject", p.to_string())),
+                (_, _, _, Some(d)) => Some(("--max-distance", d.to_string())),
+                _ => None,
+            };
+            if let Some((opt, v)) = bad {
+                return Err(BadInput(format!(
+                    "{opt} {v} is an option of --rule nearest; the set rule uses the \
+                     Mahalanobis distance and rejects by --confidence (add --rule nearest)"
+                ))
+                .into());
+            }
+            return Ok(ClassifierConfig::set(self.confidence));
+        }
         let reject = match (self.reject, self.max_distance) {
             (Some(p), _) => Reject::Chi2 { p },
             (None, Some(d)) => Reject::MaxDistance(d),
@@ -142,11 +186,13 @@ impl MethodArgs {
         };
         let cfg = ClassifierConfig {
             metric: match self.metric {
-                MetricArg::Euclidean => Metric::Euclidean,
-                MetricArg::Mahalanobis => Metric::Mahalanobis,
+                None | Some(MetricArg::Euclidean) => Metric::Euclidean,
+                Some(MetricArg::Mahalanobis) => Metric::Mahalanobis,
             },
             k: self.neighbours,
             reject,
+            rule: Rule::Nearest,
+            confidence: self.confidence,
         };
         cfg.validate()
             .map_err(|e| BadInput(format!("invalid classifier option: {e}")))?;

@@ -1,6 +1,7 @@
 //! `polarid evaluate FITS.csv`: leave-one-out evaluation of the classifier over a labelled
 //! set of fits (or, with `--model`, evaluation of a trained model on a labelled test set):
-//! confusion matrix and accuracy, printed as a table and optionally written as CSV or JSON.
+//! confusion matrix and accuracy, and the consistent sets' coverage (truth in the set) and
+//! sizes, printed as a table and optionally written as CSV or JSON.
 //! With `--wolff MEASUREMENTS.csv`, Wolff's metal/dielectric baseline is scored next to
 //! it (see `polarid_pipeline::evaluate` for the rules).
 
@@ -8,7 +9,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use clap::ValueEnum;
-use polarid_core::classify::Evaluation;
+use polarid_core::classify::{ClassifierConfig, Evaluation, SetStats};
 use polarid_io::IoError;
 use polarid_io::table::{fmt_f64, write_rows};
 use polarid_pipeline::classify::read_fits;
@@ -94,6 +95,10 @@ fn table(ev: &Evaluation, mode: &str) -> String {
         c.correct(),
         c.total()
     ));
+    if let Some(st) = &ev.sets {
+        s.push_str(&sets_line(st));
+        s.push('\n');
+    }
     for (t, st) in &ev.skipped {
         s.push_str(&format!("skipped {t}: fit status `{st}`, not classified\n"));
     }
@@ -104,6 +109,38 @@ fn table(ev: &Evaluation, mode: &str) -> String {
         ));
     }
     s
+}
+
+/// `sets at 95%: coverage 0.9500 (19/20), mean size 1.30; 1: 14 (13 correct), several: 5,
+/// none: 1`.
+fn sets_line(st: &SetStats) -> String {
+    format!(
+        "sets at {}%: coverage {:.4} ({}/{}), mean size {:.2}; one: {} ({} correct), several: \
+         {}, none: {}",
+        st.confidence * 100.0,
+        st.coverage,
+        st.covered,
+        st.tested,
+        st.mean_size,
+        st.single,
+        st.single_correct,
+        st.several,
+        st.empty
+    )
+}
+
+fn sets_json(st: &SetStats) -> serde_json::Value {
+    serde_json::json!({
+        "confidence": st.confidence,
+        "tested": st.tested,
+        "covered": st.covered,
+        "coverage": num(st.coverage),
+        "mean_size": num(st.mean_size),
+        "single": st.single,
+        "single_correct": st.single_correct,
+        "several": st.several,
+        "empty": st.empty,
+    })
 }
 
 fn write_csv(
@@ -128,12 +165,14 @@ fn write_csv(
     write_rows(w, path, &cols, rows)
 }
 
-fn to_json(ev: &Evaluation, mode: &str, metric: &str, k: usize) -> serde_json::Value {
+fn to_json(ev: &Evaluation, mode: &str, cfg: &ClassifierConfig) -> serde_json::Value {
     let c = &ev.confusion;
     serde_json::json!({
         "mode": mode,
-        "metric": metric,
-        "k": k,
+        "rule": cfg.rule.name(),
+        "metric": cfg.distance_metric().name(),
+        "k": cfg.k,
+        "sets": ev.sets.as_ref().map(sets_json),
         "accuracy": num(ev.accuracy),
         "correct": c.correct(),
         "total": c.total(),
@@ -150,6 +189,8 @@ fn to_json(ev: &Evaluation, mode: &str, metric: &str, k: usize) -> serde_json::V
             "runner_up": i.decision.runner_up,
             "runner_up_distance": num(i.decision.runner_up_distance),
             "status": i.decision.status.label(),
+            "candidates": i.decision.candidates.iter().map(|c| serde_json::json!({"class": c.class, "distance": num(c.distance)})).collect::<Vec<_>>(),
+            "category": i.decision.set_category,
         })).collect::<Vec<_>>(),
     })
 }
@@ -165,22 +206,27 @@ fn write_file(
     let (ev, mode, metric, k) = (
         &o.evaluation,
         &o.mode,
-        cfg.classifier.metric.name(),
+        cfg.classifier.distance_metric().name(),
         cfg.classifier.k,
     );
     match format {
         Format::Csv => {
             let header = format!(
-                "# {mode}, metric {metric}, k = {k}: accuracy {} ({}/{})\n{}",
+                "# {mode}, rule {}, metric {metric}, k = {k}: accuracy {} ({}/{})\n{}{}",
+                cfg.classifier.rule.name(),
                 fmt_f64(ev.accuracy),
                 ev.confusion.correct(),
                 ev.confusion.total(),
+                ev.sets
+                    .as_ref()
+                    .map(|st| format!("# {}\n", sets_line(st)))
+                    .unwrap_or_default(),
                 o.wolff.as_ref().map(wolff_csv_header).unwrap_or_default()
             );
             write_csv(w, out, ev, &header)
         }
         Format::Json => {
-            let mut v = to_json(ev, mode, metric, k);
+            let mut v = to_json(ev, mode, &cfg.classifier);
             if let (Some(wo), Some(obj)) = (&o.wolff, v.as_object_mut()) {
                 obj.insert("wolff".into(), wolff_json(wo));
             }

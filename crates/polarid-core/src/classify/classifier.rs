@@ -9,14 +9,25 @@
 //! Votes among the `k` nearest prototypes; a tie goes to the tied class whose nearest member
 //! is closest. The χ² gate rejects when `d_M² > −2 ln(1 − p)` (2 degrees of freedom).
 //!
+//! The consistent set: every class whose nearest prototype (by the set distance, the
+//! Mahalanobis distance in `(n, k)`, or in `(n, u = k²)` when the estimate's `k_se` is
+//! one-sided or either point is within `NEAR_ZERO_SIGMAS` k_se of `k = 0`) has
+//! `d_M² ≤ −2 ln(1 − confidence)`, ranked by distance, ties in the
+//! prototypes' order.
+//!
 //! # Reference
 //! Thilak, Creusere & Voelz, ICIP 2007, section 6 (Tables 1 and 2 in the tests).
 
 use super::{
-    ClassifierConfig, Decision, Estimate, Metric, Neighbour, Prototype, Reject, Status, UNKNOWN,
-    check_class_name, chi2_2dof_quantile,
+    AMBIGUOUS, Candidate, ClassifierConfig, Decision, Estimate, Metric, Neighbour, Prototype,
+    Reject, Rule, Status, UNKNOWN, check_class_name, chi2_2dof_quantile,
 };
 use crate::error::{CoreError, Result};
+
+/// The consistency test is done in `(n, u = k²)` when the estimate or the prototype is
+/// within this many of the estimate's `k_se` of `k = 0` (or the `k_se` is one-sided):
+/// there the DoLP is linear in `u`, not in `k` (paper eq. 14–15).
+pub const NEAR_ZERO_SIGMAS: f64 = 3.0;
 
 /// Nearest-neighbour classifier over a set of prototypes.
 #[derive(Debug, Clone)]
@@ -84,7 +95,84 @@ impl Classifier {
         cov.mahalanobis2(est.n - p.n, est.k - p.k).map(f64::sqrt)
     }
 
-    /// Classify one estimate.
+    /// Distance of the consistency test between the estimate and prototype `p`: the
+    /// Mahalanobis distance with `Σ_est + Σ_proto` in `(n, k)`, or in `(n, u = k²)` (both
+    /// covariances through [`Cov2::to_nu`](super::Cov2::to_nu),
+    /// `Δ = (n̂ − n_p, k̂² − k_p²)`) near `k = 0`: when the estimate's `k_se` is one-sided,
+    /// or the estimate or the prototype is within [`NEAR_ZERO_SIGMAS`]` · k_se` of `k = 0`.
+    /// The choice does not depend on the confidence, so a higher confidence never shrinks
+    /// the set. `None` without a usable covariance.
+    pub fn set_distance(est: &Estimate, p: &Prototype) -> Option<f64> {
+        let near_zero = est.cov.is_some_and(|c| {
+            let k_se = c.kk.sqrt();
+            c.k_is_one_sided(est.k)
+                || est.k <= NEAR_ZERO_SIGMAS * k_se
+                || p.k <= NEAR_ZERO_SIGMAS * k_se
+        });
+        if !near_zero {
+            return Self::mahalanobis(est, p);
+        }
+        let ce = est.cov.map(|c| c.to_nu(est.k));
+        let cp = p.cov.map(|c| c.to_nu(p.k));
+        let cov = match (ce, cp) {
+            (Some(a), Some(b)) => a + b,
+            (Some(a), None) | (None, Some(a)) => a,
+            (None, None) => return None,
+        };
+        cov.mahalanobis2(est.n - p.n, est.k * est.k - p.k * p.k)
+            .map(f64::sqrt)
+    }
+
+    /// Set distances to every prototype, ranked (ties in the prototypes' order); `Err`
+    /// with the first prototype lacking a usable covariance.
+    fn set_ranked(&self, est: &Estimate) -> std::result::Result<Vec<Neighbour>, usize> {
+        let mut ranked = Vec::with_capacity(self.prototypes.len());
+        for (index, p) in self.prototypes.iter().enumerate() {
+            let distance = Self::set_distance(est, p).ok_or(index)?;
+            ranked.push(Neighbour { index, distance });
+        }
+        ranked.sort_by(|a, b| {
+            a.distance
+                .total_cmp(&b.distance)
+                .then(a.index.cmp(&b.index))
+        });
+        Ok(ranked)
+    }
+
+    /// The consistent classes among `ranked` (set distances): each class once, at its
+    /// nearest prototype, kept when `d² ≤ −2 ln(1 − confidence)`; and their common
+    /// category.
+    fn candidates(&self, ranked: &[Neighbour]) -> (Vec<Candidate>, Option<String>) {
+        let q = chi2_2dof_quantile(self.config.confidence);
+        let mut out: Vec<Candidate> = Vec::new();
+        for nb in ranked {
+            if nb.distance * nb.distance > q {
+                break;
+            }
+            let p = &self.prototypes[nb.index];
+            if out.iter().any(|c| c.class == p.class) {
+                continue;
+            }
+            let category = self
+                .prototypes
+                .iter()
+                .filter(|o| o.class == p.class)
+                .find_map(|o| o.category.clone());
+            out.push(Candidate {
+                class: p.class.clone(),
+                index: nb.index,
+                distance: nb.distance,
+                category,
+            });
+        }
+        let common = match out.first().and_then(|c| c.category.clone()) {
+            Some(cat) if out.iter().all(|c| c.category.as_ref() == Some(&cat)) => Some(cat),
+            _ => None,
+        };
+        (out, common)
+    }
+
+    /// Classify one estimate with the configured [`Rule`].
     pub fn classify(&self, est: &Estimate) -> Decision {
         if !est.fit_status.is_ok() {
             return Decision::unclassified(
@@ -104,6 +192,96 @@ impl Classifier {
                 ),
             );
         }
+        match self.config.rule {
+            Rule::Nearest => {
+                let mut d = self.classify_nearest(est);
+                if d.status != Status::NoCovariance
+                    && let Ok(ranked) = self.set_ranked(est)
+                {
+                    let (c, cat) = self.candidates(&ranked);
+                    d.candidates = c;
+                    d.set_category = cat;
+                    d.set_tested = true;
+                }
+                d
+            }
+            Rule::Set => self.classify_set(est),
+        }
+    }
+
+    /// The set rule (estimate already checked).
+    fn classify_set(&self, est: &Estimate) -> Decision {
+        let ranked = match self.set_ranked(est) {
+            Ok(r) => r,
+            Err(i) => {
+                let p = &self.prototypes[i];
+                return Decision::unclassified(
+                    Status::NoCovariance,
+                    format!(
+                        "not classified: the consistency test needs a covariance and neither \
+                         the estimate nor prototype `{}` ({}) has a usable one",
+                        p.class, p.source
+                    ),
+                );
+            }
+        };
+        let (candidates, set_category) = self.candidates(&ranked);
+        // ok: there is at least one prototype (checked in `new`), so `ranked` is not empty.
+        let nearest = ranked[0];
+        let class = self.prototypes[nearest.index].class.clone();
+        let runner = ranked
+            .iter()
+            .find(|nb| self.prototypes[nb.index].class != class)
+            .copied();
+        let runner_up_distance = runner.map_or(f64::NAN, |n| n.distance);
+        let pct = self.config.confidence * 100.0;
+        let (predicted, status, reason) = match candidates.len() {
+            0 => (
+                UNKNOWN.to_string(),
+                Status::Rejected,
+                format!(
+                    "rejected: no material is consistent at {pct}% confidence (Mahalanobis \
+                     distance <= {:.3}); nearest `{class}` at {:.3}",
+                    chi2_2dof_quantile(self.config.confidence).sqrt(),
+                    nearest.distance
+                ),
+            ),
+            1 => (class.clone(), Status::Ok, String::new()),
+            n => (
+                AMBIGUOUS.to_string(),
+                Status::Ambiguous,
+                format!(
+                    "ambiguous: {n} materials are consistent at {pct}% confidence: {}",
+                    candidates
+                        .iter()
+                        .map(|c| format!("{} ({:.3})", c.class, c.distance))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            ),
+        };
+        Decision {
+            predicted,
+            nearest_class: Some(class),
+            nearest: Some(nearest),
+            distance: nearest.distance,
+            runner_up: runner.map(|r| self.prototypes[r.index].class.clone()),
+            runner_up_distance,
+            margin: runner_up_distance - nearest.distance,
+            gate: Some(nearest.distance),
+            votes: 1,
+            status,
+            reason,
+            ranked,
+            candidates,
+            set_tested: true,
+            set_category,
+        }
+    }
+
+    /// The paper's nearest-neighbour rule with k-NN votes and the reject option
+    /// (estimate already checked).
+    fn classify_nearest(&self, est: &Estimate) -> Decision {
         // Distances to every prototype.
         let mut ranked: Vec<Neighbour> = Vec::with_capacity(self.prototypes.len());
         for (index, p) in self.prototypes.iter().enumerate() {
@@ -173,6 +351,9 @@ impl Classifier {
             status: Status::Ok,
             reason: String::new(),
             ranked,
+            candidates: Vec::new(),
+            set_tested: false,
+            set_category: None,
         };
 
         // Reject option.

@@ -1,10 +1,12 @@
-//! Settings of a [`Classifier`](super::Classifier): the distance [`Metric`], the number of
-//! voting neighbours and the [`Reject`] option with its χ² gate.
+//! Settings of a [`Classifier`](super::Classifier): the decision [`Rule`] (the paper's
+//! nearest neighbour or the consistent set), the set's confidence, the distance [`Metric`],
+//! the number of voting neighbours and the [`Reject`] option with its χ² gate.
 //!
 //! ```text
 //! d_E = √((n̂ − n_p)² + (k̂ − k_p)²)                    (paper section 6)
 //! d_M² = Δᵀ (Σ_est + Σ_proto)⁻¹ Δ
 //! reject when d_M² > χ²₂(p) = −2 ln(1 − p)           (χ²₂ CDF: 1 − exp(−x/2))
+//! consistent (set rule) when d_M² ≤ χ²₂(confidence)
 //! ```
 //!
 //! # Reference
@@ -32,6 +34,37 @@ impl Metric {
         }
     }
 }
+
+/// How a [`Decision`](super::Decision)'s answer is chosen.
+///
+/// The consistent set (the materials whose Mahalanobis distance is within the χ²₂
+/// quantile of the confidence) is computed under both rules whenever a covariance is
+/// available; the rule decides only what `predicted` and `status` say.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Rule {
+    /// The paper's rule: the nearest prototype's class (with the metric, `k` votes and the
+    /// reject option). The default of the library type, so that a bare [`ClassifierConfig`]
+    /// is the paper's classifier; the command line and Python default to [`Rule::Set`].
+    #[default]
+    Nearest,
+    /// Answers as sets: one consistent material → that material (`ok`); several →
+    /// [`AMBIGUOUS`](super::AMBIGUOUS) (`ambiguous`); none → [`UNKNOWN`](super::UNKNOWN)
+    /// (`rejected`). Always uses the Mahalanobis distance, `k = 1` and no reject option.
+    Set,
+}
+
+impl Rule {
+    /// Name used in files and on the command line: `nearest` or `set`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Rule::Nearest => "nearest",
+            Rule::Set => "set",
+        }
+    }
+}
+
+/// Default confidence of the consistent set (95%).
+pub const DEFAULT_CONFIDENCE: f64 = 0.95;
 
 /// When to answer [`UNKNOWN`](super::UNKNOWN) instead of the nearest class.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -63,8 +96,13 @@ pub struct ClassifierConfig {
     pub metric: Metric,
     /// Number of neighbours that vote (1 = the paper's nearest neighbour).
     pub k: usize,
-    /// Reject option.
+    /// Reject option (nearest rule only).
     pub reject: Reject,
+    /// Decision rule.
+    pub rule: Rule,
+    /// Confidence of the consistent set, in `(0, 1)`: a material is consistent when
+    /// `d_M² ≤ −2 ln(1 − confidence)`.
+    pub confidence: f64,
 }
 
 impl Default for ClassifierConfig {
@@ -73,13 +111,62 @@ impl Default for ClassifierConfig {
             metric: Metric::Euclidean,
             k: 1,
             reject: Reject::Never,
+            rule: Rule::Nearest,
+            confidence: DEFAULT_CONFIDENCE,
         }
     }
 }
 
 impl ClassifierConfig {
-    /// Check the settings.
+    /// The set rule at `confidence` (Mahalanobis distance, `k = 1`, no reject option).
+    pub fn set(confidence: f64) -> Self {
+        Self {
+            metric: Metric::Mahalanobis,
+            rule: Rule::Set,
+            confidence,
+            ..Self::default()
+        }
+    }
+
+    /// The metric distances are reported in: [`Metric::Mahalanobis`] under the set rule,
+    /// else [`ClassifierConfig::metric`].
+    pub fn distance_metric(&self) -> Metric {
+        match self.rule {
+            Rule::Set => Metric::Mahalanobis,
+            Rule::Nearest => self.metric,
+        }
+    }
+
+    /// Check the settings: `k >= 1`, the confidence in `(0, 1)`, a reject probability in
+    /// `(0, 1)` or a positive maximum distance; the set rule with `k = 1` and no reject
+    /// option.
     pub fn validate(&self) -> Result<()> {
+        if !(self.confidence > 0.0 && self.confidence < 1.0) {
+            return Err(CoreError::OutOfRange {
+                name: "confidence",
+                value: self.confidence,
+                expected: "in (0, 1)",
+            });
+        }
+        if self.rule == Rule::Set {
+            if self.k != 1 {
+                return Err(CoreError::OutOfRange {
+                    name: "k (neighbours) with the set rule",
+                    value: self.k as f64,
+                    expected: "1 (the set rule does not vote)",
+                });
+            }
+            match self.reject {
+                Reject::Never => {}
+                Reject::Chi2 { p: v } | Reject::MaxDistance(v) => {
+                    return Err(CoreError::OutOfRange {
+                        name: "reject option with the set rule",
+                        value: v,
+                        expected: "none (the set rule rejects by its confidence)",
+                    });
+                }
+            }
+        }
         if self.k == 0 {
             return Err(CoreError::OutOfRange {
                 name: "k (neighbours)",

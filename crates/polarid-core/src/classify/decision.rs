@@ -1,6 +1,7 @@
 //! The outcome of classifying one estimate: the [`Decision`] with its [`Status`], the
 //! runner-up, the margin `runner_up_distance − distance` and every prototype ranked by
-//! distance.
+//! distance, and the consistent set: the [`Candidate`]s within the χ²₂ quantile of the
+//! confidence, ranked, with their common category.
 
 use super::UNKNOWN;
 use crate::status::FitStatus;
@@ -10,8 +11,11 @@ use crate::status::FitStatus;
 pub enum Status {
     /// Classified.
     Ok,
-    /// The predicted class's nearest prototype is beyond the reject threshold.
+    /// The predicted class's nearest prototype is beyond the reject threshold, or (set
+    /// rule) no material is consistent with the estimate.
     Rejected,
+    /// Set rule: several materials are consistent with the estimate.
+    Ambiguous,
     /// The fit's status is not `ok` (the fit status is carried): not classified.
     FitNotOk(FitStatus),
     /// The Mahalanobis distance (metric or χ² gate) needs a covariance and there is none.
@@ -21,12 +25,14 @@ pub enum Status {
 }
 
 impl Status {
-    /// The word written in the `status` column: `ok`, `rejected`, `fit_<fit status>`,
+    /// The word written in the `status` column: `ok`, `rejected`, `ambiguous`,
+    /// `fit_<fit status>`,
     /// `no_covariance`, `invalid_estimate`.
     pub fn label(&self) -> String {
         match self {
             Status::Ok => "ok".into(),
             Status::Rejected => "rejected".into(),
+            Status::Ambiguous => "ambiguous".into(),
             Status::FitNotOk(s) => format!("fit_{s}"),
             Status::NoCovariance => "no_covariance".into(),
             Status::InvalidEstimate => "invalid_estimate".into(),
@@ -41,6 +47,20 @@ pub struct Neighbour {
     pub index: usize,
     /// Distance in the classifier's metric.
     pub distance: f64,
+}
+
+/// A material consistent with an estimate: its class, its nearest prototype and the
+/// Mahalanobis distance to it (in `(n, u = k²)` near `k = 0`, see [`Cov2`](super::Cov2)).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Candidate {
+    /// Class (material) name.
+    pub class: String,
+    /// Index of the class's nearest prototype in the classifier's prototypes.
+    pub index: usize,
+    /// Mahalanobis distance to that prototype.
+    pub distance: f64,
+    /// The class's category, when known.
+    pub category: Option<String>,
 }
 
 /// The outcome of classifying one estimate.
@@ -72,6 +92,25 @@ pub struct Decision {
     pub reason: String,
     /// All prototypes ranked by distance (empty when nothing was compared).
     pub ranked: Vec<Neighbour>,
+    /// The materials consistent with the estimate at the configured confidence, best
+    /// first (ties in the prototypes' order); empty when none is, or when no covariance
+    /// allows the test (see [`Decision::set_tested`]). Computed under both rules.
+    pub candidates: Vec<Candidate>,
+    /// Whether the consistent set was computed (a covariance was available).
+    pub set_tested: bool,
+    /// The common category of [`Decision::candidates`] when they all have the same one.
+    pub set_category: Option<String>,
+}
+
+impl Decision {
+    /// The candidates' classes joined with `;` (the `candidates` column).
+    pub fn candidates_text(&self) -> String {
+        self.candidates
+            .iter()
+            .map(|c| c.class.as_str())
+            .collect::<Vec<_>>()
+            .join(";")
+    }
 }
 
 impl Decision {
@@ -89,6 +128,9 @@ impl Decision {
             status,
             reason,
             ranked: Vec::new(),
+            candidates: Vec::new(),
+            set_tested: false,
+            set_category: None,
         }
     }
 }

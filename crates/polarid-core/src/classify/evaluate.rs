@@ -1,6 +1,8 @@
 //! Evaluation of a classifier on labelled estimates: [`leave_one_out`] (each estimate
 //! against all the others) and [`evaluate`] (against a trained classifier), with the
-//! [`Confusion`] matrix and the accuracy `correct / total` ([`UNKNOWN`] counts as wrong).
+//! [`Confusion`] matrix and the accuracy `correct / total` ([`UNKNOWN`] and
+//! [`AMBIGUOUS`](super::AMBIGUOUS) count as wrong), and the consistent sets' [`SetStats`]:
+//! coverage (truth in the set) and set sizes.
 
 use super::{
     Classifier, ClassifierConfig, Decision, Estimate, Prototype, UNKNOWN, check_class_name,
@@ -124,6 +126,56 @@ pub struct EvalItem {
     pub decision: Decision,
 }
 
+/// Statistics of the consistent sets over the evaluated items whose set was tested.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SetStats {
+    /// Confidence of the sets.
+    pub confidence: f64,
+    /// Items whose set was tested (a covariance was available).
+    pub tested: u64,
+    /// Items whose true class is among the candidates.
+    pub covered: u64,
+    /// `covered / tested`: the coverage, to compare with the confidence.
+    pub coverage: f64,
+    /// Mean number of candidates.
+    pub mean_size: f64,
+    /// Items with exactly one candidate / several / none.
+    pub single: u64,
+    /// Items with several candidates.
+    pub several: u64,
+    /// Items with no candidate.
+    pub empty: u64,
+    /// Items with exactly one candidate, the true class.
+    pub single_correct: u64,
+}
+
+impl SetStats {
+    /// Statistics of `items` (only those whose set was tested); `None` when none was.
+    pub fn of(items: &[EvalItem], confidence: f64) -> Option<Self> {
+        let tested: Vec<&EvalItem> = items.iter().filter(|i| i.decision.set_tested).collect();
+        if tested.is_empty() {
+            return None;
+        }
+        let count = |f: &dyn Fn(&EvalItem) -> bool| tested.iter().filter(|i| f(i)).count() as u64;
+        let covered = count(&|i| i.decision.candidates.iter().any(|c| c.class == i.class));
+        let sizes: usize = tested.iter().map(|i| i.decision.candidates.len()).sum();
+        let t = tested.len() as f64;
+        Some(Self {
+            confidence,
+            tested: tested.len() as u64,
+            covered,
+            coverage: covered as f64 / t,
+            mean_size: sizes as f64 / t,
+            single: count(&|i| i.decision.candidates.len() == 1),
+            several: count(&|i| i.decision.candidates.len() > 1),
+            empty: count(&|i| i.decision.candidates.is_empty()),
+            single_correct: count(&|i| {
+                i.decision.candidates.len() == 1 && i.decision.candidates[0].class == i.class
+            }),
+        })
+    }
+}
+
 /// Result of an evaluation.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Evaluation {
@@ -139,6 +191,8 @@ pub struct Evaluation {
     pub confusion: Confusion,
     /// Fraction of evaluated items predicted as their true class.
     pub accuracy: f64,
+    /// Coverage and sizes of the consistent sets (`None` when no set was tested).
+    pub sets: Option<SetStats>,
 }
 
 fn check_labels(items: &[Labelled]) -> Result<()> {
@@ -152,6 +206,7 @@ fn finish(
     items: Vec<EvalItem>,
     skipped: Vec<(String, FitStatus)>,
     mut unrep: Vec<String>,
+    confidence: f64,
 ) -> Evaluation {
     unrep.sort();
     unrep.dedup();
@@ -161,7 +216,9 @@ fn finish(
             .map(|i| (i.class.as_str(), i.decision.predicted.as_str())),
     );
     let accuracy = confusion.accuracy();
+    let sets = SetStats::of(&items, confidence);
     Evaluation {
+        sets,
         items,
         skipped,
         unrepresented: unrep,
@@ -214,7 +271,7 @@ pub fn leave_one_out(items: &[Labelled], config: ClassifierConfig) -> Result<Eva
             decision: clf.classify(&it.estimate),
         });
     }
-    Ok(finish(out, skipped, unrep))
+    Ok(finish(out, skipped, unrep, config.confidence))
 }
 
 /// Evaluate a trained classifier on a labelled test set (no leave-one-out). Items whose
@@ -239,7 +296,7 @@ pub fn evaluate(classifier: &Classifier, items: &[Labelled]) -> Result<Evaluatio
             decision: classifier.classify(&it.estimate),
         });
     }
-    Ok(finish(out, skipped, unrep))
+    Ok(finish(out, skipped, unrep, classifier.config().confidence))
 }
 
 #[cfg(test)]
@@ -280,5 +337,38 @@ mod tests {
         assert_eq!(ev.confusion.get("paint", "paint"), 0);
         assert_eq!(ev.confusion.total(), 5);
         assert!((ev.accuracy - 0.8).abs() < 1e-12);
+        assert!(ev.sets.is_none(), "no covariance, no set");
+    }
+
+    #[test]
+    fn set_stats_count_coverage_and_sizes() {
+        let mk = |t: &str, c: &str, n: f64, k: f64| Labelled {
+            target: t.into(),
+            class: c.into(),
+            estimate: Estimate {
+                cov: super::super::Cov2::from_se(0.1, 0.1, 0.0),
+                ..Estimate::point(n, k)
+            },
+            source: t.into(),
+        };
+        let items = vec![
+            mk("a1", "al", 1.6, 4.5),
+            mk("a2", "al", 1.55, 4.45),
+            mk("c1", "cu", 0.5, 3.2),
+            mk("c2", "cu", 0.55, 3.15),
+            mk("x1", "x", 0.52, 3.18),
+            mk("x2", "x", 9.0, 9.0),
+        ];
+        let ev = leave_one_out(&items, ClassifierConfig::set(0.95)).unwrap();
+        let s = ev.sets.unwrap();
+        assert_eq!(s.tested, 6);
+        // a1, a2: {al}; c1, c2: {x, cu} or {cu, x}; x1: {cu}; x2: {}.
+        assert_eq!((s.single, s.several, s.empty), (3, 2, 1));
+        assert_eq!(s.covered, 4);
+        assert_eq!(s.single_correct, 2);
+        assert!((s.mean_size - 7.0 / 6.0).abs() < 1e-12);
+        assert!((s.coverage - 4.0 / 6.0).abs() < 1e-12);
+        assert_eq!(ev.confusion.get("cu", "ambiguous"), 2);
+        assert_eq!(ev.confusion.get("x", "unknown"), 1);
     }
 }

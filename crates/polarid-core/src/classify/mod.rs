@@ -18,6 +18,12 @@
 //!   with `Δ = (n̂ − n_p, k̂ − k_p)`, `Σ_est` the estimate's covariance (from `n_se`,
 //!   `k_se`, `nk_corr` of the fit) and `Σ_proto` the prototype's covariance when it has one
 //!   (a prototype trained from a fit; literature values have none).
+//! - **Answers as sets** ([`Rule::Set`], see `docs/CLASSIFY.md`): every material whose
+//!   Mahalanobis distance (estimate's plus prototype's covariance; in `(n, u = k²)` when the
+//!   fit's `k_se` is one-sided near `k = 0`, see [`Cov2::to_nu`]) satisfies
+//!   `d_M² ≤ χ²₂(confidence) = −2 ln(1 − confidence)` is a [`Candidate`]: one → that
+//!   material, several → [`AMBIGUOUS`] with their common category, none → [`UNKNOWN`].
+//!   The set is computed under both rules when a covariance is available.
 //! - **Reject option** ([`Reject`]): the answer is [`UNKNOWN`] when the predicted class's
 //!   nearest prototype is too far: either a χ² gate on the Mahalanobis distance (2 degrees
 //!   of freedom: `d_M² > χ²₂(p) = −2 ln(1 − p)`, so `p = 0.99` rejects beyond
@@ -72,11 +78,11 @@ mod evaluate;
 mod points;
 mod wolff;
 
-pub use classifier::Classifier;
-pub use config::{ClassifierConfig, Metric, Reject, chi2_2dof_quantile};
-pub use cov::Cov2;
-pub use decision::{Decision, Neighbour, Status};
-pub use evaluate::{Confusion, EvalItem, Evaluation, Labelled, evaluate, leave_one_out};
+pub use classifier::{Classifier, NEAR_ZERO_SIGMAS};
+pub use config::{ClassifierConfig, DEFAULT_CONFIDENCE, Metric, Reject, Rule, chi2_2dof_quantile};
+pub use cov::{Cov2, ONE_SIDED_RATIO};
+pub use decision::{Candidate, Decision, Neighbour, Status};
+pub use evaluate::{Confusion, EvalItem, Evaluation, Labelled, SetStats, evaluate, leave_one_out};
 pub use points::{Estimate, Prototype, class_categories};
 pub use wolff::{
     WolffClass, WolffConfig, WolffDecision, WolffObservation, fresnel_ratio, wolff_classify,
@@ -88,7 +94,11 @@ use crate::error::{CoreError, Result};
 /// missing covariance). It cannot be used as a class name.
 pub const UNKNOWN: &str = "unknown";
 
-/// Check a class name: not empty, not [`UNKNOWN`].
+/// The label of an estimate consistent with several materials (set rule). It cannot be
+/// used as a class name.
+pub const AMBIGUOUS: &str = "ambiguous";
+
+/// Check a class name: not empty, not [`UNKNOWN`] or [`AMBIGUOUS`].
 pub fn check_class_name(name: &str) -> Result<()> {
     if name.trim().is_empty() {
         return Err(CoreError::InvalidName {
@@ -102,6 +112,13 @@ pub fn check_class_name(name: &str) -> Result<()> {
             what: "class",
             name: name.into(),
             reason: format!("`{UNKNOWN}` is reserved for unclassified estimates"),
+        });
+    }
+    if name.trim().eq_ignore_ascii_case(AMBIGUOUS) {
+        return Err(CoreError::InvalidName {
+            what: "class",
+            name: name.into(),
+            reason: format!("`{AMBIGUOUS}` is reserved for estimates several materials fit"),
         });
     }
     Ok(())

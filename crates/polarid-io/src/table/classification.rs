@@ -1,15 +1,18 @@
 //! Classification CSV — written by `classify`.
 //!
 //! `target,class,predicted,distance,runner_up,runner_up_distance,status` (the columns of
-//! `docs/FORMATS.md`), then polarid's extra columns: `margin` (runner-up distance minus
-//! distance), `nearest` (class of the nearest prototype, also when rejected), `category`
-//! (of that prototype, e.g. `metal`, for library prototypes), `metric`, `gate` (the
+//! `docs/FORMATS.md`), `candidates` (the materials consistent with the estimate at the
+//! confidence, `;`-separated, best first), then polarid's extra columns: `margin` (runner-up
+//! distance minus distance), `nearest` (class of the nearest prototype, also when
+//! rejected), `category` (set rule: the candidates' common category; nearest rule: that of
+//! the nearest prototype; e.g. `metal`), `metric`, `rule` (`nearest` or `set`),
+//! `confidence` (of the set), `gate` (the
 //! statistic compared with the reject threshold), `votes` (k-NN votes for the class),
 //! `reason` (why a status is not `ok`), and Wolff's baseline when it was run:
 //! `wolff_class` (`metal`, `dielectric` or `unknown`), `wolff_fr_max` (largest Fresnel
 //! ratio `(1 + P)/(1 − P)` over the measurements in the window), `wolff_beta_deg` (its β).
 //!
-//! `predicted` is a class name or `unknown`; distances of an unclassified target are empty.
+//! `predicted` is a class name, `ambiguous` or `unknown`; distances of an unclassified target are empty.
 
 use std::io::Write;
 use std::path::Path;
@@ -18,7 +21,7 @@ use super::{CsvTable, fmt_opt, write_rows};
 use crate::error::Result;
 
 /// Column order of the classification CSV.
-pub const COLUMNS: [&str; 17] = [
+pub const COLUMNS: [&str; 20] = [
     "target",
     "class",
     "predicted",
@@ -26,10 +29,13 @@ pub const COLUMNS: [&str; 17] = [
     "runner_up",
     "runner_up_distance",
     "status",
+    "candidates",
     "margin",
     "nearest",
     "category",
     "metric",
+    "rule",
+    "confidence",
     "gate",
     "votes",
     "reason",
@@ -45,7 +51,7 @@ pub struct ClassificationRow {
     pub target: String,
     /// Known class, if any.
     pub class: Option<String>,
-    /// Predicted class or `unknown`.
+    /// Predicted class, `ambiguous` or `unknown`.
     pub predicted: String,
     /// Distance to the nearest prototype of `nearest`.
     pub distance: Option<f64>,
@@ -53,16 +59,22 @@ pub struct ClassificationRow {
     pub runner_up: Option<String>,
     /// Distance to the runner-up.
     pub runner_up_distance: Option<f64>,
-    /// `ok`, `rejected`, `fit_<status>`, `no_covariance`, `invalid_estimate`.
+    /// `ok`, `ambiguous`, `rejected`, `fit_<status>`, `no_covariance`, `invalid_estimate`.
     pub status: String,
+    /// The consistent materials, best first (empty when none or not tested).
+    pub candidates: Vec<String>,
     /// `runner_up_distance − distance`.
     pub margin: Option<f64>,
     /// Class of the nearest prototype (also when rejected).
     pub nearest: Option<String>,
-    /// Category of the nearest prototype.
+    /// Set rule: the candidates' common category; nearest rule: the nearest prototype's.
     pub category: Option<String>,
     /// `euclidean` or `mahalanobis`.
     pub metric: String,
+    /// `nearest` or `set` (empty when unknown).
+    pub rule: String,
+    /// Confidence of the consistent set.
+    pub confidence: Option<f64>,
     /// Statistic compared with the reject threshold.
     pub gate: Option<f64>,
     /// Votes for the class among the k nearest.
@@ -96,10 +108,13 @@ pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[ClassificationRo
                 r.runner_up.clone().unwrap_or_default(),
                 fmt_opt(finite(r.runner_up_distance)),
                 r.status.clone(),
+                r.candidates.join(";"),
                 fmt_opt(finite(r.margin)),
                 r.nearest.clone().unwrap_or_default(),
                 r.category.clone().unwrap_or_default(),
                 r.metric.clone(),
+                r.rule.clone(),
+                fmt_opt(finite(r.confidence)),
                 fmt_opt(finite(r.gate)),
                 r.votes.map(|v| v.to_string()).unwrap_or_default(),
                 r.reason.clone(),
@@ -139,10 +154,22 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<ClassificationRow>> {
             runner_up: t.opt_text(r, c("runner_up")),
             runner_up_distance: fnum("runner_up_distance")?,
             status: t.text(r, c_status).to_string(),
+            candidates: t
+                .opt_text(r, c("candidates"))
+                .map(|s| {
+                    s.split(';')
+                        .map(str::trim)
+                        .filter(|x| !x.is_empty())
+                        .map(String::from)
+                        .collect()
+                })
+                .unwrap_or_default(),
             margin: fnum("margin")?,
             nearest: t.opt_text(r, c("nearest")),
             category: t.opt_text(r, c("category")),
             metric: t.opt_text(r, c("metric")).unwrap_or_default(),
+            rule: t.opt_text(r, c("rule")).unwrap_or_default(),
+            confidence: fnum("confidence")?,
             gate: fnum("gate")?,
             votes: t.opt_u64(r, c("votes"))?,
             reason: t.opt_text(r, c("reason")).unwrap_or_default(),
@@ -173,6 +200,9 @@ mod tests {
                 nearest: Some("aluminum".into()),
                 metric: "euclidean".into(),
                 votes: Some(1),
+                candidates: vec!["aluminum".into(), "tin".into()],
+                rule: "set".into(),
+                confidence: Some(0.95),
                 wolff_class: Some("metal".into()),
                 wolff_fr_max: Some(1.5),
                 wolff_beta_deg: Some(60.0),
@@ -194,7 +224,7 @@ mod tests {
         write(&mut buf, &p, &rows).unwrap();
         let text = String::from_utf8(buf.clone()).unwrap();
         assert!(text.starts_with(
-            "target,class,predicted,distance,runner_up,runner_up_distance,status,margin"
+            "target,class,predicted,distance,runner_up,runner_up_distance,status,candidates,margin"
         ));
         std::fs::write(&p, buf).unwrap();
         let back = read(&p).unwrap();

@@ -3,13 +3,15 @@
 
 use polarid_core::classify::{Classifier, Decision};
 
-/// A one-paragraph explanation of a decision: nearest prototypes (at most `top`) and,
-/// when categories are known, the nearest prototype of another category.
+/// A one-paragraph explanation of a decision: nearest prototypes (at most `top`), when
+/// categories are known the nearest prototype of another category, and the consistent
+/// set (every candidate with its Mahalanobis distance and the test's threshold) when it
+/// was tested.
 pub fn explain(target: &str, d: &Decision, clf: &Classifier, top: usize) -> String {
     // ok (indexing `protos` below): every index in a decision is one of `clf`'s
     // prototypes, produced by `clf.classify`.
     let protos = clf.prototypes();
-    let unit = clf.config().metric.name();
+    let unit = clf.config().distance_metric().name();
     let cat = |i: usize| {
         protos[i]
             .category
@@ -74,7 +76,37 @@ pub fn explain(target: &str, d: &Decision, clf: &Classifier, top: usize) -> Stri
                     other.distance
                 ));
             }
-            if !d.reason.is_empty() {
+            if d.set_tested {
+                let cfg = clf.config();
+                let list: Vec<String> = d
+                    .candidates
+                    .iter()
+                    .map(|c| {
+                        let cat = c
+                            .category
+                            .as_deref()
+                            .map(|x| format!(" ({x})"))
+                            .unwrap_or_default();
+                        format!("{}{cat} {:.3}", c.class, c.distance)
+                    })
+                    .collect();
+                s.push_str(&format!(
+                    "; consistent at {}% (Mahalanobis <= {:.3}): {}",
+                    cfg.confidence * 100.0,
+                    polarid_core::classify::chi2_2dof_quantile(cfg.confidence).sqrt(),
+                    if list.is_empty() {
+                        "none".to_string()
+                    } else {
+                        list.join(", ")
+                    }
+                ));
+                if d.candidates.len() > 1
+                    && let Some(cat) = &d.set_category
+                {
+                    s.push_str(&format!(", all {cat}"));
+                }
+            }
+            if !d.reason.is_empty() && d.status != polarid_core::classify::Status::Ambiguous {
                 s.push_str(&format!("; {}", d.reason));
             }
         }

@@ -7,7 +7,9 @@ mod wolff;
 
 use std::path::{Path, PathBuf};
 
-use polarid_core::classify::{Classifier, ClassifierConfig, Cov2, Decision, Estimate, Prototype};
+use polarid_core::classify::{
+    Classifier, ClassifierConfig, Cov2, Decision, Estimate, Prototype, Rule,
+};
 use polarid_io::library::Library;
 use polarid_io::model::Model;
 use polarid_io::table::CsvTable;
@@ -74,10 +76,12 @@ pub struct WolffRequest {
     pub settings: WolffSettings,
 }
 
-/// Settings of [`classify`].
-#[derive(Debug, Clone, Default)]
+/// Settings of [`classify`]. The default is the set rule at 95% confidence
+/// ([`ClassifierConfig::set`]; see `docs/CLASSIFY.md`), three explained neighbours, no
+/// Wolff baseline.
+#[derive(Debug, Clone)]
 pub struct ClassifyConfig {
-    /// The classifier (metric, neighbours, reject option).
+    /// The classifier (rule, confidence, metric, neighbours, reject option).
     pub classifier: ClassifierConfig,
     /// How many nearest prototypes each explanation lists.
     pub explain: usize,
@@ -89,7 +93,11 @@ pub struct ClassifyConfig {
 pub fn check_classifier(cfg: &ClassifierConfig) -> Result<()> {
     cfg.validate().map_err(|e| {
         let (option, value) = match cfg.reject {
+            _ if !(cfg.confidence > 0.0 && cfg.confidence < 1.0) => {
+                ("confidence", cfg.confidence.to_string())
+            }
             _ if cfg.k == 0 => ("k", "0".to_string()),
+            _ if cfg.rule == Rule::Set && cfg.k != 1 => ("k", cfg.k.to_string()),
             polarid_core::classify::Reject::Chi2 { p } => ("reject", p.to_string()),
             polarid_core::classify::Reject::MaxDistance(d) => ("max_distance", d.to_string()),
             _ => ("classifier", format!("{cfg:?}")),
@@ -100,6 +108,16 @@ pub fn check_classifier(cfg: &ClassifierConfig) -> Result<()> {
             format!("is not usable (invalid classifier option: {e})"),
         )
     })
+}
+
+impl Default for ClassifyConfig {
+    fn default() -> Self {
+        Self {
+            classifier: ClassifierConfig::set(polarid_core::classify::DEFAULT_CONFIDENCE),
+            explain: 3,
+            wolff: None,
+        }
+    }
 }
 
 impl ClassifyConfig {
@@ -129,12 +147,18 @@ pub struct ClassifyOutput {
 }
 
 /// The classification CSV row of fit `f` classified as `d` by `clf` (without Wolff's
-/// columns).
+/// columns). `candidates` is the consistent set (under both rules); `category` is the
+/// candidates' common category under the set rule, the nearest prototype's under the
+/// nearest rule.
 pub fn classification_row(f: &FitRow, d: &Decision, clf: &Classifier) -> ClassificationRow {
-    let category = d
-        .nearest
-        // ok: nb.index is an index into clf.prototypes() (from clf.classify).
-        .and_then(|nb| clf.prototypes()[nb.index].category.clone());
+    let cfg = clf.config();
+    let category = match cfg.rule {
+        Rule::Set => d.set_category.clone(),
+        Rule::Nearest => d
+            .nearest
+            // ok: nb.index is an index into clf.prototypes() (from clf.classify).
+            .and_then(|nb| clf.prototypes()[nb.index].category.clone()),
+    };
     ClassificationRow {
         target: f.target.clone(),
         class: f.class.clone(),
@@ -143,10 +167,13 @@ pub fn classification_row(f: &FitRow, d: &Decision, clf: &Classifier) -> Classif
         runner_up: d.runner_up.clone(),
         runner_up_distance: d.runner_up.as_ref().map(|_| d.runner_up_distance),
         status: d.status.label(),
+        candidates: d.candidates.iter().map(|c| c.class.clone()).collect(),
         margin: Some(d.margin),
         nearest: d.nearest_class.clone(),
         category,
-        metric: clf.config().metric.name().into(),
+        metric: cfg.distance_metric().name().into(),
+        rule: cfg.rule.name().into(),
+        confidence: d.set_tested.then_some(cfg.confidence),
         gate: d.gate,
         votes: d.nearest.map(|_| d.votes as u64),
         reason: d.reason.clone(),

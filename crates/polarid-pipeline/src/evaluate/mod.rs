@@ -55,13 +55,23 @@ pub struct WolffEvalRequest {
     pub categories: Vec<(String, String)>,
 }
 
-/// Settings of [`evaluate`].
-#[derive(Debug, Clone, Default)]
+/// Settings of [`evaluate`]. The default is the set rule at 95% confidence (as for
+/// `classify`), no Wolff baseline.
+#[derive(Debug, Clone)]
 pub struct EvaluateConfig {
-    /// The classifier (metric, neighbours, reject option).
+    /// The classifier (rule, confidence, metric, neighbours, reject option).
     pub classifier: ClassifierConfig,
     /// Also score Wolff's metal/dielectric baseline.
     pub wolff: Option<WolffEvalRequest>,
+}
+
+impl Default for EvaluateConfig {
+    fn default() -> Self {
+        Self {
+            classifier: ClassifierConfig::set(polarid_core::classify::DEFAULT_CONFIDENCE),
+            wolff: None,
+        }
+    }
 }
 
 impl EvaluateConfig {
