@@ -93,7 +93,7 @@ impl PixelCounts {
     }
 
     /// The counts of `self` and `o` together.
-    pub(super) fn add(self, o: Self) -> Self {
+    pub(crate) fn add(self, o: Self) -> Self {
         Self {
             valid: self.valid + o.valid,
             saturated: self.saturated + o.saturated,
