@@ -143,27 +143,32 @@ fn row<T>(img: &[T], width: usize, r: usize) -> &[T] {
     &img[r * width..(r + 1) * width]
 }
 
-/// OpenCV's rounding of an interpolated value when `ROUND`: `⌊v + ½⌋` for the
-/// non-negative values of unsigned integer data. Bit for bit `((v + 0.5) as i32) as f32`
-/// for every `v` (truncation, saturation at ±2³¹, NaN to +0, −0 to +0), in operations
-/// that vectorise on every instruction set (the saturating `as` does not).
+/// OpenCV's rounding of an interpolated value `v` of samples of type `T` when `ROUND`:
+/// `⌊v + ½⌋` for the non-negative values of unsigned integer data. Bit for bit
+/// `((v + 0.5) as i32) as f32` for every `v` (truncation, saturation at ±2³¹, NaN to +0,
+/// −0 to +0), in operations that vectorise on every instruction set (the saturating
+/// `as` does not); for integer samples (`v` in `[0, 2¹⁶)`) a plain conversion.
 #[inline(always)]
-fn rnd<const ROUND: bool>(v: f32) -> f32 {
-    if ROUND {
-        const LIM: f32 = 2_147_483_648.0; // 2³¹: i32::MIN and i32::MAX as f32
-        const BELOW: f32 = 2_147_483_520.0; // the largest f32 below 2³¹
-        let t = v + 0.5;
-        let c = if t.is_nan() {
-            0.0
-        } else {
-            t.clamp(-LIM, BELOW)
-        };
-        // SAFETY: `c` is finite and in [−2³¹, 2³¹), so its truncation fits in an i32.
-        let r = unsafe { c.to_int_unchecked::<i32>() } as f32;
-        if t >= LIM { LIM } else { r }
-    } else {
-        v
+fn rnd<T: Sample, const ROUND: bool>(v: f32) -> f32 {
+    const LIM: f32 = 2_147_483_648.0; // 2³¹: i32::MIN and i32::MAX as f32
+    const BELOW: f32 = 2_147_483_520.0; // the largest f32 below 2³¹
+    if !ROUND {
+        return v;
     }
+    let t = v + 0.5;
+    if T::INTEGER {
+        // SAFETY: a mean of integer samples is in [0, 2¹⁶), so `t` is finite and its
+        // truncation fits in an i32.
+        return unsafe { t.to_int_unchecked::<i32>() } as f32;
+    }
+    let c = if t.is_nan() {
+        0.0
+    } else {
+        t.clamp(-LIM, BELOW)
+    };
+    // SAFETY: `c` is finite and in [−2³¹, 2³¹), so its truncation fits in an i32.
+    let r = unsafe { c.to_int_unchecked::<i32>() } as f32;
+    if t >= LIM { LIM } else { r }
 }
 
 /// Where each channel (0, 45, 90, 135°) of a row block comes from: `same[k]` when its
@@ -218,9 +223,9 @@ fn components<T: Sample, const ROUND: bool>(nb: &[[&[T]; 3]; 3], i: usize) -> [f
     let dia = 0.25 * ((ul[i].to_f32() + ur[i].to_f32()) + (dl[i].to_f32() + dr[i].to_f32()));
     [
         mc[i].to_f32(),
-        rnd::<ROUND>(hor),
-        rnd::<ROUND>(ver),
-        rnd::<ROUND>(dia),
+        rnd::<T, ROUND>(hor),
+        rnd::<T, ROUND>(ver),
+        rnd::<T, ROUND>(dia),
     ]
 }
 
@@ -240,7 +245,7 @@ fn column_flags<T: Sample>(
     for j in 0..n {
         let (a, b, e) = (u[j].to_f32(), m[j].to_f32(), d[j].to_f32());
         cmax[j] = a.max(b).max(e);
-        cnf[j] = !(a.is_finite() & b.is_finite() & e.is_finite()) as u8;
+        cnf[j] = (!T::INTEGER && !(a.is_finite() & b.is_finite() & e.is_finite())) as u8;
     }
 }
 
@@ -335,7 +340,9 @@ fn bilinear_pixels<T: Sample, const ROUND: bool, const POLAR: bool>(
         let v1 = i0 - i90;
         let v2 = i45 - i135;
         let mx = cm[i].max(cm[i + 1]).max(cm[i + 2]);
-        let nf = (cf[i] | cf[i + 1] | cf[i + 2]) != 0 || !(v0 + v1 + v2).is_finite();
+        // Integer samples are finite and their Stokes values too (|S| < 2¹⁹).
+        let nf =
+            !T::INTEGER && ((cf[i] | cf[i + 1] | cf[i + 2]) != 0 || !(v0 + v1 + v2).is_finite());
         let mk = mask_value(nf, mx >= sat, v0, min_s0);
         s0[i] = v0;
         s1[i] = v1;
