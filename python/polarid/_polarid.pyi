@@ -112,6 +112,7 @@ def dofp_dolp_aolp(
     round: bool | None = None,
     return_stokes: Literal[False] = False,
     return_mask: Literal[False] = False,
+    out: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None,
 ) -> tuple[NDArray[np.float32], NDArray[np.float32]]: ...
 @overload
 def dofp_dolp_aolp(
@@ -125,6 +126,7 @@ def dofp_dolp_aolp(
     round: bool | None = None,
     return_stokes: bool = False,
     return_mask: bool = False,
+    out: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None,
 ) -> tuple[NDArray[Any], ...]: ...
 def dolp(s: ArrayLike) -> NDArray[np.float32] | NDArray[np.float64]: ...
 def aolp(s: ArrayLike) -> NDArray[np.float32] | NDArray[np.float64]: ...

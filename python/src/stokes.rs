@@ -51,49 +51,6 @@ pub fn pixel_rules(
     })
 }
 
-/// Stokes planes `(3, npix)` plus mask, as owned buffers.
-struct Planes {
-    s: Vec<f32>,
-    mask: Vec<u8>,
-}
-
-impl Planes {
-    fn new(npix: usize) -> Self {
-        Self {
-            s: vec![0.0; 3 * npix],
-            mask: vec![0; npix],
-        }
-    }
-
-    fn split(&mut self) -> (&mut [f32], &mut [f32], &mut [f32], &mut [u8]) {
-        let npix = self.mask.len();
-        let (s0, rest) = self.s.split_at_mut(npix);
-        let (s1, s2) = rest.split_at_mut(npix);
-        (s0, s1, s2, &mut self.mask)
-    }
-
-    /// `(3, *shape)` Stokes array, and the `shape` mask if asked for.
-    fn into_python<'py>(
-        self,
-        py: Python<'py>,
-        shape: &[usize],
-        return_mask: bool,
-    ) -> PyResult<Bound<'py, PyAny>> {
-        let mut full = vec![3];
-        full.extend_from_slice(shape);
-        let s =
-            ArrayD::from_shape_vec(IxDyn(&full), self.s).map_err(|e| value_error(e.to_string()))?;
-        let s = to_numpy(py, s);
-        if return_mask {
-            let m = ArrayD::from_shape_vec(IxDyn(shape), self.mask)
-                .map_err(|e| value_error(e.to_string()))?;
-            Ok(PyTuple::new(py, [s, to_numpy(py, m)])?.into_any())
-        } else {
-            Ok(s)
-        }
-    }
-}
-
 /// Stokes images (S0, S1, S2) from frames taken through a linear polarizer.
 ///
 /// Least-squares solution of ``I(a) = (S0 + S1 cos 2a + S2 sin 2a) / 2`` over the N
@@ -172,21 +129,33 @@ pub fn stokes<'py>(
     let img_shape = shape[1..].to_vec();
     let width = *img_shape.last().unwrap_or(&0);
     let npix: usize = img_shape.iter().product();
-    let mut planes = Planes::new(npix);
-    with_raw!(&raw, |data| {
-        py.detach(|| -> Result<(), CoreError> {
-            let views: Vec<_> = if npix == 0 {
-                vec![&data[..0]; n]
-            } else {
-                data.chunks_exact(npix).collect()
-            };
-            let (s0, s1, s2, m) = planes.split();
-            solver.compute(&views, width, &rules, s0, s1, s2, m)?;
-            Ok(())
-        })
-        .py_err()?
-    });
-    planes.into_python(py, &img_shape, return_mask)
+    let mut full = vec![3];
+    full.extend_from_slice(&img_shape);
+    let st = new_array::<f32>(py, &full);
+    let mask = new_array::<u8>(py, &img_shape);
+    {
+        let (mut sw, mut mw) = (st.try_readwrite()?, mask.try_readwrite()?);
+        let (ss, mm) = (sw.as_slice_mut()?, mw.as_slice_mut()?);
+        with_raw!(&raw, |data| {
+            py.detach(|| -> Result<(), CoreError> {
+                let views: Vec<_> = if npix == 0 {
+                    vec![&data[..0]; n]
+                } else {
+                    data.chunks_exact(npix).collect()
+                };
+                let (s0, rest) = ss.split_at_mut(npix);
+                let (s1, s2) = rest.split_at_mut(npix);
+                solver.compute(&views, width, &rules, s0, s1, s2, mm)?;
+                Ok(())
+            })
+            .py_err()?
+        });
+    }
+    if return_mask {
+        Ok(PyTuple::new(py, [st.into_any(), mask.into_any()])?.into_any())
+    } else {
+        Ok(st.into_any())
+    }
 }
 
 /// Demosaic a raw division-of-focal-plane (DoFP) frame: Stokes images or per-angle images.
@@ -350,26 +319,28 @@ pub fn demosaic<'py>(
             ))),
         };
     }
-    let mut mask = vec![0u8; npix];
-    let s = with_raw!(&raw, |data| {
-        with_output::<f32>(py, "out", out, &[3, oh, ow], |buf| {
-            let (s0, rest) = buf.split_at_mut(npix);
-            let (s1, s2) = rest.split_at_mut(npix);
-            let o = DofpOutputs {
-                s0: Some(s0),
-                s1: Some(s1),
-                s2: Some(s2),
-                mask: Some(&mut mask),
-                ..Default::default()
-            };
-            let method = dofp_method(bilinear, round);
-            mosaic::dofp_polar(data, w, &pattern, method, &rules, o).map(|_| ())
-        })
-    })?;
+    let mask = new_array::<u8>(py, &[oh, ow]);
+    let s = {
+        let mut mw = mask.try_readwrite()?;
+        let mm = mw.as_slice_mut()?;
+        with_raw!(&raw, |data| {
+            with_output::<f32>(py, "out", out, &[3, oh, ow], |buf| {
+                let (s0, rest) = buf.split_at_mut(npix);
+                let (s1, s2) = rest.split_at_mut(npix);
+                let o = DofpOutputs {
+                    s0: Some(s0),
+                    s1: Some(s1),
+                    s2: Some(s2),
+                    mask: Some(mm),
+                    ..Default::default()
+                };
+                let method = dofp_method(bilinear, round);
+                mosaic::dofp_polar(data, w, &pattern, method, &rules, o).map(|_| ())
+            })
+        })?
+    };
     if return_mask {
-        let m = ArrayD::from_shape_vec(IxDyn(&[oh, ow]), mask)
-            .map_err(|e| value_error(e.to_string()))?;
-        Ok(PyTuple::new(py, [s, to_numpy(py, m)])?.into_any())
+        Ok(PyTuple::new(py, [s, mask.into_any()])?.into_any())
     } else {
         Ok(s)
     }
@@ -406,6 +377,10 @@ pub fn demosaic<'py>(
 ///     Also return the Stokes images (3, H, W) float32, as ``demosaic`` gives them.
 /// return_mask : bool, default False
 ///     Also return the pixel mask (0 valid, 1 saturated, 2 dark, 3 invalid).
+/// out : tuple of two numpy.ndarray, optional
+///     ``(dolp, aolp)`` arrays to write into (and return), C-contiguous float32 of the
+///     output shape, as numpy's ``out=`` of two-output functions. Reusing them across
+///     frames saves allocating (and the operating system zeroing) new arrays per frame.
 ///
 /// Returns
 /// -------
@@ -427,7 +402,7 @@ pub fn demosaic<'py>(
 /// for saturated pixels too (it is NaN only where S0 <= 0). polanalyser's
 /// ``cvtStokesToAoLP`` returns radians in [0, pi) and ``cvtStokesToDoLP`` does not clamp.
 #[pyfunction]
-#[pyo3(signature = (raw, pattern = vec![90.0, 45.0, 135.0, 0.0], method = "bilinear", *, dark_level = 0.0, saturation = None, min_s0 = 0.0, round = None, return_stokes = false, return_mask = false))]
+#[pyo3(signature = (raw, pattern = vec![90.0, 45.0, 135.0, 0.0], method = "bilinear", *, dark_level = 0.0, saturation = None, min_s0 = 0.0, round = None, return_stokes = false, return_mask = false, out = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn dofp_dolp_aolp<'py>(
     py: Python<'py>,
@@ -440,6 +415,7 @@ pub fn dofp_dolp_aolp<'py>(
     round: Option<bool>,
     return_stokes: bool,
     return_mask: bool,
+    out: Option<(Bound<'py, PyAny>, Bound<'py, PyAny>)>,
 ) -> PyResult<Bound<'py, PyTuple>> {
     let bilinear = method_is_bilinear(method)?;
     let pattern = Pattern::new(&pattern).py_err()?;
@@ -450,54 +426,56 @@ pub fn dofp_dolp_aolp<'py>(
     let method = dofp_method(bilinear, round);
     let (ow, oh) = method.output_size(w, h);
     let n = ow * oh;
-    let (mut d, mut a) = (vec![0f32; n], vec![0f32; n]);
-    let mut s = if return_stokes {
-        vec![0f32; 3 * n]
-    } else {
-        Vec::new()
+    let (d, a) = match &out {
+        Some((d, a)) => (
+            out_array::<f32>("out[0]", d, &[oh, ow])?,
+            out_array::<f32>("out[1]", a, &[oh, ow])?,
+        ),
+        None => (
+            new_array::<f32>(py, &[oh, ow]),
+            new_array::<f32>(py, &[oh, ow]),
+        ),
     };
-    let mut m = if return_mask {
-        vec![0u8; n]
-    } else {
-        Vec::new()
-    };
-    with_raw!(&raw, |data| {
-        py.detach(|| {
-            let (s0, s1, s2) = if return_stokes {
-                let (s0, rest) = s.split_at_mut(n);
-                let (s1, s2) = rest.split_at_mut(n);
-                (Some(s0), Some(s1), Some(s2))
-            } else {
-                (None, None, None)
-            };
-            let o = DofpOutputs {
-                s0,
-                s1,
-                s2,
-                mask: return_mask.then_some(&mut m[..]),
-                dolp: Some(&mut d),
-                aolp: Some(&mut a),
-            };
-            mosaic::dofp_polar(data, w, &pattern, method, &rules, o)
-        })
-        .py_err()?
-    });
-    let img = |v: Vec<f32>| -> PyResult<Bound<'py, PyAny>> {
-        let a =
-            ArrayD::from_shape_vec(IxDyn(&[oh, ow]), v).map_err(|e| value_error(e.to_string()))?;
-        Ok(to_numpy(py, a))
-    };
-    let mut items = vec![img(d)?, img(a)?];
-    if return_stokes {
-        let a = ArrayD::from_shape_vec(IxDyn(&[3, oh, ow]), s)
-            .map_err(|e| value_error(e.to_string()))?;
-        items.push(to_numpy(py, a));
+    if d.is(&a) {
+        return Err(value_error(
+            "out[0] and out[1] must be two different arrays",
+        ));
     }
-    if return_mask {
-        let a =
-            ArrayD::from_shape_vec(IxDyn(&[oh, ow]), m).map_err(|e| value_error(e.to_string()))?;
-        items.push(to_numpy(py, a));
+    let s = return_stokes.then(|| new_array::<f32>(py, &[3, oh, ow]));
+    let m = return_mask.then(|| new_array::<u8>(py, &[oh, ow]));
+    {
+        let (mut dw, mut aw) = (d.try_readwrite()?, a.try_readwrite()?);
+        let mut sw = s.as_ref().map(|s| s.try_readwrite()).transpose()?;
+        let mut mw = m.as_ref().map(|m| m.try_readwrite()).transpose()?;
+        let (dd, aa) = (dw.as_slice_mut()?, aw.as_slice_mut()?);
+        let ss = sw.as_mut().map(|s| s.as_slice_mut()).transpose()?;
+        let mm = mw.as_mut().map(|m| m.as_slice_mut()).transpose()?;
+        with_raw!(&raw, |data| {
+            py.detach(|| {
+                let (s0, s1, s2) = match ss {
+                    Some(ss) => {
+                        let (s0, rest) = ss.split_at_mut(n);
+                        let (s1, s2) = rest.split_at_mut(n);
+                        (Some(s0), Some(s1), Some(s2))
+                    }
+                    None => (None, None, None),
+                };
+                let o = DofpOutputs {
+                    s0,
+                    s1,
+                    s2,
+                    mask: mm,
+                    dolp: Some(dd),
+                    aolp: Some(aa),
+                };
+                mosaic::dofp_polar(data, w, &pattern, method, &rules, o)
+            })
+            .py_err()?
+        });
     }
+    let mut items = vec![d.into_any(), a.into_any()];
+    items.extend(s.map(Bound::into_any));
+    items.extend(m.map(Bound::into_any));
     PyTuple::new(py, items)
 }
 
@@ -559,25 +537,23 @@ fn out_dtype(dtype: Option<&Bound<'_, PyAny>>, out: Option<&Bound<'_, PyAny>>) -
     }
 }
 
-/// Run `f` on the output buffer of `shape` (GIL released): the caller's C-contiguous
-/// array `out` (checked: a numpy array of element type `O` and this shape, returned),
-/// or a new array.
-fn with_output<'py, O: numpy::Element + Copy + Default + Send>(
+/// A new zeroed numpy array: numpy's allocator asks the kernel for huge pages on large
+/// arrays, which makes first writes several times cheaper than into a fresh `Vec`.
+fn new_array<'py, O: numpy::Element>(
     py: Python<'py>,
-    name: &str,
-    out: Option<&Bound<'py, PyAny>>,
     shape: &[usize],
-    f: impl FnOnce(&mut [O]) -> Result<(), CoreError> + Send,
-) -> PyResult<Bound<'py, PyAny>> {
-    let Some(o) = out else {
-        let n = shape.iter().product();
-        let mut buf = vec![O::default(); n];
-        py.detach(|| f(&mut buf)).py_err()?;
-        let a =
-            ArrayD::from_shape_vec(IxDyn(shape), buf).map_err(|e| value_error(e.to_string()))?;
-        return Ok(to_numpy(py, a));
-    };
-    let dtype = O::get_dtype(py).to_string();
+) -> Bound<'py, PyArrayDyn<O>> {
+    PyArrayDyn::<O>::zeros(py, IxDyn(shape), false)
+}
+
+/// The caller's array `o` for the output `name`, checked: a C-contiguous numpy array of
+/// element type `O` and shape `shape` (its writeability is checked when it is borrowed).
+fn out_array<'py, O: numpy::Element>(
+    name: &str,
+    o: &Bound<'py, PyAny>,
+    shape: &[usize],
+) -> PyResult<Bound<'py, PyArrayDyn<O>>> {
+    let dtype = O::get_dtype(o.py()).to_string();
     let want = || {
         format!(
             "{name} must be a C-contiguous, writeable numpy array of dtype {dtype} and shape {}",
@@ -585,11 +561,8 @@ fn with_output<'py, O: numpy::Element + Copy + Default + Send>(
         )
     };
     let arr = o.cast::<PyArrayDyn<O>>().map_err(|_| {
-        value_error(format!(
-            "{}, got {}",
-            want(),
-            o.repr().map_or_else(|_| "?".into(), |r| r.to_string())
-        ))
+        let got = o.repr().map_or_else(|_| "?".into(), |r| r.to_string());
+        value_error(format!("{}, got {got}", want()))
     })?;
     if arr.shape() != shape {
         return Err(value_error(format!(
@@ -598,15 +571,37 @@ fn with_output<'py, O: numpy::Element + Copy + Default + Send>(
             fmt_shape(arr.shape())
         )));
     }
-    let mut rw = arr
-        .try_readwrite()
-        .map_err(|e| value_error(format!("{}: {e}", want())))?;
-    let buf = rw
-        .as_slice_mut()
-        .map_err(|_| value_error(format!("{}, got a non-contiguous array", want())))?;
-    py.detach(|| f(buf)).py_err()?;
-    drop(rw);
-    Ok(o.clone())
+    if !arr.is_c_contiguous() {
+        return Err(value_error(format!(
+            "{}, got a non-contiguous array",
+            want()
+        )));
+    }
+    Ok(arr.clone())
+}
+
+/// Run `f` on the output buffer of `shape` (GIL released) and return the array: the
+/// caller's C-contiguous array `out` (checked: a writeable numpy array of element type
+/// `O` and this shape), or a new one.
+fn with_output<'py, O: numpy::Element + Send>(
+    py: Python<'py>,
+    name: &str,
+    out: Option<&Bound<'py, PyAny>>,
+    shape: &[usize],
+    f: impl FnOnce(&mut [O]) -> Result<(), CoreError> + Send,
+) -> PyResult<Bound<'py, PyAny>> {
+    let arr = match out {
+        None => new_array::<O>(py, shape),
+        Some(o) => out_array::<O>(name, o, shape)?,
+    };
+    {
+        let mut rw = arr
+            .try_readwrite()
+            .map_err(|e| value_error(format!("{name} is not writeable: {e}")))?;
+        let buf = rw.as_slice_mut()?;
+        py.detach(|| f(buf)).py_err()?;
+    }
+    Ok(arr.into_any())
 }
 
 /// Four consecutive planes of `npix` values.
@@ -688,21 +683,19 @@ fn polar<'py>(
             let data = a.as_slice()?;
             let npix: usize = shape.iter().product();
             let width = shape.last().copied().unwrap_or(1).max(1);
-            let mut d = vec![0f32; npix];
-            let mut g = vec![0f32; npix];
+            let d = new_array::<f32>(py, &shape);
+            let g = new_array::<f32>(py, &shape);
             if npix > 0 {
+                let (mut dw, mut gw) = (d.try_readwrite()?, g.try_readwrite()?);
+                let (dd, gg) = (dw.as_slice_mut()?, gw.as_slice_mut()?);
                 py.detach(|| {
                     let (s0, rest) = data.split_at(npix);
                     let (s1, s2) = rest.split_at(npix);
-                    core_stokes::dolp_aolp(width, s0, s1, s2, None, &mut d, &mut g)
+                    core_stokes::dolp_aolp(width, s0, s1, s2, None, dd, gg)
                 })
                 .py_err()?;
             }
-            let d =
-                ArrayD::from_shape_vec(IxDyn(&shape), d).map_err(|e| value_error(e.to_string()))?;
-            let g =
-                ArrayD::from_shape_vec(IxDyn(&shape), g).map_err(|e| value_error(e.to_string()))?;
-            Ok((to_numpy(py, d), to_numpy(py, g)))
+            Ok((d.into_any(), g.into_any()))
         }
         FloatArray::F64(a) => {
             let shape = shape_of!(a);

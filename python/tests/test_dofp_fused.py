@@ -108,6 +108,27 @@ def test_agrees_with_polanalyser():
     assert np.abs(diff).max() < 1e-5
 
 
+def test_fused_into_caller_arrays():
+    raw = mosaic(10, 12, np.uint16, seed=3)
+    d_ref, a_ref = polarid.dofp_dolp_aolp(raw)
+    out = (np.full((10, 12), 5.0, np.float32), np.full((10, 12), 5.0, np.float32))
+    for _ in range(2):  # reused
+        d, a = polarid.dofp_dolp_aolp(raw, out=out)
+        assert d is out[0] and a is out[1]
+        np.testing.assert_array_equal(d, d_ref)
+        np.testing.assert_array_equal(a, a_ref)
+    small = (out[0][:5, :6].copy(), out[1][:5, :6].copy())
+    d, a, m = polarid.dofp_dolp_aolp(raw, method="superpixel", out=small, return_mask=True)
+    assert d is small[0] and a is small[1]
+    assert d.shape == m.shape == (5, 6)
+    with pytest.raises(ValueError, match="out\\[1\\] must be .* shape \\(10, 12\\)"):
+        polarid.dofp_dolp_aolp(raw, out=(out[0], np.zeros((12, 10), np.float32)))
+    with pytest.raises(ValueError, match="out\\[0\\] must be .* dtype float32"):
+        polarid.dofp_dolp_aolp(raw, out=(np.zeros((10, 12)), out[1]))
+    with pytest.raises(ValueError, match="two different arrays"):
+        polarid.dofp_dolp_aolp(raw, out=(out[0], out[0]))
+
+
 def test_demosaic_integer_dtype_and_out():
     raw = mosaic(10, 12, np.uint16, seed=8)
     ref = polarid.demosaic(raw, output="angles")
