@@ -21,6 +21,27 @@ use crate::stokes::{PixelCounts, PixelRules, Sample, dolp_aolp_pixel, mask};
 /// Columns per block: the scratch rows of one block stay in the L1 cache.
 pub(super) const BLOCK: usize = 512;
 
+/// Block lengths are multiples of this where possible (the widest vector: 16 `f32`).
+const LANES: usize = 16;
+
+/// The blocks of columns `start..end`: `(first column, length, skip)`. Blocks are
+/// [`BLOCK`] long; the last one is extended backwards over `skip` columns of the
+/// previous block to a multiple of [`LANES`] when the range allows, so that no pixel is
+/// left to the scalar remainder of a vector loop (a recomputed pixel gets the same
+/// values; only its count must not be taken twice).
+#[inline(always)]
+fn blocks(start: usize, end: usize) -> impl Iterator<Item = (usize, usize, usize)> {
+    (start..end).step_by(BLOCK).map(move |c| {
+        let len = BLOCK.min(end - c);
+        let full = len.next_multiple_of(LANES);
+        if full != len && end - start >= full {
+            (end - full, full, full - len)
+        } else {
+            (c, len, 0)
+        }
+    })
+}
+
 /// An unsigned integer raw sample type (`u8`, `u16`) whose bilinear interpolation can be
 /// rounded and stored in the type itself (OpenCV's integer arithmetic).
 pub trait IntSample: Sample {
@@ -173,13 +194,13 @@ fn rnd<T: Sample, const ROUND: bool>(v: f32) -> f32 {
 
 /// Where each channel (0, 45, 90, 135°) of a row block comes from: `same[k]` when its
 /// polarizer is in the cell row of the image row (raw value or horizontal mean), else
-/// vertical or diagonal mean; `own[k]`: the parity of block indices at the polarizer's
-/// own column (raw value or vertical mean there, horizontal or diagonal mean at the
-/// other parity).
+/// vertical or diagonal mean; `own[k]`: true when the polarizer's own column (raw
+/// value or vertical mean there, horizontal or diagonal mean at the other parity) is at
+/// odd block indices.
 #[derive(Clone, Copy)]
 pub(super) struct ChannelSel {
     same: [bool; 4],
-    own: [usize; 4],
+    own: [bool; 4],
 }
 
 /// The [`ChannelSel`] of a block starting at column `c` of interior row `yi`.
@@ -187,7 +208,7 @@ pub(super) struct ChannelSel {
 fn channel_sel(pos: &[(usize, usize); 4], yi: usize, c: usize) -> ChannelSel {
     ChannelSel {
         same: std::array::from_fn(|k| (yi & 1) == pos[k].0),
-        own: std::array::from_fn(|k| (c ^ pos[k].1) & 1),
+        own: std::array::from_fn(|k| (c ^ pos[k].1) & 1 == 1),
     }
 }
 
@@ -199,34 +220,72 @@ fn channel<V: Copy>(same: bool, own: bool, mid: V, hor: V, ver: V, dia: V) -> V 
     if own { a } else { b }
 }
 
-/// The nine raw rows around interior columns `c..c + len` of the rows `up`, `mid`,
-/// `down`: `[up, mid, down]` × `[left, centre, right]`, each `len` long.
-#[inline(always)]
-fn neighbours<'a, T>(rows: [&'a [T]; 3], c: usize, len: usize) -> [[&'a [T]; 3]; 3] {
-    rows.map(|r| {
-        [
-            &r[c - 1..c - 1 + len],
-            &r[c..c + len],
-            &r[c + 1..c + 1 + len],
-        ]
-    })
+/// The raw values around interior columns `c..c + len` of the raw rows up, mid and
+/// down: for each row its columns shifted left (`l`), centred (`c`) and right (`r`),
+/// each exactly `len` long (so that the pixel loops need no bounds checks).
+#[derive(Clone, Copy)]
+struct Neighbours<'a, T> {
+    ul: &'a [T],
+    uc: &'a [T],
+    ur: &'a [T],
+    ml: &'a [T],
+    mc: &'a [T],
+    mr: &'a [T],
+    dl: &'a [T],
+    dc: &'a [T],
+    dr: &'a [T],
 }
 
-/// The four components at block index `i` (module documentation of
-/// [`crate::mosaic`]): raw value, horizontal, vertical and diagonal mean, the means
-/// rounded when `ROUND`.
+/// The [`Neighbours`] of columns `c..c + len` (`1 <= c`, `c + len < width`).
 #[inline(always)]
-fn components<T: Sample, const ROUND: bool>(nb: &[[&[T]; 3]; 3], i: usize) -> [f32; 4] {
-    let [[ul, uc, ur], [ml, mc, mr], [dl, dc, dr]] = nb;
-    let hor = 0.5 * (ml[i].to_f32() + mr[i].to_f32());
-    let ver = 0.5 * (uc[i].to_f32() + dc[i].to_f32());
-    let dia = 0.25 * ((ul[i].to_f32() + ur[i].to_f32()) + (dl[i].to_f32() + dr[i].to_f32()));
-    [
-        mc[i].to_f32(),
-        rnd::<T, ROUND>(hor),
-        rnd::<T, ROUND>(ver),
-        rnd::<T, ROUND>(dia),
-    ]
+fn neighbours<T>(rows: [&[T]; 3], c: usize, len: usize) -> Neighbours<'_, T> {
+    let [u, m, d] = rows;
+    Neighbours {
+        ul: &u[c - 1..][..len],
+        uc: &u[c..][..len],
+        ur: &u[c + 1..][..len],
+        ml: &m[c - 1..][..len],
+        mc: &m[c..][..len],
+        mr: &m[c + 1..][..len],
+        dl: &d[c - 1..][..len],
+        dc: &d[c..][..len],
+        dr: &d[c + 1..][..len],
+    }
+}
+
+impl<T: Sample> Neighbours<'_, T> {
+    /// The first `n` columns (lengths the compiler then knows to be `n`).
+    #[inline(always)]
+    fn trim(self, n: usize) -> Self {
+        Neighbours {
+            ul: &self.ul[..n],
+            uc: &self.uc[..n],
+            ur: &self.ur[..n],
+            ml: &self.ml[..n],
+            mc: &self.mc[..n],
+            mr: &self.mr[..n],
+            dl: &self.dl[..n],
+            dc: &self.dc[..n],
+            dr: &self.dr[..n],
+        }
+    }
+
+    /// The four components at block index `i` (module documentation of
+    /// [`crate::mosaic`]): raw value, horizontal, vertical and diagonal mean, the means
+    /// rounded when `ROUND`.
+    #[inline(always)]
+    fn components<const ROUND: bool>(&self, i: usize) -> [f32; 4] {
+        let f = |s: &[T]| s[i].to_f32();
+        let hor = 0.5 * (f(self.ml) + f(self.mr));
+        let ver = 0.5 * (f(self.uc) + f(self.dc));
+        let dia = 0.25 * ((f(self.ul) + f(self.ur)) + (f(self.dl) + f(self.dr)));
+        [
+            f(self.mc),
+            rnd::<T, ROUND>(hor),
+            rnd::<T, ROUND>(ver),
+            rnd::<T, ROUND>(dia),
+        ]
+    }
 }
 
 /// The column maxima and non-finite flags of the 3-row neighbourhood of columns
@@ -265,12 +324,14 @@ fn mask_value(nonfinite: bool, saturated: bool, s0: f32, min_s0: f32) -> u8 {
     }
 }
 
-/// Rejection counts `[saturated, dark, invalid]` of a block, accumulated branch-free.
+/// Add a pixel's mask value `m` to the rejection counts `[saturated, dark, invalid]`
+/// when `live` (branch-free: the pixel loops vectorise with these reductions; without
+/// any, LLVM has been seen to leave the bilinear loop scalar).
 #[inline(always)]
-fn count(m: u8, c: &mut [u32; 3]) {
-    c[0] += (m == mask::SATURATED) as u32;
-    c[1] += (m == mask::DARK) as u32;
-    c[2] += (m == mask::INVALID) as u32;
+fn count(m: u8, live: bool, c: &mut [u32; 3]) {
+    c[0] += (live & (m == mask::SATURATED)) as u32;
+    c[1] += (live & (m == mask::DARK)) as u32;
+    c[2] += (live & (m == mask::INVALID)) as u32;
 }
 
 /// DoLP / AoLP of a pixel, NaN where the mask rejects it (as [`crate::stokes::dolp_aolp`]
@@ -298,12 +359,12 @@ macro_rules! dest {
 
 /// One block of a bilinear row: per pixel the components, `S0 = ½ ((raw + hor) + (ver
 /// + dia)) − 2·dark`, `S1 = I0 − I90`, `S2 = I45 − I135`, the mask from the 3×3
-/// neighbourhood flags (`cmax`, `cnf` from [`column_flags`]), its counts and DoLP /
-/// AoLP when `POLAR`.
+/// neighbourhood flags (`cmax`, `cnf` from [`column_flags`]), its counts (from block
+/// index `skip` on) and DoLP / AoLP when `POLAR`.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn bilinear_pixels<T: Sample, const ROUND: bool, const POLAR: bool>(
-    nb: &[[&[T]; 3]; 3],
+    nb: Neighbours<'_, T>,
     sel: ChannelSel,
     cmax: &[f32],
     cnf: &[u8],
@@ -314,41 +375,44 @@ fn bilinear_pixels<T: Sample, const ROUND: bool, const POLAR: bool>(
     m: &mut [u8],
     d: &mut [f32],
     a: &mut [f32],
+    skip: usize,
     counts: &mut [u32; 3],
 ) {
     let n = s0.len();
-    let nb = &nb.map(|r| r.map(|v| &v[..n]));
+    let nb = nb.trim(n);
     let (s1, s2, m) = (&mut s1[..n], &mut s2[..n], &mut m[..n]);
     let (d, a) = if POLAR {
         (&mut d[..n], &mut a[..n])
     } else {
         (&mut d[..0], &mut a[..0])
     };
-    let (cm, cf) = (&cmax[..n + 2], &cnf[..n + 2]);
+    // The three columns around each pixel as slices of exactly `n` (indexing `[i + 2]`
+    // would leave a bounds check in the loop, which then needs a scalar remainder).
+    let (cm0, cm1, cm2) = (&cmax[..n], &cmax[1..][..n], &cmax[2..][..n]);
+    let (cf0, cf1, cf2) = (&cnf[..n], &cnf[1..][..n], &cnf[2..][..n]);
     let dark2 = 2.0 * rules.dark_level;
     let (sat, min_s0) = (rules.saturation, rules.min_s0);
     let [same0, same45, same90, same135] = sel.same;
     let [own0, own45, own90, own135] = sel.own;
     for i in 0..n {
-        let [mid, hor, ver, dia] = components::<T, ROUND>(nb, i);
+        let [mid, hor, ver, dia] = nb.components::<ROUND>(i);
         let v0 = 0.5 * ((mid + hor) + (ver + dia)) - dark2;
-        let par = i & 1;
-        let i0 = channel(same0, par == own0, mid, hor, ver, dia);
-        let i45 = channel(same45, par == own45, mid, hor, ver, dia);
-        let i90 = channel(same90, par == own90, mid, hor, ver, dia);
-        let i135 = channel(same135, par == own135, mid, hor, ver, dia);
+        let odd = i & 1 == 1;
+        let i0 = channel(same0, odd == own0, mid, hor, ver, dia);
+        let i45 = channel(same45, odd == own45, mid, hor, ver, dia);
+        let i90 = channel(same90, odd == own90, mid, hor, ver, dia);
+        let i135 = channel(same135, odd == own135, mid, hor, ver, dia);
         let v1 = i0 - i90;
         let v2 = i45 - i135;
-        let mx = cm[i].max(cm[i + 1]).max(cm[i + 2]);
+        let mx = cm0[i].max(cm1[i]).max(cm2[i]);
         // Integer samples are finite and their Stokes values too (|S| < 2¹⁹).
-        let nf =
-            !T::INTEGER && ((cf[i] | cf[i + 1] | cf[i + 2]) != 0 || !(v0 + v1 + v2).is_finite());
+        let nf = !T::INTEGER && ((cf0[i] | cf1[i] | cf2[i]) != 0 || !(v0 + v1 + v2).is_finite());
         let mk = mask_value(nf, mx >= sat, v0, min_s0);
         s0[i] = v0;
         s1[i] = v1;
         s2[i] = v2;
         m[i] = mk;
-        count(mk, counts);
+        count(mk, i >= skip, counts);
         if POLAR {
             (d[i], a[i]) = polar(v0, v1, v2, mk);
         }
@@ -400,9 +464,7 @@ pub(super) fn bilinear_strip<T: Sample, const ROUND: bool, const POLAR: bool>(
         } = out.row(r, w);
         let mut counts = [0u32; 3];
         let (mut m_first, mut m_last) = (0u8, 0u8);
-        let mut c = 1;
-        while c < w - 1 {
-            let len = BLOCK.min(w - 1 - c);
+        for (c, len, skip) in blocks(1, w - 1) {
             let rows = [up, mid, down];
             column_flags(rows, c, len, &mut sc.cmax, &mut sc.cnf);
             let nb = neighbours(rows, c, len);
@@ -416,7 +478,7 @@ pub(super) fn bilinear_strip<T: Sample, const ROUND: bool, const POLAR: bool>(
             let d = dest!(rd.as_deref_mut(), td, c, len);
             let a = dest!(ra.as_deref_mut(), ta, c, len);
             bilinear_pixels::<T, ROUND, POLAR>(
-                &nb,
+                nb,
                 sel,
                 &sc.cmax,
                 &sc.cnf,
@@ -427,6 +489,7 @@ pub(super) fn bilinear_strip<T: Sample, const ROUND: bool, const POLAR: bool>(
                 m,
                 d,
                 a,
+                skip,
                 &mut counts,
             );
             if c == 1 {
@@ -435,7 +498,6 @@ pub(super) fn bilinear_strip<T: Sample, const ROUND: bool, const POLAR: bool>(
             if c + len == w - 1 {
                 m_last = m[len - 1];
             }
-            c += len;
         }
         for r in [r0, r1, r2, rd, ra].into_iter().flatten() {
             borders(r);
@@ -443,8 +505,8 @@ pub(super) fn bilinear_strip<T: Sample, const ROUND: bool, const POLAR: bool>(
         if let Some(r) = rm.as_deref_mut() {
             borders(r);
         }
-        count(m_first, &mut counts);
-        count(m_last, &mut counts);
+        count(m_first, true, &mut counts);
+        count(m_last, true, &mut counts);
         total = total.add(row_counts(counts, w));
     }
     total
@@ -483,9 +545,7 @@ pub(super) fn superpixel_strip<T: Sample, const POLAR: bool>(
             mut ra,
         } = out.row(r, ow);
         let mut counts = [0u32; 3];
-        let mut c = 0;
-        while c < ow {
-            let len = BLOCK.min(ow - c);
+        for (c, len, skip) in blocks(0, ow) {
             // Deinterleave the block's cells: comp[p][i] = raw value at cell position p.
             {
                 let [k0, k1, k2, k3] = &mut sc.comp;
@@ -543,12 +603,11 @@ pub(super) fn superpixel_strip<T: Sample, const POLAR: bool>(
                 s1[i] = v1;
                 s2[i] = v2;
                 m[i] = mk;
-                count(mk, &mut counts);
+                count(mk, i >= skip, &mut counts);
                 if POLAR {
                     (d[i], a[i]) = polar(v0, v1, v2, mk);
                 }
             }
-            c += len;
         }
         total = total.add(row_counts(counts, ow));
     }
@@ -571,9 +630,7 @@ pub(super) fn demosaic_strip<T: Sample, const ROUND: bool>(
         let yi = (y0 + r).clamp(1, job.height - 2);
         let raw_rows = [yi - 1, yi, yi + 1].map(|y| row(job.raw, w, y));
         let [o0, o45, o90, o135] = out.each_mut().map(|o| &mut o[r * w..(r + 1) * w]);
-        let mut c = 1;
-        while c < w - 1 {
-            let len = BLOCK.min(w - 1 - c);
+        for (c, len, _) in blocks(1, w - 1) {
             let nb = neighbours(raw_rows, c, len);
             let ChannelSel { same, own } = channel_sel(&job.pos, yi, c);
             let (d0, d45, d90, d135) = (
@@ -583,14 +640,13 @@ pub(super) fn demosaic_strip<T: Sample, const ROUND: bool>(
                 &mut o135[c..c + len],
             );
             for i in 0..len {
-                let [mid, hor, ver, dia] = components::<T, ROUND>(&nb, i);
-                let par = i & 1;
-                d0[i] = channel(same[0], par == own[0], mid, hor, ver, dia) - dark;
-                d45[i] = channel(same[1], par == own[1], mid, hor, ver, dia) - dark;
-                d90[i] = channel(same[2], par == own[2], mid, hor, ver, dia) - dark;
-                d135[i] = channel(same[3], par == own[3], mid, hor, ver, dia) - dark;
+                let [mid, hor, ver, dia] = nb.components::<ROUND>(i);
+                let odd = i & 1 == 1;
+                d0[i] = channel(same[0], odd == own[0], mid, hor, ver, dia) - dark;
+                d45[i] = channel(same[1], odd == own[1], mid, hor, ver, dia) - dark;
+                d90[i] = channel(same[2], odd == own[2], mid, hor, ver, dia) - dark;
+                d135[i] = channel(same[3], odd == own[3], mid, hor, ver, dia) - dark;
             }
-            c += len;
         }
         for o in [o0, o45, o90, o135] {
             borders(o);
@@ -614,10 +670,18 @@ pub(super) fn demosaic_int_strip<T: IntSample>(
         let yi = (y0 + r).clamp(1, job.height - 2);
         let raw_rows = [yi - 1, yi, yi + 1].map(|y| row(job.raw, w, y));
         let [o0, o45, o90, o135] = out.each_mut().map(|o| &mut o[r * w..(r + 1) * w]);
-        let mut c = 1;
-        while c < w - 1 {
-            let len = BLOCK.min(w - 1 - c);
-            let [[ul, uc, ur], [ml, mc, mr], [dl, dc, dr]] = neighbours(raw_rows, c, len);
+        for (c, len, _) in blocks(1, w - 1) {
+            let Neighbours {
+                ul,
+                uc,
+                ur,
+                ml,
+                mc,
+                mr,
+                dl,
+                dc,
+                dr,
+            } = neighbours(raw_rows, c, len);
             let ChannelSel { same, own } = channel_sel(&job.pos, yi, c);
             let (d0, d45, d90, d135) = (
                 &mut o0[c..c + len],
@@ -631,13 +695,12 @@ pub(super) fn demosaic_int_strip<T: IntSample>(
                 let ver = (uc[i].to_u32() + dc[i].to_u32() + 1) >> 1;
                 let dia =
                     (ul[i].to_u32() + ur[i].to_u32() + dl[i].to_u32() + dr[i].to_u32() + 2) >> 2;
-                let par = i & 1;
-                d0[i] = T::from_u32(channel(same[0], par == own[0], mid, hor, ver, dia));
-                d45[i] = T::from_u32(channel(same[1], par == own[1], mid, hor, ver, dia));
-                d90[i] = T::from_u32(channel(same[2], par == own[2], mid, hor, ver, dia));
-                d135[i] = T::from_u32(channel(same[3], par == own[3], mid, hor, ver, dia));
+                let odd = i & 1 == 1;
+                d0[i] = T::from_u32(channel(same[0], odd == own[0], mid, hor, ver, dia));
+                d45[i] = T::from_u32(channel(same[1], odd == own[1], mid, hor, ver, dia));
+                d90[i] = T::from_u32(channel(same[2], odd == own[2], mid, hor, ver, dia));
+                d135[i] = T::from_u32(channel(same[3], odd == own[3], mid, hor, ver, dia));
             }
-            c += len;
         }
         for o in [o0, o45, o90, o135] {
             borders(o);
