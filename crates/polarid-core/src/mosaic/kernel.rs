@@ -394,10 +394,11 @@ fn bilinear_pixels<T: Sample, const ROUND: bool, const POLAR: bool>(
     let (sat, min_s0) = (rules.saturation, rules.min_s0);
     let [same0, same45, same90, same135] = sel.same;
     let [own0, own45, own90, own135] = sel.own;
+    let skip = skip as u32; // n <= BLOCK: block indices fit in u32 (32-bit vector lanes)
     for i in 0..n {
         let [mid, hor, ver, dia] = nb.components::<ROUND>(i);
         let v0 = 0.5 * ((mid + hor) + (ver + dia)) - dark2;
-        let odd = i & 1 == 1;
+        let odd = (i as u32) & 1 == 1;
         let i0 = channel(same0, odd == own0, mid, hor, ver, dia);
         let i45 = channel(same45, odd == own45, mid, hor, ver, dia);
         let i90 = channel(same90, odd == own90, mid, hor, ver, dia);
@@ -412,7 +413,7 @@ fn bilinear_pixels<T: Sample, const ROUND: bool, const POLAR: bool>(
         s1[i] = v1;
         s2[i] = v2;
         m[i] = mk;
-        count(mk, i >= skip, counts);
+        count(mk, i as u32 >= skip, counts);
         if POLAR {
             (d[i], a[i]) = polar(v0, v1, v2, mk);
         }
@@ -603,7 +604,7 @@ pub(super) fn superpixel_strip<T: Sample, const POLAR: bool>(
                 s1[i] = v1;
                 s2[i] = v2;
                 m[i] = mk;
-                count(mk, i >= skip, &mut counts);
+                count(mk, i as u32 >= skip as u32, &mut counts);
                 if POLAR {
                     (d[i], a[i]) = polar(v0, v1, v2, mk);
                 }
@@ -641,7 +642,7 @@ pub(super) fn demosaic_strip<T: Sample, const ROUND: bool>(
             );
             for i in 0..len {
                 let [mid, hor, ver, dia] = nb.components::<ROUND>(i);
-                let odd = i & 1 == 1;
+                let odd = (i as u32) & 1 == 1;
                 d0[i] = channel(same[0], odd == own[0], mid, hor, ver, dia) - dark;
                 d45[i] = channel(same[1], odd == own[1], mid, hor, ver, dia) - dark;
                 d90[i] = channel(same[2], odd == own[2], mid, hor, ver, dia) - dark;
@@ -695,7 +696,7 @@ pub(super) fn demosaic_int_strip<T: IntSample>(
                 let ver = (uc[i].to_u32() + dc[i].to_u32() + 1) >> 1;
                 let dia =
                     (ul[i].to_u32() + ur[i].to_u32() + dl[i].to_u32() + dr[i].to_u32() + 2) >> 2;
-                let odd = i & 1 == 1;
+                let odd = (i as u32) & 1 == 1;
                 d0[i] = T::from_u32(channel(same[0], odd == own[0], mid, hor, ver, dia));
                 d45[i] = T::from_u32(channel(same[1], odd == own[1], mid, hor, ver, dia));
                 d90[i] = T::from_u32(channel(same[2], odd == own[2], mid, hor, ver, dia));
