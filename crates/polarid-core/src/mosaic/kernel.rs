@@ -503,7 +503,7 @@ pub(super) fn bilinear_strip<T: Sample, const ROUND: bool, const POLAR: bool>(
         for r in [r0, r1, r2, rd, ra].into_iter().flatten() {
             borders(r);
         }
-        if let Some(r) = rm.as_deref_mut() {
+        if let Some(r) = rm {
             borders(r);
         }
         count(m_first, true, &mut counts);

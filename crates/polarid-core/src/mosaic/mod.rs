@@ -8,10 +8,11 @@
 //!
 //! Two reconstructions:
 //!
-//! * **Super-pixel** ([`superpixel_stokes`], [`DofpMethod::Superpixel`]): one Stokes vector per 2×2 cell, a
-//!   `(w/2) × (h/2)` image; every output pixel uses its own four raw pixels, so output
+//! * **Super-pixel** ([`superpixel_stokes`], [`DofpMethod::Superpixel`]): one Stokes
+//!   vector per 2×2 cell, a `(w/2) × (h/2)` image; every output pixel uses its own four raw pixels, so output
 //!   pixels are statistically independent.
-//! * **Bilinear** ([`bilinear_stokes`], [`demosaic_bilinear`]): a full-resolution image
+//! * **Bilinear** ([`bilinear_stokes`], [`demosaic_bilinear`], [`DofpMethod::Bilinear`]):
+//!   a full-resolution image
 //!   of each of the four channels, then Stokes per pixel. This is exactly what
 //!   polanalyser 3.0.0's `demosaicing(raw, COLOR_PolarMono)` computes (it runs OpenCV's
 //!   bilinear Bayer demosaicing, `COLOR_BayerBG2BGR` / `COLOR_BayerGR2BGR`, once per
@@ -38,32 +39,42 @@
 //!
 //! The dark level is subtracted after interpolation (the interpolation is linear, so
 //! this only matters for the rounding, which then acts on raw DN as in OpenCV).
-
 //!
-//! # Fused reconstructions
+//! # Fused reconstruction
 //! [`dofp_polar`] goes from the raw mosaic straight to any of `S0`, `S1`, `S2`, the
 //! mask, DoLP and AoLP, for both reconstructions, in one pass: the image is cut into
 //! strips of rows processed in parallel (rayon), and every output row is made from the
-//! raw rows around it in blocks of columns whose intermediate values (the four
-//! interpolation components, the neighbourhood flags, and the Stokes values and mask
-//! of outputs not asked for) stay in the L1 cache. No full-size intermediate image is
-//! made: asking for DoLP and AoLP only reads the raw mosaic and writes those two
-//! images. Every value is computed with exactly the operations of the unfused path
-//! ([`bilinear_stokes`] or [`superpixel_stokes`] followed by
-//! [`crate::stokes::dolp_aolp`] with the mask), so the results are bit-identical to it;
-//! DoLP and AoLP are those of [`crate::stokes::dolp_aolp_pixel`] (a polynomial `atan2`
-//! with error below 4·10⁻⁸ rad, no trigonometric call).
+//! raw rows around it in blocks of columns whose intermediate values (the neighbourhood
+//! flags, and the Stokes values and mask of outputs not asked for) stay in the L1
+//! cache; the four interpolated channels live only in vector registers. No full-size
+//! intermediate image is made: asking for DoLP and AoLP only reads the mosaic and
+//! writes those two images. [`bilinear_stokes`] and [`superpixel_stokes`] are
+//! [`dofp_polar`] with the Stokes images and the mask; [`demosaic_bilinear`],
+//! [`demosaic_bilinear_dark`] and [`demosaic_bilinear_int`] write the four channel
+//! images with the same strips and blocks.
 //!
-//! [`bilinear_stokes`] and [`superpixel_stokes`] are [`dofp_polar`] with the Stokes
-//! images and mask asked for; [`demosaic_bilinear`] and [`demosaic_bilinear_int`]
-//! write the four channel images with the same strips and blocks.
+//! Every value is computed with the operations, in the order, of the two-step path
+//! (Stokes images, then [`crate::stokes::dolp_aolp`] with the mask; the row-by-row
+//! implementation that preceded the fused one is kept as the tests' oracle), so the
+//! results are bit-identical to it. DoLP and AoLP are [`crate::stokes::dolp_aolp_pixel`]:
+//! one square root and one division for DoLP, a branch-free polynomial `atan2` (one
+//! division, error below 4·10⁻⁸ rad, under `f32` resolution of the result) for AoLP.
+//!
+//! # Instruction sets
+//! The kernels (`kernel.rs`) are portable, branch-free loops; `isa.rs` compiles them
+//! for AVX2 + FMA and for AVX-512F behind the tokens of [`crate::cpu`] (the widest the
+//! CPU has is used). Rust does not contract `a·b + c` into a fused multiply-add, so all
+//! give the same bits. The pixel loops carry no bounds checks and the last block of a
+//! row is extended backwards to a whole number of vectors, so no pixel is left to a
+//! scalar remainder loop.
 //!
 //! # Files
-//! | file         | contents                                                              |
-//! |--------------|-----------------------------------------------------------------------|
-//! | `pattern.rs` | [`Pattern`], the size checks                                          |
-//! | `kernel.rs`  | the portable strip kernels (components, pixels, borders), [`IntSample`] |
-//! | `isa.rs`     | the token-gated entry points, instantiated in `avx2.rs` and `avx512.rs` |
+//! | file         | contents                                                                 |
+//! |--------------|--------------------------------------------------------------------------|
+//! | `pattern.rs` | [`Pattern`], the size checks                                             |
+//! | `kernel.rs`  | the portable strip kernels (components, pixels, borders), [`IntSample`]  |
+//! | `isa.rs`     | the token-gated entry points, instantiated in `avx2.rs` and `avx512.rs`  |
+//! | `reference.rs`, `tests.rs` | the previous implementation (test oracle) and the tests    |
 
 mod kernel;
 mod pattern;

@@ -210,9 +210,9 @@ fn flag_row<T: Sample>(
             *c |= ((v >= sat) as u8) | ((!v.is_finite()) as u8) << 1;
         }
     }
-    for x in 0..width {
+    for (x, o) in out[..width].iter_mut().enumerate() {
         let xi = x.clamp(1, width - 2);
-        out[x] = col[xi - 1] | col[xi] | col[xi + 1];
+        *o = col[xi - 1] | col[xi] | col[xi + 1];
     }
 }
 
