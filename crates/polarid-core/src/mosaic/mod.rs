@@ -62,7 +62,7 @@
 //!
 //! # Instruction sets
 //! The kernels (`kernel.rs`) are portable, branch-free loops; `isa.rs` compiles them
-//! for AVX2 + FMA and for AVX-512F behind the tokens of [`crate::cpu`] (the widest the
+//! for AVX2 + FMA and for AVX-512F behind the tokens of `crate::cpu` (the widest the
 //! CPU has is used). Rust does not contract `a·b + c` into a fused multiply-add, so all
 //! give the same bits. The pixel loops carry no bounds checks and the last block of a
 //! row is extended backwards to a whole number of vectors, so no pixel is left to a
