@@ -1,7 +1,14 @@
 #!/usr/bin/env python3
 """Run polarid's throughput examples and scripts/bench/baselines.py side by side and
-print each figure and the ratio polarid/baseline against the issue-7 targets.
-Called by scripts/bench_compare.sh (which sets up the venv and builds the examples)."""
+print each figure and the ratio polarid/baseline against the issue-7 and issue-18
+targets. Called by scripts/bench_compare.sh (which sets up the venv and builds the
+examples).
+
+The DoFP figures (issue 18) come from scripts/bench/dofp.py, which times polarid's
+Python API and polanalyser / OpenCV interleaved in one process: it runs in the
+interpreter of --polarid-python (default: $POLARID_PYTHON, else .venv-test/bin/python,
+the environment scripts/test_python.sh installs polarid into, else this interpreter),
+which needs polarid, polanalyser and OpenCV."""
 import argparse
 import json
 import os
@@ -10,9 +17,24 @@ import subprocess
 import sys
 
 
+# OpenBLAS tuning variables of the host break the pinned numpy of the venvs.
+ENV = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_CORETYPE", "OPENBLAS_L2_SIZE")}
+
+
 def run(cmd):
     print("$ " + " ".join(cmd), file=sys.stderr, flush=True)
-    return subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+    return subprocess.run(cmd, check=True, capture_output=True, text=True, env=ENV).stdout
+
+
+def polarid_python(arg):
+    """The interpreter for scripts/bench/dofp.py (module docstring)."""
+    if arg:
+        return arg
+    if os.environ.get("POLARID_PYTHON"):
+        return os.environ["POLARID_PYTHON"]
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    venv = os.path.join(root, ".venv-test", "bin", "python")
+    return venv if os.path.exists(venv) else sys.executable
 
 
 def last_json(text):
@@ -49,6 +71,7 @@ def main():
     ap.add_argument("--baselines", required=True)
     ap.add_argument("--target-dir", required=True)
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--polarid-python", help="interpreter with polarid, polanalyser and OpenCV for the DoFP figures")
     a = ap.parse_args()
     py = sys.executable
     reps = "3" if a.quick else "5"
@@ -63,6 +86,21 @@ def main():
     ours_stokes = float(m.group(1)) if m else float("nan")
     m = re.search(r"bilinear demosaic.*?([0-9.]+) Mpixel/s", out)
     ours_demosaic = float(m.group(1)) if m else float("nan")
+
+    # --- DoFP through the Python API, interleaved with polanalyser / OpenCV
+    dofp_script = os.path.join(os.path.dirname(os.path.abspath(a.baselines)), "dofp.py")
+    pp = polarid_python(a.polarid_python)
+    try:
+        dofp = last_json(run([pp, dofp_script, "--rounds", "3" if a.quick else "5"]))
+    except (subprocess.CalledProcessError, ValueError, OSError) as e:
+        dofp = None
+        err = getattr(e, "stderr", None) or str(e)
+        print(f"(DoFP figures not measured: {pp} {dofp_script} failed: {err.strip().splitlines()[-1:]})",
+              file=sys.stderr)
+    dofp_rust = None
+    dofp_exe = os.path.join(a.target_dir, "dofp_throughput")
+    if os.path.exists(dofp_exe):
+        dofp_rust = last_json(run([dofp_exe, "--repeats", reps]))
 
     # --- Fits
     fv = last_json(run([py, a.baselines, "fit-vec", "--pixels", vec_pixels]))["results"]
@@ -81,6 +119,32 @@ def main():
         st["numpy_f32_stokes_dolp_aolp"]["mpix_per_s"], None, "Mpixel/s")
     row("DoFP demosaic vs polanalyser", ours_demosaic,
         st["polanalyser_demosaicing_mono"]["mpix_per_s"], None, "Mpixel/s")
+    if dofp is not None:
+        r = dofp["results"]
+        mp = lambda k: r[k]["mpix_per_s"]  # noqa: E731
+        # one process, interleaved rounds, best of each (scripts/bench/dofp.py)
+        row("DoFP raw->DoLP+AoLP vs polanalyser (Python)", mp("polarid_dofp_dolp_aolp"),
+            mp("pa_demosaic_stokes_dolp_aolp"), 20, "Mpixel/s")
+        row("  same, into reused arrays (out=)", mp("polarid_dofp_dolp_aolp_out"),
+            mp("pa_demosaic_stokes_dolp_aolp"), None, "Mpixel/s")
+        row("  unfused demosaic, then dolp_aolp", mp("polarid_demosaic_then_dolp_aolp"),
+            mp("pa_demosaic_stokes_dolp_aolp"), None, "Mpixel/s")
+        # each at its best settings: the faster of its variants in this run
+        best = lambda *ks: max(mp(k) for k in ks)  # noqa: E731
+        row("bilinear demosaic vs OpenCV, best settings",
+            best("polarid_demosaic_u16_out", "polarid_demosaic_u16", "polarid_demosaic_f32"),
+            best("cv2_demosaic", "cv2_demosaic_dst"), 2, "Mpixel/s")
+        row("  new arrays, uint16 vs OpenCV", mp("polarid_demosaic_u16"),
+            mp("cv2_demosaic"), None, "Mpixel/s")
+        row("  new arrays, float32 vs OpenCV", mp("polarid_demosaic_f32"),
+            mp("cv2_demosaic"), None, "Mpixel/s")
+        row("  float32 vs polanalyser demosaicing", mp("polarid_demosaic_f32"),
+            mp("pa_demosaicing"), None, "Mpixel/s")
+        checks = (dofp["check_demosaic_u16_equals_polanalyser"], dofp["check_max_abs_dolp_diff"])
+        print(f"DoFP checks: uint16 demosaic == polanalyser's: {checks[0]}; "
+              f"max |DoLP - polanalyser's| {checks[1]:.2e}; load average {dofp['env']['loadavg_1min']:.1f}")
+    if dofp_rust is not None:
+        print("polarid dofp_throughput (Rust, reused buffers): " + json.dumps(dofp_rust))
     if ours_fit is None:
         print(f"(no {fit_exe}: polarid fit throughput not measured)")
         print(f"fit-vec  {fv['fits_per_s']:.0f} fits/s, global-optimum rate {fv['frac_cost_le_truth']:.4f}")

@@ -19,6 +19,8 @@ demosaic(raw, pattern, method, output)
     Stokes or per-angle images from a division-of-focal-plane mosaic.
 dolp(s), aolp(s), dolp_aolp(s)
     DoLP and AoLP (degrees) of Stokes images.
+dofp_dolp_aolp(raw, pattern, method)
+    DoLP and AoLP straight from a DoFP mosaic (fused, no intermediate images).
 dolp_model(n, k, beta_deg), dolp_model_grad(n, k, beta_deg)
     DoLP of specular reflection, paper eq. (9) (and its gradient), with broadcasting.
 pbrdf(n, k, sigma, theta_i, theta_r, phi)
@@ -45,6 +47,7 @@ from ._polarid import (
     aolp,
     classify,
     demosaic,
+    dofp_dolp_aolp,
     dolp,
     dolp_aolp,
     dolp_model,
@@ -66,6 +69,7 @@ __all__ = [
     "aolp",
     "classify",
     "demosaic",
+    "dofp_dolp_aolp",
     "dolp",
     "dolp_aolp",
     "dolp_model",

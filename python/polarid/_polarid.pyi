@@ -11,7 +11,7 @@ from collections.abc import Sequence
 from typing import Any, Literal, overload
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike, DTypeLike, NDArray
 
 __all__ = [
     "FIT_STATUS",
@@ -83,7 +83,9 @@ def demosaic(
     min_s0: float = 0.0,
     round: bool | None = None,
     return_mask: Literal[False] = False,
-) -> NDArray[np.float32]: ...
+    dtype: DTypeLike | None = None,
+    out: NDArray[Any] | None = None,
+) -> NDArray[Any]: ...
 @overload
 def demosaic(
     raw: ArrayLike,
@@ -96,7 +98,36 @@ def demosaic(
     min_s0: float = 0.0,
     round: bool | None = None,
     return_mask: Literal[True],
+    out: NDArray[np.float32] | None = None,
 ) -> tuple[NDArray[np.float32], NDArray[np.uint8]]: ...
+@overload
+def dofp_dolp_aolp(
+    raw: ArrayLike,
+    pattern: Sequence[float] = (90, 45, 135, 0),
+    method: Literal["bilinear", "superpixel"] = "bilinear",
+    *,
+    dark_level: float = 0.0,
+    saturation: float | None = None,
+    min_s0: float = 0.0,
+    round: bool | None = None,
+    return_stokes: Literal[False] = False,
+    return_mask: Literal[False] = False,
+    out: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None,
+) -> tuple[NDArray[np.float32], NDArray[np.float32]]: ...
+@overload
+def dofp_dolp_aolp(
+    raw: ArrayLike,
+    pattern: Sequence[float] = (90, 45, 135, 0),
+    method: Literal["bilinear", "superpixel"] = "bilinear",
+    *,
+    dark_level: float = 0.0,
+    saturation: float | None = None,
+    min_s0: float = 0.0,
+    round: bool | None = None,
+    return_stokes: bool = False,
+    return_mask: bool = False,
+    out: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None,
+) -> tuple[NDArray[Any], ...]: ...
 def dolp(s: ArrayLike) -> NDArray[np.float32] | NDArray[np.float64]: ...
 def aolp(s: ArrayLike) -> NDArray[np.float32] | NDArray[np.float64]: ...
 def dolp_aolp(

@@ -3,15 +3,21 @@
 //!
 //! Writes `s0.tif`, `s1.tif`, `s2.tif`, `dolp.tif`, `aolp.tif` (float32; DoLP and AoLP are
 //! NaN where a pixel is rejected) and the views `dolp.png`, `aolp.png` into the output
-//! directory, all or nothing. The Stokes images come from [`polarid_io::measure`].
+//! directory, all or nothing. The Stokes images of frames come from
+//! [`polarid_io::measure`]; those of a DoFP mosaic, with DoLP and AoLP, from the fused
+//! kernel [`polarid_core::mosaic::dofp_polar`] in one pass over the mosaic (the same
+//! numbers as [`polarid_io::measure::dofp_stokes`] followed by
+//! [`polarid_core::stokes::dolp_aolp`]).
 
 use std::path::{Path, PathBuf};
 
-use polarid_core::mosaic::Pattern;
-use polarid_core::stokes::{self, StokesSolver};
+use polarid_core::mosaic::{self, DofpMethod, DofpOutputs, Pattern};
+use polarid_core::region::Sampling;
+use polarid_core::stokes::{self, PixelRules, StokesSolver};
+use polarid_io::IoError;
 use polarid_io::atomic::{StagedDir, check_output};
-use polarid_io::image;
-use polarid_io::measure::{self, StokesImages, dofp_stokes, frames_stokes, rules_for};
+use polarid_io::image::{self, Frame};
+use polarid_io::measure::{self, StokesImages, frames_stokes, rules_for};
 
 use polarid_pipeline::map::rules::check_levels;
 
@@ -79,19 +85,50 @@ pub struct Args {
     pub output: PathBuf,
 }
 
+/// Stokes images with mask and counts, DoLP and AoLP of a DoFP mosaic in one pass
+/// ([`mosaic::dofp_polar`]); errors name the raw file, as [`measure::dofp_stokes`]'s.
+fn dofp_images(
+    raw: &Frame,
+    pattern: &Pattern,
+    rules: &PixelRules,
+    demosaic: Demosaic,
+    round: bool,
+) -> Result<(StokesImages, Vec<f32>, Vec<f32>), IoError> {
+    let (method, sampling) = match demosaic {
+        Demosaic::Bilinear => (DofpMethod::Bilinear { round }, Sampling::BilinearDofp),
+        Demosaic::Superpixel => (DofpMethod::Superpixel, Sampling::Independent),
+    };
+    let (w, h) = method.output_size(raw.width, raw.height);
+    let mut img = StokesImages::alloc(w, h, sampling);
+    let (mut dolp, mut aolp) = (vec![0f32; w * h], vec![0f32; w * h]);
+    let out = DofpOutputs {
+        s0: Some(&mut img.s0),
+        s1: Some(&mut img.s1),
+        s2: Some(&mut img.s2),
+        mask: Some(&mut img.mask),
+        dolp: Some(&mut dolp),
+        aolp: Some(&mut aolp),
+    };
+    img.counts = mosaic::dofp_polar(&raw.data, raw.width, pattern, method, rules, out).map_err(
+        |source| IoError::Core {
+            path: raw.path.clone(),
+            source,
+        },
+    )?;
+    Ok((img, dolp, aolp))
+}
+
 /// Run `polarid stokes`.
 pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     check_levels(args.dark_level, args.saturation).cli()?;
-    let (img, inputs): (StokesImages, Vec<PathBuf>) = match (&args.dofp, args.frames.is_empty()) {
+    let (img, dolp, aolp, inputs) = match (&args.dofp, args.frames.is_empty()) {
         (Some(raw_path), true) => {
             let pattern = Pattern::new(&args.pattern)?;
             let raw = image::read_frame(raw_path)?;
             let rules = rules_for(&raw, args.dark_level, args.saturation);
             let round = raw.kind.is_integer() && args.demosaic == Demosaic::Bilinear;
-            (
-                dofp_stokes(&raw, &pattern, &rules, args.demosaic.into(), round)?,
-                vec![raw_path.clone()],
-            )
+            let (img, dolp, aolp) = dofp_images(&raw, &pattern, &rules, args.demosaic, round)?;
+            (img, dolp, aolp, vec![raw_path.clone()])
         }
         (None, false) => {
             if args.angles.len() != args.frames.len() {
@@ -114,10 +151,12 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
             let frames = image::read_frames(&args.frames)?;
             // ok: one frame per angle, and the solver accepted at least three angles.
             let rules = rules_for(&frames[0], args.dark_level, args.saturation);
-            (
-                frames_stokes(&frames, &solver, &rules)?,
-                args.frames.clone(),
-            )
+            let img = frames_stokes(&frames, &solver, &rules)?;
+            let n = img.width * img.height;
+            let (mut dolp, mut aolp) = (vec![0f32; n], vec![0f32; n]);
+            let (s0, s1, s2, m) = (&img.s0, &img.s1, &img.s2, Some(&img.mask[..]));
+            stokes::dolp_aolp(img.width, s0, s1, s2, m, &mut dolp, &mut aolp)?;
+            (img, dolp, aolp, args.frames.clone())
         }
         (Some(_), false) => {
             return Err(BadInput("give either --frames or --dofp, not both".into()).into());
@@ -129,18 +168,6 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         }
     };
     let (w, h) = (img.width, img.height);
-    let n = w * h;
-    let mut dolp = vec![0f32; n];
-    let mut aolp = vec![0f32; n];
-    stokes::dolp_aolp(
-        w,
-        &img.s0,
-        &img.s1,
-        &img.s2,
-        Some(&img.mask),
-        &mut dolp,
-        &mut aolp,
-    )?;
     let dolp_max = match args.dolp_max {
         Some(m) if m.is_finite() && m > 0.0 => m as f32,
         Some(m) => {

@@ -10,11 +10,18 @@ use crate::error::{CoreError, Result};
 
 /// A raw sample type that frames may hold (8/16-bit integer or 32-bit float).
 pub trait Sample: Copy + Send + Sync + 'static {
+    /// True for the unsigned integer types: every value is a whole number in
+    /// `0..2¹⁶`, exact in `f32` and finite, so kernels may skip the non-finite tests and
+    /// round with a plain conversion.
+    const INTEGER: bool = false;
+
     /// The value as `f32` (exact for `u8` and `u16`).
     fn to_f32(self) -> f32;
 }
 
 impl Sample for u8 {
+    const INTEGER: bool = true;
+
     #[inline(always)]
     fn to_f32(self) -> f32 {
         self as f32
@@ -22,6 +29,8 @@ impl Sample for u8 {
 }
 
 impl Sample for u16 {
+    const INTEGER: bool = true;
+
     #[inline(always)]
     fn to_f32(self) -> f32 {
         self as f32
@@ -93,7 +102,7 @@ impl PixelCounts {
     }
 
     /// The counts of `self` and `o` together.
-    pub(super) fn add(self, o: Self) -> Self {
+    pub(crate) fn add(self, o: Self) -> Self {
         Self {
             valid: self.valid + o.valid,
             saturated: self.saturated + o.saturated,

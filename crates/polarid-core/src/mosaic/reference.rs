@@ -1,155 +1,19 @@
-//! Division-of-focal-plane (DoFP) polarization cameras: a 2×2 super-pixel of polarizers
-//! at 0°, 45°, 90° and 135° in any arrangement, repeated over the sensor.
-//!
-//! The pattern is written row by row, top-left first (CONVENTIONS): Sony IMX250MZR /
-//! IMX253MZR sensors are `90,45,135,0` ([`Pattern::IMX250MZR`]). With the four angles
-//! `S0 = ½ (I0 + I45 + I90 + I135)`, `S1 = I0 − I90`, `S2 = I45 − I135` — the least-squares
-//! solution of [`crate::stokes`] for this angle set.
-//!
-//! Two reconstructions:
-//!
-//! * **Super-pixel** ([`superpixel_stokes`]): one Stokes vector per 2×2 cell, a
-//!   `(w/2) × (h/2)` image; every output pixel uses its own four raw pixels, so output
-//!   pixels are statistically independent.
-//! * **Bilinear** ([`bilinear_stokes`], [`demosaic_bilinear`]): a full-resolution image
-//!   of each of the four channels, then Stokes per pixel. This is exactly what
-//!   polanalyser 3.0.0's `demosaicing(raw, COLOR_PolarMono)` computes (it runs OpenCV's
-//!   bilinear Bayer demosaicing, `COLOR_BayerBG2BGR` / `COLOR_BayerGR2BGR`, once per
-//!   pair of diagonal channels). For a channel whose polarizer sits at `(pr, pc)` of the
-//!   cell, the value at pixel `(y, x)` with `dy = (y − pr) mod 2`, `dx = (x − pc) mod 2`
-//!   is
-//!   - `dy = 0, dx = 0`: the raw value itself;
-//!   - `dy = 0, dx = 1`: the mean of the left and right neighbours;
-//!   - `dy = 1, dx = 0`: the mean of the upper and lower neighbours;
-//!   - `dy = 1, dx = 1`: the mean of the four diagonal neighbours;
-//!
-//!   for interior pixels (`1 <= y <= h−2`, `1 <= x <= w−2`). Border rows and columns
-//!   copy the adjacent interior row or column (the corners copy the diagonal interior
-//!   pixel), as OpenCV does. With `round = true` each interpolated value is rounded to the
-//!   nearest integer, halves up (`⌊v + ½⌋`), which is OpenCV's integer arithmetic for
-//!   8- and 16-bit input: the output is then identical to polanalyser's. Without
-//!   rounding the interpolation is exact in `f32`.
-//!
-//!   Every output pixel depends on the raw pixels of its 3×3 neighbourhood (the four
-//!   channels together use all nine), so a pixel is rejected as saturated or invalid
-//!   when any raw pixel of its (border-replicated) 3×3 neighbourhood is. Neighbouring
-//!   output pixels share raw pixels: see [`crate::region::Sampling::BilinearDofp`] for the
-//!   consequence on standard errors.
-//!
-//! The dark level is subtracted after interpolation (the interpolation is linear, so
-//! this only matters for the rounding, which then acts on raw DN as in OpenCV).
+//! The reconstructions as they were before the fused kernels (row by row, with
+//! full-size channel images for [`demosaic_bilinear`]): the oracle the fused kernels
+//! must match bit for bit. Test-only.
 
 use rayon::prelude::*;
 
-use crate::error::{CoreError, Result};
+use super::Pattern;
+use super::pattern::check_mosaic;
+use crate::error::Result;
 use crate::stokes::{PixelCounts, PixelRules, Sample, check_len, finish_mask_row};
-
-/// A 2×2 polarizer pattern: four angles in degrees, row by row from the top-left, a
-/// permutation of 0, 45, 90, 135.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Pattern {
-    angles_deg: [f64; 4],
-    /// Cell position (0..4, row-major) of the 0°, 45°, 90° and 135° polarizers.
-    pos: [usize; 4],
-}
-
-impl Pattern {
-    /// Sony IMX250MZR / IMX253MZR: `90,45,135,0`.
-    pub const IMX250MZR: [f64; 4] = [90.0, 45.0, 135.0, 0.0];
-
-    /// Validate a pattern: exactly four angles forming a permutation of 0, 45, 90, 135
-    /// (degrees, taken modulo 180).
-    pub fn new(angles_deg: &[f64]) -> Result<Self> {
-        let err = |reason: &str| CoreError::InvalidPattern {
-            pattern_deg: angles_deg.to_vec(),
-            reason: reason.to_string(),
-        };
-        if angles_deg.len() != 4 {
-            return Err(err(
-                "expected exactly four angles (a 2x2 super-pixel, row by row)",
-            ));
-        }
-        let mut pos = [usize::MAX; 4];
-        let mut canon = [0.0; 4];
-        for (i, &a) in angles_deg.iter().enumerate() {
-            if !a.is_finite() {
-                return Err(err("angles must be finite"));
-            }
-            let r = a.rem_euclid(180.0);
-            let k = (r / 45.0).round();
-            if (r - 45.0 * k).abs() > 1e-9 {
-                return Err(err("angles must be 0, 45, 90 and 135 degrees"));
-            }
-            let k = (k as usize) % 4;
-            if pos[k] != usize::MAX {
-                return Err(err("the four angles must be distinct"));
-            }
-            pos[k] = i;
-            canon[i] = 45.0 * k as f64;
-        }
-        Ok(Self {
-            angles_deg: canon,
-            pos,
-        })
-    }
-
-    /// The default pattern, [`Pattern::IMX250MZR`].
-    pub fn imx250mzr() -> Self {
-        Self {
-            angles_deg: Self::IMX250MZR,
-            pos: [3, 1, 0, 2],
-        }
-    }
-
-    /// The four angles, degrees, row by row.
-    pub fn angles_deg(&self) -> [f64; 4] {
-        self.angles_deg
-    }
-
-    /// `(row, column)` within the cell of the polarizer at `k × 45°` (`k` in 0..4).
-    pub fn position(&self, k: usize) -> (usize, usize) {
-        let p = self.pos[k & 3];
-        (p / 2, p % 2)
-    }
-}
-
-impl Default for Pattern {
-    fn default() -> Self {
-        Self::imx250mzr()
-    }
-}
-
-fn check_mosaic(width: usize, len: usize, min: usize) -> Result<usize> {
-    let height = len.checked_div(width).unwrap_or(0);
-    if width == 0 || len != width * height {
-        return Err(CoreError::InvalidDimensions {
-            width,
-            height,
-            reason: format!("{len} pixels do not form whole rows"),
-        });
-    }
-    if !width.is_multiple_of(2) || !height.is_multiple_of(2) {
-        return Err(CoreError::InvalidDimensions {
-            width,
-            height,
-            reason: "a 2x2 polarizer mosaic needs an even width and height".into(),
-        });
-    }
-    if width < min || height < min {
-        return Err(CoreError::InvalidDimensions {
-            width,
-            height,
-            reason: format!("a polarizer mosaic needs at least {min}x{min} pixels"),
-        });
-    }
-    Ok(height)
-}
 
 /// Super-pixel Stokes: one Stokes vector per 2×2 cell of `raw` (`width × height`, both
 /// even). Outputs are `(width/2) × (height/2)`. A cell is saturated / invalid when any of
 /// its four raw pixels is, dark when its `S0 <= rules.min_s0`.
 #[allow(clippy::too_many_arguments)]
-pub fn superpixel_stokes<T: Sample>(
+pub(super) fn superpixel_stokes<T: Sample>(
     raw: &[T],
     width: usize,
     pattern: &Pattern,
@@ -346,16 +210,16 @@ fn flag_row<T: Sample>(
             *c |= ((v >= sat) as u8) | ((!v.is_finite()) as u8) << 1;
         }
     }
-    for x in 0..width {
+    for (x, o) in out[..width].iter_mut().enumerate() {
         let xi = x.clamp(1, width - 2);
-        out[x] = col[xi - 1] | col[xi] | col[xi + 1];
+        *o = col[xi - 1] | col[xi] | col[xi + 1];
     }
 }
 
 /// Bilinear demosaicing of `raw` (`width × height`, even, at least 4×4) into four
 /// full-resolution channel images `out[k]` for the polarizer at `k × 45°` (0, 45, 90,
 /// 135). Exactly polanalyser's / OpenCV's interpolation when `round` (module docs).
-pub fn demosaic_bilinear<T: Sample>(
+pub(super) fn demosaic_bilinear<T: Sample>(
     raw: &[T],
     width: usize,
     pattern: &Pattern,
@@ -394,7 +258,7 @@ pub fn demosaic_bilinear<T: Sample>(
 /// diagonal mean) once each, so `S0 = ½ (mid + hor + ver + dia)` whatever the pattern,
 /// and `S1`, `S2` are differences of two components chosen by the pixel's parity.
 #[allow(clippy::too_many_arguments)]
-pub fn bilinear_stokes<T: Sample>(
+pub(super) fn bilinear_stokes<T: Sample>(
     raw: &[T],
     width: usize,
     pattern: &Pattern,
@@ -461,52 +325,4 @@ pub fn bilinear_stokes<T: Sample>(
             invalid: a.invalid + b.invalid,
         });
     Ok(counts)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn pattern_validation() {
-        assert!(Pattern::new(&[90.0, 45.0, 135.0, 0.0]).is_ok());
-        assert_eq!(
-            Pattern::new(&[90.0, 45.0, 135.0, 0.0]).unwrap(),
-            Pattern::imx250mzr()
-        );
-        for bad in [
-            vec![0.0, 45.0, 90.0],
-            vec![0.0, 45.0, 90.0, 90.0],
-            vec![0.0, 45.0, 90.0, 120.0],
-            vec![0.0, 45.0, 90.0, 180.0],
-            vec![0.0, 45.0, 90.0, f64::NAN],
-        ] {
-            assert!(
-                matches!(Pattern::new(&bad), Err(CoreError::InvalidPattern { .. })),
-                "{bad:?}"
-            );
-        }
-        let p = Pattern::imx250mzr();
-        assert_eq!(p.position(0), (1, 1));
-        assert_eq!(p.position(2), (0, 0));
-    }
-
-    #[test]
-    fn odd_sizes_rejected() {
-        let raw = vec![0u16; 6 * 5];
-        let mut o = vec![0f32; 30];
-        let mut m = vec![0u8; 30];
-        let e = bilinear_stokes(
-            &raw,
-            6,
-            &Pattern::default(),
-            &PixelRules::default(),
-            false,
-            &mut o.clone(),
-            &mut o.clone(),
-            &mut o,
-            &mut m,
-        );
-        assert!(matches!(e, Err(CoreError::InvalidDimensions { .. })));
-    }
 }
