@@ -420,6 +420,7 @@ pub fn fit_table<'py>(
         })?,
         s0_rel_sd,
         sigma_range,
+        ..FitConfig::default()
     };
     cfg.validate().py_err()?;
     let out = py
