@@ -404,3 +404,79 @@ fn films_whose_aolp_flips_are_model_mismatch() {
     assert!(caught as f64 >= 0.9 * flips as f64);
     assert!(good_flagged as f64 <= 0.02 * good as f64);
 }
+
+#[test]
+fn angle_sd_deg_in_the_manifest_and_bad_options() {
+    let dir = tempfile::tempdir().unwrap();
+    for f in ["s0.tif", "s1.tif", "s2.tif"] {
+        std::fs::write(dir.path().join(f), b"x").unwrap();
+    }
+    let path = dir.path().join("m.toml");
+    let text = |top: &str, cap: &str| {
+        format!(
+            "theta_r_deg = 45.0\n{top}\n[[region]]\nname = \"A\"\nrect = [0, 0, 2, 2]\n\n\
+             [[capture]]\ntheta_i_deg = 30.0\n{cap}\nstokes = {{ s0 = \"s0.tif\", s1 = \"s1.tif\", s2 = \"s2.tif\" }}\n\n\
+             [[capture]]\ntheta_i_deg = 40.0\nstokes = {{ s0 = \"s0.tif\", s1 = \"s1.tif\", s2 = \"s2.tif\" }}\n"
+        )
+    };
+    let m = polarid_io::manifest::parse(&path, &text("angle_sd_deg = 0.3", "angle_sd_deg = 0.05"))
+        .unwrap();
+    assert_eq!(m.angle_sd_deg, Some(0.3));
+    assert_eq!(m.captures[0].angle_sd_deg, Some(0.05));
+    assert_eq!(m.captures[1].angle_sd_deg, Some(0.3));
+    assert!(m.warnings.is_empty(), "{:?}", m.warnings);
+    let none = polarid_io::manifest::parse(&path, &text("", "")).unwrap();
+    assert_eq!(none.captures[0].angle_sd_deg, None);
+    let e = polarid_io::manifest::parse(&path, &text("", "angle_sd_deg = -0.1"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("capture[1].angle_sd_deg") && e.contains("-0.1"),
+        "{e}"
+    );
+    let e = polarid_io::manifest::parse(&path, &text("angle_sd_deg = nan", ""))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("angle_sd_deg"), "{e}");
+
+    for (cfg, word) in [
+        (
+            FitConfig {
+                angle_sd_deg: -1.0,
+                ..FitConfig::default()
+            },
+            "angle_sd_deg",
+        ),
+        (
+            FitConfig {
+                dolp_floor: f64::NAN,
+                ..FitConfig::default()
+            },
+            "dolp_floor",
+        ),
+        (
+            FitConfig {
+                extinction_ratio: 1.0,
+                ..FitConfig::default()
+            },
+            "extinction_ratio",
+        ),
+        (
+            FitConfig {
+                retardance_deg: 91.0,
+                ..FitConfig::default()
+            },
+            "retardance_deg",
+        ),
+        (
+            FitConfig {
+                mismatch_p: 1.0,
+                ..FitConfig::default()
+            },
+            "mismatch_p",
+        ),
+    ] {
+        let e = cfg.validate().unwrap_err().to_string();
+        assert!(e.starts_with(word) && e.contains("got"), "{e}");
+    }
+}
