@@ -352,6 +352,7 @@ fn gls_gof(v: &[f64], j0: &[f64], j1: &[f64], r: &[f64]) -> Option<Gof> {
 
 /// Lower Cholesky factor of the symmetric `m × m` matrix `v` (row-major), or `None`
 /// when it is not positive definite.
+#[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN-safe on purpose
 fn cholesky(v: &[f64], m: usize) -> Option<Vec<f64>> {
     let mut l = vec![0.0; m * m];
     for i in 0..m {
@@ -387,6 +388,7 @@ fn forward(l: &[f64], y: &[f64], m: usize) -> Vec<f64> {
 }
 
 /// Inverse of the symmetric 2×2 `[[a, b], [b, c]]` (as in the core fit's covariance).
+#[allow(clippy::neg_cmp_op_on_partial_ord, clippy::nonminimal_bool)] // NaN-safe on purpose
 fn inv2(a: f64, b: f64, c: f64) -> Option<(f64, f64, f64)> {
     if !(a > 0.0 && c > 0.0) || !(a.is_finite() && b.is_finite() && c.is_finite()) {
         return None;

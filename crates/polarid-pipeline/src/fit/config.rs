@@ -175,6 +175,7 @@ fn check_in(option: &str, v: f64, lo: f64, hi: f64, closed: bool) -> Result<()> 
 
 impl FitConfig {
     /// Check every value ([`PipelineError::Config`] naming the field and value).
+    #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN-safe on purpose
     pub fn validate(&self) -> Result<()> {
         check_range("n_range", self.n_range)?;
         check_range("k_range", self.k_range)?;
