@@ -506,6 +506,7 @@ pub fn fit_table<'py>(
         })?,
         s0_rel_sd,
         sigma_range,
+        ..FitConfig::default()
     };
     cfg.validate().py_err()?;
     let out = py
@@ -541,5 +542,10 @@ pub fn fit_table<'py>(
     col!("sigma", |r| r.sigma);
     col!("rho_d", |r| r.rho_d);
     col!("theta_r_deg", |r| r.theta_r_deg);
+    col!("n_se_noise", |r| r.n_se_noise);
+    col!("k_se_noise", |r| r.k_se_noise);
+    col!("nk_corr_noise", |r| r.nk_corr_noise);
+    col!("gof_p", |r| r.gof_p);
+    col!("aolp_p", |r| r.aolp_p);
     Ok(d)
 }

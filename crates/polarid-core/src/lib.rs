@@ -29,6 +29,7 @@ pub mod simulate;
 pub mod status;
 pub mod stokes;
 pub mod sun;
+pub mod systematic;
 
 pub use error::{CoreError, Result};
 pub use status::FitStatus;

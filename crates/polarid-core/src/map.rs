@@ -687,9 +687,11 @@ fn write_fit(
         FitStatus::IllConditioned => (0, reason::FIT_ILL_CONDITIONED),
         FitStatus::NotConverged => (0, reason::FIT_NOT_CONVERGED),
         FitStatus::AtBound => (0, reason::FIT_AT_BOUND),
-        // `fit_batch` never reports `depolarized` (a per-target rule of the
-        // table fit); a pixel would count as unusable input.
-        FitStatus::InvalidInput | FitStatus::Depolarized => (0, reason::FIT_INVALID_INPUT),
+        // `fit_batch` never reports `depolarized` or `model_mismatch` (per-target
+        // rules of the table fit); a pixel would count as unusable input.
+        FitStatus::InvalidInput | FitStatus::Depolarized | FitStatus::ModelMismatch => {
+            (0, reason::FIT_INVALID_INPUT)
+        }
     };
     out.class[p] = c;
     out.reason[p] = r;

@@ -27,21 +27,28 @@ pub enum FitStatus {
     /// polarized part (specular fit: DoLP below a threshold everywhere; mixed fit: the
     /// diffuse term dominates).
     Depolarized,
+    /// The data contradict the single-interface model beyond their total (noise plus
+    /// systematic) uncertainty: the residuals fail the χ² goodness-of-fit test, or the
+    /// AoLP is not perpendicular to the plane of incidence (a coating, a film,
+    /// birefringence or a wrong geometry; docs/ERRORS.md). The estimate is reported but
+    /// must not be classified.
+    ModelMismatch,
 }
 
 impl FitStatus {
     /// Every status, in the order of their [`FitStatus::code`].
-    pub const ALL: [FitStatus; 6] = [
+    pub const ALL: [FitStatus; 7] = [
         FitStatus::Ok,
         FitStatus::NotConverged,
         FitStatus::IllConditioned,
         FitStatus::AtBound,
         FitStatus::InvalidInput,
         FitStatus::Depolarized,
+        FitStatus::ModelMismatch,
     ];
 
     /// One word: `ok`, `not_converged`, `ill_conditioned`, `at_bound`, `invalid_input`,
-    /// `depolarized` (the `status` column of the fits CSV).
+    /// `depolarized`, `model_mismatch` (the `status` column of the fits CSV).
     pub fn as_str(self) -> &'static str {
         match self {
             FitStatus::Ok => "ok",
@@ -50,6 +57,7 @@ impl FitStatus {
             FitStatus::AtBound => "at_bound",
             FitStatus::InvalidInput => "invalid_input",
             FitStatus::Depolarized => "depolarized",
+            FitStatus::ModelMismatch => "model_mismatch",
         }
     }
 
@@ -68,6 +76,7 @@ impl FitStatus {
             FitStatus::AtBound => 3,
             FitStatus::InvalidInput => 4,
             FitStatus::Depolarized => 5,
+            FitStatus::ModelMismatch => 6,
         }
     }
 
@@ -97,5 +106,10 @@ mod tests {
         assert_eq!(FitStatus::parse("OK"), None);
         assert_eq!(FitStatus::parse(""), None);
         assert_eq!(FitStatus::parse("fit_ok"), None);
+        assert_eq!(
+            FitStatus::parse("model_mismatch"),
+            Some(FitStatus::ModelMismatch)
+        );
+        assert_eq!(FitStatus::ModelMismatch.code(), 6);
     }
 }

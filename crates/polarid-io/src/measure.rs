@@ -352,6 +352,7 @@ pub fn measure_images(m: &Manifest, c: &Capture, img: &StokesImages) -> Result<V
             beta_sd_deg: None,
             aolp_deg: None,
             aolp_poi_deg: None,
+            angle_sd_deg: c.angle_sd_deg,
         });
     }
     Ok(rows)
@@ -547,6 +548,7 @@ fn calibrated_rows(
             beta_sd_deg: Some(st.beta_sd.to_degrees()),
             aolp_deg: finite_deg(st.aolp),
             aolp_poi_deg: finite_deg(st.aolp_poi),
+            angle_sd_deg: c.angle_sd_deg,
         });
     }
     Ok(rows)

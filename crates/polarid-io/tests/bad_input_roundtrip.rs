@@ -69,6 +69,7 @@ prop_compose! {
             beta_sd_deg: extra.0,
             aolp_deg: extra.1,
             aolp_poi_deg: extra.2,
+            angle_sd_deg: None,
         }
     }
 }
@@ -108,6 +109,11 @@ prop_compose! {
             model: "specular".into(),
             sigma,
             rho_d: None,
+            n_se_noise: None,
+            k_se_noise: None,
+            nk_corr_noise: None,
+            gof_p: None,
+            aolp_p: None,
             theta_r_deg: None,
         }
     }

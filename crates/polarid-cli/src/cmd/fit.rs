@@ -7,7 +7,10 @@
 //! documentation. `--models FILE` writes both radiometric fits of every target with their
 //! information criteria (`--reflectance mixed`). Rows with `beta_sd_deg` (regions of
 //! calibrated captures) are fitted with the model `P(β̄) + ½ P''(β̄) s_β²` of the
-//! region's spread of β (docs/GEOMETRY.md).
+//! region's spread of β (docs/GEOMETRY.md). The standard errors include the systematic
+//! errors of the geometry and the polarimeter (`--angle-sd-deg`, `--dolp-floor`,
+//! `--extinction-ratio`, `--retardance-deg`), and `--mismatch-p` sets the level of the
+//! model checks (docs/ERRORS.md).
 
 use std::path::PathBuf;
 
@@ -15,8 +18,9 @@ use polarid_core::mixed::{DEPOLARIZED_MAX_DOLP, Shadowing};
 use polarid_io::table::fits;
 use polarid_io::table::write_rows;
 use polarid_pipeline::fit::{
-    self as pipe, FitConfig, MODEL_COLUMNS, Reflectance, model_rows, range_problem,
-    read_measurements,
+    self as pipe, DEFAULT_ANGLE_SD_DEG, DEFAULT_DOLP_FLOOR, DEFAULT_EXTINCTION_RATIO,
+    DEFAULT_MISMATCH_P, DEFAULT_RETARDANCE_DEG, FitConfig, MODEL_COLUMNS, Reflectance, model_rows,
+    range_problem, read_measurements,
 };
 
 use super::common::{PipeResult, with_progress};
@@ -77,6 +81,24 @@ pub struct Args {
     /// Mixed fit: also write both models' fits of every target (CSV) to this file.
     #[arg(long, value_name = "CSV")]
     pub models: Option<PathBuf>,
+    /// Standard uncertainty of the source and camera directions, degrees, for rows
+    /// without an angle_sd_deg (docs/ERRORS.md).
+    #[arg(long, value_name = "DEG", default_value_t = DEFAULT_ANGLE_SD_DEG)]
+    pub angle_sd_deg: f64,
+    /// Additive DoLP error of the polarimeter (standard deviation, per measurement).
+    #[arg(long, value_name = "DOLP", default_value_t = DEFAULT_DOLP_FLOOR)]
+    pub dolp_floor: f64,
+    /// The lowest extinction ratio the polarizer may have (DoLP scale uncertainty
+    /// 2/(ER+1), common to a target's measurements; inf: ideal).
+    #[arg(long, value_name = "ER", default_value_t = DEFAULT_EXTINCTION_RATIO)]
+    pub extinction_ratio: f64,
+    /// The largest retardance ahead of the polarizer, degrees.
+    #[arg(long, value_name = "DEG", default_value_t = DEFAULT_RETARDANCE_DEG)]
+    pub retardance_deg: f64,
+    /// Status model_mismatch when the goodness-of-fit or AoLP test has a p-value below
+    /// this (0: never).
+    #[arg(long, value_name = "P", default_value_t = DEFAULT_MISMATCH_P)]
+    pub mismatch_p: f64,
 }
 
 /// Parse a number in (0, 1].
@@ -133,6 +155,11 @@ impl Args {
             },
             s0_rel_sd: self.s0_rel_sd,
             sigma_range: self.sigma_range,
+            angle_sd_deg: self.angle_sd_deg,
+            dolp_floor: self.dolp_floor,
+            extinction_ratio: self.extinction_ratio,
+            retardance_deg: self.retardance_deg,
+            mismatch_p: self.mismatch_p,
         }
     }
 }
@@ -150,6 +177,16 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     let path = &args.measurements;
     let rows = read_measurements(path).cli()?;
     let cfg = args.config();
+    // Name the option as it was written: `--angle-sd-deg must be ..., got -1`.
+    if let Err(polarid_pipeline::PipelineError::Config {
+        option,
+        value,
+        reason,
+    }) = cfg.validate()
+    {
+        let option = option.replace('_', "-");
+        return Err(BadInput(format!("--{option} {reason}, got {value}")).into());
+    }
     let out = with_progress(ctx, "fitting", |p| pipe::fit(path, &rows, &cfg, p)).cli()?;
     if let Some(mp) = &args.models {
         if args.output.as_deref() == Some(mp.as_path()) {

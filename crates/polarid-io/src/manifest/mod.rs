@@ -7,6 +7,7 @@
 //! dark_level = 0.0          # DN subtracted from every raw frame (default 0)
 //! saturation = 4095.0       # DN; raw pixels at or above it are rejected (default: type max)
 //! wavelength_nm = 650.0     # optional, informational
+//! angle_sd_deg = 0.1        # optional: standard uncertainty of the source and camera directions
 //!
 //! [[region]]
 //! name = "A"
@@ -21,7 +22,7 @@
 //! # or: stokes = { s0 = "s0.tif", s1 = "s1.tif", s2 = "s2.tif" }
 //! ```
 //!
-//! Per capture, `theta_r_deg`, `phi_deg`, `dark_level` and `saturation` may override the
+//! Per capture, `theta_r_deg`, `phi_deg`, `dark_level`, `saturation` and `angle_sd_deg` may override the
 //! top-level values, and `name` may label the capture. Paths are relative to the manifest
 //! file. Validation errors are [`IoError::Manifest`] with the manifest's 1-based line
 //! number and a dotted field path; array indices in field paths are 1-based
@@ -66,6 +67,9 @@ pub struct Manifest {
     pub saturation: Option<f64>,
     /// Informational wavelength, nm.
     pub wavelength_nm: Option<f64>,
+    /// Top-level standard uncertainty of the geometry's directions, degrees (if given;
+    /// docs/ERRORS.md).
+    pub angle_sd_deg: Option<f64>,
     /// The calibrated camera (`[camera]`), if any: then every capture has a
     /// [`Capture::illumination`] and no angles of its own.
     pub camera: Option<CameraSpec>,
@@ -127,6 +131,9 @@ pub struct Capture {
     pub dark_level: f64,
     /// Saturation level, DN (`None`: the frames' type maximum).
     pub saturation: Option<f64>,
+    /// Standard uncertainty of the source and camera directions, degrees (the capture's
+    /// own `angle_sd_deg` or the top-level one; `None` when neither is given).
+    pub angle_sd_deg: Option<f64>,
     /// What was recorded.
     pub source: CaptureSource,
 }
@@ -358,6 +365,7 @@ impl<'a> Parser<'a> {
                 "dark_level",
                 "saturation",
                 "wavelength_nm",
+                "angle_sd_deg",
                 "region",
                 "capture",
                 "camera",
@@ -391,6 +399,8 @@ impl<'a> Parser<'a> {
             }
             other => other.map(|x| x.0),
         };
+
+        let angle_sd_deg = self.angle_sd(root, "")?;
 
         // Calibrated geometry.
         let camera = self.camera(root)?;
@@ -531,6 +541,11 @@ impl<'a> Parser<'a> {
                 camera.is_some(),
                 site.as_ref(),
             )?);
+            if let Some(c) = captures.last_mut()
+                && c.angle_sd_deg.is_none()
+            {
+                c.angle_sd_deg = angle_sd_deg;
+            }
         }
         if captures.is_empty() {
             return Err(self.err(&whole, "capture", "no [[capture]]: at least one is needed"));
@@ -545,6 +560,7 @@ impl<'a> Parser<'a> {
             dark_level,
             saturation,
             wavelength_nm,
+            angle_sd_deg,
             camera,
             planes,
             site,
@@ -587,6 +603,7 @@ impl<'a> Parser<'a> {
                 "exposure",
                 "dark_level",
                 "saturation",
+                "angle_sd_deg",
                 "frames",
                 "dofp",
                 "stokes",
@@ -662,6 +679,7 @@ impl<'a> Parser<'a> {
                 format!("dark level must be below the saturation level {s}"),
             ));
         }
+        let angle_sd_deg = self.angle_sd(t, &pre)?;
         let kinds: Vec<&str> = ["frames", "dofp", "stokes"]
             .into_iter()
             .filter(|k| self.get(t, k).is_some())
@@ -770,7 +788,21 @@ impl<'a> Parser<'a> {
             exposure,
             dark_level,
             saturation,
+            angle_sd_deg,
             source,
         })
+    }
+
+    /// The optional `angle_sd_deg` of a table: finite (checked by `num`) and in
+    /// `[0, 90)` degrees.
+    fn angle_sd(&self, t: &Table<'_>, prefix: &str) -> Result<Option<f64>> {
+        match self.opt_num(t, "angle_sd_deg", prefix)? {
+            Some((v, span)) if !(0.0..90.0).contains(&v) => Err(self.err(
+                &span,
+                &format!("{prefix}angle_sd_deg"),
+                "angle uncertainty must be in [0, 90) degrees",
+            )),
+            other => Ok(other.map(|x| x.0)),
+        }
     }
 }

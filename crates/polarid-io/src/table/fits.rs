@@ -1,7 +1,10 @@
 //! Fits CSV — written by `fit`, read by `train` and `classify`.
 //!
 //! `target,class,n,k,n_se,k_se,nk_corr,rms_residual,measurements,status`
-//! (extra columns written by polarid: `reason`, `model`, `sigma`, `rho_d`, `theta_r_deg`).
+//! (extra columns written by polarid: `reason`, `model`, `sigma`, `rho_d`, `theta_r_deg`,
+//! then the error model's `n_se_noise`, `k_se_noise`, `nk_corr_noise`, `gof_p`,
+//! `aolp_p`; docs/ERRORS.md). `n_se`, `k_se`, `nk_corr` are the total (noise plus
+//! systematic) uncertainty; the `_noise` columns the noise's part alone.
 
 use std::io::Write;
 use std::path::Path;
@@ -11,7 +14,7 @@ use crate::error::Result;
 use polarid_core::FitStatus;
 
 /// Column order of the fits CSV.
-pub const COLUMNS: [&str; 15] = [
+pub const COLUMNS: [&str; 20] = [
     "target",
     "class",
     "n",
@@ -27,6 +30,11 @@ pub const COLUMNS: [&str; 15] = [
     "sigma",
     "rho_d",
     "theta_r_deg",
+    "n_se_noise",
+    "k_se_noise",
+    "nk_corr_noise",
+    "gof_p",
+    "aolp_p",
 ];
 
 /// One fitted target.
@@ -62,6 +70,17 @@ pub struct FitRow {
     pub rho_d: Option<f64>,
     /// Fitted camera zenith angle, degrees (when estimated).
     pub theta_r_deg: Option<f64>,
+    /// Standard error of `n` from the noise alone (`n_se` is noise plus systematic).
+    pub n_se_noise: Option<f64>,
+    /// Standard error of `k` from the noise alone.
+    pub k_se_noise: Option<f64>,
+    /// Correlation of `n` and `k` from the noise alone.
+    pub nk_corr_noise: Option<f64>,
+    /// p-value of the χ² goodness of fit against the total (noise + systematic) DoLP
+    /// covariance (weighted fits).
+    pub gof_p: Option<f64>,
+    /// p-value of the AoLP test (rows with `aolp_poi_deg`).
+    pub aolp_p: Option<f64>,
 }
 
 /// Read a fits CSV: needs `target`, `n`, `k`; the rest is optional (`status` defaults to
@@ -95,6 +114,13 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<FitRow>> {
         match c {
             Some(c) if t.text(r, c).eq_ignore_ascii_case("nan") => Ok(f64::NAN),
             _ => Ok(t.opt_f64(r, c)?.unwrap_or(f64::NAN)),
+        }
+    };
+    // Optional numbers that may be "nan" (an empty cell: not known).
+    let opt_nan = |r: usize, c: Option<usize>| -> Result<Option<f64>> {
+        match c {
+            Some(c) if t.text(r, c).eq_ignore_ascii_case("nan") => Ok(Some(f64::NAN)),
+            _ => t.opt_f64(r, c),
         }
     };
     let mut out = Vec::with_capacity(t.rows.len());
@@ -146,6 +172,11 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<FitRow>> {
             sigma: t.opt_f64(r, c_sigma)?,
             rho_d: t.opt_f64(r, c_rho)?,
             theta_r_deg: t.opt_f64(r, c_tr)?,
+            n_se_noise: opt_nan(r, t.col("n_se_noise"))?,
+            k_se_noise: opt_nan(r, t.col("k_se_noise"))?,
+            nk_corr_noise: opt_nan(r, t.col("nk_corr_noise"))?,
+            gof_p: opt_nan(r, t.col("gof_p"))?,
+            aolp_p: opt_nan(r, t.col("aolp_p"))?,
         });
     }
     Ok(out)
@@ -174,6 +205,11 @@ pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[FitRow]) -> Resu
                 fmt_opt(f.sigma),
                 fmt_opt(f.rho_d),
                 fmt_opt(f.theta_r_deg),
+                fmt_opt(f.n_se_noise),
+                fmt_opt(f.k_se_noise),
+                fmt_opt(f.nk_corr_noise),
+                fmt_opt(f.gof_p),
+                fmt_opt(f.aolp_p),
             ]
         }),
     )

@@ -2,9 +2,9 @@
 //!
 //! `target,class,theta_i_deg,theta_r_deg,phi_deg,beta_deg,dolp,dolp_se,s0,pixels,rejected`
 //! (extra columns written by polarid: `exposure`, `saturated`), then the optional
-//! columns [`OPTIONAL_COLUMNS`] (`beta_sd_deg`, `aolp_deg`, `aolp_poi_deg`), each
-//! written only when some row has a value for it (rows of calibrated captures), so a
-//! far-field file keeps exactly the columns above.
+//! columns [`OPTIONAL_COLUMNS`] (`beta_sd_deg`, `aolp_deg`, `aolp_poi_deg` of calibrated
+//! captures, `angle_sd_deg` when the manifest gives it), each written only when some row
+//! has a value for it, so a far-field file keeps exactly the columns above.
 
 use std::io::Write;
 use std::path::Path;
@@ -33,7 +33,7 @@ pub const COLUMNS: [&str; 13] = [
 
 /// The optional columns, in output order: written after [`COLUMNS`], each one only when
 /// some row has a value.
-pub const OPTIONAL_COLUMNS: [&str; 3] = ["beta_sd_deg", "aolp_deg", "aolp_poi_deg"];
+pub const OPTIONAL_COLUMNS: [&str; 4] = ["beta_sd_deg", "aolp_deg", "aolp_poi_deg", "angle_sd_deg"];
 
 /// One row: a target's DoLP in one capture.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -73,13 +73,16 @@ pub struct Measurement {
     /// measured from the plane of incidence, degrees, `[0, 180)` (90 for a single
     /// interface).
     pub aolp_poi_deg: Option<f64>,
+    /// Standard uncertainty of the directions of the source and of the camera, degrees
+    /// (the manifest's `angle_sd_deg`; `None`: `fit`'s default applies, docs/ERRORS.md).
+    pub angle_sd_deg: Option<f64>,
 }
 
 /// Read a measurements CSV. Needs `target`, `dolp` and either `beta_deg` or
 /// `theta_i_deg` and `theta_r_deg` (`phi_deg` defaults to 180; `beta_deg` then follows
 /// from eq. 5, also out of the plane of incidence). Angles must be finite and in
 /// `[0, 90)`, `dolp` in `[0, 1]`, `dolp_se` positive; the optional `beta_sd_deg` in
-/// `[0, 90)`, `aolp_deg` and `aolp_poi_deg` in `[0, 180)`.
+/// `[0, 90)`, `aolp_deg` and `aolp_poi_deg` in `[0, 180)`, `angle_sd_deg` in `[0, 90)`.
 pub fn read(path: &Path) -> Result<Vec<Measurement>> {
     let t = CsvTable::read(path)?;
     from_table(&t)
@@ -115,6 +118,7 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
     let c_bsd = t.col("beta_sd_deg");
     let c_aolp = t.col("aolp_deg");
     let c_apoi = t.col("aolp_poi_deg");
+    let c_asd = t.col("angle_sd_deg");
     let mut out = Vec::with_capacity(t.rows.len());
     for r in 0..t.rows.len() {
         let target = t.text(r, c_target).to_string();
@@ -175,6 +179,7 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
         let beta_sd_deg = in_range(c_bsd, 90.0, "spread of beta")?;
         let aolp_deg = in_range(c_aolp, 180.0, "AoLP")?;
         let aolp_poi_deg = in_range(c_apoi, 180.0, "AoLP")?;
+        let angle_sd_deg = in_range(c_asd, 90.0, "angle uncertainty")?;
         out.push(Measurement {
             target,
             class: t.opt_text(r, c_class),
@@ -192,6 +197,7 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
             beta_sd_deg,
             aolp_deg,
             aolp_poi_deg,
+            angle_sd_deg,
         });
     }
     Ok(out)
@@ -200,8 +206,12 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
 /// Write measurements in the documented column order: [`COLUMNS`], then those of
 /// [`OPTIONAL_COLUMNS`] that some row has a value for.
 pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[Measurement]) -> Result<()> {
-    let optional: [fn(&Measurement) -> Option<f64>; 3] =
-        [|m| m.beta_sd_deg, |m| m.aolp_deg, |m| m.aolp_poi_deg];
+    let optional: [fn(&Measurement) -> Option<f64>; 4] = [
+        |m| m.beta_sd_deg,
+        |m| m.aolp_deg,
+        |m| m.aolp_poi_deg,
+        |m| m.angle_sd_deg,
+    ];
     let present: Vec<usize> = (0..optional.len())
         .filter(|&i| rows.iter().any(|m| optional[i](m).is_some()))
         .collect();
@@ -274,5 +284,20 @@ mod tests {
         let text = "target,dolp,beta_deg,aolp_poi_deg\nA,0.5,45,180\n";
         let t = CsvTable::from_reader(Path::new("m.csv"), text.as_bytes()).unwrap();
         assert!(from_table(&t).is_err());
+        let with_sd = Measurement {
+            angle_sd_deg: Some(0.1),
+            ..far.clone()
+        };
+        assert_eq!(
+            header(&[with_sd]),
+            format!("{},angle_sd_deg", COLUMNS.join(","))
+        );
+        let text = "target,dolp,beta_deg,angle_sd_deg\nA,0.5,45,-0.1\n";
+        let t = CsvTable::from_reader(Path::new("m.csv"), text.as_bytes()).unwrap();
+        let e = from_table(&t).unwrap_err().to_string();
+        assert!(e.contains("angle_sd_deg") && e.contains("\"-0.1\""), "{e}");
+        let text = "target,dolp,beta_deg,angle_sd_deg\nA,0.5,45,0.25\n";
+        let t = CsvTable::from_reader(Path::new("m.csv"), text.as_bytes()).unwrap();
+        assert_eq!(from_table(&t).unwrap()[0].angle_sd_deg, Some(0.25));
     }
 }

@@ -3,6 +3,7 @@
 
 use polarid_core::fit::{FitBounds, FitOptions};
 use polarid_core::mixed::{DEPOLARIZED_MAX_DOLP, MixedOptions, Shadowing};
+use polarid_core::systematic::Polarimetric;
 
 use crate::{PipelineError, Result};
 
@@ -108,7 +109,32 @@ pub struct FitConfig {
     pub s0_rel_sd: f64,
     /// Mixed fit: search range of the roughness σ (its minimum is raised to 0.001).
     pub sigma_range: (f64, f64),
+    /// Specular fit: standard uncertainty of the source and camera directions, degrees,
+    /// in `[0, 90)`, for rows without an `angle_sd_deg` (docs/ERRORS.md).
+    pub angle_sd_deg: f64,
+    /// Specular fit: additive DoLP error (standard deviation, independent per row), in
+    /// `[0, 1)`.
+    pub dolp_floor: f64,
+    /// Specular fit: the lowest extinction ratio the analyzer may have, `> 1`
+    /// (infinite: an ideal polarizer); the DoLP scale's uncertainty is `2/(ER + 1)`.
+    pub extinction_ratio: f64,
+    /// Specular fit: the largest retardance ahead of the analyzer, degrees, in `[0, 90]`.
+    pub retardance_deg: f64,
+    /// Specular fit: status `model_mismatch` when the goodness-of-fit or the AoLP test
+    /// has a p-value below this, in `[0, 1)` (0: never).
+    pub mismatch_p: f64,
 }
+
+/// Default of [`FitConfig::angle_sd_deg`], degrees.
+pub const DEFAULT_ANGLE_SD_DEG: f64 = 0.2;
+/// Default of [`FitConfig::dolp_floor`].
+pub const DEFAULT_DOLP_FLOOR: f64 = 0.002;
+/// Default of [`FitConfig::extinction_ratio`].
+pub const DEFAULT_EXTINCTION_RATIO: f64 = 100.0;
+/// Default of [`FitConfig::retardance_deg`], degrees.
+pub const DEFAULT_RETARDANCE_DEG: f64 = 0.0;
+/// Default of [`FitConfig::mismatch_p`].
+pub const DEFAULT_MISMATCH_P: f64 = 0.001;
 
 impl Default for FitConfig {
     fn default() -> Self {
@@ -123,18 +149,50 @@ impl Default for FitConfig {
             shadowing: Shadowing::None,
             s0_rel_sd: m.s0_rel_sd,
             sigma_range: (m.sigma_min, m.sigma_max),
+            angle_sd_deg: DEFAULT_ANGLE_SD_DEG,
+            dolp_floor: DEFAULT_DOLP_FLOOR,
+            extinction_ratio: DEFAULT_EXTINCTION_RATIO,
+            retardance_deg: DEFAULT_RETARDANCE_DEG,
+            mismatch_p: DEFAULT_MISMATCH_P,
         }
+    }
+}
+
+/// Check `lo <= v < hi` (or `<= hi` when `closed`), finite.
+fn check_in(option: &str, v: f64, lo: f64, hi: f64, closed: bool) -> Result<()> {
+    let ok = v.is_finite() && v >= lo && (v < hi || (closed && v == hi));
+    if ok {
+        Ok(())
+    } else {
+        let close = if closed { ']' } else { ')' };
+        Err(PipelineError::config(
+            option,
+            v,
+            format!("must be finite and in [{lo}, {hi}{close}"),
+        ))
     }
 }
 
 impl FitConfig {
     /// Check every value ([`PipelineError::Config`] naming the field and value).
+    #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN-safe on purpose
     pub fn validate(&self) -> Result<()> {
         check_range("n_range", self.n_range)?;
         check_range("k_range", self.k_range)?;
         check_range("sigma_range", self.sigma_range)?;
         check_unit("depolarized_dolp", self.depolarized_dolp)?;
         check_unit("s0_rel_sd", self.s0_rel_sd)?;
+        check_in("angle_sd_deg", self.angle_sd_deg, 0.0, 90.0, false)?;
+        check_in("dolp_floor", self.dolp_floor, 0.0, 1.0, false)?;
+        check_in("retardance_deg", self.retardance_deg, 0.0, 90.0, true)?;
+        check_in("mismatch_p", self.mismatch_p, 0.0, 1.0, false)?;
+        if !(self.extinction_ratio > 1.0) {
+            return Err(PipelineError::config(
+                "extinction_ratio",
+                self.extinction_ratio,
+                "must be > 1 (inf: an ideal polarizer)",
+            ));
+        }
         if self.reflectance != Reflectance::Mixed {
             if self.estimate_theta_r {
                 return Err(PipelineError::config(
@@ -172,6 +230,15 @@ impl FitConfig {
             sigma_min: self.sigma_range.0.max(1e-3),
             sigma_max: self.sigma_range.1,
             ..MixedOptions::default()
+        }
+    }
+
+    /// The polarimetric part of the error model.
+    pub fn polarimetric(&self) -> Polarimetric {
+        Polarimetric {
+            dolp_floor: self.dolp_floor,
+            extinction_ratio: self.extinction_ratio,
+            retardance: self.retardance_deg.to_radians(),
         }
     }
 

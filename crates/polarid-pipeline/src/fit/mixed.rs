@@ -105,6 +105,8 @@ fn row(g: &Group, class: Option<&str>, f: &MixedFit) -> FitRow {
         sigma: Some(f.sigma),
         rho_d: Some(f.rho_d),
         theta_r_deg: f.theta_r_estimated.then(|| f.theta_r.to_degrees()),
+        // The error model (docs/ERRORS.md) is that of the specular fit only.
+        ..Default::default()
     }
 }
 

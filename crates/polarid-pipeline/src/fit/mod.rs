@@ -16,6 +16,14 @@
 //! `depolarized` (see [`polarid_core::mixed::depolarized_reason`]): DoLP alone cannot
 //! tell it from a diffuse surface, so it must not be classified.
 //!
+//! The specular fit's `n_se`, `k_se`, `nk_corr` are the total uncertainty: the noise's
+//! plus the systematic errors of the geometry's angles and of the polarimeter's
+//! calibration, propagated by the sandwich `Cov_noise + A Σ Aᵀ` ([`errors`],
+//! docs/ERRORS.md); the noise's part alone is in `n_se_noise`, `k_se_noise`,
+//! `nk_corr_noise`. An `ok` fit whose residuals fail the χ² test against the total
+//! covariance, or whose AoLP is not perpendicular to the plane of incidence, at p below
+//! [`FitConfig::mismatch_p`], becomes `model_mismatch` with the worst rows as reason.
+//!
 //! [`Reflectance::Mixed`] fits the radiometric model of `polarid_core::mixed` (specular
 //! plus Lambertian diffuse, using `s0`, the exposure-normalised mean S0), selects between
 //! it and the pure-specular radiometric model by BIC, and returns the selected fit as the
@@ -23,6 +31,7 @@
 //! as the target's [`MixedReport`] ([`model_rows`] lays them out as a table).
 
 mod config;
+pub mod errors;
 mod mixed;
 mod plans;
 pub mod spread;
@@ -38,8 +47,11 @@ use polarid_io::table::fits::FitRow;
 use polarid_io::table::measurements::{self, Measurement};
 
 pub use config::{
-    FitConfig, Reflectance, check_range, parse_shadowing, range_problem, shadowing_name,
+    DEFAULT_ANGLE_SD_DEG, DEFAULT_DOLP_FLOOR, DEFAULT_EXTINCTION_RATIO, DEFAULT_MISMATCH_P,
+    DEFAULT_RETARDANCE_DEG, FitConfig, Reflectance, check_range, parse_shadowing, range_problem,
+    shadowing_name,
 };
+pub use errors::ErrorReport;
 pub use mixed::{MODEL_COLUMNS, model_rows};
 pub use plans::PlanCache;
 pub use spread::{fit_with_spread, spread_corrections};
@@ -236,7 +248,7 @@ fn specular(
     let plan = plans
         .get(&betas, opts)
         .map_err(|e| data(path, format!("target {:?}: {e}", g.target)))?;
-    let (f, _) = fit_with_spread(&plan, &dolp, se.as_deref(), &spread).map_err(|e| {
+    let (f, corr) = fit_with_spread(&plan, &dolp, se.as_deref(), &spread).map_err(|e| {
         data(
             path,
             format!("target {:?} (lines {}): {e}", g.target, g.lines()),
@@ -251,15 +263,21 @@ fn specular(
             Some(why) => (FitStatus::Depolarized, why),
             None => (f.status, f.reason.to_string()),
         };
+    let err = errors::assess(g, &f, &corr, cfg);
+    let (status, reason) = if status.is_ok() && !err.mismatch.is_empty() {
+        (FitStatus::ModelMismatch, err.mismatch.join("; "))
+    } else {
+        (status, reason)
+    };
     Ok(TargetFit {
         row: FitRow {
             target: g.target.to_string(),
             class: class.map(str::to_string),
             n: f.n,
             k: f.k,
-            n_se: f.n_se,
-            k_se: f.k_se,
-            nk_corr: f.nk_corr,
+            n_se: err.total.0,
+            k_se: err.total.1,
+            nk_corr: err.total.2,
             rms_residual: f.rms_residual,
             measurements: g.rows.len() as u64,
             status,
@@ -268,6 +286,11 @@ fn specular(
             sigma: None,
             rho_d: None,
             theta_r_deg: None,
+            n_se_noise: Some(f.n_se),
+            k_se_noise: Some(f.k_se),
+            nk_corr_noise: Some(f.nk_corr),
+            gof_p: err.gof_p,
+            aolp_p: err.aolp_p,
         },
         report: None,
     })

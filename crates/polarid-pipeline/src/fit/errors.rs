@@ -1,0 +1,147 @@
+//! The error model of the specular table fit (docs/ERRORS.md): the systematic DoLP
+//! covariance of a target's rows propagated into `(n, k)` by the sandwich
+//! `Cov = Cov_noise + A Σ Aᵀ` ([`polarid_core::systematic`]), and the model checks —
+//! a χ² goodness of fit of the residuals against the total (noise + systematic)
+//! covariance and the AoLP relative to the plane of incidence — that turn an `ok` fit
+//! into `model_mismatch`.
+
+use polarid_core::FitStatus;
+use polarid_core::dop::dop;
+use polarid_core::fit::NkFit;
+use polarid_core::systematic::{Gof, aolp_deviation, chi2_sf, propagate, systematic_covariance};
+
+use super::{FitConfig, Group};
+
+/// What the error model adds to a fit row.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ErrorReport {
+    /// Total standard errors and correlation `(n_se, k_se, nk_corr)` (NaN when the fit
+    /// has none).
+    pub total: (f64, f64, f64),
+    /// p-value of the χ² goodness of fit (weighted fits).
+    pub gof_p: Option<f64>,
+    /// p-value of the AoLP test (rows with `aolp_poi_deg`).
+    pub aolp_p: Option<f64>,
+    /// Why the data contradict the model (empty when they do not at `mismatch_p`).
+    pub mismatch: Vec<String>,
+}
+
+/// The error model of one target fitted as `f` from its rows, with the spread
+/// corrections `corr` subtracted from the DoLP (all zero without `beta_sd_deg`).
+pub(crate) fn assess(g: &Group, f: &NkFit, corr: &[f64], cfg: &FitConfig) -> ErrorReport {
+    let mut rep = ErrorReport {
+        total: (f.n_se, f.k_se, f.nk_corr),
+        ..Default::default()
+    };
+    if !(f.n.is_finite() && f.k.is_finite()) || f.status == FitStatus::InvalidInput {
+        return rep;
+    }
+    let pol = cfg.polarimetric();
+    let t_len = g.rows.len();
+    let betas: Vec<f64> = g
+        .rows
+        .iter()
+        .map(|(_, m)| m.beta_deg.to_radians())
+        .collect();
+    let angle_sd: Vec<f64> = g
+        .rows
+        .iter()
+        .map(|(_, m)| m.angle_sd_deg.unwrap_or(cfg.angle_sd_deg).to_radians())
+        .collect();
+    let residual: Vec<f64> = g
+        .rows
+        .iter()
+        .zip(&betas)
+        .zip(corr)
+        .map(|(((_, m), &b), c)| m.dolp - c - dop(f.n, f.k, b))
+        .collect();
+    let se: Option<Vec<f64>> = g.rows.iter().map(|(_, m)| m.dolp_se).collect();
+    let mut sys = vec![0.0; t_len * t_len];
+    let prop = systematic_covariance(f.n, f.k, &betas, &angle_sd, &pol, &mut sys).and_then(|()| {
+        propagate(
+            f.n,
+            f.k,
+            &betas,
+            &residual,
+            se.as_deref(),
+            &sys,
+            cfg.k_range.0 == 0.0,
+        )
+    });
+    let Ok(prop) = prop else {
+        return rep;
+    };
+    // A fit without standard errors (singular) keeps them unknown.
+    if f.n_se.is_finite() && f.k_se.is_finite() {
+        rep.total = (prop.total.n_se, prop.total.k_se, prop.total.nk_corr);
+    }
+    if let Some(gof) = &prop.gof {
+        rep.gof_p = Some(gof.p_value);
+        if gof.p_value < cfg.mismatch_p {
+            rep.mismatch.push(residual_reason(g, gof));
+        }
+    }
+    // AoLP: deviations from 90° over their uncertainty.
+    let mut chi2 = 0.0;
+    let mut used = Vec::new();
+    for (i, ((line, m), (&b, &s))) in g.rows.iter().zip(betas.iter().zip(&angle_sd)).enumerate() {
+        let Some(a) = m.aolp_poi_deg else { continue };
+        let se = m.dolp_se.unwrap_or(0.0);
+        if let Some((d, sd)) = aolp_deviation(a.to_radians(), m.dolp, se, pol.dolp_floor, s, b)
+            && sd > 0.0
+        {
+            chi2 += (d / sd).powi(2);
+            used.push((i + 1, *line, a, d.to_degrees(), d / sd));
+        }
+    }
+    if !used.is_empty() {
+        let p = chi2_sf(chi2, used.len() as f64);
+        rep.aolp_p = Some(p);
+        if p < cfg.mismatch_p {
+            used.sort_by(|x, y| y.4.abs().total_cmp(&x.4.abs()));
+            let worst: Vec<String> = used
+                .iter()
+                .take(3)
+                .map(|(c, line, a, d, z)| {
+                    format!(
+                        "capture {c} (line {line}) aolp_poi {a:.1} deg ({d:+.1} deg, {z:+.1} sd)"
+                    )
+                })
+                .collect();
+            rep.mismatch.push(format!(
+                "aolp: not perpendicular to the plane of incidence (p = {p:.2e}): {}; \
+                 a coating, a film, birefringence or a wrong geometry",
+                worst.join(", ")
+            ));
+        }
+    }
+    rep
+}
+
+/// `residuals: ...` naming the worst rows.
+fn residual_reason(g: &Group, gof: &Gof) -> String {
+    let mut idx: Vec<usize> = (0..gof.z.len()).collect();
+    idx.sort_by(|&a, &b| gof.z[b].abs().total_cmp(&gof.z[a].abs()));
+    let worst: Vec<String> = idx
+        .iter()
+        .enumerate()
+        .take_while(|&(rank, &i)| rank == 0 || gof.z[i].abs() >= 2.0)
+        .take(3)
+        .map(|(_, &i)| {
+            let (line, m) = g.rows[i];
+            format!(
+                "capture {} (line {line}, beta {:.1} deg) {:+.1} sd",
+                i + 1,
+                m.beta_deg,
+                gof.z[i]
+            )
+        })
+        .collect();
+    format!(
+        "residuals: chi2 = {:.1} on {} dof against noise + systematic error (p = {:.2e}): {}",
+        gof.chi2,
+        gof.dof,
+        gof.p_value,
+        worst.join(", ")
+    )
+}
