@@ -85,23 +85,7 @@ pub fn figures(out: &BenchOutput) -> anyhow::Result<Vec<BenchFigure>> {
         .fits
         .iter()
         .filter(|(_, f)| is_test(&f.target))
-        .map(|(_, f)| plots::NkEstimate {
-            label: f.target.clone(),
-            n: f.n,
-            k: f.k,
-            n_se: f.n_se,
-            k_se: f.k_se,
-            corr: if f.nk_corr.is_finite() {
-                f.nk_corr
-            } else {
-                0.0
-            },
-            predicted: out
-                .classification
-                .iter()
-                .find(|c| c.target == f.target)
-                .map(|c| c.predicted.clone()),
-        })
+        .map(|(_, f)| plots::NkEstimate::from_fit(f.target.clone(), f, &out.classification))
         .collect();
     figs.push(BenchFigure {
         plot: plots::nk_plane(

@@ -78,28 +78,18 @@ pub fn figures(out: &DemoOutput) -> anyhow::Result<[Rendered; 3]> {
         .fits
         .iter()
         .filter(|(_, f)| !is_training(&f.target))
-        .map(|(_, f)| plots::NkEstimate {
-            label: format!(
-                "test, θr = {}°",
-                PLATES
-                    .iter()
-                    .find(|p| p.target == f.target)
-                    .map_or(f64::NAN, |p| p.theta_r)
-            ),
-            n: f.n,
-            k: f.k,
-            n_se: f.n_se,
-            k_se: f.k_se,
-            corr: if f.nk_corr.is_finite() {
-                f.nk_corr
-            } else {
-                0.0
-            },
-            predicted: out
-                .classification
-                .iter()
-                .find(|c| c.target == f.target)
-                .map(|c| c.predicted.clone()),
+        .map(|(_, f)| {
+            plots::NkEstimate::from_fit(
+                format!(
+                    "test, θr = {}°",
+                    PLATES
+                        .iter()
+                        .find(|p| p.target == f.target)
+                        .map_or(f64::NAN, |p| p.theta_r)
+                ),
+                f,
+                &out.classification,
+            )
         })
         .collect();
     let nk = plots::nk_plane(

@@ -42,6 +42,34 @@ pub struct NkEstimate {
     pub predicted: Option<String>,
 }
 
+impl NkEstimate {
+    /// The estimate of a fits-table row, labelled `label`, with the prediction of the
+    /// classification row of the same target (if any). A non-finite correlation is
+    /// drawn as 0.
+    pub fn from_fit(
+        label: String,
+        f: &polarid_io::table::fits::FitRow,
+        classification: &[polarid_io::table::classification::ClassificationRow],
+    ) -> Self {
+        NkEstimate {
+            label,
+            n: f.n,
+            k: f.k,
+            n_se: f.n_se,
+            k_se: f.k_se,
+            corr: if f.nk_corr.is_finite() {
+                f.nk_corr
+            } else {
+                0.0
+            },
+            predicted: classification
+                .iter()
+                .find(|c| c.target == f.target)
+                .map(|c| c.predicted.clone()),
+        }
+    }
+}
+
 /// The (n, k) plane: the nearest-neighbour decision regions of the prototypes
 /// (Euclidean distance in (n, k), paper § 6) shaded by class, the prototypes, and the
 /// estimates with their 1-σ covariance ellipses.
