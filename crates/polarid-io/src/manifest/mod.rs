@@ -70,6 +70,9 @@ pub struct Manifest {
     /// Top-level standard uncertainty of the geometry's directions, degrees (if given;
     /// docs/ERRORS.md).
     pub angle_sd_deg: Option<f64>,
+    /// Top-level dark threshold, DN of dark-subtracted S0 (if given; default
+    /// `polarid_io::measure::dark_threshold_dn`).
+    pub dark_signal_dn: Option<f64>,
     /// The calibrated camera (`[camera]`), if any: then every capture has a
     /// [`Capture::illumination`] and no angles of its own.
     pub camera: Option<CameraSpec>,
@@ -134,6 +137,10 @@ pub struct Capture {
     /// Standard uncertainty of the source and camera directions, degrees (the capture's
     /// own `angle_sd_deg` or the top-level one; `None` when neither is given).
     pub angle_sd_deg: Option<f64>,
+    /// Dark threshold, DN of dark-subtracted S0: a region whose mean S0 is below it is
+    /// `dark` (the capture's own `dark_signal_dn` or the top-level one; `None`: the
+    /// default of `polarid_io::measure::dark_threshold_dn`).
+    pub dark_signal_dn: Option<f64>,
     /// What was recorded.
     pub source: CaptureSource,
 }
@@ -366,6 +373,7 @@ impl<'a> Parser<'a> {
                 "saturation",
                 "wavelength_nm",
                 "angle_sd_deg",
+                "dark_signal_dn",
                 "region",
                 "capture",
                 "camera",
@@ -401,6 +409,7 @@ impl<'a> Parser<'a> {
         };
 
         let angle_sd_deg = self.angle_sd(root, "")?;
+        let dark_signal_dn = self.dark_signal(root, "")?;
 
         // Calibrated geometry.
         let camera = self.camera(root)?;
@@ -541,10 +550,9 @@ impl<'a> Parser<'a> {
                 camera.is_some(),
                 site.as_ref(),
             )?);
-            if let Some(c) = captures.last_mut()
-                && c.angle_sd_deg.is_none()
-            {
-                c.angle_sd_deg = angle_sd_deg;
+            if let Some(c) = captures.last_mut() {
+                c.angle_sd_deg = c.angle_sd_deg.or(angle_sd_deg);
+                c.dark_signal_dn = c.dark_signal_dn.or(dark_signal_dn);
             }
         }
         if captures.is_empty() {
@@ -561,6 +569,7 @@ impl<'a> Parser<'a> {
             saturation,
             wavelength_nm,
             angle_sd_deg,
+            dark_signal_dn,
             camera,
             planes,
             site,
@@ -604,6 +613,7 @@ impl<'a> Parser<'a> {
                 "dark_level",
                 "saturation",
                 "angle_sd_deg",
+                "dark_signal_dn",
                 "frames",
                 "dofp",
                 "stokes",
@@ -680,6 +690,7 @@ impl<'a> Parser<'a> {
             ));
         }
         let angle_sd_deg = self.angle_sd(t, &pre)?;
+        let dark_signal_dn = self.dark_signal(t, &pre)?;
         let kinds: Vec<&str> = ["frames", "dofp", "stokes"]
             .into_iter()
             .filter(|k| self.get(t, k).is_some())
@@ -789,8 +800,21 @@ impl<'a> Parser<'a> {
             dark_level,
             saturation,
             angle_sd_deg,
+            dark_signal_dn,
             source,
         })
+    }
+
+    /// The optional `dark_signal_dn` of a table: finite (checked by `num`) and `>= 0`.
+    fn dark_signal(&self, t: &Table<'_>, prefix: &str) -> Result<Option<f64>> {
+        match self.opt_num(t, "dark_signal_dn", prefix)? {
+            Some((v, span)) if v < 0.0 => Err(self.err(
+                &span,
+                &format!("{prefix}dark_signal_dn"),
+                "dark threshold must be >= 0 DN",
+            )),
+            other => Ok(other.map(|x| x.0)),
+        }
     }
 
     /// The optional `angle_sd_deg` of a table: finite (checked by `num`) and in
