@@ -24,6 +24,14 @@
 //! and `aolp_poi_deg` (from the plane of incidence; 90 for a single interface), and a
 //! standard error from the scatter with the trend in β removed (docs/GEOMETRY.md).
 //!
+//! **HDR brackets** (a capture's `brackets`, [`hdr_images`]): the exposures are merged
+//! per pixel before the Stokes solve: each pixel takes its values from the longest
+//! exposure in which none of its raw values is saturated (for a DoFP mosaic: none of
+//! the raw pixels of its 3×3 neighbourhood, which the bilinear demosaic uses), dark
+//! subtracted and scaled by the exposure ratio to the longest exposure's DN. A pixel
+//! saturated in every bracket is saturated. One bracket for all the polarizer angles of
+//! a pixel keeps an error in the exposure ratios out of its DoLP.
+//!
 //! **Partial failure.** A region that is dark in a capture (its mean dark-subtracted S0
 //! below the capture's dark threshold, [`dark_threshold_dn`]), or that has no usable
 //! pixel there (all saturated, dark or invalid), gives a row with a [`RowStatus`] other
@@ -43,7 +51,7 @@ use polarid_core::region::{Rect, RegionGeometry, Sampling, region_stats, region_
 use polarid_core::stokes::{self, PixelCounts, PixelRules, StokesSolver};
 
 use crate::error::{IoError, Result};
-use crate::image::{self, Frame};
+use crate::image::{self, Frame, SampleKind};
 use crate::manifest::{Capture, CaptureSource, Manifest, Region, SourceSpec};
 use crate::table::measurements::{Measurement, RowStatus};
 
@@ -284,6 +292,9 @@ pub fn read_stokes(s0: &Path, s1: &Path, s2: &Path) -> Result<StokesImages> {
 /// already rejects them), [`IoError::Core`] naming the file whose data the Stokes
 /// kernels reject.
 pub fn capture_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
+    if !c.brackets.is_empty() {
+        return hdr_images(m, c);
+    }
     match &c.source {
         CaptureSource::Frames(frames) => {
             let angles: Vec<f64> = frames.iter().map(|f| f.angle_deg).collect();
@@ -317,6 +328,116 @@ pub fn capture_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
             Ok(out)
         }
     }
+}
+
+/// The bracket each pixel of an HDR capture takes its values from: the first (longest)
+/// of `saturated_at(b, p)` false, `None` when every bracket is saturated there.
+fn pick_brackets(
+    n: usize,
+    brackets: usize,
+    saturated_at: impl Fn(usize, usize) -> bool,
+) -> Vec<Option<usize>> {
+    (0..n)
+        .map(|p| (0..brackets).find(|&b| !saturated_at(b, p)))
+        .collect()
+}
+
+/// Stokes images of an HDR capture (its [`Capture::brackets`], longest exposure first):
+/// the brackets merged per pixel (module docs), in DN of the longest exposure with the
+/// dark level removed, then solved as one capture (DoFP: bilinear, full resolution).
+///
+/// Errors: the image reader's (a missing or unreadable file, brackets of different
+/// sizes, naming the file), [`IoError::Manifest`] naming `capture[i].brackets` when the
+/// angles cannot be inverted, [`IoError::Core`] naming the first file.
+pub fn hdr_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
+    let nb = c.brackets.len();
+    let paths: Vec<&Path> = c.files();
+    let frames = image::read_frames(&paths)?;
+    let (Some(first), Some(reference)) = (frames.first(), c.brackets.first()) else {
+        return Err(IoError::Manifest {
+            path: m.path.clone(),
+            line: c.line,
+            field: format!("capture[{}].brackets", c.index),
+            value: String::new(),
+            reason: "no frames".into(),
+        });
+    };
+    let per = frames.len() / nb.max(1);
+    let (width, height, n) = (first.width, first.height, first.data.len());
+    let raw_rules = rules_for(first, c.dark_level, c.saturation);
+    let (dark, sat) = (raw_rules.dark_level, raw_rules.saturation);
+    // Merged values are dark-subtracted; f32::MAX marks a pixel saturated everywhere.
+    let merged_rules = PixelRules {
+        dark_level: 0.0,
+        saturation: f32::MAX,
+        min_s0: 0.0,
+    };
+    let scale: Vec<f32> = c
+        .brackets
+        .iter()
+        .map(|b| (reference.exposure / b.exposure) as f32)
+        .collect();
+    let value = |b: usize, a: usize, p: usize| frames[b * per + a].data[p];
+    let merge = |pick: &[Option<usize>], a: usize| -> Vec<f32> {
+        pick.iter()
+            .enumerate()
+            .map(|(p, b)| match b {
+                Some(b) => (value(*b, a, p) - dark) * scale[*b],
+                None => f32::MAX,
+            })
+            .collect()
+    };
+    let as_frame = |data: Vec<f32>, k: usize| Frame {
+        path: frames[k].path.clone(),
+        width,
+        height,
+        kind: SampleKind::F32,
+        data,
+    };
+    let mut out = match &reference.source {
+        CaptureSource::Frames(refs) => {
+            let angles: Vec<f64> = refs.iter().map(|f| f.angle_deg).collect();
+            let solver = StokesSolver::from_degrees(&angles).map_err(|e| IoError::Manifest {
+                path: m.path.clone(),
+                line: c.line,
+                field: format!("capture[{}].brackets", c.index),
+                value: format!("{angles:?}"),
+                reason: e.to_string(),
+            })?;
+            // Not `< sat` is saturated: NaN counts as saturated too.
+            let pick = pick_brackets(n, nb, |b, p| (0..per).any(|a| !(value(b, a, p) < sat)));
+            let merged: Vec<Frame> = (0..per).map(|a| as_frame(merge(&pick, a), a)).collect();
+            frames_stokes(&merged, &solver, &merged_rules)?
+        }
+        CaptureSource::Dofp { pattern, .. } => {
+            let near_saturated = |b: usize, p: usize| {
+                let (x, y) = (p % width, p / width);
+                (y.saturating_sub(1)..(y + 2).min(height)).any(|yy| {
+                    (x.saturating_sub(1)..(x + 2).min(width))
+                        .any(|xx| !(value(b, 0, yy * width + xx) < sat))
+                })
+            };
+            let pick = pick_brackets(n, nb, near_saturated);
+            dofp_stokes(
+                &as_frame(merge(&pick, 0), 0),
+                pattern,
+                &merged_rules,
+                Demosaic::Bilinear,
+                false,
+            )?
+        }
+        CaptureSource::Stokes { s0, .. } => {
+            return Err(IoError::Manifest {
+                path: m.path.clone(),
+                line: c.line,
+                field: format!("capture[{}].brackets", c.index),
+                value: s0.display().to_string(),
+                reason: "HDR brackets need raw data (`frames` or `dofp`), not Stokes images".into(),
+            });
+        }
+    };
+    out.dark_signal_dn = dark_threshold_dn(c, &raw_rules, first.kind.is_integer());
+    Ok(out)
 }
 
 /// The capture's scattering angle `beta` in degrees (paper eq. 5) from its

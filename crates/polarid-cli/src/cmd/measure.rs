@@ -84,7 +84,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     }
     let mut inputs: Vec<&Path> = vec![args.manifest.as_path()];
     for c in &m.captures {
-        inputs.extend(c.source.files());
+        inputs.extend(c.files());
     }
     if let Some(out) = &args.output {
         polarid_io::atomic::check_output(out, ctx.force, &inputs)?;
