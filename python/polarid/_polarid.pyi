@@ -190,6 +190,7 @@ def fit_table(
     shadowing: Literal["none", "smith"] = "none",
     s0_rel_sd: float = 0.02,
     sigma_range: tuple[float, float] = (0.02, 1.0),
+    strict: bool = False,
 ) -> dict[str, list[Any]]:
     """Fit every target of a measurements CSV exactly as ``polarid fit`` does.
 
@@ -222,7 +223,7 @@ def classify(
 
 # --- files -----------------------------------------------------------------------------
 def load_manifest(path: _Path) -> dict[str, Any]: ...
-def measure(manifest_path: _Path) -> dict[str, NDArray[Any]]: ...
+def measure(manifest_path: _Path, *, strict: bool = False) -> dict[str, NDArray[Any]]: ...
 
 # --- simulation ------------------------------------------------------------------------
 def simulate(

@@ -174,6 +174,11 @@ pub fn load_manifest<'py>(
 /// Parameters
 /// ----------
 /// manifest_path : str or os.PathLike
+/// strict : bool, optional
+///     Raise at the first region that is dark or has no usable pixel in a capture
+///     (``polarid measure --strict``). By default such a region gets a row whose
+///     ``status`` says why (``dark``, ``saturated``, ``invalid``) with the ``reason``,
+///     and a ``UserWarning`` lists them.
 ///
 /// Returns
 /// -------
@@ -184,25 +189,30 @@ pub fn load_manifest<'py>(
 ///     CSV cell is empty: noiseless data), ``s0``, ``exposure`` (float64), ``pixels``,
 ///     ``rejected``, ``saturated`` (int64), and ``beta_sd_deg``, ``aolp_deg``,
 ///     ``aolp_poi_deg`` (float64; NaN for far-field captures, whose CSV has no such
-///     columns).
+///     columns), ``status`` and ``reason`` (str arrays; ``"ok"`` and ``""`` for usable
+///     rows).
 ///
 /// Raises
 /// ------
 /// FileNotFoundError
 ///     A missing manifest or image.
 /// ValueError
-///     An invalid manifest, an unreadable image, a region that leaves the frame or has no
-///     usable pixel (the CLI's message, naming the file, line and field).
+///     An invalid manifest, an unreadable image, a region that leaves the frame, no usable
+///     row at all, or with ``strict`` a dark region or one without a usable pixel (the
+///     CLI's message, naming the file, line and field).
 #[pyfunction]
+#[pyo3(signature = (manifest_path, *, strict = false))]
 pub fn measure<'py>(
     py: Python<'py>,
     manifest_path: &Bound<'py, PyAny>,
+    strict: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let p = path_arg(manifest_path)?;
     let m = py.detach(|| manifest::load(&p)).py_err()?;
     warn_all(py, &m)?;
+    let cfg = polarid_pipeline::measure::MeasureConfig { strict };
     let out = py
-        .detach(|| polarid_pipeline::measure::measure(&m, &no_progress))
+        .detach(|| polarid_pipeline::measure::measure_with(&m, &cfg, &no_progress))
         .py_err()?;
     warn_texts(py, out.warnings.iter().map(|w| w.0.as_str()))?;
     measurements_dict(py, &out.rows)
@@ -260,5 +270,7 @@ pub fn measurements_dict<'py>(
     d.set_item("beta_sd_deg", f(&|r| r.beta_sd_deg.unwrap_or(nan))?)?;
     d.set_item("aolp_deg", f(&|r| r.aolp_deg.unwrap_or(nan))?)?;
     d.set_item("aolp_poi_deg", f(&|r| r.aolp_poi_deg.unwrap_or(nan))?)?;
+    d.set_item("status", strs(&|r| r.status.as_str())?)?;
+    d.set_item("reason", strs(&|r| r.reason.as_str())?)?;
     Ok(d)
 }

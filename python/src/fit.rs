@@ -456,6 +456,10 @@ fn batch_dict<'py>(py: Python<'py>, lead: &[usize], o: BatchOut) -> PyResult<Bou
 ///     Mixed fit: relative standard deviation of ``s0``, in (0, 1].
 /// sigma_range : (float, float)
 ///     Mixed fit: search range of the roughness sigma.
+/// strict : bool
+///     Raise at the first problem (a measurement row whose ``status`` is not ok, a
+///     target that cannot be fitted), as ``polarid fit --strict``. By default such rows
+///     are skipped and such a target gets status ``invalid_input`` with the reason.
 ///
 /// Returns
 /// -------
@@ -475,7 +479,7 @@ fn batch_dict<'py>(py: Python<'py>, lead: &[usize], o: BatchOut) -> PyResult<Bou
 /// FileNotFoundError
 ///     The file does not exist.
 #[pyfunction]
-#[pyo3(signature = (measurements, *, reflectance = "specular", n_range = (0.01, 10.0), k_range = (0.0, 15.0), depolarized_dolp = 0.02, estimate_theta_r = false, shadowing = "none", s0_rel_sd = 0.02, sigma_range = (0.02, 1.0)))]
+#[pyo3(signature = (measurements, *, reflectance = "specular", n_range = (0.01, 10.0), k_range = (0.0, 15.0), depolarized_dolp = 0.02, estimate_theta_r = false, shadowing = "none", s0_rel_sd = 0.02, sigma_range = (0.02, 1.0), strict = false))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit_table<'py>(
     py: Python<'py>,
@@ -488,6 +492,7 @@ pub fn fit_table<'py>(
     shadowing: &str,
     s0_rel_sd: f64,
     sigma_range: (f64, f64),
+    strict: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let cfg = FitConfig {
         reflectance: Reflectance::parse(reflectance).ok_or_else(|| {
@@ -506,6 +511,7 @@ pub fn fit_table<'py>(
         })?,
         s0_rel_sd,
         sigma_range,
+        strict,
         ..FitConfig::default()
     };
     cfg.validate().py_err()?;

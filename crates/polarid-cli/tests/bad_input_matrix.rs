@@ -855,9 +855,10 @@ fn fewer_than_three_measurements() {
             meas_rows()
         ),
     );
+    // Without --strict the target becomes an invalid_input row (tests/partial_failure.rs).
     bad(
         &c,
-        &["fit", &f, "-o", "fits.csv"],
+        &["fit", &f, "-o", "fits.csv", "--strict"],
         &[
             "m.csv",
             "\"B\"",

@@ -24,6 +24,21 @@
 //! and `aolp_poi_deg` (from the plane of incidence; 90 for a single interface), and a
 //! standard error from the scatter with the trend in β removed (docs/GEOMETRY.md).
 //!
+//! **HDR brackets** (a capture's `brackets`, [`hdr_images`]): the exposures are merged
+//! per pixel before the Stokes solve: each pixel takes its values from the longest
+//! exposure in which none of its raw values is saturated (for a DoFP mosaic: none of
+//! the raw pixels of its 3×3 neighbourhood, which the bilinear demosaic uses), dark
+//! subtracted and scaled by the exposure ratio to the longest exposure's DN. A pixel
+//! saturated in every bracket is saturated. One bracket for all the polarizer angles of
+//! a pixel keeps an error in the exposure ratios out of its DoLP.
+//!
+//! **Partial failure.** A region that is dark in a capture (its mean dark-subtracted S0
+//! below the capture's dark threshold, [`dark_threshold_dn`]), or that has no usable
+//! pixel there (all saturated, dark or invalid), gives a row with a [`RowStatus`] other
+//! than `ok` and a reason instead of an error; `fit` skips such rows. With `strict`
+//! ([`measure_manifest_with`]) the first such row is an error naming the region's
+//! `rect`, as before.
+//!
 //! Nothing here prints: progress goes through a callback and saturation warnings are
 //! returned as text ([`saturation_warnings`]) for the caller to show.
 
@@ -32,17 +47,23 @@ use std::path::{Path, PathBuf};
 use polarid_core::CoreError;
 use polarid_core::geometry::{self, GeometryMaps, PinholeCamera, Source, ViewGeometry};
 use polarid_core::mosaic::{self, Pattern};
-use polarid_core::region::{RegionGeometry, Sampling, region_stats, region_stats_local};
+use polarid_core::region::{Rect, RegionGeometry, Sampling, region_stats, region_stats_local};
 use polarid_core::stokes::{self, PixelCounts, PixelRules, StokesSolver};
 
 use crate::error::{IoError, Result};
-use crate::image::{self, Frame};
+use crate::image::{self, Frame, SampleKind};
 use crate::manifest::{Capture, CaptureSource, Manifest, Region, SourceSpec};
-use crate::table::measurements::Measurement;
+use crate::table::measurements::{Measurement, RowStatus};
 
 /// Fraction of a region's pixels above which [`saturation_warnings`] reports saturation
 /// (1 %).
 pub const SATURATED_WARN: f64 = 0.01;
+
+/// Default dark threshold of integer frames, as a fraction of the range from the dark
+/// level to the saturation level (1 %, the `map`'s default dark threshold too): a
+/// region whose mean dark-subtracted S0 is below it is `dark` (docs/FORMATS.md, "Dark
+/// regions").
+pub const DARK_FRACTION: f64 = 0.01;
 
 /// How a DoFP mosaic is turned into Stokes images.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -73,6 +94,9 @@ pub struct StokesImages {
     pub counts: PixelCounts,
     /// How the pixels relate, for region standard errors.
     pub sampling: Sampling,
+    /// Dark threshold, in the units of `s0` (DN): a region whose mean S0 over its used
+    /// pixels is below it is `dark` ([`dark_threshold_dn`]; 0: no dark test).
+    pub dark_signal_dn: f64,
 }
 
 impl StokesImages {
@@ -88,7 +112,32 @@ impl StokesImages {
             mask: vec![0; n],
             counts: PixelCounts::default(),
             sampling,
+            dark_signal_dn: 0.0,
         }
+    }
+}
+
+/// The dark threshold of capture `c` (DN of dark-subtracted S0) for frames whose pixel
+/// rules are `rules`: the capture's `dark_signal_dn` when given; else, for integer
+/// frames, [`DARK_FRACTION`] of the range from the dark level to the saturation level
+/// (12-bit frames with a dark level of 64: 40.3 DN); else 0 (float frames: no dark test).
+///
+/// Why a level in DN and not in standard errors: a region's DoLP is that of its mean
+/// Stokes vector, so the pixels' random noise averages out and its upward (Rice) bias,
+/// about `dolp_se² / (2 DoLP)`, stays far below `dolp_se`; what does not average out at
+/// low signal is the 1-DN quantization of each polarizer frame and the clipping of the
+/// read noise at the dark level (pixels at or below it are rejected, raw values below it
+/// clipped), which bias S0 up and the DoLP down by an amount that no pixel count
+/// removes. At 1 % of the range each frame of a 12-bit sensor holds about 20 DN,
+/// several read-noise standard deviations above the clip, and one DN is a DoLP step of
+/// about 0.05 per pixel, dithered away by the noise; at 1–5 DN the DoLP is meaningless.
+pub fn dark_threshold_dn(c: &Capture, rules: &PixelRules, is_integer: bool) -> f64 {
+    match c.dark_signal_dn {
+        Some(v) => v,
+        None if is_integer && rules.saturation.is_finite() => {
+            DARK_FRACTION * f64::from(rules.saturation - rules.dark_level).max(0.0)
+        }
+        None => 0.0,
     }
 }
 
@@ -231,6 +280,7 @@ pub fn read_stokes(s0: &Path, s1: &Path, s2: &Path) -> Result<StokesImages> {
         mask,
         counts,
         sampling: Sampling::Independent,
+        dark_signal_dn: 0.0,
     })
 }
 
@@ -242,6 +292,9 @@ pub fn read_stokes(s0: &Path, s1: &Path, s2: &Path) -> Result<StokesImages> {
 /// already rejects them), [`IoError::Core`] naming the file whose data the Stokes
 /// kernels reject.
 pub fn capture_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
+    if !c.brackets.is_empty() {
+        return hdr_images(m, c);
+    }
     match &c.source {
         CaptureSource::Frames(frames) => {
             let angles: Vec<f64> = frames.iter().map(|f| f.angle_deg).collect();
@@ -258,15 +311,133 @@ pub fn capture_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
                 return frames_stokes(&imgs, &solver, &PixelRules::default());
             };
             let rules = rules_for(first, c.dark_level, c.saturation);
-            frames_stokes(&imgs, &solver, &rules)
+            let mut out = frames_stokes(&imgs, &solver, &rules)?;
+            out.dark_signal_dn = dark_threshold_dn(c, &rules, first.kind.is_integer());
+            Ok(out)
         }
         CaptureSource::Dofp { file, pattern } => {
             let raw = image::read_frame(file)?;
             let rules = rules_for(&raw, c.dark_level, c.saturation);
-            dofp_stokes(&raw, pattern, &rules, Demosaic::Bilinear, false)
+            let mut out = dofp_stokes(&raw, pattern, &rules, Demosaic::Bilinear, false)?;
+            out.dark_signal_dn = dark_threshold_dn(c, &rules, raw.kind.is_integer());
+            Ok(out)
         }
-        CaptureSource::Stokes { s0, s1, s2 } => read_stokes(s0, s1, s2),
+        CaptureSource::Stokes { s0, s1, s2 } => {
+            let mut out = read_stokes(s0, s1, s2)?;
+            out.dark_signal_dn = c.dark_signal_dn.unwrap_or(0.0);
+            Ok(out)
+        }
     }
+}
+
+/// The bracket each pixel of an HDR capture takes its values from: the first (longest)
+/// of `saturated_at(b, p)` false, `None` when every bracket is saturated there.
+fn pick_brackets(
+    n: usize,
+    brackets: usize,
+    saturated_at: impl Fn(usize, usize) -> bool,
+) -> Vec<Option<usize>> {
+    (0..n)
+        .map(|p| (0..brackets).find(|&b| !saturated_at(b, p)))
+        .collect()
+}
+
+/// Stokes images of an HDR capture (its [`Capture::brackets`], longest exposure first):
+/// the brackets merged per pixel (module docs), in DN of the longest exposure with the
+/// dark level removed, then solved as one capture (DoFP: bilinear, full resolution).
+///
+/// Errors: the image reader's (a missing or unreadable file, brackets of different
+/// sizes, naming the file), [`IoError::Manifest`] naming `capture[i].brackets` when the
+/// angles cannot be inverted, [`IoError::Core`] naming the first file.
+pub fn hdr_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
+    let nb = c.brackets.len();
+    let paths: Vec<&Path> = c.files();
+    let frames = image::read_frames(&paths)?;
+    let (Some(first), Some(reference)) = (frames.first(), c.brackets.first()) else {
+        return Err(IoError::Manifest {
+            path: m.path.clone(),
+            line: c.line,
+            field: format!("capture[{}].brackets", c.index),
+            value: String::new(),
+            reason: "no frames".into(),
+        });
+    };
+    let per = frames.len() / nb.max(1);
+    let (width, height, n) = (first.width, first.height, first.data.len());
+    let raw_rules = rules_for(first, c.dark_level, c.saturation);
+    let (dark, sat) = (raw_rules.dark_level, raw_rules.saturation);
+    // Merged values are dark-subtracted; f32::MAX marks a pixel saturated everywhere.
+    let merged_rules = PixelRules {
+        dark_level: 0.0,
+        saturation: f32::MAX,
+        min_s0: 0.0,
+    };
+    let scale: Vec<f32> = c
+        .brackets
+        .iter()
+        .map(|b| (reference.exposure / b.exposure) as f32)
+        .collect();
+    let value = |b: usize, a: usize, p: usize| frames[b * per + a].data[p];
+    let merge = |pick: &[Option<usize>], a: usize| -> Vec<f32> {
+        pick.iter()
+            .enumerate()
+            .map(|(p, b)| match b {
+                Some(b) => (value(*b, a, p) - dark) * scale[*b],
+                None => f32::MAX,
+            })
+            .collect()
+    };
+    let as_frame = |data: Vec<f32>, k: usize| Frame {
+        path: frames[k].path.clone(),
+        width,
+        height,
+        kind: SampleKind::F32,
+        data,
+    };
+    let mut out = match &reference.source {
+        CaptureSource::Frames(refs) => {
+            let angles: Vec<f64> = refs.iter().map(|f| f.angle_deg).collect();
+            let solver = StokesSolver::from_degrees(&angles).map_err(|e| IoError::Manifest {
+                path: m.path.clone(),
+                line: c.line,
+                field: format!("capture[{}].brackets", c.index),
+                value: format!("{angles:?}"),
+                reason: e.to_string(),
+            })?;
+            // Not `< sat` is saturated: NaN counts as saturated too.
+            let pick = pick_brackets(n, nb, |b, p| (0..per).any(|a| !(value(b, a, p) < sat)));
+            let merged: Vec<Frame> = (0..per).map(|a| as_frame(merge(&pick, a), a)).collect();
+            frames_stokes(&merged, &solver, &merged_rules)?
+        }
+        CaptureSource::Dofp { pattern, .. } => {
+            let near_saturated = |b: usize, p: usize| {
+                let (x, y) = (p % width, p / width);
+                (y.saturating_sub(1)..(y + 2).min(height)).any(|yy| {
+                    (x.saturating_sub(1)..(x + 2).min(width))
+                        .any(|xx| !(value(b, 0, yy * width + xx) < sat))
+                })
+            };
+            let pick = pick_brackets(n, nb, near_saturated);
+            dofp_stokes(
+                &as_frame(merge(&pick, 0), 0),
+                pattern,
+                &merged_rules,
+                Demosaic::Bilinear,
+                false,
+            )?
+        }
+        CaptureSource::Stokes { s0, .. } => {
+            return Err(IoError::Manifest {
+                path: m.path.clone(),
+                line: c.line,
+                field: format!("capture[{}].brackets", c.index),
+                value: s0.display().to_string(),
+                reason: "HDR brackets need raw data (`frames` or `dofp`), not Stokes images".into(),
+            });
+        }
+    };
+    out.dark_signal_dn = dark_threshold_dn(c, &raw_rules, first.kind.is_integer());
+    Ok(out)
 }
 
 /// The capture's scattering angle `beta` in degrees (paper eq. 5) from its
@@ -290,14 +461,26 @@ pub fn measure_capture(m: &Manifest, c: &Capture) -> Result<Vec<Measurement>> {
 }
 
 /// One row per region of `m` (in region order) from `img`, the Stokes images of capture
-/// `c` (as [`capture_images`] makes them).
+/// `c` (as [`capture_images`] makes them); a dark region or one without a usable pixel
+/// gives a row with its [`RowStatus`] and reason (module docs).
 ///
 /// Errors: [`IoError::Manifest`] naming the region's `rect` (line, value) when it leaves
-/// the frame, has no usable pixel, or (calibrated geometry) has a pixel whose ray misses
-/// its plane; the reason names the capture, its first file and the frame size. A source
-/// below the plane's horizon at some pixel of a region names the capture's `source`
-/// field and the target.
+/// the frame, or (calibrated geometry) has a pixel whose ray misses its plane; the
+/// reason names the capture, its first file and the frame size. A source below the
+/// plane's horizon at some pixel of a region names the capture's `source` field and the
+/// target.
 pub fn measure_images(m: &Manifest, c: &Capture, img: &StokesImages) -> Result<Vec<Measurement>> {
+    measure_images_with(m, c, img, false)
+}
+
+/// [`measure_images`]; with `strict`, a row that is not `ok` is an error instead (an
+/// [`IoError::Manifest`] naming the region's `rect`, the capture and the reason).
+pub fn measure_images_with(
+    m: &Manifest,
+    c: &Capture,
+    img: &StokesImages,
+    strict: bool,
+) -> Result<Vec<Measurement>> {
     let first_file = c
         .source
         .files()
@@ -317,12 +500,128 @@ pub fn measure_images(m: &Manifest, c: &Capture, img: &StokesImages) -> Result<V
             c.index, c.line, img.width, img.height
         ),
     };
-    if let Some(spec) = &c.illumination {
-        return calibrated_rows(m, c, spec, img, &rect_err);
+    let rows = if let Some(spec) = &c.illumination {
+        calibrated_rows(m, c, spec, img, &rect_err)?
+    } else {
+        far_field_rows(m, c, img, &rect_err)?
+    };
+    if strict && let Some((r, row)) = m.regions.iter().zip(&rows).find(|(_, x)| !x.status.is_ok()) {
+        return Err(rect_err(r, format!("{}: {}", row.status, row.reason)));
     }
+    Ok(rows)
+}
+
+/// Pixel counts of `rect` (inside the image): valid, saturated, dark, invalid.
+fn rect_counts(img: &StokesImages, rect: Rect) -> [u64; 4] {
+    let mut cnt = [0u64; 4];
+    for y in rect.y..rect.y + rect.height {
+        let o = y * img.width;
+        for m in img
+            .mask
+            .get(o + rect.x..o + rect.x + rect.width)
+            .unwrap_or(&[])
+        {
+            cnt[(m & 3) as usize] += 1;
+        }
+    }
+    cnt
+}
+
+/// The label of a capture in reasons: `capture 8 "L08"` or `capture 8`.
+fn capture_label(c: &Capture) -> String {
+    match &c.name {
+        Some(n) => format!("capture {} {n:?}", c.index),
+        None => format!("capture {}", c.index),
+    }
+}
+
+/// The status of a region of capture `c` with pixel counts `cnt` (valid, saturated,
+/// dark, invalid) and, when it has valid pixels, mean S0 `s0_dn` (DN, before the
+/// exposure): `ok`, `dark` (mean S0 below `img.dark_signal_dn`), or for a region without
+/// a usable pixel the most common reason of its rejections.
+fn row_status(c: &Capture, img: &StokesImages, cnt: [u64; 4], s0_dn: f64) -> (RowStatus, String) {
+    let [_, sat, dark, invalid] = cnt;
+    let area: u64 = cnt.iter().sum();
+    let cap = capture_label(c);
+    if cnt[0] == 0 {
+        let status = if sat >= dark && sat >= invalid {
+            RowStatus::Saturated
+        } else if dark >= invalid {
+            RowStatus::Dark
+        } else {
+            RowStatus::Invalid
+        };
+        return (
+            status,
+            format!("{cap}: has no usable pixel ({sat} saturated, {dark} dark, {invalid} invalid)"),
+        );
+    }
+    // `!(x >= t)`: a NaN mean is dark too.
+    if img.dark_signal_dn > 0.0 && !(s0_dn >= img.dark_signal_dn) {
+        return (
+            RowStatus::Dark,
+            format!(
+                "{cap}: mean S0 {s0_dn:.3} DN is below the dark threshold {:.3} DN \
+                 ({dark} of {area} pixels at or below the dark level); the DoLP of so \
+                 low a signal is biased",
+                img.dark_signal_dn
+            ),
+        );
+    }
+    (RowStatus::Ok, String::new())
+}
+
+/// The row of a region without a usable pixel: counts, status and reason, no values.
+fn empty_row(
+    r: &Region,
+    c: &Capture,
+    cnt: [u64; 4],
+    status: (RowStatus, String),
+    beta_deg: f64,
+) -> Measurement {
+    let far = c.illumination.is_none();
+    Measurement {
+        target: r.name.clone(),
+        class: r.class.clone(),
+        theta_i_deg: far.then_some(c.theta_i_deg),
+        theta_r_deg: far.then_some(c.theta_r_deg),
+        phi_deg: if far { c.phi_deg } else { f64::NAN },
+        beta_deg,
+        dolp: f64::NAN,
+        dolp_se: None,
+        s0: None,
+        pixels: Some(0),
+        rejected: Some(cnt[1] + cnt[2] + cnt[3]),
+        exposure: Some(c.exposure),
+        saturated: Some(cnt[1]),
+        beta_sd_deg: None,
+        aolp_deg: None,
+        aolp_poi_deg: None,
+        angle_sd_deg: c.angle_sd_deg,
+        status: status.0,
+        reason: status.1,
+    }
+}
+
+/// The rows of a far-field capture.
+fn far_field_rows(
+    m: &Manifest,
+    c: &Capture,
+    img: &StokesImages,
+    rect_err: &dyn Fn(&Region, String) -> IoError,
+) -> Result<Vec<Measurement>> {
     let beta_deg = beta_deg(c);
     let mut rows = Vec::with_capacity(m.regions.len());
     for r in &m.regions {
+        r.rect
+            .check(img.width, img.height)
+            .map_err(|e| rect_err(r, e.to_string()))?;
+        let cnt = rect_counts(img, r.rect);
+        if cnt[0] == 0 {
+            let st = row_status(c, img, cnt, f64::NAN);
+            rows.push(empty_row(r, c, cnt, st, beta_deg));
+            continue;
+        }
         let st = region_stats(
             img.width,
             &img.s0,
@@ -333,6 +632,7 @@ pub fn measure_images(m: &Manifest, c: &Capture, img: &StokesImages) -> Result<V
             img.sampling,
         )
         .map_err(|e| rect_err(r, e.to_string()))?;
+        let (status, reason) = row_status(c, img, cnt, st.s0());
         rows.push(Measurement {
             target: r.name.clone(),
             class: r.class.clone(),
@@ -353,6 +653,8 @@ pub fn measure_images(m: &Manifest, c: &Capture, img: &StokesImages) -> Result<V
             aolp_deg: None,
             aolp_poi_deg: None,
             angle_sd_deg: c.angle_sd_deg,
+            status,
+            reason,
         });
     }
     Ok(rows)
@@ -511,6 +813,12 @@ fn calibrated_rows(
             .check(img.width, img.height)
             .map_err(|e| rect_err(r, e.to_string()))?;
         let maps = region_geometry(m, c, spec, camera, &source, r, rect_err)?;
+        let cnt = rect_counts(img, r.rect);
+        if cnt[0] == 0 {
+            let st = row_status(c, img, cnt, f64::NAN);
+            rows.push(empty_row(r, c, cnt, st, f64::NAN));
+            continue;
+        }
         let area = r.rect.width * r.rect.height;
         let geom = RegionGeometry {
             beta: &maps[..area],
@@ -531,6 +839,7 @@ fn calibrated_rows(
         )
         .map_err(|e| rect_err(r, e.to_string()))?;
         let finite_deg = |x: f64| x.is_finite().then(|| x.to_degrees());
+        let (status, reason) = row_status(c, img, cnt, st.stats.s0());
         rows.push(Measurement {
             target: r.name.clone(),
             class: r.class.clone(),
@@ -549,6 +858,8 @@ fn calibrated_rows(
             aolp_deg: finite_deg(st.aolp),
             aolp_poi_deg: finite_deg(st.aolp_poi),
             angle_sd_deg: c.angle_sd_deg,
+            status,
+            reason,
         });
     }
     Ok(rows)
@@ -556,7 +867,8 @@ fn calibrated_rows(
 
 /// Measure every region of every capture of a loaded manifest: one row per target per
 /// capture, targets of capture 1 in region order, then capture 2, ... (the rows of
-/// `polarid measure`).
+/// `polarid measure`). Dark regions and regions without a usable pixel give rows with a
+/// status and a reason ([`measure_manifest_with`] with `strict` false).
 ///
 /// Captures are processed one after the other (each one in parallel inside), so memory
 /// holds one capture at a time; `progress` is called with the number of captures done
@@ -564,9 +876,20 @@ fn calibrated_rows(
 ///
 /// Errors: those of [`measure_capture`], for the first capture that fails.
 pub fn measure_manifest(m: &Manifest, progress: &mut dyn FnMut(usize)) -> Result<Vec<Measurement>> {
+    measure_manifest_with(m, false, progress)
+}
+
+/// [`measure_manifest`]; with `strict`, the first row that is not `ok` (a dark region,
+/// one without a usable pixel) stops it with an error naming the region's `rect`.
+pub fn measure_manifest_with(
+    m: &Manifest,
+    strict: bool,
+    progress: &mut dyn FnMut(usize),
+) -> Result<Vec<Measurement>> {
     let mut rows = Vec::with_capacity(m.captures.len() * m.regions.len());
     for (i, c) in m.captures.iter().enumerate() {
-        rows.extend(measure_capture(m, c)?);
+        let img = capture_images(m, c)?;
+        rows.extend(measure_images_with(m, c, &img, strict)?);
         progress(i + 1);
     }
     Ok(rows)

@@ -70,6 +70,7 @@ prop_compose! {
             aolp_deg: extra.1,
             aolp_poi_deg: extra.2,
             angle_sd_deg: None,
+            ..Default::default()
         }
     }
 }

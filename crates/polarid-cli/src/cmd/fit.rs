@@ -10,7 +10,9 @@
 //! region's spread of β (docs/GEOMETRY.md). The standard errors include the systematic
 //! errors of the geometry and the polarimeter (`--angle-sd-deg`, `--dolp-floor`,
 //! `--extinction-ratio`, `--retardance-deg`), and `--mismatch-p` sets the level of the
-//! model checks (docs/ERRORS.md).
+//! model checks (docs/ERRORS.md). Measurement rows whose `status` is not `ok` are
+//! skipped, and a target that cannot be fitted gets a row with status `invalid_input`
+//! and the reason; `--strict` makes either an error (docs/FORMATS.md, "Partial failure").
 
 use std::path::PathBuf;
 
@@ -99,6 +101,10 @@ pub struct Args {
     /// this (0: never).
     #[arg(long, value_name = "P", default_value_t = DEFAULT_MISMATCH_P)]
     pub mismatch_p: f64,
+    /// Stop with exit status 2 at the first problem (a skipped measurement row, a target
+    /// that cannot be fitted) instead of writing its row with a status and a reason.
+    #[arg(long)]
+    pub strict: bool,
 }
 
 /// Parse a number in (0, 1].
@@ -160,6 +166,7 @@ impl Args {
             extinction_ratio: self.extinction_ratio,
             retardance_deg: self.retardance_deg,
             mismatch_p: self.mismatch_p,
+            strict: self.strict,
         }
     }
 }

@@ -28,6 +28,11 @@
 //! `beta_deg` and `beta_sd_deg`, and `aolp_deg`, `aolp_poi_deg` (docs/GEOMETRY.md);
 //! those three columns are written only when some row has them.
 //!
+//! A region that is dark in a capture (mean S0 below the dark threshold) or has no
+//! usable pixel there gets a row with `status` and `reason` (docs/FORMATS.md, "Partial
+//! failure"), listed in a warning; `--strict` stops at the first one with exit status
+//! 2 instead. A manifest with no usable row at all is an error.
+//!
 //! The pipeline itself is [`polarid_io::measure`], shared with the Python bindings.
 
 use std::path::{Path, PathBuf};
@@ -47,15 +52,23 @@ pub struct Args {
     /// Output CSV (default: standard output).
     #[arg(short = 'o', long, value_name = "CSV")]
     pub output: Option<PathBuf>,
+    /// Stop with exit status 2 at the first region that is dark or has no usable pixel
+    /// in a capture, instead of writing its row with a status and a reason.
+    #[arg(long)]
+    pub strict: bool,
 }
 
 /// Measure every region of every capture of a loaded manifest (one row per target per
-/// capture, captures in manifest order) with [`polarid_pipeline::measure::measure`],
+/// capture, captures in manifest order) with [`polarid_pipeline::measure::measure_with`],
 /// showing a progress bar over the captures and a warning per saturated region.
-pub fn measure_manifest(m: &Manifest, ctx: &Ctx) -> anyhow::Result<Vec<Measurement>> {
+pub fn measure_manifest(
+    m: &Manifest,
+    cfg: &measure::MeasureConfig,
+    ctx: &Ctx,
+) -> anyhow::Result<Vec<Measurement>> {
     let out = {
         let bars = Bars::new(ctx);
-        measure::measure(m, &|s, d, t| bars.report(s, d, t)).cli()?
+        measure::measure_with(m, cfg, &|s, d, t| bars.report(s, d, t)).cli()?
     };
     warn_all(ctx, &out.warnings);
     Ok(out.rows)
@@ -71,12 +84,15 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     }
     let mut inputs: Vec<&Path> = vec![args.manifest.as_path()];
     for c in &m.captures {
-        inputs.extend(c.source.files());
+        inputs.extend(c.files());
     }
     if let Some(out) = &args.output {
         polarid_io::atomic::check_output(out, ctx.force, &inputs)?;
     }
-    let rows = measure_manifest(&m, ctx)?;
+    let cfg = measure::MeasureConfig {
+        strict: args.strict,
+    };
+    let rows = measure_manifest(&m, &cfg, ctx)?;
     let label = args
         .output
         .clone()

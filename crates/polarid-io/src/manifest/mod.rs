@@ -70,6 +70,9 @@ pub struct Manifest {
     /// Top-level standard uncertainty of the geometry's directions, degrees (if given;
     /// docs/ERRORS.md).
     pub angle_sd_deg: Option<f64>,
+    /// Top-level dark threshold, DN of dark-subtracted S0 (if given; default
+    /// `polarid_io::measure::dark_threshold_dn`).
+    pub dark_signal_dn: Option<f64>,
     /// The calibrated camera (`[camera]`), if any: then every capture has a
     /// [`Capture::illumination`] and no angles of its own.
     pub camera: Option<CameraSpec>,
@@ -134,8 +137,74 @@ pub struct Capture {
     /// Standard uncertainty of the source and camera directions, degrees (the capture's
     /// own `angle_sd_deg` or the top-level one; `None` when neither is given).
     pub angle_sd_deg: Option<f64>,
-    /// What was recorded.
+    /// Dark threshold, DN of dark-subtracted S0: a region whose mean S0 is below it is
+    /// `dark` (the capture's own `dark_signal_dn` or the top-level one; `None`: the
+    /// default of `polarid_io::measure::dark_threshold_dn`).
+    pub dark_signal_dn: Option<f64>,
+    /// What was recorded (for an HDR capture: the longest exposure's data, the first of
+    /// [`Capture::brackets`]).
     pub source: CaptureSource,
+    /// HDR brackets (the `brackets` key): every exposure of the capture, longest first,
+    /// merged per pixel by `measure` (docs/FORMATS.md, "HDR brackets"); empty for a
+    /// capture with one exposure. [`Capture::exposure`] is then the longest one's.
+    pub brackets: Vec<Bracket>,
+}
+
+/// One exposure of an HDR capture.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Bracket {
+    /// Relative exposure (time × gain), > 0.
+    pub exposure: f64,
+    /// Its data: rotating-polarizer frames or a DoFP mosaic (not Stokes images).
+    pub source: CaptureSource,
+}
+
+impl Capture {
+    /// Every file the capture reads (all brackets of an HDR capture).
+    pub fn files(&self) -> Vec<&Path> {
+        if self.brackets.is_empty() {
+            self.source.files()
+        } else {
+            self.brackets
+                .iter()
+                .flat_map(|b| b.source.files())
+                .collect()
+        }
+    }
+}
+
+/// Why bracket `b` cannot be merged with the first bracket `first`: the key at fault
+/// and the reason; `None` when they match (same kind; frames with the same angles in
+/// the same order, or DoFP with the same pattern).
+fn bracket_mismatch(first: &CaptureSource, b: &CaptureSource) -> Option<(&'static str, String)> {
+    match (first, b) {
+        (CaptureSource::Frames(a), CaptureSource::Frames(b)) => {
+            let a: Vec<f64> = a.iter().map(|f| f.angle_deg).collect();
+            let b: Vec<f64> = b.iter().map(|f| f.angle_deg).collect();
+            (a != b).then(|| {
+                (
+                    "frames",
+                    format!("the polarizer angles {b:?} differ from those of brackets[1], {a:?}"),
+                )
+            })
+        }
+        (CaptureSource::Dofp { pattern: a, .. }, CaptureSource::Dofp { pattern: b, .. }) => {
+            (a != b).then(|| {
+                (
+                    "dofp",
+                    "the pattern differs from that of brackets[1]".to_string(),
+                )
+            })
+        }
+        (CaptureSource::Dofp { .. }, _) => Some((
+            "frames",
+            "every bracket must hold the same kind of data as brackets[1] (dofp)".into(),
+        )),
+        _ => Some((
+            "dofp",
+            "every bracket must hold the same kind of data as brackets[1] (frames)".into(),
+        )),
+    }
 }
 
 /// One frame of a rotating-polarizer capture.
@@ -366,6 +435,7 @@ impl<'a> Parser<'a> {
                 "saturation",
                 "wavelength_nm",
                 "angle_sd_deg",
+                "dark_signal_dn",
                 "region",
                 "capture",
                 "camera",
@@ -401,6 +471,7 @@ impl<'a> Parser<'a> {
         };
 
         let angle_sd_deg = self.angle_sd(root, "")?;
+        let dark_signal_dn = self.dark_signal(root, "")?;
 
         // Calibrated geometry.
         let camera = self.camera(root)?;
@@ -541,10 +612,9 @@ impl<'a> Parser<'a> {
                 camera.is_some(),
                 site.as_ref(),
             )?);
-            if let Some(c) = captures.last_mut()
-                && c.angle_sd_deg.is_none()
-            {
-                c.angle_sd_deg = angle_sd_deg;
+            if let Some(c) = captures.last_mut() {
+                c.angle_sd_deg = c.angle_sd_deg.or(angle_sd_deg);
+                c.dark_signal_dn = c.dark_signal_dn.or(dark_signal_dn);
             }
         }
         if captures.is_empty() {
@@ -561,6 +631,7 @@ impl<'a> Parser<'a> {
             saturation,
             wavelength_nm,
             angle_sd_deg,
+            dark_signal_dn,
             camera,
             planes,
             site,
@@ -604,9 +675,11 @@ impl<'a> Parser<'a> {
                 "dark_level",
                 "saturation",
                 "angle_sd_deg",
+                "dark_signal_dn",
                 "frames",
                 "dofp",
                 "stokes",
+                "brackets",
                 "source",
             ],
             &pre,
@@ -680,6 +753,70 @@ impl<'a> Parser<'a> {
             ));
         }
         let angle_sd_deg = self.angle_sd(t, &pre)?;
+        let dark_signal_dn = self.dark_signal(t, &pre)?;
+        let (source, exposure, brackets) = match self.get(t, "brackets") {
+            Some(bv) => {
+                for k in ["frames", "dofp", "stokes", "exposure"] {
+                    if let Some(v) = self.get(t, k) {
+                        return Err(self.err(
+                            &v.span(),
+                            &format!("{pre}{k}"),
+                            format!(
+                                "a capture with `brackets` gives its data and exposures in \
+                                 each bracket, not `{k}`"
+                            ),
+                        ));
+                    }
+                }
+                let brackets = self.brackets(bv, &pre)?;
+                match brackets.first() {
+                    Some(b) => (b.source.clone(), b.exposure, brackets),
+                    None => {
+                        return Err(self.err(&bv.span(), &format!("{pre}brackets"), "empty"));
+                    }
+                }
+            }
+            None => (
+                self.data_source(t, &pre, &span, true)?,
+                exposure,
+                Vec::new(),
+            ),
+        };
+        Ok(Capture {
+            index,
+            line: self.line(first_line),
+            name,
+            theta_i_deg,
+            theta_r_deg,
+            phi_deg,
+            illumination,
+            exposure,
+            dark_level,
+            saturation,
+            angle_sd_deg,
+            dark_signal_dn,
+            source,
+            brackets,
+        })
+    }
+
+    /// The data of a capture or of a bracket (table `t`, fields under `pre`): exactly
+    /// one of `frames`, `dofp` or (`allow_stokes`) `stokes`.
+    fn data_source(
+        &self,
+        t: &Table<'_>,
+        pre: &str,
+        span: &Range<usize>,
+        allow_stokes: bool,
+    ) -> Result<CaptureSource> {
+        let span = span.clone();
+        if !allow_stokes && let Some(v) = self.get(t, "stokes") {
+            return Err(self.err(
+                &v.span(),
+                &format!("{pre}stokes"),
+                "HDR brackets need raw data (`frames` or `dofp`), not Stokes images",
+            ));
+        }
         let kinds: Vec<&str> = ["frames", "dofp", "stokes"]
             .into_iter()
             .filter(|k| self.get(t, k).is_some())
@@ -777,20 +914,70 @@ impl<'a> Parser<'a> {
                 }
             }
         };
-        Ok(Capture {
-            index,
-            line: self.line(first_line),
-            name,
-            theta_i_deg,
-            theta_r_deg,
-            phi_deg,
-            illumination,
-            exposure,
-            dark_level,
-            saturation,
-            angle_sd_deg,
-            source,
-        })
+        Ok(source)
+    }
+
+    /// The `brackets` of a capture (HDR): at least 2 tables, each with an `exposure`
+    /// (> 0, distinct) and the same kind of data (`frames` with the same angles, or
+    /// `dofp` with the same pattern); returned longest exposure first.
+    fn brackets(&self, bv: &Val<'_>, pre: &str) -> Result<Vec<Bracket>> {
+        let field = format!("{pre}brackets");
+        let items = self.array(bv, &field)?;
+        if items.len() < 2 {
+            return Err(self.err(
+                &bv.span(),
+                &field,
+                "HDR brackets need at least 2 exposures (one exposure: use `frames` or `dofp`)",
+            ));
+        }
+        let mut out: Vec<Bracket> = Vec::with_capacity(items.len());
+        for (j, it) in items.iter().enumerate() {
+            let bpre = format!("{field}[{}].", j + 1);
+            let bt = self.table(it, &format!("{field}[{}]", j + 1))?;
+            self.warn_unknown(bt, &["exposure", "frames", "dofp", "stokes"], &bpre);
+            let exposure = match self.opt_num(bt, "exposure", &bpre)? {
+                Some((v, s)) if v <= 0.0 => {
+                    return Err(self.err(&s, &format!("{bpre}exposure"), "exposure must be > 0"));
+                }
+                Some((v, s)) if out.iter().any(|b| b.exposure == v) => {
+                    return Err(self.err(
+                        &s,
+                        &format!("{bpre}exposure"),
+                        "two brackets have the same exposure",
+                    ));
+                }
+                Some((v, _)) => v,
+                None => {
+                    return Err(self.err(
+                        &it.span(),
+                        &format!("{bpre}exposure"),
+                        "missing exposure (each bracket needs its relative exposure)",
+                    ));
+                }
+            };
+            let source = self.data_source(bt, &bpre, &it.span(), false)?;
+            if let Some(first) = out.first()
+                && let Some((key, reason)) = bracket_mismatch(&first.source, &source)
+            {
+                let v = self.get(bt, key).map_or(it.span(), |v| v.span());
+                return Err(self.err(&v, &format!("{bpre}{key}"), reason));
+            }
+            out.push(Bracket { exposure, source });
+        }
+        out.sort_by(|a, b| b.exposure.total_cmp(&a.exposure));
+        Ok(out)
+    }
+
+    /// The optional `dark_signal_dn` of a table: finite (checked by `num`) and `>= 0`.
+    fn dark_signal(&self, t: &Table<'_>, prefix: &str) -> Result<Option<f64>> {
+        match self.opt_num(t, "dark_signal_dn", prefix)? {
+            Some((v, span)) if v < 0.0 => Err(self.err(
+                &span,
+                &format!("{prefix}dark_signal_dn"),
+                "dark threshold must be >= 0 DN",
+            )),
+            other => Ok(other.map(|x| x.0)),
+        }
     }
 
     /// The optional `angle_sd_deg` of a table: finite (checked by `num`) and in

@@ -5,6 +5,12 @@
 //! columns [`OPTIONAL_COLUMNS`] (`beta_sd_deg`, `aolp_deg`, `aolp_poi_deg` of calibrated
 //! captures, `angle_sd_deg` when the manifest gives it), each written only when some row
 //! has a value for it, so a far-field file keeps exactly the columns above.
+//!
+//! Partial failure: a row that was measured but must not be fitted (a dark region, a
+//! region without a usable pixel in that capture) carries a [`RowStatus`] other than
+//! `ok` and a reason, in the optional columns `status` and `reason` (written only when
+//! some row is not `ok`). `fit` skips such rows. Their values may be `nan` (no pixel,
+//! no DoLP) and are not range-checked.
 
 use std::io::Write;
 use std::path::Path;
@@ -34,6 +40,64 @@ pub const COLUMNS: [&str; 13] = [
 /// The optional columns, in output order: written after [`COLUMNS`], each one only when
 /// some row has a value.
 pub const OPTIONAL_COLUMNS: [&str; 4] = ["beta_sd_deg", "aolp_deg", "aolp_poi_deg", "angle_sd_deg"];
+
+/// The status columns, written last and only when some row is not
+/// [`RowStatus::Ok`].
+pub const STATUS_COLUMNS: [&str; 2] = ["status", "reason"];
+
+/// Whether a measurement row may be fitted (the optional `status` column; an empty cell
+/// or no column is `ok`).
+#[non_exhaustive]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum RowStatus {
+    /// Measured and usable.
+    #[default]
+    Ok,
+    /// The region's signal is below the capture's dark threshold (docs/FORMATS.md,
+    /// "Dark regions"): its DoLP is biased by quantization, clipping and noise and is
+    /// not fitted.
+    Dark,
+    /// Every pixel of the region is rejected, most of them saturated.
+    Saturated,
+    /// Every pixel of the region is rejected, most of them invalid (non-finite data).
+    Invalid,
+}
+
+impl RowStatus {
+    /// Every status, in documentation order.
+    pub const ALL: [RowStatus; 4] = [
+        RowStatus::Ok,
+        RowStatus::Dark,
+        RowStatus::Saturated,
+        RowStatus::Invalid,
+    ];
+
+    /// The word of the `status` column: `ok`, `dark`, `saturated`, `invalid`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            RowStatus::Ok => "ok",
+            RowStatus::Dark => "dark",
+            RowStatus::Saturated => "saturated",
+            RowStatus::Invalid => "invalid",
+        }
+    }
+
+    /// The status of a word of [`RowStatus::as_str`] (exact); `None` otherwise.
+    pub fn parse(word: &str) -> Option<RowStatus> {
+        RowStatus::ALL.into_iter().find(|s| s.as_str() == word)
+    }
+
+    /// True for [`RowStatus::Ok`]: the row may be fitted.
+    pub fn is_ok(self) -> bool {
+        self == RowStatus::Ok
+    }
+}
+
+impl std::fmt::Display for RowStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
 
 /// One row: a target's DoLP in one capture.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -76,6 +140,11 @@ pub struct Measurement {
     /// Standard uncertainty of the directions of the source and of the camera, degrees
     /// (the manifest's `angle_sd_deg`; `None`: `fit`'s default applies, docs/ERRORS.md).
     pub angle_sd_deg: Option<f64>,
+    /// Whether the row may be fitted ([`RowStatus::Ok`] unless the region was dark or
+    /// had no usable pixel in this capture).
+    pub status: RowStatus,
+    /// Why the status is not `ok` (empty for `ok`).
+    pub reason: String,
 }
 
 /// Read a measurements CSV. Needs `target`, `dolp` and either `beta_deg` or
@@ -119,11 +188,27 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
     let c_aolp = t.col("aolp_deg");
     let c_apoi = t.col("aolp_poi_deg");
     let c_asd = t.col("angle_sd_deg");
+    let c_status = t.col("status");
+    let c_reason = t.col("reason");
     let mut out = Vec::with_capacity(t.rows.len());
     for r in 0..t.rows.len() {
         let target = t.text(r, c_target).to_string();
         if target.is_empty() {
             return Err(t.err(r, c_target, "empty target name"));
+        }
+        let status = match c_status.map(|c| (c, t.text(r, c))) {
+            None | Some((_, "")) => RowStatus::Ok,
+            Some((c, w)) => RowStatus::parse(w).ok_or_else(|| {
+                t.err(
+                    r,
+                    c,
+                    "unknown status (expected ok, dark, saturated or invalid)",
+                )
+            })?,
+        };
+        if !status.is_ok() {
+            out.push(skipped_row(t, r, target, status, c_reason)?);
+            continue;
         }
         let angle = |c: Option<usize>| -> Result<Option<f64>> {
             let v = t.opt_f64(r, c)?;
@@ -198,13 +283,61 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
             aolp_deg,
             aolp_poi_deg,
             angle_sd_deg,
+            status,
+            reason: t.opt_text(r, c_reason).unwrap_or_default(),
         });
     }
     Ok(out)
 }
 
+/// A row whose status is not `ok`: its numbers are read as they are (`nan` or empty
+/// allowed, no range checks), since `fit` does not use them.
+fn skipped_row(
+    t: &CsvTable,
+    r: usize,
+    target: String,
+    status: RowStatus,
+    c_reason: Option<usize>,
+) -> Result<Measurement> {
+    let num = |name: &str| -> Result<Option<f64>> {
+        let Some(c) = t.col(name) else {
+            return Ok(None);
+        };
+        let text = t.text(r, c);
+        if text.is_empty() {
+            return Ok(None);
+        }
+        text.parse::<f64>()
+            .map(|v| Some(v).filter(|v| !v.is_nan()))
+            .map_err(|_| t.err(r, c, "not a number"))
+    };
+    let nan = f64::NAN;
+    Ok(Measurement {
+        target,
+        class: t.opt_text(r, t.col("class")),
+        theta_i_deg: num("theta_i_deg")?,
+        theta_r_deg: num("theta_r_deg")?,
+        phi_deg: num("phi_deg")?.unwrap_or(180.0),
+        beta_deg: num("beta_deg")?.unwrap_or(nan),
+        dolp: num("dolp")?.unwrap_or(nan),
+        dolp_se: num("dolp_se")?,
+        s0: num("s0")?,
+        pixels: t.opt_u64(r, t.col("pixels"))?,
+        rejected: t.opt_u64(r, t.col("rejected"))?,
+        exposure: num("exposure")?,
+        saturated: t.opt_u64(r, t.col("saturated"))?,
+        beta_sd_deg: num("beta_sd_deg")?,
+        aolp_deg: num("aolp_deg")?,
+        aolp_poi_deg: num("aolp_poi_deg")?,
+        angle_sd_deg: num("angle_sd_deg")?,
+        status,
+        reason: t.opt_text(r, c_reason).unwrap_or_default(),
+    })
+}
+
 /// Write measurements in the documented column order: [`COLUMNS`], then those of
-/// [`OPTIONAL_COLUMNS`] that some row has a value for.
+/// [`OPTIONAL_COLUMNS`] that some row has a value for, then [`STATUS_COLUMNS`] when
+/// some row is not `ok`.
 pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[Measurement]) -> Result<()> {
     let optional: [fn(&Measurement) -> Option<f64>; 4] = [
         |m| m.beta_sd_deg,
@@ -217,6 +350,10 @@ pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[Measurement]) ->
         .collect();
     let mut headers: Vec<&str> = COLUMNS.to_vec();
     headers.extend(present.iter().map(|&i| OPTIONAL_COLUMNS[i]));
+    let with_status = rows.iter().any(|m| !m.status.is_ok());
+    if with_status {
+        headers.extend(STATUS_COLUMNS);
+    }
     write_rows(
         w,
         path,
@@ -238,6 +375,10 @@ pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[Measurement]) ->
                 m.saturated.map(|v| v.to_string()).unwrap_or_default(),
             ];
             cells.extend(present.iter().map(|&i| fmt_opt(optional[i](m))));
+            if with_status {
+                cells.push(m.status.as_str().to_string());
+                cells.push(m.reason.clone());
+            }
             cells
         }),
     )

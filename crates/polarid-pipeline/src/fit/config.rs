@@ -123,6 +123,10 @@ pub struct FitConfig {
     /// Specular fit: status `model_mismatch` when the goodness-of-fit or the AoLP test
     /// has a p-value below this, in `[0, 1)` (0: never).
     pub mismatch_p: f64,
+    /// Stop at the first problem (a measurement row whose status is not `ok`, a target
+    /// that cannot be fitted) with an error, instead of a fits row with a status and a
+    /// reason (docs/FORMATS.md, "Partial failure").
+    pub strict: bool,
 }
 
 /// Default of [`FitConfig::angle_sd_deg`], degrees.
@@ -154,6 +158,7 @@ impl Default for FitConfig {
             extinction_ratio: DEFAULT_EXTINCTION_RATIO,
             retardance_deg: DEFAULT_RETARDANCE_DEG,
             mismatch_p: DEFAULT_MISMATCH_P,
+            strict: false,
         }
     }
 }

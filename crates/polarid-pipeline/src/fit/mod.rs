@@ -2,7 +2,14 @@
 //! workflow of `polarid fit` and of Python's `polarid.fit_table`.
 //!
 //! Rows are grouped by `target` (targets keep the order of their first row); each
-//! target needs at least 3 measurements, and its rows may not disagree on `class`. When
+//! target needs at least 3 usable measurements, and its rows may not disagree on
+//! `class`.
+//!
+//! Partial failure (docs/FORMATS.md): measurement rows whose `status` is not `ok` (dark,
+//! no usable pixel) are skipped; a target with fewer than 3 usable rows, or whose data
+//! the fit rejects, becomes a row with status `invalid_input` and the reason (`n`, `k`
+//! NaN), and the other targets are fitted. Only when no target can be fitted is it an
+//! error. [`FitConfig::strict`] restores the error at the first problem. When
 //! every row of a target has a `dolp_se`, the fit is weighted by `1/dolp_se²` and the
 //! standard errors follow from them; otherwise it is unweighted and the standard errors
 //! are scaled by the residual.
@@ -159,8 +166,10 @@ fn class_of<'a>(path: &Path, g: &Group<'a>) -> Result<Option<&'a str>> {
 /// `path`, for messages; see [`read_measurements`]) with the model of `cfg`.
 ///
 /// Reports `("fitting", done, targets)` to `progress`. Errors name the file, target and
-/// lines: no rows, a target with fewer than 3 rows, conflicting classes, unusable values
-/// (and for the mixed fit a missing or non-positive `s0`, missing angles).
+/// lines: no rows, conflicting classes, no target that can be fitted; with
+/// [`FitConfig::strict`] also a skipped row, a target with fewer than 3 usable rows,
+/// unusable values (and for the mixed fit a missing or non-positive `s0`, missing
+/// angles). Without it those become `invalid_input` rows (module docs).
 pub fn fit(
     path: &Path,
     rows: &[(u64, Measurement)],
@@ -178,26 +187,74 @@ pub fn fit(
     let mopts = cfg.mixed_options();
     let mut plans = PlanCache::unbounded();
     let mut out = Vec::with_capacity(groups.len());
+    let mut skipped_rows = 0usize;
+    let mut first_problem: Option<PipelineError> = None;
     for g in &groups {
-        if g.rows.len() < 3 {
+        let class = class_of(path, g)?;
+        let (usable, skipped): (Vec<_>, Vec<_>) =
+            g.rows.iter().partition(|(_, m)| m.status.is_ok());
+        skipped_rows += skipped.len();
+        let skipped_text = skipped
+            .iter()
+            .map(|(l, m)| format!("line {l} {}", m.status))
+            .collect::<Vec<_>>()
+            .join(", ");
+        if cfg.strict
+            && let Some((line, m)) = skipped.first()
+        {
             return Err(data(
                 path,
                 format!(
-                    "target {:?} has {} measurement(s) ({} {}); at least 3 are needed",
-                    g.target,
-                    g.rows.len(),
-                    if g.rows.len() == 1 { "line" } else { "lines" },
-                    g.lines()
+                    "line {line}: target {:?}: measurement status {} ({}); without --strict \
+                     such rows are skipped",
+                    g.target, m.status, m.reason
                 ),
             ));
         }
-        let class = class_of(path, g)?;
-        let t = match cfg.reflectance {
-            Reflectance::Mixed => mixed::fit_target(path, g, class, &mopts)?,
-            Reflectance::Specular => specular(path, g, class, opts, cfg, &mut plans)?,
+        let ug = Group {
+            target: g.target,
+            rows: usable,
+        };
+        let attempt = if ug.rows.len() < 3 {
+            Err(data(
+                path,
+                format!(
+                    "target {:?} has {} {}measurement(s) ({} {}); at least 3 are needed{}",
+                    g.target,
+                    ug.rows.len(),
+                    if skipped.is_empty() { "" } else { "usable " },
+                    if ug.rows.len() == 1 { "line" } else { "lines" },
+                    ug.lines(),
+                    if skipped.is_empty() {
+                        String::new()
+                    } else {
+                        format!(" (skipped: {skipped_text})")
+                    }
+                ),
+            ))
+        } else {
+            match cfg.reflectance {
+                Reflectance::Mixed => mixed::fit_target(path, &ug, class, &mopts),
+                Reflectance::Specular => specular(path, &ug, class, opts, cfg, &mut plans),
+            }
+        };
+        let t = match attempt {
+            Ok(t) => t,
+            Err(e @ PipelineError::Data { .. }) if !cfg.strict => {
+                let t = unfitted(g.target, class, ug.rows.len(), cfg.reflectance, &e);
+                first_problem.get_or_insert(e);
+                t
+            }
+            Err(e) => return Err(e),
         };
         out.push(t);
         progress("fitting", out.len() as u64, total);
+    }
+    if let Some(e) = first_problem
+        && out.iter().all(|t| t.row.status == FitStatus::InvalidInput)
+    {
+        // No target could be fitted: the input as a whole is unusable.
+        return Err(e);
     }
     let mut warnings = Vec::new();
     if cfg.reflectance == Reflectance::Mixed
@@ -211,6 +268,12 @@ pub fn fit(
                 .into(),
         ));
     }
+    if skipped_rows > 0 {
+        warnings.push(Warning(format!(
+            "{skipped_rows} measurement row(s) skipped: their status is not ok (dark, or no \
+             usable pixel; see the measurements' status and reason columns)"
+        )));
+    }
     let not_ok = out.iter().filter(|t| !t.row.status.is_ok()).count();
     if not_ok > 0 {
         warnings.push(Warning(format!(
@@ -222,6 +285,40 @@ pub fn fit(
         targets: out,
         warnings,
     })
+}
+
+/// The row of a target that could not be fitted: status `invalid_input`, the error's
+/// reason, `n`, `k` and their errors NaN.
+fn unfitted(
+    target: &str,
+    class: Option<&str>,
+    usable: usize,
+    model: Reflectance,
+    e: &PipelineError,
+) -> TargetFit {
+    let reason = match e {
+        PipelineError::Data { reason, .. } => reason.clone(),
+        other => other.to_string(),
+    };
+    let nan = f64::NAN;
+    TargetFit {
+        row: FitRow {
+            target: target.to_string(),
+            class: class.map(str::to_string),
+            n: nan,
+            k: nan,
+            n_se: nan,
+            k_se: nan,
+            nk_corr: nan,
+            rms_residual: nan,
+            measurements: usable as u64,
+            status: FitStatus::InvalidInput,
+            reason,
+            model: model.as_str().into(),
+            ..FitRow::default()
+        },
+        report: None,
+    }
 }
 
 /// The specular (DoLP-only) fit of one target, with the `depolarized` rule.
