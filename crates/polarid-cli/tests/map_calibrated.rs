@@ -477,7 +477,13 @@ fn z_scores(out: &Path) -> Vec<(f64, f64)> {
                 let i = y * w + x;
                 let zn = (n[i] as f64 - p.n) / n_se[i] as f64;
                 let zk = (k[i] as f64 - p.k) / k_se[i] as f64;
-                let f = |v: f64| if v.is_finite() { v.abs() } else { f64::INFINITY };
+                let f = |v: f64| {
+                    if v.is_finite() {
+                        v.abs()
+                    } else {
+                        f64::INFINITY
+                    }
+                };
                 z.push((f(zn), f(zk)));
             }
         }
@@ -507,10 +513,9 @@ fn map_coverage_of_per_pixel_standard_errors_over_seeds() {
         let (cal, _, model) = write_scene(&dir, &sn);
         let out = dir.join("w");
         map_with(&cal, &model, &out, 1, &[]);
-        let summary: serde_json::Value = serde_json::from_str(
-            &std::fs::read_to_string(out.join("map_summary.json")).unwrap(),
-        )
-        .unwrap();
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("map_summary.json")).unwrap())
+                .unwrap();
         assert_eq!(summary["weights"], "noise");
         let nz = &summary["noise"];
         eprintln!(

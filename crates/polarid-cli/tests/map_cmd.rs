@@ -474,10 +474,9 @@ fn mitsuba_paper_lab_50_held_out_pixels_are_right_ambiguous_or_unknown() {
         ];
         args.extend_from_slice(extra);
         ok(&args);
-        let summary: serde_json::Value = serde_json::from_str(
-            &std::fs::read_to_string(out.join("map_summary.json")).unwrap(),
-        )
-        .unwrap();
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("map_summary.json")).unwrap())
+                .unwrap();
         eprintln!("--rule {tag}: answers {}", summary["answers"]);
         let mut worst = 0.0f64;
         for (plate, n, wrong) in answers(&out, 4, &rects) {

@@ -40,9 +40,9 @@ use rayon::prelude::*;
 use crate::classify::{Classifier, Cov2};
 use crate::error::{CoreError, Result};
 use crate::fit::{FitPlan, FitStatus, NkFit, PixelBetaPlan, fit_batch, fit_batch_pixel_beta};
+use crate::stokes::{PixelRules, Sample, StokesSolver, check_image, check_len, mask};
 use noise::NoiseModel;
 use sets::{CovScratch, MapErrorModel, PixelRow};
-use crate::stokes::{PixelRules, Sample, StokesSolver, check_image, check_len, mask};
 
 /// Signal flag bits accumulated per pixel over the captures (OR of every capture).
 pub mod flag {
@@ -389,7 +389,18 @@ pub fn stokes_dolp(
     dolp: &mut [f32],
     flags: &mut [u8],
 ) -> Result<()> {
-    stokes_dolp_noise(width, s0, s1, s2, stokes_mask, min_s0, bin, dolp, flags, None)
+    stokes_dolp_noise(
+        width,
+        s0,
+        s1,
+        s2,
+        stokes_mask,
+        min_s0,
+        bin,
+        dolp,
+        flags,
+        None,
+    )
 }
 
 /// [`stokes_dolp`], writing also the noise terms of every block into `noise` (see
@@ -518,12 +529,9 @@ impl PixelClassifier {
             });
         }
         let p = &errors.polarimetric;
-        for (name, v) in [
-            ("dolp floor", p.dolp_floor),
-            ("retardance", p.retardance),
-        ]
-        .into_iter()
-        .chain(errors.angle_sd.iter().map(|&a| ("angle sd", a)))
+        for (name, v) in [("dolp floor", p.dolp_floor), ("retardance", p.retardance)]
+            .into_iter()
+            .chain(errors.angle_sd.iter().map(|&a| ("angle sd", a)))
         {
             crate::error::ensure_range(name, v, 0.0, f64::MAX, "finite and >= 0")?;
         }
@@ -993,14 +1001,7 @@ fn write_skip(out: &mut MapOutputs<'_>, counts: &mut MapCounts, p: usize, r: u8)
 }
 
 /// Record a pixel's fit and its class `c` and reason `r`.
-fn write_fit(
-    out: &mut MapOutputs<'_>,
-    counts: &mut MapCounts,
-    p: usize,
-    f: &NkFit,
-    c: u16,
-    r: u8,
-) {
+fn write_fit(out: &mut MapOutputs<'_>, counts: &mut MapCounts, p: usize, f: &NkFit, c: u16, r: u8) {
     out.n[p] = f.n as f32;
     out.k[p] = f.k as f32;
     out.n_se[p] = f.n_se as f32;
@@ -1235,7 +1236,8 @@ mod tests {
                 class: &mut class,
                 reason: &mut why,
             };
-            let counts = fit_and_classify(betas, &pc, &views, None, &flags, 4, out, &|_| {}).unwrap();
+            let counts =
+                fit_and_classify(betas, &pc, &views, None, &flags, 4, out, &|_| {}).unwrap();
             (o, class, why, counts)
         };
         let (o, class, why, counts) = run(Betas::PerPixel {

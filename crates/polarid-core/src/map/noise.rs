@@ -357,8 +357,8 @@ pub fn estimate_noise(
     {
         theta = t2;
     }
-    let reduced_chi2 = kept.iter().map(|&sp| chi2(theta, sp) / dof).sum::<f64>()
-        / kept.len().max(1) as f64;
+    let reduced_chi2 =
+        kept.iter().map(|&sp| chi2(theta, sp) / dof).sum::<f64>() / kept.len().max(1) as f64;
     Ok(Some(NoiseEstimate {
         model: NoiseModel {
             read_var_dn2: theta[0],
@@ -463,7 +463,9 @@ mod tests {
     fn noise_terms_match_monte_carlo() {
         use rand::SeedableRng;
         use rand_distr::{Distribution, Normal};
-        let an = NoiseAnalyzer::of_solver(&StokesSolver::from_degrees(&[0.0, 45.0, 90.0, 135.0]).unwrap());
+        let an = NoiseAnalyzer::of_solver(
+            &StokesSolver::from_degrees(&[0.0, 45.0, 90.0, 135.0]).unwrap(),
+        );
         for (a, b) in an.rows.iter().zip(&NoiseAnalyzer::quad().rows) {
             for (x, y) in a.iter().zip(b) {
                 assert!((x - y).abs() < 1e-6, "{a:?} vs {b:?}");

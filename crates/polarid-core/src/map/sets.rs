@@ -246,8 +246,12 @@ mod tests {
             extinction_ratio: 100.0,
             retardance: 0.05,
         };
-        let betas: Vec<f64> = (0..8).map(|i| (30.0 + 6.0 * i as f64).to_radians()).collect();
-        let sd: Vec<f64> = (0..8).map(|i| (0.1 + 0.02 * i as f64).to_radians()).collect();
+        let betas: Vec<f64> = (0..8)
+            .map(|i| (30.0 + 6.0 * i as f64).to_radians())
+            .collect();
+        let sd: Vec<f64> = (0..8)
+            .map(|i| (0.1 + 0.02 * i as f64).to_radians())
+            .collect();
         let model = MapErrorModel {
             polarimetric: pol,
             angle_sd: sd.clone(),
