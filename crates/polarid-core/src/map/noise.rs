@@ -250,83 +250,121 @@ pub fn estimate_noise(
     if t_len < 3 {
         return Ok(None);
     }
-    let usable = |p: usize| {
-        signal_reason(flags[p]) == 0
-            && (0..t_len).all(|t| {
-                dolp[t][p].is_finite()
-                    && read[t][p].is_finite()
-                    && shot[t][p].is_finite()
-                    && (read[t][p] > 0.0 || shot[t][p] > 0.0)
-                    && beta_of(p, t).is_finite()
-            })
+    // The captures a pixel can use: DoLP, terms and angle finite (a calibrated map
+    // leaves a pixel's dark or saturated captures out, DoLP NaN); at least 3, and all
+    // of them with shared angles.
+    let full: u64 = if t_len >= 64 {
+        u64::MAX
+    } else {
+        (1u64 << t_len) - 1
     };
-    let count = (0..npix).filter(|&p| usable(p)).count();
+    let per_pixel = matches!(betas, Betas::PerPixel { .. }) && t_len < 64;
+    let mask_of = |p: usize| -> u64 {
+        if signal_reason(flags[p]) != 0 {
+            return 0;
+        }
+        let ok = |t: usize| {
+            dolp[t][p].is_finite()
+                && read[t][p].is_finite()
+                && shot[t][p].is_finite()
+                && (read[t][p] > 0.0 || shot[t][p] > 0.0)
+                && beta_of(p, t).is_finite()
+        };
+        if per_pixel {
+            let m = (0..t_len)
+                .filter(|&t| ok(t))
+                .fold(0u64, |m, t| m | (1 << t));
+            if m.count_ones() >= 3 { m } else { 0 }
+        } else if (0..t_len).all(ok) {
+            full
+        } else {
+            0
+        }
+    };
+    let count = (0..npix).filter(|&p| mask_of(p) != 0).count();
     if count < NOISE_MIN_PIXELS {
         return Ok(None);
     }
     let stride = count.div_ceil(NOISE_SAMPLE);
-    let idx: Vec<usize> = (0..npix).filter(|&p| usable(p)).step_by(stride).collect();
-    let m = idx.len();
-    // First guess: read and shot terms of equal weight at 1 DN² and 1 DN/e⁻.
-    let mut y = Vec::with_capacity(m * t_len);
-    let mut b = Vec::with_capacity(m * t_len);
-    let mut se = Vec::with_capacity(m * t_len);
-    let (mut ra, mut rb) = (Vec::with_capacity(m * t_len), Vec::with_capacity(m * t_len));
-    for &p in &idx {
-        for t in 0..t_len {
-            y.push(dolp[t][p] as f64);
-            b.push(beta_of(p, t));
-            let (a, s) = (read[t][p] as f64, shot[t][p] as f64);
-            ra.push(a);
-            rb.push(s);
-            se.push((a + s).sqrt());
-        }
-    }
-    let mut fits = vec![NkFit::default(); m];
-    match betas {
-        Betas::Shared(plan) => fit_batch(plan, &y, Some(&se), &mut fits)?,
-        Betas::PerPixel { plan, .. } => fit_batch_pixel_beta(plan, &b, &y, Some(&se), &mut fits)?,
-    }
-    // Residuals and leverages of the ok fits.
-    let mut rows: Vec<Row> = Vec::with_capacity(m * t_len);
-    let mut spans: Vec<(usize, usize)> = Vec::with_capacity(m);
-    for (i, f) in fits.iter().enumerate() {
-        if f.status != FitStatus::Ok {
-            continue;
-        }
-        let r = i * t_len..(i + 1) * t_len;
-        let grads: Vec<_> = b[r.clone()]
-            .iter()
-            .map(|&bt| dop_grad(f.n, f.k, bt))
+    let mut sample: Vec<(u64, usize)> = (0..npix)
+        .map(|p| (mask_of(p), p))
+        .filter(|&(m, _)| m != 0)
+        .step_by(stride)
+        .collect();
+    sample.sort_unstable();
+    // Residuals and leverages of the ok fits; first guess: read and shot terms of equal
+    // weight at 1 DN² and 1 DN/e⁻.
+    let mut rows: Vec<Row> = Vec::with_capacity(sample.len() * t_len);
+    let mut spans: Vec<(usize, usize)> = Vec::with_capacity(sample.len());
+    let (mut y, mut b, mut se, mut ra, mut rb) = (vec![], vec![], vec![], vec![], vec![]);
+    let mut fits: Vec<NkFit> = Vec::new();
+    for group in sample.chunk_by(|a, b| a.0 == b.0) {
+        let mask = group[0].0;
+        let ts: Vec<usize> = (0..t_len)
+            .filter(|&t| mask == u64::MAX || mask & (1 << t) != 0)
             .collect();
-        let (mut h00, mut h01, mut h11) = (0.0, 0.0, 0.0);
-        for (g, s) in grads.iter().zip(&se[r.clone()]) {
-            let w = 1.0 / (s * s);
-            h00 += w * g.dp_dn * g.dp_dn;
-            h01 += w * g.dp_dn * g.dp_dk;
-            h11 += w * g.dp_dk * g.dp_dk;
+        let tp = ts.len();
+        y.clear();
+        b.clear();
+        se.clear();
+        ra.clear();
+        rb.clear();
+        for &(_, p) in group {
+            for &t in &ts {
+                y.push(dolp[t][p] as f64);
+                b.push(beta_of(p, t));
+                let (a, s) = (read[t][p] as f64, shot[t][p] as f64);
+                ra.push(a);
+                rb.push(s);
+                se.push((a + s).sqrt());
+            }
         }
-        let det = h00 * h11 - h01 * h01;
-        if !(det > 0.0 && det.is_finite()) {
-            continue;
+        fits.clear();
+        fits.resize(group.len(), NkFit::default());
+        match betas {
+            Betas::Shared(plan) => fit_batch(plan, &y, Some(&se), &mut fits)?,
+            Betas::PerPixel { plan, .. } => {
+                fit_batch_pixel_beta(plan, &b, &y, Some(&se), &mut fits)?
+            }
         }
-        let start = rows.len();
-        for (t, g) in grads.iter().enumerate() {
-            let j = r.start + t;
-            let w = 1.0 / (se[j] * se[j]);
-            let q = (h11 * g.dp_dn * g.dp_dn - 2.0 * h01 * g.dp_dn * g.dp_dk
-                + h00 * g.dp_dk * g.dp_dk)
-                / det;
-            let one_h = (1.0 - w * q).clamp(0.0, 1.0);
-            let e = y[j] - g.p;
-            rows.push(Row {
-                xa: one_h * ra[j],
-                xb: one_h * rb[j],
-                e2: e * e,
-                one_h,
-            });
+        for (i, f) in fits.iter().enumerate() {
+            if f.status != FitStatus::Ok {
+                continue;
+            }
+            let r = i * tp..(i + 1) * tp;
+            let grads: Vec<_> = b[r.clone()]
+                .iter()
+                .map(|&bt| dop_grad(f.n, f.k, bt))
+                .collect();
+            let (mut h00, mut h01, mut h11) = (0.0, 0.0, 0.0);
+            for (g, s) in grads.iter().zip(&se[r.clone()]) {
+                let w = 1.0 / (s * s);
+                h00 += w * g.dp_dn * g.dp_dn;
+                h01 += w * g.dp_dn * g.dp_dk;
+                h11 += w * g.dp_dk * g.dp_dk;
+            }
+            let det = h00 * h11 - h01 * h01;
+            if !(det > 0.0 && det.is_finite()) {
+                continue;
+            }
+            let start = rows.len();
+            for (t, g) in grads.iter().enumerate() {
+                let j = r.start + t;
+                let w = 1.0 / (se[j] * se[j]);
+                let q = (h11 * g.dp_dn * g.dp_dn - 2.0 * h01 * g.dp_dn * g.dp_dk
+                    + h00 * g.dp_dk * g.dp_dk)
+                    / det;
+                let one_h = (1.0 - w * q).clamp(0.0, 1.0);
+                let e = y[j] - g.p;
+                rows.push(Row {
+                    xa: one_h * ra[j],
+                    xb: one_h * rb[j],
+                    e2: e * e,
+                    one_h,
+                });
+            }
+            spans.push((start, rows.len() - start));
         }
-        spans.push((start, rows.len() - start));
     }
     if spans.len() < NOISE_MIN_PIXELS {
         return Ok(None);
@@ -335,8 +373,7 @@ pub fn estimate_noise(
         return Ok(None);
     };
     // Leave out the improbable pixels and estimate once more.
-    let dof = (t_len - 2) as f64;
-    // χ² = Σ e²/σ², σ² = v/(1 − h): T − 2 degrees of freedom.
+    // χ² = Σ e²/σ², σ² = v/(1 − h): T_p − 2 degrees of freedom.
     let chi2 = |th: [f64; 2], (s, c): (usize, usize)| -> f64 {
         rows[s..s + c]
             .iter()
@@ -346,10 +383,11 @@ pub fn estimate_noise(
             })
             .sum::<f64>()
     };
+    let dof = |(_, c): (usize, usize)| c.saturating_sub(2).max(1) as f64;
     let kept: Vec<(usize, usize)> = spans
         .iter()
         .copied()
-        .filter(|&sp| chi2_sf(chi2(theta, sp), dof) >= 1e-4)
+        .filter(|&sp| chi2_sf(chi2(theta, sp), dof(sp)) >= 1e-4)
         .collect();
     let outliers = spans.len() - kept.len();
     if kept.len() >= NOISE_MIN_PIXELS
@@ -357,8 +395,11 @@ pub fn estimate_noise(
     {
         theta = t2;
     }
-    let reduced_chi2 =
-        kept.iter().map(|&sp| chi2(theta, sp) / dof).sum::<f64>() / kept.len().max(1) as f64;
+    let reduced_chi2 = kept
+        .iter()
+        .map(|&sp| chi2(theta, sp) / dof(sp))
+        .sum::<f64>()
+        / kept.len().max(1) as f64;
     Ok(Some(NoiseEstimate {
         model: NoiseModel {
             read_var_dn2: theta[0],
