@@ -36,7 +36,8 @@ fn image<'py, T: numpy::Element>(
 ///
 /// For each capture, the (binned) DoLP of every pixel; then every pixel that is not
 /// saturated, dark or invalid in any capture is fitted for (n, k) (paper eq. 9) and
-/// classified by the nearest prototype of the model. Same code as ``polarid map
+/// answered with the set of the model's materials consistent with it (``rule="set"``:
+/// a material, ``ambiguous`` or unknown) or the nearest prototype (``rule="nearest"``). Same code as ``polarid map
 /// MANIFEST --model MODEL`` (its TIFFs hold the very same numbers). The GIL is released.
 ///
 /// A manifest with calibrated geometry (``[camera]``, ``[[plane]]``, a ``source`` per

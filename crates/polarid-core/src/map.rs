@@ -15,7 +15,9 @@
 //!    block's mean dark-subtracted `S0` is at or below the dark threshold
 //!    ([`flag`]; reasons in [`reason`]).
 //! 3. **(n, k) fit** of the remaining pixels' `T` DoLP values against paper eq. (9),
-//!    unweighted (covariance scaled by the reduced χ²), in tiles of pixels so that the
+//!    unweighted (covariance scaled by the reduced χ²) or weighted by every pixel's DoLP
+//!    standard errors from the noise model ([`noise`], [`MapNoise`]; covariance
+//!    `(JᵀWJ)⁻¹`), in tiles of pixels so that the
 //!    fit's working memory stays small ([`fit_and_classify`]). The local incidence
 //!    angles ([`Betas`]) are one per capture (the far field: one [`FitPlan`] shared by
 //!    every pixel, [`fit_batch`]) or one per pixel and capture (calibrated geometry:
@@ -25,10 +27,15 @@
 //!    ([`reason::NO_GEOMETRY`]).
 //! 4. **Class**: the nearest prototype in `(n, k)` (paper section 6, Euclidean
 //!    distance, [`Classifier::nearest_euclidean`]), optionally rejected beyond a maximum
-//!    distance. Pixels whose fit status is not `ok` are not classified.
+//!    distance; or, with [`PixelClassifier::with_set_rule`], the materials consistent
+//!    with the pixel's estimate at a confidence, with the systematic error model added
+//!    to its covariance ([`sets`]): one → that material, several → `ambiguous`, none →
+//!    not classified (reason `rejected`). Pixels whose fit status is not `ok` are not
+//!    classified.
 //!
 //! Class indices in the map are 1-based into [`PixelClassifier::names`] (sorted class
-//! names); 0 means "not classified", with the reason in the reason image.
+//! names), and `names().len() + 1` is `ambiguous` under the set rule; 0 means "not
+//! classified" (or unknown), with the reason in the reason image.
 
 pub mod noise;
 pub mod sets;
@@ -595,6 +602,13 @@ impl PixelClassifier {
         ) else {
             return (0, reason::FIT_ILL_CONDITIONED);
         };
+        // An estimate whose one-sigma interval on n reaches 0 is not placed by the data
+        // (a valley of the DoLP curves along which the fit slides to the box's edge):
+        // the linearised consistency test means nothing there, and every material along
+        // the valley fits as well.
+        if cov.nn.sqrt() >= f.n {
+            return (self.names.len() as u16 + 1, reason::AMBIGUOUS);
+        }
         match sets::set_answer(&self.classifier, &self.proto_class, f, cov, set.confidence) {
             Ok(Some(c)) => (c, reason::CLASSIFIED),
             Ok(None) => (self.names.len() as u16 + 1, reason::AMBIGUOUS),

@@ -26,7 +26,12 @@
 //! # Set
 //! Every material whose nearest prototype has a set distance
 //! ([`Classifier::set_distance`]) with `d² ≤ χ²₂(confidence)` is consistent: one → that
-//! material; several → `ambiguous`; none → `unknown` (reason `rejected`).
+//! material; several → `ambiguous`; none → `unknown` (reason `rejected`). An estimate
+//! whose total `n_se ≥ n` (its one-sigma interval reaches `n = 0`: the data leave the
+//! pixel free to slide along a valley of the DoLP curves, typically to the box's edge)
+//! is `ambiguous` without the test: a linearised distance means nothing that far from
+//! the estimate (on the rough aluminum of the Mitsuba renders, such pixels at
+//! `(5, 13) ± (7, 8)` were otherwise found consistent with green paint only).
 
 use crate::classify::{Classifier, Cov2, Estimate, chi2_2dof_quantile};
 use crate::dop::{dop, dop_beta_derivs, dop_grad};

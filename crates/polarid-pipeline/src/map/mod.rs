@@ -4,8 +4,12 @@
 //! per-pixel (or per `b × b` block) Stokes vector and DoLP computed, and only the DoLP
 //! (f32) kept, with the signal flags (saturated, dark, invalid) ORed over the captures
 //! (progress stage `"captures (DoLP)"`). Then every unflagged pixel's DoLP values over
-//! the captures are fitted for (n, k) (eq. 9, in tiles of pixels) and classified by the
-//! nearest prototype of the model (stage `"pixels (fit)"`). Peak memory is about `T`
+//! the captures are fitted for (n, k) (eq. 9, in tiles of pixels) and answered by the
+//! set rule (the model's materials consistent with the pixel's estimate, noise plus
+//! the systematic error model: one material, `ambiguous` or unknown) or the paper's
+//! nearest prototype (`Rule::Nearest`) (stage `"pixels (fit)"`). With calibrated
+//! geometry the fits are weighted by the per-pixel noise model estimated on the map
+//! (`polarid_core::map::noise`; [`Weights`]). Peak memory is about `T`
 //! DoLP images plus one capture's frames (and `T` β images with calibrated geometry).
 //!
 //! # Angles
