@@ -36,7 +36,8 @@ fn image<'py, T: numpy::Element>(
 ///
 /// For each capture, the (binned) DoLP of every pixel; then every pixel that is not
 /// saturated, dark or invalid in any capture is fitted for (n, k) (paper eq. 9) and
-/// classified by the nearest prototype of the model. Same code as ``polarid map
+/// answered with the set of the model's materials consistent with it (``rule="set"``:
+/// a material, ``ambiguous`` or unknown) or the nearest prototype (``rule="nearest"``). Same code as ``polarid map
 /// MANIFEST --model MODEL`` (its TIFFs hold the very same numbers). The GIL is released.
 ///
 /// A manifest with calibrated geometry (``[camera]``, ``[[plane]]``, a ``source`` per
@@ -64,6 +65,19 @@ fn image<'py, T: numpy::Element>(
 ///     ``max_distance`` is then in standard deviations).
 /// tile : int, default 65536
 ///     Pixels per fitting tile (memory of the fit stage ≈ 200 bytes per pixel).
+/// rule : {"set", "nearest"}, default "set"
+///     ``set``: a pixel is the one material consistent with its estimate at
+///     ``confidence`` (noise plus the systematic error model), ``ambiguous`` (the last
+///     class name) when several are, unknown (code 0, reason ``rejected``) when none is;
+///     ``nearest``: the paper's nearest prototype (``metric``, ``max_distance``).
+/// confidence : float, default 0.95
+///     Confidence of the consistent set, in (0, 1).
+/// weights : {"auto", "noise", "none"}, default "auto"
+///     Weight each pixel's fit by its DoLP standard errors from the noise model
+///     estimated on the map (``auto``: with calibrated geometry only).
+/// angle_sd_deg, dolp_floor, extinction_ratio, retardance_deg : float
+///     The set rule's systematic error model (defaults as ``polarid fit``:
+///     0.2, 0.002, 100, 0).
 ///
 /// Returns
 /// -------
@@ -78,8 +92,7 @@ fn image<'py, T: numpy::Element>(
 ///     binning, thresholds, per-region class shares; with calibrated geometry also
 ///     ``geometry`` and each capture's ``beta_range_deg``). With calibrated geometry
 ///     also ``beta_deg``: float32 (T, H, W), every pixel's β per capture in degrees
-///     (NaN without geometry). ``reason_names`` lists ``no_geometry`` for calibrated
-///     maps only.
+///     (NaN without geometry).
 ///
 /// Raises
 /// ------
@@ -88,7 +101,7 @@ fn image<'py, T: numpy::Element>(
 /// ValueError
 ///     An invalid option (``bin must be in 1..=64, got 0``), manifest, model or image.
 #[pyfunction]
-#[pyo3(signature = (manifest_path, model, *, bin = 1, min_s0 = None, max_distance = None, metric = "euclidean", tile = map::DEFAULT_TILE))]
+#[pyo3(signature = (manifest_path, model, *, bin = 1, min_s0 = None, max_distance = None, metric = "euclidean", tile = map::DEFAULT_TILE, rule = "set", confidence = 0.95, weights = "auto", angle_sd_deg = map::MapErrors::default().angle_sd_deg, dolp_floor = map::MapErrors::default().dolp_floor, extinction_ratio = map::MapErrors::default().extinction_ratio, retardance_deg = map::MapErrors::default().retardance_deg))]
 #[allow(clippy::too_many_arguments)]
 pub fn map_manifest<'py>(
     py: Python<'py>,
@@ -99,9 +112,26 @@ pub fn map_manifest<'py>(
     max_distance: Option<f64>,
     metric: &str,
     tile: usize,
+    rule: &str,
+    confidence: f64,
+    weights: &str,
+    angle_sd_deg: f64,
+    dolp_floor: f64,
+    extinction_ratio: f64,
+    retardance_deg: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
     let metric = map::parse_metric(metric).py_err()?;
-    let cfg = MapConfig::new(bin, min_s0, max_distance, metric, tile).py_err()?;
+    let errors = map::MapErrors {
+        angle_sd_deg,
+        dolp_floor,
+        extinction_ratio,
+        retardance_deg,
+    };
+    let cfg = MapConfig::new(bin, min_s0, max_distance, metric, tile)
+        .and_then(|c| c.with_rule(map::parse_rule(rule)?, confidence))
+        .and_then(|c| c.with_errors(errors))
+        .and_then(|c| Ok(c.with_weights(map::parse_weights(weights)?)))
+        .py_err()?;
     let mpath = path_arg(manifest_path)?;
     let model_path = path_arg(model)?;
     let m = py

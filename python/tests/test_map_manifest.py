@@ -84,12 +84,32 @@ def test_map_manifest_equals_cli(sets, polarid_cli, name, bin):
 
 def test_map_manifest_options(sets):
     manifest, model = sets / "dofp" / "manifest.toml", sets / "model.json"
-    strict = polarid.map_manifest(manifest, model, max_distance=1e-6)
+    strict = polarid.map_manifest(manifest, model, rule="nearest", max_distance=1e-6)
     assert strict["reason_counts"][strict["reason_names"].index("rejected")] > 0
-    maha = polarid.map_manifest(manifest, model, metric="mahalanobis", bin=2)
+    assert "ambiguous" not in strict["class_names"]
+    maha = polarid.map_manifest(manifest, model, rule="nearest", metric="mahalanobis", bin=2)
     assert maha["summary"]["metric"] == "mahalanobis" and maha["n"].shape == (64, 128)
     dark = polarid.map_manifest(manifest, model, min_s0=1e9)
     assert (dark["class"] == 0).all()
+
+
+def test_map_manifest_sets_and_noise_weights(sets):
+    """The set rule (default): `ambiguous` is the last class name, the answers add up; with
+    a huge DoLP floor every fitted pixel is ambiguous or unknown; noise weights give a
+    noise model in the summary."""
+    manifest, model = sets / "dofp" / "manifest.toml", sets / "model.json"
+    r = polarid.map_manifest(manifest, model, bin=2)
+    assert r["class_names"][0] == "unknown" and r["class_names"][-1] == "ambiguous"
+    s = r["summary"]
+    assert s["rule"] == "set" and s["confidence"] == 0.95 and s["weights"] == "none"
+    a = s["answers"]
+    assert a["material"] + a["ambiguous"] + a["unknown"] + a["not_classified"] == r["n"].size
+    amb = len(r["class_names"]) - 1
+    assert (r["class"] == amb).sum() == a["ambiguous"] == r["reason_counts"][r["reason_names"].index("ambiguous")]
+    vague = polarid.map_manifest(manifest, model, bin=2, dolp_floor=0.5)
+    assert vague["summary"]["answers"]["material"] == 0
+    w = polarid.map_manifest(manifest, model, bin=2, weights="noise")
+    assert w["summary"]["weights"] == "noise" and w["summary"]["noise"]["pixels"] > 100
 
 
 def test_map_manifest_errors(sets):
@@ -102,6 +122,14 @@ def test_map_manifest_errors(sets):
         polarid.map_manifest(manifest, model, max_distance=-1.0)
     with pytest.raises(ValueError, match="metric must be"):
         polarid.map_manifest(manifest, model, metric="cosine")
+    with pytest.raises(ValueError, match="rule must be"):
+        polarid.map_manifest(manifest, model, rule="best")
+    with pytest.raises(ValueError, match="confidence must be in"):
+        polarid.map_manifest(manifest, model, confidence=1.5)
+    with pytest.raises(ValueError, match="weights must be"):
+        polarid.map_manifest(manifest, model, weights="some")
+    with pytest.raises(ValueError, match="dolp_floor must be in"):
+        polarid.map_manifest(manifest, model, dolp_floor=-1.0)
     with pytest.raises(FileNotFoundError, match="nope.json"):
         polarid.map_manifest(manifest, sets / "nope.json")
     with pytest.raises(FileNotFoundError, match="nope.toml"):

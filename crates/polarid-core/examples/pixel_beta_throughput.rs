@@ -30,7 +30,7 @@ const T: usize = 10;
 
 fn usage(msg: &str) -> ! {
     eprintln!(
-        "pixel_beta_throughput: {msg}\nusage: pixel_beta_throughput [--pixels N] [--threads K] [--repeats R] [--spread DEG] [--quantum DEG] [--seed S]"
+        "pixel_beta_throughput: {msg}\nusage: pixel_beta_throughput [--pixels N] [--threads K] [--repeats R] [--spread DEG] [--quantum DEG] [--seed S] [--weighted 0|1]"
     );
     std::process::exit(2)
 }
@@ -42,6 +42,9 @@ struct Args {
     spread: f64,
     quantum: f64,
     seed: u64,
+    /// Fit with the noise's standard errors as weights (`--weighted 1`): the path of a
+    /// calibrated map's noise-weighted fits.
+    weighted: bool,
 }
 
 fn parse_args() -> Args {
@@ -52,6 +55,7 @@ fn parse_args() -> Args {
         spread: 5.0,
         quantum: BETA_QUANTUM_DEG,
         seed: 1,
+        weighted: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
@@ -69,6 +73,7 @@ fn parse_args() -> Args {
             "--spread" => a.spread = num(&flag, &val),
             "--quantum" => a.quantum = num(&flag, &val),
             "--seed" => a.seed = num(&flag, &val),
+            "--weighted" => a.weighted = num::<u8>(&flag, &val) != 0,
             _ => usage(&format!("unknown option {flag}")),
         }
     }
@@ -162,9 +167,11 @@ fn main() {
 
     // Shared β: every pixel at the centre angles.
     let (b0, y0, _) = problem(&a, 0.0);
+    let se0 = vec![0.005; y0.len()];
+    let w0 = a.weighted.then_some(&se0[..]);
     let plan = FitPlan::with_defaults(&b0[..T]).unwrap_or_else(|e| usage(&e.to_string()));
     let (_, shared_s, shared_cpu) = best_of(a.repeats, || {
-        pool.install(|| fit_batch(&plan, &y0, None, &mut out))
+        pool.install(|| fit_batch(&plan, &y0, w0, &mut out))
             .unwrap_or_else(|e| usage(&e.to_string()))
     });
     let shared_evals = out.iter().map(|f| f.evaluations as f64).sum::<f64>() / np as f64;
@@ -175,7 +182,7 @@ fn main() {
         .and_then(|p| p.with_beta_quantum_deg(a.quantum))
         .unwrap_or_else(|e| usage(&e.to_string()));
     let (cold_s, warm_s, warm_cpu) = best_of(a.repeats.max(2), || {
-        pool.install(|| fit_batch_pixel_beta(&pp, &b, &y, None, &mut out))
+        pool.install(|| fit_batch_pixel_beta(&pp, &b, &y, w0, &mut out))
             .unwrap_or_else(|e| usage(&e.to_string()))
     });
     let evals = out.iter().map(|f| f.evaluations as f64).sum::<f64>() / np as f64;
@@ -196,11 +203,12 @@ fn main() {
             (l.min(v), h.max(v))
         });
     println!(
-        "{{\"bench\": \"pixel-beta\", \"pixels\": {np}, \"T\": {T}, \"threads\": {}, \"spread_deg\": {}, \"quantum_deg\": {}, \
+        "{{\"bench\": \"pixel-beta\", \"weighted\": {}, \"pixels\": {np}, \"T\": {T}, \"threads\": {}, \"spread_deg\": {}, \"quantum_deg\": {}, \
 \"beta_range_deg\": [{:.2}, {:.2}], \"columns\": {}, \
 \"shared\": {{\"best_s\": {:.4}, \"fits_per_s\": {:.0}, \"cpu_us_per_fit\": {:.3}, \"mean_evaluations\": {:.3}}}, \
 \"per_pixel\": {{\"cold_s\": {:.4}, \"best_s\": {:.4}, \"fits_per_s\": {:.0}, \"fits_per_s_cold\": {:.0}, \"cpu_us_per_fit\": {:.3}, \"mean_evaluations\": {:.3}, \"frac_cost_le_truth\": {}}}, \
 \"ratio\": {:.3}, \"cpu_ratio\": {:.3}}}",
+        a.weighted,
         a.threads,
         a.spread,
         pp.beta_quantum_deg(),

@@ -15,7 +15,9 @@
 //!    block's mean dark-subtracted `S0` is at or below the dark threshold
 //!    ([`flag`]; reasons in [`reason`]).
 //! 3. **(n, k) fit** of the remaining pixels' `T` DoLP values against paper eq. (9),
-//!    unweighted (covariance scaled by the reduced χ²), in tiles of pixels so that the
+//!    unweighted (covariance scaled by the reduced χ²) or weighted by every pixel's DoLP
+//!    standard errors from the noise model ([`noise`], [`MapNoise`]; covariance
+//!    `(JᵀWJ)⁻¹`), in tiles of pixels so that the
 //!    fit's working memory stays small ([`fit_and_classify`]). The local incidence
 //!    angles ([`Betas`]) are one per capture (the far field: one [`FitPlan`] shared by
 //!    every pixel, [`fit_batch`]) or one per pixel and capture (calibrated geometry:
@@ -25,10 +27,18 @@
 //!    ([`reason::NO_GEOMETRY`]).
 //! 4. **Class**: the nearest prototype in `(n, k)` (paper section 6, Euclidean
 //!    distance, [`Classifier::nearest_euclidean`]), optionally rejected beyond a maximum
-//!    distance. Pixels whose fit status is not `ok` are not classified.
+//!    distance; or, with [`PixelClassifier::with_set_rule`], the materials consistent
+//!    with the pixel's estimate at a confidence, with the systematic error model added
+//!    to its covariance ([`sets`]): one → that material, several → `ambiguous`, none →
+//!    not classified (reason `rejected`). Pixels whose fit status is not `ok` are not
+//!    classified.
 //!
 //! Class indices in the map are 1-based into [`PixelClassifier::names`] (sorted class
-//! names); 0 means "not classified", with the reason in the reason image.
+//! names), and `names().len() + 1` is `ambiguous` under the set rule; 0 means "not
+//! classified" (or unknown), with the reason in the reason image.
+
+pub mod noise;
+pub mod sets;
 
 use std::collections::BTreeSet;
 
@@ -38,6 +48,8 @@ use crate::classify::{Classifier, Cov2};
 use crate::error::{CoreError, Result};
 use crate::fit::{FitPlan, FitStatus, NkFit, PixelBetaPlan, fit_batch, fit_batch_pixel_beta};
 use crate::stokes::{PixelRules, Sample, StokesSolver, check_image, check_len, mask};
+use noise::NoiseModel;
+use sets::{CovScratch, MapErrorModel, PixelRow};
 
 /// Signal flag bits accumulated per pixel over the captures (OR of every capture).
 pub mod flag {
@@ -67,13 +79,17 @@ pub mod reason {
     pub const FIT_AT_BOUND: u8 = 6;
     /// The fit rejected the pixel's DoLP values.
     pub const FIT_INVALID_INPUT: u8 = 7;
-    /// The nearest prototype is farther than the maximum distance.
+    /// Not placed: the nearest prototype is farther than the maximum distance (nearest
+    /// rule), or no material is consistent with the estimate (set rule: `unknown`).
     pub const REJECTED: u8 = 8;
     /// No geometry (calibrated maps only): in some capture the pixel's ray misses its
     /// plane or the source is below the plane's horizon, so it has no β there.
     pub const NO_GEOMETRY: u8 = 9;
+    /// Set rule: several materials are consistent with the pixel's estimate (its class
+    /// is the map's `ambiguous` class).
+    pub const AMBIGUOUS: u8 = 10;
     /// Number of reasons.
-    pub const COUNT: usize = 10;
+    pub const COUNT: usize = 11;
     /// The word of each reason (index = reason value), as written in summaries.
     pub const NAMES: [&str; COUNT] = [
         "classified",
@@ -86,6 +102,7 @@ pub mod reason {
         "fit_invalid_input",
         "rejected",
         "no_geometry",
+        "ambiguous",
     ];
 }
 
@@ -164,19 +181,57 @@ fn binned_dolp<F>(
     min_s0: f32,
     dolp: &mut [f32],
     flags: &mut [u8],
+    noise: Option<NoiseOut<'_>>,
     fill: F,
 ) -> Result<()>
 where
     F: Fn(usize, &mut RowBufs) + Sync,
 {
     let ow = width / bin;
+    let oh = dolp.len() / ow.max(1);
     let inv_area = 1.0 / (bin * bin) as f32;
+    let (an, scale, noise_rows) = match noise {
+        Some(n) => {
+            check_len("noise read terms", n.read.len(), dolp.len())?;
+            check_len("noise shot terms", n.shot.len(), dolp.len())?;
+            (
+                Some(n.analyzer),
+                n.scale,
+                rayon::iter::Either::Left(
+                    n.read
+                        .par_chunks_mut(ow)
+                        .zip(n.shot.par_chunks_mut(ow))
+                        .map(Some),
+                ),
+            )
+        }
+        None => (
+            None,
+            1.0,
+            rayon::iter::Either::Right((0..oh).into_par_iter().map(|_| None)),
+        ),
+    };
+    let bin2 = (bin * bin) as f64;
+    // The noise terms of a row of blocks from their summed Stokes vectors.
+    let terms = |nr: Option<(&mut [f32], &mut [f32])>, a0: &[f32], a1: &[f32], a2: &[f32]| {
+        if let (Some(an), Some((ra, rb))) = (an, nr) {
+            for i in 0..ra.len() {
+                let s = [
+                    a0[i] as f64 * scale,
+                    a1[i] as f64 * scale,
+                    a2[i] as f64 * scale,
+                ];
+                (ra[i], rb[i]) = noise::noise_terms(an, s, bin2);
+            }
+        }
+    };
     dolp.par_chunks_mut(ow)
         .zip(flags.par_chunks_mut(ow))
+        .zip(noise_rows)
         .enumerate()
         .for_each_init(
             || RowBufs::new(width, ow),
-            |b, (oy, (rd, rf))| {
+            |b, (oy, ((rd, rf), nr))| {
                 if bin == 1 {
                     fill(oy, b);
                     for i in 0..ow {
@@ -185,6 +240,7 @@ where
                         *f |= ((m & 1) * flag::SATURATED) | (((m >> 1) & 1) * flag::INVALID);
                         rd[i] = block_dolp(b.r0[i], b.r1[i], b.r2[i], 1.0, min_s0, f);
                     }
+                    terms(nr, &b.r0[..ow], &b.r1[..ow], &b.r2[..ow]);
                     return;
                 }
                 b.a0.fill(0.0);
@@ -227,9 +283,26 @@ where
                     *f |= ((m & 1) * flag::SATURATED) | (((m >> 1) & 1) * flag::INVALID);
                     rd[i] = block_dolp(b.a0[i], b.a1[i], b.a2[i], inv_area, min_s0, f);
                 }
+                terms(nr, &b.a0, &b.a1, &b.a2);
             },
         );
     Ok(())
+}
+
+/// Where the DoLP kernels write the noise terms of every block
+/// ([`noise::noise_terms`]): one image each of `A` (read) and `B` (shot), of the
+/// binned size.
+#[derive(Debug)]
+pub struct NoiseOut<'a> {
+    /// The capture's analyzer.
+    pub analyzer: &'a noise::NoiseAnalyzer,
+    /// Factor from the block's Stokes values to DN (1 for frames; the exposure for
+    /// Stokes captures in DN / exposure).
+    pub scale: f64,
+    /// `A` of every block.
+    pub read: &'a mut [f32],
+    /// `B` of every block.
+    pub shot: &'a mut [f32],
 }
 
 /// DoLP image of one capture from its polarizer frames (one per angle of `solver`,
@@ -245,6 +318,23 @@ pub fn frames_dolp<T: Sample>(
     bin: usize,
     dolp: &mut [f32],
     flags: &mut [u8],
+) -> Result<()> {
+    frames_dolp_noise(solver, frames, width, rules, bin, dolp, flags, None)
+}
+
+/// [`frames_dolp`], writing also the noise terms of every block into `noise` (see
+/// [`noise`]; its analyzer should be [`noise::NoiseAnalyzer::of_solver`] of `solver`,
+/// its scale 1).
+#[allow(clippy::too_many_arguments)]
+pub fn frames_dolp_noise<T: Sample>(
+    solver: &StokesSolver,
+    frames: &[&[T]],
+    width: usize,
+    rules: &PixelRules,
+    bin: usize,
+    dolp: &mut [f32],
+    flags: &mut [u8],
+    noise: Option<NoiseOut<'_>>,
 ) -> Result<()> {
     rules.validate()?;
     if frames.len() != solver.len() {
@@ -263,7 +353,7 @@ pub fn frames_dolp<T: Sample>(
     check_len("dolp", dolp.len(), ow * oh)?;
     check_len("flags", flags.len(), ow * oh)?;
     let coef = solver.coef_f32();
-    binned_dolp(width, bin, rules.min_s0, dolp, flags, |y, b| {
+    binned_dolp(width, bin, rules.min_s0, dolp, flags, noise, |y, b| {
         let off = y * width;
         // At most a handful of frames: a fixed array of row slices avoids allocating.
         const MAX: usize = 16;
@@ -306,6 +396,36 @@ pub fn stokes_dolp(
     dolp: &mut [f32],
     flags: &mut [u8],
 ) -> Result<()> {
+    stokes_dolp_noise(
+        width,
+        s0,
+        s1,
+        s2,
+        stokes_mask,
+        min_s0,
+        bin,
+        dolp,
+        flags,
+        None,
+    )
+}
+
+/// [`stokes_dolp`], writing also the noise terms of every block into `noise` (see
+/// [`noise`]; its analyzer [`noise::NoiseAnalyzer::quad`], its scale the factor from
+/// the Stokes values to DN).
+#[allow(clippy::too_many_arguments)]
+pub fn stokes_dolp_noise(
+    width: usize,
+    s0: &[f32],
+    s1: &[f32],
+    s2: &[f32],
+    stokes_mask: Option<&[u8]>,
+    min_s0: f32,
+    bin: usize,
+    dolp: &mut [f32],
+    flags: &mut [u8],
+    noise: Option<NoiseOut<'_>>,
+) -> Result<()> {
     let n = s0.len();
     check_image(width, n)?;
     check_len("s1", s1.len(), n)?;
@@ -317,7 +437,7 @@ pub fn stokes_dolp(
     let (ow, oh) = binned_size(width, n / width, bin)?;
     check_len("dolp", dolp.len(), ow * oh)?;
     check_len("flags", flags.len(), ow * oh)?;
-    binned_dolp(width, bin, min_s0, dolp, flags, |y, b| {
+    binned_dolp(width, bin, min_s0, dolp, flags, noise, |y, b| {
         let r = y * width..(y + 1) * width;
         b.r0.copy_from_slice(&s0[r.clone()]);
         b.r1.copy_from_slice(&s1[r.clone()]);
@@ -343,6 +463,14 @@ pub struct PixelClassifier {
     proto_class: Vec<u16>,
     max_distance: Option<f64>,
     mahalanobis: bool,
+    set: Option<SetRule>,
+}
+
+/// The set rule of a [`PixelClassifier`].
+#[derive(Debug, Clone, PartialEq)]
+struct SetRule {
+    confidence: f64,
+    errors: MapErrorModel,
 }
 
 impl PixelClassifier {
@@ -389,7 +517,103 @@ impl PixelClassifier {
             proto_class,
             max_distance,
             mahalanobis: false,
+            set: None,
         })
+    }
+
+    /// Answer with sets ([`sets`], `docs/CLASSIFY.md`): a pixel is the one material
+    /// consistent with its estimate at `confidence` (noise plus the systematic error
+    /// model `errors`, whose `angle_sd` has one entry per capture), [`Self::ambiguous`]
+    /// when several are, and not classified (reason [`reason::REJECTED`]) when none is.
+    /// The maximum distance and the metric are then not used. Errors: a confidence
+    /// outside `(0, 1)`, or an error model with a negative or non-finite term.
+    pub fn with_set_rule(mut self, confidence: f64, errors: MapErrorModel) -> Result<Self> {
+        if !(confidence > 0.0 && confidence < 1.0) {
+            return Err(CoreError::OutOfRange {
+                name: "confidence",
+                value: confidence,
+                expected: "in (0, 1)",
+            });
+        }
+        let p = &errors.polarimetric;
+        for (name, v) in [("dolp floor", p.dolp_floor), ("retardance", p.retardance)]
+            .into_iter()
+            .chain(errors.angle_sd.iter().map(|&a| ("angle sd", a)))
+        {
+            crate::error::ensure_range(name, v, 0.0, f64::MAX, "finite and >= 0")?;
+        }
+        if !(p.extinction_ratio > 1.0) {
+            return Err(CoreError::OutOfRange {
+                name: "extinction ratio",
+                value: p.extinction_ratio,
+                expected: "> 1",
+            });
+        }
+        self.set = Some(SetRule { confidence, errors });
+        Ok(self)
+    }
+
+    /// The map class of `ambiguous` pixels (set rule only): `names().len() + 1`.
+    pub fn ambiguous(&self) -> Option<u16> {
+        self.set.as_ref().map(|_| self.names.len() as u16 + 1)
+    }
+
+    /// Number of class indices of the map, including 0 (not classified) and the
+    /// `ambiguous` class of the set rule.
+    pub fn class_count(&self) -> usize {
+        self.names.len() + 1 + usize::from(self.set.is_some())
+    }
+
+    /// The class and reason of a pixel's fit, `rows` its rows (for the set rule's
+    /// covariance), `weighted` whether the fit used their `se`.
+    fn decide(
+        &self,
+        f: &NkFit,
+        rows: &[PixelRow],
+        weighted: bool,
+        k_can_be_zero: bool,
+        scratch: &mut CovScratch,
+    ) -> (u16, u8) {
+        match f.status {
+            FitStatus::Ok => {}
+            FitStatus::IllConditioned => return (0, reason::FIT_ILL_CONDITIONED),
+            FitStatus::NotConverged => return (0, reason::FIT_NOT_CONVERGED),
+            FitStatus::AtBound => return (0, reason::FIT_AT_BOUND),
+            // `fit_batch` never reports `depolarized` or `model_mismatch` (per-target
+            // rules of the table fit); a pixel would count as unusable input.
+            FitStatus::InvalidInput | FitStatus::Depolarized | FitStatus::ModelMismatch => {
+                return (0, reason::FIT_INVALID_INPUT);
+            }
+        }
+        let Some(set) = &self.set else {
+            return match self.classify_fit(f) {
+                Ok((c, _)) => (c, reason::CLASSIFIED),
+                Err(r) => (0, r),
+            };
+        };
+        let Some(cov) = sets::total_covariance(
+            f.n,
+            f.k,
+            rows,
+            weighted,
+            &set.errors,
+            k_can_be_zero,
+            scratch,
+        ) else {
+            return (0, reason::FIT_ILL_CONDITIONED);
+        };
+        // An estimate whose one-sigma interval on n reaches 0 is not placed by the data
+        // (a valley of the DoLP curves along which the fit slides to the box's edge):
+        // the linearised consistency test means nothing there, and every material along
+        // the valley fits as well.
+        if cov.nn.sqrt() >= f.n {
+            return (self.names.len() as u16 + 1, reason::AMBIGUOUS);
+        }
+        match sets::set_answer(&self.classifier, &self.proto_class, f, cov, set.confidence) {
+            Ok(Some(c)) => (c, reason::CLASSIFIED),
+            Ok(None) => (self.names.len() as u16 + 1, reason::AMBIGUOUS),
+            Err(()) => (0, reason::REJECTED),
+        }
     }
 
     /// Rank prototypes by the Mahalanobis distance
@@ -507,6 +731,18 @@ pub struct MapCounts {
     pub classes: Vec<u64>,
 }
 
+/// The noise model of a map's fit: the model and the noise terms of every capture
+/// ([`noise`]), one image each (map size, in the order of the DoLP images).
+#[derive(Debug, Clone, Copy)]
+pub struct MapNoise<'a> {
+    /// The model's parameters.
+    pub model: NoiseModel,
+    /// `A` (read-noise term) of every capture.
+    pub read: &'a [&'a [f32]],
+    /// `B` (shot-noise term) of every capture.
+    pub shot: &'a [&'a [f32]],
+}
+
 /// Fit and classify every pixel of a map, in tiles of `tile` pixels.
 ///
 /// `betas`: the angles, one per capture ([`Betas::Shared`]) or per pixel and capture
@@ -516,28 +752,35 @@ pub struct MapCounts {
 /// [`reason::NO_GEOMETRY`]), nor are pixels with a flag (reason from
 /// [`signal_reason`]); the others are fitted with [`fit_batch`] or
 /// [`fit_batch_pixel_beta`] (parallel) and classified when the fit status is `ok`.
-/// `progress` is called with the number of pixels done after each tile.
+/// With `noise`, every pixel's fit is weighted by its DoLP standard errors
+/// `√(r² A + B/g)` and its standard errors are those of the weighted covariance
+/// `(JᵀWJ)⁻¹`; without, the fit is unweighted and its covariance scaled by the
+/// pixel's reduced χ² (the paper's fit). `progress` is called with the number of
+/// pixels done after each tile.
 ///
 /// Errors: inconsistent numbers or sizes of images.
+#[allow(clippy::too_many_arguments)]
 pub fn fit_and_classify(
     betas: Betas<'_>,
     classifier: &PixelClassifier,
     dolp: &[&[f32]],
+    noise: Option<MapNoise<'_>>,
     flags: &[u8],
     tile: usize,
     mut out: MapOutputs<'_>,
     progress: &(dyn Fn(usize) + Sync),
 ) -> Result<MapCounts> {
     let npix = flags.len();
-    let t_len = match betas {
-        Betas::Shared(plan) => plan.len(),
-        Betas::PerPixel { beta, .. } => {
+    let (t_len, k_min) = match betas {
+        Betas::Shared(plan) => (plan.len(), plan.options().bounds.k_min),
+        Betas::PerPixel { beta, plan } => {
             for b in beta {
                 check_len("beta", b.len(), npix)?;
             }
-            beta.len()
+            (beta.len(), plan.options().bounds.k_min)
         }
     };
+    let k_can_be_zero = k_min == 0.0;
     if dolp.len() != t_len {
         return Err(CoreError::LengthMismatch {
             name: "DoLP images (captures)",
@@ -547,6 +790,20 @@ pub fn fit_and_classify(
     }
     for d in dolp {
         check_len("dolp", d.len(), npix)?;
+    }
+    if let Some(nz) = &noise {
+        for (name, imgs) in [("noise read terms", nz.read), ("noise shot terms", nz.shot)] {
+            if imgs.len() != t_len {
+                return Err(CoreError::LengthMismatch {
+                    name,
+                    expected: t_len,
+                    got: imgs.len(),
+                });
+            }
+            for d in imgs {
+                check_len(name, d.len(), npix)?;
+            }
+        }
     }
     for (name, len) in [
         ("n", out.n.len()),
@@ -562,22 +819,39 @@ pub fn fit_and_classify(
     let tile = tile.max(1);
     let mut counts = MapCounts {
         reasons: [0; reason::COUNT],
-        classes: vec![0; classifier.names().len() + 1],
+        classes: vec![0; classifier.class_count()],
+    };
+    let weighted = noise.is_some();
+    let se_of = |t: usize, p: usize| -> f64 {
+        match &noise {
+            Some(nz) => nz.model.dolp_se(nz.read[t][p], nz.shot[t][p]),
+            None => 1.0,
+        }
+    };
+    let beta_of = |t: usize, p: usize| -> f64 {
+        match betas {
+            Betas::Shared(plan) => plan.betas()[t],
+            Betas::PerPixel { beta, .. } => beta[t][p] as f64,
+        }
     };
     let cap = tile.min(npix);
     let mut y: Vec<f64> = Vec::with_capacity(cap * t_len);
     let mut b: Vec<f64> = Vec::new();
+    let mut se: Vec<f64> = Vec::new();
     let mut idx: Vec<usize> = Vec::with_capacity(cap);
     let mut fits: Vec<NkFit> = vec![NkFit::default(); cap];
+    let mut decisions: Vec<(u16, u8)> = Vec::with_capacity(cap);
     // Per-pixel angles: pixels with some captures left out (DoLP NaN: dark or
     // saturated there) are fitted on the others, grouped by the set of captures used.
     let mut partial: Vec<(u64, usize)> = Vec::new();
-    let (mut py, mut pb): (Vec<f64>, Vec<f64>) = (Vec::new(), Vec::new());
+    let (mut py, mut pb, mut ps): (Vec<f64>, Vec<f64>, Vec<f64>) =
+        (Vec::new(), Vec::new(), Vec::new());
     let mut start = 0usize;
     while start < npix {
         let end = (start + tile).min(npix);
         y.clear();
         b.clear();
+        se.clear();
         idx.clear();
         partial.clear();
         for p in start..end {
@@ -604,19 +878,36 @@ pub fn fit_and_classify(
                 if let Betas::PerPixel { beta, .. } = betas {
                     b.extend(beta.iter().map(|b| b[p] as f64));
                 }
+                if weighted {
+                    se.extend((0..t_len).map(|t| se_of(t, p)));
+                }
             } else {
                 write_skip(&mut out, &mut counts, p, r);
             }
         }
         let m = idx.len();
+        let se_arg = weighted.then_some(&se[..]);
         match betas {
-            Betas::Shared(plan) => fit_batch(plan, &y, None, &mut fits[..m])?,
+            Betas::Shared(plan) => fit_batch(plan, &y, se_arg, &mut fits[..m])?,
             Betas::PerPixel { plan, .. } => {
-                fit_batch_pixel_beta(plan, &b, &y, None, &mut fits[..m])?
+                fit_batch_pixel_beta(plan, &b, &y, se_arg, &mut fits[..m])?
             }
         }
-        for (&p, f) in idx.iter().zip(&fits[..m]) {
-            write_fit(classifier, &mut out, &mut counts, p, f);
+        let all_captures: Vec<usize> = (0..t_len).collect();
+        decide_all(
+            classifier,
+            &fits[..m],
+            &idx,
+            &all_captures,
+            &y,
+            weighted.then_some(&se[..]),
+            &beta_of,
+            weighted,
+            k_can_be_zero,
+            &mut decisions,
+        );
+        for ((&p, f), &(c, r)) in idx.iter().zip(&fits[..m]).zip(&decisions) {
+            write_fit(&mut out, &mut counts, p, f, c, r);
         }
         if let Betas::PerPixel { plan, beta } = betas {
             partial.sort_unstable();
@@ -633,17 +924,35 @@ pub fn fit_and_classify(
                 }
                 py.clear();
                 pb.clear();
+                ps.clear();
                 for &(_, p) in group {
                     py.extend(ts.iter().map(|&t| dolp[t][p] as f64));
                     pb.extend(ts.iter().map(|&t| beta[t][p] as f64));
+                    if weighted {
+                        ps.extend(ts.iter().map(|&t| se_of(t, p)));
+                    }
                 }
                 let g = group.len();
                 if fits.len() < g {
                     fits.resize(g, NkFit::default());
                 }
-                fit_batch_pixel_beta(plan, &pb, &py, None, &mut fits[..g])?;
-                for (&(_, p), f) in group.iter().zip(&fits[..g]) {
-                    write_fit(classifier, &mut out, &mut counts, p, f);
+                let ps_arg = weighted.then_some(&ps[..]);
+                fit_batch_pixel_beta(plan, &pb, &py, ps_arg, &mut fits[..g])?;
+                let gidx: Vec<usize> = group.iter().map(|&(_, p)| p).collect();
+                decide_all(
+                    classifier,
+                    &fits[..g],
+                    &gidx,
+                    &ts,
+                    &py,
+                    ps_arg,
+                    &beta_of,
+                    weighted,
+                    k_can_be_zero,
+                    &mut decisions,
+                );
+                for ((&p, f), &(c, r)) in gidx.iter().zip(&fits[..g]).zip(&decisions) {
+                    write_fit(&mut out, &mut counts, p, f, c, r);
                 }
             }
         }
@@ -651,6 +960,45 @@ pub fn fit_and_classify(
         start = end;
     }
     Ok(counts)
+}
+
+/// The class and reason of every fit of a batch (in parallel): pixel `idx[i]`'s fit
+/// `fits[i]` used the captures `ts`, with measurements `y[i·|ts| ..]` (and `se`).
+#[allow(clippy::too_many_arguments)]
+fn decide_all(
+    classifier: &PixelClassifier,
+    fits: &[NkFit],
+    idx: &[usize],
+    ts: &[usize],
+    y: &[f64],
+    se: Option<&[f64]>,
+    beta_of: &(dyn Fn(usize, usize) -> f64 + Sync),
+    weighted: bool,
+    k_can_be_zero: bool,
+    out: &mut Vec<(u16, u8)>,
+) {
+    let t_len = ts.len();
+    fits.par_iter()
+        .zip(idx.par_iter())
+        .enumerate()
+        .map_init(
+            || (CovScratch::default(), Vec::<PixelRow>::with_capacity(t_len)),
+            |(scratch, rows), (i, (f, &p))| {
+                rows.clear();
+                if classifier.set.is_some() && f.status == FitStatus::Ok {
+                    for (j, &t) in ts.iter().enumerate() {
+                        rows.push(PixelRow {
+                            capture: t,
+                            beta: beta_of(t, p),
+                            y: y[i * t_len + j],
+                            se: se.map_or(1.0, |s| s[i * t_len + j]),
+                        });
+                    }
+                }
+                classifier.decide(f, rows, weighted, k_can_be_zero, scratch)
+            },
+        )
+        .collect_into_vec(out);
 }
 
 /// Record a pixel that is not fitted, for `reason`.
@@ -666,33 +1014,13 @@ fn write_skip(out: &mut MapOutputs<'_>, counts: &mut MapCounts, p: usize, r: u8)
     counts.classes[0] += 1;
 }
 
-/// Record a pixel's fit and its classification.
-fn write_fit(
-    classifier: &PixelClassifier,
-    out: &mut MapOutputs<'_>,
-    counts: &mut MapCounts,
-    p: usize,
-    f: &NkFit,
-) {
+/// Record a pixel's fit and its class `c` and reason `r`.
+fn write_fit(out: &mut MapOutputs<'_>, counts: &mut MapCounts, p: usize, f: &NkFit, c: u16, r: u8) {
     out.n[p] = f.n as f32;
     out.k[p] = f.k as f32;
     out.n_se[p] = f.n_se as f32;
     out.k_se[p] = f.k_se as f32;
     out.rms_residual[p] = f.rms_residual as f32;
-    let (c, r) = match f.status {
-        FitStatus::Ok => match classifier.classify_fit(f) {
-            Ok((c, _)) => (c, reason::CLASSIFIED),
-            Err(r) => (0, r),
-        },
-        FitStatus::IllConditioned => (0, reason::FIT_ILL_CONDITIONED),
-        FitStatus::NotConverged => (0, reason::FIT_NOT_CONVERGED),
-        FitStatus::AtBound => (0, reason::FIT_AT_BOUND),
-        // `fit_batch` never reports `depolarized` or `model_mismatch` (per-target
-        // rules of the table fit); a pixel would count as unusable input.
-        FitStatus::InvalidInput | FitStatus::Depolarized | FitStatus::ModelMismatch => {
-            (0, reason::FIT_INVALID_INPUT)
-        }
-    };
     out.class[p] = c;
     out.reason[p] = r;
     counts.reasons[r as usize] += 1;
@@ -841,7 +1169,7 @@ mod tests {
             reason: &mut why,
         };
         let counts =
-            fit_and_classify((&plan).into(), &pc, &views, &flags, 2, out, &|_| {}).unwrap();
+            fit_and_classify((&plan).into(), &pc, &views, None, &flags, 2, out, &|_| {}).unwrap();
         assert_eq!(class, vec![2, 1, 3, 0, 0]);
         assert_eq!(why, vec![0, 0, 0, reason::REJECTED, reason::SATURATED]);
         assert_eq!(counts.classes, vec![2, 1, 1, 1]);
@@ -922,7 +1250,8 @@ mod tests {
                 class: &mut class,
                 reason: &mut why,
             };
-            let counts = fit_and_classify(betas, &pc, &views, &flags, 4, out, &|_| {}).unwrap();
+            let counts =
+                fit_and_classify(betas, &pc, &views, None, &flags, 4, out, &|_| {}).unwrap();
             (o, class, why, counts)
         };
         let (o, class, why, counts) = run(Betas::PerPixel {
@@ -965,7 +1294,7 @@ mod tests {
             plan: &pp,
             beta: &short,
         };
-        assert!(fit_and_classify(bad, &pc, &views, &flags, 4, out, &|_| {}).is_err());
+        assert!(fit_and_classify(bad, &pc, &views, None, &flags, 4, out, &|_| {}).is_err());
         // Equal angles everywhere: the shared map, bit for bit.
         let same: Vec<Vec<f32>> = (0..t_len).map(|t| vec![beta[t][0]; np]).collect();
         let sviews: Vec<&[f32]> = same.iter().map(|v| v.as_slice()).collect();

@@ -59,6 +59,30 @@ pub struct Args {
     /// Pixels per fitting tile (memory of the fit stage ≈ 200 bytes per pixel).
     #[arg(long, value_name = "PIXELS", default_value_t = map::DEFAULT_TILE, hide = true)]
     pub tile: usize,
+    /// Decision rule per pixel (docs/CLASSIFY.md): `set` (a material, `ambiguous` or
+    /// unknown at --confidence, with the error model below) or `nearest` (the paper's
+    /// nearest prototype, with --metric and --max-distance).
+    #[arg(long, value_enum, default_value_t = super::common::RuleArg::Set)]
+    pub rule: super::common::RuleArg,
+    /// Confidence of the consistent set, in (0, 1).
+    #[arg(long, value_name = "P", default_value_t = 0.95)]
+    pub confidence: f64,
+    /// Weight each pixel's fit by its DoLP standard errors from the noise model estimated
+    /// on the map: `auto` (calibrated geometry only), `noise` or `none`.
+    #[arg(long, value_name = "W", default_value = "auto")]
+    pub weights: String,
+    /// Set rule: angle uncertainty of captures without an angle_sd_deg, degrees.
+    #[arg(long, value_name = "DEG", default_value_t = map::MapErrors::default().angle_sd_deg)]
+    pub angle_sd_deg: f64,
+    /// Set rule: additive DoLP error of the polarimeter.
+    #[arg(long, value_name = "DOLP", default_value_t = map::MapErrors::default().dolp_floor)]
+    pub dolp_floor: f64,
+    /// Set rule: the lowest extinction ratio the polarizer may have (inf: ideal).
+    #[arg(long, value_name = "ER", default_value_t = map::MapErrors::default().extinction_ratio)]
+    pub extinction_ratio: f64,
+    /// Set rule: the largest retardance ahead of the polarizer, degrees.
+    #[arg(long, value_name = "DEG", default_value_t = map::MapErrors::default().retardance_deg)]
+    pub retardance_deg: f64,
 }
 
 /// The files `polarid map` writes.
@@ -82,7 +106,21 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         super::classify::MetricArg::Euclidean => Metric::Euclidean,
         super::classify::MetricArg::Mahalanobis => Metric::Mahalanobis,
     };
-    let cfg = MapConfig::new(args.bin, args.min_s0, args.max_distance, metric, args.tile).cli()?;
+    let rule = match args.rule {
+        super::common::RuleArg::Set => map::Rule::Set,
+        super::common::RuleArg::Nearest => map::Rule::Nearest,
+    };
+    let errors = map::MapErrors {
+        angle_sd_deg: args.angle_sd_deg,
+        dolp_floor: args.dolp_floor,
+        extinction_ratio: args.extinction_ratio,
+        retardance_deg: args.retardance_deg,
+    };
+    let cfg = MapConfig::new(args.bin, args.min_s0, args.max_distance, metric, args.tile)
+        .and_then(|c| c.with_rule(rule, args.confidence))
+        .and_then(|c| c.with_errors(errors))
+        .and_then(|c| Ok(c.with_weights(map::parse_weights(&args.weights)?)))
+        .cli()?;
     let m = manifest::load(&args.manifest)?;
     for w in &m.warnings {
         ctx.info(format!("polarid: warning: {w}"));
@@ -105,13 +143,20 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     })
     .cli()?;
     drop(bars);
-    // r.warnings are the manifest's, printed above.
+    // The manifest's warnings were printed above; the others follow.
+    for w in r.warnings.iter().skip(m.warnings.len()) {
+        ctx.info(format!("polarid: warning: {}", w.0));
+    }
     write_outputs(&args, &r, ctx)?;
+    let a = r.answers();
     ctx.info(format!(
-        "polarid map: {}x{} pixels, {} classified, written to {} (DoLP {:.2} s, fit {:.2} s)",
+        "polarid map: {}x{} pixels: {} one material, {} ambiguous, {} unknown, {} not classified; written to {} (DoLP {:.2} s, fit {:.2} s)",
         r.width,
         r.height,
-        r.classified(),
+        a.material,
+        a.ambiguous,
+        a.unknown,
+        a.not_classified,
         args.output.display(),
         r.seconds_dolp,
         r.seconds_fit

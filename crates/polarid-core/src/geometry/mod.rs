@@ -23,7 +23,7 @@ pub mod scene_geometry;
 mod vec3;
 
 pub use camera::{Distortion, Intrinsics, PinholeCamera};
-pub use scene_geometry::{GeometryMaps, PixelGeometry, Plane, Source, ViewGeometry};
+pub use scene_geometry::{GeometryMaps, PixelGeometry, Plane, RayHit, Source, ViewGeometry};
 
 /// Unit vector of zenith angle `zenith` (from `+z`) and azimuth `azimuth` (from `+x`
 /// towards `+y`), radians: `(sin θ cos φ, sin θ sin φ, cos θ)`.

@@ -159,6 +159,29 @@ pub struct GeometryMaps<'a> {
     pub poi_angle: Option<&'a mut [f64]>,
 }
 
+/// Where a pixel's ray meets the plane of a [`ViewGeometry`]: the source-independent
+/// part of its geometry ([`ViewGeometry::ray_hit`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RayHit {
+    /// Pixel coordinates (centres at integers).
+    u: f64,
+    v: f64,
+    /// Normalized (undistorted) image coordinates.
+    x: f64,
+    y: f64,
+    /// Unit direction of the ray (scene frame).
+    d: V3,
+    /// Where it meets the plane.
+    point: V3,
+}
+
+impl RayHit {
+    /// Where the ray meets the plane (scene frame).
+    pub fn point(&self) -> V3 {
+        self.point
+    }
+}
+
 /// A camera and the plane it looks at, checked: the camera is in front of the plane.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ViewGeometry {
@@ -204,6 +227,18 @@ impl ViewGeometry {
     }
 
     fn pixel_checked(&self, u: f64, v: f64, source: &Source) -> Result<PixelGeometry> {
+        let hit = self.ray_hit(u, v)?;
+        self.pixel_at_hit_checked(&hit, source)
+    }
+
+    /// The part of pixel `(u, v)`'s geometry that does not depend on the source: where
+    /// its ray meets the plane. The undistortion of the pixel (iterative with lens
+    /// distortion) and the intersection are done here once; [`ViewGeometry::pixel_at_hit`]
+    /// then gives the geometry under any source, bit for bit as [`ViewGeometry::pixel`]
+    /// (a map with `T` captures undistorts each pixel once instead of `T` times).
+    ///
+    /// Errors: those of [`PinholeCamera::ray`] and [`CoreError::RayMissesPlane`].
+    pub fn ray_hit(&self, u: f64, v: f64) -> Result<RayHit> {
         let (x, y) = self.camera.normalized(u, v)?;
         let d = vec3::mul_t(&self.camera.rotation(), [x, y, 1.0]);
         let d = vec3::unit(d).ok_or(CoreError::InvalidVector {
@@ -219,6 +254,36 @@ impl ViewGeometry {
         else {
             return Err(CoreError::RayMissesPlane { u, v, cos_normal });
         };
+        Ok(RayHit {
+            u,
+            v,
+            x,
+            y,
+            d,
+            point,
+        })
+    }
+
+    /// The geometry of the pixel of `hit` ([`ViewGeometry::ray_hit`]) lit by `source`:
+    /// equal to [`ViewGeometry::pixel`] at the same pixel.
+    ///
+    /// Errors: [`CoreError::InvalidVector`] (a bad source, or a lamp on the hit point),
+    /// [`CoreError::SourceBelowHorizon`].
+    pub fn pixel_at_hit(&self, hit: &RayHit, source: &Source) -> Result<PixelGeometry> {
+        let source = source.validate()?;
+        self.pixel_at_hit_checked(hit, &source)
+    }
+
+    fn pixel_at_hit_checked(&self, hit: &RayHit, source: &Source) -> Result<PixelGeometry> {
+        let RayHit {
+            u,
+            v,
+            x,
+            y,
+            d,
+            point,
+        } = *hit;
+        let n = self.plane.normal();
         let u_r = vec3::scale(d, -1.0);
         let u_i = source.towards(point).ok_or(CoreError::InvalidVector {
             name: "source position (on the plane at the pixel's point)",

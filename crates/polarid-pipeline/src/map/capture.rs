@@ -2,7 +2,8 @@
 
 use std::path::Path;
 
-use polarid_core::map;
+use polarid_core::map::noise::NoiseAnalyzer;
+use polarid_core::map::{self, NoiseOut};
 use polarid_core::mosaic;
 use polarid_core::stokes::StokesSolver;
 use polarid_io::IoError;
@@ -71,7 +72,8 @@ fn check_dims(dims: &mut Option<Dims>, f: &Frame, bin: usize) -> Result<Dims> {
     }
 }
 
-/// DoLP (binned) of one capture into `dolp`, ORing its signal flags into `flags`;
+/// DoLP (binned) of one capture into `dolp`, ORing its signal flags into `flags`, and
+/// with `noise` the noise terms `(A, B)` of every block (`polarid_core::map::noise`);
 /// returns the dark threshold used (DN).
 pub(crate) fn capture_dolp(
     c: &Capture,
@@ -79,15 +81,24 @@ pub(crate) fn capture_dolp(
     dims: &mut Option<Dims>,
     dolp: &mut Vec<f32>,
     flags: &mut Vec<u8>,
+    mut noise: Option<(&mut Vec<f32>, &mut Vec<f32>)>,
 ) -> Result<f32> {
     let bin = cfg.bin;
-    let alloc = |d: Dims, dolp: &mut Vec<f32>, flags: &mut Vec<u8>| {
+    let alloc = |d: Dims,
+                 dolp: &mut Vec<f32>,
+                 flags: &mut Vec<u8>,
+                 noise: &mut Option<(&mut Vec<f32>, &mut Vec<f32>)>| {
         let n = d.out_w * d.out_h;
         dolp.resize(n, 0.0);
         if flags.is_empty() {
             flags.resize(n, 0);
         }
+        if let Some((a, b)) = noise {
+            a.resize(n, 0.0);
+            b.resize(n, 0.0);
+        }
     };
+    let quad = NoiseAnalyzer::quad();
     match &c.source {
         CaptureSource::Frames(frames) => {
             let angles: Vec<f64> = frames.iter().map(|f| f.angle_deg).collect();
@@ -109,18 +120,20 @@ pub(crate) fn capture_dolp(
                 .into());
             };
             let d = check_dims(dims, first, bin)?;
-            alloc(d, dolp, flags);
+            alloc(d, dolp, flags, &mut noise);
+            let an = NoiseAnalyzer::of_solver(&solver);
             let mut rules = rules_for(first, c.dark_level, c.saturation);
             rules.min_s0 = min_s0_for(&rules, first.kind.is_integer(), cfg.min_s0);
             let views: Vec<&[f32]> = imgs.iter().map(|f| f.data.as_slice()).collect();
-            map::frames_dolp(&solver, &views, d.width, &rules, bin, dolp, flags)
+            let nz = noise_out(&an, 1.0, &mut noise);
+            map::frames_dolp_noise(&solver, &views, d.width, &rules, bin, dolp, flags, nz)
                 .map_err(core_err(&first.path))?;
             Ok(rules.min_s0)
         }
         CaptureSource::Dofp { file, pattern } => {
             let raw = image::read_frame(file)?;
             let d = check_dims(dims, &raw, bin)?;
-            alloc(d, dolp, flags);
+            alloc(d, dolp, flags, &mut noise);
             let mut rules = rules_for(&raw, c.dark_level, c.saturation);
             let min_s0 = min_s0_for(&rules, raw.kind.is_integer(), cfg.min_s0);
             // The dark test is made on the block mean by stokes_dolp.
@@ -133,8 +146,20 @@ pub(crate) fn capture_dolp(
             )
             .map_err(core_err(file))?;
             drop(raw);
-            map::stokes_dolp(d.width, &s0, &s1, &s2, Some(&m), min_s0, bin, dolp, flags)
-                .map_err(core_err(file))?;
+            let nz = noise_out(&quad, 1.0, &mut noise);
+            map::stokes_dolp_noise(
+                d.width,
+                &s0,
+                &s1,
+                &s2,
+                Some(&m),
+                min_s0,
+                bin,
+                dolp,
+                flags,
+                nz,
+            )
+            .map_err(core_err(file))?;
             Ok(min_s0)
         }
         CaptureSource::Stokes { s0, s1, s2 } => {
@@ -146,9 +171,11 @@ pub(crate) fn capture_dolp(
                 });
             };
             let d = check_dims(dims, i0, bin)?;
-            alloc(d, dolp, flags);
+            alloc(d, dolp, flags, &mut noise);
             let min_s0 = cfg.min_s0.unwrap_or(0.0) / c.exposure;
-            map::stokes_dolp(
+            // S in DN / exposure: back to DN for the noise model.
+            let nz = noise_out(&quad, c.exposure, &mut noise);
+            map::stokes_dolp_noise(
                 d.width,
                 &i0.data,
                 &i1.data,
@@ -158,9 +185,24 @@ pub(crate) fn capture_dolp(
                 bin,
                 dolp,
                 flags,
+                nz,
             )
             .map_err(core_err(s0))?;
             Ok(min_s0 as f32)
         }
     }
+}
+
+/// The noise output of a capture's DoLP kernel, when the map wants one.
+fn noise_out<'a>(
+    analyzer: &'a NoiseAnalyzer,
+    scale: f64,
+    noise: &'a mut Option<(&mut Vec<f32>, &mut Vec<f32>)>,
+) -> Option<NoiseOut<'a>> {
+    noise.as_mut().map(|(a, b)| NoiseOut {
+        analyzer,
+        scale,
+        read: a.as_mut_slice(),
+        shot: b.as_mut_slice(),
+    })
 }

@@ -12,7 +12,7 @@
 //!   the source is below the plane's horizon, a lamp on the point) the β is NaN: the
 //!   map leaves the pixel unclassified with reason `no_geometry`.
 
-use polarid_core::geometry::ViewGeometry;
+use polarid_core::geometry::{RayHit, ViewGeometry};
 use polarid_io::IoError;
 use polarid_io::manifest::Manifest;
 use rayon::prelude::*;
@@ -60,6 +60,19 @@ pub(crate) fn beta_maps(
         .collect::<Result<Vec<_>>>()?;
     let plane = plane_of_pixels(m, d, bin);
     let half = (bin as f64 - 1.0) / 2.0;
+    // Every pixel's ray is undistorted and met with its plane once, not once per
+    // capture (`ViewGeometry::ray_hit`; the same β as `ViewGeometry::pixel`, bit for bit).
+    let mut hits: Vec<Option<RayHit>> = vec![None; d.out_w * d.out_h];
+    hits.par_chunks_mut(d.out_w)
+        .zip(plane.par_chunks(d.out_w))
+        .enumerate()
+        .for_each(|(y, (row, prow))| {
+            let v = (y * bin) as f64 + half;
+            for (x, (h, &pi)) in row.iter_mut().zip(prow).enumerate() {
+                let u = (x * bin) as f64 + half;
+                *h = views.get(pi as usize).and_then(|g| g.ray_hit(u, v).ok());
+            }
+        });
     let mut out = BetaMaps::default();
     for (i, c) in m.captures.iter().enumerate() {
         let Some(source) = c.illumination.as_ref().and_then(|s| s.to_source()) else {
@@ -74,15 +87,15 @@ pub(crate) fn beta_maps(
         let mut beta = vec![f32::NAN; d.out_w * d.out_h];
         beta.par_chunks_mut(d.out_w)
             .zip(plane.par_chunks(d.out_w))
-            .enumerate()
-            .for_each(|(y, (row, prow))| {
-                let v = (y * bin) as f64 + half;
-                for (x, (b, &pi)) in row.iter_mut().zip(prow).enumerate() {
-                    let u = (x * bin) as f64 + half;
-                    *b = views
-                        .get(pi as usize)
-                        .and_then(|g| g.pixel(u, v, &source).ok())
-                        .map_or(f32::NAN, |g| g.beta as f32);
+            .zip(hits.par_chunks(d.out_w))
+            .for_each(|((row, prow), hrow)| {
+                for ((b, &pi), h) in row.iter_mut().zip(prow).zip(hrow) {
+                    *b = match (views.get(pi as usize), h) {
+                        (Some(g), Some(h)) => g
+                            .pixel_at_hit(h, &source)
+                            .map_or(f32::NAN, |g| g.beta as f32),
+                        _ => f32::NAN,
+                    };
                 }
             });
         out.range.push(range(&beta));

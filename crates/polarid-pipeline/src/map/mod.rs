@@ -4,8 +4,12 @@
 //! per-pixel (or per `b × b` block) Stokes vector and DoLP computed, and only the DoLP
 //! (f32) kept, with the signal flags (saturated, dark, invalid) ORed over the captures
 //! (progress stage `"captures (DoLP)"`). Then every unflagged pixel's DoLP values over
-//! the captures are fitted for (n, k) (eq. 9, in tiles of pixels) and classified by the
-//! nearest prototype of the model (stage `"pixels (fit)"`). Peak memory is about `T`
+//! the captures are fitted for (n, k) (eq. 9, in tiles of pixels) and answered by the
+//! set rule (the model's materials consistent with the pixel's estimate, noise plus
+//! the systematic error model: one material, `ambiguous` or unknown) or the paper's
+//! nearest prototype (`Rule::Nearest`) (stage `"pixels (fit)"`). With calibrated
+//! geometry the fits are weighted by the per-pixel noise model estimated on the map
+//! (`polarid_core::map::noise`; [`Weights`]). Peak memory is about `T`
 //! DoLP images plus one capture's frames (and `T` β images with calibrated geometry).
 //!
 //! # Angles
@@ -39,9 +43,12 @@ mod summary;
 use std::path::Path;
 use std::time::Instant;
 
-use polarid_core::classify::{Classifier, ClassifierConfig, UNKNOWN};
+use polarid_core::classify::{AMBIGUOUS, Classifier, ClassifierConfig, UNKNOWN};
 use polarid_core::fit::{FitOptions, FitPlan, PixelBetaPlan};
-use polarid_core::map::{self, Betas, MapCounts, MapOutputs, PixelClassifier, reason};
+use polarid_core::map::noise::{NoiseEstimate, estimate_noise};
+use polarid_core::map::sets::MapErrorModel;
+use polarid_core::map::{self, Betas, MapCounts, MapNoise, MapOutputs, PixelClassifier, reason};
+use polarid_core::systematic::Polarimetric;
 use polarid_io::IoError;
 use polarid_io::manifest::Manifest;
 use polarid_io::model::Model;
@@ -73,6 +80,87 @@ pub fn parse_metric(s: &str) -> Result<Metric> {
 /// Default pixels per fitting tile.
 pub const DEFAULT_TILE: usize = 65536;
 
+/// How a pixel's answer is chosen: [`Rule::Set`] (the default: a material, `ambiguous`
+/// or unknown, docs/CLASSIFY.md) or [`Rule::Nearest`] (the paper's nearest prototype).
+pub use polarid_core::classify::Rule;
+
+/// Whether the per-pixel fits are weighted by the noise model
+/// (`polarid_core::map::noise`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Weights {
+    /// Weighted with calibrated geometry, unweighted in the far field (the paper's fit,
+    /// kept as it was).
+    #[default]
+    Auto,
+    /// Weighted by each pixel's DoLP standard errors from the noise model estimated on
+    /// the map.
+    Noise,
+    /// Unweighted, each pixel's covariance scaled by its own reduced χ².
+    None,
+}
+
+impl Weights {
+    /// Name used on the command line and in the summary.
+    pub fn name(self) -> &'static str {
+        match self {
+            Weights::Auto => "auto",
+            Weights::Noise => "noise",
+            Weights::None => "none",
+        }
+    }
+}
+
+/// Parse `auto`, `noise` or `none` (error naming `--weights`).
+pub fn parse_weights(s: &str) -> Result<Weights> {
+    match s {
+        "auto" => Ok(Weights::Auto),
+        "noise" => Ok(Weights::Noise),
+        "none" => Ok(Weights::None),
+        _ => Err(PipelineError::config(
+            "--weights",
+            format!("{s:?}"),
+            "must be \"auto\", \"noise\" or \"none\"",
+        )),
+    }
+}
+
+/// Parse `set` or `nearest` (error naming `--rule`).
+pub fn parse_rule(s: &str) -> Result<Rule> {
+    match s {
+        "set" => Ok(Rule::Set),
+        "nearest" => Ok(Rule::Nearest),
+        _ => Err(PipelineError::config(
+            "--rule",
+            format!("{s:?}"),
+            "must be \"set\" or \"nearest\"",
+        )),
+    }
+}
+
+/// The systematic error model of the set rule (docs/ERRORS.md; the defaults of `fit`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MapErrors {
+    /// Angle uncertainty of captures without their own `angle_sd_deg`, degrees.
+    pub angle_sd_deg: f64,
+    /// Additive DoLP error.
+    pub dolp_floor: f64,
+    /// Lowest extinction ratio of the analyzer (`inf`: ideal).
+    pub extinction_ratio: f64,
+    /// Largest retardance ahead of the analyzer, degrees.
+    pub retardance_deg: f64,
+}
+
+impl Default for MapErrors {
+    fn default() -> Self {
+        Self {
+            angle_sd_deg: crate::fit::DEFAULT_ANGLE_SD_DEG,
+            dolp_floor: crate::fit::DEFAULT_DOLP_FLOOR,
+            extinction_ratio: crate::fit::DEFAULT_EXTINCTION_RATIO,
+            retardance_deg: crate::fit::DEFAULT_RETARDANCE_DEG,
+        }
+    }
+}
+
 /// The validated options of a map (built by [`MapConfig::new`] before any work).
 #[derive(Debug, Clone, PartialEq)]
 pub struct MapConfig {
@@ -81,6 +169,10 @@ pub struct MapConfig {
     max_distance: Option<f64>,
     metric: Metric,
     tile: usize,
+    rule: Rule,
+    confidence: f64,
+    errors: MapErrors,
+    weights: Weights,
 }
 
 impl MapConfig {
@@ -125,7 +217,58 @@ impl MapConfig {
             max_distance,
             metric,
             tile,
+            rule: Rule::Set,
+            confidence: polarid_core::classify::DEFAULT_CONFIDENCE,
+            errors: MapErrors::default(),
+            weights: Weights::Auto,
         })
+    }
+
+    /// The decision rule and the set's confidence (in `(0, 1)`; error naming
+    /// `--confidence`). The set rule ignores `max_distance` and `metric`.
+    pub fn with_rule(mut self, rule: Rule, confidence: f64) -> Result<Self> {
+        if !(confidence > 0.0 && confidence < 1.0) {
+            return Err(PipelineError::config(
+                "--confidence",
+                confidence,
+                "must be in (0, 1)",
+            ));
+        }
+        self.rule = rule;
+        self.confidence = confidence;
+        Ok(self)
+    }
+
+    /// The systematic error model of the set rule; checked as `fit` checks it (errors
+    /// naming `--angle-sd-deg`, `--dolp-floor`, `--extinction-ratio`,
+    /// `--retardance-deg`).
+    pub fn with_errors(mut self, e: MapErrors) -> Result<Self> {
+        let bad = |o: &str, v: f64, why: &str| Err(PipelineError::config(o, v, why));
+        if !(e.angle_sd_deg.is_finite() && (0.0..90.0).contains(&e.angle_sd_deg)) {
+            return bad("--angle-sd-deg", e.angle_sd_deg, "must be in [0, 90)");
+        }
+        if !(e.dolp_floor.is_finite() && (0.0..1.0).contains(&e.dolp_floor)) {
+            return bad("--dolp-floor", e.dolp_floor, "must be in [0, 1)");
+        }
+        if !(e.extinction_ratio > 1.0) {
+            return bad("--extinction-ratio", e.extinction_ratio, "must be > 1");
+        }
+        if !(e.retardance_deg.is_finite() && (0.0..=90.0).contains(&e.retardance_deg)) {
+            return bad("--retardance-deg", e.retardance_deg, "must be in [0, 90]");
+        }
+        self.errors = e;
+        Ok(self)
+    }
+
+    /// Whether the per-pixel fits are weighted by the noise model.
+    pub fn with_weights(mut self, w: Weights) -> Self {
+        self.weights = w;
+        self
+    }
+
+    /// The decision rule.
+    pub fn rule(&self) -> Rule {
+        self.rule
     }
 
     /// The binning factor.
@@ -188,6 +331,16 @@ pub struct MapResult {
     pub max_distance: Option<f64>,
     /// The metric of the configuration.
     pub metric: Metric,
+    /// The decision rule.
+    pub rule: Rule,
+    /// The confidence of the set rule.
+    pub confidence: f64,
+    /// The systematic error model of the set rule.
+    pub errors: MapErrors,
+    /// Whether the fits were weighted by the noise model.
+    pub weighted: bool,
+    /// The noise model estimated on the map (weighted fits only).
+    pub noise: Option<NoiseEstimate>,
     /// Per labelled region of the manifest, its pixels per class.
     pub regions: Vec<RegionSummary>,
     /// Seconds spent on the DoLP stage.
@@ -212,14 +365,14 @@ impl MapResult {
         self.counts.reasons[reason::CLASSIFIED as usize]
     }
 
-    /// The reasons a pixel of this map can have ([`REASON_NAMES`], index = code):
-    /// `no_geometry` only with calibrated geometry.
+    /// The reasons a pixel can have ([`REASON_NAMES`], index = code).
     pub fn reason_names(&self) -> &'static [&'static str] {
-        if self.calibrated {
-            &REASON_NAMES
-        } else {
-            &REASON_NAMES[..reason::NO_GEOMETRY as usize]
-        }
+        &REASON_NAMES
+    }
+
+    /// The map class of `ambiguous` pixels (set rule), if any.
+    pub fn ambiguous_class(&self) -> Option<usize> {
+        (self.rule == Rule::Set).then_some(self.class_names.len())
     }
 }
 
@@ -239,6 +392,23 @@ pub fn pixel_classifier(
     Ok(pc.with_mahalanobis(cfg.metric == Metric::Mahalanobis))
 }
 
+/// The systematic error model of a manifest's captures under `errors`: a capture's own
+/// `angle_sd_deg` (or the manifest's) wins over `errors.angle_sd_deg`.
+fn error_model(m: &Manifest, errors: &MapErrors) -> MapErrorModel {
+    MapErrorModel {
+        polarimetric: Polarimetric {
+            dolp_floor: errors.dolp_floor,
+            extinction_ratio: errors.extinction_ratio,
+            retardance: errors.retardance_deg.to_radians(),
+        },
+        angle_sd: m
+            .captures
+            .iter()
+            .map(|c| c.angle_sd_deg.unwrap_or(errors.angle_sd_deg).to_radians())
+            .collect(),
+    }
+}
+
 /// Map a loaded manifest with a model (`model_path` names it in errors): DoLP per capture, then fit and classify every
 /// pixel (see the module documentation). Progress stages: `"captures (DoLP)"` (one
 /// step per capture), `"pixels (fit)"` (pixels done).
@@ -249,8 +419,19 @@ pub fn map_manifest(
     model_path: &Path,
     progress: Progress<'_>,
 ) -> Result<MapResult> {
-    let pc = pixel_classifier(cfg, model, model_path)?;
-    let names: Vec<String> = pc.names().to_vec();
+    let mut pc = pixel_classifier(cfg, model, model_path)?;
+    if cfg.rule == Rule::Set {
+        pc = pc
+            .with_set_rule(cfg.confidence, error_model(m, &cfg.errors))
+            .map_err(|e| IoError::Core {
+                path: m.path.clone(),
+                source: e,
+            })?;
+    }
+    let mut names: Vec<String> = pc.names().to_vec();
+    if pc.ambiguous().is_some() {
+        names.push(AMBIGUOUS.to_string());
+    }
 
     // Far field: one β per capture (eq. 5), the fit plan shared by every pixel.
     let core_err = |e| IoError::Core {
@@ -258,6 +439,11 @@ pub fn map_manifest(
         source: e,
     };
     let calibrated = m.camera.is_some();
+    let weighted = match cfg.weights {
+        Weights::Auto => calibrated,
+        Weights::Noise => true,
+        Weights::None => false,
+    };
     let plan = if calibrated {
         // Checked before any work, as the far-field plan checks it.
         if m.captures.len() < 3 {
@@ -291,6 +477,9 @@ pub fn map_manifest(
     let mut dims = None;
     let mut flags: Vec<u8> = Vec::new();
     let mut dolp: Vec<Vec<f32>> = Vec::with_capacity(m.captures.len());
+    // Weighted fits: the noise terms (A, B) of every capture.
+    let mut read_terms: Vec<Vec<f32>> = Vec::new();
+    let mut shot_terms: Vec<Vec<f32>> = Vec::new();
     let mut thresholds = Vec::with_capacity(m.captures.len());
     // Calibrated geometry: a lamp at a finite distance moves the specular lobe across
     // the scene, so a pixel is typically lit in some captures and dark in others. Its
@@ -302,13 +491,15 @@ pub fn map_manifest(
     let mut dropped: Vec<u8> = Vec::new();
     for (i, c) in m.captures.iter().enumerate() {
         let mut d = Vec::new();
+        let (mut ra, mut rb) = (Vec::new(), Vec::new());
         let f = if calibrated {
             capture_flags.iter_mut().for_each(|f| *f = 0);
             &mut capture_flags
         } else {
             &mut flags
         };
-        let th = capture::capture_dolp(c, cfg, &mut dims, &mut d, f).map_err(|e| match e {
+        let nz = weighted.then_some((&mut ra, &mut rb));
+        let th = capture::capture_dolp(c, cfg, &mut dims, &mut d, f, nz).map_err(|e| match e {
             e @ PipelineError::Config { .. } => e,
             e => PipelineError::Data {
                 path: format!("capture {} (line {})", c.index, c.line),
@@ -338,6 +529,10 @@ pub fn map_manifest(
         }
         thresholds.push(th);
         dolp.push(d);
+        if weighted {
+            read_terms.push(ra);
+            shot_terms.push(rb);
+        }
         progress("captures (DoLP)", i as u64 + 1, ncap);
     }
     let Some(d) = dims else {
@@ -376,6 +571,8 @@ pub fn map_manifest(
     let (mut n, mut k, mut n_se, mut k_se, mut rms) = (img(), img(), img(), img(), img());
     let mut class = vec![0u16; npix];
     let mut why = vec![0u8; npix];
+    let mut noise: Option<NoiseEstimate> = None;
+    let mut warnings: Vec<Warning> = m.warnings.iter().map(|w| Warning(w.clone())).collect();
     let counts = {
         let views: Vec<&[f32]> = dolp.iter().map(|v| v.as_slice()).collect();
         let beta_views: Vec<&[f32]> = beta_maps.beta.iter().map(|v| v.as_slice()).collect();
@@ -402,8 +599,26 @@ pub fn map_manifest(
             reason: &mut why,
         };
         let report = |done: usize| progress("pixels (fit)", done as u64, npix as u64);
-        map::fit_and_classify(betas, &pc, &views, &flags, cfg.tile, outputs, &report)
-            .map_err(core_err)?
+        let rv: Vec<&[f32]> = read_terms.iter().map(|v| v.as_slice()).collect();
+        let sv: Vec<&[f32]> = shot_terms.iter().map(|v| v.as_slice()).collect();
+        if weighted {
+            noise = estimate_noise(betas, &views, &rv, &sv, &flags).map_err(core_err)?;
+            if noise.is_none() {
+                warnings.push(Warning(format!(
+                    "{}: too few usable pixels to estimate the noise model; the per-pixel fits are unweighted",
+                    m.path.display()
+                )));
+            }
+        }
+        let map_noise = noise.map(|e| MapNoise {
+            model: e.model,
+            read: &rv,
+            shot: &sv,
+        });
+        map::fit_and_classify(
+            betas, &pc, &views, map_noise, &flags, cfg.tile, outputs, &report,
+        )
+        .map_err(core_err)?
     };
     drop(dolp);
     drop(flags);
@@ -442,10 +657,15 @@ pub fn map_manifest(
         min_s0_dn: thresholds,
         max_distance: cfg.max_distance,
         metric: cfg.metric,
+        rule: cfg.rule,
+        confidence: cfg.confidence,
+        errors: cfg.errors,
+        weighted: noise.is_some(),
+        noise,
         regions,
         seconds_dolp: t_dolp,
         seconds_fit: t_fit,
-        warnings: m.warnings.iter().map(|w| Warning(w.clone())).collect(),
+        warnings,
     })
 }
 

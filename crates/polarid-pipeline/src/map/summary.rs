@@ -159,6 +159,29 @@ impl MapResult {
             "classes": class_counts,
             "regions": self.regions.iter().map(RegionSummary::to_json).collect::<Vec<_>>(),
         });
+        v["rule"] = json!(self.rule.name());
+        if self.rule == super::Rule::Set {
+            let e = &self.errors;
+            v["confidence"] = json!(self.confidence);
+            v["error_model"] = json!({
+                "angle_sd_deg": e.angle_sd_deg,
+                "dolp_floor": e.dolp_floor,
+                "extinction_ratio": finite(e.extinction_ratio),
+                "retardance_deg": e.retardance_deg,
+            });
+        }
+        v["answers"] = json!(self.answers());
+        v["weights"] = json!(if self.weighted { "noise" } else { "none" });
+        v["noise"] = match &self.noise {
+            Some(n) => json!({
+                "read_noise_dn": n.model.read_var_dn2.sqrt(),
+                "gain_e_per_dn": finite(1.0 / n.model.inv_gain),
+                "pixels": n.pixels,
+                "outliers": n.outliers,
+                "reduced_chi2": finite(n.reduced_chi2),
+            }),
+            None => Value::Null,
+        };
         if self.calibrated {
             v["geometry"] = json!("calibrated");
             v["beta_range_deg"] = json!(
@@ -180,5 +203,36 @@ impl MapResult {
             m.insert((i + 1).to_string(), json!(n));
         }
         Value::Object(m)
+    }
+}
+
+/// The pixels of a map by answer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+pub struct Answers {
+    /// Pixels given one material.
+    pub material: u64,
+    /// Pixels consistent with several materials (set rule).
+    pub ambiguous: u64,
+    /// Pixels fitted with status `ok` but placed nowhere (`rejected`: no consistent
+    /// material, or the nearest one beyond the maximum distance).
+    pub unknown: u64,
+    /// Pixels without an answer: not fitted (signal, geometry) or a fit that is not `ok`.
+    pub not_classified: u64,
+}
+
+impl MapResult {
+    /// The pixels by answer.
+    pub fn answers(&self) -> Answers {
+        let r = &self.counts.reasons;
+        let material = r[polarid_core::map::reason::CLASSIFIED as usize];
+        let ambiguous = r[polarid_core::map::reason::AMBIGUOUS as usize];
+        let unknown = r[polarid_core::map::reason::REJECTED as usize];
+        let total: u64 = r.iter().sum();
+        Answers {
+            material,
+            ambiguous,
+            unknown,
+            not_classified: total - material - ambiguous - unknown,
+        }
     }
 }
