@@ -102,9 +102,10 @@ fn span(v: impl Iterator<Item = f64>) -> (f64, f64) {
 /// (`None`: a literature value) is consistent with it, traced along `rays` rays from the
 /// estimate (at least 8).
 ///
-/// Along each ray the set distance ([`Classifier::set_distance`]) is stepped outwards in
-/// 1/64 of the threshold (in units of the standard deviations of `Σ_est + Σ_proto`) to the
-/// first point beyond the threshold, then bisected; a ray that reaches `k = 0` inside the
+/// The rays are `r L (cos t, sin t)` for `t` evenly spaced, `L` the Cholesky factor of
+/// `Σ_est + Σ_proto` in `(n, k)`. Along each ray the set distance
+/// ([`Classifier::set_distance`]) is stepped outwards in 1/64 of the threshold (in units
+/// of `r`) to the first point beyond the threshold, then bisected; a ray that reaches `k = 0` inside the
 /// region ends there. Each point of the boundary where the distance is continuous has
 /// distance equal to the threshold to 1e-9 (relative). A region that is not star-shaped
 /// about the estimate is drawn to its first boundary along each ray.
@@ -122,9 +123,14 @@ pub fn confidence_region(
         return None;
     }
     let threshold = chi2_2dof_quantile(confidence).sqrt();
+    // Rays r·L (cos t, sin t), L the Cholesky factor of Σ_est + Σ_proto in (n, k): on an
+    // (n, k) ellipse the boundary is at r = threshold for every t, and the points are
+    // spread evenly around it however strong the correlation.
     let total = proto_cov.map_or(cov, |p| cov + p);
-    let (sn, sk) = (total.nn.sqrt(), total.kk.sqrt());
-    if !(sn > 0.0 && sk > 0.0 && sn.is_finite() && sk.is_finite()) {
+    let l11 = total.nn.sqrt();
+    let l21 = total.nk / l11;
+    let l22 = (total.kk - l21 * l21).sqrt();
+    if !(l11 > 0.0 && l22 > 0.0 && l11.is_finite() && l21.is_finite() && l22.is_finite()) {
         return None;
     }
     let k_se = cov.kk.sqrt();
@@ -149,7 +155,8 @@ pub fn confidence_region(
     let mut on_contour = Vec::with_capacity(rays + 1);
     for i in 0..rays {
         let t = std::f64::consts::TAU * i as f64 / rays as f64;
-        let (dn, dk) = (sn * t.cos(), sk * t.sin());
+        let (c, sn) = (t.cos(), t.sin());
+        let (dn, dk) = (l11 * c, l21 * c + l22 * sn);
         let at = |r: f64| (est.n + r * dn, (est.k + r * dk).max(0.0));
         // Where the ray meets k = 0 (it is not followed below the axis).
         let r_axis = if dk < 0.0 { est.k / -dk } else { f64::INFINITY };
@@ -196,7 +203,7 @@ pub fn confidence_region(
     let below_k = NEAR_ZERO_SIGMAS * k_se;
     let plane = if est_near {
         RegionPlane::Nu
-    } else if boundary.iter().any(|p| p.1 <= below_k) {
+    } else if boundary.iter().any(|p| p.1 <= below_k * (1.0 + 1e-9)) {
         RegionPlane::Mixed { below_k }
     } else {
         RegionPlane::Nk
@@ -273,8 +280,9 @@ pub fn decision_regions(est: &Estimate, clf: &Classifier, rays: usize) -> Vec<De
 
 /// The explanation's region text: `95% region (Mahalanobis <= 2.448): n …, k … in (n, k)`,
 /// one clause per region of [`decision_regions`] naming the prototypes it tests when
-/// they carry a covariance.
-fn regions_text(est: &Estimate, clf: &Classifier) -> Option<String> {
+/// they carry a covariance (`with aluminum's covariance n …`). `None` when the estimate
+/// has no usable covariance.
+pub fn regions_text(est: &Estimate, clf: &Classifier) -> Option<String> {
     let regions = decision_regions(est, clf, 256);
     let first = regions.first()?;
     let protos = clf.prototypes();

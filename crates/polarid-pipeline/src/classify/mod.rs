@@ -18,6 +18,7 @@ use polarid_io::table::fits::{self, FitRow};
 
 pub use explain::{
     ConfidenceRegion, DecisionRegion, RegionPlane, confidence_region, decision_regions, explain,
+    regions_text,
 };
 pub use wolff::{WolffData, WolffSettings};
 
