@@ -81,7 +81,12 @@ impl Ctx {
                 match out.write_all(&buf).and_then(|()| out.flush()) {
                     // A closed pipe (`polarid ... | head`) is not a failure.
                     Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {}
-                    r => r?,
+                    Err(e) => {
+                        return Err(
+                            anyhow::Error::new(e).context("cannot write to standard output")
+                        );
+                    }
+                    Ok(()) => {}
                 }
             }
         }
