@@ -271,14 +271,5 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         inputs.extend(args.wolff.wolff.as_deref());
         ctx.write_output(Some(out), &inputs, |w| write_file(w, out, format, &o, &cfg))?;
     }
-    let mut stdout = std::io::stdout().lock();
-    match stdout
-        .write_all(text.as_bytes())
-        .and_then(|()| stdout.flush())
-    {
-        // A closed pipe (`polarid evaluate ... | head`) is not a failure.
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
-        Err(e) => Err(anyhow::Error::new(e).context("cannot write to standard output")),
-        Ok(()) => Ok(()),
-    }
+    crate::ctx::print_stdout(text.as_bytes())
 }
