@@ -190,9 +190,22 @@ def fit_table(
     shadowing: Literal["none", "smith"] = "none",
     s0_rel_sd: float = 0.02,
     sigma_range: tuple[float, float] = (0.02, 1.0),
+    angle_sd_deg: float = 0.2,
+    dolp_floor: float = 0.002,
+    extinction_ratio: float = 100.0,
+    retardance_deg: float = 0.0,
+    mismatch_p: float = 0.001,
     strict: bool = False,
 ) -> dict[str, list[Any]]:
     """Fit every target of a measurements CSV exactly as ``polarid fit`` does.
+
+    The specular fit's error model (docs/ERRORS.md), as ``polarid fit``'s options:
+    ``angle_sd_deg`` (``--angle-sd-deg``, degrees in [0, 90), for rows without an
+    ``angle_sd_deg`` column), ``dolp_floor`` (``--dolp-floor``, in [0, 1)),
+    ``extinction_ratio`` (``--extinction-ratio``, > 1, ``math.inf`` for an ideal
+    polarizer), ``retardance_deg`` (``--retardance-deg``, degrees in [0, 90]) and
+    ``mismatch_p`` (``--mismatch-p``, in [0, 1); 0: never ``model_mismatch``). A bad
+    value raises ``ValueError`` naming it.
 
     Returns the columns of the fits CSV, in its order, one list element per target:
     ``target``, ``class`` (str or None), ``n``, ``k``, ``n_se``, ``k_se``, ``nk_corr``,

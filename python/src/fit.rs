@@ -456,6 +456,25 @@ fn batch_dict<'py>(py: Python<'py>, lead: &[usize], o: BatchOut) -> PyResult<Bou
 ///     Mixed fit: relative standard deviation of ``s0``, in (0, 1].
 /// sigma_range : (float, float)
 ///     Mixed fit: search range of the roughness sigma.
+/// angle_sd_deg : float
+///     Specular fit: standard uncertainty of the source and camera directions, degrees,
+///     in [0, 90), for rows without an ``angle_sd_deg`` column (``--angle-sd-deg``,
+///     default 0.2; docs/ERRORS.md).
+/// dolp_floor : float
+///     Specular fit: additive DoLP error (standard deviation, independent per row), in
+///     [0, 1) (``--dolp-floor``, default 0.002).
+/// extinction_ratio : float
+///     Specular fit: the lowest extinction ratio the analyzer may have, > 1
+///     (``--extinction-ratio``, default 100; ``math.inf``: an ideal polarizer). The DoLP
+///     scale's standard uncertainty is ``2/(ER + 1)``.
+/// retardance_deg : float
+///     Specular fit: the largest retardance ahead of the analyzer, degrees, in [0, 90]
+///     (``--retardance-deg``, default 0).
+/// mismatch_p : float
+///     Specular fit: status ``model_mismatch`` when the goodness-of-fit or the AoLP test
+///     has a p-value below this, in [0, 1) (``--mismatch-p``, default 0.001; 0: never).
+///     ``angle_sd_deg=0, dolp_floor=0, extinction_ratio=math.inf`` gives the noise-only
+///     standard errors (also in the ``*_noise`` columns).
 /// strict : bool
 ///     Raise at the first problem (a measurement row whose ``status`` is not ok, a
 ///     target that cannot be fitted), as ``polarid fit --strict``. By default such rows
@@ -479,7 +498,7 @@ fn batch_dict<'py>(py: Python<'py>, lead: &[usize], o: BatchOut) -> PyResult<Bou
 /// FileNotFoundError
 ///     The file does not exist.
 #[pyfunction]
-#[pyo3(signature = (measurements, *, reflectance = "specular", n_range = (0.01, 10.0), k_range = (0.0, 15.0), depolarized_dolp = 0.02, estimate_theta_r = false, shadowing = "none", s0_rel_sd = 0.02, sigma_range = (0.02, 1.0), strict = false))]
+#[pyo3(signature = (measurements, *, reflectance = "specular", n_range = (0.01, 10.0), k_range = (0.0, 15.0), depolarized_dolp = 0.02, estimate_theta_r = false, shadowing = "none", s0_rel_sd = 0.02, sigma_range = (0.02, 1.0), angle_sd_deg = 0.2, dolp_floor = 0.002, extinction_ratio = 100.0, retardance_deg = 0.0, mismatch_p = 0.001, strict = false))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit_table<'py>(
     py: Python<'py>,
@@ -492,6 +511,11 @@ pub fn fit_table<'py>(
     shadowing: &str,
     s0_rel_sd: f64,
     sigma_range: (f64, f64),
+    angle_sd_deg: f64,
+    dolp_floor: f64,
+    extinction_ratio: f64,
+    retardance_deg: f64,
+    mismatch_p: f64,
     strict: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let cfg = FitConfig {
@@ -511,6 +535,11 @@ pub fn fit_table<'py>(
         })?,
         s0_rel_sd,
         sigma_range,
+        angle_sd_deg,
+        dolp_floor,
+        extinction_ratio,
+        retardance_deg,
+        mismatch_p,
         strict,
         ..FitConfig::default()
     };

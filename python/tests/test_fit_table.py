@@ -103,3 +103,54 @@ def test_fit_table_errors_match_cli(tmp_path, polarid_cli, measurements):
         polarid.fit_table(short, estimate_theta_r=True)
     with pytest.raises(ValueError, match="s0_rel_sd"):
         polarid.fit_table(short, reflectance="mixed", s0_rel_sd=0.0)
+
+
+NOISE = ["n_se_noise", "k_se_noise", "nk_corr_noise", "gof_p", "aolp_p"]
+
+ERROR_MODEL_CASES = [
+    (["--angle-sd-deg", "0", "--dolp-floor", "0", "--extinction-ratio", "inf"],
+     {"angle_sd_deg": 0.0, "dolp_floor": 0.0, "extinction_ratio": math.inf}),
+    (["--angle-sd-deg", "0.5", "--dolp-floor", "0.005", "--extinction-ratio", "300",
+      "--retardance-deg", "5"],
+     {"angle_sd_deg": 0.5, "dolp_floor": 0.005, "extinction_ratio": 300.0, "retardance_deg": 5.0}),
+    (["--mismatch-p", "0"], {"mismatch_p": 0.0}),
+    (["--mismatch-p", "0.9", "--dolp-floor", "0"], {"mismatch_p": 0.9, "dolp_floor": 0.0}),
+]
+
+
+@pytest.mark.parametrize("scene", ["paper_training_60", "aluminum_test_60"])
+@pytest.mark.parametrize("args,kwargs", ERROR_MODEL_CASES)
+def test_fit_table_error_model_equals_cli(tmp_path, polarid_cli, measurements, scene, args, kwargs):
+    """The error-model keywords give the rows `polarid fit` gives with the same options."""
+    path = measurements[scene]
+    cli = cli_fit(polarid_cli, path, tmp_path / "fits.csv", args)
+    py = polarid.fit_table(path, **kwargs)
+    assert list(py) == list(cli)
+    assert py["target"] == cli["target"]
+    assert py["status"] == cli["status"]
+    assert py["reason"] == cli["reason"]
+    for col in FLOATS + NOISE:
+        for a, b in zip(py[col], cli[col], strict=True):
+            assert (a is None and b == "") or same_float(a, b), f"{col}: {a!r} != {b!r}"
+
+
+def test_fit_table_error_model_keywords_take_effect(measurements):
+    path = measurements["paper_training_60"]
+    default = polarid.fit_table(path)
+    noise_only = polarid.fit_table(path, angle_sd_deg=0.0, dolp_floor=0.0, extinction_ratio=math.inf)
+    wider = polarid.fit_table(path, angle_sd_deg=1.0, extinction_ratio=10.0, retardance_deg=20.0)
+    for i, s in enumerate(default["status"]):
+        if s != "ok":
+            continue
+        # Without systematic errors the total is the noise alone; more error, larger se.
+        assert noise_only["n_se"][i] == pytest.approx(noise_only["n_se_noise"][i], rel=1e-9)
+        assert noise_only["n_se"][i] < default["n_se"][i] < wider["n_se"][i]
+        assert default["n"][i] == noise_only["n"][i] == wider["n"][i], "the estimate is unchanged"
+    # A level above every target's p-values marks every specular fit a mismatch.
+    strict = polarid.fit_table(path, mismatch_p=0.999999, dolp_floor=0.0)
+    assert "model_mismatch" in strict["status"]
+    for bad, word in [({"angle_sd_deg": 90.0}, "angle_sd_deg"), ({"dolp_floor": -0.1}, "dolp_floor"),
+                      ({"extinction_ratio": 1.0}, "extinction_ratio"),
+                      ({"retardance_deg": 91.0}, "retardance_deg"), ({"mismatch_p": 1.0}, "mismatch_p")]:
+        with pytest.raises(ValueError, match=word):
+            polarid.fit_table(path, **bad)

@@ -77,15 +77,21 @@ impl Ctx {
                 // Build the whole output first so that a failure prints nothing.
                 let mut buf: Vec<u8> = Vec::new();
                 write(&mut buf)?;
-                let mut out = std::io::stdout().lock();
-                match out.write_all(&buf).and_then(|()| out.flush()) {
-                    // A closed pipe (`polarid ... | head`) is not a failure.
-                    Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {}
-                    r => r?,
-                }
+                print_stdout(&buf)?;
             }
         }
         Ok(())
+    }
+}
+
+/// Write `bytes` to standard output and flush. A closed pipe (`polarid ... | head`) is not
+/// a failure; any other error says `cannot write to standard output`.
+pub fn print_stdout(bytes: &[u8]) -> anyhow::Result<()> {
+    let mut out = std::io::stdout().lock();
+    match out.write_all(bytes).and_then(|()| out.flush()) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        Err(e) => Err(anyhow::Error::new(e).context("cannot write to standard output")),
+        Ok(()) => Ok(()),
     }
 }
 

@@ -35,7 +35,8 @@ pub struct Args {
     #[command(flatten)]
     pub wolff: WolffArgs,
     /// How many nearest prototypes to list per target in the explanation (standard error);
-    /// the consistent set is listed whole.
+    /// the consistent set is listed whole, with the confidence region(s) that decide it
+    /// (the range of n and k they span; docs/CLASSIFY.md).
     #[arg(long, default_value_t = 3)]
     pub explain: usize,
 }

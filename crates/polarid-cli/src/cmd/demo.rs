@@ -8,7 +8,6 @@
 //! Deterministic (fixed seeds); a failure leaves nothing.
 
 use std::fmt::Write as _;
-use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use polarid_io::atomic::{StagedDir, write_atomic};
@@ -60,14 +59,7 @@ fn staged_dir(staged: &StagedDir, sub: &str) -> anyhow::Result<PathBuf> {
 
 /// Write `text` to standard output (a closed pipe is not an error).
 fn print(text: &str) -> anyhow::Result<()> {
-    let mut stdout = std::io::stdout().lock();
-    match stdout
-        .write_all(text.as_bytes())
-        .and_then(|()| stdout.flush())
-    {
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
-        r => Ok(r?),
-    }
+    crate::ctx::print_stdout(text.as_bytes())
 }
 
 /// Run `polarid demo`.

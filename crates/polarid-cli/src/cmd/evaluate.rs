@@ -271,8 +271,5 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         inputs.extend(args.wolff.wolff.as_deref());
         ctx.write_output(Some(out), &inputs, |w| write_file(w, out, format, &o, &cfg))?;
     }
-    let mut stdout = std::io::stdout().lock();
-    stdout.write_all(text.as_bytes())?;
-    stdout.flush()?;
-    Ok(())
+    crate::ctx::print_stdout(text.as_bytes())
 }

@@ -18,13 +18,51 @@ pub struct WolffArgs {
     /// `evaluate` reports its metal/dielectric accuracy.
     #[arg(long, value_name = "MEASUREMENTS.csv")]
     pub wolff: Option<PathBuf>,
-    /// Wolff's threshold on the Fresnel ratio (1 + P)/(1 - P): dielectric above it.
-    #[arg(long, default_value_t = 6.0, requires = "wolff")]
+    /// Wolff's threshold on the Fresnel ratio (1 + P)/(1 - P): dielectric above it
+    /// (a finite number > 1).
+    #[arg(long, value_name = "RATIO", default_value_t = 6.0, requires = "wolff")]
     pub wolff_threshold: f64,
-    /// Wolff's window of specular angles beta, degrees: MIN,MAX.
-    #[arg(long, value_name = "MIN,MAX", value_delimiter = ',', num_args = 2,
-          default_values_t = [40.0, 70.0], requires = "wolff")]
-    pub wolff_beta: Vec<f64>,
+    /// Wolff's window of specular angles beta, degrees, as one word MIN,MAX
+    /// (0 <= MIN <= MAX <= 90), e.g. `--wolff-beta 40,70`.
+    #[arg(long, value_name = "MIN,MAX", default_value = "40,70",
+          value_parser = parse_beta_window, requires = "wolff")]
+    pub wolff_beta: (f64, f64),
+}
+
+/// `s` cut to 40 characters (with an ellipsis) for a message.
+fn shorten(s: &str) -> String {
+    if s.chars().count() <= 40 {
+        format!("{s:?}")
+    } else {
+        format!("{:?}…", s.chars().take(40).collect::<String>())
+    }
+}
+
+/// `--wolff-beta MIN,MAX`: degrees, finite, `0 <= MIN <= MAX <= 90`.
+fn parse_beta_window(s: &str) -> Result<(f64, f64), String> {
+    let short = shorten(s);
+    let (a, b) = s
+        .split_once(',')
+        .ok_or_else(|| format!("expected MIN,MAX in degrees (one word), got {short}"))?;
+    let parse = |t: &str| -> Result<f64, String> {
+        let v: f64 = t
+            .trim()
+            .parse()
+            .map_err(|_| format!("{} is not a number (degrees)", shorten(t)))?;
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(format!("{} is not finite", shorten(t)))
+        }
+    };
+    let (lo, hi) = (parse(a)?, parse(b)?);
+    if !(0.0..=90.0).contains(&lo) || !(0.0..=90.0).contains(&hi) {
+        return Err(format!("beta must be in [0, 90] degrees, got {short}"));
+    }
+    if lo > hi {
+        return Err(format!("MIN must be <= MAX, got {short} degrees"));
+    }
+    Ok((lo, hi))
 }
 
 impl WolffArgs {
@@ -34,16 +72,25 @@ impl WolffArgs {
         let Some(m) = &self.wolff else {
             return Ok(None);
         };
+        let t = self.wolff_threshold;
+        if !(t.is_finite() && t > 1.0) {
+            return Err(BadInput(format!(
+                "--wolff-threshold must be a finite number > 1, got {}",
+                shorten(&t.to_string()).trim_matches('"')
+            ))
+            .into());
+        }
         let settings = WolffSettings {
-            threshold: self.wolff_threshold,
-            beta_deg: (
-                self.wolff_beta.first().copied().unwrap_or(40.0),
-                self.wolff_beta.get(1).copied().unwrap_or(70.0),
-            ),
+            threshold: t,
+            beta_deg: self.wolff_beta,
         };
-        settings
-            .check()
-            .map_err(|e| BadInput(format!("--wolff-*: {e}")))?;
+        // The options are checked above in degrees; this is the core rule's own check.
+        settings.check().map_err(|e| {
+            BadInput(format!(
+                "--wolff-threshold {t} --wolff-beta {},{} (degrees) is not usable: {e}",
+                settings.beta_deg.0, settings.beta_deg.1
+            ))
+        })?;
         Ok(Some(WolffRequest {
             measurements: m.clone(),
             settings,

@@ -81,23 +81,29 @@ pub fn figures(out: &BenchOutput) -> anyhow::Result<Vec<BenchFigure>> {
             k: p.k,
         })
         .collect();
+    let clf = super::demo::classifier_of(&out.model, &out.classification);
     let ests: Vec<plots::NkEstimate> = out
         .fits
         .iter()
         .filter(|(_, f)| is_test(&f.target))
-        .map(|(_, f)| plots::NkEstimate::from_fit(f.target.clone(), f, &out.classification))
+        .map(|(_, f)| {
+            plots::NkEstimate::from_fit(f.target.clone(), f, &out.classification, clf.as_ref())
+        })
         .collect();
     figs.push(BenchFigure {
         plot: plots::nk_plane(
-            "Test plates in the (n, k) plane, nearest-neighbour regions",
+            "Test plates in the (n, k) plane, 95% confidence regions",
             &protos,
             &ests,
             size,
         )?,
         stem: "nk_plane".into(),
         title: "The (n, k) plane".into(),
-        caption: "Training prototypes, the test estimates with their 1-σ ellipses, and the \
-                  nearest-neighbour decision regions."
+        caption: "Training prototypes, the nearest-neighbour decision regions (shaded), and \
+                  each test estimate's confidence region at the set's confidence: a prototype \
+                  is in the consistent set exactly when it lies inside the region drawn for \
+                  it (dashed: with that prototype's own covariance added). The legend gives \
+                  each plate's answer."
             .into(),
     });
     let (w, h) = out.size;
@@ -239,19 +245,9 @@ pub fn report(out: &BenchOutput, figs: &[BenchFigure]) -> Report {
             status: f.status,
         })
         .collect();
-    let classification = out
-        .classification
-        .iter()
-        .map(|c| report::ClassificationRow {
-            target: c.target.clone(),
-            truth: c.class.clone(),
-            predicted: c.predicted.clone(),
-            distance: c.distance.unwrap_or(f64::NAN),
-            runner_up: c.runner_up.clone(),
-            runner_up_distance: c.runner_up_distance,
-            status: c.status.clone(),
-        })
-        .collect();
+    let clf = super::demo::classifier_of(&out.model, &out.classification);
+    let classification =
+        super::demo::report_classification(&out.fits, &out.classification, clf.as_ref());
     let mut inputs: Vec<report::InputItem> = Vec::new();
     for (s, m) in out.scenes.iter().zip(&out.manifests) {
         inputs.push(report::InputItem {
@@ -351,7 +347,9 @@ pub fn report(out: &BenchOutput, figs: &[BenchFigure]) -> Report {
             ),
             (
                 "classifier".into(),
-                "nearest neighbour, Euclidean distance in (n, k)".into(),
+                "nearest neighbour, Euclidean distance in (n, k); the consistent set at 95% \
+                 beside it (Mahalanobis, estimate's and prototype's covariance)"
+                    .into(),
             ),
         ],
         geometry,

@@ -74,6 +74,7 @@ pub fn figures(out: &DemoOutput) -> anyhow::Result<[Rendered; 3]> {
             k: p.k,
         })
         .collect();
+    let clf = classifier_of(&out.model, &out.classification);
     let ests: Vec<plots::NkEstimate> = out
         .fits
         .iter()
@@ -89,11 +90,12 @@ pub fn figures(out: &DemoOutput) -> anyhow::Result<[Rendered; 3]> {
                 ),
                 f,
                 &out.classification,
+                clf.as_ref(),
             )
         })
         .collect();
     let nk = plots::nk_plane(
-        "Test estimates in the (n, k) plane, nearest-neighbour regions",
+        "Test plate in the (n, k) plane, 95% confidence regions",
         &protos,
         &ests,
         size,
@@ -101,12 +103,64 @@ pub fn figures(out: &DemoOutput) -> anyhow::Result<[Rendered; 3]> {
     Ok([dolp_train, dolp_test, nk])
 }
 
+/// A classifier over `model`'s prototypes at the confidence of the classification rows
+/// (the default 95% when they carry none), to draw the regions that decide their sets.
+/// `None` when the model's prototypes are unusable.
+pub fn classifier_of(
+    model: &polarid_io::model::Model,
+    rows: &[ClassificationRow],
+) -> Option<polarid_core::classify::Classifier> {
+    let confidence = rows
+        .iter()
+        .find_map(|c| c.confidence)
+        .unwrap_or(polarid_core::classify::DEFAULT_CONFIDENCE);
+    polarid_core::classify::Classifier::new(
+        model.prototypes(),
+        polarid_core::classify::ClassifierConfig::set(confidence),
+    )
+    .ok()
+}
+
+/// The report's classification rows: each classification row with its consistent set and
+/// the confidence region(s) that decide it (from the fit of the same target, under
+/// `clf`'s prototypes and confidence).
+pub fn report_classification(
+    fits: &[(u64, FitRow)],
+    class_rows: &[ClassificationRow],
+    clf: Option<&polarid_core::classify::Classifier>,
+) -> Vec<report::ClassificationRow> {
+    class_rows
+        .iter()
+        .map(|c| {
+            let region = clf.and_then(|clf| {
+                let (_, f) = fits.iter().find(|(_, f)| f.target == c.target)?;
+                let est = polarid_pipeline::classify::estimate_of(f);
+                polarid_pipeline::classify::regions_text(&est, clf)
+            });
+            report::ClassificationRow {
+                target: c.target.clone(),
+                truth: c.class.clone(),
+                predicted: c.predicted.clone(),
+                distance: c.distance.unwrap_or(f64::NAN),
+                runner_up: c.runner_up.clone(),
+                runner_up_distance: c.runner_up_distance,
+                status: c.status.clone(),
+                candidates: c.confidence.map(|_| c.candidates.clone()),
+                confidence: c.confidence,
+                region,
+            }
+        })
+        .collect()
+}
+
 /// The demo's report.
 pub fn report(out: &DemoOutput, figs: &[Rendered; 3]) -> Report {
+    let clf = classifier_of(&out.model, &out.classification);
     build_report(
         &out.fits,
         &out.measurements,
         &out.classification,
+        clf.as_ref(),
         &out.scenes,
         &out.manifests,
         [&figs[0], &figs[1], &figs[2]],
@@ -118,6 +172,7 @@ fn build_report(
     fits: &[(u64, FitRow)],
     meas: &[(u64, Measurement)],
     class_rows: &[ClassificationRow],
+    clf: Option<&polarid_core::classify::Classifier>,
     scenes: &[String],
     manifests: &[String],
     figs: [&Rendered; 3],
@@ -172,18 +227,7 @@ fn build_report(
             status: f.status,
         })
         .collect();
-    let classification = class_rows
-        .iter()
-        .map(|c| report::ClassificationRow {
-            target: c.target.clone(),
-            truth: c.class.clone(),
-            predicted: c.predicted.clone(),
-            distance: c.distance.unwrap_or(f64::NAN),
-            runner_up: c.runner_up.clone(),
-            runner_up_distance: c.runner_up_distance,
-            status: c.status.clone(),
-        })
-        .collect();
+    let classification = report_classification(fits, class_rows, clf);
     let mut inputs: Vec<report::InputItem> = Vec::new();
     for (s, m) in scenes.iter().zip(manifests) {
         let t = s
@@ -273,6 +317,14 @@ fn build_report(
         if let (Some(r), Some(m)) = (&c.runner_up, c.margin) {
             let _ = write!(result, " (runner-up {r}, margin {m:.3})");
         }
+        if let Some(p) = c.confidence {
+            let set = if c.candidates.is_empty() {
+                "none".to_string()
+            } else {
+                c.candidates.join(", ")
+            };
+            let _ = write!(result, ", consistent set at {}%: {set}", p * 100.0);
+        }
     }
     result.push('.');
     summary.push(result);
@@ -301,7 +353,10 @@ fn build_report(
             ("region".into(), "[16, 16, 96, 96] of each plate".into()),
             (
                 "classifier".into(),
-                "nearest neighbour, Euclidean distance in (n, k)".into(),
+                "nearest neighbour, Euclidean distance in (n, k) (the paper's rule, Tables 1 \
+                 and 2); the consistent set at 95% beside it (Mahalanobis, estimate's and \
+                 prototype's covariance)"
+                    .into(),
             ),
         ],
         geometry,
@@ -346,8 +401,12 @@ fn build_report(
             ),
             Figure::from_rendered(
                 "The (n, k) plane",
-                "Training prototypes, the test estimates with their 1-σ ellipses, and the \
-                 nearest-neighbour decision regions (Euclidean distance, § 6).",
+                "Training prototypes, the nearest-neighbour decision regions (shaded; \
+                 Euclidean distance, § 6) that give Tables 1 and 2, and each test estimate's \
+                 confidence region at the set's confidence: a prototype is in the \
+                 consistent set exactly when it lies inside the region drawn for it \
+                 (dashed: the region with that training prototype's own covariance added, \
+                 Σ_est + Σ_proto). The legend gives each view's answer.",
                 figs[2],
                 "plots/nk_plane.png",
                 Some("plots/nk_plane.svg".into()),

@@ -16,7 +16,10 @@ use polarid_io::table::CsvTable;
 use polarid_io::table::classification::ClassificationRow;
 use polarid_io::table::fits::{self, FitRow};
 
-pub use explain::explain;
+pub use explain::{
+    ConfidenceRegion, DecisionRegion, RegionPlane, confidence_region, decision_regions, explain,
+    regions_text,
+};
 pub use wolff::{WolffData, WolffSettings};
 
 use crate::{PipelineError, Result, Warning};
@@ -221,8 +224,9 @@ pub fn classify(
     let mut rows = Vec::with_capacity(fits.len());
     let mut notes = Vec::new();
     for (line, f) in fits {
-        let d = clf.classify(&estimate_of(f));
-        notes.push(explain(&f.target, &d, &clf, cfg.explain));
+        let est = estimate_of(f);
+        let d = clf.classify(&est);
+        notes.push(explain(&f.target, &est, &d, &clf, cfg.explain));
         let mut row = classification_row(f, &d, &clf);
         if let Some(wd) = &wolff {
             let w = wd.decide(

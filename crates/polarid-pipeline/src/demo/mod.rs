@@ -157,8 +157,9 @@ pub fn run(staged: &StagedDir, progress: Progress) -> Result<DemoOutput> {
     let mut class_rows: Vec<ClassificationRow> = Vec::new();
     let mut notes = Vec::new();
     for (_, f) in &tests {
-        let d = clf.classify(&estimate_of(f));
-        notes.push(explain(&f.target, &d, &clf, 3));
+        let est = estimate_of(f);
+        let d = clf.classify(&est);
+        notes.push(explain(&f.target, &est, &d, &clf, 3));
         class_rows.push(classification_row(f, &d, &clf));
     }
     stage(staged, "classification.csv", |w| {

@@ -1,4 +1,6 @@
-//! (b) The (n, k) plane: prototypes, decision regions, estimates with 1-σ ellipses.
+//! (b) The (n, k) plane: prototypes, nearest-neighbour decision regions, and the estimates
+//! with the confidence regions that decide their consistent sets (or 1-σ ellipses when
+//! none was computed).
 
 use std::ops::Range;
 
@@ -40,17 +42,86 @@ pub struct NkEstimate {
     pub corr: f64,
     /// Predicted class: the marker takes that class's colour when it is a prototype class.
     pub predicted: Option<String>,
+    /// The answer for the legend (see [`answer_text`]), e.g. `aluminum`,
+    /// `ambiguous: gold, copper`, `unknown`.
+    pub answer: Option<String>,
+    /// The confidence regions that decide the consistent set (see
+    /// `polarid_pipeline::classify::decision_regions`); when empty the 1-σ ellipse of
+    /// `n_se`, `k_se`, `corr` is drawn instead.
+    pub regions: Vec<NkRegion>,
+}
+
+/// One drawn confidence region of an estimate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NkRegion {
+    /// Closed boundary in (n, k).
+    pub boundary: Vec<(f64, f64)>,
+    /// The confidence, e.g. 0.95.
+    pub confidence: f64,
+    /// `None`: the region with the estimate's covariance alone (every prototype without a
+    /// covariance is tested with it; drawn solid in the estimate's colour). `Some(classes)`:
+    /// the region with these prototypes' covariance added (drawn dashed in the first
+    /// class's colour); a prototype is consistent exactly when it lies inside its region.
+    pub with_prototype: Option<Vec<String>>,
+}
+
+/// The answer of a classification row in a few words: `aluminum`,
+/// `ambiguous: gold, copper`, `unknown (none at 95%)`; under the nearest rule the
+/// consistent set follows when it differs from the answer (`aluminum; 95% set: aluminum,
+/// copper`).
+pub fn answer_text(c: &polarid_io::table::classification::ClassificationRow) -> String {
+    let pct = c.confidence.map(|p| format!("{}%", p * 100.0));
+    let set = if c.candidates.is_empty() {
+        "none".to_string()
+    } else {
+        c.candidates.join(", ")
+    };
+    match (c.rule.as_str(), c.status.as_str()) {
+        (_, "ambiguous") => format!("ambiguous: {set}"),
+        ("set", "rejected") => match &pct {
+            Some(p) => format!("{} (none at {p})", c.predicted),
+            None => c.predicted.clone(),
+        },
+        _ => match &pct {
+            Some(p) if c.candidates != [c.predicted.clone()] => {
+                format!("{}; {p} set: {set}", c.predicted)
+            }
+            _ => c.predicted.clone(),
+        },
+    }
 }
 
 impl NkEstimate {
-    /// The estimate of a fits-table row, labelled `label`, with the prediction of the
-    /// classification row of the same target (if any). A non-finite correlation is
-    /// drawn as 0.
+    /// The estimate of a fits-table row, labelled `label`, with the prediction and answer
+    /// of the classification row of the same target (if any) and, when `classifier` is
+    /// given, the confidence regions that decide its consistent set under that
+    /// classifier's prototypes and confidence. A non-finite correlation is drawn as 0.
     pub fn from_fit(
         label: String,
         f: &polarid_io::table::fits::FitRow,
         classification: &[polarid_io::table::classification::ClassificationRow],
+        classifier: Option<&polarid_core::classify::Classifier>,
     ) -> Self {
+        let row = classification.iter().find(|c| c.target == f.target);
+        let regions = classifier
+            .map(|clf| {
+                let est = polarid_pipeline::classify::estimate_of(f);
+                polarid_pipeline::classify::decision_regions(&est, clf, 256)
+                    .into_iter()
+                    .map(|r| NkRegion {
+                        boundary: r.region.boundary,
+                        confidence: r.region.confidence,
+                        with_prototype: r.region.proto_cov.map(|_| {
+                            r.prototypes
+                                .iter()
+                                // ok: indices from decision_regions are clf's prototypes.
+                                .map(|&i| clf.prototypes()[i].class.clone())
+                                .collect()
+                        }),
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
         NkEstimate {
             label,
             n: f.n,
@@ -62,17 +133,17 @@ impl NkEstimate {
             } else {
                 0.0
             },
-            predicted: classification
-                .iter()
-                .find(|c| c.target == f.target)
-                .map(|c| c.predicted.clone()),
+            predicted: row.map(|c| c.predicted.clone()),
+            answer: row.map(answer_text),
+            regions,
         }
     }
 }
 
 /// The (n, k) plane: the nearest-neighbour decision regions of the prototypes
 /// (Euclidean distance in (n, k), paper § 6) shaded by class, the prototypes, and the
-/// estimates with their 1-σ covariance ellipses.
+/// estimates with their confidence regions ([`NkEstimate::regions`]; 1-σ covariance
+/// ellipses when an estimate has none) and answers.
 pub fn nk_plane(
     title: &str,
     prototypes: &[Prototype],
@@ -184,14 +255,27 @@ impl Figure for NkFigure<'_> {
             .filter(|e| e.n.is_finite() && e.k.is_finite())
             .collect();
         let fin = |v: f64| if v.is_finite() && v > 0.0 { v } else { 0.0 };
-        let ns = protos.iter().map(|p| p.n).chain(
+        let region_points = || {
             ests.iter()
-                .flat_map(|e| [e.n - fin(e.n_se), e.n + fin(e.n_se)]),
-        );
-        let ks = protos.iter().map(|p| p.k).chain(
-            ests.iter()
-                .flat_map(|e| [e.k - fin(e.k_se), e.k + fin(e.k_se)]),
-        );
+                .flat_map(|e| e.regions.iter().flat_map(|r| r.boundary.iter().copied()))
+                .filter(|p| p.0.is_finite() && p.1.is_finite())
+        };
+        let ns = protos
+            .iter()
+            .map(|p| p.n)
+            .chain(
+                ests.iter()
+                    .flat_map(|e| [e.n - fin(e.n_se), e.n + fin(e.n_se)]),
+            )
+            .chain(region_points().map(|p| p.0));
+        let ks = protos
+            .iter()
+            .map(|p| p.k)
+            .chain(
+                ests.iter()
+                    .flat_map(|e| [e.k - fin(e.k_se), e.k + fin(e.k_se)]),
+            )
+            .chain(region_points().map(|p| p.1));
         let (Some((n0, n1)), Some((k0, k1))) = (min_max(ns), min_max(ks)) else {
             draw_notice(&main, "No (n, k) values to plot")?;
             return Ok(None);
@@ -238,6 +322,68 @@ impl Figure for NkFigure<'_> {
                     .dr()?;
             }
         }
+        // Confidence regions (or 1-σ ellipses) under the markers, then the prototypes,
+        // then the estimates' markers on top.
+        let est_colour = |e: &NkEstimate| {
+            e.predicted
+                .as_deref()
+                .and_then(class_idx)
+                .map(|i| shade(class_colour(i), 0.55))
+                .unwrap_or(BLACK)
+        };
+        let mut est_legend = Vec::new();
+        for (j, e) in ests.iter().enumerate() {
+            let m = ESTIMATE_MARKERS[j % ESTIMATE_MARKERS.len()];
+            let c = est_colour(e);
+            let mut lines = Vec::new();
+            if e.regions.is_empty() {
+                let ell = covariance_ellipse(e.n, e.k, e.n_se, e.k_se, e.corr, 96);
+                if ell.len() > 3 {
+                    area.draw(&PathElement::new(ell, c.stroke_width(2))).dr()?;
+                }
+            }
+            for r in &e.regions {
+                let pts: Vec<(f64, f64)> = r
+                    .boundary
+                    .iter()
+                    .copied()
+                    .filter(|p| p.0.is_finite() && p.1.is_finite())
+                    .collect();
+                if pts.len() < 4 {
+                    continue;
+                }
+                match &r.with_prototype {
+                    None => {
+                        area.draw(&PathElement::new(pts, c.stroke_width(2))).dr()?;
+                        lines.push(LegendItem::Line(c, "  region (its own Σ)".into()));
+                    }
+                    Some(classes) => {
+                        let pc = classes
+                            .first()
+                            .and_then(|name| class_idx(name))
+                            .map(|i| shade(class_colour(i), 0.75))
+                            .unwrap_or(c);
+                        area.draw(&plotters::element::DashedPathElement::new(
+                            pts,
+                            9,
+                            5,
+                            pc.stroke_width(2),
+                        ))
+                        .dr()?;
+                        lines.push(LegendItem::Line(
+                            pc,
+                            format!("  region with {}'s Σ", classes.join(", ")),
+                        ));
+                    }
+                }
+            }
+            let text = match &e.answer {
+                Some(a) => format!("{}: {a}", e.label),
+                None => e.label.clone(),
+            };
+            est_legend.push(LegendItem::Marker(m, c, text));
+            est_legend.extend(lines);
+        }
         for p in &protos {
             let c = class_colour(class_idx(&p.class).unwrap_or(0));
             draw_marker(area, (p.n, p.k), Marker::Circle, 8, c.filled())?;
@@ -252,23 +398,17 @@ impl Figure for NkFigure<'_> {
             ));
         }
         if !ests.is_empty() {
-            legend.push(LegendItem::Heading("Estimates (1-σ ellipse)".into()));
+            let heading = match ests.iter().find_map(|e| e.regions.first()) {
+                Some(r) => format!("Estimates: answer ({}% region)", r.confidence * 100.0),
+                None => "Estimates (1-σ ellipse)".to_string(),
+            };
+            legend.push(LegendItem::Heading(heading));
         }
         for (j, e) in ests.iter().enumerate() {
             let m = ESTIMATE_MARKERS[j % ESTIMATE_MARKERS.len()];
-            let c = e
-                .predicted
-                .as_deref()
-                .and_then(class_idx)
-                .map(|i| shade(class_colour(i), 0.55))
-                .unwrap_or(BLACK);
-            let ell = covariance_ellipse(e.n, e.k, e.n_se, e.k_se, e.corr, 96);
-            if ell.len() > 3 {
-                area.draw(&PathElement::new(ell, c.stroke_width(2))).dr()?;
-            }
-            draw_marker(area, (e.n, e.k), m, 6, c.filled())?;
-            legend.push(LegendItem::Marker(m, c, e.label.clone()));
+            draw_marker(area, (e.n, e.k), m, 6, est_colour(e).filled())?;
         }
+        legend.extend(est_legend);
         draw_legend(&side, &legend)?;
         Ok(None)
     }

@@ -244,6 +244,8 @@ fn nk_plane_draws_regions_prototypes_and_ellipses() {
             k_se: 0.3,
             corr: 0.6,
             predicted: Some("aluminum".into()),
+            answer: None,
+            regions: Vec::new(),
         },
         NkEstimate {
             label: "test, θr = 50°".into(),
@@ -253,6 +255,8 @@ fn nk_plane_draws_regions_prototypes_and_ellipses() {
             k_se: 0.4,
             corr: -0.2,
             predicted: None,
+            answer: None,
+            regions: Vec::new(),
         },
     ];
     let size = PlotSize::REPORT;
@@ -348,4 +352,131 @@ fn viridis_end_points_and_palette() {
     assert_eq!(viridis(f64::NAN), NO_DATA);
     assert_ne!(class_colour(9), class_colour(10));
     assert_eq!(ellipsize("abcdef", 4), "abc…");
+}
+
+fn library_proto(
+    class: &str,
+    n: f64,
+    k: f64,
+    cov: Option<polarid_core::classify::Cov2>,
+) -> polarid_core::classify::Prototype {
+    polarid_core::classify::Prototype {
+        class: class.into(),
+        n,
+        k,
+        cov,
+        category: Some("metal".into()),
+        source: "test".into(),
+    }
+}
+
+fn fit_row(
+    target: &str,
+    n: f64,
+    k: f64,
+    n_se: f64,
+    k_se: f64,
+    corr: f64,
+) -> polarid_io::table::fits::FitRow {
+    polarid_io::table::fits::FitRow {
+        target: target.into(),
+        n,
+        k,
+        n_se,
+        k_se,
+        nk_corr: corr,
+        status: polarid_core::FitStatus::Ok,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn nk_plane_draws_the_regions_that_decide_the_sets_with_the_answers() {
+    use polarid_core::classify::{Classifier, ClassifierConfig, Cov2};
+    use polarid_pipeline::classify::{classification_row, estimate_of};
+    let protos = vec![
+        library_proto("gold", 0.2, 3.3, None),
+        library_proto("copper", 0.25, 3.4, None),
+        library_proto("silver", 0.05, 4.3, None),
+    ];
+    let clf = Classifier::new(protos.clone(), ClassifierConfig::set(0.95)).unwrap();
+    let fits = [
+        fit_row("t1", 0.22, 3.35, 0.05, 0.1, 0.2),
+        fit_row("t2", 1.5, 1.0, 0.05, 0.1, 0.0),
+        fit_row("t3", 0.06, 4.25, 0.04, 0.1, -0.3),
+    ];
+    let rows: Vec<_> = fits
+        .iter()
+        .map(|f| classification_row(f, &clf.classify(&estimate_of(f)), &clf))
+        .collect();
+    let ests: Vec<NkEstimate> = fits
+        .iter()
+        .map(|f| NkEstimate::from_fit(f.target.clone(), f, &rows, Some(&clf)))
+        .collect();
+    assert_eq!(ests[0].answer.as_deref(), Some("ambiguous: gold, copper"));
+    assert_eq!(ests[1].answer.as_deref(), Some("unknown (none at 95%)"));
+    assert_eq!(ests[2].answer.as_deref(), Some("silver"));
+    let threshold = polarid_core::classify::chi2_2dof_quantile(0.95).sqrt();
+    for (e, f) in ests.iter().zip(&fits) {
+        // A library: one region, the estimate's own covariance.
+        assert_eq!(e.regions.len(), 1, "{}", e.label);
+        let r = &e.regions[0];
+        assert_eq!(r.with_prototype, None);
+        assert_eq!(r.confidence, 0.95);
+        // Every drawn point is on the contour of the set distance (no k = 0 cut here).
+        let est = estimate_of(f);
+        for &(n, k) in &r.boundary {
+            let d = Classifier::set_distance(&est, &library_proto("x", n, k, None)).unwrap();
+            assert!((d - threshold).abs() < 1e-8, "{}: {d}", e.label);
+        }
+    }
+    let plot_protos: Vec<Prototype> = protos
+        .iter()
+        .map(|p| Prototype {
+            class: p.class.clone(),
+            n: p.n,
+            k: p.k,
+        })
+        .collect();
+    let size = PlotSize::REPORT;
+    let r = nk_plane("sets", &plot_protos, &ests, size).unwrap();
+    assert_outputs(
+        &r,
+        size,
+        &[
+            "Estimates: answer (95% region)",
+            "t1: ambiguous: gold, copper",
+            "t2: unknown (none at 95%)",
+            "t3: silver",
+            "region (its own Σ)",
+        ],
+    );
+    // Prototypes with a covariance (a trained model): one region per covariance, dashed.
+    let cov = Cov2::from_se(0.03, 0.05, 0.1);
+    let model: Vec<_> = protos
+        .iter()
+        .map(|p| library_proto(&p.class, p.n, p.k, cov))
+        .collect();
+    let clf = Classifier::new(model, ClassifierConfig::default()).unwrap();
+    let rows: Vec<_> = fits
+        .iter()
+        .map(|f| classification_row(f, &clf.classify(&estimate_of(f)), &clf))
+        .collect();
+    let e = NkEstimate::from_fit("t1".into(), &fits[0], &rows, Some(&clf));
+    // Nearest rule: the answer, then the set that differs from it.
+    assert_eq!(e.answer.as_deref(), Some("gold; 95% set: gold, copper"));
+    assert_eq!(e.regions.len(), 1, "all three share one covariance");
+    assert_eq!(
+        e.regions[0].with_prototype.as_deref(),
+        Some(
+            &[
+                "gold".to_string(),
+                "copper".to_string(),
+                "silver".to_string()
+            ][..]
+        )
+    );
+    let r = nk_plane("model", &plot_protos, &[e], size).unwrap();
+    assert_outputs(&r, size, &["region with gold, copper"]);
+    assert!(r.svg.contains("stroke-dasharray") || r.svg.matches("<polyline").count() > 20);
 }

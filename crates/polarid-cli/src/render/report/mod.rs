@@ -107,6 +107,14 @@ pub struct ClassificationRow {
     pub runner_up_distance: Option<f64>,
     /// `ok` or why the result should not be trusted.
     pub status: String,
+    /// The consistent set (every material the estimate cannot be told apart from at
+    /// `confidence`), best first; `None` when it was not tested.
+    pub candidates: Option<Vec<String>>,
+    /// The set's confidence, e.g. 0.95.
+    pub confidence: Option<f64>,
+    /// The confidence region(s) that decide the set, as text
+    /// (`polarid_pipeline::classify::regions_text`).
+    pub region: Option<String>,
 }
 
 impl ClassificationRow {
@@ -255,8 +263,16 @@ const CONVENTIONS: &[(&str, &str, &str)] = &[
         "Classification",
         "Nearest neighbour with the Euclidean distance in the (n, k) plane (§ 6): a test \
          estimate takes the class of the nearest prototype. The margin is the runner-up \
-         distance minus the distance (the nearest prototype of another class).",
-        "",
+         distance minus the distance (the nearest prototype of another class). The \
+         consistent set at confidence p holds every material whose Mahalanobis distance \
+         d_M (the estimate's covariance plus the prototype's, from the fit's standard \
+         errors with the systematic error model) is within the χ²₂ quantile: one → that \
+         material, several → ambiguous, none → unknown. The confidence region is where \
+         that test passes: an ellipse in (n, k), or in (n, u = k²) near k = 0 where the \
+         DoLP depends on k only through k² (drawn in the (n, k) plane, cut at k = 0); \
+         with a prototype's own covariance the region is wider for that prototype \
+         (dashed in the plot).",
+        "d_M² = Δᵀ (Σ_est + Σ_proto)⁻¹ Δ ≤ χ²₂(p) = −2 ln(1 − p)     (p = 0.95: d_M ≤ 2.448)",
     ),
     (
         "Exit statuses",
@@ -380,7 +396,9 @@ impl Report {
         out.push((
             "classification",
             t(
-                "Nearest-neighbour classification in (n, k).",
+                "Nearest-neighbour classification in (n, k), and the consistent set: every \
+                 material inside the estimate's confidence region (Mahalanobis distance with \
+                 the estimate's and the prototype's covariance within the χ²₂ quantile).",
                 &[
                     "Target",
                     "Known class",
@@ -391,6 +409,8 @@ impl Report {
                     "Margin",
                     "Correct",
                     "Status",
+                    "Consistent set",
+                    "Confidence region",
                 ],
                 self.classification
                     .iter()
@@ -410,6 +430,21 @@ impl Report {
                             opt_num(c.margin(), 3),
                             correct.to_string(),
                             c.status.clone(),
+                            match (&c.candidates, c.confidence) {
+                                (Some(v), p) => {
+                                    let set = if v.is_empty() {
+                                        "none".to_string()
+                                    } else {
+                                        v.join(", ")
+                                    };
+                                    match p {
+                                        Some(p) => format!("{set} (at {}%)", p * 100.0),
+                                        None => set,
+                                    }
+                                }
+                                (None, _) => "—".to_string(),
+                            },
+                            opt_str(&c.region),
                         ]
                     })
                     .collect(),

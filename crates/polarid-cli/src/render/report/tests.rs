@@ -81,6 +81,8 @@ pub(crate) fn sample_report(evil: bool) -> (Report, Vec<(String, crate::render::
             k_se: 0.35,
             corr: 0.7,
             predicted: Some("aluminum".into()),
+            answer: None,
+            regions: Vec::new(),
         })
         .collect();
     let nk = plots::nk_plane("Test estimates in the (n, k) plane", &protos, &ests, size).unwrap();
@@ -166,6 +168,7 @@ pub(crate) fn sample_report(evil: bool) -> (Report, Vec<(String, crate::render::
                 runner_up: Some("copper".into()),
                 runner_up_distance: Some(1.27),
                 status: "ok".into(),
+                ..Default::default()
             })
             .collect(),
         tables: vec![],
