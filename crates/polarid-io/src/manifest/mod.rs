@@ -183,7 +183,7 @@ impl CaptureSource {
 
 /// Read and validate a manifest file.
 pub fn load(path: &Path) -> Result<Manifest> {
-    let text = std::fs::read_to_string(path).map_err(|e| IoError::io(path, e))?;
+    let text = crate::limits::read_text(path)?;
     parse(path, &text)
 }
 
