@@ -131,6 +131,13 @@ fn main() -> ExitCode {
         Command::Simulate(a) => cmd::simulate::run(a, &ctx),
         Command::Demo(a) => cmd::demo::run(a, &ctx),
     };
+    if polarid_io::atomic::terminating() {
+        // A signal arrived: its handler is removing the staging (this thread may have
+        // failed because of it); finish the cleaning here and exit as the handler would.
+        polarid_io::atomic::remove_registered();
+        eprintln!("polarid: interrupted; partial outputs removed");
+        std::process::exit(INTERRUPTED);
+    }
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

@@ -886,7 +886,7 @@ fn manifest_values_out_of_physical_range_are_refused_naming_the_field() {
         .current_dir(p)
         .output()
         .unwrap();
-    bad(&o, &["polarizer angle", "1e308"]);
+    bad(&o, &["--angles", "polarizer angle", "1e308"]);
     // A good manifest still measures.
     let m = manifest_with(p, "", "exposure = 0.001", "120.0");
     ok(&run(p, &["measure", &m, "-o", "meas.csv"]));
@@ -900,7 +900,9 @@ fn scene_arrays_past_the_position_limit_are_refused() {
         .map(|i| format!("{}", 10.0 + (i % 70) as f64))
         .collect();
     let scene = format!(
-        "theta_r_deg = 45.0\ntheta_i_deg = [{}]\nwavelength_nm = 650.0\n\n[[plate]]\nname = \"al\"\nmaterial = \"aluminum\"\n",
+        "width = 32\nheight = 32\ntheta_r_deg = 45.0\ntheta_i_deg = [{}]\nwavelength_nm = 650.0\n\n\
+         [[plate]]\nname = \"al\"\nclass = \"aluminum\"\nn = 1.2\nk = 6.6\nsigma = 0.3\n\
+         rect = [0, 0, 32, 32]\n",
         list.join(", ")
     );
     fs::write(p.join("s.toml"), scene).unwrap();

@@ -160,6 +160,12 @@ pub fn remove_registered() -> usize {
     n
 }
 
+/// True once [`remove_registered`] was called (a signal is being handled): the caller
+/// should exit with the signal's status rather than report its own error.
+pub fn terminating() -> bool {
+    TERMINATING.load(std::sync::atomic::Ordering::SeqCst)
+}
+
 fn check_not_terminating(path: &Path) -> Result<()> {
     if TERMINATING.load(std::sync::atomic::Ordering::SeqCst) {
         return Err(IoError::io(

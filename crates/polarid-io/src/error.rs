@@ -175,7 +175,15 @@ pub fn is_bad_path(e: &std::io::Error) -> bool {
     ) {
         return true;
     }
-    // ELOOP (symbolic-link loop) and ENAMETOOLONG have no stable kind of their own.
+    // ELOOP (symbolic-link loop) has no stable kind to match; errors wrapped by other
+    // crates (tempfile) keep the kind but lose the OS code.
+    if matches!(
+        format!("{:?}", e.kind()).as_str(),
+        "FilesystemLoop" | "NotADirectory" | "InvalidFilename"
+    ) {
+        return true;
+    }
+    // ELOOP and ENAMETOOLONG by their OS codes.
     #[cfg(target_os = "linux")]
     const BAD: [i32; 3] = [40, 36, 20]; // ELOOP, ENAMETOOLONG, ENOTDIR
     #[cfg(all(unix, not(target_os = "linux")))]

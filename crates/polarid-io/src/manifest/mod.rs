@@ -731,7 +731,7 @@ impl<'a> Parser<'a> {
                     let fpre = format!("{pre}frames[{}].", j + 1);
                     let ft = self.table(it, &format!("{pre}frames[{}]", j + 1))?;
                     self.warn_unknown(ft, &["angle_deg", "file"], &fpre);
-                    let (angle_deg, _) =
+                    let (angle_deg, aspan) =
                         self.opt_num(ft, "angle_deg", &fpre)?.ok_or_else(|| {
                             self.err(
                                 &it.span(),
@@ -739,6 +739,13 @@ impl<'a> Parser<'a> {
                                 "missing polarizer angle",
                             )
                         })?;
+                    if !(angle_deg.abs() <= 360.0) {
+                        return Err(self.err(
+                            &aspan,
+                            &format!("{fpre}angle_deg"),
+                            "polarizer angle must be in [-360, 360] degrees",
+                        ));
+                    }
                     let file_v = self.get(ft, "file").ok_or_else(|| {
                         self.err(&it.span(), &format!("{fpre}file"), "missing file")
                     })?;
