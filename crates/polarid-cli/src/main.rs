@@ -24,6 +24,11 @@ struct Cli {
     /// No progress bars or informational messages on standard error.
     #[arg(long, short, global = true)]
     quiet: bool,
+    /// Memory budget of the run, e.g. 8G or 512M (default 4G, or the environment
+    /// variable POLARID_MEMORY_LIMIT): larger frames and inputs are refused before they
+    /// are read (docs/RELIABILITY.md).
+    #[arg(long, global = true, value_name = "SIZE", value_parser = parse_memory_limit)]
+    memory_limit: Option<u64>,
     #[command(subcommand)]
     command: Command,
 }
@@ -54,7 +59,40 @@ enum Command {
     Demo(cmd::demo::Args),
 }
 
+fn parse_memory_limit(s: &str) -> Result<u64, String> {
+    polarid_io::limits::parse_size(s)
+}
+
+/// Exit status after SIGINT, SIGTERM or SIGHUP (the shell's 128 + SIGINT).
+const INTERRUPTED: i32 = 130;
+
+/// Remove the run's staging directories and temporary files on SIGINT, SIGTERM and
+/// SIGHUP, then exit with status 130 (docs/RELIABILITY.md).
+fn install_signal_handler() {
+    let _ = ctrlc::set_handler(|| {
+        polarid_io::atomic::remove_registered();
+        eprintln!("polarid: interrupted; partial outputs removed");
+        std::process::exit(INTERRUPTED);
+    });
+}
+
+/// Bytes a command keeps per pixel of an input frame besides the frame (for the memory
+/// budget, `polarid_io::limits::work_per_pixel`).
+fn work_per_pixel(c: &Command) -> u64 {
+    match c {
+        // S0, S1, S2, DoLP, AoLP (f32), a mask, two RGB views.
+        Command::Stokes(_) => 5 * 4 + 1 + 2 * 3,
+        // S0, S1, S2 (f32) and a mask per capture, then per output pixel the DoLP of
+        // every capture and the maps (n, k, errors, classes): 16 f32 planes in all.
+        Command::Map(_) => 16 * 4,
+        // Stokes planes and masks of a capture, per-region statistics.
+        Command::Measure(_) | Command::Demo(_) | Command::Simulate(_) => 4 * 4,
+        _ => 0,
+    }
+}
+
 fn main() -> ExitCode {
+    install_signal_handler();
     let cli = match Cli::try_parse() {
         Ok(c) => c,
         Err(e) => {
@@ -62,6 +100,23 @@ fn main() -> ExitCode {
             e.exit();
         }
     };
+    let env_limit = std::env::var(polarid_io::limits::MEMORY_LIMIT_ENV).ok();
+    let limit = match (cli.memory_limit, env_limit) {
+        (Some(b), _) => b,
+        (None, Some(v)) => match polarid_io::limits::parse_size(&v) {
+            Ok(b) => b,
+            Err(e) => {
+                eprintln!(
+                    "polarid: error: {}: {e}",
+                    polarid_io::limits::MEMORY_LIMIT_ENV
+                );
+                return ExitCode::from(2);
+            }
+        },
+        (None, None) => polarid_io::limits::DEFAULT_MEMORY_LIMIT,
+    };
+    polarid_io::limits::set_memory_limit(limit);
+    polarid_io::limits::set_work_per_pixel(work_per_pixel(&cli.command));
     let ctx = Ctx::new(cli.force, cli.quiet);
     let result = match cli.command {
         Command::Model(a) => cmd::model::run(a, &ctx),
@@ -76,6 +131,13 @@ fn main() -> ExitCode {
         Command::Simulate(a) => cmd::simulate::run(a, &ctx),
         Command::Demo(a) => cmd::demo::run(a, &ctx),
     };
+    if polarid_io::atomic::terminating() {
+        // A signal arrived: its handler is removing the staging (this thread may have
+        // failed because of it); finish the cleaning here and exit as the handler would.
+        polarid_io::atomic::remove_registered();
+        eprintln!("polarid: interrupted; partial outputs removed");
+        std::process::exit(INTERRUPTED);
+    }
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

@@ -2,6 +2,25 @@
 //! renamed into place only when complete, so a failed command leaves no partial output.
 //! Existing outputs are kept unless the caller passes `force`; inputs are never
 //! overwritten.
+//!
+//! Output directories ([`StagedDir`]) are built in a hidden staging directory
+//! `.polarid-staging-<pid>-<random>` beside the destination and published in one step
+//! (`docs/RELIABILITY.md`):
+//!
+//! - a new directory by one `rename` that refuses to replace anything (Linux
+//!   `renameat2(RENAME_NOREPLACE)`): of two runs writing the same new directory exactly
+//!   one wins, the other fails ([`IoError::Concurrent`], exit status 2);
+//! - over an existing directory, the files of the old one that the run does not write
+//!   are hard-linked into the staging directory, which is then exchanged with the old
+//!   one in one step (`renameat2(RENAME_EXCHANGE)`); the old one is removed after. A
+//!   run that finds the directory was replaced by another run meanwhile swaps back and
+//!   fails. Where the exchange is not possible (other systems, the current directory),
+//!   files are moved in one by one as before.
+//!
+//! Live staging directories and temporary files are registered so that a signal handler
+//! can remove them ([`remove_registered`]); staging left by a run that was killed
+//! (`kill -9`, power loss) is removed by the next run writing beside it once its
+//! process is gone ([`clean_stale`]).
 
 use std::fs;
 use std::io::{BufWriter, Write};
@@ -60,42 +79,238 @@ where
     F: FnOnce(&mut dyn Write) -> Result<()>,
 {
     check_output(path, force, &[])?;
+    check_not_terminating(path)?;
     let dir = parent_dir(path);
     let tmp = tempfile::Builder::new()
-        .prefix(".polarid-tmp-")
+        .prefix(&format!(".polarid-tmp-{}-", std::process::id()))
         .tempfile_in(&dir)
         .map_err(|e| IoError::io(&dir, e))?;
-    set_default_mode(tmp.path());
-    {
-        let mut w = BufWriter::new(tmp.as_file());
-        write(&mut w)?;
-        w.flush().map_err(|e| IoError::io(path, e))?;
+    let tmp_path = tmp.path().to_path_buf();
+    register(&tmp_path);
+    let result = (|| {
+        set_default_mode(tmp.path());
+        {
+            let mut w = BufWriter::new(tmp.as_file());
+            write(&mut w)?;
+            w.flush().map_err(|e| IoError::io(path, e))?;
+        }
+        if force {
+            tmp.persist(path).map_err(|e| IoError::io(path, e.error))?;
+        } else {
+            tmp.persist_noclobber(path)
+                .map_err(|e| IoError::io(path, e.error))?;
+        }
+        Ok(())
+    })();
+    unregister(&tmp_path);
+    result
+}
+
+/// Prefix of every hidden entry polarid creates beside its outputs.
+const PREFIXES: [&str; 2] = [".polarid-staging-", ".polarid-tmp-"];
+
+/// Paths of the live staging directories and temporary files of this process.
+static REGISTRY: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+/// Set once a signal handler started cleaning up: no new staging is created.
+static TERMINATING: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+fn register(p: &Path) {
+    if let Ok(mut r) = REGISTRY.lock() {
+        r.push(p.to_path_buf());
     }
-    if force {
-        tmp.persist(path).map_err(|e| IoError::io(path, e.error))?;
-    } else {
-        tmp.persist_noclobber(path)
-            .map_err(|e| IoError::io(path, e.error))?;
+}
+
+fn unregister(p: &Path) {
+    if let Ok(mut r) = REGISTRY.lock()
+        && let Some(i) = r.iter().position(|x| x == p)
+    {
+        r.swap_remove(i);
+    }
+}
+
+/// Remove every live staging directory and temporary file of this process (for a
+/// signal handler, before it exits); later attempts to stage fail. Returns how many
+/// were removed.
+pub fn remove_registered() -> usize {
+    TERMINATING.store(true, std::sync::atomic::Ordering::SeqCst);
+    let paths: Vec<PathBuf> = match REGISTRY.lock() {
+        Ok(r) => r.clone(),
+        Err(p) => p.into_inner().clone(),
+    };
+    let mut n = 0;
+    for p in paths {
+        // Another thread may still be adding files: retry a few times.
+        for _ in 0..20 {
+            let r = if p.is_dir() {
+                fs::remove_dir_all(&p)
+            } else {
+                fs::remove_file(&p)
+            };
+            match r {
+                Ok(()) => {
+                    n += 1;
+                    break;
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => break,
+                Err(_) => std::thread::sleep(std::time::Duration::from_millis(5)),
+            }
+        }
+    }
+    n
+}
+
+/// True once [`remove_registered`] was called (a signal is being handled): the caller
+/// should exit with the signal's status rather than report its own error.
+pub fn terminating() -> bool {
+    TERMINATING.load(std::sync::atomic::Ordering::SeqCst)
+}
+
+fn check_not_terminating(path: &Path) -> Result<()> {
+    if TERMINATING.load(std::sync::atomic::Ordering::SeqCst) {
+        return Err(IoError::io(
+            path,
+            std::io::Error::new(std::io::ErrorKind::Interrupted, "interrupted"),
+        ));
     }
     Ok(())
 }
 
+/// The process id in a hidden polarid entry's name (`.polarid-staging-<pid>-...`).
+fn owner_pid(name: &str) -> Option<u32> {
+    let rest = PREFIXES.iter().find_map(|p| name.strip_prefix(p))?;
+    rest.split('-').next()?.parse().ok()
+}
+
+/// True when process `pid` may still be running (always true where this cannot be
+/// told).
+fn pid_alive(pid: u32) -> bool {
+    #[cfg(target_os = "linux")]
+    {
+        Path::new("/proc").join(pid.to_string()).exists() || !Path::new("/proc/self").exists()
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        let _ = pid;
+        true
+    }
+}
+
+/// Remove the staging directories and temporary files that polarid runs left in `dir`
+/// when they were killed: only entries named `.polarid-staging-<pid>-*` or
+/// `.polarid-tmp-<pid>-*` whose process `<pid>` no longer runs (never this process's).
+/// Returns the paths removed. Errors are ignored (another run may be cleaning too).
+pub fn clean_stale(dir: &Path) -> Vec<PathBuf> {
+    let mut removed = Vec::new();
+    let Ok(entries) = fs::read_dir(dir) else {
+        return removed;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name();
+        let Some(pid) = name.to_str().and_then(owner_pid) else {
+            continue;
+        };
+        if pid == std::process::id() || pid_alive(pid) {
+            continue;
+        }
+        let p = e.path();
+        let r = match e.file_type() {
+            Ok(t) if t.is_dir() => fs::remove_dir_all(&p),
+            Ok(_) => fs::remove_file(&p),
+            Err(err) => Err(err),
+        };
+        if r.is_ok() {
+            removed.push(p);
+        }
+    }
+    removed
+}
+
+/// How [`rename2`] treats an existing destination.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum RenameMode {
+    /// Fail if the destination exists.
+    NoReplace,
+    /// Swap the two paths atomically (both must exist).
+    Exchange,
+}
+
+/// `rename` with `RENAME_NOREPLACE` / `RENAME_EXCHANGE`; `Ok(false)` when the system
+/// cannot do it (then the caller falls back).
+fn rename2(from: &Path, to: &Path, mode: RenameMode) -> std::io::Result<bool> {
+    #[cfg(target_os = "linux")]
+    {
+        use std::ffi::CString;
+        use std::os::unix::ffi::OsStrExt;
+        let cstr = |p: &Path| {
+            CString::new(p.as_os_str().as_bytes())
+                .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidInput, e))
+        };
+        let (a, b) = (cstr(from)?, cstr(to)?);
+        let flags: libc::c_uint = match mode {
+            RenameMode::NoReplace => 1, // RENAME_NOREPLACE
+            RenameMode::Exchange => 2,  // RENAME_EXCHANGE
+        };
+        // SAFETY: both are valid NUL-terminated paths that live across the call;
+        // renameat2 only reads them.
+        let r = unsafe {
+            libc::syscall(
+                libc::SYS_renameat2,
+                libc::AT_FDCWD,
+                a.as_ptr(),
+                libc::AT_FDCWD,
+                b.as_ptr(),
+                flags,
+            )
+        };
+        if r == 0 {
+            return Ok(true);
+        }
+        let e = std::io::Error::last_os_error();
+        match e.raw_os_error() {
+            Some(libc::ENOSYS | libc::EINVAL) => Ok(false),
+            _ => Err(e),
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        let _ = (from, to, mode);
+        Ok(false)
+    }
+}
+
+/// Identity of an existing directory (device and inode), to notice it was replaced.
+fn identity(path: &Path) -> Option<(u64, u64)> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        fs::symlink_metadata(path).ok().map(|m| (m.dev(), m.ino()))
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = path;
+        None
+    }
+}
+
 /// A staging directory for commands that write several files into an output directory.
 ///
-/// Files are created inside a hidden temporary directory next to the destination;
-/// [`StagedDir::commit`] moves them into the destination (created if needed). Dropping
+/// Files are created inside a hidden staging directory next to the destination;
+/// [`StagedDir::commit`] publishes them in one step (module documentation). Dropping
 /// a `StagedDir` without committing removes everything it holds.
 #[derive(Debug)]
 pub struct StagedDir {
     dest: PathBuf,
-    tmp: tempfile::TempDir,
+    tmp: Option<tempfile::TempDir>,
     force: bool,
+    /// Identity of `dest` when staging started (`None`: it did not exist).
+    dest_id: Option<(u64, u64)>,
 }
 
 impl StagedDir {
     /// Prepare to write into `dest`, which must be a directory or not exist yet (an
     /// existing file of that name is an error, even with `force`: it is not replaced by
-    /// a directory).
+    /// a directory). Stale staging of killed runs beside `dest` is removed first.
     pub fn new(dest: &Path, force: bool) -> Result<Self> {
         if dest.exists() && !dest.is_dir() {
             return Err(IoError::io(
@@ -106,23 +321,33 @@ impl StagedDir {
                 ),
             ));
         }
+        check_not_terminating(dest)?;
         let parent = parent_dir(dest);
         fs::create_dir_all(&parent).map_err(|e| IoError::io(&parent, e))?;
+        clean_stale(&parent);
         let tmp = tempfile::Builder::new()
-            .prefix(".polarid-staging-")
+            .prefix(&format!(".polarid-staging-{}-", std::process::id()))
             .tempdir_in(&parent)
             .map_err(|e| IoError::io(&parent, e))?;
+        register(tmp.path());
         Ok(Self {
             dest: dest.to_path_buf(),
-            tmp,
+            tmp: Some(tmp),
             force,
+            dest_id: identity(dest).filter(|_| dest.is_dir()),
         })
+    }
+
+    fn root(&self) -> &Path {
+        // ok: `tmp` is only taken by `commit`, which consumes `self`.
+        self.tmp.as_ref().map_or(Path::new(""), |t| t.path())
     }
 
     /// Path at which to write the staged file `name` (a relative path; sub-directories
     /// are created).
     pub fn path(&self, name: &str) -> Result<PathBuf> {
-        let p = self.tmp.path().join(name);
+        check_not_terminating(&self.dest)?;
+        let p = self.root().join(name);
         if let Some(parent) = p.parent() {
             fs::create_dir_all(parent).map_err(|e| IoError::io(parent, e))?;
         }
@@ -134,12 +359,14 @@ impl StagedDir {
         self.dest.join(name)
     }
 
-    /// Move every staged file into the destination. Fails before moving anything if a
-    /// destination file exists and `force` was not given, or if a destination is a
-    /// directory (which a file cannot replace).
-    pub fn commit(self) -> Result<Vec<PathBuf>> {
+    /// Publish the staged files (module documentation) and return their final paths.
+    /// Fails before publishing anything if a destination file exists and `force` was
+    /// not given, if a destination is a directory (which a file cannot replace), or if
+    /// another run published the same directory meanwhile ([`IoError::Concurrent`]).
+    pub fn commit(mut self) -> Result<Vec<PathBuf>> {
+        let root = self.root().to_path_buf();
         let mut files = Vec::new();
-        collect_files(self.tmp.path(), Path::new(""), &mut files)?;
+        collect_files(&root, Path::new(""), &mut files)?;
         for rel in &files {
             let d = self.dest.join(rel);
             if d.is_dir() {
@@ -155,18 +382,137 @@ impl StagedDir {
                 return Err(IoError::OutputExists { path: d });
             }
         }
-        let mut out = Vec::with_capacity(files.len());
-        for rel in files {
-            let from = self.tmp.path().join(&rel);
-            let to = self.dest.join(&rel);
-            if let Some(parent) = to.parent() {
-                fs::create_dir_all(parent).map_err(|e| IoError::io(parent, e))?;
+        let out: Vec<PathBuf> = files.iter().map(|r| self.dest.join(r)).collect();
+        check_not_terminating(&self.dest)?;
+        if !self.dest.exists() {
+            if self.dest_id.is_some() {
+                return Err(self.concurrent());
             }
-            fs::rename(&from, &to).map_err(|e| IoError::io(&to, e))?;
-            out.push(to);
+            match rename2(&root, &self.dest, RenameMode::NoReplace) {
+                Ok(true) => {
+                    self.published(&root);
+                    return Ok(out);
+                }
+                Ok(false) => {}
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                    return Err(self.concurrent());
+                }
+                Err(e) => return Err(IoError::io(&self.dest, e)),
+            }
+            // No RENAME_NOREPLACE: a plain rename (an empty directory made meanwhile
+            // would be replaced; a non-empty one makes it fail).
+            if !self.dest.exists() {
+                match fs::rename(&root, &self.dest) {
+                    Ok(()) => {
+                        self.published(&root);
+                        return Ok(out);
+                    }
+                    Err(_) if self.dest.exists() => return Err(self.concurrent()),
+                    Err(e) => return Err(IoError::io(&self.dest, e)),
+                }
+            }
         }
-        Ok(out)
+        if self.dest_id.is_none() || identity(&self.dest) != self.dest_id {
+            return Err(self.concurrent());
+        }
+        let is_link = fs::symlink_metadata(&self.dest).is_ok_and(|m| m.file_type().is_symlink());
+        // An existing directory: keep what the run does not replace, then swap (a
+        // symbolic link to a directory is written through, file by file).
+        let swapped = if is_link {
+            Ok(false)
+        } else {
+            link_missing(&self.dest, &root, Path::new(""))?;
+            rename2(&root, &self.dest, RenameMode::Exchange)
+        };
+        match swapped {
+            Ok(true) => {
+                // `root` now holds the old directory; was it the one we started from?
+                if identity(&root) != self.dest_id {
+                    let _ = rename2(&root, &self.dest, RenameMode::Exchange);
+                    return Err(self.concurrent());
+                }
+                let _ = fs::remove_dir_all(&root);
+                self.published(&root);
+                Ok(out)
+            }
+            Ok(false) | Err(_) => {
+                // Fall back to moving the files one by one.
+                for (rel, to) in files.iter().zip(&out) {
+                    if let Some(parent) = to.parent() {
+                        fs::create_dir_all(parent).map_err(|e| IoError::io(parent, e))?;
+                    }
+                    fs::rename(root.join(rel), to).map_err(|e| IoError::io(to, e))?;
+                }
+                Ok(out)
+            }
+        }
     }
+
+    /// The staging directory `root` was renamed away: forget it.
+    fn published(&mut self, root: &Path) {
+        unregister(root);
+        if let Some(t) = self.tmp.take() {
+            // The directory is gone from its staging path (or removed): do not delete.
+            let _ = t.keep();
+        }
+    }
+
+    fn concurrent(&self) -> IoError {
+        IoError::Concurrent {
+            path: self.dest.clone(),
+        }
+    }
+}
+
+impl Drop for StagedDir {
+    fn drop(&mut self) {
+        if let Some(t) = self.tmp.take() {
+            unregister(t.path());
+            // TempDir's own drop removes the directory.
+        }
+    }
+}
+
+/// Hard-link (or, for symbolic links, re-create) every entry of `old/rel` that
+/// `new/rel` lacks, recursively: the new directory then holds the old one's other
+/// files. polarid's own hidden entries are skipped.
+fn link_missing(old: &Path, new: &Path, rel: &Path) -> Result<()> {
+    let dir = old.join(rel);
+    let entries = fs::read_dir(&dir).map_err(|e| IoError::io(&dir, e))?;
+    for e in entries {
+        let e = e.map_err(|err| IoError::io(&dir, err))?;
+        let name = e.file_name();
+        if name.to_str().is_some_and(|n| owner_pid(n).is_some()) {
+            continue;
+        }
+        let r = rel.join(&name);
+        let (from, to) = (old.join(&r), new.join(&r));
+        let ft = e.file_type().map_err(|err| IoError::io(&from, err))?;
+        if ft.is_dir() {
+            if to.exists() && !to.is_dir() {
+                return Err(IoError::io(
+                    &from,
+                    std::io::Error::new(
+                        std::io::ErrorKind::InvalidInput,
+                        "is a directory; cannot write an output file there",
+                    ),
+                ));
+            }
+            fs::create_dir_all(&to).map_err(|err| IoError::io(&to, err))?;
+            link_missing(old, new, &r)?;
+        } else if fs::symlink_metadata(&to).is_err() {
+            #[cfg(unix)]
+            if ft.is_symlink() {
+                let target = fs::read_link(&from).map_err(|err| IoError::io(&from, err))?;
+                std::os::unix::fs::symlink(target, &to).map_err(|err| IoError::io(&to, err))?;
+                continue;
+            }
+            fs::hard_link(&from, &to)
+                .or_else(|_| fs::copy(&from, &to).map(|_| ()))
+                .map_err(|err| IoError::io(&to, err))?;
+        }
+    }
+    Ok(())
 }
 
 fn collect_files(root: &Path, rel: &Path, out: &mut Vec<PathBuf>) -> Result<()> {

@@ -89,6 +89,41 @@ pub enum IoError {
         /// The file.
         path: PathBuf,
     },
+    /// Another run published the same output directory while this one was writing it:
+    /// exactly one of them wins.
+    #[error(
+        "{path}: another polarid run wrote this output directory at the same time; \
+             this run's output was not published"
+    )]
+    Concurrent {
+        /// The output directory.
+        path: PathBuf,
+    },
+    /// An input or a piece of work over the memory budget
+    /// ([`crate::limits::memory_limit`]), or a decompression bomb: refused before
+    /// anything is allocated.
+    #[error(
+        "{path}: {what}, more than the memory limit of {} (raise it with --memory-limit \
+         or POLARID_MEMORY_LIMIT)",
+        crate::limits::human(*limit)
+    )]
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// What would need the memory, and how much.
+        what: String,
+        /// The budget in force, in bytes.
+        limit: u64,
+    },
+    /// An input that is not a regular file (a device such as `/dev/zero`, a FIFO, a
+    /// socket or a directory).
+    #[error("{path}: is {kind}, not a regular file")]
+    NotRegular {
+        /// The file.
+        path: PathBuf,
+        /// What it is.
+        kind: &'static str,
+    },
     /// A core error, with the file it came from. The message names the file; the core
     /// error is the [`source`](StdError::source).
     #[error("{path}")]
@@ -105,14 +140,7 @@ impl IoError {
     /// failures of the machine (disk full, permission denied on an output: status 1).
     pub fn is_bad_input(&self) -> bool {
         match self {
-            IoError::Io { source, .. } => matches!(
-                source.kind(),
-                std::io::ErrorKind::NotFound
-                    | std::io::ErrorKind::InvalidData
-                    | std::io::ErrorKind::InvalidInput
-                    | std::io::ErrorKind::UnexpectedEof
-                    | std::io::ErrorKind::IsADirectory
-            ),
+            IoError::Io { source, .. } => is_bad_path(source),
             _ => true,
         }
     }
@@ -124,6 +152,45 @@ impl IoError {
             source,
         }
     }
+}
+
+/// True when an operating-system error is the fault of the path or data the user gave
+/// (exit status 2): a missing file or directory, a path through a file (`ENOTDIR`), a
+/// directory where a file is needed (`EISDIR`) or the reverse, a symbolic-link loop
+/// (`ELOOP`), a name too long, bad data. Permission, disk-full and device errors are
+/// the machine's (status 1).
+pub fn is_bad_path(e: &std::io::Error) -> bool {
+    use std::io::ErrorKind as K;
+    if matches!(
+        e.kind(),
+        K::NotFound
+            | K::InvalidData
+            | K::InvalidInput
+            | K::UnexpectedEof
+            | K::IsADirectory
+            | K::NotADirectory
+            | K::AlreadyExists
+            | K::DirectoryNotEmpty
+            | K::InvalidFilename
+    ) {
+        return true;
+    }
+    // ELOOP (symbolic-link loop) has no stable kind to match; errors wrapped by other
+    // crates (tempfile) keep the kind but lose the OS code.
+    if matches!(
+        format!("{:?}", e.kind()).as_str(),
+        "FilesystemLoop" | "NotADirectory" | "InvalidFilename"
+    ) {
+        return true;
+    }
+    // ELOOP and ENAMETOOLONG by their OS codes.
+    #[cfg(target_os = "linux")]
+    const BAD: [i32; 3] = [40, 36, 20]; // ELOOP, ENAMETOOLONG, ENOTDIR
+    #[cfg(all(unix, not(target_os = "linux")))]
+    const BAD: [i32; 3] = [62, 63, 20];
+    #[cfg(not(unix))]
+    const BAD: [i32; 0] = [];
+    e.raw_os_error().is_some_and(|c| BAD.contains(&c))
 }
 
 /// `err` and its chain of causes ([`source`](StdError::source)), joined by `": "`: the

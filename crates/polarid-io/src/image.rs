@@ -8,6 +8,12 @@
 //! and 16-bit integers), row-major, with the sample type so that callers know the
 //! type's maximum (the default saturation level).
 //!
+//! Reading is bounded ([`crate::limits`]): the file must be a regular file no larger
+//! than the memory budget, and before any pixel is decoded the frame's cost —
+//! `pixels × (stored bytes per sample + 4 × frames in flight + the command's bytes per
+//! pixel)` — must fit in the budget, and a compressed frame must not expand more than
+//! [`MAX_EXPANSION`](crate::limits::MAX_EXPANSION) times (decompression bombs).
+//!
 //! Writers are atomic ([`crate::atomic::write_atomic`]): the image is encoded in memory
 //! and renamed into place only when complete. Inside a [`crate::atomic::StagedDir`]
 //! pass the staged path.
@@ -17,6 +23,7 @@ use std::path::{Path, PathBuf};
 
 use crate::atomic::write_atomic;
 use crate::error::{IoError, Result};
+use crate::limits;
 
 /// The sample type of a frame as stored.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -93,10 +100,20 @@ fn image_err(path: &Path, reason: impl Into<String>) -> IoError {
 /// anything is allocated, so a corrupt or hostile file cannot exhaust memory.
 pub const MAX_PIXELS: u64 = 1 << 28;
 
-/// Read a grayscale PNG or TIFF frame.
+/// Read a grayscale PNG or TIFF frame (a regular file within the memory budget, see
+/// the module documentation).
 pub fn read_frame(path: &Path) -> Result<Frame> {
-    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
-    decode_frame(path, &bytes)
+    read_frame_in_flight(path, 1)
+}
+
+/// [`read_frame`] for one of `in_flight` frames that will be held in memory together.
+fn read_frame_in_flight(path: &Path, in_flight: u64) -> Result<Frame> {
+    let bytes = limits::read_capped(path, limits::memory_limit(), "image")?;
+    let lim = Limits {
+        max_pixels: MAX_PIXELS,
+        in_flight,
+    };
+    decode(path, &bytes, lim)
 }
 
 /// Decode a grayscale PNG or TIFF frame held in memory; `path` labels errors and is
@@ -109,14 +126,68 @@ pub fn decode_frame(path: &Path, bytes: &[u8]) -> Result<Frame> {
 /// [`decode_frame`] with a caller-chosen limit on the number of pixels (fuzzing uses a
 /// small one to keep each run fast).
 pub fn decode_frame_limited(path: &Path, bytes: &[u8], max_pixels: u64) -> Result<Frame> {
+    decode(
+        path,
+        bytes,
+        Limits {
+            max_pixels,
+            in_flight: 1,
+        },
+    )
+}
+
+/// What a decode may use.
+#[derive(Debug, Clone, Copy)]
+struct Limits {
+    /// Largest frame, in pixels.
+    max_pixels: u64,
+    /// Frames of this size held in memory together (the frames of one capture).
+    in_flight: u64,
+}
+
+impl Limits {
+    /// Error unless a `w × h` frame of `stored` bytes per sample, decoded from a file of
+    /// `file_len` bytes, fits the memory budget and is no decompression bomb.
+    fn check(self, path: &Path, w: u32, h: u32, stored: u64, file_len: u64) -> Result<()> {
+        let px = u64::from(w) * u64::from(h);
+        let decoded = px.saturating_mul(stored);
+        if decoded > limits::EXPANSION_FLOOR && decoded / file_len.max(1) > limits::MAX_EXPANSION {
+            return Err(image_err(
+                path,
+                format!(
+                    "would decode {w}x{h} pixels ({}) from a {}-byte file, an expansion of \
+                     {}:1, more than the {}:1 of any real image: refused as a decompression \
+                     bomb",
+                    limits::human(decoded),
+                    file_len,
+                    decoded / file_len.max(1),
+                    limits::MAX_EXPANSION
+                ),
+            ));
+        }
+        let per_pixel = stored + 4 * self.in_flight + limits::work_per_pixel();
+        let frames = if self.in_flight > 1 {
+            format!(" ({} frames of it)", self.in_flight)
+        } else {
+            String::new()
+        };
+        limits::check_budget(
+            path,
+            &format!("decoding and processing this {w}x{h} frame{frames}"),
+            px.saturating_mul(per_pixel).saturating_add(file_len),
+        )
+    }
+}
+
+fn decode(path: &Path, bytes: &[u8], lim: Limits) -> Result<Frame> {
     if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
-        read_png(path, bytes, max_pixels)
+        read_png(path, bytes, lim)
     } else if bytes.starts_with(b"II*\0")
         || bytes.starts_with(b"MM\0*")
         || bytes.starts_with(b"II+\0")
         || bytes.starts_with(b"MM\0+")
     {
-        read_tiff(path, bytes, max_pixels)
+        read_tiff(path, bytes, lim)
     } else if bytes.is_empty() {
         Err(image_err(path, "is empty (expected a PNG or TIFF image)"))
     } else {
@@ -142,7 +213,8 @@ fn check_dims(path: &Path, w: u32, h: u32, max_pixels: u64) -> Result<()> {
     Ok(())
 }
 
-fn read_png(path: &Path, bytes: &[u8], max_pixels: u64) -> Result<Frame> {
+fn read_png(path: &Path, bytes: &[u8], lim: Limits) -> Result<Frame> {
+    let max_pixels = lim.max_pixels;
     let corrupt = |e: png::DecodingError| image_err(path, format!("truncated or corrupt PNG: {e}"));
     let mut dec = png::Decoder::new(Cursor::new(bytes));
     // The decoder's own limit (64 MiB by default) would refuse large 16-bit frames
@@ -189,6 +261,8 @@ fn read_png(path: &Path, bytes: &[u8], max_pixels: u64) -> Result<Frame> {
             ));
         }
     };
+    let stored = u64::from(kind.bit_depth() / 8);
+    lim.check(path, info.width, info.height, stored, bytes.len() as u64)?;
     let size = reader
         .output_buffer_size()
         .ok_or_else(|| image_err(path, "is too large to decode"))?;
@@ -221,7 +295,8 @@ fn read_png(path: &Path, bytes: &[u8], max_pixels: u64) -> Result<Frame> {
     })
 }
 
-fn read_tiff(path: &Path, bytes: &[u8], max_pixels: u64) -> Result<Frame> {
+fn read_tiff(path: &Path, bytes: &[u8], lim: Limits) -> Result<Frame> {
+    let max_pixels = lim.max_pixels;
     use tiff::decoder::{Decoder, DecodingResult};
     let corrupt = |e: tiff::TiffError| match e {
         tiff::TiffError::UnsupportedError(u) => {
@@ -243,7 +318,16 @@ fn read_tiff(path: &Path, bytes: &[u8], max_pixels: u64) -> Result<Frame> {
     check_dims(path, w, h, max_pixels)?;
     let (w, h) = (w as usize, h as usize);
     match dec.colortype().map_err(corrupt)? {
-        tiff::ColorType::Gray(8 | 16 | 32 | 64) => {}
+        tiff::ColorType::Gray(b @ (8 | 16 | 32 | 64)) => {
+            // ok: w, h were checked to fit in u32 by the decoder.
+            lim.check(
+                path,
+                w as u32,
+                h as u32,
+                u64::from(b / 8),
+                bytes.len() as u64,
+            )?;
+        }
         tiff::ColorType::Gray(b) => {
             return Err(image_err(
                 path,
@@ -312,10 +396,12 @@ fn read_tiff(path: &Path, bytes: &[u8], max_pixels: u64) -> Result<Frame> {
 /// Read several frames of one capture and check that they have the same size and sample
 /// type (the error names the first file that differs from the first frame, and both
 /// sizes or types).
+///
+/// The memory budget is checked for all the frames together.
 pub fn read_frames<P: AsRef<Path>>(paths: &[P]) -> Result<Vec<Frame>> {
     let mut out: Vec<Frame> = Vec::with_capacity(paths.len());
     for p in paths {
-        let f = read_frame(p.as_ref())?;
+        let f = read_frame_in_flight(p.as_ref(), paths.len() as u64)?;
         if let Some(first) = out.first() {
             check_same_size(first, &f)?;
             check_same_kind(first, &f)?;

@@ -9,6 +9,7 @@ pub mod atomic;
 pub mod error;
 pub mod image;
 pub mod library;
+pub mod limits;
 pub mod manifest;
 pub mod measure;
 pub mod model;

@@ -131,7 +131,7 @@ impl Library {
         let c_ref = t.col("reference");
         let mut materials = Vec::with_capacity(t.rows.len());
         for r in 0..t.rows.len() {
-            let name = t.text(r, c_name).to_string();
+            let name = t.name(r, c_name)?;
             if let Err(e) = check_class_name(&name) {
                 return Err(t.err(r, c_name, e.to_string()));
             }
@@ -349,7 +349,7 @@ fn scalar_text(y: &Yaml) -> Option<String> {
 impl RiiData {
     /// Read a refractiveindex.info YAML file.
     pub fn read(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| IoError::io(path, e))?;
+        let text = crate::limits::read_text(path)?;
         Self::parse(path, &text)
     }
 

@@ -88,7 +88,7 @@ impl Model {
 
     /// Read and check a model file.
     pub fn read(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| IoError::io(path, e))?;
+        let text = crate::limits::read_text(path)?;
         Self::parse(path, &text)
     }
 

@@ -202,7 +202,8 @@ fn write_outputs(args: &Args, r: &MapResult, ctx: &Ctx) -> anyhow::Result<()> {
     let mut summary = r.summary_json();
     summary["manifest"] = serde_json::json!(args.manifest.display().to_string());
     summary["model"] = serde_json::json!(args.model.display().to_string());
-    summary["seconds"] = serde_json::json!({"dolp": r.seconds_dolp, "fit_classify": r.seconds_fit});
+    // No wall-clock time in the file (identical runs give identical files): the
+    // timings are printed on standard error.
     std::fs::write(
         staged.path("map_summary.json")?,
         serde_json::to_string_pretty(&summary)? + "\n",

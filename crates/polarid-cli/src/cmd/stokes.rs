@@ -139,6 +139,12 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
                 ))
                 .into());
             }
+            if let Some(a) = args.angles.iter().find(|a| !(a.abs() <= 360.0)) {
+                return Err(BadInput(format!(
+                    "--angles: a polarizer angle must be in [-360, 360] degrees, got {a:?}"
+                ))
+                .into());
+            }
             let solver = StokesSolver::from_degrees(&args.angles)?;
             if solver.ill_conditioned() && !ctx.quiet {
                 eprintln!(

@@ -5,7 +5,8 @@
 //! coverage (truth in the set) and set sizes.
 
 use super::{
-    Classifier, ClassifierConfig, Decision, Estimate, Prototype, UNKNOWN, check_class_name,
+    Classifier, ClassifierConfig, Decision, Estimate, Metric, Prototype, Rule, UNKNOWN,
+    check_class_name,
 };
 use crate::error::{CoreError, Result};
 use crate::status::FitStatus;
@@ -227,9 +228,22 @@ fn finish(
     }
 }
 
+/// Most prototypes a leave-one-out decision keeps in [`Decision::ranked`](super::Decision).
+pub const LOO_RANKED_KEPT: usize = 64;
+
 /// Leave-one-out evaluation: each labelled estimate whose fit status is `ok` is classified
 /// with the others (fit status `ok`) as prototypes. Items whose fit is not `ok` are neither
 /// prototypes nor evaluated; they are listed in [`Evaluation::skipped`].
+///
+/// Memory is linear in the number of items: no classifier over all the others is built
+/// per item. For each item the decision depends only on, per class, its `k` nearest
+/// other prototypes by the rule's distance and its nearest by the set distance (plus
+/// the first prototype without a usable distance, which decides a `no_covariance`
+/// answer); these are found in one pass over the others and classified exactly as
+/// against all of them (same distances, votes, runner-up, candidates and tie-breaking:
+/// ties go to the earlier item). Indices in a decision refer to the others in input
+/// order, as if item `i` were removed; its `ranked` holds at most the `k` nearest
+/// (capped at [`LOO_RANKED_KEPT`]).
 ///
 /// Fails when a class name is empty or [`UNKNOWN`], fewer than two items are usable, or
 /// the settings are invalid.
@@ -252,26 +266,162 @@ pub fn leave_one_out(items: &[Labelled], config: ClassifierConfig) -> Result<Eva
         .filter(|i| !i.estimate.fit_status.is_ok())
         .map(|i| (i.target.clone(), i.estimate.fit_status))
         .collect();
+    let protos: Vec<Prototype> = usable.iter().map(|o| o.to_prototype()).collect();
+    // Checks every prototype once (the same checks as per item before).
+    let all = Classifier::new(protos, config)?;
+    let protos = all.prototypes();
+    // Class of each prototype as a small integer.
+    let mut names: Vec<&str> = protos.iter().map(|p| p.class.as_str()).collect();
+    names.sort_unstable();
+    names.dedup();
+    let class_of: Vec<usize> = protos
+        .iter()
+        .map(|p| names.binary_search(&p.class.as_str()).unwrap_or(0))
+        .collect();
+    let mut counts = vec![0usize; names.len()];
+    for &c in &class_of {
+        counts[c] += 1;
+    }
+    let mut sel = Selector::new(names.len(), config.k);
     let mut out = Vec::with_capacity(usable.len());
     let mut unrep = Vec::new();
     for (i, it) in usable.iter().enumerate() {
-        let protos: Vec<Prototype> = usable
-            .iter()
-            .enumerate()
-            .filter(|(j, _)| *j != i)
-            .map(|(_, o)| o.to_prototype())
-            .collect();
-        if !protos.iter().any(|p| p.class == it.class) {
+        if counts[class_of[i]] < 2 {
             unrep.push(it.class.clone());
         }
-        let clf = Classifier::new(protos, config)?;
+        let chosen = sel.select(&it.estimate, protos, &class_of, i, config);
+        let reduced: Vec<Prototype> = chosen.iter().map(|&j| protos[j].clone()).collect();
+        let clf = Classifier::new(reduced, config)?;
+        let mut decision = clf.classify(&it.estimate);
+        // Indices: reduced → all usable → the others (item i removed).
+        let map = |r: usize| {
+            let j = chosen.get(r).copied().unwrap_or(r);
+            if j > i { j - 1 } else { j }
+        };
+        if let Some(nb) = decision.nearest.as_mut() {
+            nb.index = map(nb.index);
+        }
+        for nb in &mut decision.ranked {
+            nb.index = map(nb.index);
+        }
+        for c in &mut decision.candidates {
+            c.index = map(c.index);
+        }
+        decision.ranked.truncate(config.k.clamp(1, LOO_RANKED_KEPT));
+        decision.ranked.shrink_to_fit();
         out.push(EvalItem {
             target: it.target.clone(),
             class: it.class.clone(),
-            decision: clf.classify(&it.estimate),
+            decision,
         });
     }
     Ok(finish(out, skipped, unrep, config.confidence))
+}
+
+/// The distance a classifier with `config` ranks prototypes by (`None`: not usable,
+/// which makes the classifier answer `no_covariance`): the set distance under the set
+/// rule; the Euclidean or Mahalanobis distance under the nearest rule (as in
+/// `Classifier::classify`).
+fn rule_distance(config: &ClassifierConfig, est: &Estimate, p: &Prototype) -> Option<f64> {
+    match (config.rule, config.metric) {
+        (Rule::Set, _) => Classifier::set_distance(est, p),
+        (_, Metric::Euclidean) => Some((est.n - p.n).hypot(est.k - p.k)),
+        (_, _) => {
+            let cov = match (est.cov, p.cov) {
+                (Some(a), Some(b)) => a + b,
+                (Some(a), None) | (None, Some(a)) => a,
+                (None, None) => return None,
+            };
+            cov.mahalanobis2(est.n - p.n, est.k - p.k).map(f64::sqrt)
+        }
+    }
+}
+
+/// Finds, for one item, the prototypes its leave-one-out decision depends on; its
+/// buffers are reused from item to item.
+struct Selector {
+    k: usize,
+    /// Per class, the `k` nearest by the rule's distance: `(distance, index)`, sorted.
+    near: Vec<Vec<(f64, usize)>>,
+    /// Per class, the nearest by the set distance.
+    near_set: Vec<Option<(f64, usize)>>,
+}
+
+/// `(d, i)` before `(e, j)` in the classifier's order (distance, then index).
+fn before(a: (f64, usize), b: (f64, usize)) -> bool {
+    a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).is_lt()
+}
+
+impl Selector {
+    fn new(classes: usize, k: usize) -> Self {
+        Self {
+            k,
+            near: vec![Vec::with_capacity(k.min(64)); classes],
+            near_set: vec![None; classes],
+        }
+    }
+
+    /// Indices (into `protos`, ascending, `skip` excluded) of the prototypes the
+    /// decision for `est` depends on.
+    fn select(
+        &mut self,
+        est: &Estimate,
+        protos: &[Prototype],
+        class_of: &[usize],
+        skip: usize,
+        config: ClassifierConfig,
+    ) -> Vec<usize> {
+        for v in &mut self.near {
+            v.clear();
+        }
+        self.near_set.iter_mut().for_each(|s| *s = None);
+        let set_too = config.rule == Rule::Nearest;
+        let (mut first_none, mut first_set_none) = (None, None);
+        for (j, p) in protos.iter().enumerate() {
+            if j == skip {
+                continue;
+            }
+            let c = class_of[j];
+            match rule_distance(&config, est, p) {
+                Some(d) => {
+                    let v = &mut self.near[c];
+                    if v.len() < self.k || v.last().is_some_and(|&w| before((d, j), w)) {
+                        let at = v.partition_point(|&w| before(w, (d, j)));
+                        v.insert(at, (d, j));
+                        v.truncate(self.k);
+                    }
+                }
+                None => {
+                    first_none.get_or_insert(j);
+                }
+            }
+            if set_too {
+                match Classifier::set_distance(est, p) {
+                    Some(d) => {
+                        let s = &mut self.near_set[c];
+                        if s.is_none_or(|w| before((d, j), w)) {
+                            *s = Some((d, j));
+                        }
+                    }
+                    None => {
+                        first_set_none.get_or_insert(j);
+                    }
+                }
+            }
+        }
+        let mut chosen: Vec<usize> = self
+            .near
+            .iter()
+            .flatten()
+            .map(|&(_, j)| j)
+            .chain(self.near_set.iter().flatten().map(|&(_, j)| j))
+            .chain(first_none)
+            .chain(first_set_none)
+            .collect();
+        chosen.sort_unstable();
+        chosen.dedup();
+        chosen
+    }
 }
 
 /// Evaluate a trained classifier on a labelled test set (no leave-one-out). Items whose
@@ -370,5 +520,142 @@ mod tests {
         assert!((s.coverage - 4.0 / 6.0).abs() < 1e-12);
         assert_eq!(ev.confusion.get("cu", "ambiguous"), 2);
         assert_eq!(ev.confusion.get("x", "unknown"), 1);
+    }
+
+    /// The leave-one-out of before: a classifier over all the others per item.
+    fn brute_force(items: &[Labelled], config: ClassifierConfig) -> Vec<Decision> {
+        let usable: Vec<&Labelled> = items
+            .iter()
+            .filter(|i| i.estimate.fit_status.is_ok())
+            .collect();
+        (0..usable.len())
+            .map(|i| {
+                let protos: Vec<Prototype> = usable
+                    .iter()
+                    .enumerate()
+                    .filter(|(j, _)| *j != i)
+                    .map(|(_, o)| o.to_prototype())
+                    .collect();
+                Classifier::new(protos, config)
+                    .unwrap()
+                    .classify(&usable[i].estimate)
+            })
+            .collect()
+    }
+
+    /// Random labelled estimates: a few classes around centres, some without covariance,
+    /// some near k = 0, some duplicated points (ties).
+    fn random_items(seed: u64, n: usize, classes: usize, cov_every: u64) -> Vec<Labelled> {
+        let mut x = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let mut next = move || {
+            x = x
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (x >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut out: Vec<Labelled> = Vec::new();
+        for t in 0..n {
+            let c = (next() * classes as f64) as usize;
+            let (cn, ck) = (0.5 + c as f64 * 0.4, (c as f64 * 0.9) % 3.0);
+            let (mut n_, mut k_) = (cn + 0.3 * (next() - 0.5), (ck + 0.3 * (next() - 0.5)).abs());
+            if t % 7 == 3
+                && let Some(prev) = out.last()
+            {
+                (n_, k_) = (prev.estimate.n, prev.estimate.k);
+            }
+            let cov = if cov_every == 1 || (cov_every > 1 && (t as u64) % cov_every != 0) {
+                super::super::Cov2::from_se(0.02 + 0.1 * next(), 0.02 + 0.1 * next(), next() - 0.5)
+            } else {
+                None
+            };
+            out.push(Labelled {
+                target: format!("t{t}"),
+                class: format!("c{c}"),
+                estimate: Estimate {
+                    n: n_,
+                    k: k_,
+                    cov,
+                    fit_status: if t % 11 == 5 {
+                        FitStatus::NotConverged
+                    } else {
+                        FitStatus::Ok
+                    },
+                },
+                source: format!("s{t}"),
+            });
+        }
+        out
+    }
+
+    #[test]
+    fn loo_equals_the_classifier_over_all_others() {
+        let configs = [
+            ClassifierConfig::default(),
+            ClassifierConfig {
+                k: 3,
+                ..Default::default()
+            },
+            ClassifierConfig {
+                k: 4,
+                metric: Metric::Mahalanobis,
+                ..Default::default()
+            },
+            ClassifierConfig {
+                reject: super::super::Reject::Chi2 { p: 0.9 },
+                ..Default::default()
+            },
+            ClassifierConfig {
+                reject: super::super::Reject::MaxDistance(0.05),
+                k: 2,
+                ..Default::default()
+            },
+            ClassifierConfig::set(0.95),
+            ClassifierConfig::set(0.5),
+        ];
+        let mut compared = 0;
+        for seed in 0..12u64 {
+            let cov_every = [0, 1, 5][seed as usize % 3];
+            let items = random_items(
+                seed,
+                30 + seed as usize * 7,
+                2 + seed as usize % 4,
+                cov_every,
+            );
+            for cfg in configs {
+                let ev = leave_one_out(&items, cfg).unwrap();
+                let want = brute_force(&items, cfg);
+                assert_eq!(ev.items.len(), want.len());
+                for (got, want) in ev.items.iter().zip(&want) {
+                    let mut w = want.clone();
+                    w.ranked.truncate(cfg.k.clamp(1, LOO_RANKED_KEPT));
+                    // Debug text: NaN distances compare equal.
+                    assert_eq!(
+                        format!("{:?}", got.decision),
+                        format!("{w:?}"),
+                        "seed {seed} {cfg:?} {}",
+                        got.target
+                    );
+                    compared += 1;
+                }
+            }
+        }
+        assert!(compared > 3000, "{compared}");
+    }
+
+    #[test]
+    fn loo_keeps_per_item_memory_independent_of_the_number_of_items() {
+        // Each decision keeps a bounded number of neighbours, whatever the number of
+        // items (it held all n - 1 before: n² in all).
+        for n in [50, 400] {
+            let items = random_items(7, n, 3, 1);
+            for cfg in [ClassifierConfig::default(), ClassifierConfig::set(0.95)] {
+                let ev = leave_one_out(&items, cfg).unwrap();
+                let most = ev.items.iter().map(|i| i.decision.ranked.len()).max();
+                assert_eq!(most, Some(1), "n = {n}");
+                assert!(ev.items.iter().all(|i| i.decision.candidates.len() <= 3));
+            }
+        }
     }
 }

@@ -243,6 +243,16 @@ impl StokesSolver {
 
     /// Convenience constructor from angles in degrees.
     pub fn from_degrees(angles_deg: &[f64]) -> Result<Self> {
+        // A polarizer angle far outside a turn (1e308) has lost all its precision.
+        for &a in angles_deg {
+            crate::error::ensure_range(
+                "polarizer angle (degrees)",
+                a,
+                -360.0,
+                360.0,
+                "in [-360, 360]",
+            )?;
+        }
         let rad: Vec<f64> = angles_deg.iter().map(|d| d.to_radians()).collect();
         Self::new(&rad)
     }

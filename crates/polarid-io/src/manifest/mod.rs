@@ -250,9 +250,17 @@ impl CaptureSource {
     }
 }
 
+/// Largest dark or saturation level (DN): levels are compared in float32.
+const MAX_LEVEL: f64 = f32::MAX as f64;
+/// Smallest and largest relative exposure: S0 is divided by it, and beyond these the
+/// float32 results overflow or lose all precision (`exposure = 1e-308` gave S0 = inf).
+const MIN_EXPOSURE: f64 = 1e-9;
+/// See [`MIN_EXPOSURE`].
+const MAX_EXPOSURE: f64 = 1e9;
+
 /// Read and validate a manifest file.
 pub fn load(path: &Path) -> Result<Manifest> {
-    let text = std::fs::read_to_string(path).map_err(|e| IoError::io(path, e))?;
+    let text = crate::limits::read_text(path)?;
     parse(path, &text)
 }
 
@@ -447,14 +455,18 @@ impl<'a> Parser<'a> {
         let theta_r_deg = self.angle(root, "theta_r_deg", "")?;
         let phi_deg = self.opt_num(root, "phi_deg", "")?.map_or(180.0, |x| x.0);
         let dark_level = match self.opt_num(root, "dark_level", "")? {
-            Some((v, span)) if v < 0.0 => {
-                return Err(self.err(&span, "dark_level", "dark level must be >= 0"));
+            Some((v, span)) if !(0.0..=MAX_LEVEL).contains(&v) => {
+                return Err(self.err(
+                    &span,
+                    "dark_level",
+                    "dark level must be >= 0 and at most 3.4e38 (the float32 range)",
+                ));
             }
             Some((v, _)) => v,
             None => 0.0,
         };
         let saturation = match self.opt_num(root, "saturation", "")? {
-            Some((v, span)) if v <= dark_level => {
+            Some((v, span)) if v <= dark_level || v > MAX_LEVEL => {
                 return Err(self.err(
                     &span,
                     "saturation",
@@ -719,21 +731,29 @@ impl<'a> Parser<'a> {
             (theta_i_deg, theta_r_deg, phi_deg)
         };
         let exposure = match self.opt_num(t, "exposure", &pre)? {
-            Some((v, s)) if v <= 0.0 => {
-                return Err(self.err(&s, &format!("{pre}exposure"), "exposure must be > 0"));
+            Some((v, s)) if !(MIN_EXPOSURE..=MAX_EXPOSURE).contains(&v) => {
+                return Err(self.err(
+                    &s,
+                    &format!("{pre}exposure"),
+                    "exposure must be in [1e-9, 1e9] (S0 is divided by it)",
+                ));
             }
             Some((v, _)) => v,
             None => 1.0,
         };
         let dark_level = match self.opt_num(t, "dark_level", &pre)? {
-            Some((v, s)) if v < 0.0 => {
-                return Err(self.err(&s, &format!("{pre}dark_level"), "dark level must be >= 0"));
+            Some((v, s)) if !(0.0..=MAX_LEVEL).contains(&v) => {
+                return Err(self.err(
+                    &s,
+                    &format!("{pre}dark_level"),
+                    "dark level must be >= 0 and at most 3.4e38 (the float32 range)",
+                ));
             }
             Some((v, _)) => v,
             None => dark_top,
         };
         let saturation = match self.opt_num(t, "saturation", &pre)? {
-            Some((v, s)) if v <= dark_level => {
+            Some((v, s)) if v <= dark_level || v > MAX_LEVEL => {
                 return Err(self.err(
                     &s,
                     &format!("{pre}saturation"),
@@ -848,7 +868,7 @@ impl<'a> Parser<'a> {
                     let fpre = format!("{pre}frames[{}].", j + 1);
                     let ft = self.table(it, &format!("{pre}frames[{}]", j + 1))?;
                     self.warn_unknown(ft, &["angle_deg", "file"], &fpre);
-                    let (angle_deg, _) =
+                    let (angle_deg, aspan) =
                         self.opt_num(ft, "angle_deg", &fpre)?.ok_or_else(|| {
                             self.err(
                                 &it.span(),
@@ -856,6 +876,13 @@ impl<'a> Parser<'a> {
                                 "missing polarizer angle",
                             )
                         })?;
+                    if !(angle_deg.abs() <= 360.0) {
+                        return Err(self.err(
+                            &aspan,
+                            &format!("{fpre}angle_deg"),
+                            "polarizer angle must be in [-360, 360] degrees",
+                        ));
+                    }
                     let file_v = self.get(ft, "file").ok_or_else(|| {
                         self.err(&it.span(), &format!("{fpre}file"), "missing file")
                     })?;

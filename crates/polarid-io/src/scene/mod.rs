@@ -51,7 +51,7 @@
 //! measured region follow from tracing the camera's pixels ([`Geometry::Calibrated`],
 //! [`Placement`]).
 //!
-//! Errors are [`IoError::Manifest`] naming the file, the 1-based line, the dotted field
+//! Errors are [`IoError::Manifest`](crate::IoError::Manifest) naming the file, the 1-based line, the dotted field
 //! (`plate[2].sigma`; indices 1-based) and the value. Unknown keys are errors (a scene is
 //! an input the simulator acts on, so a typo must not silently change the physics).
 //!
@@ -78,12 +78,12 @@ pub use types::{
     Calibrated, CaptureKind, Geometry, ImageFormat, MAX_SIDE, Placement, Plate, Scene, SceneSource,
 };
 
-use crate::error::{IoError, Result};
+use crate::error::Result;
 use context::Ctx;
 
 /// Read and validate a scene file.
 pub fn load(path: &Path) -> Result<Scene> {
-    let text = std::fs::read_to_string(path).map_err(|e| IoError::io(path, e))?;
+    let text = crate::limits::read_text(path)?;
     parse(path, &text)
 }
 

@@ -21,6 +21,13 @@ impl Ctx<'_> {
         };
         let list: Vec<f64> = match v.get_ref() {
             toml::Value::Array(a) => {
+                if a.len() > 10_000 {
+                    return Err(self.err(
+                        &span,
+                        field,
+                        format!("{} source positions, more than 10000", a.len()),
+                    ));
+                }
                 let mut out = Vec::with_capacity(a.len());
                 for x in a {
                     out.push(as_num(x).ok_or_else(|| {

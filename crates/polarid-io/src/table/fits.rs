@@ -125,9 +125,12 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<FitRow>> {
     };
     let mut out = Vec::with_capacity(t.rows.len());
     for r in 0..t.rows.len() {
-        let target = t.text(r, c_target).to_string();
+        let target = t.name(r, c_target)?;
         if target.is_empty() {
             return Err(t.err(r, c_target, "empty target name"));
+        }
+        if let Some(c) = c_status.filter(|&c| t.text(r, c).is_empty()) {
+            return Err(t.err(r, c, "empty fit status (write `ok` for a usable fit)"));
         }
         let status = match (c_status, t.opt_text(r, c_status)) {
             (Some(c), Some(word)) => FitStatus::parse(&word).ok_or_else(|| {
@@ -158,12 +161,12 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<FitRow>> {
         }
         out.push(FitRow {
             target,
-            class: t.opt_text(r, c_class),
+            class: t.opt_name(r, c_class)?,
             n,
             k,
-            n_se: nan_ok(r, c_nse)?,
-            k_se: nan_ok(r, c_kse)?,
-            nk_corr: nan_ok(r, c_corr)?,
+            n_se: t.se(r, c_nse)?,
+            k_se: t.se(r, c_kse)?,
+            nk_corr: t.corr(r, c_corr)?,
             rms_residual: nan_ok(r, c_rms)?,
             measurements: t.opt_u64(r, c_meas)?.unwrap_or(0),
             status,

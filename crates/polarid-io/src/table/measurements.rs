@@ -192,7 +192,7 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
     let c_reason = t.col("reason");
     let mut out = Vec::with_capacity(t.rows.len());
     for r in 0..t.rows.len() {
-        let target = t.text(r, c_target).to_string();
+        let target = t.name(r, c_target)?;
         if target.is_empty() {
             return Err(t.err(r, c_target, "empty target name"));
         }
@@ -267,7 +267,7 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
         let angle_sd_deg = in_range(c_asd, 90.0, "angle uncertainty")?;
         out.push(Measurement {
             target,
-            class: t.opt_text(r, c_class),
+            class: t.opt_name(r, c_class)?,
             theta_i_deg,
             theta_r_deg,
             phi_deg,

@@ -3,6 +3,20 @@
 //! Readers find columns by name, ignore unknown columns and skip lines that start with
 //! `#`; every parse error names the file, the line, the column and the value.
 //! Writers emit the columns in the documented order.
+//!
+//! # Spreadsheet safety (CSV injection)
+//!
+//! A text cell that starts with `=`, `+`, `-`, `@`, a tab or a carriage return would be
+//! run as a formula by a spreadsheet. Writers ([`write_rows`]) prefix such cells with a
+//! single quote `'` (the OWASP rule), except numbers such as `-1.5`; a cell that starts
+//! with `'` followed by such a character gets one more `'`. Readers remove exactly that
+//! one quote again ([`unguard`]), so names round-trip unchanged.
+//!
+//! # Names
+//!
+//! Target and class names read through [`CsvTable::name`] are normalised to Unicode
+//! NFC (so that `é` typed as one or two code points is one class), and names with
+//! control, zero-width or bidirectional-override characters are refused.
 
 pub mod classification;
 pub mod fits;
@@ -12,7 +26,10 @@ pub mod model_rows;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
+use unicode_normalization::UnicodeNormalization;
+
 use crate::error::{IoError, Result};
+use crate::limits::{read_capped, short, text_cap};
 
 /// A CSV file read into memory: header plus records with their line numbers.
 #[derive(Debug, Clone)]
@@ -27,26 +44,39 @@ pub struct CsvTable {
 
 impl CsvTable {
     /// Read a CSV file.
+    ///
+    /// The file must be a regular file of at most [`text_cap`] bytes.
     pub fn read(path: &Path) -> Result<Self> {
-        let f = std::fs::File::open(path).map_err(|e| IoError::io(path, e))?;
-        Self::from_reader(path, f)
+        let bytes = read_capped(path, text_cap(), "CSV")?;
+        Self::from_reader(path, bytes.as_slice())
     }
 
     /// Read CSV text from `reader`; `path` labels error messages.
     ///
     /// Lines starting with `#` are comments; reported line numbers are those of the
-    /// original file, comments included.
-    pub fn from_reader<R: Read>(path: &Path, mut reader: R) -> Result<Self> {
+    /// original file, comments included. A leading byte-order mark is ignored, and at
+    /// most [`text_cap`] bytes are read.
+    pub fn from_reader<R: Read>(path: &Path, reader: R) -> Result<Self> {
         let structure = |reason: String| IoError::CsvStructure {
             path: path.to_path_buf(),
             reason,
         };
+        let cap = text_cap();
         let mut bytes = Vec::new();
         reader
+            .take(cap.saturating_add(1))
             .read_to_end(&mut bytes)
             .map_err(|e| IoError::io(path, e))?;
+        if bytes.len() as u64 > cap {
+            return Err(IoError::TooLarge {
+                path: path.to_path_buf(),
+                what: format!("CSV text of more than {}", crate::limits::human(cap)),
+                limit: crate::limits::memory_limit(),
+            });
+        }
         let text =
             String::from_utf8(bytes).map_err(|e| structure(format!("not UTF-8 text: {e}")))?;
+        let text = crate::limits::strip_bom(text);
         // Drop comment lines, remembering the original number of each kept line.
         let mut kept = String::with_capacity(text.len());
         let mut line_of: Vec<u64> = Vec::new();
@@ -83,6 +113,11 @@ impl CsvTable {
                 structure(format!("line {line}: {e}"))
             })?;
             let line = rec.position().map(|p| orig(p.line())).unwrap_or(0);
+            let rec = if rec.iter().any(|c| c.starts_with('\'')) {
+                rec.iter().map(unguard).collect()
+            } else {
+                rec
+            };
             rows.push((line, rec));
         }
         Ok(Self {
@@ -113,15 +148,60 @@ impl CsvTable {
         self.rows.get(row).and_then(|r| r.1.get(col)).unwrap_or("")
     }
 
-    /// An error about the value of row `row`, column `col`.
+    /// An error about the value of row `row`, column `col` (the value shortened to 60
+    /// characters).
     pub fn err(&self, row: usize, col: usize, reason: impl Into<String>) -> IoError {
         IoError::Csv {
             path: self.path.clone(),
             line: self.rows.get(row).map_or(0, |r| r.0),
             column: self.headers.get(col).cloned().unwrap_or_default(),
-            value: self.text(row, col).to_string(),
+            value: short(self.text(row, col)),
             reason: reason.into(),
         }
+    }
+
+    /// A name (target, class): [`clean_name`] of the cell, or an error naming the cell.
+    /// Empty cells give an empty string.
+    pub fn name(&self, row: usize, col: usize) -> Result<String> {
+        clean_name(self.text(row, col)).map_err(|reason| self.err(row, col, reason))
+    }
+
+    /// An optional name: `None` when the column is absent or the cell empty.
+    pub fn opt_name(&self, row: usize, col: Option<usize>) -> Result<Option<String>> {
+        match col {
+            None => Ok(None),
+            Some(c) => Ok(Some(self.name(row, c)?).filter(|s| !s.is_empty())),
+        }
+    }
+
+    /// An optional standard error: `nan` (or an empty cell, or no column) for unknown,
+    /// else a finite number `>= 0`.
+    pub fn se(&self, row: usize, col: Option<usize>) -> Result<f64> {
+        let Some(c) = col else { return Ok(f64::NAN) };
+        let t = self.text(row, c);
+        if t.is_empty() || t.eq_ignore_ascii_case("nan") {
+            return Ok(f64::NAN);
+        }
+        let v = self.f64(row, c)?;
+        if v < 0.0 {
+            return Err(self.err(row, c, "a standard error must be >= 0 (or nan: unknown)"));
+        }
+        Ok(v)
+    }
+
+    /// An optional correlation: `nan` (or an empty cell, or no column) for unknown, else
+    /// a number in `[-1, 1]`.
+    pub fn corr(&self, row: usize, col: Option<usize>) -> Result<f64> {
+        let Some(c) = col else { return Ok(f64::NAN) };
+        let t = self.text(row, c);
+        if t.is_empty() || t.eq_ignore_ascii_case("nan") {
+            return Ok(f64::NAN);
+        }
+        let v = self.f64(row, c)?;
+        if !(-1.0..=1.0).contains(&v) {
+            return Err(self.err(row, c, "a correlation must be in [-1, 1] (or nan: unknown)"));
+        }
+        Ok(v)
     }
 
     /// A required finite number.
@@ -164,6 +244,64 @@ impl CsvTable {
     }
 }
 
+/// Characters that make a spreadsheet run a cell as a formula when they start it.
+const FORMULA_START: [char; 6] = ['=', '+', '-', '@', '\t', '\r'];
+
+/// True when `cell` must be written with a leading `'` so that a spreadsheet shows it
+/// as text: it starts with a formula character and is not a number (`-1.5`, `+2e3`),
+/// or it starts with `'` and the rest needs the quote (so that [`unguard`] inverts
+/// [`guard`] exactly).
+fn needs_guard(cell: &str) -> bool {
+    match cell.chars().next() {
+        Some('\'') => needs_guard(&cell[1..]),
+        Some(c) if FORMULA_START.contains(&c) => cell.trim().parse::<f64>().is_err(),
+        _ => false,
+    }
+}
+
+/// A cell as written to a CSV file: prefixed with `'` when a spreadsheet would run it
+/// as a formula (module docs).
+pub fn guard(cell: &str) -> std::borrow::Cow<'_, str> {
+    if needs_guard(cell) {
+        format!("'{cell}").into()
+    } else {
+        cell.into()
+    }
+}
+
+/// A cell as read back: the `'` that [`guard`] added removed, anything else unchanged.
+pub fn unguard(cell: &str) -> &str {
+    match cell.strip_prefix('\'') {
+        Some(rest) if needs_guard(rest) => rest,
+        _ => cell,
+    }
+}
+
+/// A name as polarid uses it: trimmed, in Unicode NFC, or why it cannot be used (a
+/// control, zero-width or bidirectional-formatting character, shown by its code
+/// point).
+pub fn clean_name(raw: &str) -> std::result::Result<String, String> {
+    for c in raw.chars() {
+        let invisible = matches!(
+            c,
+            '\u{200B}'..='\u{200F}'
+                | '\u{202A}'..='\u{202E}'
+                | '\u{2060}'..='\u{2064}'
+                | '\u{2066}'..='\u{2069}'
+                | '\u{061C}'
+                | '\u{FEFF}'
+                | '\u{00AD}'
+        );
+        if c.is_control() || invisible {
+            return Err(format!(
+                "a name cannot hold the invisible or control character U+{:04X}",
+                c as u32
+            ));
+        }
+    }
+    Ok(raw.trim().nfc().collect())
+}
+
 /// Format a number for CSV output: shortest round-trip decimal, exponent notation for
 /// very small or large magnitudes, `nan` for NaN.
 pub fn fmt_f64(x: f64) -> String {
@@ -196,7 +334,8 @@ impl<W: Write + ?Sized> Write for Shared<'_, W> {
 /// Write a header and rows of already formatted cells.
 ///
 /// A row whose first cell starts with `#` would read back as a comment line, so its
-/// cells are quoted.
+/// cells are quoted. Cells a spreadsheet would run as formulas are prefixed with `'`
+/// ([`guard`]).
 pub fn write_rows<W: Write + ?Sized>(
     w: &mut W,
     path: &Path,
@@ -212,6 +351,8 @@ pub fn write_rows<W: Write + ?Sized>(
     let flush = |e: std::io::Error| IoError::io(path, e);
     plain.write_record(headers).map_err(io)?;
     for r in rows {
+        let r: Vec<std::borrow::Cow<'_, str>> = r.iter().map(|c| guard(c)).collect();
+        let r: Vec<&str> = r.iter().map(|c| c.as_ref()).collect();
         if r.first().is_some_and(|c| c.trim_start().starts_with('#')) {
             plain.flush().map_err(flush)?;
             quoted.write_record(&r).map_err(io)?;

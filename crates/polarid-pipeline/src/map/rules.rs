@@ -10,15 +10,15 @@ use crate::error::{PipelineError, Result};
 /// `--dark-level` or `--saturation` (the Python bindings show them as `dark_level`,
 /// `saturation`).
 pub fn check_levels(dark_level: f64, saturation: Option<f64>) -> Result<()> {
-    if !dark_level.is_finite() || dark_level < 0.0 {
+    if !(0.0..=f32::MAX as f64).contains(&dark_level) {
         return Err(PipelineError::config(
             "--dark-level",
             dark_level,
-            "must be a finite number >= 0",
+            "must be a finite number >= 0 within the float32 range",
         ));
     }
     if let Some(s) = saturation
-        && (!s.is_finite() || s <= dark_level)
+        && (!s.is_finite() || s <= dark_level || s > f32::MAX as f64)
     {
         return Err(PipelineError::config(
             "--saturation",
