@@ -52,9 +52,8 @@
 
 use rayon::prelude::*;
 
-use super::colour_kernel::{self as ck, ColourJob, ColourScratch, MAX_BANDS};
+use super::colour_kernel::{self as ck, BandStrip, ColourJob, ColourScratch, MAX_BANDS};
 use super::colour_pattern::check_colour_mosaic;
-use super::kernel::StripOut;
 use super::{DofpOutputs, ROWS_PER_TASK, split_strips};
 use crate::cpu::{Isa, cpu_features};
 use crate::error::{CoreError, Result};
@@ -148,51 +147,52 @@ pub(super) fn colour_polar_isa<T: Sample>(
         }
     }
     let polar = out.iter().any(|o| o.dolp.is_some() || o.aolp.is_some());
-    let tasks = transpose(out.into_iter().map(|o| split_strips(o, ow, oh)).collect());
+    let tasks = split_bands(out, ow, oh);
     let job = ColourJob::new(raw, width, height, pattern, *rules);
     // With an infinite saturation level only infinite samples reach it, and those make
     // the pixel invalid anyway: the saturation test can be skipped.
     let sat = rules.saturation != f32::INFINITY;
-    let counts = match method {
-        ColourMethod::Bilinear => {
-            let run = match (sat, polar) {
-                (false, false) => bilinear_dispatch::<T, false, false>,
-                (false, true) => bilinear_dispatch::<T, false, true>,
-                (true, false) => bilinear_dispatch::<T, true, false>,
-                (true, true) => bilinear_dispatch::<T, true, true>,
-            };
-            tasks
-                .into_par_iter()
-                .map_init(ColourScratch::new, |sc, mut st| run(isa, &job, &mut st, sc))
-                .reduce(|| [PixelCounts::default(); MAX_BANDS], add_counts)
-        }
-        ColourMethod::Superpixel => {
-            let run = if polar {
-                ck::superpixel_strip::<T, true>
-            } else {
-                ck::superpixel_strip::<T, false>
-            };
-            tasks
-                .into_par_iter()
-                .map(|mut st| run(&job, &mut st))
-                .reduce(|| [PixelCounts::default(); MAX_BANDS], add_counts)
-        }
+    let run = match (method, sat, polar) {
+        (ColourMethod::Bilinear, false, false) => bilinear_dispatch::<T, false, false>,
+        (ColourMethod::Bilinear, false, true) => bilinear_dispatch::<T, false, true>,
+        (ColourMethod::Bilinear, true, false) => bilinear_dispatch::<T, true, false>,
+        (ColourMethod::Bilinear, true, true) => bilinear_dispatch::<T, true, true>,
+        (ColourMethod::Superpixel, _, false) => superpixel_dispatch::<T, false>,
+        (ColourMethod::Superpixel, _, true) => superpixel_dispatch::<T, true>,
     };
+    let counts = tasks
+        .into_par_iter()
+        .map_init(ColourScratch::new, |sc, (y0, rows, mut st)| {
+            run(isa, &job, y0, rows, &mut st, sc)
+        })
+        .reduce(|| [PixelCounts::default(); MAX_BANDS], add_counts);
     Ok(counts[..nb].to_vec())
 }
 
-/// Per-band strips → per-task lists of band strips (all bands share the strips' rows).
-fn transpose(by_band: Vec<Vec<StripOut<'_>>>) -> Vec<Vec<StripOut<'_>>> {
-    let ntasks = by_band.first().map_or(0, Vec::len);
-    let mut tasks: Vec<Vec<StripOut<'_>>> = (0..ntasks).map(|_| Vec::new()).collect();
-    for band in by_band {
-        for (t, s) in tasks.iter_mut().zip(band) {
-            t.push(s);
+/// Cut every band's outputs (each `ow × oh` or absent) into strips of
+/// [`ROWS_PER_TASK`] rows: per task `(first row, rows, the band strips)`.
+fn split_bands(out: Vec<DofpOutputs<'_>>, ow: usize, oh: usize) -> Vec<Tasks<'_>> {
+    let mut tasks: Vec<Tasks<'_>> = (0..oh.div_ceil(ROWS_PER_TASK))
+        .map(|i| {
+            let y0 = i * ROWS_PER_TASK;
+            (y0, ROWS_PER_TASK.min(oh - y0), Vec::new())
+        })
+        .collect();
+    for o in out {
+        for (t, s) in tasks.iter_mut().zip(split_strips(o, ow, oh)) {
+            t.2.push(BandStrip {
+                s: s.s,
+                mask: s.mask,
+                dolp: s.dolp,
+                aolp: s.aolp,
+            });
         }
     }
-    debug_assert!(ROWS_PER_TASK > 0);
     tasks
 }
+
+/// One task: first output row, rows, the strips of every band.
+type Tasks<'a> = (usize, usize, Vec<BandStrip<'a>>);
 
 fn add_counts(
     a: [PixelCounts; MAX_BANDS],
@@ -205,16 +205,38 @@ fn add_counts(
 fn bilinear_dispatch<T: Sample, const SAT: bool, const POLAR: bool>(
     isa: Isa,
     job: &ColourJob<'_, T>,
-    out: &mut [StripOut<'_>],
+    y0: usize,
+    rows: usize,
+    out: &mut [BandStrip<'_>],
     sc: &mut ColourScratch,
 ) -> [PixelCounts; MAX_BANDS] {
     #[cfg(target_arch = "x86_64")]
     match isa {
-        Isa::Avx512(t) => return ck::avx512::strip::<T, SAT, POLAR>(t, job, out, sc),
-        Isa::Avx2Fma(t) => return ck::avx2::strip::<T, SAT, POLAR>(t, job, out, sc),
+        Isa::Avx512(t) => return ck::avx512::bilinear::<T, SAT, POLAR>(t, job, y0, rows, out, sc),
+        Isa::Avx2Fma(t) => return ck::avx2::bilinear::<T, SAT, POLAR>(t, job, y0, rows, out, sc),
         Isa::Portable => {}
     }
     #[cfg(not(target_arch = "x86_64"))]
     let _ = isa;
-    ck::bilinear_strip::<T, SAT, POLAR>(job, out, sc)
+    ck::bilinear_strip::<T, SAT, POLAR>(job, y0, rows, out, sc)
+}
+
+/// One super-pixel colour strip with the widest kernel `isa` allows.
+fn superpixel_dispatch<T: Sample, const POLAR: bool>(
+    isa: Isa,
+    job: &ColourJob<'_, T>,
+    y0: usize,
+    rows: usize,
+    out: &mut [BandStrip<'_>],
+    sc: &mut ColourScratch,
+) -> [PixelCounts; MAX_BANDS] {
+    #[cfg(target_arch = "x86_64")]
+    match isa {
+        Isa::Avx512(t) => return ck::avx512::superpixel::<T, POLAR>(t, job, y0, rows, out, sc),
+        Isa::Avx2Fma(t) => return ck::avx2::superpixel::<T, POLAR>(t, job, y0, rows, out, sc),
+        Isa::Portable => {}
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = isa;
+    ck::superpixel_strip::<T, POLAR>(job, y0, rows, out, sc)
 }

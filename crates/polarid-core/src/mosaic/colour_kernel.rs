@@ -4,26 +4,27 @@
 //! AVX-512F. No `a·b + c` is contracted into a fused multiply-add, so every instruction
 //! set gives the same bits.
 //!
-//! Bilinear, per output row and block of columns (all intermediate rows in the
-//! per-thread [`ColourScratch`], ~40 KB):
+//! Bilinear, per output row and block of columns (every intermediate row in the
+//! per-thread [`ColourScratch`], ~20 KB: it stays in the L1 cache):
 //!
-//! 1. for each of the 16 lattices (`ρ = y mod 4`, `χ = x mod 4`) the vertically
-//!    interpolated raw row at the lattice's columns, deinterleaved into one short row
-//!    per lattice, padded by one (clamped) group on each side (and the vertical maxima
-//!    for the saturation test);
-//! 2. for each phase `j = x mod 4` of the output columns: each lattice's horizontal
-//!    interpolation at the columns `4m + j` (a two-tap blend of neighbouring groups with
-//!    the phase's weight), then per band the channel means, Stokes, mask, DoLP and AoLP;
-//! 3. the four phases interleaved into the caller's rows.
+//! 1. for each row residue `ρ` the vertically interpolated raw row (and its vertical
+//!    maxima, for the saturation test), padded by 4 columns on each side with the
+//!    samples of the same column residue one period in (which is the clamping of the
+//!    interpolation taps to the lattice's first and last samples);
+//! 2. per band, each channel: at every column `x`, for each of its lattices `(ρ, χ)`,
+//!    the horizontal interpolation between the padded row's values at `x − e` and
+//!    `x − e + 4`, `e = (x − χ) mod 4`, chosen per vector lane by selects between
+//!    shifted contiguous loads (no gathers, no deinterleaving), summed over the band's
+//!    lattices; then Stokes, mask, DoLP and AoLP straight into the caller's rows.
 
 use super::colour_pattern::ColourPattern;
-use super::kernel::{StripOut, count, mask_value, polar, row_counts};
+use super::kernel::{count, mask_value, polar, row_counts};
 use crate::stokes::{PixelCounts, PixelRules, Sample};
 
-/// Columns per block of the bilinear kernel (a multiple of 4).
-pub(super) const CBLOCK: usize = 256;
-/// Groups (4-column periods) per block.
-const G: usize = CBLOCK / 4;
+/// Columns per block (a multiple of 4).
+pub(super) const CBLOCK: usize = 512;
+/// Padding of the vertically interpolated rows on each side.
+const PAD: usize = 4;
 /// At most four bands (one per block).
 pub(super) const MAX_BANDS: usize = 4;
 
@@ -76,35 +77,30 @@ impl<'a, T> ColourJob<'a, T> {
 
 /// Per-thread scratch rows of the colour kernels.
 pub(super) struct ColourScratch {
-    /// Vertically interpolated lattice rows, 16 × (G + 2) (padded).
-    d: Vec<f32>,
-    /// Their vertical maxima (saturation), 16 × (G + 2).
-    dm: Vec<f32>,
-    /// Horizontally interpolated lattice rows of one phase, 16 × G.
-    h: Vec<f32>,
-    /// Their maxima, 16 × G.
-    hm: Vec<f32>,
-    /// Channel means of one band (bands with several blocks), 4 × G.
-    ik: Vec<f32>,
-    /// Largest raw value of one band's samples, G.
+    /// Vertically interpolated rows per residue `ρ`, each `CBLOCK + 2·PAD`.
+    v: [Vec<f32>; 4],
+    /// Their vertical maxima (saturation test).
+    vm: [Vec<f32>; 4],
+    /// The four channels of one band, `CBLOCK` each.
+    ik: [Vec<f32>; 4],
+    /// Largest raw value with a non-zero weight of one band's pixels.
     mx: Vec<f32>,
-    /// Per band, output (s0, s1, s2, dolp, aolp) and phase: MAX_BANDS × 5 × 4 × G.
-    ph: Vec<f32>,
-    /// Per band and phase the mask: MAX_BANDS × 4 × G.
-    pm: Vec<u8>,
+    /// S0, S1, S2, DoLP, AoLP rows the caller did not ask for.
+    tmp: [Vec<f32>; 5],
+    /// The mask row when the caller did not ask for it.
+    tm: Vec<u8>,
 }
 
 impl ColourScratch {
     pub(super) fn new() -> Self {
+        let f = || vec![0f32; CBLOCK + 2 * PAD];
         Self {
-            d: vec![0.0; 16 * (G + 2)],
-            dm: vec![0.0; 16 * (G + 2)],
-            h: vec![0.0; 16 * G],
-            hm: vec![0.0; 16 * G],
-            ik: vec![0.0; 4 * G],
-            mx: vec![0.0; G],
-            ph: vec![0.0; MAX_BANDS * 5 * 4 * G],
-            pm: vec![0; MAX_BANDS * 4 * G],
+            v: [f(), f(), f(), f()],
+            vm: [f(), f(), f(), f()],
+            ik: [f(), f(), f(), f()],
+            mx: f(),
+            tmp: [f(), f(), f(), f(), f()],
+            tm: vec![0u8; CBLOCK + 2 * PAD],
         }
     }
 }
@@ -136,237 +132,212 @@ fn row<T>(img: &[T], width: usize, r: usize) -> &[T] {
     &img[r * width..(r + 1) * width]
 }
 
-/// Fill one padded lattice row `d` (G + 2 long, first `g + 2` used) of residue `chi`
-/// for the groups `m0 − 1 ..= m0 + g` (clamped to `0..w4`) from the raw rows `a`, `b`
-/// blended with phase `e` (vertical), and its maxima `dm` when `SAT`.
+/// The vertical interpolation of phase `e` of raw rows `a`, `b` over columns
+/// `x0..x0 + v.len()` into `v` (and the maxima of its samples into `vm` when `SAT`).
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn fill_lattice<T: Sample, const SAT: bool>(
+fn vertical<T: Sample, const SAT: bool>(
     a: &[T],
     b: &[T],
     e: usize,
-    chi: usize,
-    m0: usize,
-    g: usize,
-    w4: usize,
-    d: &mut [f32],
-    dm: &mut [f32],
+    x0: usize,
+    v: &mut [f32],
+    vm: &mut [f32],
 ) {
-    let (wa, wb) = weights(e);
-    let val = |gm: usize| {
-        let x = 4 * gm + chi;
-        let (va, vb) = (a[x].to_f32(), b[x].to_f32());
-        let v = if e == 0 { va } else { wa * va + wb * vb };
-        let m = if e == 0 { va } else { va.max(vb) };
-        (v, m)
-    };
-    let first = m0.saturating_sub(1);
-    let last = (m0 + g).min(w4 - 1);
-    (d[0], dm[0]) = val(first);
-    (d[g + 1], dm[g + 1]) = val(last);
-    let (sa, sb) = (&a[4 * m0..4 * (m0 + g)], &b[4 * m0..4 * (m0 + g)]);
-    let (di, dmi) = (&mut d[1..g + 1], &mut dm[1..g + 1]);
+    let n = v.len();
+    let (a, b) = (&a[x0..x0 + n], &b[x0..x0 + n]);
+    let vm = if SAT { &mut vm[..n] } else { &mut vm[..0] };
     if e == 0 {
-        for (o, s) in di.iter_mut().zip(sa.chunks_exact(4)) {
-            *o = s[chi].to_f32();
+        for i in 0..n {
+            v[i] = a[i].to_f32();
         }
         if SAT {
-            for (o, s) in dmi.iter_mut().zip(sa.chunks_exact(4)) {
-                *o = s[chi].to_f32();
-            }
+            vm.copy_from_slice(v);
         }
     } else {
-        for ((o, s), t) in di
-            .iter_mut()
-            .zip(sa.chunks_exact(4))
-            .zip(sb.chunks_exact(4))
-        {
-            *o = wa * s[chi].to_f32() + wb * t[chi].to_f32();
+        let (wa, wb) = weights(e);
+        for i in 0..n {
+            v[i] = wa * a[i].to_f32() + wb * b[i].to_f32();
         }
         if SAT {
-            for ((o, s), t) in dmi
-                .iter_mut()
-                .zip(sa.chunks_exact(4))
-                .zip(sb.chunks_exact(4))
-            {
-                *o = s[chi].to_f32().max(t[chi].to_f32());
+            for i in 0..n {
+                vm[i] = a[i].to_f32().max(b[i].to_f32());
             }
         }
     }
 }
 
-/// The bilinear colour reconstruction of one strip of output rows `y0 .. y0 + rows`
-/// into `out` (one [`StripOut`] per band, each `rows × width`): returns the counts of
-/// each band.
+/// One vertically interpolated, padded row (module docs) for output columns
+/// `c0..c0 + len`: `v[PAD + i]` is column `c0 + i`; columns before 0 or from `w` on
+/// take the column one period in.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn padded_row<T: Sample, const SAT: bool>(
+    a: &[T],
+    b: &[T],
+    e: usize,
+    w: usize,
+    c0: usize,
+    len: usize,
+    v: &mut [f32],
+    vm: &mut [f32],
+) {
+    // columns c0 − PAD .. c0 + len + PAD, inside the image
+    let lo = c0.saturating_sub(PAD);
+    let hi = (c0 + len + PAD).min(w);
+    let off = lo + PAD - c0;
+    vertical::<T, SAT>(
+        a,
+        b,
+        e,
+        lo,
+        &mut v[off..off + hi - lo],
+        &mut vm[off..off + hi - lo],
+    );
+    // outside: the same residue one period in
+    for k in 0..off {
+        v[k] = v[k + 4];
+        vm[k] = vm[k + 4];
+    }
+    for k in off + hi - lo..len + 2 * PAD {
+        v[k] = v[k - 4];
+        vm[k] = vm[k - 4];
+    }
+}
+
+/// The horizontal interpolation of lattice column residue `chi` at columns
+/// `c0 + i` (`c0` a multiple of 4) from the padded row `v`, written into `dst`
+/// (`ADD`: added to it).
+#[inline(always)]
+fn horizontal<const ADD: bool>(dst: &mut [f32], v: &[f32], chi: usize) {
+    let n = dst.len();
+    let s: [&[f32]; 8] = std::array::from_fn(|t| &v[t + 1..t + 1 + n]);
+    // s[t][i] = v[i + t + 1] = column c0 + i + t − 3; every value is loaded and the
+    // lane's taps selected (conditional loads would not vectorise).
+    for i in 0..n {
+        let e = (i + 4 - chi) & 3;
+        let [v0, v1, v2, v3, v4, v5, v6, _] = s.map(|r| r[i]);
+        let lo = if e == 0 { v3 } else { v2 };
+        let lo = if e == 2 { v1 } else { lo };
+        let lo = if e == 3 { v0 } else { lo };
+        let hi = if e == 1 { v6 } else { v4 };
+        let hi = if e == 2 { v5 } else { hi };
+        let wb = e as f32 * 0.25;
+        let wa = 1.0 - wb;
+        let val = if e == 0 { lo } else { wa * lo + wb * hi };
+        dst[i] = if ADD { dst[i] + val } else { val };
+    }
+}
+
+/// The largest sample with a non-zero weight of [`horizontal`], folded into `mx`.
+#[inline(always)]
+fn horizontal_max(mx: &mut [f32], vm: &[f32], chi: usize) {
+    let n = mx.len();
+    let s: [&[f32]; 8] = std::array::from_fn(|t| &vm[t + 1..t + 1 + n]);
+    for i in 0..n {
+        let e = (i + 4 - chi) & 3;
+        let [v0, v1, v2, v3, v4, v5, v6, _] = s.map(|r| r[i]);
+        let lo = if e == 0 { v3 } else { v2 };
+        let lo = if e == 2 { v1 } else { lo };
+        let lo = if e == 3 { v0 } else { lo };
+        let hi = if e == 1 { v6 } else { v4 };
+        let hi = if e == 2 { v5 } else { hi };
+        let hi = if e == 0 { v3 } else { hi };
+        mx[i] = mx[i].max(lo.max(hi));
+    }
+}
+
+/// Destination row of one block: the caller's row `c0..c0 + len` where asked for,
+/// else the scratch row.
+macro_rules! dest {
+    ($out:expr, $scratch:expr, $span:expr, $len:expr) => {
+        match $out {
+            Some(r) => &mut r[$span],
+            None => &mut $scratch[..$len],
+        }
+    };
+}
+
+/// The outputs of one band for one strip of rows (each `rows × width`, or absent).
+pub(super) struct BandStrip<'a> {
+    pub s: [Option<&'a mut [f32]>; 3],
+    pub mask: Option<&'a mut [u8]>,
+    pub dolp: Option<&'a mut [f32]>,
+    pub aolp: Option<&'a mut [f32]>,
+}
+
+/// The bilinear colour reconstruction of output rows `y0 .. y0 + rows` into `out` (one
+/// [`BandStrip`] per band): returns the counts of each band.
 #[inline(always)]
 pub(super) fn bilinear_strip<T: Sample, const SAT: bool, const POLAR: bool>(
     job: &ColourJob<'_, T>,
-    out: &mut [StripOut<'_>],
+    y0: usize,
+    rows: usize,
+    out: &mut [BandStrip<'_>],
     sc: &mut ColourScratch,
 ) -> [PixelCounts; MAX_BANDS] {
     let (w, hgt) = (job.width, job.height);
-    let w4 = w / 4;
     let dark2 = 2.0 * job.rules.dark_level;
-    let (sat, min_s0) = (job.rules.saturation, job.rules.min_s0);
     let nb = job.nbands.min(out.len());
-    let (y0, rows) = match out.first() {
-        Some(o) => (o.y0, o.rows),
-        None => return [PixelCounts::default(); MAX_BANDS],
-    };
     let mut total = [PixelCounts::default(); MAX_BANDS];
-    const GP: usize = G + 2;
     for r in 0..rows {
         let y = y0 + r;
-        let vt: [(usize, usize, usize); 4] = std::array::from_fn(|rho| taps(y, rho, hgt));
         let mut counts = [[0u32; 3]; MAX_BANDS];
         for c0 in (0..w).step_by(CBLOCK) {
             let len = CBLOCK.min(w - c0);
-            let (g, m0) = (len / 4, c0 / 4);
-            // 1. vertically interpolated lattice rows
-            for (rho, &(ya, yb, e)) in vt.iter().enumerate() {
+            for rho in 0..4 {
+                let (ya, yb, e) = taps(y, rho, hgt);
                 let (a, b) = (row(job.raw, w, ya), row(job.raw, w, yb));
-                for chi in 0..4 {
-                    let l = 4 * rho + chi;
-                    fill_lattice::<T, SAT>(
-                        a,
-                        b,
-                        e,
-                        chi,
-                        m0,
-                        g,
-                        w4,
-                        &mut sc.d[l * GP..(l + 1) * GP],
-                        &mut sc.dm[l * GP..(l + 1) * GP],
-                    );
-                }
+                padded_row::<T, SAT>(a, b, e, w, c0, len, &mut sc.v[rho], &mut sc.vm[rho]);
             }
-            // 2. per phase: horizontal interpolation, channels, Stokes
-            for j in 0..4 {
-                for l in 0..16 {
-                    let chi = l % 4;
-                    let e = (j + 4 - chi) % 4;
-                    let base = usize::from(chi <= j);
-                    let d = &sc.d[l * GP + base..][..g + 1];
-                    let h = &mut sc.h[l * G..][..g];
-                    if e == 0 {
-                        h.copy_from_slice(&d[..g]);
-                    } else {
-                        let (wa, wb) = weights(e);
-                        let (d0, d1) = (&d[..g], &d[1..g + 1]);
-                        for i in 0..g {
-                            h[i] = wa * d0[i] + wb * d1[i];
-                        }
-                    }
-                    if SAT {
-                        let dm = &sc.dm[l * GP + base..][..g + 1];
-                        let hm = &mut sc.hm[l * G..][..g];
-                        if e == 0 {
-                            hm.copy_from_slice(&dm[..g]);
+            for (band, o) in out.iter_mut().enumerate().take(nb) {
+                let n = job.n[band];
+                let lat = &job.lat[band];
+                for (k, lk) in lat.iter().enumerate() {
+                    let ik = &mut sc.ik[k][..len];
+                    for (j, &l) in lk[..n].iter().enumerate() {
+                        let v = &sc.v[l / 4][..len + 2 * PAD];
+                        if j == 0 {
+                            horizontal::<false>(ik, v, l % 4);
                         } else {
-                            let (d0, d1) = (&dm[..g], &dm[1..g + 1]);
-                            for i in 0..g {
-                                hm[i] = d0[i].max(d1[i]);
-                            }
+                            horizontal::<true>(ik, v, l % 4);
                         }
                     }
-                }
-                for b in 0..nb {
-                    let n = job.n[b];
-                    let lat = &job.lat[b];
-                    // channel means
                     if n > 1 {
                         let inv = 1.0 / n as f32;
-                        for (k, lk) in lat.iter().enumerate() {
-                            let ik = &mut sc.ik[k * G..][..g];
-                            ik.copy_from_slice(&sc.h[lk[0] * G..][..g]);
-                            for &l in &lk[1..n] {
-                                let hl = &sc.h[l * G..][..g];
-                                for i in 0..g {
-                                    ik[i] += hl[i];
-                                }
-                            }
-                            for v in ik.iter_mut() {
-                                *v *= inv;
-                            }
-                        }
-                    }
-                    if SAT {
-                        let mx = &mut sc.mx[..g];
-                        mx.fill(f32::NEG_INFINITY);
-                        for lk in lat {
-                            for &l in &lk[..n] {
-                                let hm = &sc.hm[l * G..][..g];
-                                for i in 0..g {
-                                    mx[i] = mx[i].max(hm[i]);
-                                }
-                            }
-                        }
-                    }
-                    let ch: [&[f32]; 4] = std::array::from_fn(|k| {
-                        if n > 1 {
-                            &sc.ik[k * G..][..g]
-                        } else {
-                            &sc.h[lat[k][0] * G..][..g]
-                        }
-                    });
-                    let mx = &sc.mx[..g];
-                    let base = b * 5 * 4 * G;
-                    let ph = &mut sc.ph[base..base + 20 * G];
-                    let (p0, rest) = ph.split_at_mut(4 * G);
-                    let (p1, rest) = rest.split_at_mut(4 * G);
-                    let (p2, rest) = rest.split_at_mut(4 * G);
-                    let (pd, pa) = rest.split_at_mut(4 * G);
-                    let s0 = &mut p0[j * G..][..g];
-                    let s1 = &mut p1[j * G..][..g];
-                    let s2 = &mut p2[j * G..][..g];
-                    let dl = &mut pd[j * G..][..g];
-                    let al = &mut pa[j * G..][..g];
-                    let m = &mut sc.pm[(b * 4 + j) * G..][..g];
-                    let [c0s, c45, c90, c135] = ch;
-                    let cnt = &mut counts[b];
-                    for i in 0..g {
-                        let (a0, a45, a90, a135) = (c0s[i], c45[i], c90[i], c135[i]);
-                        let v0 = 0.5 * ((a0 + a90) + (a45 + a135)) - dark2;
-                        let v1 = a0 - a90;
-                        let v2 = a45 - a135;
-                        let nf = !T::INTEGER && !(v0 + v1 + v2).is_finite();
-                        let satd = SAT && mx[i] >= sat;
-                        let mk = mask_value(nf, satd, v0, min_s0);
-                        s0[i] = v0;
-                        s1[i] = v1;
-                        s2[i] = v2;
-                        m[i] = mk;
-                        count(mk, true, cnt);
-                        if POLAR {
-                            (dl[i], al[i]) = polar(v0, v1, v2, mk);
+                        for x in ik.iter_mut() {
+                            *x *= inv;
                         }
                     }
                 }
-            }
-            // 3. interleave the phases into the caller's rows
-            for (b, o) in out.iter_mut().enumerate().take(nb) {
+                if SAT {
+                    let mx = &mut sc.mx[..len];
+                    mx.fill(f32::NEG_INFINITY);
+                    for lk in lat {
+                        for &l in &lk[..n] {
+                            horizontal_max(mx, &sc.vm[l / 4][..len + 2 * PAD], l % 4);
+                        }
+                    }
+                }
                 let span = r * w + c0..r * w + c0 + len;
-                let base = b * 5 * 4 * G;
+                let [t0, t1, t2, td, ta] = &mut sc.tmp;
                 let [s0, s1, s2] = &mut o.s;
-                let dests = [
-                    s0.as_deref_mut(),
-                    s1.as_deref_mut(),
-                    s2.as_deref_mut(),
-                    o.dolp.as_deref_mut(),
-                    o.aolp.as_deref_mut(),
-                ];
-                for (q, dst) in dests.into_iter().enumerate() {
-                    if let Some(dst) = dst
-                        && (q < 3 || POLAR)
-                    {
-                        let p = &sc.ph[base + q * 4 * G..][..4 * G];
-                        interleave(&mut dst[span.clone()], p, g);
-                    }
-                }
-                if let Some(dst) = o.mask.as_deref_mut() {
-                    let p = &sc.pm[b * 4 * G..][..4 * G];
-                    interleave(&mut dst[span], p, g);
-                }
+                let rows = PixelRows {
+                    s0: dest!(s0.as_deref_mut(), t0, span.clone(), len),
+                    s1: dest!(s1.as_deref_mut(), t1, span.clone(), len),
+                    s2: dest!(s2.as_deref_mut(), t2, span.clone(), len),
+                    m: dest!(o.mask.as_deref_mut(), sc.tm, span.clone(), len),
+                    d: dest!(o.dolp.as_deref_mut(), td, span.clone(), len),
+                    a: dest!(o.aolp.as_deref_mut(), ta, span, len),
+                };
+                let ch: [&[f32]; 4] = std::array::from_fn(|k| &sc.ik[k][..len]);
+                stokes_pixels::<T, SAT, POLAR>(
+                    ch,
+                    &sc.mx[..len],
+                    &job.rules,
+                    dark2,
+                    rows,
+                    &mut counts[band],
+                );
             }
         }
         for b in 0..nb {
@@ -376,128 +347,202 @@ pub(super) fn bilinear_strip<T: Sample, const SAT: bool, const POLAR: bool>(
     total
 }
 
-/// `dst[4i + j] = p[j·G + i]` for `i < g`, `j < 4`.
-#[inline(always)]
-fn interleave<V: Copy>(dst: &mut [V], p: &[V], g: usize) {
-    let (p0, p1, p2, p3) = (
-        &p[..g],
-        &p[G..G + g],
-        &p[2 * G..2 * G + g],
-        &p[3 * G..3 * G + g],
-    );
-    for (i, o) in dst.chunks_exact_mut(4).take(g).enumerate() {
-        o[0] = p0[i];
-        o[1] = p1[i];
-        o[2] = p2[i];
-        o[3] = p3[i];
-    }
-}
-
-/// The super-pixel colour reconstruction of one strip of output rows (one output per
-/// 4×4 period): per band and polarizer `I_k = (Σ raw)/n − dark` over the band's `n`
+/// The super-pixel colour reconstruction of output rows `y0 .. y0 + rows` (one output
+/// per 4×4 period): per band and polarizer `I_k = (Σ raw)/n − dark` over the band's `n`
 /// blocks, `S0 = ½ ((I0 + I90) + (I45 + I135))`, `S1 = I0 − I90`, `S2 = I45 − I135`;
 /// saturated when one of the band's `4n` raw values is.
 #[inline(always)]
 pub(super) fn superpixel_strip<T: Sample, const POLAR: bool>(
     job: &ColourJob<'_, T>,
-    out: &mut [StripOut<'_>],
+    y0: usize,
+    rows: usize,
+    out: &mut [BandStrip<'_>],
+    sc: &mut ColourScratch,
 ) -> [PixelCounts; MAX_BANDS] {
     let w = job.width;
     let ow = w / 4;
     let dark = job.rules.dark_level;
-    let (sat, min_s0) = (job.rules.saturation, job.rules.min_s0);
     let nb = job.nbands.min(out.len());
-    let (y0, rows) = match out.first() {
-        Some(o) => (o.y0, o.rows),
-        None => return [PixelCounts::default(); MAX_BANDS],
-    };
     let mut total = [PixelCounts::default(); MAX_BANDS];
     for r in 0..rows {
         let cy = y0 + r;
         let raw_rows: [&[T]; 4] = std::array::from_fn(|rho| row(job.raw, w, 4 * cy + rho));
-        for (b, o) in out.iter_mut().enumerate().take(nb) {
-            let n = job.n[b];
-            let inv = 1.0 / n as f32;
-            let lat = &job.lat[b];
-            let span = r * ow..(r + 1) * ow;
-            let mut cnt = [0u32; 3];
-            for x in 0..ow {
-                let mut iv = [0f32; 4];
-                let mut mx = f32::NEG_INFINITY;
-                for (k, lk) in lat.iter().enumerate() {
-                    let mut s = 0f32;
+        let mut counts = [[0u32; 3]; MAX_BANDS];
+        for c0 in (0..ow).step_by(CBLOCK) {
+            let len = CBLOCK.min(ow - c0);
+            for (band, o) in out.iter_mut().enumerate().take(nb) {
+                let n = job.n[band];
+                let inv = 1.0 / n as f32;
+                let mx = &mut sc.mx[..len];
+                mx.fill(f32::NEG_INFINITY);
+                for (k, lk) in job.lat[band].iter().enumerate() {
+                    let ik = &mut sc.ik[k][..len];
+                    ik.fill(0.0);
                     for &l in &lk[..n] {
-                        let v = raw_rows[l / 4][4 * x + l % 4].to_f32();
-                        s += v;
-                        mx = mx.max(v);
+                        let src = &raw_rows[l / 4][4 * c0..4 * (c0 + len)];
+                        for ((d, m), s) in ik.iter_mut().zip(mx.iter_mut()).zip(src.chunks_exact(4))
+                        {
+                            let v = s[l % 4].to_f32();
+                            *d += v;
+                            *m = m.max(v);
+                        }
                     }
-                    iv[k] = s * inv - dark;
+                    for x in ik.iter_mut() {
+                        *x = *x * inv - dark;
+                    }
                 }
-                let [i0, i45, i90, i135] = iv;
-                let v0 = 0.5 * ((i0 + i90) + (i45 + i135));
-                let v1 = i0 - i90;
-                let v2 = i45 - i135;
-                let nf = !T::INTEGER && !(v0 + v1 + v2).is_finite();
-                let mk = mask_value(nf, mx >= sat, v0, min_s0);
-                count(mk, true, &mut cnt);
-                let at = span.start + x;
+                let span = r * ow + c0..r * ow + c0 + len;
+                let [t0, t1, t2, td, ta] = &mut sc.tmp;
                 let [s0, s1, s2] = &mut o.s;
-                for (dst, v) in [(s0, v0), (s1, v1), (s2, v2)] {
-                    if let Some(d) = dst.as_deref_mut() {
-                        d[at] = v;
-                    }
-                }
-                if let Some(d) = o.mask.as_deref_mut() {
-                    d[at] = mk;
-                }
-                if POLAR {
-                    let (pd, pa) = polar(v0, v1, v2, mk);
-                    if let Some(d) = o.dolp.as_deref_mut() {
-                        d[at] = pd;
-                    }
-                    if let Some(d) = o.aolp.as_deref_mut() {
-                        d[at] = pa;
-                    }
-                }
+                let rows = PixelRows {
+                    s0: dest!(s0.as_deref_mut(), t0, span.clone(), len),
+                    s1: dest!(s1.as_deref_mut(), t1, span.clone(), len),
+                    s2: dest!(s2.as_deref_mut(), t2, span.clone(), len),
+                    m: dest!(o.mask.as_deref_mut(), sc.tm, span.clone(), len),
+                    d: dest!(o.dolp.as_deref_mut(), td, span.clone(), len),
+                    a: dest!(o.aolp.as_deref_mut(), ta, span, len),
+                };
+                let ch: [&[f32]; 4] = std::array::from_fn(|k| &sc.ik[k][..len]);
+                stokes_pixels::<T, true, POLAR>(
+                    ch,
+                    &sc.mx[..len],
+                    &job.rules,
+                    0.0,
+                    rows,
+                    &mut counts[band],
+                );
             }
-            total[b] = total[b].add(row_counts(cnt, ow));
+        }
+        for b in 0..nb {
+            total[b] = total[b].add(row_counts(counts[b], ow));
         }
     }
     total
 }
 
-/// Safe, token-gated entry points to [`bilinear_strip`] for one instruction set (see
+/// The output rows of [`stokes_pixels`] (all of one length).
+struct PixelRows<'a> {
+    s0: &'a mut [f32],
+    s1: &'a mut [f32],
+    s2: &'a mut [f32],
+    m: &'a mut [u8],
+    d: &'a mut [f32],
+    a: &'a mut [f32],
+}
+
+/// Per pixel from the four channels `ch` (0, 45, 90, 135°, dark included) and the
+/// largest raw value `mx` (used when `SAT`): `S0 = ½ ((I0 + I90) + (I45 + I135)) − dark2`,
+/// `S1 = I0 − I90`, `S2 = I45 − I135`, the mask, its counts, DoLP and AoLP when `POLAR`.
+#[inline(always)]
+fn stokes_pixels<T: Sample, const SAT: bool, const POLAR: bool>(
+    ch: [&[f32]; 4],
+    mx: &[f32],
+    rules: &PixelRules,
+    dark2: f32,
+    out: PixelRows<'_>,
+    counts: &mut [u32; 3],
+) {
+    let PixelRows {
+        s0,
+        s1,
+        s2,
+        m,
+        d,
+        a,
+    } = out;
+    let n = s0.len();
+    let (s1, s2, m) = (&mut s1[..n], &mut s2[..n], &mut m[..n]);
+    let (d, a) = if POLAR {
+        (&mut d[..n], &mut a[..n])
+    } else {
+        (&mut d[..0], &mut a[..0])
+    };
+    let mx = if SAT { &mx[..n] } else { &mx[..0] };
+    let [c0, c45, c90, c135] = ch.map(|c| &c[..n]);
+    let (sat, min_s0) = (rules.saturation, rules.min_s0);
+    let mut cnt = *counts;
+    for i in 0..n {
+        let (a0, a45, a90, a135) = (c0[i], c45[i], c90[i], c135[i]);
+        let v0 = 0.5 * ((a0 + a90) + (a45 + a135)) - dark2;
+        let v1 = a0 - a90;
+        let v2 = a45 - a135;
+        let nf = !T::INTEGER && !(v0 + v1 + v2).is_finite();
+        let satd = SAT && mx[i] >= sat;
+        let mk = mask_value(nf, satd, v0, min_s0);
+        s0[i] = v0;
+        s1[i] = v1;
+        s2[i] = v2;
+        m[i] = mk;
+        count(mk, true, &mut cnt);
+        if POLAR {
+            (d[i], a[i]) = polar(v0, v1, v2, mk);
+        }
+    }
+    *counts = cnt;
+}
+
+/// Safe, token-gated entry points to the strip kernels for one instruction set (see
 /// `isa.rs` for the safety argument: the token is handed out only when the CPU has the
 /// features).
 #[cfg(target_arch = "x86_64")]
 macro_rules! colour_entry {
     ($modname:ident, $token:ty, $features:literal) => {
         pub(super) mod $modname {
-            use super::{ColourJob, ColourScratch, MAX_BANDS, bilinear_strip};
-            use crate::mosaic::kernel::StripOut;
+            use super::{BandStrip, ColourJob, ColourScratch, MAX_BANDS};
             use crate::stokes::{PixelCounts, Sample};
 
-            /// [`bilinear_strip`] for this instruction set.
+            /// [`super::bilinear_strip`] for this instruction set.
             #[inline]
-            pub(in crate::mosaic) fn strip<T: Sample, const SAT: bool, const POLAR: bool>(
+            pub(in crate::mosaic) fn bilinear<T: Sample, const SAT: bool, const POLAR: bool>(
                 _t: $token,
                 job: &ColourJob<'_, T>,
-                out: &mut [StripOut<'_>],
+                y0: usize,
+                rows: usize,
+                out: &mut [BandStrip<'_>],
                 sc: &mut ColourScratch,
             ) -> [PixelCounts; MAX_BANDS] {
                 // SAFETY: the token proves the CPU has the enabled features.
-                unsafe { strip_tf::<T, SAT, POLAR>(job, out, sc) }
+                unsafe { bilinear_tf::<T, SAT, POLAR>(job, y0, rows, out, sc) }
             }
 
             /// # Safety
             /// The CPU has the enabled features.
             #[target_feature(enable = $features)]
-            unsafe fn strip_tf<T: Sample, const SAT: bool, const POLAR: bool>(
+            unsafe fn bilinear_tf<T: Sample, const SAT: bool, const POLAR: bool>(
                 job: &ColourJob<'_, T>,
-                out: &mut [StripOut<'_>],
+                y0: usize,
+                rows: usize,
+                out: &mut [BandStrip<'_>],
                 sc: &mut ColourScratch,
             ) -> [PixelCounts; MAX_BANDS] {
-                bilinear_strip::<T, SAT, POLAR>(job, out, sc)
+                super::bilinear_strip::<T, SAT, POLAR>(job, y0, rows, out, sc)
+            }
+
+            /// [`super::superpixel_strip`] for this instruction set.
+            #[inline]
+            pub(in crate::mosaic) fn superpixel<T: Sample, const POLAR: bool>(
+                _t: $token,
+                job: &ColourJob<'_, T>,
+                y0: usize,
+                rows: usize,
+                out: &mut [BandStrip<'_>],
+                sc: &mut ColourScratch,
+            ) -> [PixelCounts; MAX_BANDS] {
+                // SAFETY: the token proves the CPU has the enabled features.
+                unsafe { superpixel_tf::<T, POLAR>(job, y0, rows, out, sc) }
+            }
+
+            /// # Safety
+            /// The CPU has the enabled features.
+            #[target_feature(enable = $features)]
+            unsafe fn superpixel_tf<T: Sample, const POLAR: bool>(
+                job: &ColourJob<'_, T>,
+                y0: usize,
+                rows: usize,
+                out: &mut [BandStrip<'_>],
+                sc: &mut ColourScratch,
+            ) -> [PixelCounts; MAX_BANDS] {
+                super::superpixel_strip::<T, POLAR>(job, y0, rows, out, sc)
             }
         }
     };
