@@ -79,7 +79,7 @@ impl<'a, T> ColourJob<'a, T> {
 pub(super) struct ColourScratch {
     /// Vertically interpolated rows per residue `ρ`, each `CBLOCK + 2·PAD`.
     v: [Vec<f32>; 4],
-    /// Their vertical maxima (saturation test).
+    /// The maxima of their samples (saturation test, for blocks that need it).
     vm: [Vec<f32>; 4],
     /// The four channels of one band, `CBLOCK` each.
     ik: [Vec<f32>; 4],
@@ -133,45 +133,46 @@ fn row<T>(img: &[T], width: usize, r: usize) -> &[T] {
 }
 
 /// The vertical interpolation of phase `e` of raw rows `a`, `b` over columns
-/// `x0..x0 + v.len()` into `v` (and the maxima of its samples into `vm` when `SAT`).
+/// `x0..x0 + v.len()` into `v` (`MAX`: the largest of the samples with a non-zero
+/// weight instead).
 #[inline(always)]
-fn vertical<T: Sample, const SAT: bool>(
-    a: &[T],
-    b: &[T],
-    e: usize,
-    x0: usize,
-    v: &mut [f32],
-    vm: &mut [f32],
-) {
+fn vertical<T: Sample, const MAX: bool>(a: &[T], b: &[T], e: usize, x0: usize, v: &mut [f32]) {
     let n = v.len();
     let (a, b) = (&a[x0..x0 + n], &b[x0..x0 + n]);
-    let vm = if SAT { &mut vm[..n] } else { &mut vm[..0] };
     if e == 0 {
         for i in 0..n {
             v[i] = a[i].to_f32();
         }
-        if SAT {
-            vm.copy_from_slice(v);
+    } else if MAX {
+        for i in 0..n {
+            v[i] = a[i].to_f32().max(b[i].to_f32());
         }
     } else {
         let (wa, wb) = weights(e);
         for i in 0..n {
             v[i] = wa * a[i].to_f32() + wb * b[i].to_f32();
         }
-        if SAT {
-            for i in 0..n {
-                vm[i] = a[i].to_f32().max(b[i].to_f32());
-            }
+    }
+}
+
+/// The largest value of `a[x0..x1]` and `b[x0..x1]` (NaN ignored).
+#[inline(always)]
+fn raw_max<T: Sample>(a: &[T], b: &[T], x0: usize, x1: usize) -> f32 {
+    let mut m = [f32::NEG_INFINITY; 16];
+    for (ca, cb) in a[x0..x1].chunks(16).zip(b[x0..x1].chunks(16)) {
+        for (k, (&va, &vb)) in ca.iter().zip(cb).enumerate() {
+            m[k] = m[k].max(va.to_f32().max(vb.to_f32()));
         }
     }
+    m.iter().fold(f32::NEG_INFINITY, |x, &y| x.max(y))
 }
 
 /// One vertically interpolated, padded row (module docs) for output columns
 /// `c0..c0 + len`: `v[PAD + i]` is column `c0 + i`; columns before 0 or from `w` on
-/// take the column one period in.
+/// take the column one period in. `MAX`: the maxima of the samples instead.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn padded_row<T: Sample, const SAT: bool>(
+fn padded_row<T: Sample, const MAX: bool>(
     a: &[T],
     b: &[T],
     e: usize,
@@ -179,28 +180,18 @@ fn padded_row<T: Sample, const SAT: bool>(
     c0: usize,
     len: usize,
     v: &mut [f32],
-    vm: &mut [f32],
 ) {
     // columns c0 − PAD .. c0 + len + PAD, inside the image
     let lo = c0.saturating_sub(PAD);
     let hi = (c0 + len + PAD).min(w);
     let off = lo + PAD - c0;
-    vertical::<T, SAT>(
-        a,
-        b,
-        e,
-        lo,
-        &mut v[off..off + hi - lo],
-        &mut vm[off..off + hi - lo],
-    );
+    vertical::<T, MAX>(a, b, e, lo, &mut v[off..off + hi - lo]);
     // outside: the same residue one period in
     for k in 0..off {
         v[k] = v[k + 4];
-        vm[k] = vm[k + 4];
     }
     for k in off + hi - lo..len + 2 * PAD {
         v[k] = v[k - 4];
-        vm[k] = vm[k - 4];
     }
 }
 
@@ -284,10 +275,23 @@ pub(super) fn bilinear_strip<T: Sample, const SAT: bool, const POLAR: bool>(
         let mut counts = [[0u32; 3]; MAX_BANDS];
         for c0 in (0..w).step_by(CBLOCK) {
             let len = CBLOCK.min(w - c0);
+            // any saturated sample in reach of the block? (else the test is skipped)
+            let mut any_sat = false;
             for rho in 0..4 {
                 let (ya, yb, e) = taps(y, rho, hgt);
                 let (a, b) = (row(job.raw, w, ya), row(job.raw, w, yb));
-                padded_row::<T, SAT>(a, b, e, w, c0, len, &mut sc.v[rho], &mut sc.vm[rho]);
+                padded_row::<T, false>(a, b, e, w, c0, len, &mut sc.v[rho]);
+                if SAT {
+                    let (lo, hi) = (c0.saturating_sub(PAD), (c0 + len + PAD).min(w));
+                    any_sat |= raw_max(a, b, lo, hi) >= job.rules.saturation;
+                }
+            }
+            if SAT && any_sat {
+                for rho in 0..4 {
+                    let (ya, yb, e) = taps(y, rho, hgt);
+                    let (a, b) = (row(job.raw, w, ya), row(job.raw, w, yb));
+                    padded_row::<T, true>(a, b, e, w, c0, len, &mut sc.vm[rho]);
+                }
             }
             for (band, o) in out.iter_mut().enumerate().take(nb) {
                 let n = job.n[band];
@@ -309,7 +313,7 @@ pub(super) fn bilinear_strip<T: Sample, const SAT: bool, const POLAR: bool>(
                         }
                     }
                 }
-                if SAT {
+                if SAT && any_sat {
                     let mx = &mut sc.mx[..len];
                     mx.fill(f32::NEG_INFINITY);
                     for lk in lat {
@@ -330,14 +334,12 @@ pub(super) fn bilinear_strip<T: Sample, const SAT: bool, const POLAR: bool>(
                     a: dest!(o.aolp.as_deref_mut(), ta, span, len),
                 };
                 let ch: [&[f32]; 4] = std::array::from_fn(|k| &sc.ik[k][..len]);
-                stokes_pixels::<T, SAT, POLAR>(
-                    ch,
-                    &sc.mx[..len],
-                    &job.rules,
-                    dark2,
-                    rows,
-                    &mut counts[band],
-                );
+                let (mx, cnt) = (&sc.mx[..len], &mut counts[band]);
+                if SAT && any_sat {
+                    stokes_pixels::<T, true, POLAR>(ch, mx, &job.rules, dark2, rows, cnt);
+                } else {
+                    stokes_pixels::<T, false, POLAR>(ch, mx, &job.rules, dark2, rows, cnt);
+                }
             }
         }
         for b in 0..nb {
