@@ -266,6 +266,15 @@ pub fn capture_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
             dofp_stokes(&raw, pattern, &rules, Demosaic::Bilinear, false)
         }
         CaptureSource::Stokes { s0, s1, s2 } => read_stokes(s0, s1, s2),
+        CaptureSource::ColourDofp { .. } => Err(IoError::Manifest {
+            path: m.path.clone(),
+            line: c.line,
+            field: format!("capture[{}].dofp.color", c.index),
+            value: "color".into(),
+            reason: "a colour capture has one set of Stokes images per band: use \
+                     polarid_io::bands::capture_band_images"
+                .into(),
+        }),
     }
 }
 
