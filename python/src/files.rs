@@ -123,6 +123,7 @@ pub fn load_manifest<'py>(
         cd.set_item("dark_level", c.dark_level)?;
         cd.set_item("saturation", c.saturation)?;
         cd.set_item("beta_deg", beta_deg(c))?;
+        cd.set_item("wavelength_nm", c.wavelength_nm)?;
         let show = |p: &Path| p.display().to_string();
         match &c.source {
             CaptureSource::Frames(frames) => {
@@ -141,6 +142,21 @@ pub fn load_manifest<'py>(
                 let dd = PyDict::new(py);
                 dd.set_item("file", show(file))?;
                 dd.set_item("pattern", pattern.angles_deg().to_vec())?;
+                cd.set_item("dofp", dd)?;
+            }
+            CaptureSource::ColourDofp {
+                file,
+                pattern,
+                wavelengths_nm,
+            } => {
+                cd.set_item("kind", "colour_dofp")?;
+                let dd = PyDict::new(py);
+                dd.set_item("file", show(file))?;
+                dd.set_item("pattern", pattern.polar().angles_deg().to_vec())?;
+                dd.set_item("color", pattern.color())?;
+                let bands: Vec<String> = pattern.bands().iter().map(|c| c.to_string()).collect();
+                dd.set_item("bands", bands)?;
+                dd.set_item("wavelengths_nm", wavelengths_nm.clone())?;
                 cd.set_item("dofp", dd)?;
             }
             CaptureSource::Stokes { s0, s1, s2 } => {

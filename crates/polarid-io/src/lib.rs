@@ -6,6 +6,7 @@
 #![warn(missing_docs)]
 
 pub mod atomic;
+pub mod bands;
 pub mod error;
 pub mod image;
 pub mod library;

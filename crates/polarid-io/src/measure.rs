@@ -327,6 +327,15 @@ pub fn capture_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
             out.dark_signal_dn = c.dark_signal_dn.unwrap_or(0.0);
             Ok(out)
         }
+        CaptureSource::ColourDofp { .. } => Err(IoError::Manifest {
+            path: m.path.clone(),
+            line: c.line,
+            field: format!("capture[{}].dofp.color", c.index),
+            value: "color".into(),
+            reason: "a colour capture has one set of Stokes images per band: use \
+                     polarid_io::bands::capture_band_images"
+                .into(),
+        }),
     }
 }
 
@@ -433,6 +442,17 @@ pub fn hdr_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
                 field: format!("capture[{}].brackets", c.index),
                 value: s0.display().to_string(),
                 reason: "HDR brackets need raw data (`frames` or `dofp`), not Stokes images".into(),
+            });
+        }
+        CaptureSource::ColourDofp { file, .. } => {
+            return Err(IoError::Manifest {
+                path: m.path.clone(),
+                line: c.line,
+                field: format!("capture[{}].brackets", c.index),
+                value: file.display().to_string(),
+                reason: "HDR brackets of colour mosaics are not supported yet: give one \
+                         exposure per capture"
+                    .into(),
             });
         }
     };

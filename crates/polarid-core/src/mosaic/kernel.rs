@@ -312,7 +312,7 @@ fn column_flags<T: Sample>(
 /// else saturated, else dark (`S0 <= min_s0`), else valid — the order of
 /// [`crate::stokes`]' row kernels.
 #[inline(always)]
-fn mask_value(nonfinite: bool, saturated: bool, s0: f32, min_s0: f32) -> u8 {
+pub(super) fn mask_value(nonfinite: bool, saturated: bool, s0: f32, min_s0: f32) -> u8 {
     if nonfinite {
         mask::INVALID
     } else if saturated {
@@ -328,7 +328,7 @@ fn mask_value(nonfinite: bool, saturated: bool, s0: f32, min_s0: f32) -> u8 {
 /// when `live` (branch-free: the pixel loops vectorise with these reductions; without
 /// any, LLVM has been seen to leave the bilinear loop scalar).
 #[inline(always)]
-fn count(m: u8, live: bool, c: &mut [u32; 3]) {
+pub(super) fn count(m: u8, live: bool, c: &mut [u32; 3]) {
     c[0] += (live & (m == mask::SATURATED)) as u32;
     c[1] += (live & (m == mask::DARK)) as u32;
     c[2] += (live & (m == mask::INVALID)) as u32;
@@ -337,7 +337,7 @@ fn count(m: u8, live: bool, c: &mut [u32; 3]) {
 /// DoLP / AoLP of a pixel, NaN where the mask rejects it (as [`crate::stokes::dolp_aolp`]
 /// with a mask).
 #[inline(always)]
-fn polar(s0: f32, s1: f32, s2: f32, m: u8) -> (f32, f32) {
+pub(super) fn polar(s0: f32, s1: f32, s2: f32, m: u8) -> (f32, f32) {
     let (pd, pa) = dolp_aolp_pixel(s0, s1, s2);
     let ok = m == mask::VALID;
     (
@@ -430,7 +430,7 @@ fn borders<V: Copy>(r: &mut [V]) {
 
 /// Counts of a row from its rejection counts, its length and the border pixels' masks.
 #[inline(always)]
-fn row_counts(c: [u32; 3], n: usize) -> PixelCounts {
+pub(super) fn row_counts(c: [u32; 3], n: usize) -> PixelCounts {
     let rejected = (c[0] + c[1] + c[2]) as u64;
     PixelCounts {
         valid: n as u64 - rejected,

@@ -75,7 +75,11 @@
 //! | `kernel.rs`  | the portable strip kernels (components, pixels, borders), [`IntSample`]  |
 //! | `isa.rs`     | the token-gated entry points, instantiated in `avx2.rs` and `avx512.rs`  |
 //! | `reference.rs`, `tests.rs` | the previous implementation (test oracle) and the tests    |
+//! | `colour*.rs` | colour polarization mosaics ([`colour`]): pattern, kernels, oracle, tests   |
 
+pub mod colour;
+mod colour_kernel;
+mod colour_pattern;
 mod kernel;
 mod pattern;
 
@@ -87,6 +91,10 @@ mod avx512;
 mod isa;
 
 #[cfg(test)]
+mod colour_reference;
+#[cfg(test)]
+mod colour_tests;
+#[cfg(test)]
 mod reference;
 #[cfg(test)]
 mod tests;
@@ -96,6 +104,7 @@ use rayon::prelude::*;
 use crate::cpu::{Isa, cpu_features};
 use crate::error::Result;
 use crate::stokes::{PixelCounts, PixelRules, Sample, check_len};
+pub use colour::{ColourMethod, ColourPattern, colour_polar};
 pub use kernel::IntSample;
 use kernel::{Bilinear, Scratch, StripOut, Superpixel};
 pub use pattern::Pattern;

@@ -29,6 +29,13 @@
 //!   component and covariance (the channels are independent). This is exact for an even
 //!   width and height away from the frame border (each parity class of the cell is then
 //!   equally represented), up to edge terms of relative size `~ 1/w + 1/h`.
+//! * [`Sampling::BilinearColour`], `F = 4096/121 ≈ 33.9`: a colour polarization mosaic
+//!   interpolated per lattice of period 4 ([`crate::mosaic::colour`]). Along one axis the
+//!   four phases weigh the two taps `(1, 0)`, `(¾, ¼)`, `(½, ½)`, `(¼, ¾)`: per-pixel
+//!   variance `σ²`, `⅝σ²`, `½σ²`, `⅝σ²`, on average `11/16 σ²`, in 2-D `121/256 σ²`;
+//!   each raw value enters the region mean with total weight 16, so the mean of `n`
+//!   pixels has variance `16σ²/n`: `F = 16 / (121/256)`. A channel averaging two
+//!   lattices (`G` of `RGGB`) has half of both variances: the same `F`.
 //!
 //! **Calibrated captures** ([`local`]): when every pixel has its own geometry, the
 //! Stokes vectors are averaged in each pixel's plane-of-incidence frame, the region's
@@ -87,6 +94,9 @@ pub enum Sampling {
     Independent,
     /// Bilinearly demosaiced DoFP pixels: variance inflation `64/9` (module docs).
     BilinearDofp,
+    /// Bilinearly interpolated colour polarization pixels
+    /// ([`crate::mosaic::colour`]): variance inflation `4096/121` (module docs).
+    BilinearColour,
 }
 
 impl Sampling {
@@ -95,6 +105,7 @@ impl Sampling {
         match self {
             Sampling::Independent => 1.0,
             Sampling::BilinearDofp => 64.0 / 9.0,
+            Sampling::BilinearColour => 4096.0 / 121.0,
         }
     }
 }

@@ -20,6 +20,8 @@
 //! frames = [ { angle_deg = 0.0, file = "i35/pol000.tif" }, ... ]   # >= 3 distinct angles
 //! # or: dofp = { file = "raw.tif", pattern = [90, 45, 135, 0] }   (pattern optional)
 //! # or: stokes = { s0 = "s0.tif", s1 = "s1.tif", s2 = "s2.tif" }
+//! # or, colour: dofp = { file = "raw.tif", color = "RGGB" } with top-level
+//! #   bands = { R = 650.0, G = 550.0, B = 450.0 }   (see [`colour`])
 //! ```
 //!
 //! Per capture, `theta_r_deg`, `phi_deg`, `dark_level`, `saturation` and `angle_sd_deg` may override the
@@ -35,15 +37,17 @@
 //! the capture's angles. See [`calibration`] for the tables and their rules.
 
 pub mod calibration;
+pub mod colour;
 pub mod shared;
 
 pub use calibration::{CameraOrientation, CameraSpec, PlaneSpec, SiteSpec, SourceSpec};
+pub use colour::{Bands, DEFAULT_BANDS};
 
 use std::collections::HashSet;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-use polarid_core::mosaic::Pattern;
+use polarid_core::mosaic::{ColourPattern, Pattern};
 use polarid_core::region::Rect;
 use polarid_core::stokes::StokesSolver;
 use toml::Spanned;
@@ -65,8 +69,11 @@ pub struct Manifest {
     pub dark_level: f64,
     /// Top-level saturation level, DN (default: the frames' type maximum).
     pub saturation: Option<f64>,
-    /// Informational wavelength, nm.
+    /// Informational wavelength, nm (the default of single-band captures'
+    /// [`Capture::wavelength_nm`]).
     pub wavelength_nm: Option<f64>,
+    /// The colour bands (`bands`) of colour polarization captures ([`colour`]).
+    pub bands: Bands,
     /// Top-level standard uncertainty of the geometry's directions, degrees (if given;
     /// docs/ERRORS.md).
     pub angle_sd_deg: Option<f64>,
@@ -148,6 +155,10 @@ pub struct Capture {
     /// merged per pixel by `measure` (docs/FORMATS.md, "HDR brackets"); empty for a
     /// capture with one exposure. [`Capture::exposure`] is then the longest one's.
     pub brackets: Vec<Bracket>,
+    /// The wavelength of a single-band capture, nm (its own `wavelength_nm` or the
+    /// top-level one); `None` for colour captures (see
+    /// [`CaptureSource::ColourDofp::wavelengths_nm`]).
+    pub wavelength_nm: Option<f64>,
 }
 
 /// One exposure of an HDR capture.
@@ -228,6 +239,16 @@ pub enum CaptureSource {
         /// The 2×2 pattern (default `90,45,135,0`).
         pattern: Pattern,
     },
+    /// Colour polarization raw mosaic (a `dofp` with `color`, [`colour`]).
+    ColourDofp {
+        /// The raw frame.
+        file: PathBuf,
+        /// The polarizer and colour pattern.
+        pattern: ColourPattern,
+        /// The wavelength of each band of the pattern (in the order of
+        /// [`ColourPattern::bands`]), nm.
+        wavelengths_nm: Vec<f64>,
+    },
     /// Stokes images computed elsewhere (float TIFF).
     Stokes {
         /// S0 image.
@@ -245,6 +266,7 @@ impl CaptureSource {
         match self {
             CaptureSource::Frames(f) => f.iter().map(|f| f.file.as_path()).collect(),
             CaptureSource::Dofp { file, .. } => vec![file.as_path()],
+            CaptureSource::ColourDofp { file, .. } => vec![file.as_path()],
             CaptureSource::Stokes { s0, s1, s2 } => vec![s0, s1, s2],
         }
     }
@@ -442,6 +464,7 @@ impl<'a> Parser<'a> {
                 "dark_level",
                 "saturation",
                 "wavelength_nm",
+                "bands",
                 "angle_sd_deg",
                 "dark_signal_dn",
                 "region",
@@ -484,6 +507,7 @@ impl<'a> Parser<'a> {
 
         let angle_sd_deg = self.angle_sd(root, "")?;
         let dark_signal_dn = self.dark_signal(root, "")?;
+        let bands = self.bands(root)?;
 
         // Calibrated geometry.
         let camera = self.camera(root)?;
@@ -623,6 +647,7 @@ impl<'a> Parser<'a> {
                 saturation,
                 camera.is_some(),
                 site.as_ref(),
+                (&bands, wavelength_nm),
             )?);
             if let Some(c) = captures.last_mut() {
                 c.angle_sd_deg = c.angle_sd_deg.or(angle_sd_deg);
@@ -642,6 +667,7 @@ impl<'a> Parser<'a> {
             dark_level,
             saturation,
             wavelength_nm,
+            bands,
             angle_sd_deg,
             dark_signal_dn,
             camera,
@@ -673,6 +699,7 @@ impl<'a> Parser<'a> {
         sat_top: Option<f64>,
         calibrated: bool,
         site: Option<&SiteSpec>,
+        (bands, wavelength_top): (&Bands, Option<f64>),
     ) -> Result<Capture> {
         let pre = format!("capture[{index}].");
         let t = self.table(cv, &format!("capture[{index}]"))?;
@@ -693,6 +720,7 @@ impl<'a> Parser<'a> {
                 "stokes",
                 "brackets",
                 "source",
+                "wavelength_nm",
             ],
             &pre,
         );
@@ -788,7 +816,7 @@ impl<'a> Parser<'a> {
                         ));
                     }
                 }
-                let brackets = self.brackets(bv, &pre)?;
+                let brackets = self.brackets(bv, &pre, bands)?;
                 match brackets.first() {
                     Some(b) => (b.source.clone(), b.exposure, brackets),
                     None => {
@@ -797,11 +825,12 @@ impl<'a> Parser<'a> {
                 }
             }
             None => (
-                self.data_source(t, &pre, &span, true)?,
+                self.data_source(t, &pre, &span, true, bands)?,
                 exposure,
                 Vec::new(),
             ),
         };
+        let wavelength_nm = self.capture_wavelength(t, &pre, wavelength_top, &source)?;
         Ok(Capture {
             index,
             line: self.line(first_line),
@@ -817,6 +846,7 @@ impl<'a> Parser<'a> {
             dark_signal_dn,
             source,
             brackets,
+            wavelength_nm,
         })
     }
 
@@ -828,6 +858,7 @@ impl<'a> Parser<'a> {
         pre: &str,
         span: &Range<usize>,
         allow_stokes: bool,
+        bands: &Bands,
     ) -> Result<CaptureSource> {
         let span = span.clone();
         if !allow_stokes && let Some(v) = self.get(t, "stokes") {
@@ -901,7 +932,7 @@ impl<'a> Parser<'a> {
                     .ok_or_else(|| self.err(&span, "dofp", "missing"))?;
                 let field = format!("{pre}dofp");
                 let dt = self.table(dv, &field)?;
-                self.warn_unknown(dt, &["file", "pattern"], &format!("{field}."));
+                self.warn_unknown(dt, &["file", "pattern", "color"], &format!("{field}."));
                 let file_v = self.get(dt, "file").ok_or_else(|| {
                     self.err(&dv.span(), &format!("{field}.file"), "missing file")
                 })?;
@@ -918,7 +949,10 @@ impl<'a> Parser<'a> {
                         Pattern::new(&a).map_err(|e| self.err(&pv.span(), &pf, e.to_string()))?
                     }
                 };
-                CaptureSource::Dofp { file, pattern }
+                match self.colour_dofp(dt, &field, file.clone(), pattern, bands)? {
+                    Some(colour) => colour,
+                    None => CaptureSource::Dofp { file, pattern },
+                }
             }
             _ => {
                 let sv = self
@@ -947,7 +981,7 @@ impl<'a> Parser<'a> {
     /// The `brackets` of a capture (HDR): at least 2 tables, each with an `exposure`
     /// (> 0, distinct) and the same kind of data (`frames` with the same angles, or
     /// `dofp` with the same pattern); returned longest exposure first.
-    fn brackets(&self, bv: &Val<'_>, pre: &str) -> Result<Vec<Bracket>> {
+    fn brackets(&self, bv: &Val<'_>, pre: &str, bands: &Bands) -> Result<Vec<Bracket>> {
         let field = format!("{pre}brackets");
         let items = self.array(bv, &field)?;
         if items.len() < 2 {
@@ -982,7 +1016,7 @@ impl<'a> Parser<'a> {
                     ));
                 }
             };
-            let source = self.data_source(bt, &bpre, &it.span(), false)?;
+            let source = self.data_source(bt, &bpre, &it.span(), false, bands)?;
             if let Some(first) = out.first()
                 && let Some((key, reason)) = bracket_mismatch(&first.source, &source)
             {

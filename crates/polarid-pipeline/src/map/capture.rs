@@ -162,6 +162,10 @@ pub(crate) fn capture_dolp(
             .map_err(core_err(file))?;
             Ok(min_s0)
         }
+        CaptureSource::ColourDofp { file, .. } => Err(PipelineError::Data {
+            path: file.display().to_string(),
+            reason: "colour captures are not mapped yet (one map per band: issue 17)".into(),
+        }),
         CaptureSource::Stokes { s0, s1, s2 } => {
             let imgs = image::read_frames(&[s0, s1, s2])?;
             let [i0, i1, i2] = &imgs[..] else {
