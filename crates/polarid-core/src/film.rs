@@ -217,7 +217,13 @@ mod tests {
 
     /// Independent check: Born & Wolf's characteristic matrix of a homogeneous layer
     /// (§1.6.2 eq. (29)–(35)), with `p_j = q_j` (s) or `q_j/N_j²` (p).
-    fn char_matrix(film: Complex64, d: f64, sub: Complex64, beta: f64, lam: f64) -> (Complex64, Complex64) {
+    fn char_matrix(
+        film: Complex64,
+        d: f64,
+        sub: Complex64,
+        beta: f64,
+        lam: f64,
+    ) -> (Complex64, Complex64) {
         let sin2 = beta.sin().powi(2);
         let n0 = Complex64::new(1.0, 0.0);
         let (q0, q1, q2) = (q_of(n0, sin2), q_of(film, sin2), q_of(sub, sin2));
@@ -290,8 +296,16 @@ mod tests {
                     b,
                     633.0,
                 );
-                assert!((f.rs - rs).norm() < 1e-12, "{film:?} {d} {deg}: {} {rs}", f.rs);
-                assert!((f.rp - rp).norm() < 1e-12, "{film:?} {d} {deg}: {} {rp}", f.rp);
+                assert!(
+                    (f.rs - rs).norm() < 1e-12,
+                    "{film:?} {d} {deg}: {} {rs}",
+                    f.rs
+                );
+                assert!(
+                    (f.rp - rp).norm() < 1e-12,
+                    "{film:?} {d} {deg}: {} {rp}",
+                    f.rp
+                );
             }
         }
     }
@@ -299,9 +313,12 @@ mod tests {
     #[test]
     fn a_thick_oxide_turns_the_polarization_parallel_somewhere() {
         // SiO2 on Si at β = 60°: some thickness makes Rp > Rs (the oxide wafer).
-        let flips = (0..400)
-            .map(|i| f64::from(i) * 2.5)
-            .any(|d| thin_film((1.46, 0.0), d, (3.85, 0.016), 1.05, 500.0).unwrap().signed_dolp() < -0.05);
+        let flips = (0..400).map(|i| f64::from(i) * 2.5).any(|d| {
+            thin_film((1.46, 0.0), d, (3.85, 0.016), 1.05, 500.0)
+                .unwrap()
+                .signed_dolp()
+                < -0.05
+        });
         assert!(flips);
     }
 
@@ -328,8 +345,18 @@ mod tests {
             p += f.rp2;
         }
         let c = clear_coat(1.5, (0.24, 3.63), b).unwrap();
-        assert!((s / f64::from(m) - c.rs2).abs() < 2e-3, "{} {}", s / f64::from(m), c.rs2);
-        assert!((p / f64::from(m) - c.rp2).abs() < 2e-3, "{} {}", p / f64::from(m), c.rp2);
+        assert!(
+            (s / f64::from(m) - c.rs2).abs() < 2e-3,
+            "{} {}",
+            s / f64::from(m),
+            c.rs2
+        );
+        assert!(
+            (p / f64::from(m) - c.rp2).abs() < 2e-3,
+            "{} {}",
+            p / f64::from(m),
+            c.rp2
+        );
         assert!(clear_coat(1.5, (0.24, -1.0), b).is_err());
         assert!(thin_film((1.5, 0.0), -1.0, (0.24, 3.63), b, 600.0).is_err());
     }
