@@ -47,8 +47,8 @@ use polarid_io::table::fits::FitRow;
 use polarid_io::table::measurements::{self, Measurement};
 
 pub use config::{
-    DEFAULT_ANGLE_SD_DEG, DEFAULT_DOLP_FLOOR, DEFAULT_EXTINCTION_RATIO, DEFAULT_MISMATCH_P,
-    DEFAULT_RETARDANCE_DEG, FitConfig, Reflectance, check_range, parse_shadowing, range_problem,
+    DEFAULT_ANGLE_SD_DEG, DEFAULT_DOLP_FLOOR, DEFAULT_EXTINCTION_RATIO, DEFAULT_FILM_SD_NM,
+    DEFAULT_MISMATCH_P, DEFAULT_RETARDANCE_DEG, DEFAULT_WAVELENGTH_NM, FitConfig, Reflectance, check_range, parse_shadowing, range_problem,
     shadowing_name,
 };
 pub use errors::ErrorReport;
@@ -193,8 +193,11 @@ pub fn fit(
         }
         let class = class_of(path, g)?;
         let t = match cfg.reflectance {
-            Reflectance::Mixed => mixed::fit_target(path, g, class, &mopts)?,
-            Reflectance::Specular => specular(path, g, class, opts, cfg, &mut plans)?,
+            Reflectance::Mixed => mixed::fit_target(path, g, class, &mopts, cfg)?,
+            Reflectance::Specular => {
+                let spec = specular(path, g, class, opts, cfg, &mut plans)?;
+                mixed::brightness_check(g, class, spec, &mopts, cfg)
+            }
         };
         out.push(t);
         progress("fitting", out.len() as u64, total);
