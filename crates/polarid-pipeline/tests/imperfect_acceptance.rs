@@ -19,9 +19,10 @@ use polarid_pipeline::fit::{FitConfig, fit};
 
 fn silent(_: &str, _: u64, _: u64) {}
 
-/// Source zeniths of the captures, degrees; the camera at [`THETA_R`].
-const THETA_I: [f64; 6] = [20.0, 30.0, 40.0, 50.0, 60.0, 70.0];
-const THETA_R: f64 = 45.0;
+/// Source zeniths of the captures, degrees, and the camera's: the paper's bench
+/// (section 7: θr = 60°, θi = 35–80° in 5° steps, β = 47.5–70°).
+const THETA_I: [f64; 10] = [35.0, 40.0, 45.0, 50.0, 55.0, 60.0, 65.0, 70.0, 75.0, 80.0];
+const THETA_R: f64 = 60.0;
 
 /// A splitmix64 stream for the targets' parameters (the simulator has its own seeds).
 struct Rng(u64);
@@ -165,11 +166,203 @@ fn oxide_coverage(
 #[test]
 #[ignore]
 fn debug_oxide_coverage() {
-    let cfg = FitConfig::default();
-    for (class, n, cov, size, bad) in oxide_coverage(100, 1, &cfg, false, true) {
+    let film = std::env::var("POLARID_DBG_FILM").map_or(3.0, |v| v.parse().unwrap());
+    let cfg = FitConfig {
+        film_sd_nm: film,
+        ..FitConfig::default()
+    };
+    for (class, n, cov, size, bad) in oxide_coverage(100, 1, &cfg, true, true) {
         eprintln!(
             "{class}: {cov}/{n} covered, mean set size {:.2}, not ok {bad}",
             size as f64 / n as f64
         );
     }
+}
+
+#[test]
+fn oxides_angle_offsets_and_extinction_truth_in_the_95_set() {
+    let cfg = FitConfig::default();
+    let (mut n, mut covered) = (0, 0);
+    for (class, m, cov, size, bad) in oxide_coverage(60, 7, &cfg, true, false) {
+        eprintln!(
+            "{class}: truth in the 95% set {cov}/{m}, mean set size {:.2}, not ok {bad}",
+            size as f64 / m as f64
+        );
+        n += m;
+        covered += cov;
+    }
+    let rate = covered as f64 / n as f64;
+    eprintln!("all: {covered}/{n} = {rate:.3}");
+    assert!(rate >= 0.95, "truth in the 95% set for {rate}");
+}
+
+/// A classifier of the built-in library with the set rule at 95%.
+fn set_classifier() -> Classifier {
+    Classifier::new(library(), ClassifierConfig::set(0.95)).unwrap()
+}
+
+#[test]
+fn thick_films_whose_aolp_flips_are_model_mismatch() {
+    let cfg = FitConfig::default();
+    let clf = set_classifier();
+    let lib = library();
+    let mut rng = Rng(31);
+    // Oxides of 80–1500 nm on silicon and aluminium, TiO2 on glass.
+    let stacks = [
+        ("silicon", (1.46, 0.0)),
+        ("aluminum", (1.65, 0.0)),
+        ("N-BK7", (2.4, 0.0)),
+    ];
+    let theta_i: Vec<f64> = THETA_I.iter().map(|d| d.to_radians()).collect();
+    let (mut flips, mut flagged, mut classified) = (0, 0, 0);
+    let mut rows = Vec::new();
+    let mut flipped = Vec::new();
+    for t in 0..240 {
+        let (class, film) = stacks[t % 3];
+        let p = proto(&lib, class);
+        let target = ImperfectTarget {
+            surface: Surface::Film {
+                substrate: (p.n, p.k),
+                film,
+                thickness_nm: 80.0 + 1420.0 * rng.uniform(),
+            },
+            sigma: 0.1 + 0.2 * rng.uniform(),
+            rho_d: 0.0,
+        };
+        let sim = simulate_target(
+            &target,
+            &theta_i,
+            THETA_R.to_radians(),
+            &realistic(0.3),
+            5_000 + t as u64,
+        )
+        .unwrap();
+        flipped.push(sim.iter().any(|r| r.dolp_true_signed < -0.02));
+        rows.extend(measurements(&format!("film_{t}"), &sim, true));
+    }
+    for (f, &flip) in fit_rows(&rows, &cfg).iter().zip(&flipped) {
+        if !flip {
+            continue;
+        }
+        flips += 1;
+        flagged += usize::from(f.status == FitStatus::ModelMismatch);
+        let dec = clf.classify(&estimate_of(f));
+        classified += usize::from(dec.predicted != "unknown" && dec.predicted != "ambiguous");
+    }
+    let rate = flagged as f64 / flips as f64;
+    eprintln!(
+        "films whose AoLP flips: {flagged}/{flips} model_mismatch ({rate:.3}); classified {classified}"
+    );
+    assert!(flips >= 100, "{flips}");
+    assert!(rate >= 0.9, "{rate}");
+    assert_eq!(classified, 0);
+}
+
+#[test]
+fn diffusers_with_known_brightness_are_never_classified() {
+    let cfg = FitConfig::default();
+    let clf = set_classifier();
+    let mut rng = Rng(47);
+    let theta_i: Vec<f64> = THETA_I.iter().map(|d| d.to_radians()).collect();
+    let mut rows = Vec::new();
+    let count = 200;
+    for t in 0..count {
+        let d0 = 0.01 + 0.02 * rng.uniform();
+        let target = ImperfectTarget {
+            surface: Surface::Diffuser {
+                albedo: 0.3 + 0.69 * rng.uniform(),
+                dolp_0: d0,
+                dolp_90: d0 + (0.06 - d0) * rng.uniform(),
+                parallel: t % 2 == 0,
+            },
+            sigma: 0.0,
+            rho_d: 0.0,
+        };
+        let sim = simulate_target(
+            &target,
+            &theta_i,
+            THETA_R.to_radians(),
+            &realistic(0.3),
+            9_000 + t as u64,
+        )
+        .unwrap();
+        rows.extend(measurements(&format!("diffuser_{t}"), &sim, true));
+    }
+    let fits = fit_rows(&rows, &cfg);
+    let mut by_status = std::collections::BTreeMap::new();
+    let mut classified = 0;
+    for f in &fits {
+        *by_status.entry(f.status.as_str()).or_insert(0) += 1;
+        let dec = clf.classify(&estimate_of(f));
+        if dec.predicted != "unknown" || !dec.candidates.is_empty() && f.status.is_ok() {
+            classified += 1;
+            eprintln!(
+                "classified: {} {} {} {:?}",
+                f.target,
+                f.status.as_str(),
+                f.reason,
+                dec.candidates_text()
+            );
+        }
+    }
+    eprintln!("diffusers: {count}, statuses {by_status:?}, classified {classified}");
+    assert_eq!(fits.len(), count);
+    assert_eq!(classified, 0);
+    assert!(fits.iter().all(|f| !f.status.is_ok()));
+    // Without the brightness the same data would be fitted as specular surfaces.
+    let no_check = FitConfig {
+        brightness_check: false,
+        ..cfg
+    };
+    let spec_ok = fit_rows(&rows, &no_check)
+        .iter()
+        .filter(|f| f.status.is_ok())
+        .count();
+    eprintln!("without the brightness check: {spec_ok} of {count} fitted ok");
+}
+
+#[test]
+fn rows_without_brightness_are_fitted_exactly_as_before() {
+    let lib = library();
+    let theta_i: Vec<f64> = THETA_I.iter().map(|d| d.to_radians()).collect();
+    let mut with = Vec::new();
+    for (i, class) in ["gold", "silicon", "copper"].iter().enumerate() {
+        let p = proto(&lib, class);
+        let target = ImperfectTarget {
+            surface: Surface::Bare { n: p.n, k: p.k },
+            sigma: 0.2,
+            rho_d: 0.3,
+        };
+        let sim = simulate_target(
+            &target,
+            &theta_i,
+            THETA_R.to_radians(),
+            &realistic(0.3),
+            i as u64,
+        )
+        .unwrap();
+        with.extend(measurements(class, &sim, true));
+    }
+    let without: Vec<Measurement> = with
+        .iter()
+        .map(|m| Measurement {
+            s0: None,
+            exposure: None,
+            ..m.clone()
+        })
+        .collect();
+    let off = FitConfig {
+        brightness_check: false,
+        ..FitConfig::default()
+    };
+    let a = fit_rows(&without, &FitConfig::default());
+    let b = fit_rows(&without, &off);
+    assert_eq!(a, b);
+    // With the brightness the diffuse part is seen: the mixed model is selected.
+    let c = fit_rows(&with, &FitConfig::default());
+    for f in &c {
+        assert_eq!(f.model, "mixed", "{f:?}");
+        assert!(f.n_se >= f.n_se_noise.unwrap() && f.k_se >= f.k_se_noise.unwrap());
+    }
+    assert_eq!(fit_rows(&with, &off), b);
 }

@@ -19,9 +19,8 @@ use polarid_io::table::fits;
 use polarid_io::table::write_rows;
 use polarid_pipeline::fit::{
     self as pipe, DEFAULT_ANGLE_SD_DEG, DEFAULT_DOLP_FLOOR, DEFAULT_EXTINCTION_RATIO,
-    DEFAULT_FILM_SD_NM, DEFAULT_MISMATCH_P, DEFAULT_RETARDANCE_DEG, DEFAULT_WAVELENGTH_NM, FitConfig,
-    MODEL_COLUMNS, Reflectance, model_rows,
-    range_problem, read_measurements,
+    DEFAULT_FILM_SD_NM, DEFAULT_MISMATCH_P, DEFAULT_RETARDANCE_DEG, DEFAULT_WAVELENGTH_NM,
+    FitConfig, MODEL_COLUMNS, Reflectance, model_rows, range_problem, read_measurements,
 };
 
 use super::common::{PipeResult, with_progress};

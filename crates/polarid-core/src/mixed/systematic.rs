@@ -73,7 +73,11 @@ pub fn total_nk_cov(
         .map(|t| {
             let model = caps[t].dolp + r[t] / inv_se[t];
             let p = dop(fit.n, fit.k, betas[t]);
-            if p > 0.0 { (model / p).clamp(0.0, 1.0) } else { 1.0 }
+            if p > 0.0 {
+                (model / p).clamp(0.0, 1.0)
+            } else {
+                1.0
+            }
         })
         .collect();
     for t in 0..t_len {
@@ -91,7 +95,10 @@ pub fn total_nk_cov(
     };
     let idx: Vec<usize> = (0..NPAR).filter(|&a| free[a]).collect();
     let d = idx.len();
-    let (pn, pk) = (idx.iter().position(|&a| a == P_N)?, idx.iter().position(|&a| a == P_K)?);
+    let (pn, pk) = (
+        idx.iter().position(|&a| a == P_N)?,
+        idx.iter().position(|&a| a == P_K)?,
+    );
     let in_u = opts.bounds.k_min == 0.0 && fit.k < fit.k_se;
     let cov = |use_u: bool| -> Option<[f64; 3]> {
         let rows: Vec<[f64; NPAR]> = j

@@ -48,8 +48,8 @@ use polarid_io::table::measurements::{self, Measurement};
 
 pub use config::{
     DEFAULT_ANGLE_SD_DEG, DEFAULT_DOLP_FLOOR, DEFAULT_EXTINCTION_RATIO, DEFAULT_FILM_SD_NM,
-    DEFAULT_MISMATCH_P, DEFAULT_RETARDANCE_DEG, DEFAULT_WAVELENGTH_NM, FitConfig, Reflectance, check_range, parse_shadowing, range_problem,
-    shadowing_name,
+    DEFAULT_MISMATCH_P, DEFAULT_RETARDANCE_DEG, DEFAULT_WAVELENGTH_NM, FitConfig, Reflectance,
+    check_range, parse_shadowing, range_problem, shadowing_name,
 };
 pub use errors::ErrorReport;
 pub use mixed::{MODEL_COLUMNS, model_rows};
