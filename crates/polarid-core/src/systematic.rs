@@ -23,13 +23,14 @@
 //!
 //! - **surface layer** of standard thickness `σ_d` (in wavelengths): a native oxide or
 //!   contamination film the single-interface model ignores. Its index is unknown between
-//!   that of silica and of the high-index oxides: the DoLP change of a film of thickness
-//!   `σ_d` and index `n_j ∈ FILM_INDICES` (1.5, 2.8) on the estimate,
+//!   that of silica and of the high-index, possibly absorbing oxides: the DoLP change of
+//!   a film of thickness `σ_d` and index `N_j ∈ FILM_INDICES` (1.5, 2.8, 2.8 + 0.3i) on
+//!   the estimate,
 //!   `g_jt = P_film(n_j, σ_d; β_t) − P(β_t)` (single-layer Airy sum, [`crate::film`]),
 //!   each common to every row of a target (one film per surface):
-//!   `Σ_film,ts = Σ_j g_jt g_js`. To first order in `d/λ` a film's DoLP change is linear
-//!   in `N_f²` and `1/N_f²`, so films of intermediate index lie close to the span of the
-//!   two.
+//!   `Σ_film,ts = Σ_j g_jt g_js`. To first order in `d/λ` a film's change of `r_s`,
+//!   `r_p` is linear in `N_f²` and `1/N_f²`, so films of intermediate index lie close to
+//!   the span of the three.
 //!
 //! so that
 //!
@@ -52,9 +53,9 @@ use crate::CoreError;
 use crate::dop::{dop, dop_beta_derivs, dop_grad};
 use crate::film::thin_film;
 
-/// Indices of the surface layers of the error model (silica-like and high-index
-/// oxides such as Cu₂O, Fe₂O₃, TiO₂).
-pub const FILM_INDICES: [f64; 2] = [1.5, 2.8];
+/// Indices `(n, k)` of the surface layers of the error model: silica-like, high-index
+/// (TiO₂, NiO) and absorbing high-index oxides (Cu₂O, Fe₂O₃).
+pub const FILM_INDICES: [(f64, f64); 3] = [(1.5, 0.0), (2.8, 0.0), (2.8, 0.3)];
 
 /// Below this `k` the `(n, u = k²)` column `∂P/∂u` is taken by a secant.
 const K_SECANT: f64 = 1e-4;
@@ -115,12 +116,12 @@ pub fn systematic_covariance(
     let films: Vec<Vec<f64>> = if pol.film_sd_waves > 0.0 {
         FILM_INDICES
             .iter()
-            .map(|&nf| {
+            .map(|&film| {
                 betas
                     .iter()
                     .zip(&p)
                     .map(|(&b, &pb)| {
-                        thin_film((nf, 0.0), pol.film_sd_waves, (n, k), b, 1.0)
+                        thin_film(film, pol.film_sd_waves, (n, k), b, 1.0)
                             .map_or(0.0, |r| r.signed_dolp() - pb)
                     })
                     .collect()

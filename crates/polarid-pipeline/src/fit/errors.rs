@@ -24,6 +24,20 @@ pub struct ErrorReport {
     pub aolp_p: Option<f64>,
     /// Why the data contradict the model (empty when they do not at `mismatch_p`).
     pub mismatch: Vec<String>,
+    /// The AoLP test failed: the data contradict a single interface whatever the fit
+    /// did, so `model_mismatch` takes precedence over the fit's own troubles
+    /// ([`overrides`]).
+    pub aolp_failed: bool,
+}
+
+/// Whether a failed AoLP test replaces the fit status `s`: an `ok` fit, and the fit's
+/// own troubles (`not_converged`, `ill_conditioned`, `at_bound`) — not `depolarized` or
+/// `invalid_input`.
+pub fn overrides(s: FitStatus) -> bool {
+    matches!(
+        s,
+        FitStatus::Ok | FitStatus::NotConverged | FitStatus::IllConditioned | FitStatus::AtBound
+    )
 }
 
 /// The error model of one target fitted as `f` from its rows, with the spread
@@ -83,6 +97,7 @@ pub(crate) fn assess(g: &Group, f: &NkFit, corr: &[f64], cfg: &FitConfig) -> Err
     }
     let (aolp_p, why) = aolp_check(g, cfg);
     rep.aolp_p = aolp_p;
+    rep.aolp_failed = why.is_some();
     rep.mismatch.extend(why);
     rep
 }

@@ -9,7 +9,7 @@ use polarid_core::systematic::chi2_sf;
 use polarid_io::table::fits::FitRow;
 use polarid_io::table::fmt_f64;
 
-use super::errors::aolp_check;
+use super::errors::{aolp_check, overrides};
 use super::{FitConfig, Group, TargetFit, data};
 use crate::Result;
 
@@ -141,11 +141,15 @@ fn checked_row(
     }
     let (aolp_p, why) = aolp_check(g, cfg);
     r.aolp_p = aolp_p;
-    if let Some(why) = why
-        && r.status.is_ok()
-    {
-        r.status = FitStatus::ModelMismatch;
-        r.reason = why;
+    if let Some(why) = why {
+        if r.status.is_ok() {
+            r.status = FitStatus::ModelMismatch;
+            r.reason = why;
+        } else if overrides(r.status) || r.status == FitStatus::Depolarized {
+            // Diffuse light in this model is unpolarized: it cannot turn the AoLP.
+            r.reason = format!("{why} (fit status was {}: {})", r.status.as_str(), r.reason);
+            r.status = FitStatus::ModelMismatch;
+        }
     }
     r
 }

@@ -269,6 +269,12 @@ fn specular(
     let err = errors::assess(g, &f, &corr, cfg);
     let (status, reason) = if status.is_ok() && !err.mismatch.is_empty() {
         (FitStatus::ModelMismatch, err.mismatch.join("; "))
+    } else if err.aolp_failed && errors::overrides(status) {
+        let why = err.mismatch.join("; ");
+        (
+            FitStatus::ModelMismatch,
+            format!("{why} (fit status was {}: {reason})", status.as_str()),
+        )
     } else {
         (status, reason)
     };
