@@ -217,7 +217,7 @@ fn thick_films_whose_aolp_flips_are_model_mismatch() {
     let (mut flips, mut flagged, mut classified) = (0, 0, 0);
     let mut rows = Vec::new();
     let mut flipped = Vec::new();
-    for t in 0..240 {
+    for t in 0..360 {
         let (class, film) = stacks[t % 3];
         let p = proto(&lib, class);
         let target = ImperfectTarget {

@@ -145,7 +145,7 @@ pub const DEFAULT_EXTINCTION_RATIO: f64 = 100.0;
 /// Default of [`FitConfig::retardance_deg`], degrees.
 pub const DEFAULT_RETARDANCE_DEG: f64 = 0.0;
 /// Default of [`FitConfig::film_sd_nm`], nanometres.
-pub const DEFAULT_FILM_SD_NM: f64 = 5.0;
+pub const DEFAULT_FILM_SD_NM: f64 = 3.0;
 /// Default of [`FitConfig::wavelength_nm`], nanometres.
 pub const DEFAULT_WAVELENGTH_NM: f64 = 550.0;
 /// Default of [`FitConfig::mismatch_p`].
