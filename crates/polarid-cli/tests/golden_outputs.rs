@@ -51,7 +51,7 @@ fn files(root: &Path, dir: &Path, out: &mut BTreeMap<String, Vec<u8>>) {
             .replace('\\', "/");
         let mut bytes = std::fs::read(&p).expect("read output");
         if p.file_name().is_some_and(|n| n == "map_summary.json") {
-            let mut v: serde_json::Value = serde_json::from_slice(&bytes).expect("JSON");
+            let v: serde_json::Value = serde_json::from_slice(&bytes).expect("JSON");
             // Since issue 19 the file holds no wall-clock time (it used to be removed
             // here before hashing); the hash is of the same normalised JSON as before.
             assert!(

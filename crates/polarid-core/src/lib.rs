@@ -17,6 +17,7 @@ pub mod classify;
 mod cpu;
 pub mod dop;
 pub mod error;
+pub mod film;
 pub mod fit;
 pub mod fresnel;
 pub mod geometry;

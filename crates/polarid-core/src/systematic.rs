@@ -21,10 +21,21 @@
 //!   most `1 − cos δ`. Both are common to every row of a target (fully correlated):
 //!   `δP_t = −ε P_t`, `Var ε = u²`, `u = 2/(ER + 1) + (1 − cos δ)`.
 //!
+//! - **surface layer** of standard thickness `σ_d` (in wavelengths): a native oxide or
+//!   contamination film the single-interface model ignores. Its index is unknown between
+//!   that of silica and of the high-index, possibly absorbing oxides: the DoLP change of
+//!   a film of thickness `σ_d` and index `N_j ∈ FILM_INDICES` (1.5, 2.8, 2.8 + 0.3i) on
+//!   the estimate,
+//!   `g_jt = P_film(n_j, σ_d; β_t) − P(β_t)` (single-layer Airy sum, [`crate::film`]),
+//!   each common to every row of a target (one film per surface):
+//!   `Σ_film,ts = Σ_j g_jt g_js`. To first order in `d/λ` a film's change of `r_s`,
+//!   `r_p` is linear in `N_f²` and `1/N_f²`, so films of intermediate index lie close to
+//!   the span of the three.
+//!
 //! so that
 //!
 //! ```text
-//! Σ_ts = δ_ts (f² + P'_t² σ_t²/4) + P'_t P'_s σ_t σ_s/4 + u² P_t P_s.
+//! Σ_ts = δ_ts (f² + P'_t² σ_t²/4) + P'_t P'_s σ_t σ_s/4 + u² P_t P_s + Σ_j g_jt g_js.
 //! ```
 //!
 //! # Propagation
@@ -40,6 +51,11 @@
 
 use crate::CoreError;
 use crate::dop::{dop, dop_beta_derivs, dop_grad};
+use crate::film::thin_film;
+
+/// Indices `(n, k)` of the surface layers of the error model: silica-like, high-index
+/// (TiO₂, NiO) and absorbing high-index oxides (Cu₂O, Fe₂O₃).
+pub const FILM_INDICES: [(f64, f64); 3] = [(1.5, 0.0), (2.8, 0.0), (2.8, 0.3)];
 
 /// Below this `k` the `(n, u = k²)` column `∂P/∂u` is taken by a secant.
 const K_SECANT: f64 = 1e-4;
@@ -53,6 +69,8 @@ pub struct Polarimetric {
     pub extinction_ratio: f64,
     /// Largest retardance ahead of the analyzer, radians (≥ 0).
     pub retardance: f64,
+    /// Standard thickness of an unmodelled surface layer, in wavelengths (≥ 0; 0: none).
+    pub film_sd_waves: f64,
 }
 
 impl Polarimetric {
@@ -94,9 +112,30 @@ pub fn systematic_covariance(
             (d.p, 0.5 * d.dp_dbeta * s)
         })
         .unzip();
+    // g_jt: the DoLP change of a film of thickness σ_d and index n_j.
+    let films: Vec<Vec<f64>> = if pol.film_sd_waves > 0.0 {
+        FILM_INDICES
+            .iter()
+            .map(|&film| {
+                betas
+                    .iter()
+                    .zip(&p)
+                    .map(|(&b, &pb)| {
+                        thin_film(film, pol.film_sd_waves, (n, k), b, 1.0)
+                            .map_or(0.0, |r| r.signed_dolp() - pb)
+                    })
+                    .collect()
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
     for t in 0..t_len {
         for s in t..t_len {
             let mut v = a[t] * a[s] + u * u * (p[t] * p[s]);
+            for g in &films {
+                v += g[t] * g[s];
+            }
             if t == s {
                 v += f2 + a[t] * a[t];
             }
@@ -559,6 +598,7 @@ mod tests {
             dolp_floor: 0.002,
             extinction_ratio: 199.0,
             retardance: 0.0,
+            film_sd_waves: 0.0,
         };
         let mut s = vec![0.0; 9];
         systematic_covariance(1.4, 2.0, &betas, &sd, &pol, &mut s).unwrap();

@@ -216,8 +216,10 @@ fn model_draw(
 
 #[test]
 fn sandwich_matches_monte_carlo_and_gof_false_alarms_are_nominal() {
+    // The draws have no surface layer: the model's film term is left out.
     let cfg = FitConfig {
         mismatch_p: 0.05,
+        film_sd_nm: 0.0,
         ..FitConfig::default()
     };
     let mut rng = Rng(11);

@@ -21,8 +21,8 @@ use polarid_io::table::fits;
 use polarid_io::table::write_rows;
 use polarid_pipeline::fit::{
     self as pipe, DEFAULT_ANGLE_SD_DEG, DEFAULT_DOLP_FLOOR, DEFAULT_EXTINCTION_RATIO,
-    DEFAULT_MISMATCH_P, DEFAULT_RETARDANCE_DEG, FitConfig, MODEL_COLUMNS, Reflectance, model_rows,
-    range_problem, read_measurements,
+    DEFAULT_FILM_SD_NM, DEFAULT_MISMATCH_P, DEFAULT_RETARDANCE_DEG, DEFAULT_WAVELENGTH_NM,
+    FitConfig, MODEL_COLUMNS, Reflectance, model_rows, range_problem, read_measurements,
 };
 
 use super::common::{PipeResult, with_progress};
@@ -105,6 +105,16 @@ pub struct Args {
     /// that cannot be fitted) instead of writing its row with a status and a reason.
     #[arg(long)]
     pub strict: bool,
+    /// Standard thickness of an unmodelled surface layer (native oxide), nm.
+    #[arg(long, value_name = "NM", default_value_t = DEFAULT_FILM_SD_NM)]
+    pub film_sd_nm: f64,
+    /// The wavelength that layer's thickness is compared with, nm.
+    #[arg(long, value_name = "NM", default_value_t = DEFAULT_WAVELENGTH_NM)]
+    pub wavelength_nm: f64,
+    /// Do not decide from the brightness (s0 with exposures) whether a target reflects
+    /// specularly at all (docs/MIXED.md).
+    #[arg(long)]
+    pub no_brightness_check: bool,
 }
 
 /// Parse a number in (0, 1].
@@ -167,6 +177,9 @@ impl Args {
             retardance_deg: self.retardance_deg,
             mismatch_p: self.mismatch_p,
             strict: self.strict,
+            film_sd_nm: self.film_sd_nm,
+            wavelength_nm: self.wavelength_nm,
+            brightness_check: !self.no_brightness_check,
         }
     }
 }

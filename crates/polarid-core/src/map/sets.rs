@@ -57,6 +57,7 @@ impl MapErrorModel {
                 dolp_floor: 0.0,
                 extinction_ratio: f64::INFINITY,
                 retardance: 0.0,
+                film_sd_waves: 0.0,
             },
             angle_sd: vec![0.0; captures],
         }
@@ -250,6 +251,7 @@ mod tests {
             dolp_floor: 0.002,
             extinction_ratio: 100.0,
             retardance: 0.05,
+            film_sd_waves: 0.0,
         };
         let betas: Vec<f64> = (0..8)
             .map(|i| (30.0 + 6.0 * i as f64).to_radians())

@@ -69,7 +69,8 @@
 //! `depolarized` rule), `problem` (validation, parameter box, weighted residuals),
 //! `linalg` (Cholesky), `lm` (bounded Levenberg–Marquardt), `start` (global grid start),
 //! `solve` ([`fit_model`]), `finish` (covariance, summaries, status), `select`
-//! ([`fit_mixed`]: both models and BIC/AIC selection), `report` (the result types).
+//! ([`fit_mixed`]: both models and BIC/AIC selection), `report` (the result types),
+//! `systematic` ([`total_nk_cov`]: noise + systematic covariance of `(n, k)`).
 //!
 //! # Reference
 //!
@@ -91,6 +92,7 @@ mod select;
 mod shadowing;
 mod solve;
 mod start;
+mod systematic;
 
 pub use crate::status::FitStatus;
 pub use depolarized::{DEPOLARIZED_MAX_DOLP, depolarized_reason};
@@ -100,6 +102,7 @@ pub use report::{MixedFit, MixedModel, MixedReport};
 pub use select::fit_mixed;
 pub use shadowing::{Shadowing, smith_g1};
 pub use solve::fit_model;
+pub use systematic::total_nk_cov;
 
 /// Index of `n` in the parameter vector.
 pub const P_N: usize = 0;

@@ -23,6 +23,7 @@
 //! distance or the sun): [`perspective`] renders a Stokes vector per pixel, and
 //! [`render_frame_stokes`] turns such a map into a raw frame with the same sensor model.
 
+pub mod imperfect;
 pub mod perspective;
 
 pub use perspective::{Light, PerspectiveScene, PixelHit, PlanarPlate, StokesMaps, plate_stokes};

@@ -120,6 +120,17 @@ pub struct FitConfig {
     pub extinction_ratio: f64,
     /// Specular fit: the largest retardance ahead of the analyzer, degrees, in `[0, 90]`.
     pub retardance_deg: f64,
+    /// Specular fit: standard thickness of an unmodelled surface layer (native oxide,
+    /// contamination), nanometres, in `[0, 1000)` (docs/ERRORS.md).
+    pub film_sd_nm: f64,
+    /// Specular fit: the wavelength the layer's thickness is compared with, nanometres,
+    /// in `[100, 100000)` (the rows carry none; the shortest visible wavelengths make the
+    /// layer matter most).
+    pub wavelength_nm: f64,
+    /// Specular fit: when every row of a target carries its brightness (`s0` and
+    /// `exposure`, as `measure` writes them) and its angles, decide by the mixed model
+    /// selection whether it reflects specularly at all (docs/MIXED.md).
+    pub brightness_check: bool,
     /// Specular fit: status `model_mismatch` when the goodness-of-fit or the AoLP test
     /// has a p-value below this, in `[0, 1)` (0: never).
     pub mismatch_p: f64,
@@ -137,6 +148,10 @@ pub const DEFAULT_DOLP_FLOOR: f64 = 0.002;
 pub const DEFAULT_EXTINCTION_RATIO: f64 = 100.0;
 /// Default of [`FitConfig::retardance_deg`], degrees.
 pub const DEFAULT_RETARDANCE_DEG: f64 = 0.0;
+/// Default of [`FitConfig::film_sd_nm`], nanometres.
+pub const DEFAULT_FILM_SD_NM: f64 = 3.0;
+/// Default of [`FitConfig::wavelength_nm`], nanometres.
+pub const DEFAULT_WAVELENGTH_NM: f64 = 550.0;
 /// Default of [`FitConfig::mismatch_p`].
 pub const DEFAULT_MISMATCH_P: f64 = 0.001;
 
@@ -157,6 +172,9 @@ impl Default for FitConfig {
             dolp_floor: DEFAULT_DOLP_FLOOR,
             extinction_ratio: DEFAULT_EXTINCTION_RATIO,
             retardance_deg: DEFAULT_RETARDANCE_DEG,
+            film_sd_nm: DEFAULT_FILM_SD_NM,
+            wavelength_nm: DEFAULT_WAVELENGTH_NM,
+            brightness_check: true,
             mismatch_p: DEFAULT_MISMATCH_P,
             strict: false,
         }
@@ -191,6 +209,8 @@ impl FitConfig {
         check_in("dolp_floor", self.dolp_floor, 0.0, 1.0, false)?;
         check_in("retardance_deg", self.retardance_deg, 0.0, 90.0, true)?;
         check_in("mismatch_p", self.mismatch_p, 0.0, 1.0, false)?;
+        check_in("film_sd_nm", self.film_sd_nm, 0.0, 1000.0, false)?;
+        check_in("wavelength_nm", self.wavelength_nm, 100.0, 100_000.0, false)?;
         if !(self.extinction_ratio > 1.0) {
             return Err(PipelineError::config(
                 "extinction_ratio",
@@ -244,6 +264,7 @@ impl FitConfig {
             dolp_floor: self.dolp_floor,
             extinction_ratio: self.extinction_ratio,
             retardance: self.retardance_deg.to_radians(),
+            film_sd_waves: self.film_sd_nm / self.wavelength_nm,
         }
     }
 

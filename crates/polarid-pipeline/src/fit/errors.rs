@@ -24,6 +24,20 @@ pub struct ErrorReport {
     pub aolp_p: Option<f64>,
     /// Why the data contradict the model (empty when they do not at `mismatch_p`).
     pub mismatch: Vec<String>,
+    /// The AoLP test failed: the data contradict a single interface whatever the fit
+    /// did, so `model_mismatch` takes precedence over the fit's own troubles
+    /// ([`overrides`]).
+    pub aolp_failed: bool,
+}
+
+/// Whether a failed AoLP test replaces the fit status `s`: an `ok` fit, and the fit's
+/// own troubles (`not_converged`, `ill_conditioned`, `at_bound`) — not `depolarized` or
+/// `invalid_input`.
+pub fn overrides(s: FitStatus) -> bool {
+    matches!(
+        s,
+        FitStatus::Ok | FitStatus::NotConverged | FitStatus::IllConditioned | FitStatus::AtBound
+    )
 }
 
 /// The error model of one target fitted as `f` from its rows, with the spread
@@ -81,41 +95,55 @@ pub(crate) fn assess(g: &Group, f: &NkFit, corr: &[f64], cfg: &FitConfig) -> Err
             rep.mismatch.push(residual_reason(g, gof));
         }
     }
-    // AoLP: deviations from 90° over their uncertainty.
+    let (aolp_p, why) = aolp_check(g, cfg);
+    rep.aolp_p = aolp_p;
+    rep.aolp_failed = why.is_some();
+    rep.mismatch.extend(why);
+    rep
+}
+
+/// The AoLP check of a target's rows with `aolp_poi_deg` (docs/ERRORS.md): the p-value
+/// of `Σ (d/sd)²` against χ² with as many degrees of freedom as rows, and the reason when
+/// it is below [`FitConfig::mismatch_p`].
+pub(crate) fn aolp_check(g: &Group, cfg: &FitConfig) -> (Option<f64>, Option<String>) {
+    let floor = cfg.dolp_floor;
     let mut chi2 = 0.0;
     let mut used = Vec::new();
-    for (i, ((line, m), (&b, &s))) in g.rows.iter().zip(betas.iter().zip(&angle_sd)).enumerate() {
+    for (i, (line, m)) in g.rows.iter().enumerate() {
         let Some(a) = m.aolp_poi_deg else { continue };
+        let b = m.beta_deg.to_radians();
+        let s = m.angle_sd_deg.unwrap_or(cfg.angle_sd_deg).to_radians();
         let se = m.dolp_se.unwrap_or(0.0);
-        if let Some((d, sd)) = aolp_deviation(a.to_radians(), m.dolp, se, pol.dolp_floor, s, b)
+        if let Some((d, sd)) = aolp_deviation(a.to_radians(), m.dolp, se, floor, s, b)
             && sd > 0.0
         {
             chi2 += (d / sd).powi(2);
             used.push((i + 1, *line, a, d.to_degrees(), d / sd));
         }
     }
-    if !used.is_empty() {
-        let p = chi2_sf(chi2, used.len() as f64);
-        rep.aolp_p = Some(p);
-        if p < cfg.mismatch_p {
-            used.sort_by(|x, y| y.4.abs().total_cmp(&x.4.abs()));
-            let worst: Vec<String> = used
-                .iter()
-                .take(3)
-                .map(|(c, line, a, d, z)| {
-                    format!(
-                        "capture {c} (line {line}) aolp_poi {a:.1} deg ({d:+.1} deg, {z:+.1} sd)"
-                    )
-                })
-                .collect();
-            rep.mismatch.push(format!(
-                "aolp: not perpendicular to the plane of incidence (p = {p:.2e}): {}; \
-                 a coating, a film, birefringence or a wrong geometry",
-                worst.join(", ")
-            ));
-        }
+    if used.is_empty() {
+        return (None, None);
     }
-    rep
+    let p = chi2_sf(chi2, used.len() as f64);
+    if p >= cfg.mismatch_p {
+        return (Some(p), None);
+    }
+    used.sort_by(|x, y| y.4.abs().total_cmp(&x.4.abs()));
+    let worst: Vec<String> = used
+        .iter()
+        .take(3)
+        .map(|(c, line, a, d, z)| {
+            format!("capture {c} (line {line}) aolp_poi {a:.1} deg ({d:+.1} deg, {z:+.1} sd)")
+        })
+        .collect();
+    (
+        Some(p),
+        Some(format!(
+            "aolp: not perpendicular to the plane of incidence (p = {p:.2e}): {}; \
+             a coating, a film, birefringence or a wrong geometry",
+            worst.join(", ")
+        )),
+    )
 }
 
 /// `residuals: ...` naming the worst rows.

@@ -1,13 +1,21 @@
-//! The mixed (radiometric) fit of one target, and the table of both models' fits.
+//! The mixed (radiometric) fit of one target, the brightness check of the default fit
+//! (docs/MIXED.md "Brightness known"), and the table of both models' fits.
 
 use std::path::Path;
 
-use polarid_core::mixed::{self, MixedCapture, MixedFit, MixedOptions};
+use polarid_core::FitStatus;
+use polarid_core::mixed::{self, MixedCapture, MixedFit, MixedModel, MixedOptions};
+use polarid_core::systematic::chi2_sf;
 use polarid_io::table::fits::FitRow;
 use polarid_io::table::fmt_f64;
 
-use super::{Group, TargetFit, data};
+use super::errors::{aolp_check, overrides};
+use super::{FitConfig, Group, TargetFit, data};
 use crate::Result;
+
+/// Below this p-value the brightness contradicts Lambert's cosine law (a specular lobe
+/// is seen); at or above it the target shows no specular lobe (docs/MIXED.md).
+pub const LAMBERT_P: f64 = 0.001;
 
 /// Fit both radiometric models to one target and select one by BIC.
 pub(super) fn fit_target(
@@ -15,6 +23,7 @@ pub(super) fn fit_target(
     g: &Group,
     class: Option<&str>,
     opts: &MixedOptions,
+    cfg: &FitConfig,
 ) -> Result<TargetFit> {
     let caps = captures(path, g, opts)?;
     let rep = mixed::fit_mixed(&caps, opts).map_err(|e| {
@@ -23,11 +32,126 @@ pub(super) fn fit_target(
             format!("target {:?} (lines {}): {e}", g.target, g.lines()),
         )
     })?;
-    let row = row(g, class, rep.best());
+    let row = checked_row(g, class, &caps, opts, cfg, rep.best());
     Ok(TargetFit {
         row,
         report: Some(rep),
     })
+}
+
+/// Brightness is known for a target when every row carries a positive `s0` and
+/// `exposure` (as `polarid measure` writes them) and both zenith angles.
+pub(super) fn brightness_known(g: &Group) -> bool {
+    g.rows.iter().all(|(_, m)| {
+        m.s0.is_some_and(|v| v.is_finite() && v > 0.0)
+            && m.exposure.is_some_and(|v| v.is_finite() && v > 0.0)
+            && m.theta_i_deg.is_some()
+            && m.theta_r_deg.is_some()
+    })
+}
+
+/// Lambert's cosine law against the brightness: `ln s0_t − ln cos θi_t` constant up to
+/// the relative error `eps`; returns `(χ², dof, p)`.
+fn lambert(caps: &[MixedCapture], eps: f64) -> (f64, usize, f64) {
+    let v: Vec<f64> = caps
+        .iter()
+        .map(|c| c.s0.ln() - c.theta_i.cos().max(1e-12).ln())
+        .collect();
+    let mean = v.iter().sum::<f64>() / v.len() as f64;
+    let chi2 = v.iter().map(|x| ((x - mean) / eps).powi(2)).sum::<f64>();
+    let dof = v.len() - 1;
+    (chi2, dof, chi2_sf(chi2, dof as f64))
+}
+
+/// The brightness check of the default (specular) fit: when brightness is known
+/// ([`brightness_known`]), decide whether the target reflects specularly at all before
+/// any class is given.
+///
+/// 1. `s0` follows Lambert's cosine law (p ≥ [`LAMBERT_P`] at the relative error
+///    `s0_rel_sd`): no specular lobe, status `depolarized`;
+/// 2. else both radiometric models are fitted and compared (BIC, [`mixed::fit_mixed`]):
+///    the pure specular model selected, the DoLP-only fit `spec` stands unchanged; the
+///    mixed model selected, its fit is the row (`model = mixed`, total errors, the AoLP
+///    check), `depolarized` when its specular share stays below 0.1 everywhere.
+pub(super) fn brightness_check(
+    g: &Group,
+    class: Option<&str>,
+    spec: TargetFit,
+    opts: &MixedOptions,
+    cfg: &FitConfig,
+) -> TargetFit {
+    if !cfg.brightness_check || !brightness_known(g) {
+        return spec;
+    }
+    let Ok(caps) = captures(Path::new(""), g, opts) else {
+        return spec;
+    };
+    let (chi2, dof, p) = lambert(&caps, opts.s0_rel_sd);
+    if p >= LAMBERT_P {
+        let mut row = spec.row;
+        row.status = FitStatus::Depolarized;
+        row.reason = format!(
+            "brightness: s0 follows Lambert's cosine law within {:.1}% (chi2 = {chi2:.1} on {dof} dof, p = {p:.2e}): no specular lobe",
+            100.0 * opts.s0_rel_sd
+        );
+        return TargetFit { row, report: None };
+    }
+    let Ok(rep) = mixed::fit_mixed(&caps, opts) else {
+        return spec;
+    };
+    if rep.selected == MixedModel::Specular {
+        return spec;
+    }
+    let mut row = checked_row(g, class, &caps, opts, cfg, &rep.mixed);
+    if row.status == FitStatus::Depolarized {
+        row.reason = format!(
+            "brightness: the mixed model is selected (delta BIC {:.1}) and {}",
+            rep.delta_bic, row.reason
+        );
+    }
+    TargetFit {
+        row,
+        report: Some(rep),
+    }
+}
+
+/// The row of a radiometric fit with its total (noise + systematic) errors and the AoLP
+/// check (an `ok` fit failing it becomes `model_mismatch`).
+fn checked_row(
+    g: &Group,
+    class: Option<&str>,
+    caps: &[MixedCapture],
+    opts: &MixedOptions,
+    cfg: &FitConfig,
+    f: &MixedFit,
+) -> FitRow {
+    let mut r = row(g, class, f);
+    let angle_sd: Vec<f64> = g
+        .rows
+        .iter()
+        .map(|(_, m)| m.angle_sd_deg.unwrap_or(cfg.angle_sd_deg).to_radians())
+        .collect();
+    if let Some(c) = mixed::total_nk_cov(caps, opts, f, &angle_sd, &cfg.polarimetric()) {
+        r.n_se_noise = Some(r.n_se);
+        r.k_se_noise = Some(r.k_se);
+        r.nk_corr_noise = Some(r.nk_corr);
+        r.n_se = c.n_se;
+        r.k_se = c.k_se;
+        r.nk_corr = c.nk_corr;
+    }
+    let (aolp_p, why) = aolp_check(g, cfg);
+    r.aolp_p = aolp_p;
+    if let Some(why) = why {
+        if r.status.is_ok() {
+            r.status = FitStatus::ModelMismatch;
+            r.reason = why;
+        } else if overrides(r.status) || r.status == FitStatus::Depolarized {
+            // Diffuse light in this model is unpolarized: it cannot turn the AoLP.
+            r.reason = format!("{why} (fit status was {}: {})", r.status.as_str(), r.reason);
+            r.status = FitStatus::ModelMismatch;
+        }
+    }
+    r
 }
 
 /// The captures of one target for the mixed fit; every row needs a positive `s0` and
@@ -105,7 +229,6 @@ fn row(g: &Group, class: Option<&str>, f: &MixedFit) -> FitRow {
         sigma: Some(f.sigma),
         rho_d: Some(f.rho_d),
         theta_r_deg: f.theta_r_estimated.then(|| f.theta_r.to_degrees()),
-        // The error model (docs/ERRORS.md) is that of the specular fit only.
         ..Default::default()
     }
 }

@@ -54,9 +54,9 @@ use polarid_io::table::fits::FitRow;
 use polarid_io::table::measurements::{self, Measurement};
 
 pub use config::{
-    DEFAULT_ANGLE_SD_DEG, DEFAULT_DOLP_FLOOR, DEFAULT_EXTINCTION_RATIO, DEFAULT_MISMATCH_P,
-    DEFAULT_RETARDANCE_DEG, FitConfig, Reflectance, check_range, parse_shadowing, range_problem,
-    shadowing_name,
+    DEFAULT_ANGLE_SD_DEG, DEFAULT_DOLP_FLOOR, DEFAULT_EXTINCTION_RATIO, DEFAULT_FILM_SD_NM,
+    DEFAULT_MISMATCH_P, DEFAULT_RETARDANCE_DEG, DEFAULT_WAVELENGTH_NM, FitConfig, Reflectance,
+    check_range, parse_shadowing, range_problem, shadowing_name,
 };
 pub use errors::ErrorReport;
 pub use mixed::{MODEL_COLUMNS, model_rows};
@@ -234,8 +234,9 @@ pub fn fit(
             ))
         } else {
             match cfg.reflectance {
-                Reflectance::Mixed => mixed::fit_target(path, &ug, class, &mopts),
-                Reflectance::Specular => specular(path, &ug, class, opts, cfg, &mut plans),
+                Reflectance::Mixed => mixed::fit_target(path, &ug, class, &mopts, cfg),
+                Reflectance::Specular => specular(path, &ug, class, opts, cfg, &mut plans)
+                    .map(|spec| mixed::brightness_check(&ug, class, spec, &mopts, cfg)),
             }
         };
         let t = match attempt {
@@ -363,6 +364,12 @@ fn specular(
     let err = errors::assess(g, &f, &corr, cfg);
     let (status, reason) = if status.is_ok() && !err.mismatch.is_empty() {
         (FitStatus::ModelMismatch, err.mismatch.join("; "))
+    } else if err.aolp_failed && errors::overrides(status) {
+        let why = err.mismatch.join("; ");
+        (
+            FitStatus::ModelMismatch,
+            format!("{why} (fit status was {}: {reason})", status.as_str()),
+        )
     } else {
         (status, reason)
     };

@@ -400,6 +400,9 @@ fn error_model(m: &Manifest, errors: &MapErrors) -> MapErrorModel {
             dolp_floor: errors.dolp_floor,
             extinction_ratio: errors.extinction_ratio,
             retardance: errors.retardance_deg.to_radians(),
+            // The map's O(T) covariance (core map::sets) does not model surface films
+            // yet; the table fit does (`--film-sd-nm`, docs/ERRORS.md).
+            film_sd_waves: 0.0,
         },
         angle_sd: m
             .captures

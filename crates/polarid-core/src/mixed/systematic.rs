@@ -1,0 +1,157 @@
+//! The total (noise + systematic) covariance of a radiometric fit's `(n, k)`, as the
+//! specular fit reports it ([`crate::systematic`], docs/ERRORS.md): the systematic DoLP
+//! covariance `Σ` of the captures is propagated through the weighted least-squares fit by
+//! the sandwich
+//!
+//! ```text
+//! Cov = s² (JᵀJ)⁻¹ + A W Aᵀ,   A = (JᵀJ)⁻¹ Jᵀ,   W = D Σ D ⊕ 0,   D = diag(1/se_t)
+//! ```
+//!
+//! with `J` the Jacobian of the weighted residuals (DoLP rows then `ln S0` rows) in the
+//! fit's free parameters; the systematic errors act on the DoLP rows only (the `S0` rows'
+//! relative error `ε` is itself a systematic allowance). `Σ` is the specular fit's
+//! ([`systematic_covariance`]) for the specular part of the light, diluted by the
+//! specular shares `s_t` (the geometry, scale and film terms of row `t` are those of
+//! `P(β_t)` times `s_t`), plus the DoLP floor `f²` on the diagonal. Near `k = 0` (when the fit's
+//! `k_se` is one-sided) the covariance is formed in `(n, u = k²)` as the fit does.
+
+use super::linalg::spd_inverse;
+use super::model::prepare_one;
+use super::problem::{Problem, param_box};
+use super::{
+    K_FLOOR, MixedCapture, MixedFit, MixedModel, MixedOptions, NPAR, P_K, P_LN_E, P_N, P_RHO,
+    P_SIGMA, P_THETA_R,
+};
+use crate::dop::dop;
+use crate::systematic::{NkCov, Polarimetric, systematic_covariance};
+
+/// The total covariance of `fit`'s `(n, k)` (module documentation), with the direction
+/// uncertainty `angle_sd[t]` (radians) of each capture and the polarimetric error model
+/// `pol`; `None` when the fit has no covariance or the lengths disagree.
+pub fn total_nk_cov(
+    caps: &[MixedCapture],
+    opts: &MixedOptions,
+    fit: &MixedFit,
+    angle_sd: &[f64],
+    pol: &Polarimetric,
+) -> Option<NkCov> {
+    let t_len = caps.len();
+    if angle_sd.len() != t_len || !(fit.n_se.is_finite() && fit.k_se.is_finite()) {
+        return None;
+    }
+    let (lo, hi) = param_box(caps, opts);
+    let mut free = [true; NPAR];
+    free[P_RHO] = fit.model == MixedModel::Mixed;
+    free[P_THETA_R] = opts.estimate_theta_r;
+    let pb = Problem {
+        caps: caps.iter().map(|c| prepare_one(c, opts.dolp_sd)).collect(),
+        opts,
+        free,
+        lo,
+        hi,
+        inv_eps: 1.0 / opts.s0_rel_sd,
+    };
+    let mut x = [0.0; NPAR];
+    x[P_N] = fit.n;
+    x[P_K] = fit.k.max(K_FLOOR);
+    x[P_SIGMA] = fit.sigma;
+    x[P_RHO] = fit.rho_d;
+    x[P_LN_E] = fit.scale.ln();
+    x[P_THETA_R] = fit.theta_r;
+    let (mut r, mut j) = (Vec::new(), Vec::new());
+    pb.eval(&x, &mut r, &mut j);
+    let inv_se: Vec<f64> = pb.caps.iter().map(|p| p.inv_se).collect();
+    // Σ: the specular part's, diluted by the shares, plus the floor.
+    let betas: Vec<f64> = caps.iter().map(|c| c.beta).collect();
+    let bare = Polarimetric {
+        dolp_floor: 0.0,
+        ..*pol
+    };
+    let mut sys = vec![0.0; t_len * t_len];
+    systematic_covariance(fit.n, fit.k, &betas, angle_sd, &bare, &mut sys).ok()?;
+    let share: Vec<f64> = (0..t_len)
+        .map(|t| {
+            let model = caps[t].dolp + r[t] / inv_se[t];
+            let p = dop(fit.n, fit.k, betas[t]);
+            if p > 0.0 {
+                (model / p).clamp(0.0, 1.0)
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    for t in 0..t_len {
+        for s in 0..t_len {
+            sys[t * t_len + s] *= share[t] * share[s];
+        }
+        sys[t * t_len + t] += pol.dolp_floor * pol.dolp_floor;
+    }
+    let s2 = if fit.dof == 0 {
+        return None;
+    } else if caps.iter().all(|c| c.dolp_se.is_some()) {
+        (fit.chi2 / fit.dof as f64).max(1.0)
+    } else {
+        fit.chi2 / fit.dof as f64
+    };
+    let idx: Vec<usize> = (0..NPAR).filter(|&a| free[a]).collect();
+    let d = idx.len();
+    let (pn, pk) = (
+        idx.iter().position(|&a| a == P_N)?,
+        idx.iter().position(|&a| a == P_K)?,
+    );
+    let in_u = opts.bounds.k_min == 0.0 && fit.k < fit.k_se;
+    let cov = |use_u: bool| -> Option<[f64; 3]> {
+        let rows: Vec<[f64; NPAR]> = j
+            .iter()
+            .map(|row| {
+                let mut row = *row;
+                if use_u {
+                    row[P_K] /= 2.0 * x[P_K];
+                }
+                row
+            })
+            .collect();
+        let mut h = [[0.0; NPAR]; NPAR];
+        for row in &rows {
+            for p in 0..d {
+                for q in 0..d {
+                    h[p][q] += row[idx[p]] * row[idx[q]];
+                }
+            }
+        }
+        let hi = spd_inverse(&h, d)?;
+        // a_p(t) = Σ_q H⁻¹_pq J_t,q for the DoLP rows t < T, p ∈ {n, k}.
+        let a = |p: usize, t: usize| (0..d).map(|q| hi[p][q] * rows[t][idx[q]]).sum::<f64>();
+        let an: Vec<f64> = (0..t_len).map(|t| a(pn, t) * inv_se[t]).collect();
+        let ak: Vec<f64> = (0..t_len).map(|t| a(pk, t) * inv_se[t]).collect();
+        let (mut c00, mut c01, mut c11) = (0.0, 0.0, 0.0);
+        for t in 0..t_len {
+            for s in 0..t_len {
+                let v = sys[t * t_len + s];
+                c00 += an[t] * v * an[s];
+                c01 += an[t] * v * ak[s];
+                c11 += ak[t] * v * ak[s];
+            }
+        }
+        Some([
+            s2 * hi[pn][pn] + c00,
+            s2 * hi[pn][pk] + c01,
+            s2 * hi[pk][pk] + c11,
+        ])
+    };
+    let c = cov(in_u)?;
+    let n_se = c[0].max(0.0).sqrt();
+    let se2 = c[2].max(0.0).sqrt();
+    let k_se = if in_u {
+        (fit.k * fit.k + se2).sqrt() - fit.k
+    } else {
+        se2
+    };
+    let den = (c[0] * c[2]).sqrt();
+    Some(NkCov {
+        n_se,
+        k_se,
+        nk_corr: if den > 0.0 { c[1] / den } else { f64::NAN },
+        in_u,
+    })
+}
