@@ -353,6 +353,7 @@ pub fn measure_images(m: &Manifest, c: &Capture, img: &StokesImages) -> Result<V
             aolp_deg: None,
             aolp_poi_deg: None,
             angle_sd_deg: c.angle_sd_deg,
+            wavelength_nm: None,
         });
     }
     Ok(rows)
@@ -549,6 +550,7 @@ fn calibrated_rows(
             aolp_deg: finite_deg(st.aolp),
             aolp_poi_deg: finite_deg(st.aolp_poi),
             angle_sd_deg: c.angle_sd_deg,
+            wavelength_nm: None,
         });
     }
     Ok(rows)

@@ -70,6 +70,7 @@ prop_compose! {
             aolp_deg: extra.1,
             aolp_poi_deg: extra.2,
             angle_sd_deg: None,
+            wavelength_nm: None,
         }
     }
 }
@@ -96,6 +97,7 @@ prop_compose! {
         FitRow {
             target,
             class,
+            wavelength_nm: None,
             n: if ok { n } else { f64::NAN },
             k: if ok { k } else { f64::NAN },
             n_se,

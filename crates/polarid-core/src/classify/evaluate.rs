@@ -5,7 +5,8 @@
 //! coverage (truth in the set) and set sizes.
 
 use super::{
-    Classifier, ClassifierConfig, Decision, Estimate, Prototype, UNKNOWN, check_class_name,
+    Classifier, ClassifierConfig, Decision, MultiEstimate, MultiPrototype, UNKNOWN,
+    check_class_name,
 };
 use crate::error::{CoreError, Result};
 use crate::status::FitStatus;
@@ -17,23 +18,16 @@ pub struct Labelled {
     pub target: String,
     /// True class.
     pub class: String,
-    /// The estimate.
-    pub estimate: Estimate,
+    /// The estimate, in one band or several (`MultiEstimate::from(estimate)` for one).
+    pub estimate: MultiEstimate,
     /// Where it came from (becomes the prototype's source).
     pub source: String,
 }
 
 impl Labelled {
-    /// This estimate as a prototype of its class.
-    pub fn to_prototype(&self) -> Prototype {
-        Prototype {
-            class: self.class.clone(),
-            n: self.estimate.n,
-            k: self.estimate.k,
-            cov: self.estimate.cov,
-            category: None,
-            source: self.source.clone(),
-        }
+    /// This estimate as a prototype of its class (its bands whose fit is `ok`).
+    pub fn to_prototype(&self) -> MultiPrototype {
+        self.estimate.to_prototype(&self.class, &self.source)
     }
 }
 
@@ -238,7 +232,7 @@ pub fn leave_one_out(items: &[Labelled], config: ClassifierConfig) -> Result<Eva
     check_labels(items)?;
     let usable: Vec<&Labelled> = items
         .iter()
-        .filter(|i| i.estimate.fit_status.is_ok())
+        .filter(|i| i.estimate.fit_status().is_ok())
         .collect();
     if usable.len() < 2 {
         return Err(CoreError::TooFew {
@@ -249,13 +243,13 @@ pub fn leave_one_out(items: &[Labelled], config: ClassifierConfig) -> Result<Eva
     }
     let skipped = items
         .iter()
-        .filter(|i| !i.estimate.fit_status.is_ok())
-        .map(|i| (i.target.clone(), i.estimate.fit_status))
+        .filter(|i| !i.estimate.fit_status().is_ok())
+        .map(|i| (i.target.clone(), i.estimate.fit_status()))
         .collect();
     let mut out = Vec::with_capacity(usable.len());
     let mut unrep = Vec::new();
     for (i, it) in usable.iter().enumerate() {
-        let protos: Vec<Prototype> = usable
+        let protos: Vec<MultiPrototype> = usable
             .iter()
             .enumerate()
             .filter(|(j, _)| *j != i)
@@ -264,11 +258,11 @@ pub fn leave_one_out(items: &[Labelled], config: ClassifierConfig) -> Result<Eva
         if !protos.iter().any(|p| p.class == it.class) {
             unrep.push(it.class.clone());
         }
-        let clf = Classifier::new(protos, config)?;
+        let clf = Classifier::multi(protos, config)?;
         out.push(EvalItem {
             target: it.target.clone(),
             class: it.class.clone(),
-            decision: clf.classify(&it.estimate),
+            decision: clf.classify_multi(&it.estimate),
         });
     }
     Ok(finish(out, skipped, unrep, config.confidence))
@@ -283,8 +277,8 @@ pub fn evaluate(classifier: &Classifier, items: &[Labelled]) -> Result<Evaluatio
     let mut skipped = Vec::new();
     let mut unrep = Vec::new();
     for it in items {
-        if !it.estimate.fit_status.is_ok() {
-            skipped.push((it.target.clone(), it.estimate.fit_status));
+        if !it.estimate.fit_status().is_ok() {
+            skipped.push((it.target.clone(), it.estimate.fit_status()));
             continue;
         }
         if !classifier.prototypes().iter().any(|p| p.class == it.class) {
@@ -293,7 +287,7 @@ pub fn evaluate(classifier: &Classifier, items: &[Labelled]) -> Result<Evaluatio
         out.push(EvalItem {
             target: it.target.clone(),
             class: it.class.clone(),
-            decision: classifier.classify(&it.estimate),
+            decision: classifier.classify_multi(&it.estimate),
         });
     }
     Ok(finish(out, skipped, unrep, classifier.config().confidence))
@@ -302,13 +296,14 @@ pub fn evaluate(classifier: &Classifier, items: &[Labelled]) -> Result<Evaluatio
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::classify::Estimate;
 
     #[test]
     fn loo_confusion_and_accuracy() {
         let mk = |t: &str, c: &str, n: f64, k: f64| Labelled {
             target: t.into(),
             class: c.into(),
-            estimate: Estimate::point(n, k),
+            estimate: Estimate::point(n, k).into(),
             source: t.into(),
         };
         let items = vec![
@@ -321,7 +316,8 @@ mod tests {
                 estimate: Estimate {
                     fit_status: FitStatus::Depolarized,
                     ..Estimate::point(9.0, 9.0)
-                },
+                }
+                .into(),
                 ..mk("bad", "al", 0.0, 0.0)
             },
         ];
@@ -348,7 +344,8 @@ mod tests {
             estimate: Estimate {
                 cov: super::super::Cov2::from_se(0.1, 0.1, 0.0),
                 ..Estimate::point(n, k)
-            },
+            }
+            .into(),
             source: t.into(),
         };
         let items = vec![

@@ -2,7 +2,7 @@
 //!
 //! `target,class,theta_i_deg,theta_r_deg,phi_deg,beta_deg,dolp,dolp_se,s0,pixels,rejected`
 //! (extra columns written by polarid: `exposure`, `saturated`), then the optional
-//! columns [`OPTIONAL_COLUMNS`] (`beta_sd_deg`, `aolp_deg`, `aolp_poi_deg` of calibrated
+//! columns [`OPTIONAL_COLUMNS`] (`wavelength_nm`, the spectral band of the row; `beta_sd_deg`, `aolp_deg`, `aolp_poi_deg` of calibrated
 //! captures, `angle_sd_deg` when the manifest gives it), each written only when some row
 //! has a value for it, so a far-field file keeps exactly the columns above.
 
@@ -33,7 +33,13 @@ pub const COLUMNS: [&str; 13] = [
 
 /// The optional columns, in output order: written after [`COLUMNS`], each one only when
 /// some row has a value.
-pub const OPTIONAL_COLUMNS: [&str; 4] = ["beta_sd_deg", "aolp_deg", "aolp_poi_deg", "angle_sd_deg"];
+pub const OPTIONAL_COLUMNS: [&str; 5] = [
+    "wavelength_nm",
+    "beta_sd_deg",
+    "aolp_deg",
+    "aolp_poi_deg",
+    "angle_sd_deg",
+];
 
 /// One row: a target's DoLP in one capture.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -76,6 +82,9 @@ pub struct Measurement {
     /// Standard uncertainty of the directions of the source and of the camera, degrees
     /// (the manifest's `angle_sd_deg`; `None`: `fit`'s default applies, docs/ERRORS.md).
     pub angle_sd_deg: Option<f64>,
+    /// Centre wavelength of the row's spectral band, nm (`None`: single-band data).
+    /// `fit` fits each (target, band) separately.
+    pub wavelength_nm: Option<f64>,
 }
 
 /// Read a measurements CSV. Needs `target`, `dolp` and either `beta_deg` or
@@ -119,6 +128,7 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
     let c_aolp = t.col("aolp_deg");
     let c_apoi = t.col("aolp_poi_deg");
     let c_asd = t.col("angle_sd_deg");
+    let c_wl = t.col("wavelength_nm");
     let mut out = Vec::with_capacity(t.rows.len());
     for r in 0..t.rows.len() {
         let target = t.text(r, c_target).to_string();
@@ -180,6 +190,12 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
         let aolp_deg = in_range(c_aolp, 180.0, "AoLP")?;
         let aolp_poi_deg = in_range(c_apoi, 180.0, "AoLP")?;
         let angle_sd_deg = in_range(c_asd, 90.0, "angle uncertainty")?;
+        let wavelength_nm = t.opt_f64(r, c_wl)?;
+        if let (Some(w), Some(c)) = (wavelength_nm, c_wl)
+            && !(w.is_finite() && w > 0.0)
+        {
+            return Err(t.err(r, c, "wavelength must be finite and > 0 nm"));
+        }
         out.push(Measurement {
             target,
             class: t.opt_text(r, c_class),
@@ -198,6 +214,7 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
             aolp_deg,
             aolp_poi_deg,
             angle_sd_deg,
+            wavelength_nm,
         });
     }
     Ok(out)
@@ -206,7 +223,8 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
 /// Write measurements in the documented column order: [`COLUMNS`], then those of
 /// [`OPTIONAL_COLUMNS`] that some row has a value for.
 pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[Measurement]) -> Result<()> {
-    let optional: [fn(&Measurement) -> Option<f64>; 4] = [
+    let optional: [fn(&Measurement) -> Option<f64>; 5] = [
+        |m| m.wavelength_nm,
         |m| m.beta_sd_deg,
         |m| m.aolp_deg,
         |m| m.aolp_poi_deg,
@@ -299,5 +317,17 @@ mod tests {
         let text = "target,dolp,beta_deg,angle_sd_deg\nA,0.5,45,0.25\n";
         let t = CsvTable::from_reader(Path::new("m.csv"), text.as_bytes()).unwrap();
         assert_eq!(from_table(&t).unwrap()[0].angle_sd_deg, Some(0.25));
+        let banded = Measurement {
+            wavelength_nm: Some(550.0),
+            ..far.clone()
+        };
+        assert_eq!(
+            header(&[far.clone(), banded]),
+            format!("{},wavelength_nm", COLUMNS.join(","))
+        );
+        let text = "target,dolp,beta_deg,wavelength_nm\nA,0.5,45,-450\n";
+        let t = CsvTable::from_reader(Path::new("m.csv"), text.as_bytes()).unwrap();
+        let e = from_table(&t).unwrap_err().to_string();
+        assert!(e.contains("wavelength_nm") && e.contains("\"-450\""), "{e}");
     }
 }

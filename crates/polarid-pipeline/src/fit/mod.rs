@@ -1,8 +1,11 @@
 //! Measurement table → one `(n, k)` fit per target (paper section 5, eq. 16): the
 //! workflow of `polarid fit` and of Python's `polarid.fit_table`.
 //!
-//! Rows are grouped by `target` (targets keep the order of their first row); each
-//! target needs at least 3 measurements, and its rows may not disagree on `class`. When
+//! Rows are grouped by `target` (targets keep the order of their first row) and, for
+//! multi-band data, by `wavelength_nm` (one fit per target per band, the bands of a
+//! target in the order of their first row; a target's rows either all have a wavelength
+//! or none has); each (target, band) needs at least 3 measurements, and its rows may not
+//! disagree on `class`. When
 //! every row of a target has a `dolp_se`, the fit is weighted by `1/dolp_se²` and the
 //! standard errors follow from them; otherwise it is unweighted and the standard errors
 //! are scaled by the residual.
@@ -93,6 +96,8 @@ pub fn read_measurements(path: &Path) -> Result<Vec<(u64, Measurement)>> {
 /// One target's rows, with their line numbers in the input.
 pub(crate) struct Group<'a> {
     pub(crate) target: &'a str,
+    /// The band (`None`: single-band data).
+    pub(crate) wavelength_nm: Option<f64>,
     pub(crate) rows: Vec<(u64, &'a Measurement)>,
 }
 
@@ -107,21 +112,53 @@ impl Group<'_> {
     }
 }
 
-/// Group rows by target, first-appearance order.
-fn group(rows: &[(u64, Measurement)]) -> Vec<Group<'_>> {
-    let mut groups: Vec<Group> = Vec::new();
+/// Group rows by target and band: targets in first-appearance order, then a target's
+/// bands in first-appearance order. A target with rows both with and without a
+/// `wavelength_nm` is an error naming its first such line.
+fn group<'a>(path: &Path, rows: &'a [(u64, Measurement)]) -> Result<Vec<Group<'a>>> {
+    let mut targets: Vec<Vec<Group>> = Vec::new();
     let mut index: HashMap<&str, usize> = HashMap::new();
     for (line, m) in rows {
-        let gi = *index.entry(m.target.as_str()).or_insert_with(|| {
-            groups.push(Group {
-                target: m.target.as_str(),
-                rows: Vec::new(),
-            });
-            groups.len() - 1
+        let ti = *index.entry(m.target.as_str()).or_insert_with(|| {
+            targets.push(Vec::new());
+            targets.len() - 1
         });
-        groups[gi].rows.push((*line, m));
+        let bands = &mut targets[ti];
+        if let Some(first) = bands.first()
+            && first.wavelength_nm.is_some() != m.wavelength_nm.is_some()
+        {
+            return Err(data(
+                path,
+                format!(
+                    "line {line}: target {:?} has rows with and without wavelength_nm                      (line {} {} one)",
+                    m.target,
+                    first.rows[0].0,
+                    if first.wavelength_nm.is_some() {
+                        "has"
+                    } else {
+                        "has no"
+                    }
+                ),
+            ));
+        }
+        // Bands are the exact wavelengths written by `measure` (the manifest's values).
+        let gi = match bands
+            .iter()
+            .position(|g| g.wavelength_nm == m.wavelength_nm)
+        {
+            Some(gi) => gi,
+            None => {
+                bands.push(Group {
+                    target: m.target.as_str(),
+                    wavelength_nm: m.wavelength_nm,
+                    rows: Vec::new(),
+                });
+                bands.len() - 1
+            }
+        };
+        bands[gi].rows.push((*line, m));
     }
-    groups
+    Ok(targets.into_iter().flatten().collect())
 }
 
 /// A [`PipelineError::Data`] about `path`.
@@ -168,7 +205,7 @@ pub fn fit(
     progress: Progress,
 ) -> Result<FitOutput> {
     cfg.validate()?;
-    let groups = group(rows);
+    let groups = group(path, rows)?;
     if groups.is_empty() {
         return Err(data(path, "no measurements".into()));
     }
@@ -183,8 +220,10 @@ pub fn fit(
             return Err(data(
                 path,
                 format!(
-                    "target {:?} has {} measurement(s) ({} {}); at least 3 are needed",
+                    "target {:?}{} has {} measurement(s) ({} {}); at least 3 are needed",
                     g.target,
+                    g.wavelength_nm
+                        .map_or(String::new(), |w| format!(" at {w} nm")),
                     g.rows.len(),
                     if g.rows.len() == 1 { "line" } else { "lines" },
                     g.lines()
@@ -192,10 +231,11 @@ pub fn fit(
             ));
         }
         let class = class_of(path, g)?;
-        let t = match cfg.reflectance {
+        let mut t = match cfg.reflectance {
             Reflectance::Mixed => mixed::fit_target(path, g, class, &mopts)?,
             Reflectance::Specular => specular(path, g, class, opts, cfg, &mut plans)?,
         };
+        t.row.wavelength_nm = g.wavelength_nm;
         out.push(t);
         progress("fitting", out.len() as u64, total);
     }
@@ -273,6 +313,7 @@ fn specular(
         row: FitRow {
             target: g.target.to_string(),
             class: class.map(str::to_string),
+            wavelength_nm: g.wavelength_nm,
             n: f.n,
             k: f.k,
             n_se: err.total.0,
