@@ -28,7 +28,10 @@ fn ok(o: &Output) {
 
 /// (n, k) of copper, gold and aluminum at 450, 550, 650 nm (the built-in three-band
 /// library).
-fn truth() -> Vec<(&'static str, Vec<(f64, f64, f64)>)> {
+/// `(wavelength_nm, n, k)` per band.
+type Bands = Vec<(f64, f64, f64)>;
+
+fn truth() -> Vec<(&'static str, Bands)> {
     let lib = Library::builtin_rgb().unwrap();
     ["copper", "gold", "aluminum"]
         .iter()
@@ -57,7 +60,7 @@ fn rows(csv: &mut String, suffix: &str, labelled: bool, keep: &[f64], wiggle: f6
                 if !keep.contains(&wl) {
                     continue;
                 }
-                let sign = if (i + wl as usize / 100) % 2 == 0 {
+                let sign = if (i + wl as usize / 100).is_multiple_of(2) {
                     1.0
                 } else {
                     -1.0

@@ -202,7 +202,7 @@ pub(super) fn common_bands(est: &[&EstimateBand], p: &[BandPoint]) -> Vec<(usize
 /// larger `dof` are solved by bisection to machine precision. NaN unless `p` is in
 /// `(0, 1)` and `dof` is even and positive.
 pub fn chi2_quantile(p: f64, dof: usize) -> f64 {
-    if !(p > 0.0 && p < 1.0) || dof == 0 || dof % 2 != 0 {
+    if !(p > 0.0 && p < 1.0) || dof == 0 || !dof.is_multiple_of(2) {
         return f64::NAN;
     }
     if dof == 2 {
