@@ -269,3 +269,30 @@ fn three_bands_tell_copper_from_gold_where_650nm_cannot() {
         assert!(a3 > a1, "{rule}: three bands {a3}, one band {a1}");
     }
 }
+
+/// Single-band consumers (`PrototypeSource::load`) refuse a multi-band library, naming
+/// it; `load_multi` gives its materials with their bands.
+#[test]
+fn multi_band_sources_load_only_as_multi_band() {
+    use polarid_pipeline::classify::PrototypeSource;
+    let src = PrototypeSource::Library("builtin-rgb".into());
+    let e = src.load().unwrap_err().to_string();
+    assert!(
+        e.contains("builtin-rgb") && e.contains("several bands"),
+        "{e}"
+    );
+    let (protos, _) = src.load_multi().unwrap();
+    assert_eq!(protos.len(), 39);
+    let copper = protos.iter().find(|p| p.class == "copper").unwrap();
+    let wl: Vec<Option<f64>> = copper.bands.iter().map(|b| b.wavelength_nm).collect();
+    assert_eq!(wl, vec![Some(450.0), Some(550.0), Some(650.0)]);
+    // The single-band built-in library loads both ways; as multi-band, at 650 nm.
+    let src = PrototypeSource::Library("builtin".into());
+    assert_eq!(src.load().unwrap().0.len(), 39);
+    let (protos, _) = src.load_multi().unwrap();
+    assert!(
+        protos
+            .iter()
+            .all(|p| p.bands.len() == 1 && p.bands[0].wavelength_nm == Some(650.0))
+    );
+}

@@ -91,15 +91,32 @@ pub enum PrototypeSource {
 }
 
 impl PrototypeSource {
-    /// The prototypes and a label for messages (`model PATH`, `library SPEC`).
+    /// The single-band prototypes and a label for messages (`model PATH`, `library
+    /// SPEC`). A multi-band model or library (with `wavelength_nm`) is an error naming it:
+    /// its bands are not separate prototypes; use [`PrototypeSource::load_multi`].
     pub fn load(&self) -> Result<(Vec<Prototype>, String)> {
+        let multi = |label: String| PipelineError::Data {
+            path: format!("cannot use {label}"),
+            reason: "it has several bands (wavelength_nm); classify multi-band fits against \
+                     it (polarid classify), or use a single-band model or library here"
+                .into(),
+        };
         Ok(match self {
-            PrototypeSource::Model(m) => (
-                Model::read(m)?.prototypes(),
-                format!("model {}", m.display()),
-            ),
+            PrototypeSource::Model(m) => {
+                let model = Model::read(m)?;
+                let label = format!("model {}", m.display());
+                if model.prototypes.iter().any(|p| p.wavelength_nm.is_some()) {
+                    return Err(multi(label));
+                }
+                (model.prototypes(), label)
+            }
             PrototypeSource::Library(spec) => {
-                (Library::load(spec)?.prototypes(), format!("library {spec}"))
+                let lib = Library::load(spec)?;
+                let label = format!("library {spec}");
+                if lib.materials.iter().any(|m| m.wavelength_nm.is_some()) {
+                    return Err(multi(label));
+                }
+                (lib.prototypes(), label)
             }
             PrototypeSource::List(p, label) => (p.clone(), label.clone()),
         })
