@@ -484,7 +484,9 @@ fn batch_dict<'py>(py: Python<'py>, lead: &[usize], o: BatchOut) -> PyResult<Bou
 /// -------
 /// dict
 ///     The columns of ``polarid fit``'s CSV, in its order, as lists with one element per
-///     target: ``target`` (str), ``class`` (str or None), ``n``, ``k``, ``n_se``,
+///     target (one per target per band for multi-band measurements): ``target`` (str),
+///     ``class`` (str or None), ``wavelength_nm`` (float; only when the measurements
+///     have bands, docs/BANDS.md), ``n``, ``k``, ``n_se``,
 ///     ``k_se``, ``nk_corr``, ``rms_residual`` (float, NaN when unknown),
 ///     ``measurements`` (int), ``status`` (a word of ``polarid.FIT_STATUS``), ``reason``
 ///     (str, empty when ok), ``model`` (``specular`` or ``mixed``), ``sigma``, ``rho_d``,
@@ -564,6 +566,9 @@ pub fn fit_table<'py>(
     }
     col!("target", |r| r.target.clone());
     col!("class", |r| r.class.clone());
+    if rows.iter().any(|r| r.wavelength_nm.is_some()) {
+        col!("wavelength_nm", |r| r.wavelength_nm);
+    }
     col!("n", |r| r.n);
     col!("k", |r| r.k);
     col!("n_se", |r| r.n_se);

@@ -50,7 +50,8 @@ fn leave_one_out_of_20000_items_is_linear_in_memory() {
                     k: 1.0 + c as f64 * 0.8 + 0.2 * v,
                     cov: Cov2::from_se(0.05, 0.05, 0.1),
                     fit_status: FitStatus::Ok,
-                },
+                }
+                .into(),
                 source: format!("fits.csv:{i}"),
             }
         })

@@ -5,7 +5,9 @@
 //! # Library CSV
 //!
 //! `name,n,k` with optional `category` (`metal`, `dielectric`, `semiconductor`,
-//! `other`) and `reference`; other columns are ignored. When `n` / `k` are absent the
+//! `other`), `reference` and `wavelength_nm`; other columns are ignored. A multi-band
+//! library has `wavelength_nm` (the band's centre) and one row per material per band;
+//! the rows of one `name` are the bands of one material ([`Library::multi_prototypes`]). When `n` / `k` are absent the
 //! reader uses `n_band` / `k_band` (the band means of the shared
 //! `library_650nm.csv` format), so that file can be used as it is.
 //!
@@ -16,7 +18,16 @@
 //!   M. N. Polyanskiy, Sci. Data 11, 94 (2024) and the measurement in each row's
 //!   `reference`);
 //! - `paper2007` — the reference values of the paper's Table 1 (green paint, aluminum,
-//!   copper; `data/paper_2007.csv`).
+//!   copper; `data/paper_2007.csv`);
+//! - `builtin-rgb` — the same 39 materials in the three bands of colour polarization
+//!   sensors, 80 nm wide like the 650 nm band: 410–490 nm (`wavelength_nm` 450),
+//!   510–590 nm (550) and 610–690 nm (650, the values of `builtin`), band means sampled
+//!   every nm (`data/library_rgb.csv`, made by `polarid library --band 410:490 --band
+//!   510:590 --band 610:690`, docs/BANDS.md). A material whose data do not cover a band
+//!   lacks that band's row.
+//!
+//! `builtin`'s rows have no `wavelength_nm` column; as multi-band prototypes they are the
+//! 650 nm band.
 //!
 //! # refractiveindex.info YAML
 //!
@@ -44,7 +55,7 @@
 
 use std::path::{Path, PathBuf};
 
-use polarid_core::classify::{Prototype, check_class_name};
+use polarid_core::classify::{BandPoint, MultiPrototype, Prototype, check_class_name};
 use saphyr::{LoadableYamlNode, Yaml};
 
 use crate::error::{IoError, Result};
@@ -56,8 +67,12 @@ pub const BUILTIN_CSV: &str = include_str!("../data/library_650nm.csv");
 pub const PAPER_2007_CSV: &str = include_str!("../data/paper_2007.csv");
 /// Columns written by [`Library::write_csv`].
 pub const CSV_COLUMNS: [&str; 5] = ["name", "category", "n", "k", "reference"];
+/// The built-in three-band library (450, 550, 650 nm; refractiveindex.info, CC0).
+pub const BUILTIN_RGB_CSV: &str = include_str!("../data/library_rgb.csv");
 /// Names accepted by [`Library::load`] for the built-in libraries.
-pub const BUILTIN_NAMES: [&str; 2] = ["builtin", "paper2007"];
+pub const BUILTIN_NAMES: [&str; 3] = ["builtin", "paper2007", "builtin-rgb"];
+/// The band (nm) of the `builtin` library's values (means over 610–690 nm).
+pub const BUILTIN_WAVELENGTH_NM: f64 = 650.0;
 
 /// One material of a library.
 #[derive(Debug, Clone, PartialEq)]
@@ -74,6 +89,8 @@ pub struct Material {
     pub reference: Option<String>,
     /// Line of the library file.
     pub line: u64,
+    /// Centre wavelength of the band, nm (multi-band libraries).
+    pub wavelength_nm: Option<f64>,
 }
 
 /// A material library.
@@ -91,6 +108,11 @@ impl Library {
         Self::from_csv_text("builtin", BUILTIN_CSV)
     }
 
+    /// The built-in three-band library (450, 550, 650 nm; see the module documentation).
+    pub fn builtin_rgb() -> Result<Self> {
+        Self::from_csv_text("builtin-rgb", BUILTIN_RGB_CSV)
+    }
+
     /// The paper's Table 1 reference values.
     pub fn paper_2007() -> Result<Self> {
         Self::from_csv_text("paper2007", PAPER_2007_CSV)
@@ -101,6 +123,7 @@ impl Library {
         match spec {
             "builtin" => Self::builtin(),
             "paper2007" => Self::paper_2007(),
+            "builtin-rgb" => Self::builtin_rgb(),
             _ => Self::read_csv(Path::new(spec)),
         }
     }
@@ -129,7 +152,8 @@ impl Library {
         };
         let c_cat = t.col("category");
         let c_ref = t.col("reference");
-        let mut materials = Vec::with_capacity(t.rows.len());
+        let c_wl = t.col("wavelength_nm");
+        let mut materials: Vec<Material> = Vec::with_capacity(t.rows.len());
         for r in 0..t.rows.len() {
             let name = t.name(r, c_name)?;
             if let Err(e) = check_class_name(&name) {
@@ -143,6 +167,36 @@ impl Library {
             if k < 0.0 {
                 return Err(t.err(r, c_k, "k must be >= 0"));
             }
+            let wavelength_nm = t.opt_f64(r, c_wl)?;
+            if let Some(c) = c_wl {
+                match wavelength_nm {
+                    Some(w) if !(w.is_finite() && w > 0.0) => {
+                        return Err(t.err(r, c, "wavelength must be finite and > 0 nm"));
+                    }
+                    None => {
+                        return Err(t.err(
+                            r,
+                            c,
+                            "missing wavelength (a multi-band library needs one on every row)",
+                        ));
+                    }
+                    Some(w) => {
+                        if let Some(m) = materials.iter().find(|m| {
+                            m.name == name
+                                && polarid_core::classify::same_band(m.wavelength_nm, Some(w))
+                        }) {
+                            return Err(t.err(
+                                r,
+                                c,
+                                format!(
+                                    "material {name:?} already has this band (line {})",
+                                    m.line
+                                ),
+                            ));
+                        }
+                    }
+                }
+            }
             materials.push(Material {
                 name,
                 category: t.opt_text(r, c_cat),
@@ -150,6 +204,7 @@ impl Library {
                 k,
                 reference: t.opt_text(r, c_ref),
                 line: t.rows[r].0, // ok: r < rows.len()
+                wavelength_nm,
             });
         }
         if materials.is_empty() {
@@ -162,7 +217,8 @@ impl Library {
     }
 
     /// Write the library as CSV with the columns [`CSV_COLUMNS`] (`name,category,n,k,reference`;
-    /// empty cells for a missing category or reference), readable by [`Library::read_csv`].
+    /// empty cells for a missing category or reference; `wavelength_nm` after `category`
+    /// when some material has one), readable by [`Library::read_csv`].
     /// Each line of `comment` is written first as a `#` comment line, which the reader
     /// skips. `path` names the output in errors.
     pub fn write_csv<W: std::io::Write + ?Sized>(
@@ -176,20 +232,59 @@ impl Library {
                 writeln!(w, "# {line}").map_err(|e| IoError::io(path, e))?;
             }
         }
+        let banded = self.materials.iter().any(|m| m.wavelength_nm.is_some());
+        let mut headers: Vec<&str> = CSV_COLUMNS.to_vec();
+        if banded {
+            headers.insert(2, "wavelength_nm");
+        }
         write_rows(
             w,
             path,
-            &CSV_COLUMNS,
+            &headers,
             self.materials.iter().map(|m| {
-                vec![
+                let mut cells = vec![
                     m.name.clone(),
                     m.category.clone().unwrap_or_default(),
                     fmt_f64(m.n),
                     fmt_f64(m.k),
                     m.reference.clone().unwrap_or_default(),
-                ]
+                ];
+                if banded {
+                    cells.insert(2, m.wavelength_nm.map(fmt_f64).unwrap_or_default());
+                }
+                cells
             }),
         )
+    }
+
+    /// The materials as classification prototypes with all their bands: the rows of one
+    /// name are its bands (first-appearance order), class = name, no covariance, source
+    /// `library <source> line <first line>`. The `builtin` library's rows are the 650 nm
+    /// band ([`BUILTIN_WAVELENGTH_NM`]); rows of other libraries without `wavelength_nm`
+    /// are single-band prototypes without a wavelength.
+    pub fn multi_prototypes(&self) -> Vec<MultiPrototype> {
+        let mut out: Vec<MultiPrototype> = Vec::new();
+        for m in &self.materials {
+            let wavelength_nm = m
+                .wavelength_nm
+                .or_else(|| (self.source == "builtin").then_some(BUILTIN_WAVELENGTH_NM));
+            let band = BandPoint {
+                wavelength_nm,
+                n: m.n,
+                k: m.k,
+                cov: None,
+            };
+            match out.iter_mut().find(|p| p.class == m.name) {
+                Some(p) if m.wavelength_nm.is_some() => p.bands.push(band),
+                _ => out.push(MultiPrototype {
+                    class: m.name.clone(),
+                    category: m.category.clone(),
+                    source: format!("library {} line {}", self.source, m.line),
+                    bands: vec![band],
+                }),
+            }
+        }
+        out
     }
 
     /// The materials as classification prototypes (class = material name, no covariance,
@@ -631,6 +726,7 @@ mod tests {
                 k: 3.25,
                 reference: Some("a \"quoted\" ref".into()),
                 line: 0,
+                wavelength_nm: None,
             }],
         };
         let mut buf = Vec::new();

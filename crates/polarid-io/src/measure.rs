@@ -620,6 +620,7 @@ fn empty_row(
         angle_sd_deg: c.angle_sd_deg,
         status: status.0,
         reason: status.1,
+        wavelength_nm: None,
     }
 }
 
@@ -675,6 +676,7 @@ fn far_field_rows(
             angle_sd_deg: c.angle_sd_deg,
             status,
             reason,
+            wavelength_nm: None,
         });
     }
     Ok(rows)
@@ -880,6 +882,7 @@ fn calibrated_rows(
             angle_sd_deg: c.angle_sd_deg,
             status,
             reason,
+            wavelength_nm: None,
         });
     }
     Ok(rows)

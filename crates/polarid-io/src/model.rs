@@ -16,14 +16,22 @@
 //! ```
 //!
 //! `covariance` is the `(n, k)` covariance of the training estimate (`null` when the fit
-//! gave no standard errors). `source.file` is relative to the model file's folder when the
+//! gave no standard errors).
+//!
+//! A model trained on multi-band fits has one prototype per target per band, each with
+//! `"wavelength_nm"` (after `class`; absent from single-band models, whose JSON is
+//! unchanged). The bands of one training target — the prototypes with the same `class`,
+//! `source.file` and `source.target` — form one multi-band prototype
+//! ([`Model::multi_prototypes`]). `source.file` is relative to the model file's folder when the
 //! fits file lies under it, else absolute. A model whose `format_version` is not
 //! [`FORMAT_VERSION`] is refused with an error naming both versions.
 
 use std::io::Write;
 use std::path::Path;
 
-use polarid_core::classify::{Cov2, Prototype, check_class_name};
+use polarid_core::classify::{
+    BandPoint, Cov2, MultiPrototype, Prototype, check_class_name, same_band,
+};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{IoError, Result};
@@ -49,6 +57,9 @@ pub struct PrototypeSource {
 pub struct ModelPrototype {
     /// Class name.
     pub class: String,
+    /// Centre wavelength of the band, nm (multi-band models only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wavelength_nm: Option<f64>,
     /// Real part of the index.
     pub n: f64,
     /// Imaginary part of the index.
@@ -129,6 +140,13 @@ impl Model {
                     p.n, p.k
                 )));
             }
+            if let Some(w) = p.wavelength_nm
+                && !(w.is_finite() && w > 0.0)
+            {
+                return Err(bad(format!(
+                    "{at}: wavelength_nm = {w} (need a finite wavelength > 0 nm)"
+                )));
+            }
             if let Some(c) = p.covariance
                 && (Cov2::from_matrix(c).is_none())
             {
@@ -139,6 +157,21 @@ impl Model {
         }
         if m.prototypes.is_empty() {
             return Err(bad("the model has no prototypes".into()));
+        }
+        let multi = m.multi_prototypes();
+        if let Some(p) = multi.iter().find(|p| {
+            p.bands.len() > 1
+                && p.bands.iter().enumerate().any(|(i, b)| {
+                    b.wavelength_nm.is_none()
+                        || p.bands[..i]
+                            .iter()
+                            .any(|o| same_band(o.wavelength_nm, b.wavelength_nm))
+                })
+        }) {
+            return Err(bad(format!(
+                "prototype of class {:?} ({}): a band is repeated or has no wavelength_nm",
+                p.class, p.source
+            )));
         }
         Ok(m)
     }
@@ -168,6 +201,49 @@ impl Model {
                 ),
             })
             .collect()
+    }
+}
+
+impl Model {
+    /// The prototypes with all their bands: those with the same `class`, `source.file` and
+    /// `source.target` are the bands of one prototype (first-appearance order; source
+    /// `FILE target T`, or `FILE:LINE target T` for a single band). Single-band models give
+    /// the prototypes of [`Model::prototypes`] one for one.
+    pub fn multi_prototypes(&self) -> Vec<MultiPrototype> {
+        let mut out: Vec<MultiPrototype> = Vec::new();
+        let mut keys: Vec<(&str, &str, &str)> = Vec::new();
+        for p in &self.prototypes {
+            let band = BandPoint {
+                wavelength_nm: p.wavelength_nm,
+                n: p.n,
+                k: p.k,
+                cov: p.covariance.and_then(Cov2::from_matrix),
+            };
+            let key = (
+                p.class.as_str(),
+                p.source.file.as_str(),
+                p.source.target.as_str(),
+            );
+            match keys.iter().position(|k| *k == key) {
+                Some(i) if p.wavelength_nm.is_some() => {
+                    out[i].bands.push(band);
+                    out[i].source = format!("{} target {}", p.source.file, p.source.target);
+                }
+                _ => {
+                    keys.push(key);
+                    out.push(MultiPrototype {
+                        class: p.class.clone(),
+                        category: p.category.clone(),
+                        source: format!(
+                            "{}:{} target {}",
+                            p.source.file, p.source.line, p.source.target
+                        ),
+                        bands: vec![band],
+                    });
+                }
+            }
+        }
+        out
     }
 }
 

@@ -97,6 +97,7 @@ prop_compose! {
         FitRow {
             target,
             class,
+            wavelength_nm: None,
             n: if ok { n } else { f64::NAN },
             k: if ok { k } else { f64::NAN },
             n_se,

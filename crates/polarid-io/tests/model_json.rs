@@ -9,6 +9,7 @@ fn sample() -> Model {
     let cov = Cov2::from_se(0.1, 0.2, -0.3).unwrap();
     Model::new(vec![
         ModelPrototype {
+            wavelength_nm: None,
             class: "aluminum".into(),
             n: 1.64,
             k: 4.56,
@@ -21,6 +22,7 @@ fn sample() -> Model {
             },
         },
         ModelPrototype {
+            wavelength_nm: None,
             class: "aluminum".into(),
             n: 1.5,
             k: 4.4,

@@ -1,6 +1,8 @@
 //! Labelled fits → a classification model (the workflow of `polarid train`): one
 //! prototype per target with a `class` and fit status `ok` (several per class allowed),
-//! each recording the file, line and target it came from.
+//! each recording the file, line and target it came from. Multi-band fits give one
+//! prototype per target per band with its `wavelength_nm` (the bands whose fit is `ok`);
+//! the model groups them back by class, file and target (`Model::multi_prototypes`).
 
 use std::path::Path;
 
@@ -53,6 +55,7 @@ pub fn train(fits: &[(u64, FitRow)], fits_path: &Path, file: &str) -> Result<Tra
         let est = estimate_of(f);
         protos.push(ModelPrototype {
             class: class.to_string(),
+            wavelength_nm: f.wavelength_nm,
             n: f.n,
             k: f.k,
             covariance: est.cov.as_ref().map(cov_matrix),

@@ -1,6 +1,8 @@
-//! `polarid library YAML_OR_DIR... --band LO:HI [-o LIB.csv]`: build a material library
-//! CSV for a filter band from refractiveindex.info YAML files, for
-//! `polarid classify --library LIB.csv`.
+//! `polarid library YAML_OR_DIR... --band LO:HI [--band LO:HI ...] [-o LIB.csv]`: build a
+//! material library CSV for one or several filter bands from refractiveindex.info YAML
+//! files, for `polarid classify --library LIB.csv`. With several `--band`s each material
+//! gets one row per band, with `wavelength_nm` the band's centre (a colour camera's
+//! library: `--band 410:490 --band 510:590 --band 610:690`, docs/BANDS.md).
 //!
 //! The workflow is [`polarid_pipeline::library`]; this command parses the options and
 //! writes the CSV. Each file gives one material: the arithmetic means of `n` and of `k` over the band,
@@ -41,18 +43,22 @@ Examples:
   polarid library data/materials/refractiveindex --band 520:545 -o lib_532.csv
   polarid library main/Au/nk/Johnson.yml main/Cu/nk/Johnson.yml --band 532 --category metal
   polarid library mats/ --band 700:900 --step 5 --names names.csv --skip-missing -o nir.csv
+  polarid library data/materials/refractiveindex --band 410:490 --band 510:590 --band 610:690
 
 Output columns: name,category,n,k,reference (reference: the map's, else the YAML path),
-after a `#` comment line giving the band; read by `polarid classify --library LIB.csv`.")]
+after a `#` comment line giving the band; with several --band, name,category,wavelength_nm,
+n,k,reference, one row per material per band (wavelength_nm: the band's centre).
+Read by `polarid classify --library LIB.csv`.")]
 pub struct Args {
     /// refractiveindex.info YAML files (tabulated nk / n / k, formulas 1-9), or folders
     /// scanned recursively for *.yml and *.yaml.
     #[arg(required = true, value_name = "YAML_OR_DIR")]
     pub inputs: Vec<PathBuf>,
     /// Band in nm: `LO:HI` (n and k averaged over LO, LO+STEP, ... up to HI) or a single
-    /// wavelength `WL` (e.g. 532 for a laser). The built-in library is `610:690`.
-    #[arg(long, value_name = "LO:HI|WL", value_parser = parse_band)]
-    pub band: Band,
+    /// wavelength `WL` (e.g. 532 for a laser). The built-in library is `610:690`. Give it
+    /// several times for a multi-band library (one row per material per band).
+    #[arg(long, value_name = "LO:HI|WL", value_parser = parse_band, required = true)]
+    pub band: Vec<Band>,
     /// Sampling step of the band mean, nm.
     #[arg(long, value_name = "NM", default_value = "1", value_parser = parse_step)]
     pub step: f64,
@@ -79,7 +85,7 @@ pub struct Args {
 /// Run `polarid library`.
 pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     let cfg = LibraryConfig::new(
-        args.band,
+        args.band.clone(),
         args.step,
         args.category.clone(),
         args.skip_missing,
@@ -112,10 +118,17 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     ctx.write_output(args.output.as_deref(), &inputs, |w| {
         lib.write_csv(w, &label, Some(&comment))
     })?;
+    let mut names: Vec<&str> = lib.materials.iter().map(|m| m.name.as_str()).collect();
+    names.dedup();
     ctx.info(format!(
-        "polarid library: {} materials, band {}{}",
-        lib.materials.len(),
-        args.band,
+        "polarid library: {} materials, band{} {}{}",
+        names.len(),
+        if args.band.len() > 1 { "s" } else { "" },
+        args.band
+            .iter()
+            .map(|b| b.to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
         if built.warnings.is_empty() {
             String::new()
         } else {

@@ -1,26 +1,30 @@
 //! The nearest-neighbour classifier: the paper's rule (`k = 1`, Euclidean distance), k-NN
-//! voting, the Mahalanobis distance and the reject option.
+//! voting, the Mahalanobis distance and the reject option, over one band or several.
 //!
 //! ```text
 //! d_E = √((n̂ − n_p)² + (k̂ − k_p)²)
 //! d_M = √(Δᵀ (Σ_est + Σ_proto)⁻¹ Δ),   Δ = (n̂ − n_p, k̂ − k_p)
+//! several bands: d = √(Σ_b d_b²) over the bands in common (see `bands`)
 //! ```
 //!
 //! Votes among the `k` nearest prototypes; a tie goes to the tied class whose nearest member
-//! is closest. The χ² gate rejects when `d_M² > −2 ln(1 − p)` (2 degrees of freedom).
+//! is closest. The χ² gate rejects when `d_M² > χ²_{2m}(p)` (`m` bands compared; one band:
+//! `−2 ln(1 − p)`, 2 degrees of freedom).
 //!
 //! The consistent set: every class whose nearest prototype (by the set distance, the
 //! Mahalanobis distance in `(n, k)`, or in `(n, u = k²)` when the estimate's `k_se` is
-//! one-sided or either point is within `NEAR_ZERO_SIGMAS` k_se of `k = 0`) has
-//! `d_M² ≤ −2 ln(1 − confidence)`, ranked by distance, ties in the
-//! prototypes' order.
+//! one-sided or either point is within `NEAR_ZERO_SIGMAS` k_se of `k = 0`, band by band)
+//! has `d_M² ≤ χ²_{2m}(confidence)`, ranked by distance, ties in the prototypes' order.
 //!
 //! # Reference
 //! Thilak, Creusere & Voelz, ICIP 2007, section 6 (Tables 1 and 2 in the tests).
 
+use super::bands::{
+    BandPoint, EstimateBand, MultiEstimate, MultiPrototype, chi2_quantile, common_bands,
+};
 use super::{
-    AMBIGUOUS, Candidate, ClassifierConfig, Decision, Estimate, Metric, Neighbour, Prototype,
-    Reject, Rule, Status, UNKNOWN, check_class_name, chi2_2dof_quantile,
+    AMBIGUOUS, Candidate, ClassifierConfig, Cov2, Decision, Estimate, Metric, Neighbour, Prototype,
+    Reject, Rule, Status, UNKNOWN, check_class_name,
 };
 use crate::error::{CoreError, Result};
 
@@ -29,16 +33,100 @@ use crate::error::{CoreError, Result};
 /// there the DoLP is linear in `u`, not in `k` (paper eq. 14–15).
 pub const NEAR_ZERO_SIGMAS: f64 = 3.0;
 
-/// Nearest-neighbour classifier over a set of prototypes.
+/// Nearest-neighbour classifier over a set of prototypes (one band or several).
 #[derive(Debug, Clone)]
 pub struct Classifier {
+    /// The first band of each profile, as a single-band prototype.
     prototypes: Vec<Prototype>,
+    profiles: Vec<MultiPrototype>,
     config: ClassifierConfig,
 }
 
+/// A distance over the bands an estimate and a prototype have in common.
+enum BandDistance {
+    /// No band in common: the prototype is not compared.
+    NoBand,
+    /// A band lacks the covariance the distance needs.
+    NoCovariance,
+    /// The distance and the number of bands it is over.
+    Distance(f64, usize),
+}
+
+/// `f` over the bands in common: one band → `f` itself, several → `√(Σ f²)`.
+fn over_bands(
+    est: &[&EstimateBand],
+    p: &MultiPrototype,
+    f: impl Fn(&Estimate, &BandPoint) -> Option<f64>,
+) -> BandDistance {
+    let pairs = common_bands(est, &p.bands);
+    match pairs.as_slice() {
+        [] => BandDistance::NoBand,
+        [(i, j)] => match f(&est[*i].estimate, &p.bands[*j]) {
+            Some(d) => BandDistance::Distance(d, 1),
+            None => BandDistance::NoCovariance,
+        },
+        _ => {
+            let mut s = 0.0;
+            for (i, j) in &pairs {
+                match f(&est[*i].estimate, &p.bands[*j]) {
+                    Some(d) => s += d * d,
+                    None => return BandDistance::NoCovariance,
+                }
+            }
+            BandDistance::Distance(s.sqrt(), pairs.len())
+        }
+    }
+}
+
+/// Euclidean distance in one band.
+fn euclidean(est: &Estimate, p: &BandPoint) -> Option<f64> {
+    Some((est.n - p.n).hypot(est.k - p.k))
+}
+
+/// Mahalanobis distance in one band, when a covariance is available (the estimate's plus
+/// the prototype's).
+fn mahalanobis(est: &Estimate, p: &BandPoint) -> Option<f64> {
+    let cov = match (est.cov, p.cov) {
+        (Some(a), Some(b)) => a + b,
+        (Some(a), None) | (None, Some(a)) => a,
+        (None, None) => return None,
+    };
+    cov.mahalanobis2(est.n - p.n, est.k - p.k).map(f64::sqrt)
+}
+
+/// The set rule's distance in one band (see [`Classifier::set_distance`]).
+fn set_distance_band(est: &Estimate, p: &BandPoint) -> Option<f64> {
+    let near_zero = est.cov.is_some_and(|c| {
+        let k_se = c.kk.sqrt();
+        c.k_is_one_sided(est.k)
+            || est.k <= NEAR_ZERO_SIGMAS * k_se
+            || p.k <= NEAR_ZERO_SIGMAS * k_se
+    });
+    if !near_zero {
+        return mahalanobis(est, p);
+    }
+    let ce = est.cov.map(|c| c.to_nu(est.k));
+    let cp = p.cov.map(|c: Cov2| c.to_nu(p.k));
+    let cov = match (ce, cp) {
+        (Some(a), Some(b)) => a + b,
+        (Some(a), None) | (None, Some(a)) => a,
+        (None, None) => return None,
+    };
+    cov.mahalanobis2(est.n - p.n, est.k * est.k - p.k * p.k)
+        .map(f64::sqrt)
+}
+
+/// Distances to the comparable prototypes, ranked (ties in the prototypes' order), and the
+/// number of bands of each prototype's comparison (0: not compared).
+struct Ranking {
+    ranked: Vec<Neighbour>,
+    bands: Vec<usize>,
+}
+
 impl Classifier {
-    /// A classifier; fails when there are no prototypes, a prototype has a non-finite or
-    /// negative index or a reserved/empty class name, or the settings are invalid.
+    /// A classifier over single-band prototypes; fails when there are no prototypes, a
+    /// prototype has a non-finite or negative index or a reserved/empty class name, or the
+    /// settings are invalid.
     pub fn new(prototypes: Vec<Prototype>, config: ClassifierConfig) -> Result<Self> {
         config.validate()?;
         if prototypes.is_empty() {
@@ -53,12 +141,84 @@ impl Classifier {
             crate::error::ensure_finite("prototype n", p.n)?;
             crate::error::ensure_range("prototype k", p.k, 0.0, f64::INFINITY, ">= 0")?;
         }
-        Ok(Self { prototypes, config })
+        let profiles = prototypes
+            .iter()
+            .cloned()
+            .map(MultiPrototype::from)
+            .collect();
+        Ok(Self {
+            prototypes,
+            profiles,
+            config,
+        })
     }
 
-    /// The prototypes.
+    /// A classifier over prototypes measured in one or several bands (see
+    /// [`super::bands`]); fails as [`Classifier::new`], and when a prototype has no band,
+    /// two bands with the same wavelength, or a band without a wavelength next to others.
+    pub fn multi(profiles: Vec<MultiPrototype>, config: ClassifierConfig) -> Result<Self> {
+        config.validate()?;
+        if profiles.is_empty() {
+            return Err(CoreError::TooFew {
+                what: "prototypes",
+                needed: 1,
+                got: 0,
+            });
+        }
+        let mut prototypes = Vec::with_capacity(profiles.len());
+        for p in &profiles {
+            check_class_name(&p.class)?;
+            let Some(first) = p.band_prototype(0) else {
+                return Err(CoreError::TooFew {
+                    what: "bands of a prototype",
+                    needed: 1,
+                    got: 0,
+                });
+            };
+            for (i, b) in p.bands.iter().enumerate() {
+                crate::error::ensure_finite("prototype n", b.n)?;
+                crate::error::ensure_range("prototype k", b.k, 0.0, f64::INFINITY, ">= 0")?;
+                let bad = (p.bands.len() > 1 && b.wavelength_nm.is_none())
+                    || p.bands[..i]
+                        .iter()
+                        .any(|o| super::same_band(o.wavelength_nm, b.wavelength_nm));
+                if bad {
+                    return Err(CoreError::InvalidName {
+                        what: "prototype bands",
+                        name: format!("{} ({})", p.class, p.source),
+                        reason: format!(
+                            "band {} is repeated or has no wavelength next to other bands",
+                            b.wavelength_nm
+                                .map_or("without wavelength".into(), |w| format!("{w} nm"))
+                        ),
+                    });
+                }
+            }
+            prototypes.push(first);
+        }
+        Ok(Self {
+            prototypes,
+            profiles,
+            config,
+        })
+    }
+
+    /// The prototypes (the first band of each, for a multi-band classifier; index `i` is
+    /// [`Classifier::profiles`]`()[i]`).
     pub fn prototypes(&self) -> &[Prototype] {
         &self.prototypes
+    }
+
+    /// The prototypes with all their bands.
+    pub fn profiles(&self) -> &[MultiPrototype] {
+        &self.profiles
+    }
+
+    /// Whether some prototype has several bands or a band wavelength.
+    pub fn is_multi_band(&self) -> bool {
+        self.profiles
+            .iter()
+            .any(|p| p.bands.len() > 1 || p.bands.iter().any(|b| b.wavelength_nm.is_some()))
     }
 
     /// The settings.
@@ -67,7 +227,8 @@ impl Classifier {
     }
 
     /// Index and Euclidean distance of the nearest prototype to `(n, k)` — the paper's
-    /// rule without allocation, for per-pixel use. `None` when `n` or `k` is not finite.
+    /// rule without allocation, for per-pixel use, on the prototypes' first band. `None`
+    /// when `n` or `k` is not finite.
     #[inline]
     pub fn nearest_euclidean(&self, n: f64, k: f64) -> Option<(usize, f64)> {
         if !(n.is_finite() && k.is_finite()) {
@@ -84,77 +245,86 @@ impl Classifier {
         (best.0 != usize::MAX).then(|| (best.0, best.1.sqrt()))
     }
 
-    /// Mahalanobis distance between the estimate and prototype `p`, when a covariance is
-    /// available (the estimate's plus the prototype's).
-    fn mahalanobis(est: &Estimate, p: &Prototype) -> Option<f64> {
-        let cov = match (est.cov, p.cov) {
-            (Some(a), Some(b)) => a + b,
-            (Some(a), None) | (None, Some(a)) => a,
-            (None, None) => return None,
-        };
-        cov.mahalanobis2(est.n - p.n, est.k - p.k).map(f64::sqrt)
-    }
-
     /// Distance of the consistency test between the estimate and prototype `p`: the
     /// Mahalanobis distance with `Σ_est + Σ_proto` in `(n, k)`, or in `(n, u = k²)` (both
     /// covariances through [`Cov2::to_nu`](super::Cov2::to_nu),
     /// `Δ = (n̂ − n_p, k̂² − k_p²)`) near `k = 0`: when the estimate's `k_se` is one-sided,
     /// or the estimate or the prototype is within [`NEAR_ZERO_SIGMAS`]` · k_se` of `k = 0`.
     /// The choice does not depend on the confidence, so a higher confidence never shrinks
-    /// the set. `None` without a usable covariance.
+    /// the set. `None` without a usable covariance. (One band; over several bands the
+    /// squares add.)
     pub fn set_distance(est: &Estimate, p: &Prototype) -> Option<f64> {
-        let near_zero = est.cov.is_some_and(|c| {
-            let k_se = c.kk.sqrt();
-            c.k_is_one_sided(est.k)
-                || est.k <= NEAR_ZERO_SIGMAS * k_se
-                || p.k <= NEAR_ZERO_SIGMAS * k_se
-        });
-        if !near_zero {
-            return Self::mahalanobis(est, p);
-        }
-        let ce = est.cov.map(|c| c.to_nu(est.k));
-        let cp = p.cov.map(|c| c.to_nu(p.k));
-        let cov = match (ce, cp) {
-            (Some(a), Some(b)) => a + b,
-            (Some(a), None) | (None, Some(a)) => a,
-            (None, None) => return None,
-        };
-        cov.mahalanobis2(est.n - p.n, est.k * est.k - p.k * p.k)
-            .map(f64::sqrt)
+        set_distance_band(
+            est,
+            &BandPoint {
+                wavelength_nm: None,
+                n: p.n,
+                k: p.k,
+                cov: p.cov,
+            },
+        )
     }
 
-    /// Set distances to every prototype, ranked (ties in the prototypes' order); `Err`
-    /// with the first prototype lacking a usable covariance.
-    fn set_ranked(&self, est: &Estimate) -> std::result::Result<Vec<Neighbour>, usize> {
-        let mut ranked = Vec::with_capacity(self.prototypes.len());
-        for (index, p) in self.prototypes.iter().enumerate() {
-            let distance = Self::set_distance(est, p).ok_or(index)?;
-            ranked.push(Neighbour { index, distance });
+    /// Distances by `f` to every prototype with a band in common, ranked (ties in the
+    /// prototypes' order); `Err` with the first prototype lacking a usable covariance.
+    fn rank(
+        &self,
+        est: &[&EstimateBand],
+        f: impl Fn(&Estimate, &BandPoint) -> Option<f64> + Copy,
+    ) -> std::result::Result<Ranking, usize> {
+        let mut ranked = Vec::with_capacity(self.profiles.len());
+        let mut bands = vec![0; self.profiles.len()];
+        for (index, p) in self.profiles.iter().enumerate() {
+            match over_bands(est, p, f) {
+                BandDistance::NoBand => {}
+                BandDistance::NoCovariance => return Err(index),
+                BandDistance::Distance(distance, m) => {
+                    bands[index] = m;
+                    ranked.push(Neighbour { index, distance });
+                }
+            }
         }
         ranked.sort_by(|a, b| {
             a.distance
                 .total_cmp(&b.distance)
                 .then(a.index.cmp(&b.index))
         });
-        Ok(ranked)
+        Ok(Ranking { ranked, bands })
+    }
+
+    /// The wavelengths of the estimate's bands compared with prototype `index`.
+    fn bands_used(&self, est: &[&EstimateBand], index: usize) -> Vec<Option<f64>> {
+        common_bands(est, &self.profiles[index].bands)
+            .into_iter()
+            .map(|(i, _)| est[i].wavelength_nm)
+            .collect()
     }
 
     /// The consistent classes among `ranked` (set distances): each class once, at its
-    /// nearest prototype, kept when `d² ≤ −2 ln(1 − confidence)`; and their common
-    /// category.
-    fn candidates(&self, ranked: &[Neighbour]) -> (Vec<Candidate>, Option<String>) {
-        let q = chi2_2dof_quantile(self.config.confidence);
-        let mut out: Vec<Candidate> = Vec::new();
-        for nb in ranked {
-            if nb.distance * nb.distance > q {
-                break;
+    /// nearest prototype, kept when `d² ≤ χ²_{2m}(confidence)` (`m` bands compared); and
+    /// their common category.
+    fn candidates(&self, r: &Ranking) -> (Vec<Candidate>, Option<String>) {
+        let mut quantiles: Vec<f64> = Vec::new();
+        let mut q = |m: usize| {
+            if quantiles.len() < m {
+                quantiles.resize(m, f64::NAN);
             }
-            let p = &self.prototypes[nb.index];
+            if quantiles[m - 1].is_nan() {
+                quantiles[m - 1] = chi2_quantile(self.config.confidence, 2 * m);
+            }
+            quantiles[m - 1]
+        };
+        let mut out: Vec<Candidate> = Vec::new();
+        for nb in &r.ranked {
+            let p = &self.profiles[nb.index];
             if out.iter().any(|c| c.class == p.class) {
                 continue;
             }
+            if nb.distance * nb.distance > q(r.bands[nb.index].max(1)) {
+                continue;
+            }
             let category = self
-                .prototypes
+                .profiles
                 .iter()
                 .filter(|o| o.class == p.class)
                 .find_map(|o| o.category.clone());
@@ -172,49 +342,86 @@ impl Classifier {
         (out, common)
     }
 
-    /// Classify one estimate with the configured [`Rule`].
+    /// Classify one single-band estimate with the configured [`Rule`].
     pub fn classify(&self, est: &Estimate) -> Decision {
-        if !est.fit_status.is_ok() {
+        self.classify_multi(&MultiEstimate::from(est.clone()))
+    }
+
+    /// Classify an estimate of one or several bands with the configured [`Rule`]: on the
+    /// bands whose fit is `ok`, against each prototype on the bands they have in common
+    /// ([`Decision::bands_used`] lists those of the nearest prototype).
+    pub fn classify_multi(&self, est: &MultiEstimate) -> Decision {
+        let ok: Vec<&EstimateBand> = est
+            .bands
+            .iter()
+            .filter(|b| b.estimate.fit_status.is_ok())
+            .collect();
+        if ok.is_empty() {
+            let status = est.fit_status();
             return Decision::unclassified(
-                Status::FitNotOk(est.fit_status),
-                format!(
-                    "not classified: the fit's status is `{}`, not `ok`",
-                    est.fit_status
-                ),
+                Status::FitNotOk(status),
+                format!("not classified: the fit's status is `{status}`, not `ok`"),
             );
         }
-        if !(est.n.is_finite() && est.k.is_finite()) {
+        if let Some(b) = ok
+            .iter()
+            .find(|b| !(b.estimate.n.is_finite() && b.estimate.k.is_finite()))
+        {
             return Decision::unclassified(
                 Status::InvalidEstimate,
                 format!(
                     "not classified: the estimate n = {}, k = {} is not finite",
-                    est.n, est.k
+                    b.estimate.n, b.estimate.k
                 ),
             );
         }
-        match self.config.rule {
+        if !self
+            .profiles
+            .iter()
+            .any(|p| !common_bands(&ok, &p.bands).is_empty())
+        {
+            let wl: Vec<String> = ok
+                .iter()
+                .map(|b| {
+                    b.wavelength_nm
+                        .map_or("no wavelength".into(), |w| format!("{w} nm"))
+                })
+                .collect();
+            return Decision::unclassified(
+                Status::NoCommonBand,
+                format!(
+                    "not classified: no prototype has a band of the estimate ({})",
+                    wl.join(", ")
+                ),
+            );
+        }
+        let mut d = match self.config.rule {
             Rule::Nearest => {
-                let mut d = self.classify_nearest(est);
+                let mut d = self.classify_nearest(&ok);
                 if d.status != Status::NoCovariance
-                    && let Ok(ranked) = self.set_ranked(est)
+                    && let Ok(r) = self.rank(&ok, set_distance_band)
                 {
-                    let (c, cat) = self.candidates(&ranked);
+                    let (c, cat) = self.candidates(&r);
                     d.candidates = c;
                     d.set_category = cat;
                     d.set_tested = true;
                 }
                 d
             }
-            Rule::Set => self.classify_set(est),
+            Rule::Set => self.classify_set(&ok),
+        };
+        if let Some(nb) = d.nearest {
+            d.bands_used = self.bands_used(&ok, nb.index);
         }
+        d
     }
 
     /// The set rule (estimate already checked).
-    fn classify_set(&self, est: &Estimate) -> Decision {
-        let ranked = match self.set_ranked(est) {
+    fn classify_set(&self, est: &[&EstimateBand]) -> Decision {
+        let r = match self.rank(est, set_distance_band) {
             Ok(r) => r,
             Err(i) => {
-                let p = &self.prototypes[i];
+                let p = &self.profiles[i];
                 return Decision::unclassified(
                     Status::NoCovariance,
                     format!(
@@ -225,13 +432,15 @@ impl Classifier {
                 );
             }
         };
-        let (candidates, set_category) = self.candidates(&ranked);
-        // ok: there is at least one prototype (checked in `new`), so `ranked` is not empty.
-        let nearest = ranked[0];
-        let class = self.prototypes[nearest.index].class.clone();
-        let runner = ranked
+        let (candidates, set_category) = self.candidates(&r);
+        // ok: some prototype shares a band with the estimate (checked by the caller), so
+        // `ranked` is not empty.
+        let nearest = r.ranked[0];
+        let class = self.profiles[nearest.index].class.clone();
+        let runner = r
+            .ranked
             .iter()
-            .find(|nb| self.prototypes[nb.index].class != class)
+            .find(|nb| self.profiles[nb.index].class != class)
             .copied();
         let runner_up_distance = runner.map_or(f64::NAN, |n| n.distance);
         let pct = self.config.confidence * 100.0;
@@ -242,7 +451,7 @@ impl Classifier {
                 format!(
                     "rejected: no material is consistent at {pct}% confidence (Mahalanobis \
                      distance <= {:.3}); nearest `{class}` at {:.3}",
-                    chi2_2dof_quantile(self.config.confidence).sqrt(),
+                    chi2_quantile(self.config.confidence, 2 * r.bands[nearest.index].max(1)).sqrt(),
                     nearest.distance
                 ),
             ),
@@ -265,49 +474,43 @@ impl Classifier {
             nearest_class: Some(class),
             nearest: Some(nearest),
             distance: nearest.distance,
-            runner_up: runner.map(|r| self.prototypes[r.index].class.clone()),
+            runner_up: runner.map(|r| self.profiles[r.index].class.clone()),
             runner_up_distance,
             margin: runner_up_distance - nearest.distance,
             gate: Some(nearest.distance),
             votes: 1,
             status,
             reason,
-            ranked,
+            ranked: r.ranked,
             candidates,
             set_tested: true,
             set_category,
+            bands_used: Vec::new(),
         }
     }
 
     /// The paper's nearest-neighbour rule with k-NN votes and the reject option
     /// (estimate already checked).
-    fn classify_nearest(&self, est: &Estimate) -> Decision {
-        // Distances to every prototype.
-        let mut ranked: Vec<Neighbour> = Vec::with_capacity(self.prototypes.len());
-        for (index, p) in self.prototypes.iter().enumerate() {
-            let distance = match self.config.metric {
-                Metric::Euclidean => (est.n - p.n).hypot(est.k - p.k),
-                Metric::Mahalanobis => match Self::mahalanobis(est, p) {
-                    Some(d) => d,
-                    None => {
-                        return Decision::unclassified(
-                            Status::NoCovariance,
-                            format!(
-                                "not classified: the Mahalanobis distance needs a covariance \
-                                 and neither the estimate nor prototype `{}` ({}) has a usable one",
-                                p.class, p.source
-                            ),
-                        );
-                    }
-                },
-            };
-            ranked.push(Neighbour { index, distance });
-        }
-        ranked.sort_by(|a, b| {
-            a.distance
-                .total_cmp(&b.distance)
-                .then(a.index.cmp(&b.index))
-        });
+    fn classify_nearest(&self, est: &[&EstimateBand]) -> Decision {
+        let ranking = match self.config.metric {
+            Metric::Euclidean => self.rank(est, euclidean),
+            Metric::Mahalanobis => self.rank(est, mahalanobis),
+        };
+        let r = match ranking {
+            Ok(r) => r,
+            Err(i) => {
+                let p = &self.profiles[i];
+                return Decision::unclassified(
+                    Status::NoCovariance,
+                    format!(
+                        "not classified: the Mahalanobis distance needs a covariance \
+                         and neither the estimate nor prototype `{}` ({}) has a usable one",
+                        p.class, p.source
+                    ),
+                );
+            }
+        };
+        let ranked = r.ranked;
 
         // Vote among the k nearest; ties go to the class whose nearest member is closest
         // (classes are visited in order of their nearest member, so the first class to
@@ -315,7 +518,7 @@ impl Classifier {
         let kk = self.config.k.min(ranked.len());
         let mut votes: Vec<(&str, usize, f64)> = Vec::new();
         for nb in &ranked[..kk] {
-            let class = self.prototypes[nb.index].class.as_str();
+            let class = self.profiles[nb.index].class.as_str();
             match votes.iter_mut().find(|v| v.0 == class) {
                 Some(v) => v.1 += 1,
                 None => votes.push((class, 1, nb.distance)),
@@ -330,11 +533,11 @@ impl Classifier {
         let class = winner.0.to_string();
         let nearest = ranked
             .iter()
-            .find(|nb| self.prototypes[nb.index].class == class)
+            .find(|nb| self.profiles[nb.index].class == class)
             .copied();
         let runner = ranked
             .iter()
-            .find(|nb| self.prototypes[nb.index].class != class)
+            .find(|nb| self.profiles[nb.index].class != class)
             .copied();
         let distance = nearest.map_or(f64::NAN, |n| n.distance);
         let runner_up_distance = runner.map_or(f64::NAN, |n| n.distance);
@@ -343,7 +546,7 @@ impl Classifier {
             nearest_class: Some(class.clone()),
             nearest,
             distance,
-            runner_up: runner.map(|r| self.prototypes[r.index].class.clone()),
+            runner_up: runner.map(|r| self.profiles[r.index].class.clone()),
             runner_up_distance,
             margin: runner_up_distance - distance,
             gate: None,
@@ -354,6 +557,7 @@ impl Classifier {
             candidates: Vec::new(),
             set_tested: false,
             set_category: None,
+            bands_used: Vec::new(),
         };
 
         // Reject option.
@@ -373,10 +577,13 @@ impl Classifier {
                 }
             }
             Reject::Chi2 { p } => {
-                let proto = &self.prototypes[near.index];
+                let proto = &self.profiles[near.index];
                 let dm = match self.config.metric {
                     Metric::Mahalanobis => Some(distance),
-                    Metric::Euclidean => Self::mahalanobis(est, proto),
+                    Metric::Euclidean => match over_bands(est, proto, mahalanobis) {
+                        BandDistance::Distance(d, _) => Some(d),
+                        _ => None,
+                    },
                 };
                 match dm {
                     None => {
@@ -389,13 +596,14 @@ impl Classifier {
                     }
                     Some(dm) => {
                         decision.gate = Some(dm);
-                        let q = chi2_2dof_quantile(p);
+                        let dof = 2 * r.bands[near.index].max(1);
+                        let q = chi2_quantile(p, dof);
                         if dm * dm > q {
                             decision.predicted = UNKNOWN.into();
                             decision.status = Status::Rejected;
                             decision.reason = format!(
                                 "rejected: nearest class `{class}` has Mahalanobis distance \
-                                 {dm:.3} > {:.3} (chi-square gate, 2 dof, p = {p})",
+                                 {dm:.3} > {:.3} (chi-square gate, {dof} dof, p = {p})",
                                 q.sqrt()
                             );
                         }
@@ -517,7 +725,7 @@ mod tests {
 
     #[test]
     fn chi2_gate_rejects_far_estimates() {
-        assert!((chi2_2dof_quantile(0.99) - 9.210340371976182).abs() < 1e-12);
+        assert!((super::super::chi2_2dof_quantile(0.99) - 9.210340371976182).abs() < 1e-12);
         let cfg = ClassifierConfig {
             reject: Reject::Chi2 { p: 0.99 },
             ..Default::default()

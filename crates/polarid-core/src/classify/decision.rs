@@ -22,12 +22,14 @@ pub enum Status {
     NoCovariance,
     /// `n` or `k` is not a finite number although the fit says `ok`.
     InvalidEstimate,
+    /// No prototype has a band (wavelength) of the estimate.
+    NoCommonBand,
 }
 
 impl Status {
     /// The word written in the `status` column: `ok`, `rejected`, `ambiguous`,
     /// `fit_<fit status>`,
-    /// `no_covariance`, `invalid_estimate`.
+    /// `no_covariance`, `invalid_estimate`, `no_common_band`.
     pub fn label(&self) -> String {
         match self {
             Status::Ok => "ok".into(),
@@ -36,6 +38,7 @@ impl Status {
             Status::FitNotOk(s) => format!("fit_{s}"),
             Status::NoCovariance => "no_covariance".into(),
             Status::InvalidEstimate => "invalid_estimate".into(),
+            Status::NoCommonBand => "no_common_band".into(),
         }
     }
 }
@@ -100,6 +103,11 @@ pub struct Decision {
     pub set_tested: bool,
     /// The common category of [`Decision::candidates`] when they all have the same one.
     pub set_category: Option<String>,
+    /// The wavelengths (nm; `None`: not given) of the estimate's bands compared with the
+    /// nearest prototype, in the estimate's band order (empty when nothing was compared).
+    /// Fewer than the estimate's bands when a band's fit was not `ok` or the prototype
+    /// lacks it.
+    pub bands_used: Vec<Option<f64>>,
 }
 
 impl Decision {
@@ -131,6 +139,20 @@ impl Decision {
             candidates: Vec::new(),
             set_tested: false,
             set_category: None,
+            bands_used: Vec::new(),
         }
+    }
+
+    /// [`Decision::bands_used`] as text: wavelengths joined with `;` (e.g. `450;550;650`),
+    /// empty when no band has a wavelength.
+    pub fn bands_used_text(&self) -> String {
+        if self.bands_used.iter().all(Option::is_none) {
+            return String::new();
+        }
+        self.bands_used
+            .iter()
+            .map(|w| w.map_or("?".to_string(), |w| format!("{w}")))
+            .collect::<Vec<_>>()
+            .join(";")
     }
 }

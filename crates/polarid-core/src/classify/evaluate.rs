@@ -5,8 +5,8 @@
 //! coverage (truth in the set) and set sizes.
 
 use super::{
-    Classifier, ClassifierConfig, Decision, Estimate, Metric, Prototype, Rule, UNKNOWN,
-    check_class_name,
+    Classifier, ClassifierConfig, Decision, Estimate, Metric, MultiEstimate, MultiPrototype,
+    Prototype, Rule, UNKNOWN, check_class_name,
 };
 use crate::error::{CoreError, Result};
 use crate::status::FitStatus;
@@ -18,23 +18,16 @@ pub struct Labelled {
     pub target: String,
     /// True class.
     pub class: String,
-    /// The estimate.
-    pub estimate: Estimate,
+    /// The estimate, in one band or several (`MultiEstimate::from(estimate)` for one).
+    pub estimate: MultiEstimate,
     /// Where it came from (becomes the prototype's source).
     pub source: String,
 }
 
 impl Labelled {
-    /// This estimate as a prototype of its class.
-    pub fn to_prototype(&self) -> Prototype {
-        Prototype {
-            class: self.class.clone(),
-            n: self.estimate.n,
-            k: self.estimate.k,
-            cov: self.estimate.cov,
-            category: None,
-            source: self.source.clone(),
-        }
+    /// This estimate as a prototype of its class (its bands whose fit is `ok`).
+    pub fn to_prototype(&self) -> MultiPrototype {
+        self.estimate.to_prototype(&self.class, &self.source)
     }
 }
 
@@ -252,7 +245,7 @@ pub fn leave_one_out(items: &[Labelled], config: ClassifierConfig) -> Result<Eva
     check_labels(items)?;
     let usable: Vec<&Labelled> = items
         .iter()
-        .filter(|i| i.estimate.fit_status.is_ok())
+        .filter(|i| i.estimate.fit_status().is_ok())
         .collect();
     if usable.len() < 2 {
         return Err(CoreError::TooFew {
@@ -263,10 +256,27 @@ pub fn leave_one_out(items: &[Labelled], config: ClassifierConfig) -> Result<Eva
     }
     let skipped = items
         .iter()
-        .filter(|i| !i.estimate.fit_status.is_ok())
-        .map(|i| (i.target.clone(), i.estimate.fit_status))
+        .filter(|i| !i.estimate.fit_status().is_ok())
+        .map(|i| (i.target.clone(), i.estimate.fit_status()))
         .collect();
-    let protos: Vec<Prototype> = usable.iter().map(|o| o.to_prototype()).collect();
+    // Single-band items (no wavelength): the linear-memory selection below. Several
+    // bands: a classifier over the others per item (memory linear too, time n²).
+    let singles: Option<Vec<Estimate>> = usable.iter().map(|o| single_band(&o.estimate)).collect();
+    let Some(singles) = singles else {
+        return leave_one_out_multi(&usable, skipped, config);
+    };
+    let protos: Vec<Prototype> = usable
+        .iter()
+        .zip(&singles)
+        .map(|(o, e)| Prototype {
+            class: o.class.clone(),
+            n: e.n,
+            k: e.k,
+            cov: e.cov,
+            category: None,
+            source: o.source.clone(),
+        })
+        .collect();
     // Checks every prototype once (the same checks as per item before).
     let all = Classifier::new(protos, config)?;
     let protos = all.prototypes();
@@ -289,10 +299,10 @@ pub fn leave_one_out(items: &[Labelled], config: ClassifierConfig) -> Result<Eva
         if counts[class_of[i]] < 2 {
             unrep.push(it.class.clone());
         }
-        let chosen = sel.select(&it.estimate, protos, &class_of, i, config);
+        let chosen = sel.select(&singles[i], protos, &class_of, i, config);
         let reduced: Vec<Prototype> = chosen.iter().map(|&j| protos[j].clone()).collect();
         let clf = Classifier::new(reduced, config)?;
-        let mut decision = clf.classify(&it.estimate);
+        let mut decision = clf.classify(&singles[i]);
         // Indices: reduced → all usable → the others (item i removed).
         let map = |r: usize| {
             let j = chosen.get(r).copied().unwrap_or(r);
@@ -313,6 +323,48 @@ pub fn leave_one_out(items: &[Labelled], config: ClassifierConfig) -> Result<Eva
             target: it.target.clone(),
             class: it.class.clone(),
             decision,
+        });
+    }
+    Ok(finish(out, skipped, unrep, config.confidence))
+}
+
+/// The estimate of a single-band item without a wavelength (the paper's case).
+fn single_band(e: &MultiEstimate) -> Option<Estimate> {
+    match e.bands.as_slice() {
+        [b] if b.wavelength_nm.is_none() => Some(b.estimate.clone()),
+        _ => None,
+    }
+}
+
+/// Leave-one-out over multi-band items: a classifier over all the others per item
+/// (memory linear in the items; `ranked` capped at [`LOO_RANKED_KEPT`]).
+fn leave_one_out_multi(
+    usable: &[&Labelled],
+    skipped: Vec<(String, crate::status::FitStatus)>,
+    config: ClassifierConfig,
+) -> Result<Evaluation> {
+    let mut out = Vec::with_capacity(usable.len());
+    let mut unrep = Vec::new();
+    for (i, it) in usable.iter().enumerate() {
+        let protos: Vec<MultiPrototype> = usable
+            .iter()
+            .enumerate()
+            .filter(|(j, _)| *j != i)
+            .map(|(_, o)| o.to_prototype())
+            .collect();
+        if !protos.iter().any(|p| p.class == it.class) {
+            unrep.push(it.class.clone());
+        }
+        let clf = Classifier::multi(protos, config)?;
+        out.push(EvalItem {
+            target: it.target.clone(),
+            class: it.class.clone(),
+            decision: {
+                let mut d = clf.classify_multi(&it.estimate);
+                d.ranked.truncate(config.k.clamp(1, LOO_RANKED_KEPT));
+                d.ranked.shrink_to_fit();
+                d
+            },
         });
     }
     Ok(finish(out, skipped, unrep, config.confidence))
@@ -433,8 +485,8 @@ pub fn evaluate(classifier: &Classifier, items: &[Labelled]) -> Result<Evaluatio
     let mut skipped = Vec::new();
     let mut unrep = Vec::new();
     for it in items {
-        if !it.estimate.fit_status.is_ok() {
-            skipped.push((it.target.clone(), it.estimate.fit_status));
+        if !it.estimate.fit_status().is_ok() {
+            skipped.push((it.target.clone(), it.estimate.fit_status()));
             continue;
         }
         if !classifier.prototypes().iter().any(|p| p.class == it.class) {
@@ -443,7 +495,7 @@ pub fn evaluate(classifier: &Classifier, items: &[Labelled]) -> Result<Evaluatio
         out.push(EvalItem {
             target: it.target.clone(),
             class: it.class.clone(),
-            decision: classifier.classify(&it.estimate),
+            decision: classifier.classify_multi(&it.estimate),
         });
     }
     Ok(finish(out, skipped, unrep, classifier.config().confidence))
@@ -452,13 +504,14 @@ pub fn evaluate(classifier: &Classifier, items: &[Labelled]) -> Result<Evaluatio
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::classify::Estimate;
 
     #[test]
     fn loo_confusion_and_accuracy() {
         let mk = |t: &str, c: &str, n: f64, k: f64| Labelled {
             target: t.into(),
             class: c.into(),
-            estimate: Estimate::point(n, k),
+            estimate: Estimate::point(n, k).into(),
             source: t.into(),
         };
         let items = vec![
@@ -471,7 +524,8 @@ mod tests {
                 estimate: Estimate {
                     fit_status: FitStatus::Depolarized,
                     ..Estimate::point(9.0, 9.0)
-                },
+                }
+                .into(),
                 ..mk("bad", "al", 0.0, 0.0)
             },
         ];
@@ -498,7 +552,8 @@ mod tests {
             estimate: Estimate {
                 cov: super::super::Cov2::from_se(0.1, 0.1, 0.0),
                 ..Estimate::point(n, k)
-            },
+            }
+            .into(),
             source: t.into(),
         };
         let items = vec![
@@ -526,19 +581,30 @@ mod tests {
     fn brute_force(items: &[Labelled], config: ClassifierConfig) -> Vec<Decision> {
         let usable: Vec<&Labelled> = items
             .iter()
-            .filter(|i| i.estimate.fit_status.is_ok())
+            .filter(|i| i.estimate.fit_status().is_ok())
             .collect();
+        let single = |e: &MultiEstimate| single_band(e).unwrap();
         (0..usable.len())
             .map(|i| {
                 let protos: Vec<Prototype> = usable
                     .iter()
                     .enumerate()
                     .filter(|(j, _)| *j != i)
-                    .map(|(_, o)| o.to_prototype())
+                    .map(|(_, o)| {
+                        let e = single(&o.estimate);
+                        Prototype {
+                            class: o.class.clone(),
+                            n: e.n,
+                            k: e.k,
+                            cov: e.cov,
+                            category: None,
+                            source: o.source.clone(),
+                        }
+                    })
                     .collect();
                 Classifier::new(protos, config)
                     .unwrap()
-                    .classify(&usable[i].estimate)
+                    .classify(&single(&usable[i].estimate))
             })
             .collect()
     }
@@ -563,7 +629,8 @@ mod tests {
             if t % 7 == 3
                 && let Some(prev) = out.last()
             {
-                (n_, k_) = (prev.estimate.n, prev.estimate.k);
+                let e = single_band(&prev.estimate).unwrap();
+                (n_, k_) = (e.n, e.k);
             }
             let cov = if cov_every == 1 || (cov_every > 1 && (t as u64) % cov_every != 0) {
                 super::super::Cov2::from_se(0.02 + 0.1 * next(), 0.02 + 0.1 * next(), next() - 0.5)
@@ -582,7 +649,8 @@ mod tests {
                     } else {
                         FitStatus::Ok
                     },
-                },
+                }
+                .into(),
                 source: format!("s{t}"),
             });
         }

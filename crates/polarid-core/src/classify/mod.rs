@@ -51,6 +51,14 @@
 //! so the rule works directly from DoLP measurements, on the same data as the index fit:
 //! see [`wolff_classify`] for the threshold rule and its default.
 //!
+//! # Several bands
+//!
+//! A target measured in several spectral bands (a colour polarization camera) is a
+//! [`MultiEstimate`]; prototypes with several bands are [`MultiPrototype`]s
+//! ([`Classifier::multi`], [`Classifier::classify_multi`]). Distances add in squares over
+//! the bands an estimate and a prototype have in common (block-diagonal covariance), and
+//! the χ² tests use `2 × bands` degrees of freedom ([`chi2_quantile`]); see [`bands`].
+//!
 //! # Leave-one-out evaluation
 //!
 //! [`leave_one_out`] classifies each labelled estimate against all the others and returns
@@ -70,6 +78,7 @@
 //! - L. B. Wolff, "Polarization-based material classification from specular reflection",
 //!   IEEE PAMI 12(11), 1990 (the paper's ref. \[1\]).
 
+pub mod bands;
 mod classifier;
 mod config;
 mod cov;
@@ -78,6 +87,10 @@ mod evaluate;
 mod points;
 mod wolff;
 
+pub use bands::{
+    BAND_TOLERANCE_NM, BandPoint, EstimateBand, MultiEstimate, MultiPrototype, chi2_quantile,
+    same_band,
+};
 pub use classifier::{Classifier, NEAR_ZERO_SIGMAS};
 pub use config::{ClassifierConfig, DEFAULT_CONFIDENCE, Metric, Reject, Rule, chi2_2dof_quantile};
 pub use cov::{Cov2, ONE_SIDED_RATIO};

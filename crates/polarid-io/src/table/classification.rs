@@ -12,6 +12,12 @@
 //! `wolff_class` (`metal`, `dielectric` or `unknown`), `wolff_fr_max` (largest Fresnel
 //! ratio `(1 + P)/(1 − P)` over the measurements in the window), `wolff_beta_deg` (its β).
 //!
+//! Multi-band targets (fits with `wavelength_nm`) get one row per target and the column
+//! `bands_used` after `candidates`: the wavelengths (nm, `;`-separated) of the target's bands
+//! compared with the nearest prototype — fewer than the target's bands when a band's fit
+//! was not `ok` or the prototypes lack it. It is written only when some row has one, so
+//! single-band files keep exactly the columns above.
+//!
 //! `predicted` is a class name, `ambiguous` or `unknown`; distances of an unclassified target are empty.
 
 use std::io::Write;
@@ -83,6 +89,9 @@ pub struct ClassificationRow {
     pub reason: String,
     /// Wolff's class, when run.
     pub wolff_class: Option<String>,
+    /// Wavelengths compared, `;`-separated (e.g. `450;550;650`; empty for single-band
+    /// data without wavelengths).
+    pub bands_used: String,
     /// Wolff's largest Fresnel ratio.
     pub wolff_fr_max: Option<f64>,
     /// β of that ratio, degrees.
@@ -93,14 +102,20 @@ fn finite(x: Option<f64>) -> Option<f64> {
     x.filter(|v| !v.is_nan())
 }
 
-/// Write classification rows in the documented column order.
+/// Write classification rows in the documented column order ([`COLUMNS`], with
+/// `bands_used` after `candidates` when some row has bands).
 pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[ClassificationRow]) -> Result<()> {
+    let banded = rows.iter().any(|r| !r.bands_used.is_empty());
+    let mut headers: Vec<&str> = COLUMNS.to_vec();
+    if banded {
+        headers.insert(8, "bands_used");
+    }
     write_rows(
         w,
         path,
-        &COLUMNS,
+        &headers,
         rows.iter().map(|r| {
-            vec![
+            let mut cells = vec![
                 r.target.clone(),
                 r.class.clone().unwrap_or_default(),
                 r.predicted.clone(),
@@ -121,7 +136,11 @@ pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[ClassificationRo
                 r.wolff_class.clone().unwrap_or_default(),
                 fmt_opt(finite(r.wolff_fr_max)),
                 fmt_opt(finite(r.wolff_beta_deg)),
-            ]
+            ];
+            if banded {
+                cells.insert(8, r.bands_used.clone());
+            }
+            cells
         }),
     )
 }
@@ -173,6 +192,7 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<ClassificationRow>> {
             gate: fnum("gate")?,
             votes: t.opt_u64(r, c("votes"))?,
             reason: t.opt_text(r, c("reason")).unwrap_or_default(),
+            bands_used: t.opt_text(r, c("bands_used")).unwrap_or_default(),
             wolff_class: t.opt_text(r, c("wolff_class")),
             wolff_fr_max: fnum("wolff_fr_max")?,
             wolff_beta_deg: fnum("wolff_beta_deg")?,
@@ -231,5 +251,19 @@ mod tests {
         let mut expect = rows.clone();
         expect[1].distance = None;
         assert_eq!(back, expect);
+        // Bands: the column after `candidates`, only when some row has bands.
+        let mut banded = rows.clone();
+        banded[0].bands_used = "450;550;650".into();
+        let mut buf = Vec::new();
+        write(&mut buf, &p, &banded).unwrap();
+        let text = String::from_utf8(buf.clone()).unwrap();
+        assert!(text.starts_with(
+            "target,class,predicted,distance,runner_up,runner_up_distance,status,candidates,\
+             bands_used,margin"
+        ));
+        std::fs::write(&p, buf).unwrap();
+        let mut expect = banded.clone();
+        expect[1].distance = None;
+        assert_eq!(read(&p).unwrap(), expect);
     }
 }

@@ -5,6 +5,10 @@
 //! then the error model's `n_se_noise`, `k_se_noise`, `nk_corr_noise`, `gof_p`,
 //! `aolp_p`; docs/ERRORS.md). `n_se`, `k_se`, `nk_corr` are the total (noise plus
 //! systematic) uncertainty; the `_noise` columns the noise's part alone.
+//!
+//! Multi-band fits (a colour camera) carry `wavelength_nm`, one row per target per band;
+//! the column is written after `class` only when some row has a wavelength, so
+//! single-band files keep exactly the columns above.
 
 use std::io::Write;
 use std::path::Path;
@@ -44,6 +48,8 @@ pub struct FitRow {
     pub target: String,
     /// Known class, if any.
     pub class: Option<String>,
+    /// Centre wavelength of the band the target was fitted in, nm (`None`: single-band).
+    pub wavelength_nm: Option<f64>,
     /// Real part of the index.
     pub n: f64,
     /// Imaginary part of the index.
@@ -96,6 +102,7 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<FitRow>> {
     let c_n = t.require("n")?;
     let c_k = t.require("k")?;
     let c_class = t.col("class");
+    let c_wl = t.col("wavelength_nm");
     let (c_nse, c_kse, c_corr, c_rms) = (
         t.col("n_se"),
         t.col("k_se"),
@@ -159,9 +166,16 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<FitRow>> {
         if k < 0.0 {
             return Err(t.err(r, c_k, "k must be >= 0"));
         }
+        let wavelength_nm = t.opt_f64(r, c_wl)?;
+        if let (Some(w), Some(c)) = (wavelength_nm, c_wl)
+            && !(w.is_finite() && w > 0.0)
+        {
+            return Err(t.err(r, c, "wavelength must be finite and > 0 nm"));
+        }
         out.push(FitRow {
             target,
             class: t.opt_name(r, c_class)?,
+            wavelength_nm,
             n,
             k,
             n_se: t.se(r, c_nse)?,
@@ -185,14 +199,20 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<FitRow>> {
     Ok(out)
 }
 
-/// Write fits in the documented column order.
+/// Write fits in the documented column order ([`COLUMNS`], with `wavelength_nm` after
+/// `class` when some row has a wavelength).
 pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[FitRow]) -> Result<()> {
+    let banded = rows.iter().any(|f| f.wavelength_nm.is_some());
+    let mut headers: Vec<&str> = COLUMNS.to_vec();
+    if banded {
+        headers.insert(2, "wavelength_nm");
+    }
     write_rows(
         w,
         path,
-        &COLUMNS,
+        &headers,
         rows.iter().map(|f| {
-            vec![
+            let mut cells = vec![
                 f.target.clone(),
                 f.class.clone().unwrap_or_default(),
                 fmt_f64(f.n),
@@ -213,7 +233,11 @@ pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[FitRow]) -> Resu
                 fmt_opt(f.nk_corr_noise),
                 fmt_opt(f.gof_p),
                 fmt_opt(f.aolp_p),
-            ]
+            ];
+            if banded {
+                cells.insert(2, fmt_opt(f.wavelength_nm));
+            }
+            cells
         }),
     )
 }

@@ -2,7 +2,7 @@
 //!
 //! `target,class,theta_i_deg,theta_r_deg,phi_deg,beta_deg,dolp,dolp_se,s0,pixels,rejected`
 //! (extra columns written by polarid: `exposure`, `saturated`), then the optional
-//! columns [`OPTIONAL_COLUMNS`] (`beta_sd_deg`, `aolp_deg`, `aolp_poi_deg` of calibrated
+//! columns [`OPTIONAL_COLUMNS`] (`wavelength_nm`, the spectral band of the row; `beta_sd_deg`, `aolp_deg`, `aolp_poi_deg` of calibrated
 //! captures, `angle_sd_deg` when the manifest gives it), each written only when some row
 //! has a value for it, so a far-field file keeps exactly the columns above.
 //!
@@ -39,7 +39,13 @@ pub const COLUMNS: [&str; 13] = [
 
 /// The optional columns, in output order: written after [`COLUMNS`], each one only when
 /// some row has a value.
-pub const OPTIONAL_COLUMNS: [&str; 4] = ["beta_sd_deg", "aolp_deg", "aolp_poi_deg", "angle_sd_deg"];
+pub const OPTIONAL_COLUMNS: [&str; 5] = [
+    "wavelength_nm",
+    "beta_sd_deg",
+    "aolp_deg",
+    "aolp_poi_deg",
+    "angle_sd_deg",
+];
 
 /// The status columns, written last and only when some row is not
 /// [`RowStatus::Ok`].
@@ -145,6 +151,9 @@ pub struct Measurement {
     pub status: RowStatus,
     /// Why the status is not `ok` (empty for `ok`).
     pub reason: String,
+    /// Centre wavelength of the row's spectral band, nm (`None`: single-band data).
+    /// `fit` fits each (target, band) separately.
+    pub wavelength_nm: Option<f64>,
 }
 
 /// Read a measurements CSV. Needs `target`, `dolp` and either `beta_deg` or
@@ -190,6 +199,7 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
     let c_asd = t.col("angle_sd_deg");
     let c_status = t.col("status");
     let c_reason = t.col("reason");
+    let c_wl = t.col("wavelength_nm");
     let mut out = Vec::with_capacity(t.rows.len());
     for r in 0..t.rows.len() {
         let target = t.name(r, c_target)?;
@@ -265,6 +275,12 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
         let aolp_deg = in_range(c_aolp, 180.0, "AoLP")?;
         let aolp_poi_deg = in_range(c_apoi, 180.0, "AoLP")?;
         let angle_sd_deg = in_range(c_asd, 90.0, "angle uncertainty")?;
+        let wavelength_nm = t.opt_f64(r, c_wl)?;
+        if let (Some(w), Some(c)) = (wavelength_nm, c_wl)
+            && !(w.is_finite() && w > 0.0)
+        {
+            return Err(t.err(r, c, "wavelength must be finite and > 0 nm"));
+        }
         out.push(Measurement {
             target,
             class: t.opt_name(r, c_class)?,
@@ -285,6 +301,7 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
             angle_sd_deg,
             status,
             reason: t.opt_text(r, c_reason).unwrap_or_default(),
+            wavelength_nm,
         });
     }
     Ok(out)
@@ -330,6 +347,7 @@ fn skipped_row(
         aolp_deg: num("aolp_deg")?,
         aolp_poi_deg: num("aolp_poi_deg")?,
         angle_sd_deg: num("angle_sd_deg")?,
+        wavelength_nm: num("wavelength_nm")?,
         status,
         reason: t.opt_text(r, c_reason).unwrap_or_default(),
     })
@@ -339,7 +357,8 @@ fn skipped_row(
 /// [`OPTIONAL_COLUMNS`] that some row has a value for, then [`STATUS_COLUMNS`] when
 /// some row is not `ok`.
 pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[Measurement]) -> Result<()> {
-    let optional: [fn(&Measurement) -> Option<f64>; 4] = [
+    let optional: [fn(&Measurement) -> Option<f64>; 5] = [
+        |m| m.wavelength_nm,
         |m| m.beta_sd_deg,
         |m| m.aolp_deg,
         |m| m.aolp_poi_deg,
@@ -440,5 +459,17 @@ mod tests {
         let text = "target,dolp,beta_deg,angle_sd_deg\nA,0.5,45,0.25\n";
         let t = CsvTable::from_reader(Path::new("m.csv"), text.as_bytes()).unwrap();
         assert_eq!(from_table(&t).unwrap()[0].angle_sd_deg, Some(0.25));
+        let banded = Measurement {
+            wavelength_nm: Some(550.0),
+            ..far.clone()
+        };
+        assert_eq!(
+            header(&[far.clone(), banded]),
+            format!("{},wavelength_nm", COLUMNS.join(","))
+        );
+        let text = "target,dolp,beta_deg,wavelength_nm\nA,0.5,45,-450\n";
+        let t = CsvTable::from_reader(Path::new("m.csv"), text.as_bytes()).unwrap();
+        let e = from_table(&t).unwrap_err().to_string();
+        assert!(e.contains("wavelength_nm") && e.contains("\"-450\""), "{e}");
     }
 }

@@ -1,6 +1,11 @@
 //! Fits → decisions against a trained model or a material library (paper section 6): the
 //! workflow of `polarid classify`, optionally with Wolff's metal/dielectric baseline
 //! computed from the measurements.
+//!
+//! Multi-band fits (rows with `wavelength_nm`, one per target per band) are classified
+//! per target on all its bands at once ([`group_fits`], [`multi_estimate_of`],
+//! `polarid_core::classify::bands`); the row says which bands were compared
+//! (`bands_used`).
 
 mod explain;
 mod wolff;
@@ -8,7 +13,8 @@ mod wolff;
 use std::path::{Path, PathBuf};
 
 use polarid_core::classify::{
-    Classifier, ClassifierConfig, Cov2, Decision, Estimate, Prototype, Rule,
+    Classifier, ClassifierConfig, Cov2, Decision, Estimate, EstimateBand, MultiEstimate,
+    MultiPrototype, Prototype, Rule,
 };
 use polarid_io::library::Library;
 use polarid_io::model::Model;
@@ -36,6 +42,39 @@ pub fn estimate_of(f: &FitRow) -> Estimate {
     }
 }
 
+/// The fit rows of each target, as indices into `fits`: rows with a `wavelength_nm` are
+/// grouped by target (targets in first-appearance order, bands in file order); a row
+/// without a wavelength is a target of its own (single-band files: one group per row).
+pub fn group_fits(fits: &[(u64, FitRow)]) -> Vec<Vec<usize>> {
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for (i, (_, f)) in fits.iter().enumerate() {
+        let same = f.wavelength_nm.is_some().then(|| {
+            groups.iter().position(|g| {
+                let first = &fits[g[0]].1;
+                first.wavelength_nm.is_some() && first.target == f.target
+            })
+        });
+        match same.flatten() {
+            Some(g) => groups[g].push(i),
+            None => groups.push(vec![i]),
+        }
+    }
+    groups
+}
+
+/// The estimate of a target's fit rows (one per band; see [`estimate_of`]).
+pub fn multi_estimate_of<'a>(rows: impl IntoIterator<Item = &'a FitRow>) -> MultiEstimate {
+    MultiEstimate {
+        bands: rows
+            .into_iter()
+            .map(|f| EstimateBand {
+                wavelength_nm: f.wavelength_nm,
+                estimate: estimate_of(f),
+            })
+            .collect(),
+    }
+}
+
 /// Read a fits CSV with the line number of each row.
 pub fn read_fits(path: &Path) -> Result<Vec<(u64, FitRow)>> {
     let t = CsvTable::read(path)?;
@@ -55,17 +94,53 @@ pub enum PrototypeSource {
 }
 
 impl PrototypeSource {
-    /// The prototypes and a label for messages (`model PATH`, `library SPEC`).
+    /// The single-band prototypes and a label for messages (`model PATH`, `library
+    /// SPEC`). A multi-band model or library (with `wavelength_nm`) is an error naming it:
+    /// its bands are not separate prototypes; use [`PrototypeSource::load_multi`].
     pub fn load(&self) -> Result<(Vec<Prototype>, String)> {
+        let multi = |label: String| PipelineError::Data {
+            path: format!("cannot use {label}"),
+            reason: "it has several bands (wavelength_nm); classify multi-band fits against \
+                     it (polarid classify), or use a single-band model or library here"
+                .into(),
+        };
         Ok(match self {
-            PrototypeSource::Model(m) => (
-                Model::read(m)?.prototypes(),
-                format!("model {}", m.display()),
-            ),
+            PrototypeSource::Model(m) => {
+                let model = Model::read(m)?;
+                let label = format!("model {}", m.display());
+                if model.prototypes.iter().any(|p| p.wavelength_nm.is_some()) {
+                    return Err(multi(label));
+                }
+                (model.prototypes(), label)
+            }
             PrototypeSource::Library(spec) => {
-                (Library::load(spec)?.prototypes(), format!("library {spec}"))
+                let lib = Library::load(spec)?;
+                let label = format!("library {spec}");
+                if lib.materials.iter().any(|m| m.wavelength_nm.is_some()) {
+                    return Err(multi(label));
+                }
+                (lib.prototypes(), label)
             }
             PrototypeSource::List(p, label) => (p.clone(), label.clone()),
+        })
+    }
+
+    /// The prototypes with all their bands (a multi-band model or library) and a label
+    /// for messages.
+    pub fn load_multi(&self) -> Result<(Vec<MultiPrototype>, String)> {
+        Ok(match self {
+            PrototypeSource::Model(m) => (
+                Model::read(m)?.multi_prototypes(),
+                format!("model {}", m.display()),
+            ),
+            PrototypeSource::Library(spec) => (
+                Library::load(spec)?.multi_prototypes(),
+                format!("library {spec}"),
+            ),
+            PrototypeSource::List(p, label) => (
+                p.iter().cloned().map(MultiPrototype::from).collect(),
+                label.clone(),
+            ),
         })
     }
 }
@@ -149,8 +224,8 @@ pub struct ClassifyOutput {
     pub warnings: Vec<Warning>,
 }
 
-/// The classification CSV row of fit `f` classified as `d` by `clf` (without Wolff's
-/// columns). `candidates` is the consistent set (under both rules); `category` is the
+/// The classification CSV row of fit `f` (a target's first band) classified as `d` by
+/// `clf` (without Wolff's columns; `bands_used` from the decision). `candidates` is the consistent set (under both rules); `category` is the
 /// candidates' common category under the set rule, the nearest prototype's under the
 /// nearest rule.
 pub fn classification_row(f: &FitRow, d: &Decision, clf: &Classifier) -> ClassificationRow {
@@ -180,8 +255,21 @@ pub fn classification_row(f: &FitRow, d: &Decision, clf: &Classifier) -> Classif
         gate: d.gate,
         votes: d.nearest.map(|_| d.votes as u64),
         reason: d.reason.clone(),
+        bands_used: d.bands_used_text(),
         ..Default::default()
     }
+}
+
+/// A classifier over multi-band prototypes (labelled `label` in messages).
+pub fn multi_classifier(
+    protos: Vec<MultiPrototype>,
+    label: &str,
+    cfg: ClassifierConfig,
+) -> Result<Classifier> {
+    Classifier::multi(protos, cfg).map_err(|e| PipelineError::Data {
+        path: format!("cannot use {label}"),
+        reason: e.to_string(),
+    })
 }
 
 /// A classifier over `protos` (labelled `label` in messages: `cannot use LABEL: ...`).
@@ -196,8 +284,9 @@ pub fn classifier(
     })
 }
 
-/// Classify every fit (each with its line in `fits_path`; see [`read_fits`]) against the
-/// prototypes of `source`, in input order.
+/// Classify every target (each fit with its line in `fits_path`; see [`read_fits`];
+/// a multi-band target's rows together, [`group_fits`]) against the prototypes of
+/// `source`, in input order.
 ///
 /// Errors: no fits, unusable prototypes, unreadable files, and with Wolff's baseline
 /// unusable measurements (naming the file, target and line).
@@ -214,8 +303,8 @@ pub fn classify(
             reason: "no fits to classify".into(),
         });
     }
-    let (protos, label) = source.load()?;
-    let clf = classifier(protos, &label, cfg.classifier)?;
+    let (protos, label) = source.load_multi()?;
+    let clf = multi_classifier(protos, &label, cfg.classifier)?;
     let wolff = cfg
         .wolff
         .as_ref()
@@ -223,10 +312,27 @@ pub fn classify(
         .transpose()?;
     let mut rows = Vec::with_capacity(fits.len());
     let mut notes = Vec::new();
-    for (line, f) in fits {
-        let est = estimate_of(f);
-        let d = clf.classify(&est);
-        notes.push(explain(&f.target, &est, &d, &clf, cfg.explain));
+    for group in group_fits(fits) {
+        // ok: group_fits returns non-empty groups of indices into `fits`.
+        let (line, f) = &fits[group[0]];
+        let d = clf.classify_multi(&multi_estimate_of(group.iter().map(|&i| &fits[i].1)));
+        let mut note = explain(&f.target, &estimate_of(f), &d, &clf, cfg.explain);
+        if f.wavelength_nm.is_some() {
+            let have: Vec<String> = group
+                .iter()
+                .filter_map(|&i| fits[i].1.wavelength_nm.map(|w| format!("{w}")))
+                .collect();
+            note.push_str(&format!(
+                " [bands compared: {} of the target's {}]",
+                if d.bands_used.is_empty() {
+                    "none".to_string()
+                } else {
+                    d.bands_used_text()
+                },
+                have.join(";")
+            ));
+        }
+        notes.push(note);
         let mut row = classification_row(f, &d, &clf);
         if let Some(wd) = &wolff {
             let w = wd.decide(

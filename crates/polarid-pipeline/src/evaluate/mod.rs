@@ -38,7 +38,7 @@ use polarid_io::table::fits::FitRow;
 
 pub use wolff::{CATEGORIES, WolffEval, WolffItem, ratio};
 
-use crate::classify::{WolffSettings, check_classifier, estimate_of};
+use crate::classify::{WolffSettings, check_classifier, group_fits, multi_estimate_of};
 use crate::{PipelineError, Result, Warning};
 
 /// Wolff's baseline as requested for an evaluation.
@@ -126,14 +126,22 @@ pub fn evaluate(
         path: fits_path.display().to_string(),
         reason,
     };
-    let items: Vec<Labelled> = fits
-        .iter()
-        .filter_map(|(line, f)| {
+    // One item per target: a multi-band target's rows together (group_fits).
+    let items: Vec<Labelled> = group_fits(fits)
+        .into_iter()
+        .filter_map(|g| {
+            // ok: group_fits returns non-empty groups of indices into `fits`.
+            let (line, f) = &fits[g[0]];
+            let source = if g.len() > 1 {
+                format!("{} target {}", fits_path.display(), f.target)
+            } else {
+                format!("{}:{line} target {}", fits_path.display(), f.target)
+            };
             f.class.as_ref().map(|c| Labelled {
                 target: f.target.clone(),
                 class: c.clone(),
-                estimate: estimate_of(f),
-                source: format!("{}:{line} target {}", fits_path.display(), f.target),
+                estimate: multi_estimate_of(g.iter().map(|&i| &fits[i].1)),
+                source,
             })
         })
         .collect();
@@ -144,11 +152,11 @@ pub fn evaluate(
         )));
     }
     let model = model
-        .map(|m| Model::read(m).map(|model| (m, model.prototypes())))
+        .map(|m| Model::read(m).map(|model| (m, model.prototypes(), model.multi_prototypes())))
         .transpose()?;
     let (evaluation, mode) = match &model {
-        Some((m, protos)) => {
-            let clf = Classifier::new(protos.clone(), cfg.classifier)?;
+        Some((m, _, multi)) => {
+            let clf = Classifier::multi(multi.clone(), cfg.classifier)?;
             (
                 core_evaluate(&clf, &items).map_err(|e| data(e.to_string()))?,
                 format!("model {}", m.display()),
@@ -171,7 +179,7 @@ pub fn evaluate(
             wolff::score(
                 w,
                 &evaluation,
-                model.as_ref().map(|(m, p)| (*m, p.as_slice())),
+                model.as_ref().map(|(m, p, _)| (*m, p.as_slice())),
             )
         })
         .transpose()?;

@@ -1,9 +1,11 @@
 //! Measurement table → one `(n, k)` fit per target (paper section 5, eq. 16): the
 //! workflow of `polarid fit` and of Python's `polarid.fit_table`.
 //!
-//! Rows are grouped by `target` (targets keep the order of their first row); each
-//! target needs at least 3 usable measurements, and its rows may not disagree on
-//! `class`.
+//! Rows are grouped by `target` (targets keep the order of their first row) and, for
+//! multi-band data, by `wavelength_nm` (one fit per target per band, the bands of a
+//! target in the order of their first row; a target's rows either all have a wavelength
+//! or none has); each (target, band) needs at least 3 usable measurements, and its rows
+//! may not disagree on `class`.
 //!
 //! Partial failure (docs/FORMATS.md): measurement rows whose `status` is not `ok` (dark,
 //! no usable pixel) are skipped; a target with fewer than 3 usable rows, or whose data
@@ -100,6 +102,8 @@ pub fn read_measurements(path: &Path) -> Result<Vec<(u64, Measurement)>> {
 /// One target's rows, with their line numbers in the input.
 pub(crate) struct Group<'a> {
     pub(crate) target: &'a str,
+    /// The band (`None`: single-band data).
+    pub(crate) wavelength_nm: Option<f64>,
     pub(crate) rows: Vec<(u64, &'a Measurement)>,
 }
 
@@ -114,21 +118,53 @@ impl Group<'_> {
     }
 }
 
-/// Group rows by target, first-appearance order.
-fn group(rows: &[(u64, Measurement)]) -> Vec<Group<'_>> {
-    let mut groups: Vec<Group> = Vec::new();
+/// Group rows by target and band: targets in first-appearance order, then a target's
+/// bands in first-appearance order. A target with rows both with and without a
+/// `wavelength_nm` is an error naming its first such line.
+fn group<'a>(path: &Path, rows: &'a [(u64, Measurement)]) -> Result<Vec<Group<'a>>> {
+    let mut targets: Vec<Vec<Group>> = Vec::new();
     let mut index: HashMap<&str, usize> = HashMap::new();
     for (line, m) in rows {
-        let gi = *index.entry(m.target.as_str()).or_insert_with(|| {
-            groups.push(Group {
-                target: m.target.as_str(),
-                rows: Vec::new(),
-            });
-            groups.len() - 1
+        let ti = *index.entry(m.target.as_str()).or_insert_with(|| {
+            targets.push(Vec::new());
+            targets.len() - 1
         });
-        groups[gi].rows.push((*line, m));
+        let bands = &mut targets[ti];
+        if let Some(first) = bands.first()
+            && first.wavelength_nm.is_some() != m.wavelength_nm.is_some()
+        {
+            return Err(data(
+                path,
+                format!(
+                    "line {line}: target {:?} has rows with and without wavelength_nm                      (line {} {} one)",
+                    m.target,
+                    first.rows[0].0,
+                    if first.wavelength_nm.is_some() {
+                        "has"
+                    } else {
+                        "has no"
+                    }
+                ),
+            ));
+        }
+        // Bands are the exact wavelengths written by `measure` (the manifest's values).
+        let gi = match bands
+            .iter()
+            .position(|g| g.wavelength_nm == m.wavelength_nm)
+        {
+            Some(gi) => gi,
+            None => {
+                bands.push(Group {
+                    target: m.target.as_str(),
+                    wavelength_nm: m.wavelength_nm,
+                    rows: Vec::new(),
+                });
+                bands.len() - 1
+            }
+        };
+        bands[gi].rows.push((*line, m));
     }
-    groups
+    Ok(targets.into_iter().flatten().collect())
 }
 
 /// A [`PipelineError::Data`] about `path`.
@@ -177,7 +213,7 @@ pub fn fit(
     progress: Progress,
 ) -> Result<FitOutput> {
     cfg.validate()?;
-    let groups = group(rows);
+    let groups = group(path, rows)?;
     if groups.is_empty() {
         return Err(data(path, "no measurements".into()));
     }
@@ -213,14 +249,17 @@ pub fn fit(
         }
         let ug = Group {
             target: g.target,
+            wavelength_nm: g.wavelength_nm,
             rows: usable,
         };
         let attempt = if ug.rows.len() < 3 {
             Err(data(
                 path,
                 format!(
-                    "target {:?} has {} {}measurement(s) ({} {}); at least 3 are needed{}",
+                    "target {:?}{} has {} {}measurement(s) ({} {}); at least 3 are needed{}",
                     g.target,
+                    g.wavelength_nm
+                        .map_or(String::new(), |w| format!(" at {w} nm")),
                     ug.rows.len(),
                     if skipped.is_empty() { "" } else { "usable " },
                     if ug.rows.len() == 1 { "line" } else { "lines" },
@@ -239,7 +278,7 @@ pub fn fit(
                     .map(|spec| mixed::brightness_check(&ug, class, spec, &mopts, cfg)),
             }
         };
-        let t = match attempt {
+        let mut t = match attempt {
             Ok(t) => t,
             Err(e @ PipelineError::Data { .. }) if !cfg.strict => {
                 let t = unfitted(g.target, class, ug.rows.len(), cfg.reflectance, &e);
@@ -248,6 +287,7 @@ pub fn fit(
             }
             Err(e) => return Err(e),
         };
+        t.row.wavelength_nm = g.wavelength_nm;
         out.push(t);
         progress("fitting", out.len() as u64, total);
     }
@@ -377,6 +417,7 @@ fn specular(
         row: FitRow {
             target: g.target.to_string(),
             class: class.map(str::to_string),
+            wavelength_nm: g.wavelength_nm,
             n: f.n,
             k: f.k,
             n_se: err.total.0,

@@ -1,4 +1,9 @@
-//! refractiveindex.info YAML → a material library for a filter band (`polarid library`).
+//! refractiveindex.info YAML → a material library for one or several filter bands
+//! (`polarid library`).
+//!
+//! With several bands (a colour camera: `--band 410:490 --band 510:590 --band
+//! 610:690`), each material gets one row per band with `wavelength_nm`, the band's centre
+//! `(LO + HI)/2`; with one band the library has no `wavelength_nm` column, as before.
 //!
 //! Each file gives one material: the arithmetic means of `n` and of `k` over the band,
 //! sampled every `step` nm ([`RiiData::band_mean`], the method of the built-in 650 nm
@@ -43,6 +48,13 @@ pub struct Band {
     pub lo: f64,
     /// Upper end, nm.
     pub hi: f64,
+}
+
+impl Band {
+    /// The centre `(lo + hi)/2`, nm: the `wavelength_nm` of the band's rows.
+    pub fn centre(&self) -> f64 {
+        0.5 * (self.lo + self.hi)
+    }
 }
 
 impl std::fmt::Display for Band {
@@ -97,30 +109,50 @@ fn samples(band: Band, step: f64) -> (f64, f64, usize) {
 /// The validated options of a library build.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LibraryConfig {
-    band: Band,
+    bands: Vec<Band>,
     step: f64,
     category: Option<String>,
     skip_missing: bool,
 }
 
 impl LibraryConfig {
-    /// Check the options: a band of finite wavelengths > 0 with `lo <= hi`, a sampling
-    /// step > 0 nm giving at most [`MAX_SAMPLES`] samples, a non-empty default
-    /// `category`; `skip_missing` skips files that do not cover the band (with a
-    /// warning) instead of failing. Errors name `--band`, `--step`, `--category`.
+    /// Check the options: one or more bands of finite wavelengths > 0 with `lo <= hi`,
+    /// with distinct centres, a sampling step > 0 nm giving at most [`MAX_SAMPLES`]
+    /// samples, a non-empty default `category`; `skip_missing` skips files that do not
+    /// cover a band (with a warning) instead of failing. Errors name `--band`, `--step`,
+    /// `--category`.
     pub fn new(
-        band: Band,
+        bands: Vec<Band>,
         step: f64,
         category: Option<String>,
         skip_missing: bool,
     ) -> Result<Self> {
         let ok = |x: f64| x.is_finite() && x > 0.0;
-        if !(ok(band.lo) && ok(band.hi) && band.lo <= band.hi) {
+        if bands.is_empty() {
             return Err(PipelineError::config(
                 "--band",
-                format!("{}:{}", band.lo, band.hi),
-                "must be LO:HI with finite wavelengths 0 < LO <= HI nm",
+                "none",
+                "is needed at least once",
             ));
+        }
+        for (i, band) in bands.iter().enumerate() {
+            if !(ok(band.lo) && ok(band.hi) && band.lo <= band.hi) {
+                return Err(PipelineError::config(
+                    "--band",
+                    format!("{}:{}", band.lo, band.hi),
+                    "must be LO:HI with finite wavelengths 0 < LO <= HI nm",
+                ));
+            }
+            if bands[..i]
+                .iter()
+                .any(|b| polarid_core::classify::same_band(Some(b.centre()), Some(band.centre())))
+            {
+                return Err(PipelineError::config(
+                    "--band",
+                    band,
+                    "has the same centre as an earlier --band",
+                ));
+            }
         }
         if !ok(step) {
             return Err(PipelineError::config(
@@ -129,13 +161,15 @@ impl LibraryConfig {
                 "must be a step > 0 nm",
             ));
         }
-        let (_, _, count) = samples(band, step);
-        if count as f64 > MAX_SAMPLES {
-            return Err(PipelineError::config(
-                "--step",
-                step,
-                format!("gives {count} samples over the band {band} (at most {MAX_SAMPLES})"),
-            ));
+        for &band in &bands {
+            let (_, _, count) = samples(band, step);
+            if count as f64 > MAX_SAMPLES {
+                return Err(PipelineError::config(
+                    "--step",
+                    step,
+                    format!("gives {count} samples over the band {band} (at most {MAX_SAMPLES})"),
+                ));
+            }
         }
         if let Some(c) = &category
             && c.trim().is_empty()
@@ -147,33 +181,49 @@ impl LibraryConfig {
             ));
         }
         Ok(Self {
-            band,
+            bands,
             step,
             category,
             skip_missing,
         })
     }
 
-    /// The band.
+    /// The first band.
     pub fn band(&self) -> Band {
-        self.band
+        self.bands[0] // ok: `new` checks there is at least one
     }
 
-    /// Number of samples of every band mean.
+    /// The bands.
+    pub fn bands(&self) -> &[Band] {
+        &self.bands
+    }
+
+    /// Number of samples of the first band's means.
     pub fn samples(&self) -> usize {
-        samples(self.band, self.step).2
+        samples(self.band(), self.step).2
     }
 
     /// The comment line of the library CSV: the data's origin and the sampling.
     pub fn comment(&self) -> String {
-        let count = self.samples();
-        let sampling = if count == 1 {
-            format!("n, k at {} nm", self.band.lo)
+        let one = |band: Band| {
+            let count = samples(band, self.step).2;
+            if count == 1 {
+                format!("n, k at {} nm", band.lo)
+            } else {
+                format!(
+                    "n, k over {}: mean of {count} samples every {} nm",
+                    band, self.step
+                )
+            }
+        };
+        let sampling = if self.bands.len() == 1 {
+            one(self.band())
         } else {
-            format!(
-                "n, k over {}: mean of {count} samples every {} nm",
-                self.band, self.step
-            )
+            self.bands
+                .iter()
+                .map(|&b| format!("wavelength_nm {}: {}", b.centre(), one(b)))
+                .collect::<Vec<_>>()
+                .join("; ")
         };
         format!(
             "polarid library: refractiveindex.info data (CC0; cite M. N. Polyanskiy, Sci. \
@@ -211,8 +261,7 @@ pub fn build_library(
         Some(map) => sources::read_names(map, &srcs)?,
         None => BTreeMap::new(),
     };
-    let band = cfg.band;
-    let (first, last, _) = samples(band, cfg.step);
+    let multi = cfg.bands.len() > 1;
     let mut materials: Vec<Material> = Vec::new();
     let mut warnings = Vec::new();
     let mut names: BTreeMap<String, PathBuf> = BTreeMap::new();
@@ -220,33 +269,41 @@ pub fn build_library(
         progress("files", i as u64, srcs.len() as u64);
         let data = RiiData::read(&s.path)?;
         let (lo_um, hi_um) = data.range_um();
-        if !(first / 1e3 >= lo_um && last / 1e3 <= hi_um) {
-            let what = format!(
-                "band {band} is not covered by the data, whose range is {}–{} nm \
-                 (no extrapolation)",
-                nm(lo_um),
-                nm(hi_um)
-            );
-            if cfg.skip_missing {
-                warnings.push(Warning(format!("{}: {what}; skipped", s.path.display())));
-                continue;
+        let mut rows: Vec<(Band, f64, f64)> = Vec::new();
+        for &band in &cfg.bands {
+            let (first, last, _) = samples(band, cfg.step);
+            if !(first / 1e3 >= lo_um && last / 1e3 <= hi_um) {
+                let what = format!(
+                    "band {band} is not covered by the data, whose range is {}–{} nm \
+                     (no extrapolation)",
+                    nm(lo_um),
+                    nm(hi_um)
+                );
+                if cfg.skip_missing {
+                    warnings.push(Warning(format!("{}: {what}; skipped", s.path.display())));
+                    continue;
+                }
+                return Err(IoError::Model {
+                    path: s.path.clone(),
+                    reason: format!("{what}; choose another band or pass --skip-missing"),
+                }
+                .into());
             }
-            return Err(IoError::Model {
-                path: s.path.clone(),
-                reason: format!("{what}; choose another band or pass --skip-missing"),
+            let (n, k) = data.band_mean(band.lo, band.hi, cfg.step)?;
+            if !(n > 0.0 && k >= 0.0) {
+                return Err(IoError::Model {
+                    path: s.path.clone(),
+                    reason: format!(
+                        "band mean n = {n}, k = {k} over {band} is not a usable index \
+                         (need n > 0, k >= 0)"
+                    ),
+                }
+                .into());
             }
-            .into());
+            rows.push((band, n, k));
         }
-        let (n, k) = data.band_mean(band.lo, band.hi, cfg.step)?;
-        if !(n > 0.0 && k >= 0.0) {
-            return Err(IoError::Model {
-                path: s.path.clone(),
-                reason: format!(
-                    "band mean n = {n}, k = {k} over {band} is not a usable index \
-                     (need n > 0, k >= 0)"
-                ),
-            }
-            .into());
+        if rows.is_empty() {
+            continue;
         }
         let m = mapped.get(&i).cloned().unwrap_or_default();
         let name = m.name.unwrap_or_else(|| default_name(&s.path));
@@ -267,20 +324,23 @@ pub fn build_library(
             .or_else(|| sources::folder_category(s))
             .or_else(|| cfg.category.clone());
         let reference = m.reference.or_else(|| Some(s.rel.display().to_string()));
-        materials.push(Material {
-            name,
-            category,
-            n,
-            k,
-            reference,
-            line: 0,
-        });
+        for (band, n, k) in rows {
+            materials.push(Material {
+                name: name.clone(),
+                category: category.clone(),
+                n,
+                k,
+                reference: reference.clone(),
+                line: 0,
+                wavelength_nm: multi.then(|| band.centre()),
+            });
+        }
     }
     progress("files", srcs.len() as u64, srcs.len() as u64);
     if materials.is_empty() {
         return Err(PipelineError::config(
             "--band",
-            band,
+            cfg.band(),
             "is covered by no input file (every file was skipped)",
         ));
     }
@@ -343,10 +403,13 @@ mod tests {
             lo: 500.0,
             hi: 800.0,
         };
-        assert!(LibraryConfig::new(b, 1.0, None, false).is_ok());
-        let e = LibraryConfig::new(b, 1e-9, None, false).unwrap_err();
+        assert!(LibraryConfig::new(vec![b], 1.0, None, false).is_ok());
+        let e = LibraryConfig::new(vec![b], 1e-9, None, false).unwrap_err();
         assert!(e.to_string().contains("--step") && e.to_string().contains("samples"));
-        assert!(LibraryConfig::new(b, 1.0, Some(" ".into()), false).is_err());
-        assert!(LibraryConfig::new(b, -1.0, None, false).is_err());
+        assert!(LibraryConfig::new(vec![b], 1.0, Some(" ".into()), false).is_err());
+        assert!(LibraryConfig::new(vec![b], -1.0, None, false).is_err());
+        assert!(LibraryConfig::new(vec![], 1.0, None, false).is_err());
+        let e = LibraryConfig::new(vec![b, b], 1.0, None, false).unwrap_err();
+        assert!(e.to_string().contains("same centre"), "{e}");
     }
 }
