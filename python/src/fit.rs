@@ -111,6 +111,8 @@ fn single_dict<'py>(py: Python<'py>, f: &NkFit) -> PyResult<Bound<'py, PyDict>> 
 /// n_range, k_range : (float, float)
 ///     The search box, ``0 <= MIN < MAX`` (defaults: the CLI's ``--n-range 0.01,10
 ///     --k-range 0,15``).
+/// status_strings : bool, default False
+///     Stacks only: also return ``status`` as a str array (one word per pixel).
 ///
 /// Returns
 /// -------
@@ -122,13 +124,16 @@ fn single_dict<'py>(py: Python<'py>, f: &NkFit) -> PyResult<Bound<'py, PyDict>> 
 ///
 ///     A stack (``dolp`` of shape (..., T)): arrays of shape ``dolp.shape[:-1]``:
 ///     ``n``, ``k``, ``n_se``, ``k_se``, ``nk_corr``, ``rms_residual``, ``cost``
-///     (float64), ``iterations``, ``evaluations``, ``starts`` (uint32), ``status`` (str
-///     array) and ``status_code`` (uint8, an index into ``polarid.FIT_STATUS``),
-///     ``reason_code`` (uint8) with ``reasons`` (list of str, ``reasons[0] == ""``):
-///     the reason of pixel i is ``reasons[reason_code[i]]`` (codes rather than a str
-///     array keep large stacks small). A pixel whose data are unusable (NaN, DoLP
-///     outside [0, 1], se <= 0) gets status ``invalid_input`` and NaN values instead of
-///     an error.
+///     (float64), ``iterations``, ``evaluations``, ``starts`` (uint32);
+///     ``status_code`` (uint8) with ``status_names`` (list of str, equal to
+///     ``polarid.FIT_STATUS``): the status of pixel i is
+///     ``status_names[status_code[i]]`` (``status_code == FIT_STATUS.index("ok")``
+///     selects the good fits); ``reason_code`` (uint8) with ``reasons`` (list of str,
+///     ``reasons[0] == ""``): the reason of pixel i is ``reasons[reason_code[i]]``.
+///     Codes rather than str arrays keep large stacks small and fast; with
+///     ``status_strings=True`` the dict also holds ``status``, a str array of the
+///     words. A pixel whose data are unusable (NaN, DoLP outside [0, 1], se <= 0)
+///     gets status ``invalid_input`` and NaN values instead of an error.
 ///
 /// Raises
 /// ------
@@ -148,7 +153,7 @@ fn single_dict<'py>(py: Python<'py>, f: &NkFit) -> PyResult<Bound<'py, PyDict>> 
 /// (``polarid_core::fit::fit_batch_pixel_beta``); the statuses and standard errors
 /// follow the same rules. It runs at 40–60% of the speed of the shared-angle fit.
 #[pyfunction]
-#[pyo3(signature = (dolp, beta_deg, dolp_se = None, *, n_range = (0.01, 10.0), k_range = (0.0, 15.0)))]
+#[pyo3(signature = (dolp, beta_deg, dolp_se = None, *, n_range = (0.01, 10.0), k_range = (0.0, 15.0), status_strings = false))]
 pub fn fit_nk<'py>(
     py: Python<'py>,
     dolp: &Bound<'py, PyAny>,
@@ -156,6 +161,7 @@ pub fn fit_nk<'py>(
     dolp_se: Option<&Bound<'py, PyAny>>,
     n_range: (f64, f64),
     k_range: (f64, f64),
+    status_strings: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     check_range("n_range", n_range).py_err()?;
     check_range("k_range", k_range).py_err()?;
@@ -254,7 +260,7 @@ pub fn fit_nk<'py>(
                 batch(t, &fit, ys, ses, pixels)
             })
             .py_err()?;
-        return batch_dict(py, &lead, out);
+        return batch_dict(py, &lead, out, status_strings);
     }
     let plan = py.detach(|| plan_for(&betas, opts)).py_err()?;
     if shape.len() == 1 {
@@ -264,7 +270,7 @@ pub fn fit_nk<'py>(
     let fit =
         |y: &[f64], se: Option<&[f64]>, _: usize, out: &mut [NkFit]| fit_batch(&plan, y, se, out);
     let out = py.detach(|| batch(t, &fit, ys, ses, pixels)).py_err()?;
-    batch_dict(py, &lead, out)
+    batch_dict(py, &lead, out, status_strings)
 }
 
 /// Pixels per parallel task of [`batch`].
@@ -395,7 +401,15 @@ fn batch(
     Ok(o)
 }
 
-fn batch_dict<'py>(py: Python<'py>, lead: &[usize], o: BatchOut) -> PyResult<Bound<'py, PyDict>> {
+/// The dict of a stack fit: numeric arrays, the status as codes with their name table
+/// (``status_code``, ``status_names``) and, when `status_strings`, also a str array
+/// ``status`` (numpy ``<U`` array: costs 60 bytes per pixel).
+fn batch_dict<'py>(
+    py: Python<'py>,
+    lead: &[usize],
+    o: BatchOut,
+    status_strings: bool,
+) -> PyResult<Bound<'py, PyDict>> {
     fn arr<'py, T: numpy::Element>(
         py: Python<'py>,
         lead: &[usize],
@@ -416,15 +430,15 @@ fn batch_dict<'py>(py: Python<'py>, lead: &[usize], o: BatchOut) -> PyResult<Bou
     d.set_item("evaluations", arr(py, lead, o.evaluations)?)?;
     d.set_item("starts", arr(py, lead, o.starts)?)?;
     let codes = arr(py, lead, o.status)?;
-    let names = py.import("numpy")?.call_method1(
-        "array",
-        (FitStatus::ALL
-            .iter()
-            .map(|s| s.as_str())
-            .collect::<Vec<_>>(),),
-    )?;
-    d.set_item("status", names.call_method1("take", (&codes,))?)?;
+    let words: Vec<&str> = FitStatus::ALL.iter().map(|s| s.as_str()).collect();
+    if status_strings {
+        let names = py
+            .import("numpy")?
+            .call_method1("array", (words.clone(),))?;
+        d.set_item("status", names.call_method1("take", (&codes,))?)?;
+    }
     d.set_item("status_code", codes)?;
+    d.set_item("status_names", words)?;
     d.set_item("reason_code", arr(py, lead, o.reason)?)?;
     d.set_item("reasons", o.reasons)?;
     Ok(d)
