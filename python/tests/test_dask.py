@@ -219,3 +219,19 @@ def test_aligned_chunks():
     assert pdask.aligned_chunks((64, 64, 2), 4, minimum=4) == (64, 66)  # last too small
     assert pdask.aligned_chunks((3,), 4) == (3,)
     assert sum(pdask.aligned_chunks((10,) * 13, 8)) == 130
+
+
+def test_example_script(sets, polarid_cli, tmp_path):
+    """python/examples/dask_map.py: a directory of captures to maps on disk (threads)."""
+    import sys
+
+    out = tmp_path / "maps"
+    r = subprocess.run([sys.executable, str(REPO_ROOT / "python" / "examples" / "dask_map.py"),
+                        str(sets / "dofp"), str(sets / "model.json"), "-o", str(out), "--bin", "2",
+                        "--chunk", "48"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "100% Completed" in r.stdout + r.stderr  # the progress bar
+    cli = cli_map(polarid_cli, sets, "dofp", 2)
+    np.testing.assert_array_equal(np.load(out / "class.npy"), cli["class"])
+    names = json.loads((out / "names.json").read_text())
+    assert names["class_names"] == cli["class_names"]
