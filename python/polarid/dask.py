@@ -118,6 +118,10 @@ def _block(x, beta=None, *, block_id, nblocks, pattern, per_capture_beta, t, a, 
         halo = (0, 0, 0, 0)
         frames = x.reshape(t, a, x.shape[-2], x.shape[-1])
     b = per_capture_beta if beta is None else beta
+    # Blocks that crossed processes (distributed) can sit in unaligned buffers: the
+    # kernels need C-contiguous, aligned arrays (np.require copies only when needed).
+    frames = np.require(frames, requirements=("C", "A"))
+    b = np.require(b, dtype=np.float64, requirements=("C", "A"))
     return _map_block(frames, kw["angles_deg"], b, kw["model_json"], label=kw["label"],
                       pattern=pattern, halo=halo, bin=kw["bin"], dark_level=kw["dark_level"],
                       saturation=kw["saturation"], min_s0=kw["min_s0"],
