@@ -7,7 +7,8 @@ with a model of the six materials. For every chunk size (rows = columns, --chunk
 map is computed on
 
   * a dask.distributed LocalCluster of 1 and of 2 worker processes (threads per worker:
-    --threads; the frames are scattered to the cluster once, before the clock starts),
+    --threads; the frame blocks are made on the workers and kept there before the clock
+    starts, as a reader of files on the workers would),
   * the local threaded scheduler (one process, for reference),
 
 and compared with polarid.map-style work in one call (one block = the whole frame,
@@ -48,6 +49,30 @@ def capture_set(size, t, seed=1):
     reps = (1, 1, -(-size // f.shape[2]), -(-size // f.shape[3]))
     frames = np.ascontiguousarray(np.tile(f, reps)[:, :, :size, :size])
     return frames, sim["angles_deg"], sim["beta_deg"]
+
+
+def frames_block(size, t, rows, cols):
+    """Rows and columns `rows`, `cols` (slices) of the capture set: made where the task
+    runs (a worker), as a reader of files would, so the frames do not travel in the graph."""
+    frames, _, _ = capture_set(size, t)
+    return np.ascontiguousarray(frames[:, :, rows, cols])
+
+
+def lazy_frames(size, t, chunk):
+    """The capture set as a dask array of blocks made on the workers."""
+    import dask
+    import dask.array as da
+
+    frames, _, _ = capture_set(min(size, 64), t)  # dtype only
+    rows = []
+    for r in range(0, size, chunk):
+        row = []
+        for c in range(0, size, chunk):
+            h, w = min(chunk, size - r), min(chunk, size - c)
+            d = dask.delayed(frames_block)(size, t, slice(r, r + h), slice(c, c + w))
+            row.append(da.from_delayed(d, shape=(t, 4, h, w), dtype=frames.dtype))
+        rows.append(row)
+    return da.block(rows)
 
 
 def model_dict():
@@ -106,8 +131,9 @@ def main(argv=None):
                               dashboard_address=None, local_directory=tmp) as cluster, \
                     Client(cluster) as client:
                 for c in chunks:
-                    # The frames live on the workers (as they would when read there).
-                    x = da.from_array(frames, chunks=(a.t, 4, c, c)).persist()
+                    # The frames are made and kept on the workers (as they would be when
+                    # read there), before the clock starts.
+                    x = lazy_frames(a.size, a.t, c).persist()
                     wait(x)
                     dt = best(x, client)
                     results[f"{w} worker(s), chunk {c}"] = round(npix / dt / 1e6, 3)
