@@ -6,8 +6,11 @@ class. Each block of the map is computed by the very kernels of ``polarid map`` 
 ``polarid.map_manifest``): the (binned) DoLP per capture with its signal flags
 (saturated, dark, invalid), the eq. (9) fit of every pixel over the captures and the
 nearest-prototype classification of the model, so that a map assembled from blocks
-equals the map of the whole frame (same bits; ``python/tests/test_dask.py`` compares
-with the CLI on a ``dask.distributed.LocalCluster``). It runs on any Dask scheduler
+equals the map of the whole frame: bit for bit with one β per capture; with a β per
+pixel the fits are grouped by their usable captures within a block, and the last bits of
+a group's fits depend on its members (as with ``polarid map --tile``).
+``python/tests/test_dask.py`` compares with the CLI on a ``dask.distributed.LocalCluster``
+of 2 worker processes. It runs on any Dask scheduler
 (threads, processes, distributed); the kernels release the GIL and use every core of a
 worker.
 
@@ -150,7 +153,7 @@ def material_map(
     block: for each capture the (``bin`` × ``bin`` binned) DoLP and the signal flags,
     then the fit of every unflagged pixel's DoLP values over the captures against eq.
     (9) and the nearest prototype of the model. The map equals the CLI's whatever the
-    chunking (``python/tests/test_dask.py``).
+    chunking (classes identical, n and k to 1e-6; ``python/tests/test_dask.py``).
 
     Parameters
     ----------
