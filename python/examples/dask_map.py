@@ -145,7 +145,7 @@ def main():
     if out.suffix == ".zarr":
         import zarr
 
-        zarr.open_group(str(out), mode="r+").attrs.update(tables)  # code -> name tables
+        zarr.open_group(str(out), mode="a").attrs.update(tables)  # code -> name tables
         classes = da.from_zarr(str(out), component="class").compute()
     else:
         for k, v in zip(maps, results):
