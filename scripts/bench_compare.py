@@ -4,11 +4,13 @@ print each figure and the ratio polarid/baseline against the issue-7 and issue-1
 targets. Called by scripts/bench_compare.sh (which sets up the venv and builds the
 examples).
 
+The fit figures compare polarid.fit_nk with the numpy batched LM at its best chunk
+size (10^5 or 10^6 pixels), in one process (scripts/bench/fit_nk.py, issue 18).
 The DoFP figures (issue 18) come from scripts/bench/dofp.py, which times polarid's
 Python API and polanalyser / OpenCV interleaved in one process: it runs in the
 interpreter of --polarid-python (default: $POLARID_PYTHON, else .venv-test/bin/python,
 the environment scripts/test_python.sh installs polarid into, else this interpreter),
-which needs polarid, polanalyser and OpenCV."""
+which needs polarid, polanalyser and OpenCV (and numpy for fit_nk.py)."""
 import argparse
 import json
 import os
@@ -75,7 +77,6 @@ def main():
     a = ap.parse_args()
     py = sys.executable
     reps = "3" if a.quick else "5"
-    vec_pixels = "200000" if a.quick else "1000000"
     loop_pixels = "500" if a.quick else "2000"
     fit_pixels = "200000" if a.quick else "1000000"
 
@@ -102,8 +103,22 @@ def main():
     if os.path.exists(dofp_exe):
         dofp_rust = last_json(run([dofp_exe, "--repeats", reps]))
 
-    # --- Fits
-    fv = last_json(run([py, a.baselines, "fit-vec", "--pixels", vec_pixels]))["results"]
+    # --- Fits: polarid.fit_nk against the numpy batched LM at its best chunk size (10^5
+    # or 10^6 pixels), in one process (scripts/bench/fit_nk.py); the scipy loop; the Rust
+    # fit_throughput example for reference.
+    fit_script = os.path.join(os.path.dirname(os.path.abspath(a.baselines)), "fit_nk.py")
+    try:
+        fitnk = last_json(run([pp, fit_script, "--pixels", "1000000", "--chunks", "100000,1000000",
+                               "--repeats", reps]))
+    except (subprocess.CalledProcessError, ValueError, OSError) as e:
+        fitnk = None
+        err = getattr(e, "stderr", None) or str(e)
+        print(f"(fit_nk figures not measured: {pp} {fit_script} failed: {err.strip().splitlines()[-1:]})",
+              file=sys.stderr)
+    fv = None
+    if fitnk is None:
+        fv = {c: last_json(run([py, a.baselines, "fit-vec", "--pixels", "1000000", "--chunk", c]))["results"]
+              for c in ("100000", "1000000")}
     fl = last_json(run([py, a.baselines, "fit-loop", "--pixels", loop_pixels]))["results"]
     fl_best = max(fl.values(), key=lambda r: r["fits_per_s"])
     fit_exe = os.path.join(a.target_dir, "fit_throughput")
@@ -145,26 +160,42 @@ def main():
               f"max |DoLP - polanalyser's| {checks[1]:.2e}; load average {dofp['env']['loadavg_1min']:.1f}")
     if dofp_rust is not None:
         print("polarid dofp_throughput (Rust, reused buffers): " + json.dumps(dofp_rust))
-    if ours_fit is None:
-        print(f"(no {fit_exe}: polarid fit throughput not measured)")
-        print(f"fit-vec  {fv['fits_per_s']:.0f} fits/s, global-optimum rate {fv['frac_cost_le_truth']:.4f}")
-        print(f"fit-loop {fl_best['fits_per_s']:.0f} fits/s, global-optimum rate {fl_best['frac_cost_le_truth']:.4f}")
+    if fitnk is not None:
+        nb = fitnk["numpy"][str(fitnk["numpy_best_chunk"])]
+        row(f"fit_nk vs numpy batched LM, best chunk ({fitnk['numpy_best_chunk']:.0e})",
+            fitnk["polarid"]["fits_per_s"], nb["fits_per_s"], 50, "fits/s")
+        for c, r in fitnk["numpy"].items():
+            print(f"  numpy chunk {int(c):>8}: {r['fits_per_s']:>10.0f} fits/s, "
+                  f"global-optimum rate {r['frac_cost_le_truth']:.4f}")
+        rate, base_rate = fitnk["polarid"]["frac_cost_le_truth"], nb["frac_cost_le_truth"]
+        print(f"global-optimum rate: fit_nk {rate:.4f} vs numpy (best chunk) {base_rate:.4f}  "
+              f"{'PASS' if rate >= base_rate else 'FAIL'}")
+        row("fit_nk vs scipy loop (fit-loop)", fitnk["polarid"]["fits_per_s"], fl_best["fits_per_s"],
+            2000, "fits/s")
+        print(f"global-optimum rate: fit_nk {rate:.4f} vs fit-loop {fl_best['frac_cost_le_truth']:.4f}  "
+              f"{'PASS' if rate >= fl_best['frac_cost_le_truth'] else 'FAIL'}")
+        print(f"fit_nk: float32 input {fitnk['polarid']['seconds_float32_input']:.3f} s, all-invalid stack "
+              f"(no fitting) {fitnk['polarid']['seconds_all_invalid']:.3f} s, best "
+              f"{fitnk['polarid']['seconds_best']:.3f} s for {fitnk['pixels']} pixels; load average "
+              f"{fitnk['env']['loadavg_1min_start']} -> {fitnk['env']['loadavg_1min_end']}")
+        base_fps = nb["fits_per_s"]
     else:
-        # polarid's figure is its throughput on all cores (the baselines use what
-        # numpy/scipy use); the single-thread figure is printed for reference.
+        best_c = max(fv, key=lambda c: fv[c]["fits_per_s"])
+        base_fps = fv[best_c]["fits_per_s"]
+        for c, r in fv.items():
+            print(f"fit-vec chunk {c}: {r['fits_per_s']:.0f} fits/s, global-optimum rate {r['frac_cost_le_truth']:.4f}")
+        print(f"fit-loop {fl_best['fits_per_s']:.0f} fits/s, global-optimum rate {fl_best['frac_cost_le_truth']:.4f}")
+    if ours_fit is None:
+        print(f"(no {fit_exe}: polarid fit throughput (Rust) not measured)")
+    else:
+        # The Rust example: the fit without Python, on all cores (reference).
         res = ours_fit.get("results", {})
         fps = (res.get("multi_thread") or {}).get("fits_per_s") or find(
             ours_fit, ["fits_per_s", "fits_per_second"])
         single = (res.get("single_thread") or {}).get("fits_per_s")
         if single is not None:
-            print(f"polarid fits/s: {fps:.0f} on all cores, {single:.0f} on one thread")
-        rate = find(ours_fit, ["frac_cost_le_truth", "global_optimum_rate", "frac_global"])
-        row("(n,k) fits vs numpy batched LM (fit-vec)", fps, fv["fits_per_s"], 50, "fits/s")
-        row("(n,k) fits vs scipy loop (fit-loop)", fps, fl_best["fits_per_s"], 2000, "fits/s")
-        if rate is not None:
-            for name, r in (("fit-vec", fv["frac_cost_le_truth"]), ("fit-loop", fl_best["frac_cost_le_truth"])):
-                verdict = "PASS" if rate >= r else "FAIL"
-                print(f"global-optimum rate: polarid {rate:.4f} vs {name} {r:.4f}  {verdict}")
+            print(f"polarid fits/s (Rust fit_throughput): {fps:.0f} on all cores, {single:.0f} on one thread")
+        row("Rust fit_batch vs numpy batched LM, best chunk", fps, base_fps, None, "fits/s")
         print("polarid fit_throughput: " + json.dumps(ours_fit))
     print("env: " + json.dumps(last_json(json.dumps({"cpus": os.cpu_count()}))))
 

@@ -2,7 +2,8 @@
 # Python tests of polarid: build and install the package from this repository into the
 # virtualenv .venv-test (created on first use, reused afterwards), with pytest and the
 # pinned baseline environment of scripts/bench/requirements.txt (numpy, scipy,
-# polanalyser, OpenCV, matplotlib: the comparison tests use them), then run
+# polanalyser, OpenCV, matplotlib: the comparison tests use them) and dask with its
+# distributed scheduler (python/tests/test_dask.py runs a LocalCluster), then run
 # `pytest python/tests -q`. The tests that compare with the command-line program use the
 # release build of `polarid` (built here with `cargo build --release --locked -p
 # polarid-cli`, or given as $POLARID_CLI).
@@ -29,7 +30,7 @@ fi
 pip=("$venv/bin/python" -m pip --disable-pip-version-check)
 
 echo "== installing test requirements"
-reqs=(pytest numpy -r scripts/bench/requirements.txt)
+reqs=(pytest numpy "dask[array,distributed]==2026.8.0" -r scripts/bench/requirements.txt)
 "${pip[@]}" install -q "${reqs[@]}"
 
 echo "== building and installing polarid (maturin, release, --locked)"

@@ -57,7 +57,7 @@ lit = (np.stack([s[0] for s in stokes], axis=-1) > 50).all(axis=-1)  # S0 > 50 D
 # %% 3. per-pixel (n, k) fit over the C source positions (GIL released, all cores)
 y = np.where(lit[..., None], dolp, np.nan)  # unlit pixels -> status invalid_input
 fit = polarid.fit_nk(y, sim["beta_deg"])
-ok = fit["status"] == "ok"
+ok = fit["status_code"] == fit["status_names"].index("ok")  # codes, no per-pixel strings
 print(f"fitted {ok.sum()} of {lit.sum()} lit pixels with status ok")
 
 # %% 4. classify against a small model
@@ -65,8 +65,8 @@ model = [(name, n, k) for name, (n, k) in materials.items()]
 cls = polarid.classify(fit["n"], fit["k"], model, fit_status=fit["status_code"])
 names = list(materials)
 label = np.full(ok.shape, -1)
-for i, name in enumerate(names):
-    label[cls["predicted"] == name] = i
+for i, name in enumerate(names):  # predicted_code indexes cls["class_names"]
+    label[cls["predicted_code"] == cls["class_names"].index(name)] = i
 for p, ((x, yy, w, h), name) in enumerate(zip(sim["rects"], names)):
     region = label[yy + 2:yy + h - 2, x + 2:x + w - 2]
     share = np.mean(region == p)

@@ -39,6 +39,17 @@ simulate(plates, theta_i_deg, ...)
     Synthetic frames of plates of known (n, k, sigma).
 map_manifest(manifest_path, model, bin=1, ...)
     Per-pixel (n, k) and material maps of a capture set: ``polarid map`` as arrays.
+
+Submodule (optional dependency dask: ``pip install "./python[dask]"``)
+---------------------------------------------------------------------
+polarid.dask.material_map(frames, angles_deg, beta_deg, model, **options)
+    The maps of ``polarid map`` as lazy dask arrays, block by block, on any Dask
+    scheduler (``import polarid.dask``; not imported by ``import polarid``).
+
+Large results hold no per-pixel strings: ``fit_nk`` and ``classify`` on arrays return
+integer codes with their name tables (``status_code`` / ``status_names``,
+``predicted_code`` / ``class_names``, ...); ``status_strings=True`` / ``strings=True``
+add the str arrays.
 """
 
 from ._polarid import (

@@ -34,7 +34,8 @@ __all__ = [
 ]
 
 __version__: str
-#: Status words of a fit, indexed by ``fit_nk(...)["status_code"]``.
+#: Status words of a fit, indexed by ``fit_nk(...)["status_code"]`` (and equal to its
+#: ``status_names``).
 FIT_STATUS: list[str]
 
 _F = float | NDArray[np.float64]
@@ -171,8 +172,11 @@ def fit_nk(
     *,
     n_range: tuple[float, float] = (0.01, 10.0),
     k_range: tuple[float, float] = (0.0, 15.0),
+    status_strings: bool = False,
 ) -> dict[str, Any]:
-    """1-D dolp: floats/ints/str per key; (..., T): arrays (see the docstring).
+    """1-D dolp: floats/ints/str per key; (..., T): arrays (see the docstring), the
+    status as ``status_code`` (uint8) + ``status_names`` (= FIT_STATUS), the reason as
+    ``reason_code`` + ``reasons``; ``status`` (str array) only with ``status_strings``.
 
     ``beta_deg``: shape (T,), one angle per measurement shared by every pixel; or an
     array broadcastable to ``dolp.shape``, a β per pixel and measurement (calibrated
@@ -230,9 +234,15 @@ def classify(
     neighbours: int = 1,
     reject: float | None = None,
     max_distance: float | None = None,
+    strings: bool = False,
 ) -> dict[str, Any]:
-    """keys: predicted, distance, runner_up, runner_up_distance, margin, status,
-    candidates, n_candidates, category."""
+    """Scalar input, keys: predicted, distance, runner_up, runner_up_distance, margin,
+    status, candidates, n_candidates, category. Array input: distance,
+    runner_up_distance, margin, n_candidates and integer codes with name tables:
+    predicted_code / runner_up_code (class_names), status_code (status_names),
+    candidates_code (candidates_names), category_code (category_names); with
+    ``strings=True`` also predicted, runner_up, status, candidates, category as str
+    arrays."""
 
 # --- files -----------------------------------------------------------------------------
 def load_manifest(path: _Path) -> dict[str, Any]: ...
@@ -275,3 +285,33 @@ def map_manifest(
     class_names, reason_names, class_counts, reason_counts, summary; with calibrated
     geometry ([camera], a source per capture) also beta_deg (float32 (T, H, W), every
     pixel's β per capture, NaN without geometry) and the reason no_geometry."""
+
+# --- one block of a map (private: polarid.dask.material_map) ----------------------------
+def _map_names(
+    model_json: str,
+    *,
+    label: str = "<model>",
+    per_pixel_beta: bool = False,
+    bin: int = 1,
+    min_s0: float | None = None,
+    max_distance: float | None = None,
+    metric: Literal["euclidean", "mahalanobis"] = "euclidean",
+    tile: int = 65536,
+) -> tuple[list[str], list[str]]: ...
+def _map_block(
+    frames: ArrayLike,
+    angles_deg: Sequence[float] | None,
+    beta_deg: ArrayLike,
+    model_json: str,
+    *,
+    label: str = "<model>",
+    pattern: Sequence[float] | None = None,
+    halo: tuple[int, int, int, int] = (0, 0, 0, 0),
+    bin: int = 1,
+    dark_level: Sequence[float] | None = None,
+    saturation: Sequence[float | None] | None = None,
+    min_s0: float | None = None,
+    max_distance: float | None = None,
+    metric: Literal["euclidean", "mahalanobis"] = "euclidean",
+    tile: int = 65536,
+) -> NDArray[np.float32]: ...

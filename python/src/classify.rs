@@ -166,6 +166,8 @@ fn fit_statuses(
 ///     squared Mahalanobis distance exceeds the 2-dof quantile (needs standard errors).
 /// max_distance : float, optional
 ///     ``unknown`` when the nearest prototype is farther than this (metric units).
+/// strings : bool, default False
+///     Array input only: also return the names as str arrays (see Returns).
 ///
 /// Returns
 /// -------
@@ -176,11 +178,20 @@ fn fit_statuses(
 ///     (``runner_up_distance - distance``), ``status`` (``ok``, ``ambiguous``,
 ///     ``rejected``, ``fit_<status>``, ``no_covariance``, ``invalid_estimate``),
 ///     ``candidates`` (the consistent materials, best first), ``n_candidates`` and
-///     ``category`` (the candidates' common category, e.g. ``"metal"``). Strings, floats
-///     and a list of str for scalar input (``runner_up`` and ``category`` are None when
-///     there is none), else arrays of the broadcast shape (str arrays for the names,
-///     ``candidates`` as ``;``-joined str, ``""`` for none; NaN distances where
-///     unclassified).
+///     ``category`` (the candidates' common category, e.g. ``"metal"``): strings,
+///     floats and a list of str for scalar input (``runner_up`` and ``category`` are
+///     None when there is none).
+///
+///     Array input: arrays of the broadcast shape, the names as integer codes (uint32)
+///     into name tables, so that large maps hold no strings: ``predicted_code`` and
+///     ``runner_up_code`` index ``class_names`` (``class_names[0] == ""``: no runner-up;
+///     then ``"unknown"``, ``"ambiguous"`` and the classes), ``status_code`` indexes
+///     ``status_names``, ``candidates_code`` indexes ``candidates_names`` (the distinct
+///     ``;``-joined sets, ``""`` for none), ``category_code`` indexes
+///     ``category_names``; ``distance``, ``runner_up_distance``, ``margin`` (NaN where
+///     unclassified), ``n_candidates``. With ``strings=True`` also ``predicted``,
+///     ``runner_up``, ``status``, ``candidates``, ``category`` as str arrays
+///     (``names[code]``).
 ///
 /// Raises
 /// ------
@@ -190,7 +201,7 @@ fn fit_statuses(
 /// FileNotFoundError
 ///     A library or model file that does not exist.
 #[pyfunction]
-#[pyo3(signature = (n, k, library_or_model = None, *, n_se = None, k_se = None, nk_corr = None, fit_status = None, rule = None, confidence = 0.95, metric = None, neighbours = 1, reject = None, max_distance = None))]
+#[pyo3(signature = (n, k, library_or_model = None, *, n_se = None, k_se = None, nk_corr = None, fit_status = None, rule = None, confidence = 0.95, metric = None, neighbours = 1, reject = None, max_distance = None, strings = false))]
 #[allow(clippy::too_many_arguments)]
 pub fn classify<'py>(
     py: Python<'py>,
@@ -207,6 +218,7 @@ pub fn classify<'py>(
     neighbours: usize,
     reject: Option<f64>,
     max_distance: Option<f64>,
+    strings: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let set_rule = match rule {
         Some("set") => true,
@@ -442,40 +454,59 @@ pub fn classify<'py>(
     };
     let class_refs: Vec<&str> = classes.iter().map(String::as_str).collect();
     let label_refs: Vec<&str> = labels.iter().map(String::as_str).collect();
-    out.set_item("predicted", str_array(py, &class_refs, u(|r| r.0)?)?)?;
-    out.set_item("distance", to_numpy(py, fl(|r| r.1)?))?;
-    out.set_item("runner_up", str_array(py, &class_refs, u(|r| r.2)?)?)?;
-    out.set_item("runner_up_distance", to_numpy(py, fl(|r| r.3)?))?;
-    out.set_item("margin", to_numpy(py, fl(|r| r.4)?))?;
-    out.set_item("status", str_array(py, &label_refs, u(|r| r.5)?)?)?;
-    // Candidates (`;`-joined) and categories as str arrays over tables of distinct values.
+    // Candidates (`;`-joined) and categories: codes into tables of distinct values.
     let mut joined: Vec<String> = vec![String::new()];
     let mut cats: Vec<String> = vec![String::new()];
+    let mut joined_idx: HashMap<String, u32> = HashMap::from([(String::new(), 0)]);
+    let mut cats_idx: HashMap<String, u32> = HashMap::from([(String::new(), 0)]);
     let mut jc = Vec::with_capacity(sets.len());
     let mut cc = Vec::with_capacity(sets.len());
     let mut nc = Vec::with_capacity(sets.len());
     for (cands, cat) in &sets {
         let j = cands.join(";");
-        let ji = joined.iter().position(|x| *x == j).unwrap_or_else(|| {
-            joined.push(j);
-            joined.len() - 1
+        let ji = *joined_idx.entry(j).or_insert_with_key(|j| {
+            joined.push(j.clone());
+            (joined.len() - 1) as u32
         });
-        let c = cat.clone().unwrap_or_default();
-        let ki = cats.iter().position(|x| *x == c).unwrap_or_else(|| {
-            cats.push(c);
-            cats.len() - 1
-        });
-        jc.push(ji as u32);
-        cc.push(ki as u32);
+        let c = cat.as_deref().unwrap_or("");
+        let ki = match cats_idx.get(c) {
+            Some(&i) => i,
+            None => {
+                cats.push(c.to_string());
+                cats_idx.insert(c.to_string(), (cats.len() - 1) as u32);
+                (cats.len() - 1) as u32
+            }
+        };
+        jc.push(ji);
+        cc.push(ki);
         nc.push(cands.len() as u32);
     }
+    drop(sets);
     let arr = |v: Vec<u32>| {
         ArrayD::from_shape_vec(dim.clone(), v).map_err(|e| value_error(e.to_string()))
     };
     let jr: Vec<&str> = joined.iter().map(String::as_str).collect();
     let cr: Vec<&str> = cats.iter().map(String::as_str).collect();
-    out.set_item("candidates", str_array(py, &jr, arr(jc)?)?)?;
-    out.set_item("category", str_array(py, &cr, arr(cc)?)?)?;
+    let (pc, rc, sc, jcs, ccs) = (u(|r| r.0)?, u(|r| r.2)?, u(|r| r.5)?, arr(jc)?, arr(cc)?);
+    if strings {
+        out.set_item("predicted", str_array(py, &class_refs, pc.clone())?)?;
+        out.set_item("runner_up", str_array(py, &class_refs, rc.clone())?)?;
+        out.set_item("status", str_array(py, &label_refs, sc.clone())?)?;
+        out.set_item("candidates", str_array(py, &jr, jcs.clone())?)?;
+        out.set_item("category", str_array(py, &cr, ccs.clone())?)?;
+    }
+    out.set_item("distance", to_numpy(py, fl(|r| r.1)?))?;
+    out.set_item("runner_up_distance", to_numpy(py, fl(|r| r.3)?))?;
+    out.set_item("margin", to_numpy(py, fl(|r| r.4)?))?;
+    out.set_item("predicted_code", to_numpy(py, pc))?;
+    out.set_item("runner_up_code", to_numpy(py, rc))?;
+    out.set_item("class_names", class_refs)?;
+    out.set_item("status_code", to_numpy(py, sc))?;
+    out.set_item("status_names", label_refs)?;
+    out.set_item("candidates_code", to_numpy(py, jcs))?;
+    out.set_item("candidates_names", jr)?;
+    out.set_item("category_code", to_numpy(py, ccs))?;
+    out.set_item("category_names", cr)?;
     out.set_item("n_candidates", to_numpy(py, arr(nc)?))?;
     Ok(out)
 }

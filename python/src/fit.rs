@@ -93,6 +93,8 @@ fn single_dict<'py>(py: Python<'py>, f: &NkFit) -> PyResult<Bound<'py, PyDict>> 
 /// ----------
 /// dolp : array_like, shape (T,) or (..., T)
 ///     DoLP values in [0, 1] measured at the T angles ``beta_deg``. 1-D: one target.
+///     float32 stacks (``polarid.dolp``'s dtype) are read as they are (no float64 copy;
+///     the same numbers as their float64 values), other dtypes converted to float64.
 ///     More dimensions: a stack of pixels (e.g. (P, T) or (H, W, T)), each fitted
 ///     independently in parallel with the GIL released.
 /// beta_deg : array_like, shape (T,) or broadcastable to ``dolp.shape``
@@ -111,6 +113,8 @@ fn single_dict<'py>(py: Python<'py>, f: &NkFit) -> PyResult<Bound<'py, PyDict>> 
 /// n_range, k_range : (float, float)
 ///     The search box, ``0 <= MIN < MAX`` (defaults: the CLI's ``--n-range 0.01,10
 ///     --k-range 0,15``).
+/// status_strings : bool, default False
+///     Stacks only: also return ``status`` as a str array (one word per pixel).
 ///
 /// Returns
 /// -------
@@ -122,13 +126,16 @@ fn single_dict<'py>(py: Python<'py>, f: &NkFit) -> PyResult<Bound<'py, PyDict>> 
 ///
 ///     A stack (``dolp`` of shape (..., T)): arrays of shape ``dolp.shape[:-1]``:
 ///     ``n``, ``k``, ``n_se``, ``k_se``, ``nk_corr``, ``rms_residual``, ``cost``
-///     (float64), ``iterations``, ``evaluations``, ``starts`` (uint32), ``status`` (str
-///     array) and ``status_code`` (uint8, an index into ``polarid.FIT_STATUS``),
-///     ``reason_code`` (uint8) with ``reasons`` (list of str, ``reasons[0] == ""``):
-///     the reason of pixel i is ``reasons[reason_code[i]]`` (codes rather than a str
-///     array keep large stacks small). A pixel whose data are unusable (NaN, DoLP
-///     outside [0, 1], se <= 0) gets status ``invalid_input`` and NaN values instead of
-///     an error.
+///     (float64), ``iterations``, ``evaluations``, ``starts`` (uint32);
+///     ``status_code`` (uint8) with ``status_names`` (list of str, equal to
+///     ``polarid.FIT_STATUS``): the status of pixel i is
+///     ``status_names[status_code[i]]`` (``status_code == FIT_STATUS.index("ok")``
+///     selects the good fits); ``reason_code`` (uint8) with ``reasons`` (list of str,
+///     ``reasons[0] == ""``): the reason of pixel i is ``reasons[reason_code[i]]``.
+///     Codes rather than str arrays keep large stacks small and fast; with
+///     ``status_strings=True`` the dict also holds ``status``, a str array of the
+///     words. A pixel whose data are unusable (NaN, DoLP outside [0, 1], se <= 0)
+///     gets status ``invalid_input`` and NaN values instead of an error.
 ///
 /// Raises
 /// ------
@@ -148,7 +155,7 @@ fn single_dict<'py>(py: Python<'py>, f: &NkFit) -> PyResult<Bound<'py, PyDict>> 
 /// (``polarid_core::fit::fit_batch_pixel_beta``); the statuses and standard errors
 /// follow the same rules. It runs at 40–60% of the speed of the shared-angle fit.
 #[pyfunction]
-#[pyo3(signature = (dolp, beta_deg, dolp_se = None, *, n_range = (0.01, 10.0), k_range = (0.0, 15.0)))]
+#[pyo3(signature = (dolp, beta_deg, dolp_se = None, *, n_range = (0.01, 10.0), k_range = (0.0, 15.0), status_strings = false))]
 pub fn fit_nk<'py>(
     py: Python<'py>,
     dolp: &Bound<'py, PyAny>,
@@ -156,6 +163,7 @@ pub fn fit_nk<'py>(
     dolp_se: Option<&Bound<'py, PyAny>>,
     n_range: (f64, f64),
     k_range: (f64, f64),
+    status_strings: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     check_range("n_range", n_range).py_err()?;
     check_range("k_range", k_range).py_err()?;
@@ -168,8 +176,32 @@ pub fn fit_nk<'py>(
         },
         ..Default::default()
     };
-    let y = f64_contiguous("dolp", dolp)?;
-    let shape = y.shape().to_vec();
+    // float32 DoLP (the dtype of polarid.dolp) is read as it is and converted chunk by
+    // chunk in the workers; every other dtype becomes one float64 array.
+    let np = py.import("numpy")?;
+    let dolp_arr = np.call_method1("asarray", (dolp,))?;
+    let is_f32 = dolp_arr
+        .getattr("dtype")?
+        .getattr("name")?
+        .extract::<String>()?
+        == "float32";
+    let y32: Option<PyReadonlyArrayDyn<'py, f32>> = if is_f32 {
+        Some(
+            np.call_method1("ascontiguousarray", (&dolp_arr,))?
+                .extract()?,
+        )
+    } else {
+        None
+    };
+    let y64 = match y32 {
+        Some(_) => None,
+        None => Some(f64_contiguous("dolp", &dolp_arr)?),
+    };
+    let shape = match (&y32, &y64) {
+        (Some(a), _) => a.shape().to_vec(),
+        (_, Some(a)) => a.shape().to_vec(),
+        _ => Vec::new(),
+    };
     // beta_deg: 1-D, one angle per measurement; or a β per pixel, broadcast to dolp.
     let beta_arr = py.import("numpy")?.call_method1("asarray", (beta_deg,))?;
     let beta_ndim: usize = beta_arr.getattr("ndim")?.extract()?;
@@ -229,7 +261,11 @@ pub fn fit_nk<'py>(
             Some(f64_contiguous("dolp_se", &b)?)
         }
     };
-    let ys = y.as_slice()?;
+    let ys = match (&y32, &y64) {
+        (Some(a), _) => Ys::F32(a.as_slice()?),
+        (_, Some(a)) => Ys::F64(a.as_slice()?),
+        _ => Ys::F64(&[]),
+    };
     let ses = match &se {
         Some(s) => Some(s.as_slice()?),
         None => None,
@@ -251,20 +287,21 @@ pub fn fit_nk<'py>(
                     let b = &brad[first * t..(first + out.len()) * t];
                     fit_batch_pixel_beta(&plan, b, y, se, out)
                 };
-                batch(t, &fit, ys, ses, pixels)
+                ys.batch(t, &fit, ses, pixels)
             })
             .py_err()?;
-        return batch_dict(py, &lead, out);
+        return batch_dict(py, &lead, out, status_strings);
     }
     let plan = py.detach(|| plan_for(&betas, opts)).py_err()?;
     if shape.len() == 1 {
-        let f = py.detach(|| plan.fit(ys, ses)).py_err()?;
+        let y1 = ys.to_f64();
+        let f = py.detach(|| plan.fit(&y1, ses)).py_err()?;
         return single_dict(py, &f);
     }
     let fit =
         |y: &[f64], se: Option<&[f64]>, _: usize, out: &mut [NkFit]| fit_batch(&plan, y, se, out);
-    let out = py.detach(|| batch(t, &fit, ys, ses, pixels)).py_err()?;
-    batch_dict(py, &lead, out)
+    let out = py.detach(|| ys.batch(t, &fit, ses, pixels)).py_err()?;
+    batch_dict(py, &lead, out, status_strings)
 }
 
 /// Pixels per parallel task of [`batch`].
@@ -291,16 +328,69 @@ struct BatchOut {
 
 /// A batch fit of `out.len()` pixels starting at pixel `first` of the stack, `y` (and
 /// `se`) their rows: [`fit_batch`] or [`fit_batch_pixel_beta`].
+/// The DoLP values of a stack as given: float64, or float32 converted chunk by chunk.
+#[derive(Clone, Copy)]
+enum Ys<'a> {
+    F64(&'a [f64]),
+    F32(&'a [f32]),
+}
+
+impl Ys<'_> {
+    /// [`batch`] on these values.
+    fn batch(
+        self,
+        t: usize,
+        fit: &FitFn<'_>,
+        ses: Option<&[f64]>,
+        pixels: usize,
+    ) -> Result<BatchOut, CoreError> {
+        match self {
+            Ys::F64(y) => batch(t, fit, y, ses, pixels),
+            Ys::F32(y) => batch(t, fit, y, ses, pixels),
+        }
+    }
+
+    /// The values as float64 (one target).
+    fn to_f64(self) -> Vec<f64> {
+        match self {
+            Ys::F64(y) => y.to_vec(),
+            Ys::F32(y) => y.iter().map(|&v| f64::from(v)).collect(),
+        }
+    }
+}
+
+/// A DoLP sample type that [`batch`] reads: float64 rows are used in place, float32
+/// rows converted into a per-worker buffer (exact), so no full-size float64 copy of a
+/// float32 stack is made.
+trait DolpSample: Copy + Sync {
+    /// `rows` as float64, in `buf` when a conversion is needed.
+    fn as_f64<'a>(rows: &'a [Self], buf: &'a mut Vec<f64>) -> &'a [f64];
+}
+
+impl DolpSample for f64 {
+    fn as_f64<'a>(rows: &'a [f64], _: &'a mut Vec<f64>) -> &'a [f64] {
+        rows
+    }
+}
+
+impl DolpSample for f32 {
+    fn as_f64<'a>(rows: &'a [f32], buf: &'a mut Vec<f64>) -> &'a [f64] {
+        buf.clear();
+        buf.extend(rows.iter().map(|&v| f64::from(v)));
+        buf
+    }
+}
+
 type FitFn<'a> =
     dyn Fn(&[f64], Option<&[f64]>, usize, &mut [NkFit]) -> Result<(), CoreError> + Sync + 'a;
 
 /// Fit `pixels` pixels of `t` measurements with `fit`, `CHUNK` at a time in parallel,
 /// writing the results straight into the output columns (no per-pixel intermediate of
 /// the whole stack: large stacks would otherwise spend their time in page faults).
-fn batch(
+fn batch<Y: DolpSample>(
     t: usize,
     fit: &FitFn<'_>,
-    ys: &[f64],
+    ys: &[Y],
     ses: Option<&[f64]>,
     pixels: usize,
 ) -> Result<BatchOut, CoreError> {
@@ -347,10 +437,10 @@ fn batch(
         .into_par_iter()
         .enumerate()
         .for_each_init(
-            || vec![NkFit::default(); c],
-            |buf, (i, (n, k, nse, kse, corr, rms, cost, it, ev, st, code, rc))| {
+            || (vec![NkFit::default(); c], Vec::new()),
+            |(buf, ybuf), (i, (n, k, nse, kse, corr, rms, cost, it, ev, st, code, rc))| {
                 let len = n.len();
-                let y = &ys[i * c * t..(i * c + len) * t];
+                let y = Y::as_f64(&ys[i * c * t..(i * c + len) * t], ybuf);
                 let se = ses.map(|s| &s[i * c * t..(i * c + len) * t]);
                 let buf = &mut buf[..len];
                 if let Err(e) = fit(y, se, i * c, buf) {
@@ -395,7 +485,15 @@ fn batch(
     Ok(o)
 }
 
-fn batch_dict<'py>(py: Python<'py>, lead: &[usize], o: BatchOut) -> PyResult<Bound<'py, PyDict>> {
+/// The dict of a stack fit: numeric arrays, the status as codes with their name table
+/// (``status_code``, ``status_names``) and, when `status_strings`, also a str array
+/// ``status`` (numpy ``<U`` array: costs 60 bytes per pixel).
+fn batch_dict<'py>(
+    py: Python<'py>,
+    lead: &[usize],
+    o: BatchOut,
+    status_strings: bool,
+) -> PyResult<Bound<'py, PyDict>> {
     fn arr<'py, T: numpy::Element>(
         py: Python<'py>,
         lead: &[usize],
@@ -416,15 +514,15 @@ fn batch_dict<'py>(py: Python<'py>, lead: &[usize], o: BatchOut) -> PyResult<Bou
     d.set_item("evaluations", arr(py, lead, o.evaluations)?)?;
     d.set_item("starts", arr(py, lead, o.starts)?)?;
     let codes = arr(py, lead, o.status)?;
-    let names = py.import("numpy")?.call_method1(
-        "array",
-        (FitStatus::ALL
-            .iter()
-            .map(|s| s.as_str())
-            .collect::<Vec<_>>(),),
-    )?;
-    d.set_item("status", names.call_method1("take", (&codes,))?)?;
+    let words: Vec<&str> = FitStatus::ALL.iter().map(|s| s.as_str()).collect();
+    if status_strings {
+        let names = py
+            .import("numpy")?
+            .call_method1("array", (words.clone(),))?;
+        d.set_item("status", names.call_method1("take", (&codes,))?)?;
+    }
     d.set_item("status_code", codes)?;
+    d.set_item("status_names", words)?;
     d.set_item("reason_code", arr(py, lead, o.reason)?)?;
     d.set_item("reasons", o.reasons)?;
     Ok(d)

@@ -3,7 +3,8 @@
 //! Layout: one Rust module per topic, each with a `register(m)` function that adds its
 //! `#[pyfunction]`s to the extension module (`model.rs`: the eq. (9) forward model;
 //! `stokes.rs`: Stokes/DoFP/DoLP/AoLP images; `pbrdf.rs`: eq. (3); `fit.rs`: the
-//! `(n, k)` fit; `classify.rs`; `files.rs`: manifests and `measure`; `simulate.rs`). Shared pieces: `errors.rs` (the
+//! `(n, k)` fit; `classify.rs`; `files.rs`: manifests and `measure`; `simulate.rs`; `block.rs`: one block of a map, for
+//! `polarid.dask`). Shared pieces: `errors.rs` (the
 //! one mapping of `CoreError`/`IoError` to Python exceptions) and `arrays.rs` (array-like
 //! arguments, broadcasting, zero-copy output). The pure-Python package `polarid`
 //! (`python/polarid/`) re-exports the functions and carries the type stubs.
@@ -13,6 +14,7 @@
 use pyo3::prelude::*;
 
 pub mod arrays;
+pub mod block;
 pub mod classify;
 pub mod errors;
 pub mod files;
@@ -38,5 +40,6 @@ fn _polarid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     files::register(m)?;
     simulate::register(m)?;
     map::register(m)?;
+    block::register(m)?;
     Ok(())
 }

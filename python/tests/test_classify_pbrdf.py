@@ -17,20 +17,23 @@ def test_classify_prototypes_scalar_and_array():
     assert d["predicted"] == "aluminium" and d["status"] == "ok"
     assert d["distance"] == pytest.approx(np.hypot(0.05, 0.2))
     assert d["runner_up"] == "gold" and d["margin"] == pytest.approx(d["runner_up_distance"] - d["distance"])
-    r = polarid.classify(np.array([[1.25], [1.45]]), np.array([6.8, 0.1]), PROTOS)
+    r = polarid.classify(np.array([[1.25], [1.45]]), np.array([6.8, 0.1]), PROTOS, strings=True)
     assert r["predicted"].shape == (2, 2)
     assert r["predicted"][1, 1] == "glass" and r["predicted"][0, 0] == "aluminium"
 
 
 def test_classify_fit_status_and_reject():
     r = polarid.classify([1.2, 1.2, 1.2], [7.0, 7.0, 7.0], PROTOS,
-                         fit_status=["ok", "at_bound", "ok"])
+                         fit_status=["ok", "at_bound", "ok"], strings=True)
     assert list(r["predicted"]) == ["aluminium", "unknown", "aluminium"]
     assert r["status"][1] == "fit_at_bound" and np.isnan(r["distance"][1])
     r = polarid.classify([1.2, 1.2], [7.0, 7.0], PROTOS, fit_status=np.array([0, 2], np.uint8))
-    assert list(r["status"]) == ["ok", "fit_ill_conditioned"]
+    assert "status" not in r and "predicted" not in r  # codes by default
+    assert [r["status_names"][c] for c in r["status_code"]] == ["ok", "fit_ill_conditioned"]
     r = polarid.classify([1.2, 3.0], [7.0, 3.0], PROTOS, max_distance=0.5)
-    assert list(r["predicted"]) == ["aluminium", "unknown"] and r["status"][1] == "rejected"
+    assert [r["class_names"][c] for c in r["predicted_code"]] == ["aluminium", "unknown"]
+    assert r["status_names"][r["status_code"][1]] == "rejected"
+    assert r["class_names"][0] == "" and r["runner_up_code"][1] != 0
     r = polarid.classify(1.3, 6.9, PROTOS, n_se=0.05, k_se=0.05, nk_corr=0.0, metric="mahalanobis")
     assert r["predicted"] == "aluminium" and r["distance"] == pytest.approx(np.hypot(0.1, 0.1) / 0.05)
 
@@ -49,7 +52,7 @@ def test_classify_builtin_matches_cli(tmp_path, polarid_cli):
                         "-o", str(out)],
                        check=True, capture_output=True)
         cli = read_csv(out)
-        py = polarid.classify(n, k, lib)
+        py = polarid.classify(n, k, lib, strings=True)
         assert list(py["predicted"]) == cli["predicted"]
         assert list(py["runner_up"]) == cli["runner_up"]
         np.testing.assert_array_equal(py["distance"], [float(v) for v in cli["distance"]])
@@ -80,7 +83,11 @@ def test_classify_sets():
     # Tight: one; far: none.
     d = polarid.classify(1.2, 7.0, protos, n_se=0.01, k_se=0.01)
     assert d["predicted"] == "aluminium" and d["candidates"] == ["aluminium"]
-    r = polarid.classify([1.2, 3.0], [7.0, 3.0], protos, n_se=0.01, k_se=0.01)
+    r = polarid.classify([1.2, 3.0], [7.0, 3.0], protos, n_se=0.01, k_se=0.01, strings=True)
+    c = polarid.classify([1.2, 3.0], [7.0, 3.0], protos, n_se=0.01, k_se=0.01)
+    for key in ("predicted", "runner_up", "status", "candidates", "category"):
+        table = c["class_names" if key in ("predicted", "runner_up") else f"{key}_names"]
+        assert list(r[key]) == [table[i] for i in c[f"{key}_code"]], key
     assert list(r["predicted"]) == ["aluminium", "unknown"] and r["status"][1] == "rejected"
     assert list(r["candidates"]) == ["aluminium", ""] and list(r["n_candidates"]) == [1, 0]
     # Nearest rule keeps the paper's answer and still reports the set.

@@ -33,8 +33,9 @@ def test_batch_equals_single_and_shapes():
     _, _, y = noisy_stack(50, seed=1)
     se = np.full_like(y, 0.005)
     for kw in ({}, {"dolp_se": se}, {"dolp_se": 0.005}):
-        b = polarid.fit_nk(y, BETA, **kw)
+        b = polarid.fit_nk(y, BETA, **kw, status_strings=True)
         assert b["n"].shape == (50,) and b["status"].shape == (50,)
+        assert b["status_names"] == polarid.FIT_STATUS
         for i in range(0, 50, 7):
             s = polarid.fit_nk(y[i], BETA, **{k: (v[i] if np.ndim(v) else v) for k, v in kw.items()})
             for key in ("n", "k", "n_se", "k_se", "nk_corr", "rms_residual", "cost"):
@@ -54,7 +55,7 @@ def test_batch_flags_invalid_pixels_instead_of_failing():
     _, _, y = noisy_stack(4, seed=2)
     y[1, 3] = np.nan
     y[2, 0] = 1.5
-    b = polarid.fit_nk(y, BETA)
+    b = polarid.fit_nk(y, BETA, status_strings=True)
     reason = [b["reasons"][c] for c in b["reason_code"]]
     assert b["status"][1] == "invalid_input" and reason[1] == "non-finite DoLP"
     assert b["status"][2] == "invalid_input" and reason[2] == "DoLP outside [0, 1]"
@@ -97,6 +98,8 @@ def test_1000x10_identical_to_cli(tmp_path, polarid_cli, with_se):
     cli = read_csv(out)
     assert cli["target"] == [f"T{i}" for i in range(p)]
     py = polarid.fit_nk(y, BETA, dolp_se=se if with_se else None)
+    assert "status" not in py  # codes by default (no per-pixel strings)
+    py["status"] = np.array(py["status_names"])[py["status_code"]]
     noise = {"n_se": "n_se_noise", "k_se": "k_se_noise", "nk_corr": "nk_corr_noise"}
     for key in ("n", "k", "n_se", "k_se", "nk_corr", "rms_residual"):
         want = np.array([float(v) for v in cli[noise.get(key, key)]])

@@ -1,0 +1,237 @@
+"""polarid.dask.material_map on a dask.distributed LocalCluster of 2 worker processes:
+the same maps as `polarid map` (classes and reasons identical, |dn|, |dk| <= 1e-6) for
+rotating-polarizer frames, DoFP mosaics and calibrated geometry (a beta per pixel), at
+several bins, with chunks whose edges cut through the frames; and the same map (bit for
+bit) whatever the chunking."""
+
+import json
+import subprocess
+
+import numpy as np
+import pytest
+
+import polarid
+from conftest import REPO_ROOT
+
+da = pytest.importorskip("dask.array")
+distributed = pytest.importorskip("distributed")
+import dask  # noqa: E402
+
+import polarid.dask as pdask  # noqa: E402
+
+SCENES = REPO_ROOT / "examples" / "scenes"
+FLOATS = ("n", "k", "n_se", "k_se", "rms_residual")
+
+
+def read_image(path):
+    """A single-channel TIFF or PNG as stored (uint16 frames, float32 maps)."""
+    import cv2
+
+    a = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    assert a is not None, path
+    return a
+
+
+def run(cli, *args):
+    subprocess.run([str(cli), *map(str, args)], check=True, capture_output=True)
+
+
+@pytest.fixture(scope="module")
+def client():
+    """One cluster for the module: 2 worker processes of 1 thread."""
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                       dashboard_address=None)
+    c = distributed.Client(cluster)
+    yield c
+    c.close()
+    cluster.close()
+
+
+@pytest.fixture(scope="module")
+def sets(tmp_path_factory, polarid_cli):
+    d = tmp_path_factory.mktemp("dask")
+    run(polarid_cli, "simulate", SCENES / "dofp_plates.toml", "-o", d / "dofp")
+    run(polarid_cli, "simulate", SCENES / "aluminum_test_60.toml", "-o", d / "frames")
+    run(polarid_cli, "simulate", SCENES / "bench_lamp_lens.toml", "-o", d / "bench")
+    run(polarid_cli, "measure", d / "dofp" / "manifest.toml", "-o", d / "m.csv")
+    run(polarid_cli, "fit", d / "m.csv", "-o", d / "f.csv")
+    run(polarid_cli, "train", d / "f.csv", "-o", d / "model.json")
+    return d
+
+
+def load(manifest):
+    """Frames (T, A, H, W) or mosaics (T, H, W), angles/pattern, β, levels of a manifest."""
+    m = polarid.load_manifest(manifest)
+    caps = m["captures"]
+    if caps[0]["kind"] == "dofp":
+        frames = np.stack([read_image(c["dofp"]["file"]) for c in caps])
+        extra = dict(angles_deg=None, pattern=caps[0]["dofp"]["pattern"])
+    else:
+        frames = np.stack([np.stack([read_image(f["file"]) for f in c["frames"]]) for c in caps])
+        extra = dict(angles_deg=[f["angle_deg"] for f in caps[0]["frames"]])
+    levels = dict(dark_level=[c["dark_level"] for c in caps], saturation=[c["saturation"] for c in caps])
+    return frames, np.array([c["beta_deg"] for c in caps]), extra, levels
+
+
+def cli_map(cli, sets, name, bin, tag=""):
+    out = sets / f"cli_{name}_{bin}{tag}"
+    if not out.exists():
+        run(cli, "map", sets / name / "manifest.toml", "--model", sets / "model.json", "-o", out,
+            "--bin", bin)
+    maps = {k: read_image(out / f"{k}.tif") for k in (*FLOATS, "class", "reason")}
+    maps["class_names"] = [v for _, v in sorted(json.loads((out / "classes.json").read_text()).items(),
+                                                 key=lambda kv: int(kv[0]))]
+    maps["reason_names"] = json.loads((out / "map_summary.json").read_text())["reason_codes"]
+    return maps
+
+
+def assert_same(got, cli):
+    assert got["class_names"] == cli["class_names"]
+    assert got["reason_names"] == cli["reason_names"]
+    np.testing.assert_array_equal(got["class"], cli["class"])
+    np.testing.assert_array_equal(got["reason"], cli["reason"])
+    for key in FLOATS:
+        g, c = got[key], cli[key]
+        assert g.dtype == np.float32 and g.shape == c.shape, key
+        np.testing.assert_array_equal(np.isnan(g), np.isnan(c), err_msg=key)
+        ok = ~np.isnan(c)
+        diff = np.abs(g[ok].astype(np.float64) - c[ok])
+        # n, k: the acceptance (|dn|, |dk| <= 1e-6); the standard errors of ill-conditioned
+        # pixels reach ~100: relative. Differences come only from beta_deg (the manifest's
+        # beta in degrees, back to radians: the last bit of beta may differ).
+        tol = 1e-6 if key in ("n", "k") else 1e-6 * np.maximum(1.0, np.abs(c[ok]))
+        assert (diff <= tol).all(), (key, diff.max())
+    assert (cli["reason"] == 0).sum() > 0  # something was classified
+
+
+def compute(maps, scheduler):
+    keys = [k for k, v in maps.items() if isinstance(v, da.Array)]
+    vals = dask.compute(*[maps[k] for k in keys], scheduler=scheduler)
+    return {**maps, **dict(zip(keys, vals))}
+
+
+@pytest.mark.parametrize("bin,chunks", [(1, (37, 50)), (4, (40, 33)), (2, (128, 128))])
+def test_frames_equal_cli(client, sets, polarid_cli, bin, chunks):
+    frames, beta, extra, levels = load(sets / "frames" / "manifest.toml")
+    x = da.from_array(frames, chunks=(1, 2, *chunks))
+    maps = pdask.material_map(x, extra["angles_deg"], beta, sets / "model.json", bin=bin, **levels)
+    assert maps["n"].numblocks == maps["class"].numblocks
+    if chunks[0] < frames.shape[2]:
+        assert maps["n"].numblocks[0] > 1 and maps["n"].numblocks[1] > 1  # edges inside
+    assert_same(compute(maps, client), cli_map(polarid_cli, sets, "frames", bin))
+
+
+@pytest.mark.parametrize("bin,chunks", [(1, (30, 70)), (2, (64, 50))])
+def test_dofp_equal_cli(client, sets, polarid_cli, bin, chunks):
+    mosaics, beta, extra, levels = load(sets / "dofp" / "manifest.toml")
+    x = da.from_array(mosaics, chunks=(1, *chunks))
+    maps = pdask.material_map(x, None, beta, sets / "model.json", pattern=extra["pattern"], bin=bin,
+                              **levels)
+    assert maps["n"].numblocks[0] > 1 and maps["n"].numblocks[1] > 1
+    assert_same(compute(maps, client), cli_map(polarid_cli, sets, "dofp", bin))
+
+
+def test_per_pixel_beta_equals_cli(client, sets, polarid_cli):
+    """Calibrated geometry: β per pixel and capture (as polarid map computes it from the
+    camera, planes and lamp positions), as a dask array; bin 2 and cut chunks.
+
+    The β maps come from map_manifest as float32 degrees; polarid map fits with float32
+    radians, and degrees → radians in float32 cannot always give back the same last bit
+    (17 % of float32 degrees have two radians that round to them). So the inputs differ
+    by ~1e-7 relative: the well-determined pixels (standard errors < 0.1) agree to 1e-6
+    and keep their class; only pixels whose fit sits on the edge of the box (standard
+    errors ~100) may tip over it. With the same β bits the maps are the same bits
+    (chunked against one block, below)."""
+    frames, _, extra, levels = load(sets / "bench" / "manifest.toml")
+    cli = cli_map(polarid_cli, sets, "bench", 2)
+    beta = polarid.map_manifest(sets / "bench" / "manifest.toml", sets / "model.json", bin=2)["beta_deg"]
+    assert beta.shape[0] == frames.shape[0] and np.isfinite(beta).any()
+    x = da.from_array(frames, chunks=(3, 4, 100, 130))
+    b = da.from_array(beta, chunks=(9, 40, 40))
+    with open(sets / "model.json") as f:
+        model = json.load(f)  # the model as an object
+    maps = pdask.material_map(x, extra["angles_deg"], b, model, bin=2, **levels)
+    assert "no_geometry" in maps["reason_names"] and min(maps["n"].numblocks) > 1
+    got = compute(maps, client)
+    assert got["class_names"] == cli["class_names"] and got["reason_names"] == cli["reason_names"]
+    firm = (cli["n_se"] < 0.1) & (cli["k_se"] < 0.1)
+    assert firm.sum() > 1000 and (cli["reason"][firm] == 0).all()
+    np.testing.assert_array_equal(got["class"][firm], cli["class"][firm])
+    for key in ("n", "k"):
+        assert np.abs(got[key][firm] - cli[key][firm]).max() <= 1e-6, key
+    edge = cli["class"] != got["class"]
+    assert edge.sum() <= 5 and (cli["n_se"][edge] > 10).all()  # tipping over the box edge
+    np.testing.assert_array_equal(np.isnan(got["n"]), np.isnan(cli["n"]))
+    # One block against the cut chunks: the same classes and reasons, n and k to 1e-6.
+    # (Per-pixel-β fits are grouped by their usable captures within a tile, and a group's
+    # last bits depend on its members: `polarid map --tile 1000` differs from the default
+    # tile in the same way; the far-field fits do not, see test_chunking_is_bit_exact.)
+    one = pdask.material_map(frames, extra["angles_deg"], beta, model, bin=2, **levels)
+    ref = compute(one, "threads")
+    for key in ("class", "reason"):
+        np.testing.assert_array_equal(got[key], ref[key], err_msg=key)
+    for key in ("n", "k"):
+        np.testing.assert_allclose(got[key], ref[key], rtol=0, atol=1e-6, err_msg=key)
+
+
+@pytest.mark.parametrize("name,bin", [("frames", 2), ("dofp", 2)])
+def test_chunking_is_bit_exact(client, sets, name, bin):
+    """Far field: the map of cut chunks is the map of one block, bit for bit."""
+    frames, beta, extra, levels = load(sets / name / "manifest.toml")
+    cut = (2, 2) + (34, 46) if name == "frames" else (2, 34, 46)
+    maps = [pdask.material_map(da.from_array(frames, chunks=c), extra["angles_deg"], beta,
+                               sets / "model.json", bin=bin, pattern=extra.get("pattern"), **levels)
+            for c in (frames.shape, cut)]
+    assert maps[1]["n"].numblocks[0] > 2 and maps[1]["n"].numblocks[1] > 2
+    one, many = compute(maps[0], "threads"), compute(maps[1], client)
+    for key in (*FLOATS, "class", "reason"):
+        np.testing.assert_array_equal(many[key], one[key], err_msg=key)
+
+
+def test_options_and_errors(client, sets):
+    frames, beta, extra, levels = load(sets / "frames" / "manifest.toml")
+    model = sets / "model.json"
+    x = da.from_array(frames, chunks=(1, 4, 50, 50))
+    with pytest.raises(ValueError, match=r"must end at multiples of 4 \(bin=4\)"):
+        pdask.material_map(x, extra["angles_deg"], beta, model, bin=4, rechunk=False)
+    with pytest.raises(ValueError, match=r"bin must be in 1\.\.=64, got 0"):
+        pdask.material_map(x, extra["angles_deg"], beta, model, bin=0)
+    with pytest.raises(ValueError, match="metric must be"):
+        pdask.material_map(x, extra["angles_deg"], beta, model, metric="cosine")
+    with pytest.raises(ValueError, match=r"beta_deg must have shape \(\d+,\)"):
+        pdask.material_map(x, extra["angles_deg"], beta[:2], model)
+    with pytest.raises(FileNotFoundError, match="nope.json"):
+        pdask.material_map(x, extra["angles_deg"], beta, sets / "nope.json")
+    with pytest.raises(ValueError, match="angles_deg"):
+        pdask.material_map(x, None, beta, model)
+    # Options reach the blocks: everything dark, or everything rejected.
+    dark = pdask.material_map(x, extra["angles_deg"], beta, model, min_s0=1e9, **levels)
+    r = dark["reason"].compute(scheduler=client)
+    assert (r == dark["reason_names"].index("dark")).all()
+    strict = pdask.material_map(x, extra["angles_deg"], beta, model, max_distance=1e-6, **levels)
+    r = strict["reason"].compute(scheduler=client)
+    assert (r == strict["reason_names"].index("rejected")).any() and not (r == 0).any()
+
+
+def test_aligned_chunks():
+    assert pdask.aligned_chunks((37, 37, 37, 17), 4) == (36, 36, 36, 20)
+    assert pdask.aligned_chunks((50, 50, 28), 4) == (48, 52, 28)
+    assert pdask.aligned_chunks((64, 64, 2), 4, minimum=4) == (64, 66)  # last too small
+    assert pdask.aligned_chunks((3,), 4) == (3,)
+    assert sum(pdask.aligned_chunks((10,) * 13, 8)) == 130
+
+
+def test_example_script(sets, polarid_cli, tmp_path):
+    """python/examples/dask_map.py: a directory of captures to maps on disk (threads)."""
+    import sys
+
+    out = tmp_path / "maps"
+    r = subprocess.run([sys.executable, str(REPO_ROOT / "python" / "examples" / "dask_map.py"),
+                        str(sets / "dofp"), str(sets / "model.json"), "-o", str(out), "--bin", "2",
+                        "--chunk", "48"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "100% Completed" in r.stdout + r.stderr  # the progress bar
+    cli = cli_map(polarid_cli, sets, "dofp", 2)
+    np.testing.assert_array_equal(np.load(out / "class.npy"), cli["class"])
+    names = json.loads((out / "names.json").read_text())
+    assert names["class_names"] == cli["class_names"]
