@@ -155,7 +155,12 @@ fn bad_input_is_exit_2_and_names_the_fault() {
         rows("good", "", 1.5, 0.5, &a, false),
         rows("short", "", 1.5, 0.5, &a[..2], false)
     );
-    expect_bad(&text, &["short", "at least 3", "lines 12, 13"], &[]);
+    // With --strict: without it the target gets an invalid_input row (partial_failure.rs).
+    expect_bad(
+        &text,
+        &["short", "at least 3", "lines 12, 13"],
+        &["--strict"],
+    );
     // Non-finite DoLP.
     let mut text = format!("{HEADER}{}", rows("T", "", 1.5, 0.5, &a, false));
     text = text.replacen(

@@ -358,6 +358,7 @@ fn pick_brackets(
 /// Errors: the image reader's (a missing or unreadable file, brackets of different
 /// sizes, naming the file), [`IoError::Manifest`] naming `capture[i].brackets` when the
 /// angles cannot be inverted, [`IoError::Core`] naming the first file.
+#[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN-safe on purpose: NaN is not usable
 pub fn hdr_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
     let nb = c.brackets.len();
     let paths: Vec<&Path> = c.files();
@@ -559,6 +560,7 @@ fn capture_label(c: &Capture) -> String {
 /// dark, invalid) and, when it has valid pixels, mean S0 `s0_dn` (DN, before the
 /// exposure): `ok`, `dark` (mean S0 below `img.dark_signal_dn`), or for a region without
 /// a usable pixel the most common reason of its rejections.
+#[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN-safe on purpose
 fn row_status(c: &Capture, img: &StokesImages, cnt: [u64; 4], s0_dn: f64) -> (RowStatus, String) {
     let [_, sat, dark, invalid] = cnt;
     let area: u64 = cnt.iter().sum();

@@ -223,7 +223,7 @@ fn dofp_brackets_are_merged_too() {
     let m = manifest::load(&alone).unwrap();
     let rows = measure_manifest(&m, &mut |_| {}).unwrap();
     assert_eq!(rows[0].status, RowStatus::Saturated);
-    assert!(measure::saturation_warnings(&m, &rows).len() >= 1);
+    assert!(!measure::saturation_warnings(&m, &rows).is_empty());
 }
 
 /// Bad `brackets` tables are refused naming the field.
