@@ -229,6 +229,39 @@ pub struct DecisionRegion {
     pub region: ConfidenceRegion,
 }
 
+/// The prototypes that matter for `est`'s consistent set under `clf` (each candidate
+/// class's nearest prototype, and the nearest prototype of the nearest class that is not a
+/// candidate), grouped by their covariance, nearest first.
+fn deciding_prototypes(est: &Estimate, clf: &Classifier) -> Vec<(Option<Cov2>, Vec<usize>)> {
+    let protos = clf.prototypes();
+    let threshold = chi2_2dof_quantile(clf.config().confidence).sqrt();
+    let mut ranked: Vec<(usize, f64)> = protos
+        .iter()
+        .enumerate()
+        .filter_map(|(i, p)| Classifier::set_distance(est, p).map(|d| (i, d)))
+        .collect();
+    ranked.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+    let mut groups: Vec<(Option<Cov2>, Vec<usize>)> = Vec::new();
+    let mut classes: Vec<&str> = Vec::new();
+    for &(i, d) in &ranked {
+        let class = protos[i].class.as_str();
+        if classes.contains(&class) {
+            continue;
+        }
+        classes.push(class);
+        let pc = protos[i].cov;
+        match groups.iter_mut().find(|g| g.0 == pc) {
+            Some(g) => g.1.push(i),
+            None => groups.push((pc, vec![i])),
+        }
+        if d > threshold {
+            // The nearest class outside the set: the last one that matters.
+            break;
+        }
+    }
+    groups
+}
+
 /// The regions that decide `est`'s consistent set under `clf`'s confidence: one per
 /// distinct prototype covariance among the prototypes that matter (each candidate
 /// class's nearest prototype, and the nearest prototype of the nearest class that is not a
@@ -236,78 +269,81 @@ pub struct DecisionRegion {
 /// A prototype is a candidate exactly when it lies inside its region. Empty when the
 /// estimate has no usable covariance or is not finite.
 pub fn decision_regions(est: &Estimate, clf: &Classifier, rays: usize) -> Vec<DecisionRegion> {
-    let protos = clf.prototypes();
     let confidence = clf.config().confidence;
+    deciding_prototypes(est, clf)
+        .into_iter()
+        .filter_map(|(pc, prototypes)| {
+            confidence_region(est, pc, confidence, rays)
+                .map(|region| DecisionRegion { prototypes, region })
+        })
+        .collect()
+}
+
+/// The plane and the ranges of `n` and `k` of [`confidence_region`]`(est, proto_cov,
+/// confidence, ·)`: in closed form when the region is an `(n, k)` ellipse
+/// (`n̂ ± √q √Σ_nn`, `k̂ ± √q √Σ_kk`, `Σ = Σ_est + Σ_proto`, `q = χ²₂(confidence)`),
+/// else from the region traced along 128 rays.
+pub fn region_extent(
+    est: &Estimate,
+    proto_cov: Option<Cov2>,
+    confidence: f64,
+) -> Option<(RegionPlane, (f64, f64), (f64, f64))> {
+    let cov = est.cov?;
+    if !(est.n.is_finite() && est.k.is_finite() && confidence > 0.0 && confidence < 1.0) {
+        return None;
+    }
+    let total = proto_cov.map_or(cov, |p| cov + p);
     let threshold = chi2_2dof_quantile(confidence).sqrt();
-    let mut ranked: Vec<(usize, f64)> = protos
-        .iter()
-        .enumerate()
-        .filter_map(|(i, p)| Classifier::set_distance(est, p).map(|d| (i, d)))
-        .collect();
-    ranked.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
-    let mut chosen: Vec<usize> = Vec::new();
-    let mut classes: Vec<&str> = Vec::new();
-    let mut outside_done = false;
-    for &(i, d) in &ranked {
-        let class = protos[i].class.as_str();
-        if classes.contains(&class) {
-            continue;
-        }
-        classes.push(class);
-        if d <= threshold {
-            chosen.push(i);
-        } else if !outside_done {
-            chosen.push(i);
-            outside_done = true;
-        }
+    let (hn, hk) = (threshold * total.nn.sqrt(), threshold * total.kk.sqrt());
+    let k_se = cov.kk.sqrt();
+    let est_near = cov.k_is_one_sided(est.k) || est.k <= NEAR_ZERO_SIGMAS * k_se;
+    if !est_near
+        && est.k - hk > NEAR_ZERO_SIGMAS * k_se * (1.0 + 1e-9)
+        && hn.is_finite()
+        && hk.is_finite()
+        && total.nn * total.kk - total.nk * total.nk > 0.0
+    {
+        return Some((
+            RegionPlane::Nk,
+            (est.n - hn, est.n + hn),
+            (est.k - hk, est.k + hk),
+        ));
     }
-    let mut out: Vec<DecisionRegion> = Vec::new();
-    for i in chosen {
-        let pc = protos[i].cov;
-        if let Some(r) = out.iter_mut().find(|r| r.region.proto_cov == pc) {
-            r.prototypes.push(i);
-            continue;
-        }
-        if let Some(region) = confidence_region(est, pc, confidence, rays) {
-            out.push(DecisionRegion {
-                prototypes: vec![i],
-                region,
-            });
-        }
-    }
-    out
+    let r = confidence_region(est, proto_cov, confidence, 128)?;
+    Some((r.plane, r.n_range(), r.k_range()))
 }
 
 /// The explanation's region text: `95% region (Mahalanobis <= 2.448): n …, k … in (n, k)`,
-/// one clause per region of [`decision_regions`] naming the prototypes it tests when
-/// they carry a covariance (`with aluminum's covariance n …`). `None` when the estimate
-/// has no usable covariance.
+/// one clause per region of [`decision_regions`] ([`region_extent`]) naming the
+/// prototypes it tests when they carry a covariance (`with aluminum's covariance n …`).
+/// `None` when the estimate has no usable covariance.
 pub fn regions_text(est: &Estimate, clf: &Classifier) -> Option<String> {
-    let regions = decision_regions(est, clf, 256);
-    let first = regions.first()?;
+    let confidence = clf.config().confidence;
     let protos = clf.prototypes();
-    let parts: Vec<String> = regions
-        .iter()
-        .map(|r| match r.region.proto_cov {
-            None => r.region.describe(),
-            Some(_) => {
-                let names: Vec<&str> = r
-                    .prototypes
-                    .iter()
-                    .map(|&i| protos[i].class.as_str())
-                    .collect();
-                format!(
-                    "with {}'s covariance {}",
-                    names.join(", "),
-                    r.region.describe()
-                )
-            }
+    let parts: Vec<String> = deciding_prototypes(est, clf)
+        .into_iter()
+        .filter_map(|(pc, idx)| {
+            let (plane, (n0, n1), (k0, k1)) = region_extent(est, pc, confidence)?;
+            let text = format!(
+                "n {n0:.3}–{n1:.3}, k {k0:.3}–{k1:.3} in {}",
+                plane.describe()
+            );
+            Some(match pc {
+                None => text,
+                Some(_) => {
+                    let names: Vec<&str> = idx.iter().map(|&i| protos[i].class.as_str()).collect();
+                    format!("with {}'s covariance {text}", names.join(", "))
+                }
+            })
         })
         .collect();
+    if parts.is_empty() {
+        return None;
+    }
     Some(format!(
         "{}% region (Mahalanobis <= {:.3}): {}",
-        first.region.confidence * 100.0,
-        first.region.threshold,
+        confidence * 100.0,
+        chi2_2dof_quantile(confidence).sqrt(),
         parts.join("; ")
     ))
 }
@@ -622,6 +658,28 @@ mod tests {
             }
         }
         assert!(checked > 300, "{checked}");
+    }
+
+    #[test]
+    fn region_extent_is_the_traced_regions_span() {
+        let pc = Cov2::from_se(0.02, 0.05, 0.3);
+        for (e, pc) in [
+            (est(1.3, 6.6, 0.23, 0.66, 0.99), None),
+            (est(1.3, 6.6, 0.23, 0.66, -0.4), pc),
+            (est(1.5, 0.2, 0.05, 0.05, 0.0), None),
+            (est(1.49, 0.004, 0.02, 0.03, 0.4), pc),
+        ] {
+            let (plane, n, k) = region_extent(&e, pc, 0.95).unwrap();
+            let r = confidence_region(&e, pc, 0.95, 2048).unwrap();
+            assert_eq!(plane, r.plane);
+            let (tn, tk) = (r.n_range(), r.k_range());
+            for (a, b) in [(n.0, tn.0), (n.1, tn.1), (k.0, tk.0), (k.1, tk.1)] {
+                assert!(
+                    (a - b).abs() < 2e-3 * (n.1 - n.0).max(k.1 - k.0),
+                    "{a} vs {b}"
+                );
+            }
+        }
     }
 
     #[test]
