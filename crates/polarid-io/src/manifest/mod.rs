@@ -739,11 +739,11 @@ impl<'a> Parser<'a> {
                                 "missing polarizer angle",
                             )
                         })?;
-                    if !(angle_deg.abs() <= 360.0) {
+                    if !(angle_deg.abs() <= 3600.0) {
                         return Err(self.err(
                             &aspan,
                             &format!("{fpre}angle_deg"),
-                            "polarizer angle must be in [-360, 360] degrees",
+                            "polarizer angle must be in [-3600, 3600] degrees",
                         ));
                     }
                     let file_v = self.get(ft, "file").ok_or_else(|| {
