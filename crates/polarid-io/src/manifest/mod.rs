@@ -662,7 +662,7 @@ impl<'a> Parser<'a> {
                 return Err(self.err(
                     &s,
                     &format!("{pre}exposure"),
-                    "exposure must be in [1e-9, 1e9] (S0 is divided by it)",
+                    "exposure must be > 0, within [1e-9, 1e9] (S0 is divided by it)",
                 ));
             }
             Some((v, _)) => v,
