@@ -288,8 +288,8 @@ fn identity(path: &Path) -> Option<(u64, u64)> {
     }
     #[cfg(not(unix))]
     {
-        let _ = path;
-        None
+        // No inode: only existence can be told.
+        fs::symlink_metadata(path).ok().map(|_| (0, 0))
     }
 }
 
@@ -417,8 +417,8 @@ impl StagedDir {
         }
         let is_link = fs::symlink_metadata(&self.dest).is_ok_and(|m| m.file_type().is_symlink());
         // An existing directory: keep what the run does not replace, then swap (a
-        // symbolic link to a directory is written through, file by file).
-        let swapped = if is_link {
+        // symbolic link to a directory, `.` or `..` is written into, file by file).
+        let swapped = if is_link || self.dest.file_name().is_none() {
             Ok(false)
         } else {
             link_missing(&self.dest, &root, Path::new(""))?;
@@ -585,5 +585,54 @@ mod tests {
         fs::write(s.path("sub/b.txt").unwrap(), "b").unwrap();
         s.commit().unwrap();
         assert_eq!(fs::read_to_string(dest.join("sub/b.txt")).unwrap(), "b");
+    }
+
+    #[test]
+    fn existing_directory_is_swapped_keeping_other_files() {
+        let d = tempfile::tempdir().unwrap();
+        let dest = d.path().join("out");
+        fs::create_dir_all(dest.join("sub")).unwrap();
+        fs::write(dest.join("a.txt"), "old a").unwrap();
+        fs::write(dest.join("sub/keep.txt"), "keep").unwrap();
+        let s = StagedDir::new(&dest, false).unwrap();
+        fs::write(s.path("a.txt").unwrap(), "new a").unwrap();
+        // Without force the existing a.txt is kept and nothing is published.
+        assert!(matches!(s.commit(), Err(IoError::OutputExists { .. })));
+        assert_eq!(fs::read_to_string(dest.join("a.txt")).unwrap(), "old a");
+        let s = StagedDir::new(&dest, true).unwrap();
+        fs::write(s.path("a.txt").unwrap(), "new a").unwrap();
+        fs::write(s.path("sub/b.txt").unwrap(), "b").unwrap();
+        s.commit().unwrap();
+        assert_eq!(fs::read_to_string(dest.join("a.txt")).unwrap(), "new a");
+        assert_eq!(fs::read_to_string(dest.join("sub/b.txt")).unwrap(), "b");
+        assert_eq!(
+            fs::read_to_string(dest.join("sub/keep.txt")).unwrap(),
+            "keep"
+        );
+        let names: Vec<_> = fs::read_dir(d.path()).unwrap().collect();
+        assert_eq!(names.len(), 1, "staging or old directory left behind");
+    }
+
+    #[test]
+    fn dot_dot_destination_is_written_file_by_file() {
+        let d = tempfile::tempdir().unwrap();
+        let sub = d.path().join("sub");
+        fs::create_dir_all(&sub).unwrap();
+        fs::write(d.path().join("other.txt"), "x").unwrap();
+        let dest = sub.join("..");
+        let s = StagedDir::new(&dest, false).unwrap();
+        fs::write(s.path("new.txt").unwrap(), "n").unwrap();
+        s.commit().unwrap();
+        assert_eq!(fs::read_to_string(d.path().join("new.txt")).unwrap(), "n");
+        assert_eq!(fs::read_to_string(d.path().join("other.txt")).unwrap(), "x");
+        assert_eq!(fs::read_dir(&sub).unwrap().count(), 0);
+    }
+
+    #[test]
+    fn registered_staging_is_removed_and_stale_names_parsed() {
+        assert_eq!(owner_pid(".polarid-staging-123-abc"), Some(123));
+        assert_eq!(owner_pid(".polarid-tmp-77-x"), Some(77));
+        assert_eq!(owner_pid(".polarid-staging-abc"), None);
+        assert_eq!(owner_pid("polarid-staging-1-x"), None);
     }
 }

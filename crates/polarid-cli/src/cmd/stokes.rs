@@ -139,9 +139,9 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
                 ))
                 .into());
             }
-            if let Some(a) = args.angles.iter().find(|a| !(a.abs() <= 360.0)) {
+            if let Some(a) = args.angles.iter().find(|a| !(a.abs() <= 3600.0)) {
                 return Err(BadInput(format!(
-                    "--angles: a polarizer angle must be in [-360, 360] degrees, got {a:?}"
+                    "--angles: a polarizer angle must be in [-3600, 3600] degrees, got {a:?}"
                 ))
                 .into());
             }

@@ -241,16 +241,18 @@ impl StokesSolver {
             .collect()
     }
 
-    /// Convenience constructor from angles in degrees.
+    /// Convenience constructor from angles in degrees; an angle outside
+    /// `[-3600, 3600]` (ten turns: beyond, e.g. `1e308`, it has lost its precision) is
+    /// [`CoreError::OutOfRange`](crate::CoreError::OutOfRange).
     pub fn from_degrees(angles_deg: &[f64]) -> Result<Self> {
         // A polarizer angle far outside a turn (1e308) has lost all its precision.
         for &a in angles_deg {
             crate::error::ensure_range(
                 "polarizer angle (degrees)",
                 a,
-                -360.0,
-                360.0,
-                "in [-360, 360]",
+                -3600.0,
+                3600.0,
+                "in [-3600, 3600]",
             )?;
         }
         let rad: Vec<f64> = angles_deg.iter().map(|d| d.to_radians()).collect();

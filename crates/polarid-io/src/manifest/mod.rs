@@ -763,7 +763,7 @@ impl<'a> Parser<'a> {
                 return Err(self.err(
                     &s,
                     &format!("{pre}exposure"),
-                    "exposure must be in [1e-9, 1e9] (S0 is divided by it)",
+                    "exposure must be > 0, within [1e-9, 1e9] (S0 is divided by it)",
                 ));
             }
             Some((v, _)) => v,
@@ -907,11 +907,11 @@ impl<'a> Parser<'a> {
                                 "missing polarizer angle",
                             )
                         })?;
-                    if !(angle_deg.abs() <= 360.0) {
+                    if !(angle_deg.abs() <= 3600.0) {
                         return Err(self.err(
                             &aspan,
                             &format!("{fpre}angle_deg"),
-                            "polarizer angle must be in [-360, 360] degrees",
+                            "polarizer angle must be in [-3600, 3600] degrees",
                         ));
                     }
                     let file_v = self.get(ft, "file").ok_or_else(|| {
