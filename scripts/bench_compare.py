@@ -103,6 +103,22 @@ def main():
     if os.path.exists(dofp_exe):
         dofp_rust = last_json(run([dofp_exe, "--repeats", reps]))
 
+    # --- Colour polarization (issue 17): raw colour mosaic -> per-band Stokes, DoLP, AoLP,
+    # polarid's fused kernel (Rust example) against polanalyser on the same frame
+    colour = None
+    colour_exe = os.path.join(a.target_dir, "colour_throughput")
+    if os.path.exists(colour_exe):
+        colour_script = os.path.join(os.path.dirname(os.path.abspath(a.baselines)), "colour.py")
+        try:
+            colour = last_json(run([pp, colour_script, "--exe", colour_exe,
+                                    "--rounds", "2" if a.quick else "3"]))
+        except (subprocess.CalledProcessError, ValueError, OSError) as e:
+            err = getattr(e, "stderr", None) or str(e)
+            print(f"(colour figures not measured: {colour_script} failed: {err.strip().splitlines()[-1:]})",
+                  file=sys.stderr)
+    else:
+        print(f"(no {colour_exe}: colour figures not measured)", file=sys.stderr)
+
     # --- Fits: polarid.fit_nk against the numpy batched LM at its best chunk size (10^5
     # or 10^6 pixels), in one process (scripts/bench/fit_nk.py); the scipy loop; the Rust
     # fit_throughput example for reference.
@@ -160,6 +176,15 @@ def main():
               f"max |DoLP - polanalyser's| {checks[1]:.2e}; load average {dofp['env']['loadavg_1min']:.1f}")
     if dofp_rust is not None:
         print("polarid dofp_throughput (Rust, reused buffers): " + json.dumps(dofp_rust))
+    if colour is not None:
+        row("colour raw->per-band Stokes+DoLP+AoLP vs pa", colour["polarid_colour_bilinear"]["mpix_per_s"],
+            colour["pa_demosaic_stokes_dolp_aolp"]["mpix_per_s"], 20, "Mpixel/s")
+        print("colour (scripts/bench/colour.py): " + json.dumps(colour))
+    if ours_fit is None:
+        print(f"(no {fit_exe}: polarid fit throughput not measured)")
+        print(f"fit-vec  {fv['fits_per_s']:.0f} fits/s, global-optimum rate {fv['frac_cost_le_truth']:.4f}")
+        print(f"fit-loop {fl_best['fits_per_s']:.0f} fits/s, global-optimum rate {fl_best['frac_cost_le_truth']:.4f}")
+
     if fitnk is not None:
         nb = fitnk["numpy"][str(fitnk["numpy_best_chunk"])]
         row(f"fit_nk vs numpy batched LM, best chunk ({fitnk['numpy_best_chunk']:.0e})",

@@ -2,7 +2,8 @@
 //! mosaic (polarizers 90,45,135,0 under RGGB blocks): raw → per-band S0, S1, S2, DoLP and
 //! AoLP (bilinear, full resolution) and the super-pixel method, into caller-owned
 //! buffers allocated once. Prints one JSON line (best of `--repeats`, default 7). Run:
-//! `cargo run --release -p polarid-core --example colour_throughput [-- --repeats N]`.
+//! `cargo run --release -p polarid-core --example colour_throughput [-- --repeats N]
+//! [--raw FILE --width W --height H]` (`FILE`: little-endian uint16, row-major).
 
 use std::time::Instant;
 
@@ -26,14 +27,36 @@ fn main() {
         .position(|a| a == "--repeats")
         .and_then(|i| args.get(i + 1))
         .map_or(7, |v| v.parse().unwrap_or(7));
-    let (h, w) = (2048usize, 2448usize);
-    let mut s = 12345u64;
-    let raw: Vec<u16> = (0..w * h)
-        .map(|_| {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1);
-            (200 + (s >> 40) % 3000) as u16
-        })
-        .collect();
+    let opt = |name: &str| {
+        args.iter()
+            .position(|a| a == name)
+            .and_then(|i| args.get(i + 1).cloned())
+    };
+    let h: usize = opt("--height").map_or(2048, |v| v.parse().unwrap_or(2048));
+    let w: usize = opt("--width").map_or(2448, |v| v.parse().unwrap_or(2448));
+    // --raw FILE: the frame as little-endian uint16, row-major (scripts/bench/colour.py)
+    let raw: Vec<u16> = match opt("--raw") {
+        Some(path) => {
+            let bytes = std::fs::read(&path).unwrap_or_default();
+            if bytes.len() != 2 * w * h {
+                eprintln!("colour_throughput: {path}: expected {} bytes", 2 * w * h);
+                std::process::exit(2);
+            }
+            bytes
+                .chunks_exact(2)
+                .map(|b| u16::from_le_bytes([b[0], b[1]]))
+                .collect()
+        }
+        None => {
+            let mut s = 12345u64;
+            (0..w * h)
+                .map(|_| {
+                    s = s.wrapping_mul(6364136223846793005).wrapping_add(1);
+                    (200 + (s >> 40) % 3000) as u16
+                })
+                .collect()
+        }
+    };
     let p = ColourPattern::imx250myr();
     let rules = PixelRules {
         saturation: 4095.0,

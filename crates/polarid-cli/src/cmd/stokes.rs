@@ -7,7 +7,8 @@
 //! [`polarid_io::measure`]; those of a DoFP mosaic, with DoLP and AoLP, from the fused
 //! kernel [`polarid_core::mosaic::dofp_polar`] in one pass over the mosaic (the same
 //! numbers as [`polarid_io::measure::dofp_stokes`] followed by
-//! [`polarid_core::stokes::dolp_aolp`]).
+//! [`polarid_core::stokes::dolp_aolp`]). A colour polarization mosaic (`--color`) gives
+//! these per band (`stokes_colour.rs`).
 
 use std::path::{Path, PathBuf};
 
@@ -20,6 +21,9 @@ use polarid_io::image::{self, Frame};
 use polarid_io::measure::{self, StokesImages, frames_stokes, rules_for};
 
 use polarid_pipeline::map::rules::check_levels;
+
+#[path = "stokes_colour.rs"]
+mod colour;
 
 use super::common::PipeResult;
 use crate::{BadInput, Ctx};
@@ -67,6 +71,18 @@ pub struct Args {
         value_name = "A,B,C,D"
     )]
     pub pattern: Vec<f64>,
+    /// Colour polarization mosaic: the colour of each 2x2 polarizer block of the 4x4
+    /// period, block-row by block-row (e.g. RGGB for IMX250MYR); outputs per band.
+    #[arg(long, value_name = "RGGB", requires = "dofp")]
+    pub color: Option<String>,
+    /// Wavelength of each colour letter, nm (default R=650,G=550,B=450).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "L=NM,...",
+        requires = "color"
+    )]
+    pub bands: Vec<String>,
     /// DoFP reconstruction. `bilinear` rounds interpolated values of integer frames to
     /// whole DN exactly as OpenCV does, so results match polanalyser's demosaicing.
     #[arg(long, value_enum, default_value_t = Demosaic::Bilinear)]
@@ -121,6 +137,10 @@ fn dofp_images(
 /// Run `polarid stokes`.
 pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     check_levels(args.dark_level, args.saturation).cli()?;
+    if let (Some(raw_path), Some(color), true) = (&args.dofp, &args.color, args.frames.is_empty()) {
+        let rules_of = |raw: &Frame| rules_for(raw, args.dark_level, args.saturation);
+        return colour::run(&args, raw_path, color, rules_of, ctx);
+    }
     let (img, dolp, aolp, inputs) = match (&args.dofp, args.frames.is_empty()) {
         (Some(raw_path), true) => {
             let pattern = Pattern::new(&args.pattern)?;

@@ -54,12 +54,12 @@ impl<'a, T> ColourJob<'a, T> {
         let nbands = pattern.bands().len().min(MAX_BANDS);
         let mut lat = [[[0usize; 4]; 4]; MAX_BANDS];
         let mut n = [0usize; MAX_BANDS];
-        for b in 0..nbands {
-            for k in 0..4 {
+        for (b, (lb, nb)) in lat.iter_mut().zip(n.iter_mut()).enumerate().take(nbands) {
+            for (k, lk) in lb.iter_mut().enumerate() {
                 let l = pattern.lattices(b, k);
-                n[b] = l.len().min(4);
+                *nb = l.len().min(4);
                 for (i, v) in l.into_iter().take(4).enumerate() {
-                    lat[b][k][i] = v;
+                    lk[i] = v;
                 }
             }
         }

@@ -66,12 +66,7 @@ fn interpolate<T: Sample>(
 
 /// Stokes, mask, DoLP and AoLP from the four channel values and the band's used raw
 /// values.
-fn finish<T: Sample>(
-    i: [f32; 4],
-    used: &[f32],
-    rules: &PixelRules,
-    dark2: f32,
-) -> ([f32; 3], u8, f32, f32) {
+fn finish(i: [f32; 4], used: &[f32], rules: &PixelRules, dark2: f32) -> ([f32; 3], u8, f32, f32) {
     let [i0, i45, i90, i135] = i;
     let s0 = 0.5 * ((i0 + i90) + (i45 + i135)) - dark2;
     let s1 = i0 - i90;
@@ -159,7 +154,7 @@ pub(super) fn colour_reference<T: Sample>(
                             dark2 = 0.0;
                         }
                     }
-                    let (s, m, d, a) = finish::<T>(iv, &used, rules, dark2);
+                    let (s, m, d, a) = finish(iv, &used, rules, dark2);
                     let p = y * ow + x;
                     (o.s0[p], o.s1[p], o.s2[p]) = (s[0], s[1], s[2]);
                     (o.mask[p], o.dolp[p], o.aolp[p]) = (m, d, a);

@@ -1,0 +1,240 @@
+//! `polarid stokes --dofp RAW --color RGGB [--bands R=650,G=550,B=450]`: per-band
+//! Stokes, DoLP and AoLP of a colour polarization mosaic
+//! ([`polarid_core::mosaic::colour_polar`], one fused pass for all bands), written as
+//! `s0_<nm>.tif`, `s1_<nm>.tif`, `s2_<nm>.tif`, `dolp_<nm>.tif`, `aolp_<nm>.tif`,
+//! `dolp_<nm>.png`, `aolp_<nm>.png` per band, plus the colour previews `s0_rgb.png`
+//! (S0 of the R, G and B bands, gamma 1/2.2, scaled to the 99.5th percentile) and
+//! `dolp_rgb.png` (DoLP of the R, G, B bands over the DoLP scale).
+
+use std::path::Path;
+
+use polarid_core::mosaic::{ColourMethod, ColourPattern, DofpOutputs, Pattern, colour_polar};
+use polarid_core::stokes::PixelRules;
+use polarid_io::IoError;
+use polarid_io::atomic::{StagedDir, check_output};
+use polarid_io::image::{self, Frame};
+
+use super::{Args, Demosaic};
+use crate::{BadInput, Ctx};
+
+/// The wavelength of each band of `pattern` from `--bands` (`L=NM,...`; default R 650,
+/// G 550, B 450).
+fn band_wavelengths(pattern: &ColourPattern, spec: &[String]) -> anyhow::Result<Vec<f64>> {
+    let mut table: Vec<(char, f64)> = Vec::new();
+    for item in spec {
+        let bad = || {
+            BadInput(format!(
+                "--bands: expected LETTER=NM (e.g. R=650), got {item:?}"
+            ))
+        };
+        let (k, v) = item.split_once('=').ok_or_else(bad)?;
+        let mut ch = k.trim().chars();
+        let letter = match (ch.next(), ch.next()) {
+            (Some(c), None) if c.is_ascii_alphabetic() => c.to_ascii_uppercase(),
+            _ => return Err(bad().into()),
+        };
+        let nm: f64 = v.trim().parse().map_err(|_| bad())?;
+        if !(nm.is_finite() && nm > 0.0) {
+            return Err(BadInput(format!(
+                "--bands: wavelength of {letter} must be > 0 nm, got {nm}"
+            ))
+            .into());
+        }
+        table.push((letter, nm));
+    }
+    if table.is_empty() {
+        table = polarid_io::manifest::DEFAULT_BANDS.to_vec();
+    }
+    pattern
+        .bands()
+        .iter()
+        .map(|&c| {
+            table
+                .iter()
+                .find(|(l, _)| *l == c)
+                .map(|&(_, w)| w)
+                .ok_or_else(|| {
+                    BadInput(format!(
+                        "--color {}: band missing: colour {c} has no wavelength in --bands",
+                        pattern.color()
+                    ))
+                    .into()
+                })
+        })
+        .collect()
+}
+
+/// `650` for 650.0, `632.8` otherwise.
+fn nm_label(nm: f64) -> String {
+    if nm.fract() == 0.0 {
+        format!("{nm:.0}")
+    } else {
+        format!("{nm}")
+    }
+}
+
+/// The images of one band.
+struct Band {
+    nm: f64,
+    letter: char,
+    s: [Vec<f32>; 3],
+    dolp: Vec<f32>,
+    aolp: Vec<f32>,
+}
+
+/// An RGB preview from the bands lettered R, G, B (a missing colour is black):
+/// `f(value)` in `[0, 1]` per channel.
+fn rgb_preview(bands: &[Band], n: usize, pick: impl Fn(&Band, usize) -> f32) -> Vec<u8> {
+    let mut px = vec![0u8; 3 * n];
+    for (ch, letter) in ['R', 'G', 'B'].into_iter().enumerate() {
+        if let Some(b) = bands.iter().find(|b| b.letter == letter) {
+            for i in 0..n {
+                let v = pick(b, i);
+                px[3 * i + ch] = if v.is_finite() {
+                    (v.clamp(0.0, 1.0) * 255.0).round() as u8
+                } else {
+                    0
+                };
+            }
+        }
+    }
+    px
+}
+
+/// Run `polarid stokes` for a colour mosaic (`--dofp` with `--color`).
+pub fn run(
+    args: &Args,
+    raw_path: &Path,
+    color: &str,
+    rules_of: impl Fn(&Frame) -> PixelRules,
+    ctx: &Ctx,
+) -> anyhow::Result<()> {
+    let pattern = ColourPattern::new(Pattern::new(&args.pattern)?, color)
+        .map_err(|e| BadInput(format!("--color: {e}")))?;
+    let wavelengths = band_wavelengths(&pattern, &args.bands)?;
+    let raw = image::read_frame(raw_path)?;
+    let rules = rules_of(&raw);
+    let method = match args.demosaic {
+        Demosaic::Bilinear => ColourMethod::Bilinear,
+        Demosaic::Superpixel => ColourMethod::Superpixel,
+    };
+    let (w, h) = method.output_size(raw.width, raw.height);
+    let n = w * h;
+    let mut bands: Vec<Band> = pattern
+        .bands()
+        .iter()
+        .zip(&wavelengths)
+        .map(|(&letter, &nm)| Band {
+            nm,
+            letter,
+            s: [vec![0f32; n], vec![0f32; n], vec![0f32; n]],
+            dolp: vec![0f32; n],
+            aolp: vec![0f32; n],
+        })
+        .collect();
+    let outs = bands
+        .iter_mut()
+        .map(|b| {
+            let [s0, s1, s2] = &mut b.s;
+            DofpOutputs {
+                s0: Some(s0),
+                s1: Some(s1),
+                s2: Some(s2),
+                mask: None,
+                dolp: Some(&mut b.dolp),
+                aolp: Some(&mut b.aolp),
+            }
+        })
+        .collect();
+    let counts =
+        colour_polar(&raw.data, raw.width, &pattern, method, &rules, outs).map_err(|source| {
+            IoError::Core {
+                path: raw.path.clone(),
+                source,
+            }
+        })?;
+    drop(raw);
+    let all_dolp: Vec<f32> = bands
+        .iter()
+        .flat_map(|b| b.dolp.iter().step_by(7).copied())
+        .collect();
+    let dolp_max = match args.dolp_max {
+        Some(m) if m.is_finite() && m > 0.0 => m as f32,
+        Some(m) => return Err(BadInput(format!("--dolp-max must be > 0, got {m}")).into()),
+        None => crate::render::views::auto_dolp_max(&all_dolp),
+    };
+    let mut names: Vec<String> = Vec::new();
+    for b in &bands {
+        let l = nm_label(b.nm);
+        for q in ["s0", "s1", "s2", "dolp", "aolp"] {
+            names.push(format!("{q}_{l}.tif"));
+        }
+        names.push(format!("dolp_{l}.png"));
+        names.push(format!("aolp_{l}.png"));
+    }
+    names.push("s0_rgb.png".into());
+    names.push("dolp_rgb.png".into());
+    let staged = StagedDir::new(&args.output, ctx.force)?;
+    for name in &names {
+        check_output(&staged.final_path(name), ctx.force, &[raw_path])?;
+    }
+    for b in &bands {
+        let l = nm_label(b.nm);
+        for (q, data) in [
+            ("s0", &b.s[0]),
+            ("s1", &b.s[1]),
+            ("s2", &b.s[2]),
+            ("dolp", &b.dolp),
+            ("aolp", &b.aolp),
+        ] {
+            image::write_tiff_f32(&staged.path(&format!("{q}_{l}.tif"))?, true, w, h, data)?;
+        }
+        let (vw, vh, px) = crate::render::views::dolp_view(w, h, &b.dolp, dolp_max);
+        image::write_rgb8_png(&staged.path(&format!("dolp_{l}.png"))?, true, vw, vh, &px)?;
+        let (vw, vh, px) = crate::render::views::aolp_view(w, h, &b.aolp, &b.dolp, dolp_max);
+        image::write_rgb8_png(&staged.path(&format!("aolp_{l}.png"))?, true, vw, vh, &px)?;
+    }
+    // S0 scale: the 99.5th percentile of every band's finite S0
+    let mut s0s: Vec<f32> = bands
+        .iter()
+        .flat_map(|b| b.s[0].iter().step_by(7).copied())
+        .filter(|v| v.is_finite())
+        .collect();
+    let scale = if s0s.is_empty() {
+        1.0
+    } else {
+        let k = ((s0s.len() as f64 * 0.995) as usize).min(s0s.len() - 1);
+        let (_, p, _) = s0s.select_nth_unstable_by(k, f32::total_cmp);
+        if *p > 0.0 { *p } else { 1.0 }
+    };
+    let px = rgb_preview(&bands, n, |b, i| {
+        (b.s[0][i] / scale).max(0.0).powf(1.0 / 2.2)
+    });
+    image::write_rgb8_png(&staged.path("s0_rgb.png")?, true, w, h, &px)?;
+    let px = rgb_preview(&bands, n, |b, i| b.dolp[i] / dolp_max);
+    image::write_rgb8_png(&staged.path("dolp_rgb.png")?, true, w, h, &px)?;
+    staged.commit()?;
+    let per_band: Vec<String> = bands
+        .iter()
+        .zip(&counts)
+        .map(|(b, c)| {
+            format!(
+                "{} {} nm: valid {}, saturated {}, dark {}, invalid {}",
+                b.letter,
+                nm_label(b.nm),
+                c.valid,
+                c.saturated,
+                c.dark,
+                c.invalid
+            )
+        })
+        .collect();
+    ctx.info(format!(
+        "polarid stokes: wrote {} files ({w}x{h}, {} bands) to {}; {}",
+        names.len(),
+        bands.len(),
+        args.output.display(),
+        per_band.join("; ")
+    ));
+    Ok(())
+}
