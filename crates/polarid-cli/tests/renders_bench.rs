@@ -310,7 +310,8 @@ fn score_map(set: &Path, out: &Path, bin: usize) -> (usize, usize, usize, Vec<St
             let p = &mut per[first - 1];
             p.0 += 1;
             total += 1;
-            if c != 0 {
+            // `ambiguous` (the set rule's several materials) is no single answer.
+            if c != 0 && names[c.to_string()].as_str() != Some("ambiguous") {
                 p.1 += 1;
                 classified += 1;
                 let want = plates[first - 1]["class"].as_str().unwrap();
