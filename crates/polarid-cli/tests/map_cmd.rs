@@ -135,7 +135,16 @@ fn write_scene(dir: &Path) -> PathBuf {
 fn train(dir: &Path, manifest: &Path) -> PathBuf {
     let d = |n: &str| dir.join(n).to_string_lossy().into_owned();
     ok(&["measure", manifest.to_str().unwrap(), "-o", &d("meas.csv")]);
-    ok(&["fit", &d("meas.csv"), "-o", &d("fits.csv")]);
+    // Clean simulated surfaces: no surface-layer allowance (with the default 3 nm the
+    // prototypes' sets widen and rough aluminum's pixels are mostly `ambiguous`).
+    ok(&[
+        "fit",
+        &d("meas.csv"),
+        "-o",
+        &d("fits.csv"),
+        "--film-sd-nm",
+        "0",
+    ]);
     ok(&["train", &d("fits.csv"), "-o", &d("model.json")]);
     dir.join("model.json")
 }
@@ -251,13 +260,48 @@ fn synthetic_plates_are_mapped_and_background_left_unclassified() {
         .map(|p| (p.name, p.class, [p.x, p.y, SIZE, SIZE]))
         .collect();
     let (per, bg) = score(w, h, &class, &names, 4, &rects, 2);
+    // Under the set rule (the default) a block the data cannot place is `ambiguous`
+    // rather than a material: every interior block must be its plate's material or
+    // ambiguous (never another material), and >= 95 % of them the material itself.
+    let summary: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(out.join("map_summary.json")).expect("summary"),
+    )
+    .expect("summary JSON");
+    let name_of = |c: u16| names[c.to_string()].as_str().unwrap_or("?").to_string();
     for (plate, frac) in &per {
+        let (_, cls, r) = rects.iter().find(|r| r.0 == plate.as_str()).expect("plate");
+        let (mut right, mut ambig, mut total) = (0usize, 0usize, 0usize);
+        for y in 0..h {
+            for x in 0..w {
+                // Interior blocks: 2 raw pixels inside the plate (as `score`).
+                let (x0, y0, x1, y1) = (x * 4, y * 4, x * 4 + 4, y * 4 + 4);
+                if !(x0 >= r[0] + 2
+                    && y0 >= r[1] + 2
+                    && x1 + 2 <= r[0] + r[2]
+                    && y1 + 2 <= r[1] + r[3])
+                {
+                    continue;
+                }
+                total += 1;
+                match name_of(class[y * w + x]).as_str() {
+                    "ambiguous" => ambig += 1,
+                    n if n == *cls => right += 1,
+                    _ => {}
+                }
+            }
+        }
         eprintln!(
-            "synthetic {plate}: {:.2} % of interior blocks correct",
+            "synthetic {plate}: {:.2} % of interior blocks correct, {ambig} ambiguous of {total}",
             100.0 * frac
         );
-        assert!(*frac >= 0.99, "{plate}: {:.2} % correct", 100.0 * frac);
+        assert!(*frac >= 0.95, "{plate}: {:.2} % correct", 100.0 * frac);
+        assert_eq!(
+            right + ambig,
+            total,
+            "{plate}: a block given another material"
+        );
     }
+    assert!(summary.get("answers").is_some(), "map_summary.json answers");
     assert_eq!(bg, 0, "classified background blocks");
     // Fitted n of the copper plate's interior is close to the truth.
     let n = polarid_io::image::read_frame(&out.join("n.tif")).unwrap();
