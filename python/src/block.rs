@@ -368,12 +368,12 @@ impl Job<'_> {
                 plan: &plan,
                 beta: &bviews,
             };
-            cmap::fit_and_classify(betas, pc, &views, &flags, self.tile, outputs, &|_| {})?;
+            cmap::fit_and_classify(betas, pc, &views, None, &flags, self.tile, outputs, &|_| {})?;
         } else {
             let b: Vec<f64> = self.beta.iter().map(|d| d.to_radians()).collect();
             let plan = FitPlan::new(&b, FitOptions::default())?;
             let betas = Betas::Shared(&plan);
-            cmap::fit_and_classify(betas, pc, &views, &flags, self.tile, outputs, &|_| {})?;
+            cmap::fit_and_classify(betas, pc, &views, None, &flags, self.tile, outputs, &|_| {})?;
         }
         for (o, &c) in class_f.iter_mut().zip(&class) {
             *o = c as f32;

@@ -76,8 +76,11 @@ def load(manifest):
 def cli_map(cli, sets, name, bin, tag=""):
     out = sets / f"cli_{name}_{bin}{tag}"
     if not out.exists():
+        # The Dask map classifies by the nearest rule, unweighted (its options do not yet
+        # include `polarid map`'s answer sets and noise weights, issue 16): compare with
+        # the CLI under the same rule.
         run(cli, "map", sets / name / "manifest.toml", "--model", sets / "model.json", "-o", out,
-            "--bin", bin)
+            "--bin", bin, "--rule", "nearest", "--weights", "none")
     maps = {k: read_image(out / f"{k}.tif") for k in (*FLOATS, "class", "reason")}
     maps["class_names"] = [v for _, v in sorted(json.loads((out / "classes.json").read_text()).items(),
                                                  key=lambda kv: int(kv[0]))]
