@@ -199,6 +199,7 @@ def fit_table(
     extinction_ratio: float = 100.0,
     retardance_deg: float = 0.0,
     mismatch_p: float = 0.001,
+    film_sd_nm: float | None = None,
     strict: bool = False,
 ) -> dict[str, list[Any]]:
     """Fit every target of a measurements CSV exactly as ``polarid fit`` does.

@@ -82,15 +82,9 @@ fn _map_names(
     let pc = map::pixel_classifier(&cfg, &model, &PathBuf::from(label)).py_err()?;
     let mut classes = vec![polarid_core::classify::UNKNOWN.to_string()];
     classes.extend(pc.names().iter().cloned());
-    let nreason = if per_pixel_beta {
-        REASON_NAMES.len()
-    } else {
-        cmap::reason::NO_GEOMETRY as usize
-    };
-    let reasons = REASON_NAMES[..nreason]
-        .iter()
-        .map(|s| s.to_string())
-        .collect();
+    // Every reason, as `map_summary.json`'s `reason_codes` lists them (far field too).
+    let _ = per_pixel_beta;
+    let reasons = REASON_NAMES.iter().map(|s| s.to_string()).collect();
     Ok((classes, reasons))
 }
 

@@ -573,6 +573,9 @@ fn batch_dict<'py>(
 ///     has a p-value below this, in [0, 1) (``--mismatch-p``, default 0.001; 0: never).
 ///     ``angle_sd_deg=0, dolp_floor=0, extinction_ratio=math.inf`` gives the noise-only
 ///     standard errors (also in the ``*_noise`` columns).
+/// film_sd_nm : float or None
+///     Specular fit: standard thickness of an unmodelled surface layer (native oxide),
+///     nm (``--film-sd-nm``; None: the default, 3 nm; 0: clean surfaces).
 /// strict : bool
 ///     Raise at the first problem (a measurement row whose ``status`` is not ok, a
 ///     target that cannot be fitted), as ``polarid fit --strict``. By default such rows
@@ -598,7 +601,7 @@ fn batch_dict<'py>(
 /// FileNotFoundError
 ///     The file does not exist.
 #[pyfunction]
-#[pyo3(signature = (measurements, *, reflectance = "specular", n_range = (0.01, 10.0), k_range = (0.0, 15.0), depolarized_dolp = 0.02, estimate_theta_r = false, shadowing = "none", s0_rel_sd = 0.02, sigma_range = (0.02, 1.0), angle_sd_deg = 0.2, dolp_floor = 0.002, extinction_ratio = 100.0, retardance_deg = 0.0, mismatch_p = 0.001, strict = false))]
+#[pyo3(signature = (measurements, *, reflectance = "specular", n_range = (0.01, 10.0), k_range = (0.0, 15.0), depolarized_dolp = 0.02, estimate_theta_r = false, shadowing = "none", s0_rel_sd = 0.02, sigma_range = (0.02, 1.0), angle_sd_deg = 0.2, dolp_floor = 0.002, extinction_ratio = 100.0, retardance_deg = 0.0, mismatch_p = 0.001, film_sd_nm = None, strict = false))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit_table<'py>(
     py: Python<'py>,
@@ -616,6 +619,7 @@ pub fn fit_table<'py>(
     extinction_ratio: f64,
     retardance_deg: f64,
     mismatch_p: f64,
+    film_sd_nm: Option<f64>,
     strict: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let cfg = FitConfig {
@@ -640,6 +644,7 @@ pub fn fit_table<'py>(
         extinction_ratio,
         retardance_deg,
         mismatch_p,
+        film_sd_nm: film_sd_nm.unwrap_or(polarid_pipeline::fit::DEFAULT_FILM_SD_NM),
         strict,
         ..FitConfig::default()
     };

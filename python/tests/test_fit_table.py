@@ -137,7 +137,8 @@ def test_fit_table_error_model_equals_cli(tmp_path, polarid_cli, measurements, s
 def test_fit_table_error_model_keywords_take_effect(measurements):
     path = measurements["paper_training_60"]
     default = polarid.fit_table(path)
-    noise_only = polarid.fit_table(path, angle_sd_deg=0.0, dolp_floor=0.0, extinction_ratio=math.inf)
+    noise_only = polarid.fit_table(path, angle_sd_deg=0.0, dolp_floor=0.0, extinction_ratio=math.inf,
+                                   film_sd_nm=0.0)
     wider = polarid.fit_table(path, angle_sd_deg=1.0, extinction_ratio=10.0, retardance_deg=20.0)
     for i, s in enumerate(default["status"]):
         if s != "ok":

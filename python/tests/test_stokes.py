@@ -67,7 +67,7 @@ def test_stokes_errors():
         polarid.stokes(f, [0, 90, 180])
     with pytest.raises(ValueError, match="need at least 3 polarizer angles, got 2"):
         polarid.stokes(f[:2], [0, 90])
-    with pytest.raises(ValueError, match="dark_level must be a finite number >= 0, got -1"):
+    with pytest.raises(ValueError, match="dark_level must be a finite number >= 0 within the float32 range, got -1"):
         polarid.stokes(f, [0, 60, 120], dark_level=-1)
     with pytest.raises(ValueError, match="must hold real numbers"):
         polarid.stokes(np.zeros((3, 2, 2), complex), [0, 60, 120])
