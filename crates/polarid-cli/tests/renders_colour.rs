@@ -25,12 +25,11 @@
 //! The renders are clean surfaces, so the fits use `--film-sd-nm 0` (no surface-layer
 //! allowance, as the other clean-surface tests; docs/BANDS.md, "Caveat").
 //!
-//! `separated_bands_run_the_acceptance_workflow` runs the same workflow on each band's
-//! samples of the colour mosaics rearranged as half-resolution mono DoFP mosaics
-//! (`separated/manifest_<nm>.toml`, the camera scaled to them): polarid's mono path on
-//! the colour data, which works without colour support in `measure`, checks the renders
-//! and this file's machinery, and is printed for comparison (its sub-mosaic camera model
-//! is off by up to half a raw pixel, so it asserts only what the renders must give).
+//! `stokes_colour_bands_run_the_acceptance_workflow` runs the same workflow (all but the
+//! map) on what polarid reads without colour support in `measure`: each capture
+//! demosaiced per band by `polarid stokes --color`, then single-band Stokes manifests
+//! with the calibrated geometry, `measure`, the rows joined with `wavelength_nm`. It
+//! checks the renders and this file's machinery today.
 
 mod common;
 
@@ -120,42 +119,118 @@ fn measure_colour(set: &Path, dir: &Path) -> PathBuf {
     meas
 }
 
-/// `polarid measure` of each band's separated mono mosaic, the rows joined into one CSV
-/// with a `wavelength_nm` column (what `measure` writes for a colour capture).
-fn measure_separated(set: &Path, dir: &Path) -> PathBuf {
-    let t = truth(set);
-    let mut seps: Vec<(f64, String)> = t["separated"]
-        .as_object()
-        .expect("separated")
-        .values()
-        .map(|v| {
-            (
-                v["wavelength_nm"].as_f64().unwrap(),
-                v["manifest"].as_str().unwrap().to_string(),
-            )
-        })
-        .collect();
-    seps.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut out = String::new();
-    for (i, (wl, manifest)) in seps.iter().enumerate() {
-        let meas = dir.join(format!("sep_{wl}.csv"));
-        run_ok(&["measure", s(&set.join(manifest)), "-o", s(&meas), "-q"]);
-        let body = std::fs::read_to_string(&meas).unwrap();
+/// Measurement CSVs of single-band manifests joined into one with a `wavelength_nm`
+/// column (what `measure` writes for a colour capture).
+fn join_bands(parts: &[(f64, PathBuf)], out: &Path) {
+    let mut joined = String::new();
+    for (i, (wl, meas)) in parts.iter().enumerate() {
+        let body = std::fs::read_to_string(meas).unwrap();
         let mut lines = body.lines().filter(|l| !l.starts_with('#'));
         let header = lines.next().expect("header");
         // A single-band manifest's rows may carry its `wavelength_nm` already.
         let has = header.split(',').any(|c| c == "wavelength_nm");
         if i == 0 {
-            out.push_str(header);
-            out.push_str(if has { "\n" } else { ",wavelength_nm\n" });
+            joined.push_str(header);
+            joined.push_str(if has { "\n" } else { ",wavelength_nm\n" });
         }
         for l in lines {
-            out.push_str(l);
-            out.push_str(&if has { "\n".to_string() } else { format!(",{wl}\n") });
+            joined.push_str(l);
+            joined.push_str(&if has {
+                "\n".to_string()
+            } else {
+                format!(",{wl}\n")
+            });
         }
     }
-    let joined = dir.join("sep_meas.csv");
-    std::fs::write(&joined, out).unwrap();
+    std::fs::write(out, joined).unwrap();
+}
+
+/// The colour captures through what polarid reads without colour support in `measure`:
+/// `polarid stokes --dofp RAW --color RGGB` per capture (per-band Stokes images,
+/// bilinear per lattice of period 4), one single-band Stokes manifest per band
+/// (`manifest_colour.toml` with `wavelength_nm` for `bands`, `stokes = {...}` for each
+/// `dofp`, dark level 0: the Stokes images are dark-subtracted), `measure` of each, the
+/// rows joined with `wavelength_nm`.
+fn measure_via_stokes_colour(set: &Path, dir: &Path) -> PathBuf {
+    let t = truth(set);
+    let color = t["color"].as_str().expect("color");
+    let bands: Vec<(String, f64)> = t["bands"]
+        .as_object()
+        .expect("bands")
+        .iter()
+        .map(|(c, v)| (c.clone(), v.as_f64().unwrap()))
+        .collect();
+    let bands_arg = bands
+        .iter()
+        .map(|(c, v)| format!("{c}={v}"))
+        .collect::<Vec<_>>()
+        .join(",");
+    let manifest = std::fs::read_to_string(set.join("manifest_colour.toml")).unwrap();
+    let dark = manifest
+        .lines()
+        .find_map(|l| l.strip_prefix("dark_level = "))
+        .expect("dark_level")
+        .trim()
+        .to_string();
+    // Stokes images of every capture.
+    let mut stokes_dirs = Vec::new();
+    for l in manifest.lines().filter(|l| l.starts_with("dofp = ")) {
+        let file = l.split('"').nth(1).expect("dofp file");
+        let out = dir.join(format!("stokes_{}", stokes_dirs.len()));
+        run_ok(&[
+            "stokes",
+            "--dofp",
+            s(&set.join(file)),
+            "--color",
+            color,
+            "--bands",
+            &bands_arg,
+            "--dark-level",
+            &dark,
+            "-o",
+            s(&out),
+            "-q",
+        ]);
+        stokes_dirs.push(out);
+    }
+    let mut wls: Vec<f64> = bands.iter().map(|b| b.1).collect();
+    wls.sort_by(f64::total_cmp);
+    wls.dedup();
+    let mut parts = Vec::new();
+    for wl in wls {
+        let mut text = String::new();
+        let mut cap = 0;
+        for l in manifest.lines() {
+            if l.starts_with("bands = ") {
+                text.push_str(&format!("wavelength_nm = {wl:.1}\n"));
+            } else if l.starts_with("dark_level = ") {
+                text.push_str("dark_level = 0.0\n");
+            } else if l.starts_with("saturation = ") {
+                continue;
+            } else if l.starts_with("dofp = ") {
+                let d = &stokes_dirs[cap];
+                let f = |c: &str| d.join(format!("{c}_{wl}.tif")).to_str().unwrap().to_string();
+                text.push_str(&format!(
+                    "stokes = {{ s0 = {:?}, s1 = {:?}, s2 = {:?} }}\n",
+                    f("s0"),
+                    f("s1"),
+                    f("s2")
+                ));
+                cap += 1;
+            } else {
+                text.push_str(l);
+                text.push('\n');
+            }
+        }
+        assert_eq!(cap, stokes_dirs.len());
+        let m = dir.join(format!("stokes_{wl}.toml"));
+        std::fs::write(&m, text).unwrap();
+        let meas = dir.join(format!("stokes_{wl}_meas.csv"));
+        run_ok(&["measure", s(&m), "-o", s(&meas), "-q"]);
+        parts.push((wl, meas));
+    }
+    let joined = dir.join("stokes_colour_meas.csv");
+    join_bands(&parts, &joined);
     joined
 }
 
@@ -549,27 +624,28 @@ fn colour_map_bin_4_classifies_the_plates() {
     );
 }
 
-/// The acceptance workflow on each band's samples of the colour mosaics as
-/// half-resolution mono DoFP mosaics (`separated/manifest_<nm>.toml`): polarid's mono
-/// path on the same raw data. Checks the renders and this file's machinery without
-/// colour support in `measure`; asserts the classifications (rough copper against the
-/// other plates, copper/gold/copper_rough against the library) and prints the fits
-/// against the tolerance for comparison with the colour path.
+/// The acceptance workflow on what polarid reads today: the colour mosaics demosaiced
+/// per band by `polarid stokes --color` and measured as single-band Stokes captures with
+/// the calibrated geometry (`measure_via_stokes_colour`). Checks the renders and this
+/// file's machinery without colour support in `measure`: each well-lit plate's (n, k) at
+/// 450 and 550 nm within the tolerance, the rough copper classified copper against the
+/// other plates, copper, gold and copper_rough right against the three-band library.
 #[test]
-fn separated_bands_run_the_acceptance_workflow() {
-    let Some(set) = colour_set("separated_bands_run_the_acceptance_workflow") else {
+fn stokes_colour_bands_run_the_acceptance_workflow() {
+    let Some(set) = colour_set("stokes_colour_bands_run_the_acceptance_workflow") else {
         return;
     };
     let tmp = tempfile::tempdir().unwrap();
-    let meas = measure_separated(&set, tmp.path());
-    let (fits, rows) = fit(&meas, tmp.path(), "separated");
-    let misses = check_fits(&set, &rows, "separated");
-    eprintln!(
-        "separated: {} well-lit plate-bands at 450/550 nm outside the tolerance (information)",
-        misses.len()
+    let meas = measure_via_stokes_colour(&set, tmp.path());
+    let (fits, rows) = fit(&meas, tmp.path(), "stokes");
+    let misses = check_fits(&set, &rows, "stokes --color");
+    let predicted = rough_copper_against_the_others(&fits, tmp.path(), "stokes");
+    let wrong = library_classification(&fits, tmp.path(), "stokes");
+    assert!(
+        misses.is_empty(),
+        "plates outside the tolerance:\n{}",
+        misses.join("\n")
     );
-    let predicted = rough_copper_against_the_others(&fits, tmp.path(), "separated");
-    let wrong = library_classification(&fits, tmp.path(), "separated");
     assert_eq!(predicted, "copper", "{TEST_PLATE} classified {predicted}");
     assert!(wrong.is_empty(), "misclassified:\n{}", wrong.join("\n"));
 }
