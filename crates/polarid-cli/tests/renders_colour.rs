@@ -120,20 +120,30 @@ fn measure_colour(set: &Path, dir: &Path) -> PathBuf {
 }
 
 /// Measurement CSVs of single-band manifests joined into one with a `wavelength_nm`
-/// column (what `measure` writes for a colour capture).
-fn join_bands(parts: &[(f64, PathBuf)], out: &Path) {
+/// column (what `measure` writes for a colour capture), without the rows whose region
+/// S0 (`s0 · exposure`, DN above the dark level) is below `min_dn`.
+fn join_bands(parts: &[(f64, PathBuf)], min_dn: f64, out: &Path) {
     let mut joined = String::new();
     for (i, (wl, meas)) in parts.iter().enumerate() {
         let body = std::fs::read_to_string(meas).unwrap();
         let mut lines = body.lines().filter(|l| !l.starts_with('#'));
         let header = lines.next().expect("header");
+        let cols: Vec<&str> = header.split(',').collect();
+        let col = |name: &str| cols.iter().position(|c| *c == name).expect(name);
+        let (c_s0, c_exp) = (col("s0"), col("exposure"));
         // A single-band manifest's rows may carry its `wavelength_nm` already.
-        let has = header.split(',').any(|c| c == "wavelength_nm");
+        let has = cols.contains(&"wavelength_nm");
         if i == 0 {
             joined.push_str(header);
             joined.push_str(if has { "\n" } else { ",wavelength_nm\n" });
         }
         for l in lines {
+            let f: Vec<&str> = l.split(',').collect();
+            let dn =
+                f[c_s0].parse::<f64>().unwrap_or(f64::NAN) * f[c_exp].parse::<f64>().unwrap_or(1.0);
+            if !(dn >= min_dn) {
+                continue;
+            }
             joined.push_str(l);
             joined.push_str(&if has {
                 "\n".to_string()
@@ -150,7 +160,11 @@ fn join_bands(parts: &[(f64, PathBuf)], out: &Path) {
 /// bilinear per lattice of period 4), one single-band Stokes manifest per band
 /// (`manifest_colour.toml` with `wavelength_nm` for `bands`, `stokes = {...}` for each
 /// `dofp`, dark level 0: the Stokes images are dark-subtracted), `measure` of each, the
-/// rows joined with `wavelength_nm`.
+/// rows joined with `wavelength_nm`. Stokes images carry no pixel rules (the raw paths
+/// reject pixels near the dark level) and their region standard errors ignore the
+/// interpolation's correlation, so a region barely lit in a capture gives a DoLP of
+/// noise with a tiny SE: rows below 100 DN (the truth's well-lit threshold) are left
+/// out.
 fn measure_via_stokes_colour(set: &Path, dir: &Path) -> PathBuf {
     let t = truth(set);
     let color = t["color"].as_str().expect("color");
@@ -209,7 +223,12 @@ fn measure_via_stokes_colour(set: &Path, dir: &Path) -> PathBuf {
                 continue;
             } else if l.starts_with("dofp = ") {
                 let d = &stokes_dirs[cap];
-                let f = |c: &str| d.join(format!("{c}_{wl}.tif")).to_str().unwrap().to_string();
+                let f = |c: &str| {
+                    d.join(format!("{c}_{wl}.tif"))
+                        .to_str()
+                        .unwrap()
+                        .to_string()
+                };
                 text.push_str(&format!(
                     "stokes = {{ s0 = {:?}, s1 = {:?}, s2 = {:?} }}\n",
                     f("s0"),
@@ -230,7 +249,7 @@ fn measure_via_stokes_colour(set: &Path, dir: &Path) -> PathBuf {
         parts.push((wl, meas));
     }
     let joined = dir.join("stokes_colour_meas.csv");
-    join_bands(&parts, &joined);
+    join_bands(&parts, 100.0, &joined);
     joined
 }
 
@@ -259,9 +278,9 @@ fn check_fits(set: &Path, fits: &[HashMap<String, String>], label: &str) -> Vec<
             let accept = ACCEPT_BANDS.iter().any(|&a| (a - wl).abs() < 0.5);
             let (n, k) = (tb["n"].as_f64().unwrap(), tb["k"].as_f64().unwrap());
             let well_lit = tb["well_lit"].as_bool().unwrap_or(false);
-            let row = fits.iter().find(|r| {
-                r.get("target").map(String::as_str) == Some(name) && same_band(r, wl)
-            });
+            let row = fits
+                .iter()
+                .find(|r| r.get("target").map(String::as_str) == Some(name) && same_band(r, wl));
             let Some(row) = row else {
                 if well_lit && accept {
                     misses.push(format!("{label} {name} {band} nm: no fit"));
@@ -336,11 +355,7 @@ fn split_fits(fits: &Path, target: &str, dir: &Path, tag: &str) -> (PathBuf, Pat
 }
 
 /// `polarid classify FITS` with the prototype options; rows by target.
-fn classify(
-    fits: &Path,
-    protos: &[&str],
-    out: &Path,
-) -> HashMap<String, HashMap<String, String>> {
+fn classify(fits: &Path, protos: &[&str], out: &Path) -> HashMap<String, HashMap<String, String>> {
     run_ok(&[&["classify", s(fits), "-o", s(out), "-q"][..], protos].concat());
     csv_rows(out)
         .into_iter()
@@ -355,7 +370,9 @@ fn describe(r: &HashMap<String, String>) -> String {
         r.get("status").map(String::as_str).unwrap_or("?"),
         r.get("distance").map(String::as_str).unwrap_or("?"),
         r.get("runner_up").map(String::as_str).unwrap_or("?"),
-        r.get("runner_up_distance").map(String::as_str).unwrap_or("?"),
+        r.get("runner_up_distance")
+            .map(String::as_str)
+            .unwrap_or("?"),
         r.get("bands_used").map(String::as_str).unwrap_or("?"),
     )
 }
@@ -366,9 +383,16 @@ fn rough_copper_against_the_others(fits: &Path, dir: &Path, label: &str) -> Stri
     let (test, others) = split_fits(fits, TEST_PLATE, dir, label);
     let model = dir.join(format!("{label}_others_model.json"));
     run_ok(&["train", s(&others), "-o", s(&model), "-q"]);
-    let c = classify(&test, &["--model", s(&model)], &dir.join(format!("{label}_c.csv")));
+    let c = classify(
+        &test,
+        &["--model", s(&model)],
+        &dir.join(format!("{label}_c.csv")),
+    );
     let r = &c[TEST_PLATE];
-    eprintln!("{label}: {TEST_PLATE} against the other plates: {}", describe(r));
+    eprintln!(
+        "{label}: {TEST_PLATE} against the other plates: {}",
+        describe(r)
+    );
     let m = classify(
         &test,
         &["--model", s(&model), "--metric", "mahalanobis"],
