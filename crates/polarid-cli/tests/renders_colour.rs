@@ -141,7 +141,7 @@ fn join_bands(parts: &[(f64, PathBuf)], min_dn: f64, out: &Path) {
             let f: Vec<&str> = l.split(',').collect();
             let dn =
                 f[c_s0].parse::<f64>().unwrap_or(f64::NAN) * f[c_exp].parse::<f64>().unwrap_or(1.0);
-            if !(dn >= min_dn) {
+            if dn.is_nan() || dn < min_dn {
                 continue;
             }
             joined.push_str(l);
