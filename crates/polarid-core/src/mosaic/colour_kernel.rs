@@ -270,12 +270,12 @@ pub(super) fn bilinear_strip<T: Sample, const SAT: bool, const POLAR: bool>(
         let mut counts = [[0u32; 3]; MAX_BANDS];
         for c0 in (0..w).step_by(CBLOCK) {
             let len = CBLOCK.min(w - c0);
-            // any saturated sample in reach of the block? (else the test is skipped)
             // the raw rows and phase of the vertical interpolation of residue `ρ`
             let vtaps = |rho| {
                 let (ya, yb, e) = taps(y, rho, hgt);
                 (row(job.raw, w, ya), row(job.raw, w, yb), e)
             };
+            // any saturated sample in reach of the block? (else the test is skipped)
             let mut any_sat = false;
             for rho in 0..4 {
                 let (a, b, e) = vtaps(rho);
