@@ -1046,6 +1046,53 @@ mod tests {
         }
     }
 
+    /// Copper, aluminum and green paint; pixels farther than 1 (in `(n, k)`) from the
+    /// nearest prototype rejected.
+    fn copper_aluminum_paint() -> PixelClassifier {
+        let cls = Classifier::new(
+            vec![
+                proto("copper", 0.4, 2.95),
+                proto("aluminum", 1.24, 6.6),
+                proto("green_paint", 1.39, 0.34),
+            ],
+            ClassifierConfig::default(),
+        )
+        .unwrap();
+        PixelClassifier::new(cls, Some(1.0)).unwrap()
+    }
+
+    /// The map outputs of one [`fit_and_classify`] run: `n, k, n_se, k_se, rms` rows,
+    /// classes and reasons.
+    type Maps = (Vec<Vec<f32>>, Vec<u16>, Vec<u8>);
+
+    /// [`fit_and_classify`] of `views` (no noise, no progress) into fresh outputs
+    /// (classes and reasons start at 9, values the run never writes).
+    fn run_map(
+        betas: Betas<'_>,
+        pc: &PixelClassifier,
+        views: &[&[f32]],
+        flags: &[u8],
+        tile: usize,
+    ) -> Result<(Maps, MapCounts)> {
+        let np = flags.len();
+        let mut o: Vec<Vec<f32>> = vec![vec![0f32; np]; 5];
+        let (mut class, mut why) = (vec![9u16; np], vec![9u8; np]);
+        let [n, k, n_se, k_se, rms] = &mut o[..] else {
+            unreachable!()
+        };
+        let out = MapOutputs {
+            n,
+            k,
+            n_se,
+            k_se,
+            rms_residual: rms,
+            class: &mut class,
+            reason: &mut why,
+        };
+        let counts = fit_and_classify(betas, pc, views, None, flags, tile, out, &|_| {})?;
+        Ok(((o, class, why), counts))
+    }
+
     #[test]
     fn binned_dolp_of_uniform_frames_and_flags() {
         // 8 x 4 frames of a pixel with S = (200, 60, -80) + dark 10; one saturated raw.
@@ -1128,16 +1175,7 @@ mod tests {
             .map(|i| ((35.0 + 5.0 * i as f64 + 60.0) / 2.0f64).to_radians())
             .collect();
         let plan = FitPlan::new(&betas, Default::default()).unwrap();
-        let cls = Classifier::new(
-            vec![
-                proto("copper", 0.4, 2.95),
-                proto("aluminum", 1.24, 6.6),
-                proto("green_paint", 1.39, 0.34),
-            ],
-            ClassifierConfig::default(),
-        )
-        .unwrap();
-        let pc = PixelClassifier::new(cls, Some(1.0)).unwrap();
+        let pc = copper_aluminum_paint();
         assert_eq!(pc.names(), ["aluminum", "copper", "green_paint"]);
         // Pixels: copper, aluminum, green paint, far away (rejected), saturated.
         let truth = [
@@ -1153,23 +1191,7 @@ mod tests {
             .collect();
         let views: Vec<&[f32]> = imgs.iter().map(|v| v.as_slice()).collect();
         let flags = [0, 0, 0, 0, flag::SATURATED | flag::DARK];
-        let np = truth.len();
-        let mut o: Vec<Vec<f32>> = vec![vec![0f32; np]; 5];
-        let (mut class, mut why) = (vec![9u16; np], vec![9u8; np]);
-        let [n, k, n_se, k_se, rms] = &mut o[..] else {
-            unreachable!()
-        };
-        let out = MapOutputs {
-            n,
-            k,
-            n_se,
-            k_se,
-            rms_residual: rms,
-            class: &mut class,
-            reason: &mut why,
-        };
-        let counts =
-            fit_and_classify((&plan).into(), &pc, &views, None, &flags, 2, out, &|_| {}).unwrap();
+        let ((o, class, why), counts) = run_map((&plan).into(), &pc, &views, &flags, 2).unwrap();
         assert_eq!(class, vec![2, 1, 3, 0, 0]);
         assert_eq!(why, vec![0, 0, 0, reason::REJECTED, reason::SATURATED]);
         assert_eq!(counts.classes, vec![2, 1, 1, 1]);
@@ -1184,16 +1206,7 @@ mod tests {
     #[test]
     fn fit_and_classify_with_per_pixel_angles() {
         let t_len = 6;
-        let cls = Classifier::new(
-            vec![
-                proto("copper", 0.4, 2.95),
-                proto("aluminum", 1.24, 6.6),
-                proto("green_paint", 1.39, 0.34),
-            ],
-            ClassifierConfig::default(),
-        )
-        .unwrap();
-        let pc = PixelClassifier::new(cls, Some(1.0)).unwrap();
+        let pc = copper_aluminum_paint();
         let truth = [
             (0.4, 2.95),
             (1.24, 6.6),
@@ -1235,29 +1248,18 @@ mod tests {
         let bviews: Vec<&[f32]> = beta.iter().map(|v| v.as_slice()).collect();
         let flags = [0, 0, 0, 0, flag::DARK, flag::SATURATED];
         let pp = PixelBetaPlan::with_defaults().unwrap();
-        let run = |betas: Betas<'_>| {
-            let mut o: Vec<Vec<f32>> = vec![vec![0f32; np]; 5];
-            let (mut class, mut why) = (vec![9u16; np], vec![9u8; np]);
-            let [n, k, n_se, k_se, rms] = &mut o[..] else {
-                unreachable!()
-            };
-            let out = MapOutputs {
-                n,
-                k,
-                n_se,
-                k_se,
-                rms_residual: rms,
-                class: &mut class,
-                reason: &mut why,
-            };
-            let counts =
-                fit_and_classify(betas, &pc, &views, None, &flags, 4, out, &|_| {}).unwrap();
-            (o, class, why, counts)
-        };
-        let (o, class, why, counts) = run(Betas::PerPixel {
-            plan: &pp,
-            beta: &bviews,
-        });
+        let run = |betas: Betas<'_>| run_map(betas, &pc, &views, &flags, 4).unwrap().0;
+        let ((o, class, why), counts) = run_map(
+            Betas::PerPixel {
+                plan: &pp,
+                beta: &bviews,
+            },
+            &pc,
+            &views,
+            &flags,
+            4,
+        )
+        .unwrap();
         assert_eq!(class, vec![2, 1, 3, 2, 0, 0]);
         assert_eq!(
             why,
@@ -1276,25 +1278,11 @@ mod tests {
         assert!(o[0][4].is_nan());
         // Wrong lengths.
         let short: Vec<&[f32]> = bviews.iter().map(|b| &b[..3]).collect();
-        let mut o = vec![vec![0f32; np]; 5];
-        let (mut class, mut why) = (vec![0u16; np], vec![0u8; np]);
-        let [n, k, n_se, k_se, rms] = &mut o[..] else {
-            unreachable!()
-        };
-        let out = MapOutputs {
-            n,
-            k,
-            n_se,
-            k_se,
-            rms_residual: rms,
-            class: &mut class,
-            reason: &mut why,
-        };
         let bad = Betas::PerPixel {
             plan: &pp,
             beta: &short,
         };
-        assert!(fit_and_classify(bad, &pc, &views, None, &flags, 4, out, &|_| {}).is_err());
+        assert!(run_map(bad, &pc, &views, &flags, 4).is_err());
         // Equal angles everywhere: the shared map, bit for bit.
         let same: Vec<Vec<f32>> = (0..t_len).map(|t| vec![beta[t][0]; np]).collect();
         let sviews: Vec<&[f32]> = same.iter().map(|v| v.as_slice()).collect();

@@ -3,16 +3,15 @@
 //! of two captures (where each plate sits on the DoLP curve) and the test set's
 //! material map.
 
-use std::collections::BTreeMap;
 use std::path::Path;
 
 use anyhow::Context;
 use polarid_io::image;
-use polarid_io::table::measurements::Measurement;
 use polarid_pipeline::demo::bench::{BenchOutput, MAP_BIN, TEST_PREFIX};
 use polarid_pipeline::map::MapResult;
 
 use super::Rendered;
+use super::demo::common;
 use super::plots::{self, PlotSize};
 use super::report::{self, Figure, Report};
 
@@ -36,31 +35,13 @@ fn is_test(t: &str) -> bool {
 pub fn figures(out: &BenchOutput) -> anyhow::Result<Vec<BenchFigure>> {
     let size = PlotSize::REPORT;
     let fit_of = |t: &str| out.fits.iter().map(|(_, f)| f).find(|f| f.target == t);
-    let mut by_target: BTreeMap<&str, Vec<&Measurement>> = BTreeMap::new();
-    for (_, m) in &out.measurements {
-        by_target.entry(m.target.as_str()).or_default().push(m);
-    }
+    let by_target = common::by_target(&out.measurements);
     let series: Vec<plots::DolpSeries> = by_target
         .iter()
         .filter(|(t, _)| !is_test(t))
         .filter_map(|(t, ms)| {
             let f = fit_of(t)?;
-            let points: Vec<plots::DolpPoint> = ms
-                .iter()
-                .map(|m| plots::DolpPoint {
-                    beta_deg: m.beta_deg,
-                    dolp: m.dolp,
-                    dolp_se: m.dolp_se,
-                })
-                .collect();
-            let lo = points.iter().map(|q| q.beta_deg).fold(f64::MAX, f64::min);
-            let hi = points.iter().map(|q| q.beta_deg).fold(f64::MIN, f64::max);
-            Some(plots::DolpSeries {
-                label: t.to_string(),
-                points,
-                curve: plots::eq9_curve(f.n, f.k, lo - 2.0, hi + 2.0, 60),
-                curve_label: Some(format!("fit n = {:.2}, k = {:.2}", f.n, f.k)),
-            })
+            Some(common::dolp_series(t.to_string(), f, ms))
         })
         .collect();
     let mut figs = vec![BenchFigure {
@@ -71,16 +52,7 @@ pub fn figures(out: &BenchOutput) -> anyhow::Result<Vec<BenchFigure>> {
                   against the region's β, and the fitted eq. (9) curve."
             .into(),
     }];
-    let protos: Vec<plots::Prototype> = out
-        .model
-        .prototypes
-        .iter()
-        .map(|p| plots::Prototype {
-            class: p.class.clone(),
-            n: p.n,
-            k: p.k,
-        })
-        .collect();
+    let protos = common::prototypes(&out.model);
     let clf = super::demo::classifier_of(&out.model, &out.classification);
     let ests: Vec<plots::NkEstimate> = out
         .fits
@@ -231,71 +203,41 @@ pub fn report(out: &BenchOutput, figs: &[BenchFigure]) -> Report {
     let estimates = out
         .fits
         .iter()
-        .map(|(_, f)| report::EstimateRow {
-            target: f.target.clone(),
-            class: f.class.clone(),
-            theta_r_deg: None,
-            n: f.n,
-            n_se: f.n_se,
-            k: f.k,
-            k_se: f.k_se,
-            nk_corr: f.nk_corr,
-            rms_residual: f.rms_residual,
-            measurements: f.measurements as usize,
-            status: f.status,
-        })
+        .map(|(_, f)| common::estimate_row(f, None))
         .collect();
     let clf = super::demo::classifier_of(&out.model, &out.classification);
     let classification =
         super::demo::report_classification(&out.fits, &out.classification, clf.as_ref());
-    let mut inputs: Vec<report::InputItem> = Vec::new();
-    for (s, m) in out.scenes.iter().zip(&out.manifests) {
-        inputs.push(report::InputItem {
-            role: "scene".into(),
-            path: s.clone(),
-            detail: "calibrated bench: camera, table plane, nine lamp positions, five plates"
-                .into(),
-        });
-        inputs.push(report::InputItem {
-            role: "manifest".into(),
-            path: m.clone(),
-            detail: "[camera], [[plane]], regions on the plane, a lamp position per capture".into(),
-        });
-    }
-    for (role, path, detail) in [
-        (
-            "measurements",
-            "measurements.csv",
-            "region DoLP per capture (measure)",
-        ),
-        ("fits", "fits.csv", "n, k with standard errors (fit)"),
-        (
-            "model",
-            "model.json",
-            "prototypes: the training fits (train)",
-        ),
-        (
-            "classification",
-            "classification.csv",
-            "the test plates (classify)",
-        ),
-        (
-            "map",
-            "map/",
-            "the test set's per-pixel maps (map, 4 × 4 binning)",
-        ),
-    ] {
-        inputs.push(report::InputItem {
-            role: role.into(),
-            path: path.into(),
-            detail: detail.into(),
-        });
-    }
-    let correct = out
-        .classification
-        .iter()
-        .filter(|c| c.class.as_deref() == Some(c.predicted.as_str()))
-        .count();
+    let inputs = common::inputs(
+        &out.scenes,
+        &out.manifests,
+        |_| "calibrated bench: camera, table plane, nine lamp positions, five plates".into(),
+        "[camera], [[plane]], regions on the plane, a lamp position per capture",
+        &[
+            (
+                "measurements",
+                "measurements.csv",
+                "region DoLP per capture (measure)",
+            ),
+            ("fits", "fits.csv", "n, k with standard errors (fit)"),
+            (
+                "model",
+                "model.json",
+                "prototypes: the training fits (train)",
+            ),
+            (
+                "classification",
+                "classification.csv",
+                "the test plates (classify)",
+            ),
+            (
+                "map",
+                "map/",
+                "the test set's per-pixel maps (map, 4 × 4 binning)",
+            ),
+        ],
+    );
+    let correct = common::correct(&out.classification);
     let (mut px, mut ok) = (0u64, 0u64);
     for r in &out.map.regions {
         px += r.pixels;

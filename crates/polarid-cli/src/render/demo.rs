@@ -2,7 +2,8 @@
 //! the prototypes and the test estimates, and the report laying them out with the
 //! demo's inputs, geometry and tables (from a [`DemoOutput`]).
 
-use std::collections::BTreeMap;
+pub(super) mod common;
+
 use std::fmt::Write as _;
 
 use polarid_io::table::classification::ClassificationRow;
@@ -18,10 +19,7 @@ use super::report::{self, Figure, Report};
 pub fn figures(out: &DemoOutput) -> anyhow::Result<[Rendered; 3]> {
     let is_training = |t: &str| PLATES.iter().any(|p| p.training && p.target == t);
     let fit_of = |t: &str| out.fits.iter().map(|(_, f)| f).find(|f| f.target == t);
-    let mut by_target: BTreeMap<&str, Vec<&Measurement>> = BTreeMap::new();
-    for (_, m) in &out.measurements {
-        by_target.entry(m.target.as_str()).or_default().push(m);
-    }
+    let by_target = common::by_target(&out.measurements);
     let series = |training: bool| -> Vec<plots::DolpSeries> {
         PLATES
             .iter()
@@ -29,27 +27,12 @@ pub fn figures(out: &DemoOutput) -> anyhow::Result<[Rendered; 3]> {
             .filter_map(|p| {
                 let f = fit_of(p.target)?;
                 let ms = by_target.get(p.target)?;
-                let points: Vec<plots::DolpPoint> = ms
-                    .iter()
-                    .map(|m| plots::DolpPoint {
-                        beta_deg: m.beta_deg,
-                        dolp: m.dolp,
-                        dolp_se: m.dolp_se,
-                    })
-                    .collect();
-                let lo = points.iter().map(|q| q.beta_deg).fold(f64::MAX, f64::min);
-                let hi = points.iter().map(|q| q.beta_deg).fold(f64::MIN, f64::max);
                 let label = if training {
                     p.label.to_string()
                 } else {
                     format!("test plate, θr = {:.0}°", p.theta_r)
                 };
-                Some(plots::DolpSeries {
-                    label,
-                    points,
-                    curve: plots::eq9_curve(f.n, f.k, lo - 2.0, hi + 2.0, 60),
-                    curve_label: Some(format!("fit n = {:.2}, k = {:.2}", f.n, f.k)),
-                })
+                Some(common::dolp_series(label, f, ms))
             })
             .collect()
     };
@@ -64,16 +47,7 @@ pub fn figures(out: &DemoOutput) -> anyhow::Result<[Rendered; 3]> {
         &series(false),
         size,
     )?;
-    let protos: Vec<plots::Prototype> = out
-        .model
-        .prototypes
-        .iter()
-        .map(|p| plots::Prototype {
-            class: p.class.clone(),
-            n: p.n,
-            k: p.k,
-        })
-        .collect();
+    let protos = common::prototypes(&out.model);
     let clf = classifier_of(&out.model, &out.classification);
     let ests: Vec<plots::NkEstimate> = out
         .fits
@@ -213,27 +187,14 @@ fn build_report(
         .collect();
     let estimates = fits
         .iter()
-        .map(|(_, f)| report::EstimateRow {
-            target: f.target.clone(),
-            class: f.class.clone(),
-            theta_r_deg: plate(&f.target).map(|p| p.theta_r),
-            n: f.n,
-            n_se: f.n_se,
-            k: f.k,
-            k_se: f.k_se,
-            nk_corr: f.nk_corr,
-            rms_residual: f.rms_residual,
-            measurements: f.measurements as usize,
-            status: f.status,
-        })
+        .map(|(_, f)| common::estimate_row(f, plate(&f.target).map(|p| p.theta_r)))
         .collect();
     let classification = report_classification(fits, class_rows, clf);
-    let mut inputs: Vec<report::InputItem> = Vec::new();
-    for (s, m) in scenes.iter().zip(manifests) {
+    let scene_detail = |s: &str| {
         let t = s
             .trim_start_matches("captures/")
             .trim_end_matches("/scene.toml");
-        let detail = plate(t)
+        plate(t)
             .map(|p| {
                 format!(
                     "{} (n = {}, k = {}, σ = {}), θr = {}°, θi = {}–{}° in 5° steps, \
@@ -241,42 +202,32 @@ fn build_report(
                     p.label, p.n, p.k, p.sigma, p.theta_r, p.theta_i.0, p.theta_i.1
                 )
             })
-            .unwrap_or_default();
-        inputs.push(report::InputItem {
-            role: "scene".into(),
-            path: s.clone(),
-            detail,
-        });
-        inputs.push(report::InputItem {
-            role: "manifest".into(),
-            path: m.clone(),
-            detail: "written by the simulator, read by measure".into(),
-        });
-    }
-    for (role, path, detail) in [
-        (
-            "measurements",
-            "measurements.csv",
-            "DoLP per target per capture (measure)",
-        ),
-        ("fits", "fits.csv", "n, k with standard errors (fit, eq. 9)"),
-        (
-            "model",
-            "model.json",
-            "prototypes: the three training fits (train)",
-        ),
-        (
-            "classification",
-            "classification.csv",
-            "the test plate, nearest neighbour (classify)",
-        ),
-    ] {
-        inputs.push(report::InputItem {
-            role: role.into(),
-            path: path.into(),
-            detail: detail.into(),
-        });
-    }
+            .unwrap_or_default()
+    };
+    let inputs = common::inputs(
+        scenes,
+        manifests,
+        scene_detail,
+        "written by the simulator, read by measure",
+        &[
+            (
+                "measurements",
+                "measurements.csv",
+                "DoLP per target per capture (measure)",
+            ),
+            ("fits", "fits.csv", "n, k with standard errors (fit, eq. 9)"),
+            (
+                "model",
+                "model.json",
+                "prototypes: the three training fits (train)",
+            ),
+            (
+                "classification",
+                "classification.csv",
+                "the test plate, nearest neighbour (classify)",
+            ),
+        ],
+    );
     let paper_rows: Vec<Vec<String>> = fits
         .iter()
         .filter_map(|(_, f)| {
@@ -303,10 +254,7 @@ fn build_report(
          aluminum plate, which is rougher than the training one, at two view angles."
             .to_string(),
     ];
-    let correct = class_rows
-        .iter()
-        .filter(|c| c.class.as_deref() == Some(c.predicted.as_str()))
-        .count();
+    let correct = common::correct(class_rows);
     let mut result = format!(
         "Result: {correct} of {} test views classified correctly",
         class_rows.len()

@@ -195,57 +195,52 @@ fn padded_row<T: Sample, const MAX: bool>(
     }
 }
 
+/// The eight rows `s[t][i] = v[i + t + 1]` (column `c0 + i + t − 3`) from which
+/// [`lane_taps`] picks the taps of `n` output columns of the padded row `v`.
+#[inline(always)]
+fn shifted(v: &[f32], n: usize) -> [&[f32]; 8] {
+    std::array::from_fn(|t| &v[t + 1..t + 1 + n])
+}
+
+/// The taps `(lo, hi)` and phase `e` of output column `c0 + i` (`c0` a multiple of 4)
+/// of lattice column residue `chi` from the [`shifted`] rows `s` (`hi` is meaningless
+/// when `e = 0`). Every value is loaded and the lane's taps selected: conditional loads
+/// would not vectorise.
+#[inline(always)]
+fn lane_taps(s: [&[f32]; 8], i: usize, chi: usize) -> (f32, f32, usize) {
+    let e = (i + 4 - chi) & 3;
+    let [v0, v1, v2, v3, v4, v5, v6, _] = s.map(|r| r[i]);
+    let lo = if e == 0 { v3 } else { v2 };
+    let lo = if e == 2 { v1 } else { lo };
+    let lo = if e == 3 { v0 } else { lo };
+    let hi = if e == 1 { v6 } else { v4 };
+    let hi = if e == 2 { v5 } else { hi };
+    (lo, hi, e)
+}
+
 /// The horizontal interpolation of lattice column residue `chi` at columns
 /// `c0 + i` (`c0` a multiple of 4) from the padded row `v`, written into `dst`
 /// (`ADD`: added to it).
 #[inline(always)]
 fn horizontal<const ADD: bool>(dst: &mut [f32], v: &[f32], chi: usize) {
-    let n = dst.len();
-    let s: [&[f32]; 8] = std::array::from_fn(|t| &v[t + 1..t + 1 + n]);
-    // s[t][i] = v[i + t + 1] = column c0 + i + t − 3; every value is loaded and the
-    // lane's taps selected (conditional loads would not vectorise).
-    for i in 0..n {
-        let e = (i + 4 - chi) & 3;
-        let [v0, v1, v2, v3, v4, v5, v6, _] = s.map(|r| r[i]);
-        let lo = if e == 0 { v3 } else { v2 };
-        let lo = if e == 2 { v1 } else { lo };
-        let lo = if e == 3 { v0 } else { lo };
-        let hi = if e == 1 { v6 } else { v4 };
-        let hi = if e == 2 { v5 } else { hi };
-        let wb = e as f32 * 0.25;
-        let wa = 1.0 - wb;
+    let s = shifted(v, dst.len());
+    for (i, d) in dst.iter_mut().enumerate() {
+        let (lo, hi, e) = lane_taps(s, i, chi);
+        let (wa, wb) = weights(e);
         let val = if e == 0 { lo } else { wa * lo + wb * hi };
-        dst[i] = if ADD { dst[i] + val } else { val };
+        *d = if ADD { *d + val } else { val };
     }
 }
 
 /// The largest sample with a non-zero weight of [`horizontal`], folded into `mx`.
 #[inline(always)]
 fn horizontal_max(mx: &mut [f32], vm: &[f32], chi: usize) {
-    let n = mx.len();
-    let s: [&[f32]; 8] = std::array::from_fn(|t| &vm[t + 1..t + 1 + n]);
-    for i in 0..n {
-        let e = (i + 4 - chi) & 3;
-        let [v0, v1, v2, v3, v4, v5, v6, _] = s.map(|r| r[i]);
-        let lo = if e == 0 { v3 } else { v2 };
-        let lo = if e == 2 { v1 } else { lo };
-        let lo = if e == 3 { v0 } else { lo };
-        let hi = if e == 1 { v6 } else { v4 };
-        let hi = if e == 2 { v5 } else { hi };
-        let hi = if e == 0 { v3 } else { hi };
-        mx[i] = mx[i].max(lo.max(hi));
+    let s = shifted(vm, mx.len());
+    for (i, m) in mx.iter_mut().enumerate() {
+        let (lo, hi, e) = lane_taps(s, i, chi);
+        let hi = if e == 0 { lo } else { hi };
+        *m = m.max(lo.max(hi));
     }
-}
-
-/// Destination row of one block: the caller's row `c0..c0 + len` where asked for,
-/// else the scratch row.
-macro_rules! dest {
-    ($out:expr, $scratch:expr, $span:expr, $len:expr) => {
-        match $out {
-            Some(r) => &mut r[$span],
-            None => &mut $scratch[..$len],
-        }
-    };
 }
 
 /// The outputs of one band for one strip of rows (each `rows × width`, or absent).
@@ -275,11 +270,15 @@ pub(super) fn bilinear_strip<T: Sample, const SAT: bool, const POLAR: bool>(
         let mut counts = [[0u32; 3]; MAX_BANDS];
         for c0 in (0..w).step_by(CBLOCK) {
             let len = CBLOCK.min(w - c0);
+            // the raw rows and phase of the vertical interpolation of residue `ρ`
+            let vtaps = |rho| {
+                let (ya, yb, e) = taps(y, rho, hgt);
+                (row(job.raw, w, ya), row(job.raw, w, yb), e)
+            };
             // any saturated sample in reach of the block? (else the test is skipped)
             let mut any_sat = false;
             for rho in 0..4 {
-                let (ya, yb, e) = taps(y, rho, hgt);
-                let (a, b) = (row(job.raw, w, ya), row(job.raw, w, yb));
+                let (a, b, e) = vtaps(rho);
                 padded_row::<T, false>(a, b, e, w, c0, len, &mut sc.v[rho]);
                 if SAT {
                     let (lo, hi) = (c0.saturating_sub(PAD), (c0 + len + PAD).min(w));
@@ -288,8 +287,7 @@ pub(super) fn bilinear_strip<T: Sample, const SAT: bool, const POLAR: bool>(
             }
             if SAT && any_sat {
                 for rho in 0..4 {
-                    let (ya, yb, e) = taps(y, rho, hgt);
-                    let (a, b) = (row(job.raw, w, ya), row(job.raw, w, yb));
+                    let (a, b, e) = vtaps(rho);
                     padded_row::<T, true>(a, b, e, w, c0, len, &mut sc.vm[rho]);
                 }
             }
@@ -322,17 +320,7 @@ pub(super) fn bilinear_strip<T: Sample, const SAT: bool, const POLAR: bool>(
                         }
                     }
                 }
-                let span = r * w + c0..r * w + c0 + len;
-                let [t0, t1, t2, td, ta] = &mut sc.tmp;
-                let [s0, s1, s2] = &mut o.s;
-                let rows = PixelRows {
-                    s0: dest!(s0.as_deref_mut(), t0, span.clone(), len),
-                    s1: dest!(s1.as_deref_mut(), t1, span.clone(), len),
-                    s2: dest!(s2.as_deref_mut(), t2, span.clone(), len),
-                    m: dest!(o.mask.as_deref_mut(), sc.tm, span.clone(), len),
-                    d: dest!(o.dolp.as_deref_mut(), td, span.clone(), len),
-                    a: dest!(o.aolp.as_deref_mut(), ta, span, len),
-                };
+                let rows = PixelRows::of(o, &mut sc.tmp, &mut sc.tm, r * w + c0, len);
                 let ch: [&[f32]; 4] = std::array::from_fn(|k| &sc.ik[k][..len]);
                 let (mx, cnt) = (&sc.mx[..len], &mut counts[band]);
                 if SAT && any_sat {
@@ -393,17 +381,7 @@ pub(super) fn superpixel_strip<T: Sample, const POLAR: bool>(
                         *x = *x * inv - dark;
                     }
                 }
-                let span = r * ow + c0..r * ow + c0 + len;
-                let [t0, t1, t2, td, ta] = &mut sc.tmp;
-                let [s0, s1, s2] = &mut o.s;
-                let rows = PixelRows {
-                    s0: dest!(s0.as_deref_mut(), t0, span.clone(), len),
-                    s1: dest!(s1.as_deref_mut(), t1, span.clone(), len),
-                    s2: dest!(s2.as_deref_mut(), t2, span.clone(), len),
-                    m: dest!(o.mask.as_deref_mut(), sc.tm, span.clone(), len),
-                    d: dest!(o.dolp.as_deref_mut(), td, span.clone(), len),
-                    a: dest!(o.aolp.as_deref_mut(), ta, span, len),
-                };
+                let rows = PixelRows::of(o, &mut sc.tmp, &mut sc.tm, r * ow + c0, len);
                 let ch: [&[f32]; 4] = std::array::from_fn(|k| &sc.ik[k][..len]);
                 stokes_pixels::<T, true, POLAR>(
                     ch,
@@ -430,6 +408,41 @@ struct PixelRows<'a> {
     m: &'a mut [u8],
     d: &'a mut [f32],
     a: &'a mut [f32],
+}
+
+impl<'a> PixelRows<'a> {
+    /// The rows `start..start + len` of the outputs of `o` the caller asked for, the
+    /// scratch rows `tmp`, `tm` for the others.
+    #[inline(always)]
+    fn of(
+        o: &'a mut BandStrip<'_>,
+        tmp: &'a mut [Vec<f32>; 5],
+        tm: &'a mut [u8],
+        start: usize,
+        len: usize,
+    ) -> Self {
+        fn dest<'a, U>(
+            out: Option<&'a mut [U]>,
+            scratch: &'a mut [U],
+            start: usize,
+            len: usize,
+        ) -> &'a mut [U] {
+            match out {
+                Some(r) => &mut r[start..start + len],
+                None => &mut scratch[..len],
+            }
+        }
+        let [t0, t1, t2, td, ta] = tmp;
+        let [s0, s1, s2] = &mut o.s;
+        Self {
+            s0: dest(s0.as_deref_mut(), t0, start, len),
+            s1: dest(s1.as_deref_mut(), t1, start, len),
+            s2: dest(s2.as_deref_mut(), t2, start, len),
+            m: dest(o.mask.as_deref_mut(), tm, start, len),
+            d: dest(o.dolp.as_deref_mut(), td, start, len),
+            a: dest(o.aolp.as_deref_mut(), ta, start, len),
+        }
+    }
 }
 
 /// Per pixel from the four channels `ch` (0, 45, 90, 135°, dark included) and the

@@ -17,22 +17,16 @@
 
 use std::path::Path;
 
-use polarid_core::classify::{Classifier, ClassifierConfig};
 use polarid_io::atomic::StagedDir;
-use polarid_io::manifest;
 use polarid_io::model::Model;
-use polarid_io::table::classification::{self, ClassificationRow};
-use polarid_io::table::fits::{self, FitRow};
-use polarid_io::table::measurements::{self, Measurement};
+use polarid_io::table::classification::ClassificationRow;
+use polarid_io::table::fits::FitRow;
+use polarid_io::table::measurements::Measurement;
 
-use super::stage;
-use crate::classify::{classification_row, estimate_of, explain, read_fits};
-use crate::fit::{FitConfig, fit, read_measurements};
+use super::steps;
 use crate::map::{self, MapConfig, MapResult, Metric};
-use crate::measure::measure;
 use crate::progress::{Progress, Warning};
 use crate::simulate::TruthRow;
-use crate::train::train;
 use crate::{PipelineError, Result};
 
 /// The bench scene (the training set): `examples/scenes/bench_lamp_lens.toml`.
@@ -179,63 +173,21 @@ pub fn run_bench(staged: &StagedDir, progress: Progress) -> Result<BenchOutput> 
     }
     progress("simulating", sets.len() as u64, sets.len() as u64);
 
-    // 2. measure both sets from the image files.
-    let mut rows: Vec<Measurement> = Vec::new();
-    let mut loaded = Vec::new();
-    for m in &manifests {
-        let man = manifest::load(&staged.path(m)?)?;
-        let got = measure(&man, progress)?;
-        warnings.extend(got.warnings);
-        rows.extend(got.rows);
-        loaded.push(man);
-    }
-    let meas_path = stage(staged, "measurements.csv", |w| {
-        measurements::write(w, Path::new("measurements.csv"), &rows)
-    })?;
-
-    // 3. fit.
-    let meas = read_measurements(&meas_path)?;
-    let fit_rows = fit(
-        Path::new("measurements.csv"),
-        &meas,
-        &FitConfig::default(),
-        progress,
-    )?
-    .rows();
-    let fits_path = stage(staged, "fits.csv", |w| {
-        fits::write(w, Path::new("fits.csv"), &fit_rows)
-    })?;
+    // 2. measure both sets from the image files, 3. fit.
+    let fitted = steps::measure_and_fit(staged, &manifests, progress, &mut warnings)?;
+    let (loaded, meas, all_fits) = (fitted.manifests, fitted.measurements, fitted.fits);
 
     // 4. train on the training set, 5. classify the test set.
-    let all_fits = read_fits(&fits_path)?;
     type Fits = Vec<(u64, FitRow)>;
     let (tests, training): (Fits, Fits) = all_fits
         .iter()
         .cloned()
         .partition(|(_, f)| f.target.starts_with(TEST_PREFIX));
-    let trained = train(&training, Path::new("fits.csv"), "fits.csv")?;
-    warnings.extend(trained.warnings);
-    let model = trained.model;
-    stage(staged, "model.json", |w| {
-        model.write(w, Path::new("model.json"))
-    })?;
-    let clf = Classifier::new(model.prototypes(), ClassifierConfig::default()).map_err(|e| {
-        PipelineError::Data {
-            path: "model.json".into(),
-            reason: format!("cannot use the trained model: {e}"),
-        }
-    })?;
-    let mut class_rows = Vec::new();
-    let mut notes = Vec::new();
-    for (_, f) in &tests {
-        let est = estimate_of(f);
-        let d = clf.classify(&est);
-        notes.push(explain(&f.target, &est, &d, &clf, 3));
-        class_rows.push(classification_row(f, &d, &clf));
-    }
-    stage(staged, "classification.csv", |w| {
-        classification::write(w, Path::new("classification.csv"), &class_rows)
-    })?;
+    let steps::Classified {
+        model,
+        rows: class_rows,
+        notes,
+    } = steps::train_and_classify(staged, &training, &tests, &mut warnings)?;
 
     // 6. map the test set with the trained model.
     let cfg = MapConfig::new(MAP_BIN, None, None, Metric::Euclidean, map::DEFAULT_TILE)?;

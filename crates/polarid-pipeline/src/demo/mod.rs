@@ -22,26 +22,19 @@
 pub mod bench;
 mod bench_tables;
 mod plates;
+mod steps;
 mod tables;
 
-use std::path::Path;
-
-use polarid_core::classify::{Classifier, ClassifierConfig};
 use polarid_io::atomic::{StagedDir, write_atomic};
-use polarid_io::manifest;
 use polarid_io::model::Model;
-use polarid_io::table::classification::{self, ClassificationRow};
-use polarid_io::table::fits::{self, FitRow};
-use polarid_io::table::measurements::{self, Measurement};
+use polarid_io::table::classification::ClassificationRow;
+use polarid_io::table::fits::FitRow;
+use polarid_io::table::measurements::Measurement;
 
 pub use plates::{DemoPlate, PLATES, SIDE, paper_estimate, scene_text};
 pub use tables::{paper_tables, pm, text_table};
 
-use crate::classify::{classification_row, estimate_of, explain, read_fits};
-use crate::fit::{FitConfig, fit, read_measurements};
-use crate::measure::measure;
 use crate::progress::{Progress, Warning};
-use crate::train::train;
 use crate::{PipelineError, Result};
 
 /// Everything the demo produced, besides the files in the staging directory.
@@ -108,63 +101,21 @@ pub fn run(staged: &StagedDir, progress: Progress) -> Result<DemoOutput> {
     }
     progress("simulating", PLATES.len() as u64, PLATES.len() as u64);
 
-    // 2. measure: every manifest, from the image files just written.
-    let mut rows: Vec<Measurement> = Vec::new();
-    for m in &manifests {
-        let man = manifest::load(&staged.path(m)?)?;
-        let got = measure(&man, progress)?;
-        warnings.extend(got.warnings);
-        rows.extend(got.rows);
-    }
-    let meas_path = stage(staged, "measurements.csv", |w| {
-        measurements::write(w, Path::new("measurements.csv"), &rows)
-    })?;
+    // 2. measure every manifest, from the image files just written; 3. fit.
+    let fitted = steps::measure_and_fit(staged, &manifests, progress, &mut warnings)?;
+    let (meas, all_fits) = (fitted.measurements, fitted.fits);
 
-    // 3. fit: from the measurements file, as `polarid fit` reads it.
-    let meas = read_measurements(&meas_path)?;
-    let fit_rows = fit(
-        Path::new("measurements.csv"),
-        &meas,
-        &FitConfig::default(),
-        progress,
-    )?
-    .rows();
-    let fits_path = stage(staged, "fits.csv", |w| {
-        fits::write(w, Path::new("fits.csv"), &fit_rows)
-    })?;
-
-    // 4. train on the training plates' fits.
-    let all_fits = read_fits(&fits_path)?;
+    // 4. train on the training plates' fits, 5. classify the test fits.
     let is_training = |t: &str| PLATES.iter().any(|p| p.training && p.target == t);
     let (training, tests): (Vec<(u64, FitRow)>, Vec<(u64, FitRow)>) = all_fits
         .iter()
         .cloned()
         .partition(|(_, f)| is_training(&f.target));
-    let trained = train(&training, Path::new("fits.csv"), "fits.csv")?;
-    warnings.extend(trained.warnings);
-    let model = trained.model;
-    stage(staged, "model.json", |w| {
-        model.write(w, Path::new("model.json"))
-    })?;
-
-    // 5. classify the test fits against the model.
-    let clf = Classifier::new(model.prototypes(), ClassifierConfig::default()).map_err(|e| {
-        PipelineError::Data {
-            path: "model.json".into(),
-            reason: format!("cannot use the trained model: {e}"),
-        }
-    })?;
-    let mut class_rows: Vec<ClassificationRow> = Vec::new();
-    let mut notes = Vec::new();
-    for (_, f) in &tests {
-        let est = estimate_of(f);
-        let d = clf.classify(&est);
-        notes.push(explain(&f.target, &est, &d, &clf, 3));
-        class_rows.push(classification_row(f, &d, &clf));
-    }
-    stage(staged, "classification.csv", |w| {
-        classification::write(w, Path::new("classification.csv"), &class_rows)
-    })?;
+    let steps::Classified {
+        model,
+        rows: class_rows,
+        notes,
+    } = steps::train_and_classify(staged, &training, &tests, &mut warnings)?;
 
     let (table1, table2) = paper_tables(&all_fits, &class_rows);
     Ok(DemoOutput {

@@ -1,0 +1,117 @@
+//! The steps both demos run from their simulated captures, as the commands would, each
+//! writing its file into the staging directory and the next step re-reading it:
+//! measure → fit ([`measure_and_fit`]), then train → classify ([`train_and_classify`]).
+
+use std::path::Path;
+
+use polarid_core::classify::{Classifier, ClassifierConfig};
+use polarid_io::atomic::StagedDir;
+use polarid_io::manifest::{self, Manifest};
+use polarid_io::model::Model;
+use polarid_io::table::classification::{self, ClassificationRow};
+use polarid_io::table::fits::{self, FitRow};
+use polarid_io::table::measurements::{self, Measurement};
+
+use super::stage;
+use crate::classify::{classification_row, estimate_of, explain, read_fits};
+use crate::fit::{FitConfig, fit, read_measurements};
+use crate::measure::measure;
+use crate::progress::{Progress, Warning};
+use crate::train::train;
+use crate::{PipelineError, Result};
+
+/// What [`measure_and_fit`] read and wrote.
+pub(super) struct Fitted {
+    /// The manifests, as loaded from the staging directory.
+    pub manifests: Vec<Manifest>,
+    /// The measurements as re-read from `measurements.csv` (with their line numbers).
+    pub measurements: Vec<(u64, Measurement)>,
+    /// The fits as re-read from `fits.csv` (with their line numbers).
+    pub fits: Vec<(u64, FitRow)>,
+}
+
+/// Measure every staged manifest (`polarid measure`) into `measurements.csv`, fit that
+/// file as `polarid fit` reads it into `fits.csv`, and re-read the fits. The
+/// measurement warnings are appended to `warnings`.
+pub(super) fn measure_and_fit(
+    staged: &StagedDir,
+    manifests: &[String],
+    progress: Progress,
+    warnings: &mut Vec<Warning>,
+) -> Result<Fitted> {
+    let mut rows: Vec<Measurement> = Vec::new();
+    let mut loaded = Vec::new();
+    for m in manifests {
+        let man = manifest::load(&staged.path(m)?)?;
+        let got = measure(&man, progress)?;
+        warnings.extend(got.warnings);
+        rows.extend(got.rows);
+        loaded.push(man);
+    }
+    let meas_path = stage(staged, "measurements.csv", |w| {
+        measurements::write(w, Path::new("measurements.csv"), &rows)
+    })?;
+
+    let meas = read_measurements(&meas_path)?;
+    let fit_rows = fit(
+        Path::new("measurements.csv"),
+        &meas,
+        &FitConfig::default(),
+        progress,
+    )?
+    .rows();
+    let fits_path = stage(staged, "fits.csv", |w| {
+        fits::write(w, Path::new("fits.csv"), &fit_rows)
+    })?;
+    Ok(Fitted {
+        manifests: loaded,
+        measurements: meas,
+        fits: read_fits(&fits_path)?,
+    })
+}
+
+/// What [`train_and_classify`] produced.
+pub(super) struct Classified {
+    /// The model trained on the training fits.
+    pub model: Model,
+    /// The test fits' classification rows.
+    pub rows: Vec<ClassificationRow>,
+    /// One explanation per test fit (nearest prototypes and distances).
+    pub notes: Vec<String>,
+}
+
+/// Train a model on `training` (`polarid train`) into `model.json`, classify `tests`
+/// with it (`polarid classify`, default settings) into `classification.csv`. The
+/// training warnings are appended to `warnings`.
+pub(super) fn train_and_classify(
+    staged: &StagedDir,
+    training: &[(u64, FitRow)],
+    tests: &[(u64, FitRow)],
+    warnings: &mut Vec<Warning>,
+) -> Result<Classified> {
+    let trained = train(training, Path::new("fits.csv"), "fits.csv")?;
+    warnings.extend(trained.warnings);
+    let model = trained.model;
+    stage(staged, "model.json", |w| {
+        model.write(w, Path::new("model.json"))
+    })?;
+
+    let clf = Classifier::new(model.prototypes(), ClassifierConfig::default()).map_err(|e| {
+        PipelineError::Data {
+            path: "model.json".into(),
+            reason: format!("cannot use the trained model: {e}"),
+        }
+    })?;
+    let mut rows = Vec::new();
+    let mut notes = Vec::new();
+    for (_, f) in tests {
+        let est = estimate_of(f);
+        let d = clf.classify(&est);
+        notes.push(explain(&f.target, &est, &d, &clf, 3));
+        rows.push(classification_row(f, &d, &clf));
+    }
+    stage(staged, "classification.csv", |w| {
+        classification::write(w, Path::new("classification.csv"), &rows)
+    })?;
+    Ok(Classified { model, rows, notes })
+}
