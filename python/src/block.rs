@@ -61,6 +61,8 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(_map_names, m)?)?;
     m.add_function(wrap_pyfunction!(_noise_block, m)?)?;
     m.add_function(wrap_pyfunction!(_estimate_noise, m)?)?;
+    // The most pixels of the noise-model sample (`noise::NOISE_SAMPLE`).
+    m.add("_NOISE_SAMPLE", polarid_core::map::noise::NOISE_SAMPLE)?;
     Ok(())
 }
 
