@@ -76,7 +76,7 @@ def test_options():
     assert list(four) == ["R", "G", "B", "N"] and four["N"]["wavelength_nm"] == 850.0
     for bad, match in [(dict(color="RGB"), "colour pattern"), (dict(method="nearest"), "method must be"),
                        (dict(quantities=("s3",)), "quantities"), (dict(bands={"RG": 1.0}), "one colour letter"),
-                       (dict(bands={"R": -1.0}), "must be > 0 nm"), (dict(pattern=(0, 0, 90, 135)), "")]:
+                       (dict(bands={"R": -1.0}), "must be > 0 nm"), (dict(pattern=(0, 0, 90, 135)), "distinct")]:
         with pytest.raises(ValueError, match=match):
             polarid.stokes_color(raw, **bad)
     with pytest.raises(ValueError):
