@@ -551,6 +551,9 @@ fn _noise_block<'py>(
     Ok(d.into_any())
 }
 
+/// `(read_var_dn2, inv_gain, pixels, outliers, reduced_chi2)` of a noise estimate.
+type NoiseTuple = (f64, f64, usize, usize, f64);
+
 /// The map's noise model from the gathered sample (private: see the module
 /// documentation). ``dolp``, ``read``, ``shot``: float32 (S, T), the sampled pixels in
 /// the map's row-major order; ``beta_deg`` (T,) with one β per capture, or
@@ -567,7 +570,7 @@ fn _estimate_noise<'py>(
     shot: &Bound<'py, PyAny>,
     beta_deg: Option<Vec<f64>>,
     beta_rad: Option<&Bound<'py, PyAny>>,
-) -> PyResult<Option<(f64, f64, usize, usize, f64)>> {
+) -> PyResult<Option<NoiseTuple>> {
     let cols = |name: &str, a: &Bound<'py, PyAny>| -> PyResult<(usize, usize, Vec<Vec<f32>>)> {
         let a = f64_contiguous(name, a)?;
         let sh = a.shape().to_vec();

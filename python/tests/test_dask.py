@@ -100,6 +100,9 @@ def assert_same_noise(got, cli, rtol=1e-12):
         return
     for key in ("pixels", "outliers"):
         assert got["noise"][key] == want[key], key
+    print("noise model: " + ", ".join(f"{k} {got['noise'][k]:.6g} (rel. diff {got['noise'][k] / want[k] - 1:.1e})"
+                                      for k in ("read_noise_dn", "gain_e_per_dn", "reduced_chi2"))
+          + f", pixels {want['pixels']}, outliers {want['outliers']}")
     for key in ("read_noise_dn", "gain_e_per_dn", "reduced_chi2"):
         assert got["noise"][key] == pytest.approx(want[key], rel=rtol), key
 
