@@ -100,7 +100,11 @@ def assert_same_noise(got, cli, rtol=1e-12):
         return
     for key in ("pixels", "outliers"):
         assert got["noise"][key] == want[key], key
-    print("noise model: " + ", ".join(f"{k} {got['noise'][k]:.6g} (rel. diff {got['noise'][k] / want[k] - 1:.1e})"
+    def rel(k):
+        g, w = got["noise"][k], want[k]
+        return "equal" if g == w else f"rel. diff {g / w - 1:.1e}" if w else f"{g} vs {w}"
+
+    print("noise model: " + ", ".join(f"{k} {got['noise'][k]} ({rel(k)})"
                                       for k in ("read_noise_dn", "gain_e_per_dn", "reduced_chi2"))
           + f", pixels {want['pixels']}, outliers {want['outliers']}")
     for key in ("read_noise_dn", "gain_e_per_dn", "reduced_chi2"):
