@@ -14,11 +14,13 @@ CAPTURES is either
   values) and ``angles_deg`` (or ``pattern``), and optionally ``dark_level`` and
   ``saturation``.
 
-MODEL is a model JSON of ``polarid train``. The maps ``n, k, n_se, k_se, rms_residual,
-class, reason`` are written to ``-o``: into a zarr store when it ends in ``.zarr``
-(``dask.array.to_zarr``, block by block), else as one ``.npy`` file per map (each
-assembled from its blocks) with ``names.json``; the code → name tables
-(``class_names``, ``reason_names``) go into the zarr store's attributes or names.json.
+MODEL is a model JSON of ``polarid train``; the maps are those of ``polarid map`` with
+its defaults (answer sets at 95 %; noise-weighted fits with a β per pixel). The maps
+``n, k, n_se, k_se, rms_residual, class, reason`` are written to ``-o``: into a zarr
+store when it ends in ``.zarr`` (``dask.array.to_zarr``, block by block), else as one
+``.npy`` file per map (each assembled from its blocks) with ``names.json``; the code →
+name tables (``class_names``, ``reason_names``) and the fit weights (``weights``,
+``noise``) go into the zarr store's attributes or names.json.
 A progress bar shows the blocks done (``dask.diagnostics.ProgressBar`` for the local
 schedulers, ``distributed.progress`` on a cluster).
 
@@ -115,6 +117,9 @@ def main():
     maps = polarid.dask.material_map(frames, geometry.pop("angles_deg"), beta_deg, a.model,
                                      bin=a.bin, **geometry, **options)
     names = {"class": maps.pop("class_names"), "reason": maps.pop("reason_names")}
+    # What the fits used: "noise" with the noise model (estimated here when weighted, as
+    # polarid map does), or "none".
+    fit_info = {"weights": maps.pop("weights"), "noise": maps.pop("noise")}
     print(f"{frames.shape} frames in {frames.numblocks[-2] * frames.numblocks[-1]} blocks -> "
           f"maps {maps['n'].shape}, classes {names['class'][1:]}")
 
@@ -141,7 +146,7 @@ def main():
         with ProgressBar():
             results = dask.compute(*targets, scheduler=a.scheduler)
 
-    tables = {"class_names": names["class"], "reason_names": names["reason"]}
+    tables = {"class_names": names["class"], "reason_names": names["reason"], **fit_info}
     if out.suffix == ".zarr":
         import zarr
 

@@ -21,6 +21,9 @@ dolp(s), aolp(s), dolp_aolp(s)
     DoLP and AoLP (degrees) of Stokes images.
 dofp_dolp_aolp(raw, pattern, method)
     DoLP and AoLP straight from a DoFP mosaic (fused, no intermediate images).
+stokes_color(raw, color="RGGB", pattern, method)
+    Per-band S0, S1, S2, DoLP and AoLP of a colour polarization mosaic (IMX250MYR),
+    as ``polarid stokes --dofp RAW --color RGGB``.
 dolp_model(n, k, beta_deg), dolp_model_grad(n, k, beta_deg)
     DoLP of specular reflection, paper eq. (9) (and its gradient), with broadcasting.
 pbrdf(n, k, sigma, theta_i, theta_r, phi)
@@ -71,6 +74,7 @@ from ._polarid import (
     pbrdf,
     simulate,
     stokes,
+    stokes_color,
 )
 from ._polarid import map_manifest
 
@@ -93,5 +97,6 @@ __all__ = [
     "pbrdf",
     "simulate",
     "stokes",
+    "stokes_color",
 ]
 __all__ += ["map_manifest"]

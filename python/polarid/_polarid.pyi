@@ -7,8 +7,8 @@ functions put S0, S1, S2 (or the per-angle images) on the first axis.
 """
 
 import os
-from collections.abc import Sequence
-from typing import Any, Literal, overload
+from collections.abc import Mapping, Sequence
+from typing import Any, Literal, TypedDict, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, DTypeLike, NDArray
@@ -129,6 +129,36 @@ def dofp_dolp_aolp(
     return_mask: bool = False,
     out: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None,
 ) -> tuple[NDArray[Any], ...]: ...
+class ColorBand(TypedDict, total=False):
+    """One band of ``stokes_color``: its wavelength, the asked images (float32, (H, W)
+    for bilinear, (H/4, W/4) for superpixel), the mask with ``return_mask`` and the
+    pixel counts (valid, saturated, dark, invalid)."""
+
+    wavelength_nm: float
+    s0: NDArray[np.float32]
+    s1: NDArray[np.float32]
+    s2: NDArray[np.float32]
+    dolp: NDArray[np.float32]
+    aolp: NDArray[np.float32]
+    mask: NDArray[np.uint8]
+    counts: dict[str, int]
+
+def stokes_color(
+    raw: ArrayLike,
+    color: str = "RGGB",
+    pattern: Sequence[float] = (90, 45, 135, 0),
+    method: Literal["bilinear", "superpixel"] = "bilinear",
+    *,
+    bands: Mapping[str, float] | None = None,
+    dark_level: float = 0.0,
+    saturation: float | None = None,
+    min_s0: float = 0.0,
+    quantities: Sequence[Literal["s0", "s1", "s2", "dolp", "aolp"]] | None = None,
+    return_mask: bool = False,
+) -> dict[str, ColorBand]:
+    """Per-band images of a colour polarization mosaic, keyed by band letter (R, G, B
+    for RGGB), as ``polarid stokes --dofp RAW --color RGGB``."""
+
 def dolp(s: ArrayLike) -> NDArray[np.float32] | NDArray[np.float64]: ...
 def aolp(s: ArrayLike) -> NDArray[np.float32] | NDArray[np.float64]: ...
 def dolp_aolp(
@@ -298,6 +328,12 @@ def _map_names(
     max_distance: float | None = None,
     metric: Literal["euclidean", "mahalanobis"] = "euclidean",
     tile: int = 65536,
+    rule: Literal["set", "nearest"] = "set",
+    confidence: float = 0.95,
+    angle_sd_deg: Sequence[float] = (0.2,),
+    dolp_floor: float = 0.002,
+    extinction_ratio: float = 100.0,
+    retardance_deg: float = 0.0,
 ) -> tuple[list[str], list[str]]: ...
 def _map_block(
     frames: ArrayLike,
@@ -315,4 +351,36 @@ def _map_block(
     max_distance: float | None = None,
     metric: Literal["euclidean", "mahalanobis"] = "euclidean",
     tile: int = 65536,
+    rule: Literal["set", "nearest"] = "set",
+    confidence: float = 0.95,
+    angle_sd_deg: Sequence[float] | None = None,
+    dolp_floor: float = 0.002,
+    extinction_ratio: float = 100.0,
+    retardance_deg: float = 0.0,
+    noise: tuple[float, float] | None = None,
 ) -> NDArray[np.float32]: ...
+
+_NOISE_SAMPLE: int
+
+def _noise_block(
+    frames: ArrayLike,
+    angles_deg: Sequence[float] | None,
+    beta_deg: ArrayLike,
+    *,
+    pattern: Sequence[float] | None = None,
+    halo: tuple[int, int, int, int] = (0, 0, 0, 0),
+    bin: int = 1,
+    dark_level: Sequence[float] | None = None,
+    saturation: Sequence[float | None] | None = None,
+    min_s0: float | None = None,
+    row_offsets: Sequence[int] | None = None,
+    stride: int = 1,
+) -> NDArray[np.int64] | dict[str, NDArray[Any]]: ...
+def _estimate_noise(
+    dolp: ArrayLike,
+    read: ArrayLike,
+    shot: ArrayLike,
+    *,
+    beta_deg: Sequence[float] | None = None,
+    beta_rad: ArrayLike | None = None,
+) -> tuple[float, float, int, int, float] | None: ...

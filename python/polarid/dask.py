@@ -3,16 +3,37 @@
 ``material_map`` turns a dask array of polarization captures into lazy dask arrays of
 the per-pixel complex refractive index ``(n, k)``, its standard errors and the material
 class. Each block of the map is computed by the very kernels of ``polarid map`` (and
-``polarid.map_manifest``): the (binned) DoLP per capture with its signal flags
-(saturated, dark, invalid), the eq. (9) fit of every pixel over the captures and the
-nearest-prototype classification of the model, so that a map assembled from blocks
-equals the map of the whole frame: bit for bit with one β per capture; with a β per
-pixel the fits are grouped by their usable captures within a block, and the last bits of
-a group's fits depend on its members (as with ``polarid map --tile``).
-``python/tests/test_dask.py`` compares with the CLI on a ``dask.distributed.LocalCluster``
-of 2 worker processes. It runs on any Dask scheduler
+``polarid.map_manifest``) with the same options and defaults: the (binned) DoLP per
+capture with its signal flags (saturated, dark, invalid), the eq. (9) fit of every pixel
+over the captures, and the answer of the set rule (the model's materials consistent with
+the pixel's estimate at ``confidence``, noise plus the systematic error model: one
+material, ``ambiguous`` or unknown) or of the paper's nearest prototype
+(``rule="nearest"``).
+
+Weighted fits (``weights="auto"`` with a β per pixel, or ``weights="noise"``) use the
+map's noise model (read noise ``r`` and gain ``g`` of the camera, one pair for the whole
+map), which ``polarid map`` estimates from the residuals of a sample of the whole image.
+That is a global step: unless ``noise=`` gives the model, ``material_map`` computes it
+when called, in two passes over the blocks on the current scheduler (each block's DoLP
+and noise terms; first the usable pixels per row, then the pixels of the CLI's sample,
+every ``m``-th usable pixel in row-major order), and fits the gathered sample (at most
+20 000 pixels) on the client: the same sample, the same fits, the same estimate as
+``polarid map``. The maps are then lazy, every block weighted by that model
+(``maps["noise"]`` reports it; pass it as ``noise=`` to map more captures of the same
+camera without the two passes).
+
+A map assembled from blocks equals the map of the whole frame: bit for bit with one β
+per capture; with a β per pixel the fits are grouped by their usable captures within a
+block, and the last bits of a group's fits depend on its members (as with ``polarid map
+--tile``). ``python/tests/test_dask.py`` compares with the CLI on a
+``dask.distributed.LocalCluster`` of 2 worker processes. It runs on any Dask scheduler
 (threads, processes, distributed); the kernels release the GIL and use every core of a
 worker.
+
+Colour polarization mosaics (a 2×2 polarizer block under each colour of a Bayer
+pattern) are not mapped: ``polarid map`` does not map them either yet (one map per band
+is being added to the pipeline), and this map is defined as the CLI's.
+``polarid.stokes_color`` gives each band's Stokes images, DoLP and AoLP.
 
 Dask is an optional dependency: ``pip install "./python[dask]"`` (dask[array]; add
 ``distributed`` for clusters).
@@ -34,12 +55,13 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Sequence
+import warnings
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
-from ._polarid import _map_block, _map_names
+from ._polarid import _NOISE_SAMPLE, _estimate_noise, _map_block, _map_names, _noise_block
 
 __all__ = ["material_map", "aligned_chunks", "PLANES"]
 
@@ -49,6 +71,9 @@ PLANES = ("n", "k", "n_se", "k_se", "rms_residual", "class", "reason")
 #: Raw pixels around a DoFP block read by the bilinear interpolation (its 3×3
 #: neighbourhood, rounded up to keep the 2×2 pattern's phase).
 DOFP_HALO = 2
+
+#: The defaults of ``polarid map``'s systematic error model (``polarid fit``'s).
+DEFAULT_ERRORS = dict(angle_sd_deg=0.2, dolp_floor=0.002, extinction_ratio=100.0, retardance_deg=0.0)
 
 
 def _dask_array():
@@ -106,8 +131,9 @@ def _per_capture(name: str, value: Any, t: int) -> list:
     return [None if x is None else float(x) for x in v]
 
 
-def _block(x, beta=None, *, block_id, nblocks, pattern, per_capture_beta, t, a, kw):
-    """One map block: ``x`` (L, h, w) frames (L = T·A) or DoFP mosaics with their halo."""
+def _block_inputs(x, beta, block_id, nblocks, pattern, per_capture_beta, t, a):
+    """The frames, β and halo of one block: ``x`` (L, h, w) frames (L = T·A) or DoFP
+    mosaics with their halo."""
     i, j = block_id[1], block_id[2]
     if pattern is not None:
         halo = (
@@ -125,10 +151,103 @@ def _block(x, beta=None, *, block_id, nblocks, pattern, per_capture_beta, t, a, 
     # kernels need C-contiguous, aligned arrays (np.require copies only when needed).
     frames = np.require(frames, requirements=("C", "A"))
     b = np.require(b, dtype=np.float64, requirements=("C", "A"))
-    return _map_block(frames, kw["angles_deg"], b, kw["model_json"], label=kw["label"],
-                      pattern=pattern, halo=halo, bin=kw["bin"], dark_level=kw["dark_level"],
-                      saturation=kw["saturation"], min_s0=kw["min_s0"],
-                      max_distance=kw["max_distance"], metric=kw["metric"], tile=kw["tile"])
+    return frames, b, halo
+
+
+def _stage1_kw(kw):
+    """The options of a block's DoLP stage (shared by the map and the noise passes)."""
+    return dict(pattern=kw["pattern"], bin=kw["bin"], dark_level=kw["dark_level"],
+                saturation=kw["saturation"], min_s0=kw["min_s0"])
+
+
+def _block(x, beta=None, *, block_id, nblocks, per_capture_beta, t, a, kw):
+    """One map block (float32 (7, h/bin, w/bin), see ``PLANES``)."""
+    frames, b, halo = _block_inputs(x, beta, block_id, nblocks, kw["pattern"], per_capture_beta, t, a)
+    return _map_block(frames, kw["angles_deg"], b, kw["model_json"], label=kw["label"], halo=halo,
+                      **_stage1_kw(kw), max_distance=kw["max_distance"], metric=kw["metric"],
+                      tile=kw["tile"], noise=kw["noise"], **kw["rule"])
+
+
+def _count_block(x, beta=None, *, block_id, nblocks, per_capture_beta, t, a, kw):
+    """Noise pass 1: the usable pixels of every map row of a block, (1, h/bin, 1)."""
+    frames, b, halo = _block_inputs(x, beta, block_id, nblocks, kw["pattern"], per_capture_beta, t, a)
+    counts = _noise_block(frames, kw["angles_deg"], b, halo=halo, **_stage1_kw(kw))
+    return np.asarray(counts, dtype=np.int64).reshape(1, -1, 1)
+
+
+def _sample_block(x, beta, offsets, stride, block_id, nblocks, per_capture_beta, t, a, kw):
+    """Noise pass 2: the block's pixels of the map's noise sample (a dict of arrays)."""
+    frames, b, halo = _block_inputs(x, beta, block_id, nblocks, kw["pattern"], per_capture_beta, t, a)
+    return _noise_block(frames, kw["angles_deg"], b, halo=halo, **_stage1_kw(kw),
+                        row_offsets=[int(v) for v in offsets], stride=int(stride))
+
+
+def _noise_arg(noise: Any) -> tuple[float, float]:
+    """``noise=`` as ``(read_var_dn2, inv_gain)``: a mapping with those keys (as
+    ``maps["noise"]``) or with ``read_noise_dn`` and ``gain_e_per_dn`` (as
+    ``map_summary.json``'s ``noise``)."""
+    if not isinstance(noise, Mapping):
+        raise TypeError(f"noise must be a dict (maps['noise'] or map_summary.json's noise), got {type(noise).__name__}")
+    if "read_var_dn2" in noise and "inv_gain" in noise:
+        return float(noise["read_var_dn2"]), float(noise["inv_gain"])
+    if "read_noise_dn" in noise and "gain_e_per_dn" in noise:
+        g = noise["gain_e_per_dn"]
+        return float(noise["read_noise_dn"]) ** 2, 0.0 if g is None else 1.0 / float(g)
+    raise ValueError("noise needs the keys read_var_dn2 and inv_gain (or read_noise_dn and gain_e_per_dn)")
+
+
+def _noise_dict(est) -> dict[str, Any]:
+    r2, ig, pixels, outliers, chi2 = est
+    return dict(read_var_dn2=r2, inv_gain=ig, read_noise_dn=math.sqrt(r2),
+                gain_e_per_dn=(1.0 / ig) if ig > 0 else None, pixels=int(pixels),
+                outliers=int(outliers), reduced_chi2=chi2)
+
+
+def _estimate(da, x, beta, common, rows, cols, oh, ow, bin, per_capture_beta, scheduler):
+    """The map's noise model, as ``polarid map`` estimates it (module documentation):
+    ``(read_var_dn2, inv_gain, pixels, outliers, reduced_chi2)`` or None."""
+    import dask
+
+    nbr, nbc = len(rows), len(cols)
+    out_rows = tuple(c // bin for c in rows)
+    out_cols = tuple(c // bin for c in cols)
+    args = (x,) if beta is None else (x, beta)
+    counts = da.map_blocks(_count_block, *args, chunks=((1,), out_rows, (1,) * nbc), dtype=np.int64,
+                           meta=np.empty((0, 0, 0), dtype=np.int64), per_capture_beta=per_capture_beta,
+                           **common, token="polarid-noise-count")
+    c = np.asarray(counts.compute(scheduler=scheduler))[0]  # (oh, nbc)
+    total = int(c.sum())
+    if total == 0:
+        return None
+    stride = -(-total // _NOISE_SAMPLE)
+    row_tot = c.sum(axis=1)
+    offsets = (np.cumsum(row_tot) - row_tot)[:, None] + np.cumsum(c, axis=1) - c
+    xd = x.to_delayed()
+    bd = None if beta is None else beta.to_delayed()
+    tasks, where = [], []
+    r0 = np.concatenate([[0], np.cumsum(out_rows)])
+    c0 = np.concatenate([[0], np.cumsum(out_cols)])
+    for i in range(nbr):
+        for j in range(nbc):
+            off = offsets[r0[i]:r0[i + 1], j]
+            tasks.append(dask.delayed(_sample_block, pure=True)(
+                xd[0, i, j], None if bd is None else bd[0, i, j], off, stride, (0, i, j),
+                common["nblocks"], per_capture_beta, common["t"], common["a"], common["kw"]))
+            where.append((r0[i], c0[j], out_cols[j]))
+    parts = dask.compute(*tasks, scheduler=scheduler)
+    keys = ["dolp", "read", "shot"] + (["beta_rad"] if beta is not None else [])
+    gp, cols_ = [], {k: [] for k in keys}
+    for part, (ry, cx, bw) in zip(parts, where):
+        idx = np.asarray(part["index"], dtype=np.int64)
+        gp.append((ry + idx // bw) * ow + cx + idx % bw)
+        for k in keys:
+            cols_[k].append(np.asarray(part[k]))
+    order = np.argsort(np.concatenate(gp), kind="stable")
+    sample = {k: np.ascontiguousarray(np.concatenate(v)[order]) for k, v in cols_.items()}
+    if beta is None:
+        return _estimate_noise(sample["dolp"], sample["read"], sample["shot"],
+                               beta_deg=[float(v) for v in per_capture_beta])
+    return _estimate_noise(sample["dolp"], sample["read"], sample["shot"], beta_rad=sample["beta_rad"])
 
 
 def material_map(
@@ -142,18 +261,29 @@ def material_map(
     dark_level: float | Sequence[float] = 0.0,
     saturation: float | Sequence[float | None] | None = None,
     min_s0: float | None = None,
+    rule: str = "set",
+    confidence: float = 0.95,
+    weights: str = "auto",
+    noise: Mapping[str, float] | None = None,
+    angle_sd_deg: float | Sequence[float] = DEFAULT_ERRORS["angle_sd_deg"],
+    dolp_floor: float = DEFAULT_ERRORS["dolp_floor"],
+    extinction_ratio: float = DEFAULT_ERRORS["extinction_ratio"],
+    retardance_deg: float = DEFAULT_ERRORS["retardance_deg"],
     max_distance: float | None = None,
     metric: str = "euclidean",
     tile: int = 65536,
     rechunk: bool = True,
+    scheduler: Any = None,
 ) -> dict[str, Any]:
     """Per-pixel (n, k) and material maps of a stack of captures, as lazy dask arrays.
 
-    The same computation as ``polarid map`` (and ``polarid.map_manifest``), block by
-    block: for each capture the (``bin`` × ``bin`` binned) DoLP and the signal flags,
-    then the fit of every unflagged pixel's DoLP values over the captures against eq.
-    (9) and the nearest prototype of the model. The map equals the CLI's whatever the
-    chunking (classes identical, n and k to 1e-6; ``python/tests/test_dask.py``).
+    The same computation as ``polarid map`` (and ``polarid.map_manifest``) with the same
+    options and defaults, block by block: for each capture the (``bin`` × ``bin``
+    binned) DoLP and the signal flags, then the fit of every unflagged pixel's DoLP
+    values over the captures against eq. (9) (weighted by the map's noise model with a
+    β per pixel) and its answer (the set rule at 95 %, or the nearest prototype). The
+    map equals the CLI's whatever the chunking (classes identical, n and k to 1e-6;
+    ``python/tests/test_dask.py``).
 
     Parameters
     ----------
@@ -189,10 +319,36 @@ def material_map(
     min_s0 : float, optional
         Dark threshold on a block's mean dark-subtracted S0, DN (default: 1 % of the range
         from the dark level to saturation for integer frames, 0 for float frames).
+    rule : {"set", "nearest"}, default "set"
+        ``set`` (``polarid map``'s default): a pixel is the one material consistent with
+        its estimate at ``confidence`` (noise plus the systematic error model),
+        ``ambiguous`` (the last class name) when several are, unknown (code 0, reason
+        ``rejected``) when none is; ``nearest``: the paper's nearest prototype
+        (``metric``, ``max_distance``).
+    confidence : float, default 0.95
+        Confidence of the consistent set, in (0, 1) (``--confidence``).
+    weights : {"auto", "noise", "none"}, default "auto"
+        Weight each pixel's fit by its DoLP standard errors from the map's noise model
+        (``--weights``; ``auto``: with a β per pixel only, as ``polarid map`` with
+        calibrated geometry). Unweighted fits scale each pixel's covariance by its own
+        reduced χ² (the paper's fit).
+    noise : dict, optional
+        The noise model for weighted fits: ``maps["noise"]`` of an earlier map (keys
+        ``read_var_dn2``, ``inv_gain``) or ``map_summary.json``'s ``noise``
+        (``read_noise_dn``, ``gain_e_per_dn``). Default: estimated from this map's
+        residuals when it is called (module documentation), as ``polarid map`` does.
+    angle_sd_deg : float or sequence of one per capture, default 0.2
+        Set rule: angle uncertainty of each capture, degrees (``--angle-sd-deg``; a
+        manifest's per-capture ``angle_sd_deg`` wins in the CLI: pass them here).
+    dolp_floor, extinction_ratio, retardance_deg : float
+        Set rule: additive DoLP error (0.002), the polarizer's lowest extinction ratio
+        (100; ``math.inf``: ideal), the largest retardance ahead of it (0°); as
+        ``polarid map``.
     max_distance : float, optional
-        Leave pixels whose nearest prototype is farther unclassified (``rejected``).
+        Nearest rule: leave pixels whose nearest prototype is farther unclassified
+        (``rejected``).
     metric : {"euclidean", "mahalanobis"}
-        Distance to the prototypes.
+        Nearest rule: distance to the prototypes.
     tile : int, default 65536
         Pixels per fitting tile within a block.
     rechunk : bool, default True
@@ -200,6 +356,9 @@ def material_map(
         of 2 for DoFP mosaics) so that no bin straddles two blocks. True: move the
         boundaries down to such multiples (``aligned_chunks``); False: raise
         ``ValueError`` when they are not.
+    scheduler : optional
+        The Dask scheduler of the noise-model passes (default: the current one, e.g. a
+        ``distributed.Client``); the maps themselves are lazy.
 
     Returns
     -------
@@ -208,8 +367,12 @@ def material_map(
         W // bin), NaN where not fitted; ``class``: uint8 (uint16 above 255 classes) class
         codes, 0 = not classified, code ``i`` is ``class_names[i]``; ``reason``: uint8
         codes, code ``i`` is ``reason_names[i]``; ``class_names`` (list, ``"unknown"``
-        first), ``reason_names`` (list, ``"classified"`` first; ``no_geometry`` with
-        per-pixel β only). The arrays share one task per block: compute them together
+        first, ``"ambiguous"`` last with the set rule), ``reason_names`` (list,
+        ``"classified"`` first, as ``map_summary.json``'s ``reason_codes``); ``weights``
+        (``"noise"`` or ``"none"``: what the fits used) and ``noise`` (the model used:
+        ``read_var_dn2``, ``inv_gain``, ``read_noise_dn``, ``gain_e_per_dn`` and, when
+        estimated, ``pixels``, ``outliers``, ``reduced_chi2``; None when unweighted). The
+        arrays share one task per block: compute them together
         (``dask.compute(*maps.values())``, ``dask.array.to_zarr``, ...).
 
     Raises
@@ -220,6 +383,12 @@ def material_map(
         angles) are raised at compute time with the same messages as ``polarid map``.
     FileNotFoundError
         A missing model file.
+
+    Warns
+    -----
+    UserWarning
+        Weighted fits asked for but too few usable pixels to estimate the noise model:
+        the fits are unweighted (as ``polarid map`` warns).
     """
     da = _dask_array()
     dofp = pattern is not None
@@ -239,15 +408,27 @@ def material_map(
     if not isinstance(bin, (int, np.integer)) or isinstance(bin, bool):
         raise TypeError(f"bin must be an int, got {bin!r}")
     bin = int(bin)
+    if weights not in ("auto", "noise", "none"):
+        raise ValueError(f'weights must be "auto", "noise" or "none", got {weights!r}')
 
     # β: per capture (a small vector, shipped with every task) or per map pixel.
     if isinstance(beta_deg, da.Array) and beta_deg.ndim == 1:
         beta_deg = beta_deg.compute()
     per_pixel = (isinstance(beta_deg, da.Array) and beta_deg.ndim == 3) or np.ndim(beta_deg) == 3
+    weighted = weights == "noise" or (weights == "auto" and per_pixel)
+    if noise is not None and weights == "none":
+        raise ValueError('noise= gives a noise model for weighted fits; it cannot go with weights="none"')
+    given_noise = None if noise is None else _noise_arg(noise)
+    if given_noise is not None:
+        weighted = True
     model_json, label = _model_json(model)
+    rule_kw = dict(rule=rule, confidence=float(confidence),
+                   angle_sd_deg=[float(v) for v in _per_capture("angle_sd_deg", angle_sd_deg, t)],
+                   dolp_floor=float(dolp_floor), extinction_ratio=float(extinction_ratio),
+                   retardance_deg=float(retardance_deg))
     class_names, reason_names = _map_names(
         model_json, label=label, per_pixel_beta=per_pixel, bin=bin, min_s0=min_s0,
-        max_distance=max_distance, metric=metric, tile=tile)
+        max_distance=max_distance, metric=metric, tile=tile, **rule_kw)
     if bin > height or bin > width:
         raise ValueError(f"bin {bin} does not fit the {width}x{height} frames")
     oh, ow = height // bin, width // bin
@@ -281,33 +462,53 @@ def material_map(
 
     kw = dict(
         angles_deg=None if dofp else [float(v) for v in angles_deg],
+        pattern=None if pattern is None else [float(v) for v in pattern],
         model_json=model_json, label=label, bin=bin,
         dark_level=[0.0 if v is None else v for v in _per_capture("dark_level", dark_level, t)],
         saturation=_per_capture("saturation", saturation, t),
         min_s0=min_s0, max_distance=max_distance, metric=metric, tile=int(tile),
+        rule=rule_kw, noise=None,
     )
-    common = dict(nblocks=(len(rows), len(cols)), pattern=None if pattern is None else [float(v) for v in pattern],
-                  t=t, a=a, kw=kw)
-    chunks = ((len(PLANES),), out_rows, out_cols)
-    meta = np.empty((0, 0, 0), dtype=np.float32)
+    common = dict(nblocks=(len(rows), len(cols)), t=t, a=a, kw=kw)
     if per_pixel:
         beta = beta_deg if isinstance(beta_deg, da.Array) else da.from_array(np.asarray(beta_deg, dtype=np.float64))
         if beta.shape != (t, oh, ow):
             raise ValueError(f"beta_deg must have shape ({t},) or ({t}, {oh}, {ow}) (one per map pixel at bin {bin}), got {beta.shape}")
         beta = beta.rechunk(((t,), out_rows, out_cols))
-        stack = da.map_blocks(_block, x, beta, chunks=chunks, dtype=np.float32, meta=meta,
-                              per_capture_beta=None, **common,
-                              token="polarid-map")
+        per_capture_beta = None
     else:
-        b = np.asarray(beta_deg, dtype=np.float64)
-        if b.shape != (t,):
-            raise ValueError(f"beta_deg must have shape ({t},) or ({t}, {oh}, {ow}) (one per map pixel at bin {bin}), got {b.shape}")
-        stack = da.map_blocks(_block, x, chunks=chunks, dtype=np.float32, meta=meta,
-                              per_capture_beta=b, **common, token="polarid-map")
+        beta = None
+        per_capture_beta = np.asarray(beta_deg, dtype=np.float64)
+        if per_capture_beta.shape != (t,):
+            raise ValueError(f"beta_deg must have shape ({t},) or ({t}, {oh}, {ow}) (one per map pixel at bin {bin}), got {per_capture_beta.shape}")
+
+    # The map's noise model: given, or estimated globally as polarid map does.
+    noise_info = None
+    if given_noise is not None:
+        kw["noise"] = given_noise
+        noise_info = dict(read_var_dn2=given_noise[0], inv_gain=given_noise[1],
+                          read_noise_dn=math.sqrt(given_noise[0]),
+                          gain_e_per_dn=(1.0 / given_noise[1]) if given_noise[1] > 0 else None)
+    elif weighted:
+        est = _estimate(da, x, beta, common, rows, cols, oh, ow, bin, per_capture_beta, scheduler)
+        if est is None:
+            warnings.warn("too few usable pixels to estimate the noise model; the per-pixel fits "
+                          "are unweighted", UserWarning, stacklevel=2)
+        else:
+            kw["noise"] = (est[0], est[1])
+            noise_info = _noise_dict(est)
+
+    chunks = ((len(PLANES),), out_rows, out_cols)
+    meta = np.empty((0, 0, 0), dtype=np.float32)
+    args = (x,) if beta is None else (x, beta)
+    stack = da.map_blocks(_block, *args, chunks=chunks, dtype=np.float32, meta=meta,
+                          per_capture_beta=per_capture_beta, **common, token="polarid-map")
     class_dtype = np.uint8 if len(class_names) <= 256 else np.uint16
     out: dict[str, Any] = {p: stack[i] for i, p in enumerate(PLANES[:5])}
     out["class"] = stack[5].astype(class_dtype)
     out["reason"] = stack[6].astype(np.uint8)
     out["class_names"] = class_names
     out["reason_names"] = reason_names
+    out["weights"] = "noise" if kw["noise"] is not None else "none"
+    out["noise"] = noise_info
     return out

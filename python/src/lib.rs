@@ -2,7 +2,7 @@
 //!
 //! Layout: one Rust module per topic, each with a `register(m)` function that adds its
 //! `#[pyfunction]`s to the extension module (`model.rs`: the eq. (9) forward model;
-//! `stokes.rs`: Stokes/DoFP/DoLP/AoLP images; `pbrdf.rs`: eq. (3); `fit.rs`: the
+//! `stokes.rs`: Stokes/DoFP/DoLP/AoLP images; `colour.rs`: colour DoFP mosaics per band; `pbrdf.rs`: eq. (3); `fit.rs`: the
 //! `(n, k)` fit; `classify.rs`; `files.rs`: manifests and `measure`; `simulate.rs`; `block.rs`: one block of a map, for
 //! `polarid.dask`). Shared pieces: `errors.rs` (the
 //! one mapping of `CoreError`/`IoError` to Python exceptions) and `arrays.rs` (array-like
@@ -16,6 +16,7 @@ use pyo3::prelude::*;
 pub mod arrays;
 pub mod block;
 pub mod classify;
+pub mod colour;
 pub mod errors;
 pub mod files;
 pub mod fit;
@@ -33,6 +34,7 @@ fn _polarid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     model::register(m)?;
     stokes::register(m)?;
+    colour::register(m)?;
     pbrdf::register(m)?;
     fit::register(m)?;
     mixed::register(m)?;

@@ -500,7 +500,7 @@ fn dofp_method(bilinear: bool, round: bool) -> DofpMethod {
 }
 
 /// `(H, W)` of a 2-D raw mosaic.
-fn mosaic_shape(raw: &RawArray<'_>) -> PyResult<(usize, usize)> {
+pub(crate) fn mosaic_shape(raw: &RawArray<'_>) -> PyResult<(usize, usize)> {
     let shape = raw.shape();
     let [h, w] = shape[..] else {
         return Err(value_error(format!(
@@ -539,7 +539,7 @@ fn out_dtype(dtype: Option<&Bound<'_, PyAny>>, out: Option<&Bound<'_, PyAny>>) -
 
 /// A new zeroed numpy array: numpy's allocator asks the kernel for huge pages on large
 /// arrays, which makes first writes several times cheaper than into a fresh `Vec`.
-fn new_array<'py, O: numpy::Element>(
+pub(crate) fn new_array<'py, O: numpy::Element>(
     py: Python<'py>,
     shape: &[usize],
 ) -> Bound<'py, PyArrayDyn<O>> {
@@ -548,7 +548,7 @@ fn new_array<'py, O: numpy::Element>(
 
 /// The caller's array `o` for the output `name`, checked: a C-contiguous numpy array of
 /// element type `O` and shape `shape` (its writeability is checked when it is borrowed).
-fn out_array<'py, O: numpy::Element>(
+pub(crate) fn out_array<'py, O: numpy::Element>(
     name: &str,
     o: &Bound<'py, PyAny>,
     shape: &[usize],

@@ -1,8 +1,10 @@
 """polarid.dask.material_map on a dask.distributed LocalCluster of 2 worker processes:
-the same maps as `polarid map` (classes and reasons identical, |dn|, |dk| <= 1e-6) for
-rotating-polarizer frames, DoFP mosaics and calibrated geometry (a beta per pixel), at
-several bins, with chunks whose edges cut through the frames; and the same map (bit for
-bit) whatever the chunking."""
+the same maps as `polarid map` with its defaults (set rule at 95 %, ambiguous last,
+noise-weighted fits with calibrated geometry: classes and reasons identical, |dn|, |dk|
+<= 1e-6, the same noise model) for rotating-polarizer frames, DoFP mosaics and
+calibrated geometry (a beta per pixel), at several bins, with chunks whose edges cut
+through the frames; its other options (nearest rule, weights) as the CLI's; and the same
+map (bit for bit) whatever the chunking."""
 
 import json
 import subprocess
@@ -73,19 +75,40 @@ def load(manifest):
     return frames, np.array([c["beta_deg"] for c in caps]), extra, levels
 
 
-def cli_map(cli, sets, name, bin, tag=""):
+def cli_map(cli, sets, name, bin, *options):
+    """`polarid map` of a simulated set with its defaults (or `options`), read back."""
+    tag = "".join(str(o).strip("-") for o in options)
     out = sets / f"cli_{name}_{bin}{tag}"
     if not out.exists():
-        # The Dask map classifies by the nearest rule, unweighted (its options do not yet
-        # include `polarid map`'s answer sets and noise weights, issue 16): compare with
-        # the CLI under the same rule.
         run(cli, "map", sets / name / "manifest.toml", "--model", sets / "model.json", "-o", out,
-            "--bin", bin, "--rule", "nearest", "--weights", "none")
+            "--bin", bin, *options)
     maps = {k: read_image(out / f"{k}.tif") for k in (*FLOATS, "class", "reason")}
     maps["class_names"] = [v for _, v in sorted(json.loads((out / "classes.json").read_text()).items(),
                                                  key=lambda kv: int(kv[0]))]
-    maps["reason_names"] = json.loads((out / "map_summary.json").read_text())["reason_codes"]
+    summary = json.loads((out / "map_summary.json").read_text())
+    maps["reason_names"] = summary["reason_codes"]
+    maps["summary"] = summary
     return maps
+
+
+def assert_same_noise(got, cli, rtol=1e-12):
+    """The Dask map's noise model is the one `polarid map` estimated."""
+    want = cli["summary"]["noise"]
+    assert cli["summary"]["weights"] == got["weights"]
+    if want is None:
+        assert got["noise"] is None
+        return
+    for key in ("pixels", "outliers"):
+        assert got["noise"][key] == want[key], key
+    def rel(k):
+        g, w = got["noise"][k], want[k]
+        return "equal" if g == w else f"rel. diff {g / w - 1:.1e}" if w else f"{g} vs {w}"
+
+    print("noise model: " + ", ".join(f"{k} {got['noise'][k]} ({rel(k)})"
+                                      for k in ("read_noise_dn", "gain_e_per_dn", "reduced_chi2"))
+          + f", pixels {want['pixels']}, outliers {want['outliers']}")
+    for key in ("read_noise_dn", "gain_e_per_dn", "reduced_chi2"):
+        assert got["noise"][key] == pytest.approx(want[key], rel=rtol), key
 
 
 def assert_same(got, cli):
@@ -93,6 +116,8 @@ def assert_same(got, cli):
     assert got["reason_names"] == cli["reason_names"]
     np.testing.assert_array_equal(got["class"], cli["class"])
     np.testing.assert_array_equal(got["reason"], cli["reason"])
+    if "summary" in cli and isinstance(got.get("weights"), str):
+        assert_same_noise(got, cli)
     for key in FLOATS:
         g, c = got[key], cli[key]
         assert g.dtype == np.float32 and g.shape == c.shape, key
@@ -105,10 +130,15 @@ def assert_same(got, cli):
         tol = 1e-6 if key in ("n", "k") else 1e-6 * np.maximum(1.0, np.abs(c[ok]))
         assert (diff <= tol).all(), (key, diff.max())
     assert (cli["reason"] == 0).sum() > 0  # something was classified
+    ok = ~np.isnan(cli["n"])
+    print(f"dask vs cli: {cli['class'].size} pixels, classes equal {(got['class'] == cli['class']).sum()}, "
+          f"classified {(cli['reason'] == 0).sum()}, max |dn| {np.abs(got['n'][ok] - cli['n'][ok]).max():.2e}, "
+          f"max |dk| {np.abs(got['k'][ok] - cli['k'][ok]).max():.2e}, weights {cli['summary']['weights']}")
 
 
 def compute(maps, scheduler):
     keys = [k for k, v in maps.items() if isinstance(v, da.Array)]
+    maps = dict(maps)
     vals = dask.compute(*[maps[k] for k in keys], scheduler=scheduler)
     return {**maps, **dict(zip(keys, vals))}
 
@@ -157,19 +187,30 @@ def test_per_pixel_beta_equals_cli(client, sets, polarid_cli):
     assert "no_geometry" in maps["reason_names"] and min(maps["n"].numblocks) > 1
     got = compute(maps, client)
     assert got["class_names"] == cli["class_names"] and got["reason_names"] == cli["reason_names"]
+    # Calibrated geometry: noise-weighted fits by default, the CLI's noise model (the same
+    # sample; its numbers to 1e-5, the β bits differing as above).
+    assert got["weights"] == "noise" and "ambiguous" in got["class_names"]
+    assert_same_noise(got, cli, rtol=1e-5)
     firm = (cli["n_se"] < 0.1) & (cli["k_se"] < 0.1)
-    assert firm.sum() > 1000 and (cli["reason"][firm] == 0).all()
+    assert firm.sum() > 1000 and (cli["reason"][firm] == 0).sum() > 500
     np.testing.assert_array_equal(got["class"][firm], cli["class"][firm])
+    np.testing.assert_array_equal(got["reason"][firm], cli["reason"][firm])
     for key in ("n", "k"):
         assert np.abs(got[key][firm] - cli[key][firm]).max() <= 1e-6, key
     edge = cli["class"] != got["class"]
+    ok = ~np.isnan(cli["n"])
+    print(f"per-pixel beta: {cli['class'].size} pixels, classes equal {(~edge).sum()}, firm {firm.sum()}, "
+          f"classified {(cli['reason'] == 0).sum()}, max |dn| firm {np.abs(got['n'][firm] - cli['n'][firm]).max():.2e} "
+          f"all {np.abs(got['n'][ok] - cli['n'][ok]).max():.2e}, max |dk| firm "
+          f"{np.abs(got['k'][firm] - cli['k'][firm]).max():.2e} all {np.abs(got['k'][ok] - cli['k'][ok]).max():.2e}")
     assert edge.sum() <= 5 and (cli["n_se"][edge] > 10).all()  # tipping over the box edge
     np.testing.assert_array_equal(np.isnan(got["n"]), np.isnan(cli["n"]))
     # One block against the cut chunks: the same classes and reasons, n and k to 1e-6.
     # (Per-pixel-β fits are grouped by their usable captures within a tile, and a group's
     # last bits depend on its members: `polarid map --tile 1000` differs from the default
     # tile in the same way; the far-field fits do not, see test_chunking_is_bit_exact.)
-    one = pdask.material_map(frames, extra["angles_deg"], beta, model, bin=2, **levels)
+    one = pdask.material_map(frames, extra["angles_deg"], beta, model, bin=2, scheduler="threads", **levels)
+    assert one["noise"] == maps["noise"]  # the same global estimate, one block or many
     ref = compute(one, "threads")
     for key in ("class", "reason"):
         np.testing.assert_array_equal(got[key], ref[key], err_msg=key)
@@ -207,11 +248,19 @@ def test_options_and_errors(client, sets):
         pdask.material_map(x, extra["angles_deg"], beta, sets / "nope.json")
     with pytest.raises(ValueError, match="angles_deg"):
         pdask.material_map(x, None, beta, model)
+    for bad, match in [(dict(rule="vote"), "rule must be"), (dict(weights="some"), "weights must be"),
+                       (dict(confidence=1.5), r"confidence must be in \(0, 1\), got 1\.5"),
+                       (dict(dolp_floor=-1), "dolp-floor|dolp_floor"),
+                       (dict(angle_sd_deg=[0.2, 0.3]), "angle_sd_deg gives 2"),
+                       (dict(weights="none", noise=dict(read_var_dn2=1.0, inv_gain=0.1)), "weights=\"none\"")]:
+        with pytest.raises(ValueError, match=match):
+            pdask.material_map(x, extra["angles_deg"], beta, model, **bad)
     # Options reach the blocks: everything dark, or everything rejected.
     dark = pdask.material_map(x, extra["angles_deg"], beta, model, min_s0=1e9, **levels)
     r = dark["reason"].compute(scheduler=client)
     assert (r == dark["reason_names"].index("dark")).all()
-    strict = pdask.material_map(x, extra["angles_deg"], beta, model, max_distance=1e-6, **levels)
+    strict = pdask.material_map(x, extra["angles_deg"], beta, model, rule="nearest", max_distance=1e-6,
+                                **levels)
     r = strict["reason"].compute(scheduler=client)
     assert (r == strict["reason_names"].index("rejected")).any() and not (r == 0).any()
 
@@ -238,3 +287,43 @@ def test_example_script(sets, polarid_cli, tmp_path):
     np.testing.assert_array_equal(np.load(out / "class.npy"), cli["class"])
     names = json.loads((out / "names.json").read_text())
     assert names["class_names"] == cli["class_names"]
+
+
+def test_nearest_unweighted_equals_cli(client, sets, polarid_cli):
+    """The options reach the blocks as the CLI's: --rule nearest --weights none."""
+    frames, beta, extra, levels = load(sets / "frames" / "manifest.toml")
+    x = da.from_array(frames, chunks=(1, 2, 41, 57))
+    maps = pdask.material_map(x, extra["angles_deg"], beta, sets / "model.json", bin=2, rule="nearest",
+                              weights="none", **levels)
+    assert "ambiguous" not in maps["class_names"] and maps["noise"] is None
+    assert_same(compute(maps, client),
+                cli_map(polarid_cli, sets, "frames", 2, "--rule", "nearest", "--weights", "none"))
+
+
+@pytest.mark.parametrize("name,bin,chunks", [("frames", 2, (2, 2, 46, 34)), ("dofp", 1, (2, 40, 54))])
+def test_noise_weighted_equals_cli(client, sets, polarid_cli, name, bin, chunks):
+    """--weights noise in the far field: the global noise model estimated over the
+    blocks (two passes) is the CLI's (the same sample, pixels and outliers; its numbers
+    to 1e-12), and the weighted maps equal the CLI's."""
+    frames, beta, extra, levels = load(sets / name / "manifest.toml")
+    x = da.from_array(frames, chunks=chunks)
+    maps = pdask.material_map(x, extra["angles_deg"], beta, sets / "model.json", bin=bin, weights="noise",
+                              pattern=extra.get("pattern"), **levels)
+    assert maps["n"].numblocks[0] > 1 and maps["n"].numblocks[1] > 1
+    assert maps["weights"] == "noise" and maps["noise"]["pixels"] > 1000
+    cli = cli_map(polarid_cli, sets, name, bin, "--weights", "noise")
+    assert_same(compute(maps, client), cli)
+    # The model given back (noise=) skips the passes and gives the same bits.
+    again = pdask.material_map(x, extra["angles_deg"], beta, sets / "model.json", bin=bin,
+                               noise=maps["noise"], pattern=extra.get("pattern"), **levels)
+    a, b = compute(maps, client), compute(again, client)
+    for key in (*FLOATS, "class", "reason"):
+        np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+    # ... and so does map_summary.json's noise (read noise and gain, rounded through the
+    # square root and the inverse: n and k to 1e-6).
+    from_cli = compute(pdask.material_map(x, extra["angles_deg"], beta, sets / "model.json", bin=bin,
+                                          noise=cli["summary"]["noise"], pattern=extra.get("pattern"),
+                                          **levels), client)
+    np.testing.assert_array_equal(from_cli["class"], cli["class"])
+    for key in ("n", "k"):
+        np.testing.assert_allclose(from_cli[key], cli[key], rtol=0, atol=1e-6)
