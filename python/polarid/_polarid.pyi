@@ -314,7 +314,7 @@ def map_manifest(
 ) -> dict[str, Any]:
     """keys: n, k, n_se, k_se, rms_residual (float32 (H, W)), class, reason (uint8 codes),
     class_names, reason_names, class_counts, reason_counts, summary; with calibrated
-    geometry ([camera], a source per capture) also beta_deg (float32 (T, H, W), every
+    geometry ([camera], a source per capture) also beta_deg (float64 (T, H, W), every
     pixel's β per capture, NaN without geometry) and the reason no_geometry."""
 
 # --- one block of a map (private: polarid.dask.material_map) ----------------------------

@@ -91,7 +91,7 @@ fn image<'py, T: numpy::Element>(
 ///     the content of ``map_summary.json`` without the input paths and timings (size,
 ///     binning, thresholds, per-region class shares; with calibrated geometry also
 ///     ``geometry`` and each capture's ``beta_range_deg``). With calibrated geometry
-///     also ``beta_deg``: float32 (T, H, W), every pixel's β per capture in degrees
+///     also ``beta_deg``: float64 (T, H, W), every pixel's β per capture in degrees
 ///     (NaN without geometry).
 ///
 /// Raises
@@ -179,7 +179,7 @@ pub fn map_manifest<'py>(
     d.set_item("rms_residual", image(py, h, w, r.rms_residual)?)?;
     if r.calibrated {
         let t = r.beta_maps_deg.len();
-        let flat: Vec<f32> = r.beta_maps_deg.into_iter().flatten().collect();
+        let flat: Vec<f64> = r.beta_maps_deg.into_iter().flatten().collect();
         let a = ArrayD::from_shape_vec(IxDyn(&[t, h, w]), flat)
             .map_err(|e| value_error(e.to_string()))?;
         d.set_item("beta_deg", to_numpy(py, a))?;

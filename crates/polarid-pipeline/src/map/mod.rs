@@ -323,8 +323,9 @@ pub struct MapResult {
     /// pixels, degrees (NaN when no pixel has a geometry); empty in the far field.
     pub beta_range_deg: Vec<[f64; 2]>,
     /// Calibrated geometry: β of every map pixel, one image per capture, degrees
-    /// (f32, NaN where the pixel has no geometry); empty in the far field.
-    pub beta_maps_deg: Vec<Vec<f32>>,
+    /// (NaN where the pixel has no geometry); empty in the far field. f64 so that
+    /// converting back to radians and to f32 gives the fit's own β bit for bit.
+    pub beta_maps_deg: Vec<Vec<f64>>,
     /// The dark threshold used for every capture, DN.
     pub min_s0_dn: Vec<f32>,
     /// The maximum distance of the configuration.
@@ -655,7 +656,7 @@ pub fn map_manifest(
         beta_maps_deg: beta_maps
             .beta
             .into_iter()
-            .map(|b| b.into_iter().map(|v| v.to_degrees()).collect())
+            .map(|b| b.into_iter().map(|v| f64::from(v).to_degrees()).collect())
             .collect(),
         min_s0_dn: thresholds,
         max_distance: cfg.max_distance,
