@@ -162,7 +162,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     for c in &m.captures {
         inputs.extend(c.source.files());
     }
-    for f in output_files(&m) {
+    for f in map::output_files(&m, &FILES) {
         check_output(&args.output.join(f), ctx.force, &inputs)?;
     }
 
@@ -195,55 +195,11 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The per-band fit images of a colour map: `n_450.tif`, ... ([`map::band_tag`]).
-const BAND_IMAGES: [&str; 5] = ["n", "k", "n_se", "k_se", "rms_residual"];
-
-/// The files `polarid map` writes for `m`: [`FILES`], the first five per band for a
-/// manifest with colour captures.
-fn output_files(m: &manifest::Manifest) -> Vec<String> {
-    let mut bands: Vec<f64> = m
-        .captures
-        .iter()
-        .flat_map(|c| match &c.source {
-            manifest::CaptureSource::ColourDofp { wavelengths_nm, .. } => wavelengths_nm.clone(),
-            _ => c.wavelength_nm.into_iter().collect(),
-        })
-        .collect();
-    bands.sort_by(f64::total_cmp);
-    bands.dedup();
-    if !map::is_colour(m) {
-        return FILES.iter().map(|f| f.to_string()).collect();
-    }
-    let per_band = bands.iter().flat_map(|&w| {
-        BAND_IMAGES
-            .iter()
-            .map(move |f| format!("{f}_{}.tif", map::band_tag(w)))
-    });
-    per_band
-        .chain(FILES[5..].iter().map(|f| f.to_string()))
-        .collect()
-}
-
 /// Write the maps, staged so that a failure leaves nothing behind.
 fn write_outputs(args: &Args, r: &MapResult, ctx: &Ctx) -> anyhow::Result<()> {
     let (w, h) = (r.width, r.height);
     let staged = StagedDir::new(&args.output, ctx.force)?;
-    let mut images: Vec<(String, &Vec<f32>)> = Vec::new();
-    if r.bands.is_empty() {
-        let all = [&r.n, &r.k, &r.n_se, &r.k_se, &r.rms_residual];
-        images.extend(FILES.iter().zip(all).map(|(f, d)| (f.to_string(), d)));
-    }
-    for b in &r.bands {
-        let all = [&b.n, &b.k, &b.n_se, &b.k_se, &b.rms_residual];
-        let tag = map::band_tag(b.wavelength_nm);
-        images.extend(
-            BAND_IMAGES
-                .iter()
-                .zip(all)
-                .map(|(f, d)| (format!("{f}_{tag}.tif"), d)),
-        );
-    }
-    for (name, data) in images {
+    for (name, data) in r.fit_images() {
         image::write_tiff_f32(&staged.path(&name)?, true, w, h, data)?;
     }
     if r.class_names.len() <= u8::MAX as usize {

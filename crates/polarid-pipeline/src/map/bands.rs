@@ -75,6 +75,66 @@ pub fn band_tag(wavelength_nm: f64) -> String {
     }
 }
 
+/// The per-band fit images of a colour map, written as `{name}_{tag}.tif`
+/// ([`band_tag`]): `n_450.tif`, `k_450.tif`, ...
+pub const BAND_IMAGES: [&str; 5] = ["n", "k", "n_se", "k_se", "rms_residual"];
+
+/// The files a map of `m` writes: `single` (the single-band map's files, of which the
+/// first five are its fit images `n.tif` ... `rms_residual.tif`) as they are, or for a
+/// manifest with colour captures the [`BAND_IMAGES`] of every band instead of the first
+/// five.
+pub fn output_files(m: &Manifest, single: &[&str]) -> Vec<String> {
+    if !is_colour(m) {
+        return single.iter().map(|f| f.to_string()).collect();
+    }
+    let mut bands: Vec<f64> = m
+        .captures
+        .iter()
+        .flat_map(|c| match &c.source {
+            CaptureSource::ColourDofp { wavelengths_nm, .. } => wavelengths_nm.clone(),
+            _ => c.wavelength_nm.into_iter().collect(),
+        })
+        .collect();
+    bands.sort_by(f64::total_cmp);
+    bands.dedup_by(|a, b| same_band(Some(*a), Some(*b)));
+    let per_band = bands.iter().flat_map(|&w| {
+        BAND_IMAGES
+            .iter()
+            .map(move |f| format!("{f}_{}.tif", band_tag(w)))
+    });
+    per_band
+        .chain(single.iter().skip(BAND_IMAGES.len()).map(|f| f.to_string()))
+        .collect()
+}
+
+impl MapResult {
+    /// The fit images and their file names: `n.tif`, `k.tif`, `n_se.tif`, `k_se.tif`,
+    /// `rms_residual.tif` of a single-band map, or those of every band
+    /// (`n_450.tif`, ..., [`BAND_IMAGES`]) of a colour map.
+    pub fn fit_images(&self) -> Vec<(String, &[f32])> {
+        if self.bands.is_empty() {
+            let all = [&self.n, &self.k, &self.n_se, &self.k_se, &self.rms_residual];
+            return BAND_IMAGES
+                .iter()
+                .zip(all)
+                .map(|(f, d)| (format!("{f}.tif"), d.as_slice()))
+                .collect();
+        }
+        let mut out = Vec::with_capacity(self.bands.len() * BAND_IMAGES.len());
+        for b in &self.bands {
+            let all = [&b.n, &b.k, &b.n_se, &b.k_se, &b.rms_residual];
+            let tag = band_tag(b.wavelength_nm);
+            out.extend(
+                BAND_IMAGES
+                    .iter()
+                    .zip(all)
+                    .map(|(f, d)| (format!("{f}_{tag}.tif"), d.as_slice())),
+            );
+        }
+        out
+    }
+}
+
 /// Whether `m` has a colour capture (its map is then per band).
 pub fn is_colour(m: &Manifest) -> bool {
     m.captures

@@ -54,7 +54,7 @@ use polarid_io::IoError;
 use polarid_io::manifest::Manifest;
 use polarid_io::model::Model;
 
-pub use bands::{BandMap, band_tag, is_colour, map_manifest_bands};
+pub use bands::{BAND_IMAGES, BandMap, band_tag, is_colour, map_manifest_bands, output_files};
 pub use polarid_core::map::reason::NAMES as REASON_NAMES;
 pub use summary::RegionSummary;
 

@@ -188,7 +188,7 @@ impl MapResult {
                     .iter()
                     .map(|b| {
                         let tag = super::band_tag(b.wavelength_nm);
-                        let files: Vec<String> = ["n", "k", "n_se", "k_se", "rms_residual"]
+                        let files: Vec<String> = super::BAND_IMAGES
                             .iter()
                             .map(|f| format!("{f}_{tag}.tif"))
                             .collect();
