@@ -293,8 +293,8 @@ fn colour_plates_measure_fit_classify_and_map_per_band() {
 }
 
 /// The per-band maps' `(n, k)` on the plates' interior blocks are within 3 SE of the
-/// truth (≥ 90% of blocks, per band and plate), and ≥ 95% of those blocks get their
-/// material.
+/// truth (≥ 90% of blocks, per band and plate), ≥ 90% of those blocks get their
+/// material and none another material (the rest are `ambiguous` or unknown).
 fn check_map(out: &Path, plates: &[Plate], what: &str) {
     assert!(!out.join("n.tif").exists(), "a colour map has no n.tif");
     let summary: serde_json::Value =
@@ -318,18 +318,27 @@ fn check_map(out: &Path, plates: &[Plate], what: &str) {
         let blocks: Vec<usize> = ((GAP / 4 + 1)..((GAP + SIZE) / 4 - 1))
             .flat_map(|y| ((p.x / 4 + 1)..((p.x + SIZE) / 4 - 1)).map(move |x| y * w + x))
             .collect();
-        let right = blocks
+        let answer = |i: usize| classes[class.data[i].to_string()].as_str().unwrap_or("");
+        let right = blocks.iter().filter(|&&i| answer(i) == p.name).count();
+        let others: Vec<&str> = blocks
             .iter()
-            .filter(|&&i| classes[class.data[i].to_string()] == p.name)
-            .count();
+            .map(|&i| answer(i))
+            .filter(|&a| a != p.name && a != "ambiguous" && a != "unknown")
+            .collect();
         let frac = right as f64 / blocks.len() as f64;
         println!(
-            "map ({what}) {}: {right}/{} blocks right ({:.1}%)",
+            "map ({what}) {}: {right}/{} blocks right ({:.1}%), {} another material",
             p.name,
             blocks.len(),
-            100.0 * frac
+            100.0 * frac,
+            others.len()
         );
-        assert!(frac >= 0.95, "{}: {frac}", p.name);
+        // The rest is `ambiguous` (the set rule's honest answer), never another material.
+        assert!(
+            frac >= 0.9 && others.is_empty(),
+            "{}: {frac} {others:?}",
+            p.name
+        );
         for (b, &wl) in BANDS.iter().enumerate() {
             let [n, k, n_se, k_se] =
                 ["n", "k", "n_se", "k_se"].map(|f| read(format!("{f}_{wl:.0}.tif")));
@@ -385,10 +394,10 @@ fn colour_manifest_errors_exit_2_naming_file_field_and_value() {
         ),
     ];
     for (top, dofp, field, value) in cases {
-        let text = format!(
+        let manifest = format!(
             "{top}{base}\n[[capture]]\ntheta_i_deg = 40.0\n{dofp}\n\n[[capture]]\ntheta_i_deg = 50.0\n{dofp}\n\n[[capture]]\ntheta_i_deg = 60.0\n{dofp}\n"
         );
-        std::fs::write(d.join("bad.toml"), text).unwrap();
+        std::fs::write(d.join("bad.toml"), manifest).unwrap();
         for args in [
             vec!["measure", "bad.toml", "-o", "m.csv"],
             vec!["map", "bad.toml", "--library", "builtin-rgb", "-o", "out"],
@@ -404,11 +413,11 @@ fn colour_manifest_errors_exit_2_naming_file_field_and_value() {
         }
     }
     // a single-band capture without a wavelength next to colour captures
-    let text = format!(
+    let manifest = format!(
         "{base}\n[[capture]]\ntheta_i_deg = 40.0\ndofp = {{ file = \"raw.tif\", color = \"RGGB\" }}\n\n\
          [[capture]]\ntheta_i_deg = 50.0\ndofp = {{ file = \"raw.tif\" }}\n"
     );
-    std::fs::write(d.join("mixed.toml"), text).unwrap();
+    std::fs::write(d.join("mixed.toml"), manifest).unwrap();
     let o = polarid_in(d, &["measure", "mixed.toml", "-o", "m.csv"]);
     let err = text(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
