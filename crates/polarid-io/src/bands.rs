@@ -7,7 +7,11 @@
 //! one per colour of a colour DoFP capture in increasing wavelength, each at full
 //! resolution in raw pixel coordinates (bilinear per lattice,
 //! [`polarid_core::mosaic::colour`]; region standard errors use
-//! [`Sampling::BilinearColour`]), so that region rectangles apply to every band.
+//! [`Sampling::BilinearColour`]), so that region rectangles apply to every band. Every
+//! band gets the capture's dark threshold ([`dark_threshold_dn`]); an HDR colour
+//! capture's brackets are merged on the raw mosaic before the reconstruction
+//! ([`COLOUR_REACH`]). `polarid_io::measure::measure_capture_bands` turns them into
+//! measurement rows with `wavelength_nm`.
 
 use polarid_core::mosaic::{ColourMethod, ColourPattern, DofpOutputs, colour_polar};
 use polarid_core::region::Sampling;
