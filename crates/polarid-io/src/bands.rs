@@ -7,16 +7,20 @@
 //! one per colour of a colour DoFP capture in increasing wavelength, each at full
 //! resolution in raw pixel coordinates (bilinear per lattice,
 //! [`polarid_core::mosaic::colour`]; region standard errors use
-//! [`Sampling::BilinearColour`]), so that region rectangles apply to every band.
+//! [`Sampling::BilinearColour`]), so that region rectangles apply to every band. Every
+//! band gets the capture's dark threshold ([`dark_threshold_dn`]); an HDR colour
+//! capture's brackets are merged on the raw mosaic before the reconstruction
+//! ([`COLOUR_REACH`]). `polarid_io::measure::measure_capture_bands` turns them into
+//! measurement rows with `wavelength_nm`.
 
 use polarid_core::mosaic::{ColourMethod, ColourPattern, DofpOutputs, colour_polar};
 use polarid_core::region::Sampling;
 use polarid_core::stokes::PixelRules;
 
 use crate::error::{IoError, Result};
-use crate::image::{self, Frame};
+use crate::image::{self, Frame, SampleKind};
 use crate::manifest::{Capture, CaptureSource, Manifest};
-use crate::measure::{StokesImages, capture_images, rules_for};
+use crate::measure::{StokesImages, capture_images, dark_threshold_dn, rules_for};
 
 /// The Stokes images of one band of a capture.
 #[derive(Debug, Clone, PartialEq)]
@@ -88,17 +92,25 @@ pub fn capture_band_images(m: &Manifest, c: &Capture) -> Result<Vec<BandImages>>
             pattern,
             wavelengths_nm,
         } => {
-            let raw = image::read_frame(file)?;
-            let rules = rules_for(&raw, c.dark_level, c.saturation);
-            let imgs = colour_stokes(&raw, pattern, &rules, ColourMethod::Bilinear)?;
+            let (imgs, dark_signal_dn) = if c.brackets.is_empty() {
+                let raw = image::read_frame(file)?;
+                let rules = rules_for(&raw, c.dark_level, c.saturation);
+                let imgs = colour_stokes(&raw, pattern, &rules, ColourMethod::Bilinear)?;
+                (imgs, dark_threshold_dn(c, &rules, raw.kind.is_integer()))
+            } else {
+                hdr_colour_images(m, c, pattern)?
+            };
             let mut bands: Vec<BandImages> = imgs
                 .into_iter()
                 .zip(pattern.bands())
                 .zip(wavelengths_nm)
-                .map(|((images, &band), &w)| BandImages {
-                    wavelength_nm: Some(w),
-                    band: Some(band),
-                    images,
+                .map(|((mut images, &band), &w)| {
+                    images.dark_signal_dn = dark_signal_dn;
+                    BandImages {
+                        wavelength_nm: Some(w),
+                        band: Some(band),
+                        images,
+                    }
                 })
                 .collect();
             bands.sort_by(|a, b| {
@@ -114,4 +126,99 @@ pub fn capture_band_images(m: &Manifest, c: &Capture) -> Result<Vec<BandImages>>
             images: capture_images(m, c)?,
         }]),
     }
+}
+
+/// How far (pixels, in x and in y) the bilinear colour reconstruction reaches for a
+/// pixel's samples: a lattice of period 4 is interpolated from its samples at most 3
+/// pixels away ([`polarid_core::mosaic::colour`]).
+pub const COLOUR_REACH: usize = 3;
+
+/// `true` at every pixel within [`COLOUR_REACH`] (in x and y) of a pixel where `bad` is
+/// true: a separable dilation of a `width`-wide mask.
+fn dilate(bad: &[bool], width: usize, reach: usize) -> Vec<bool> {
+    let height = bad.len() / width.max(1);
+    let mut rows = vec![false; bad.len()];
+    for y in 0..height {
+        let row = &bad[y * width..(y + 1) * width];
+        for x in 0..width {
+            let lo = x.saturating_sub(reach);
+            let hi = (x + reach + 1).min(width);
+            rows[y * width + x] = row[lo..hi].iter().any(|&b| b);
+        }
+    }
+    let mut out = vec![false; bad.len()];
+    for y in 0..height {
+        let lo = y.saturating_sub(reach);
+        let hi = (y + reach + 1).min(height);
+        for x in 0..width {
+            out[y * width + x] = (lo..hi).any(|yy| rows[yy * width + x]);
+        }
+    }
+    out
+}
+
+/// Per-band Stokes images of an HDR colour capture (its [`Capture::brackets`], longest
+/// exposure first) and its dark threshold (DN): the raw mosaics merged per pixel as for a
+/// monochrome DoFP ([`crate::measure::hdr_images`]), each raw pixel taking its value from
+/// the longest exposure in which no raw value within [`COLOUR_REACH`] pixels (the
+/// neighbourhood the bilinear colour reconstruction reads) is saturated, dark subtracted
+/// and scaled to the longest exposure's DN; then reconstructed per band.
+///
+/// Errors: the image reader's (a missing file, brackets of different sizes, naming the
+/// file), [`IoError::Core`] naming the first file.
+#[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN-safe on purpose: NaN is not usable
+fn hdr_colour_images(
+    m: &Manifest,
+    c: &Capture,
+    pattern: &ColourPattern,
+) -> Result<(Vec<StokesImages>, f64)> {
+    let paths = c.files();
+    let frames = image::read_frames(&paths)?;
+    let (Some(first), Some(reference)) = (frames.first(), c.brackets.first()) else {
+        return Err(IoError::Manifest {
+            path: m.path.clone(),
+            line: c.line,
+            field: format!("capture[{}].brackets", c.index),
+            value: String::new(),
+            reason: "no frames".into(),
+        });
+    };
+    let raw_rules = rules_for(first, c.dark_level, c.saturation);
+    let (dark, sat) = (raw_rules.dark_level, raw_rules.saturation);
+    let near: Vec<Vec<bool>> = frames
+        .iter()
+        .map(|f| {
+            let bad: Vec<bool> = f.data.iter().map(|&v| !(v < sat)).collect();
+            dilate(&bad, f.width, COLOUR_REACH)
+        })
+        .collect();
+    let scale: Vec<f32> = c
+        .brackets
+        .iter()
+        .map(|b| (reference.exposure / b.exposure) as f32)
+        .collect();
+    let data: Vec<f32> = (0..first.data.len())
+        .map(|p| match (0..frames.len()).find(|&b| !near[b][p]) {
+            Some(b) => (frames[b].data[p] - dark) * scale[b],
+            None => f32::MAX,
+        })
+        .collect();
+    let merged = Frame {
+        path: first.path.clone(),
+        width: first.width,
+        height: first.height,
+        kind: SampleKind::F32,
+        data,
+    };
+    // Merged values are dark-subtracted; f32::MAX marks a pixel saturated everywhere.
+    let merged_rules = PixelRules {
+        dark_level: 0.0,
+        saturation: f32::MAX,
+        min_s0: 0.0,
+    };
+    let imgs = colour_stokes(&merged, pattern, &merged_rules, ColourMethod::Bilinear)?;
+    Ok((
+        imgs,
+        dark_threshold_dn(c, &raw_rules, first.kind.is_integer()),
+    ))
 }

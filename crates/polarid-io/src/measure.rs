@@ -32,6 +32,13 @@
 //! saturated in every bracket is saturated. One bracket for all the polarizer angles of
 //! a pixel keeps an error in the exposure ratios out of its DoLP.
 //!
+//! **Colour captures** (a `dofp` with `color`, docs/BANDS.md): a manifest with colour
+//! captures is measured per band ([`measure_capture_bands`]): each colour mosaic is
+//! reconstructed once into per-band Stokes images at full resolution
+//! ([`crate::bands::capture_band_images`]) and every band gives one row per region with
+//! `wavelength_nm`; the rules above (dark level, saturation, dark threshold, HDR
+//! brackets, calibrated geometry) apply to each band.
+//!
 //! **Partial failure.** A region that is dark in a capture (its mean dark-subtracted S0
 //! below the capture's dark threshold, [`dark_threshold_dn`]), or that has no usable
 //! pixel there (all saturated, dark or invalid), gives a row with a [`RowStatus`] other
@@ -451,8 +458,8 @@ pub fn hdr_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
                 line: c.line,
                 field: format!("capture[{}].brackets", c.index),
                 value: file.display().to_string(),
-                reason: "HDR brackets of colour mosaics are not supported yet: give one \
-                         exposure per capture"
+                reason: "a colour capture has one set of Stokes images per band: use \
+                         polarid_io::bands::capture_band_images"
                     .into(),
             });
         }
@@ -473,10 +480,15 @@ pub fn beta_deg(c: &Capture) -> f64 {
 }
 
 /// One row per region of `m` (in region order) for capture `c`: far-field or, for a
-/// capture with a `source` (calibrated geometry), per-pixel geometry (module docs).
+/// capture with a `source` (calibrated geometry), per-pixel geometry (module docs). In
+/// a manifest with colour captures, one row per region per band of `c`
+/// ([`measure_capture_bands`]).
 ///
 /// Errors: those of [`capture_images`] and [`measure_images`].
 pub fn measure_capture(m: &Manifest, c: &Capture) -> Result<Vec<Measurement>> {
+    if has_colour(m) {
+        return measure_capture_bands(m, c, false);
+    }
     let img = capture_images(m, c)?;
     measure_images(m, c, &img)
 }
@@ -892,8 +904,10 @@ fn calibrated_rows(
 
 /// Measure every region of every capture of a loaded manifest: one row per target per
 /// capture, targets of capture 1 in region order, then capture 2, ... (the rows of
-/// `polarid measure`). Dark regions and regions without a usable pixel give rows with a
-/// status and a reason ([`measure_manifest_with`] with `strict` false).
+/// `polarid measure`). A manifest with colour captures gives one row per target per
+/// capture per band ([`measure_capture_bands`]). Dark regions and regions without a
+/// usable pixel give rows with a status and a reason ([`measure_manifest_with`] with
+/// `strict` false).
 ///
 /// Captures are processed one after the other (each one in parallel inside), so memory
 /// holds one capture at a time; `progress` is called with the number of captures done
@@ -912,19 +926,129 @@ pub fn measure_manifest_with(
     progress: &mut dyn FnMut(usize),
 ) -> Result<Vec<Measurement>> {
     let mut rows = Vec::with_capacity(m.captures.len() * m.regions.len());
+    let colour = has_colour(m);
     for (i, c) in m.captures.iter().enumerate() {
-        let img = capture_images(m, c)?;
-        rows.extend(measure_images_with(m, c, &img, strict)?);
+        if colour {
+            rows.extend(measure_capture_bands(m, c, strict)?);
+        } else {
+            let img = capture_images(m, c)?;
+            rows.extend(measure_images_with(m, c, &img, strict)?);
+        }
         progress(i + 1);
     }
     Ok(rows)
+}
+
+/// Whether some capture of `m` is a colour capture ([`CaptureSource::ColourDofp`]): its
+/// measurements are then per band, every row with a `wavelength_nm`.
+pub fn has_colour(m: &Manifest) -> bool {
+    m.captures
+        .iter()
+        .any(|c| matches!(c.source, CaptureSource::ColourDofp { .. }))
+}
+
+/// The number of bands capture `c` is measured in: the distinct colours of a colour
+/// capture's pattern, else 1.
+pub fn band_count(c: &Capture) -> usize {
+    match &c.source {
+        CaptureSource::ColourDofp { pattern, .. } => pattern.bands().len(),
+        _ => 1,
+    }
+}
+
+/// The rows of capture `c` of a manifest with colour captures: for each band of the
+/// capture in increasing wavelength ([`crate::bands::capture_band_images`], the mosaic
+/// read and reconstructed once), one row per region in region order, with
+/// `wavelength_nm` the band's wavelength; a single-band capture gives its rows with its
+/// own `wavelength_nm` (or the manifest's). The dark level, saturation, dark threshold,
+/// HDR brackets and calibrated geometry apply to every band as to a monochrome capture;
+/// the reasons of rows that are not `ok` name the band (`capture 2 band 450 nm: ...`).
+///
+/// Errors: those of [`measure_images_with`] (with `strict`, naming the band too);
+/// [`IoError::Manifest`] naming `capture[i].wavelength_nm` for a single-band capture
+/// without a wavelength (its rows could not be fitted with the colour captures' bands).
+pub fn measure_capture_bands(m: &Manifest, c: &Capture, strict: bool) -> Result<Vec<Measurement>> {
+    if !matches!(c.source, CaptureSource::ColourDofp { .. }) && c.wavelength_nm.is_none() {
+        return Err(IoError::Manifest {
+            path: m.path.clone(),
+            line: c.line,
+            field: format!("capture[{}].wavelength_nm", c.index),
+            value: String::new(),
+            reason: "a manifest with colour captures measures every capture per band: give \
+                     this single-band capture its wavelength_nm (or the top-level one)"
+                .into(),
+        });
+    }
+    let bands = crate::bands::capture_band_images(m, c)?;
+    let label = capture_label(c);
+    let mut rows = Vec::with_capacity(bands.len() * m.regions.len());
+    for b in &bands {
+        let band_rows = measure_images_with(m, c, &b.images, false)?;
+        let band = b
+            .wavelength_nm
+            .map_or_else(String::new, |w| format!(" band {} nm", fmt_nm(w)));
+        for (r, mut row) in m.regions.iter().zip(band_rows) {
+            row.wavelength_nm = b.wavelength_nm;
+            if !row.status.is_ok() {
+                row.reason = row.reason.replacen(&label, &format!("{label}{band}"), 1);
+                if strict {
+                    let file = c
+                        .source
+                        .files()
+                        .first()
+                        .map(|p| p.display().to_string())
+                        .unwrap_or_default();
+                    return Err(IoError::Manifest {
+                        path: m.path.clone(),
+                        line: r.line,
+                        field: format!("region[{}].rect", r.index),
+                        value: format!(
+                            "[{}, {}, {}, {}]",
+                            r.rect.x, r.rect.y, r.rect.width, r.rect.height
+                        ),
+                        reason: format!(
+                            "in capture {} (line {}, {file},{band}, {}x{} pixels): {}: {}",
+                            c.index,
+                            c.line,
+                            b.images.width,
+                            b.images.height,
+                            row.status,
+                            row.reason
+                        ),
+                    });
+                }
+            }
+            rows.push(row);
+        }
+    }
+    Ok(rows)
+}
+
+/// A wavelength in nm as written in messages: `450`, `632.8`.
+fn fmt_nm(w: f64) -> String {
+    if w.fract() == 0.0 && w.abs() < 1e9 {
+        format!("{w:.0}")
+    } else {
+        format!("{w}")
+    }
 }
 
 /// One message per row of `rows` (as [`measure_manifest`] returned them for `m`) where
 /// more than [`SATURATED_WARN`] of the region's area is saturated, naming the target,
 /// the capture (index and line) and the fraction.
 pub fn saturation_warnings(m: &Manifest, rows: &[Measurement]) -> Vec<String> {
-    let per_capture = m.regions.len().max(1);
+    let per_band = m.regions.len().max(1);
+    // The capture of every row: `regions × bands` rows per capture.
+    let colour = has_colour(m);
+    let capture_of: Vec<usize> = m
+        .captures
+        .iter()
+        .enumerate()
+        .flat_map(|(i, c)| {
+            let bands = if colour { band_count(c) } else { 1 };
+            std::iter::repeat_n(i, per_band * bands)
+        })
+        .collect();
     let mut out = Vec::new();
     for (i, r) in rows.iter().enumerate() {
         let (Some(sat), Some(px), Some(rej)) = (r.saturated, r.pixels, r.rejected) else {
@@ -932,9 +1056,12 @@ pub fn saturation_warnings(m: &Manifest, rows: &[Measurement]) -> Vec<String> {
         };
         let area = px + rej;
         if area > 0 && sat as f64 > SATURATED_WARN * area as f64 {
-            let cap = m.captures.get(i / per_capture);
+            let cap = capture_of.get(i).and_then(|&j| m.captures.get(j));
+            let band = r
+                .wavelength_nm
+                .map_or_else(String::new, |w| format!(", band {} nm", fmt_nm(w)));
             out.push(format!(
-                "target {:?}, capture {} (line {}): {sat} of {area} pixels ({:.1}%) \
+                "target {:?}, capture {} (line {}){band}: {sat} of {area} pixels ({:.1}%) \
                  saturated and left out",
                 r.target,
                 cap.map_or(0, |c| c.index),

@@ -15,12 +15,19 @@
 //! (size, binning, thresholds, pixel counts per class and per reason, and per labelled
 //! region of the manifest the share of its pixels given each class). Everything is
 //! staged, so a failure leaves nothing behind.
+//!
+//! A manifest with colour captures is mapped per band (docs/BANDS.md): `n_450.tif`,
+//! `k_450.tif`, `n_se_450.tif`, `k_se_450.tif`, `rms_residual_450.tif` per band (named
+//! by its wavelength) instead of `n.tif` ..., and one `class.tif` from the
+//! classification of each pixel on all its bands (`--model` trained on multi-band fits,
+//! or `--library builtin-rgb`).
 
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use polarid_io::atomic::{StagedDir, check_output};
 use polarid_io::image;
+use polarid_io::library::Library;
 use polarid_io::manifest;
 use polarid_io::model::Model;
 use polarid_pipeline::map::{self, MapConfig, MapResult, Metric};
@@ -31,12 +38,17 @@ use crate::render::plots::{PlotSize, class_map};
 
 /// Arguments of `polarid map`.
 #[derive(Debug, clap::Args)]
+#[command(group(clap::ArgGroup::new("prototypes").required(true).args(["model", "library"])))]
 pub struct Args {
     /// The capture-set manifest (TOML, docs/FORMATS.md).
     pub manifest: PathBuf,
     /// Trained model (JSON) written by `polarid train`.
     #[arg(long, value_name = "MODEL.json")]
-    pub model: PathBuf,
+    pub model: Option<PathBuf>,
+    /// Material library (`builtin-rgb`, a multi-band library CSV): manifests with colour
+    /// captures only (docs/BANDS.md).
+    #[arg(long, value_name = "LIBRARY")]
+    pub library: Option<String>,
     /// Output directory.
     #[arg(short = 'o', long, value_name = "DIR")]
     pub output: PathBuf,
@@ -125,22 +137,41 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     for w in &m.warnings {
         ctx.info(format!("polarid: warning: {w}"));
     }
-    let model = Model::read(&args.model)?;
+    let colour = map::is_colour(&m);
+    let (model, label) = match (&args.model, &args.library) {
+        (Some(p), _) => (Some(Model::read(p)?), p.display().to_string()),
+        (None, Some(spec)) if colour => (None, format!("library {spec}")),
+        (None, spec) => anyhow::bail!(crate::BadInput(format!(
+            "--library {}: a library maps manifests with colour captures only; give \
+             --model for {}",
+            spec.as_deref().unwrap_or(""),
+            args.manifest.display()
+        ))),
+    };
+    let profiles = match (&model, &args.library) {
+        (Some(model), _) => model.multi_prototypes(),
+        (None, spec) => Library::load(spec.as_deref().unwrap_or("builtin-rgb"))?.multi_prototypes(),
+    };
     // Checked before the work, as the map itself does.
-    map::pixel_classifier(&cfg, &model, &args.model).cli()?;
+    if let (Some(model), Some(p), false) = (&model, &args.model, colour) {
+        map::pixel_classifier(&cfg, model, p).cli()?;
+    }
 
-    let mut inputs: Vec<&Path> = vec![args.manifest.as_path(), args.model.as_path()];
+    let mut inputs: Vec<&Path> = vec![args.manifest.as_path()];
+    inputs.extend(args.model.as_deref());
     for c in &m.captures {
         inputs.extend(c.source.files());
     }
-    for f in FILES {
+    for f in map::output_files(&m, &FILES) {
         check_output(&args.output.join(f), ctx.force, &inputs)?;
     }
 
     let bars = Bars::new(ctx);
-    let r = map::map_manifest(&cfg, &m, &model, &args.model, &|s, d, t| {
-        bars.report(s, d, t)
-    })
+    let progress = |s: &str, d, t| bars.report(s, d, t);
+    let r = match (&model, &args.model, colour) {
+        (Some(model), Some(p), false) => map::map_manifest(&cfg, &m, model, p, &progress),
+        _ => map::map_manifest_bands(&cfg, &m, &profiles, &label, &progress),
+    }
     .cli()?;
     drop(bars);
     // The manifest's warnings were printed above; the others follow.
@@ -168,14 +199,8 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
 fn write_outputs(args: &Args, r: &MapResult, ctx: &Ctx) -> anyhow::Result<()> {
     let (w, h) = (r.width, r.height);
     let staged = StagedDir::new(&args.output, ctx.force)?;
-    for (name, data) in [
-        ("n.tif", &r.n),
-        ("k.tif", &r.k),
-        ("n_se.tif", &r.n_se),
-        ("k_se.tif", &r.k_se),
-        ("rms_residual.tif", &r.rms_residual),
-    ] {
-        image::write_tiff_f32(&staged.path(name)?, true, w, h, data)?;
+    for (name, data) in r.fit_images() {
+        image::write_tiff_f32(&staged.path(&name)?, true, w, h, data)?;
     }
     if r.class_names.len() <= u8::MAX as usize {
         let c8: Vec<u8> = r.class.iter().map(|&c| c as u8).collect();
@@ -201,7 +226,10 @@ fn write_outputs(args: &Args, r: &MapResult, ctx: &Ctx) -> anyhow::Result<()> {
 
     let mut summary = r.summary_json();
     summary["manifest"] = serde_json::json!(args.manifest.display().to_string());
-    summary["model"] = serde_json::json!(args.model.display().to_string());
+    summary["model"] = match (&args.model, &args.library) {
+        (Some(p), _) => serde_json::json!(p.display().to_string()),
+        (None, l) => serde_json::json!(l),
+    };
     // No wall-clock time in the file (identical runs give identical files): the
     // timings are printed on standard error.
     std::fs::write(

@@ -33,6 +33,9 @@
 //! failure"), listed in a warning; `--strict` stops at the first one with exit status
 //! 2 instead. A manifest with no usable row at all is an error.
 //!
+//! A manifest with colour captures (docs/BANDS.md) gives one row per region, capture
+//! and band, each with `wavelength_nm` (the band's wavelength from `bands`).
+//!
 //! The pipeline itself is [`polarid_io::measure`], shared with the Python bindings.
 
 use std::path::{Path, PathBuf};
@@ -101,8 +104,13 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         measurements::write(w, &label, &rows)
     })?;
     if let Some(out) = &args.output {
+        let bands = if measure::has_colour(&m) {
+            " per band"
+        } else {
+            ""
+        };
         ctx.info(format!(
-            "polarid measure: {} rows ({} targets x {} captures) written to {}",
+            "polarid measure: {} rows ({} targets x {} captures{bands}) written to {}",
             rows.len(),
             m.regions.len(),
             m.captures.len(),

@@ -67,16 +67,20 @@ impl MapErrorModel {
 /// One row of a pixel's fit: the capture's index, its β (radians), the measured DoLP
 /// and the noise standard error (1 when unweighted).
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct PixelRow {
+pub struct PixelRow {
+    /// Index of the capture (into [`MapErrorModel::angle_sd`]).
     pub capture: usize,
+    /// β of the pixel in that capture, radians (eq. 5).
     pub beta: f64,
+    /// Measured DoLP.
     pub y: f64,
+    /// Noise standard error of the DoLP (1 when the fit is unweighted).
     pub se: f64,
 }
 
 /// Scratch memory of [`total_covariance`].
 #[derive(Debug, Default)]
-pub(crate) struct CovScratch {
+pub struct CovScratch {
     jn: Vec<f64>,
     jk: Vec<f64>,
     w: Vec<f64>,
@@ -85,8 +89,11 @@ pub(crate) struct CovScratch {
 }
 
 /// The noise-plus-systematic covariance of a pixel's fit `(n, k)` (module docs);
-/// `weighted`: the fit used the rows' `se`. `None` when `JᵀWJ` is singular.
-pub(crate) fn total_covariance(
+/// `weighted`: the fit used the rows' `se`; `k_can_be_zero`: the fit's bounds allow
+/// `k = 0` (the covariance is then taken in `u = k²` near 0). `None` when `JᵀWJ` is
+/// singular or there are fewer than 3 rows. Public for the per-band maps of colour
+/// captures, which classify a pixel on all its bands at once.
+pub fn total_covariance(
     n: f64,
     k: f64,
     rows: &[PixelRow],

@@ -207,6 +207,19 @@ fn bracket_mismatch(first: &CaptureSource, b: &CaptureSource) -> Option<(&'stati
                 )
             })
         }
+        (
+            CaptureSource::ColourDofp { pattern: a, .. },
+            CaptureSource::ColourDofp { pattern: b, .. },
+        ) => (a != b).then(|| {
+            (
+                "dofp",
+                "the polarizer or colour pattern differs from that of brackets[1]".to_string(),
+            )
+        }),
+        (CaptureSource::ColourDofp { .. }, _) => Some((
+            "dofp",
+            "every bracket must hold the same kind of data as brackets[1] (a colour dofp)".into(),
+        )),
         (CaptureSource::Dofp { .. }, _) => Some((
             "frames",
             "every bracket must hold the same kind of data as brackets[1] (dofp)".into(),

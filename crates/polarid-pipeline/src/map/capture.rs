@@ -32,7 +32,7 @@ fn core_err(path: &Path) -> impl FnOnce(polarid_core::CoreError) -> IoError + '_
 }
 
 /// Check that a capture's frame has the map's size (set by the first capture).
-fn check_dims(dims: &mut Option<Dims>, f: &Frame, bin: usize) -> Result<Dims> {
+pub(crate) fn check_dims(dims: &mut Option<Dims>, f: &Frame, bin: usize) -> Result<Dims> {
     match dims {
         Some(d) => {
             if (d.width, d.height) != (f.width, f.height) {

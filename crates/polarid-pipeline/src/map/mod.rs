@@ -35,6 +35,7 @@
 //! ([`MapResult`]), and the caller writes them (`polarid map` writes TIFFs, PNG/SVG and
 //! JSON; the Python binding returns numpy arrays).
 
+mod bands;
 mod capture;
 mod geometry;
 pub mod rules;
@@ -53,6 +54,7 @@ use polarid_io::IoError;
 use polarid_io::manifest::Manifest;
 use polarid_io::model::Model;
 
+pub use bands::{BAND_IMAGES, BandMap, band_tag, is_colour, map_manifest_bands, output_files};
 pub use polarid_core::map::reason::NAMES as REASON_NAMES;
 pub use summary::RegionSummary;
 
@@ -350,6 +352,11 @@ pub struct MapResult {
     pub seconds_fit: f64,
     /// The manifest's warnings (unknown keys ...).
     pub warnings: Vec<Warning>,
+    /// Colour captures: the fit of every band, in increasing wavelength
+    /// ([`map_manifest_bands`]); `n`, `k`, `n_se`, `k_se` and `rms_residual` are then
+    /// empty and `class`, `reason` are those of the classification on all bands. Empty
+    /// for a single-band map.
+    pub bands: Vec<BandMap>,
 }
 
 impl MapResult {
@@ -415,7 +422,8 @@ fn error_model(m: &Manifest, errors: &MapErrors) -> MapErrorModel {
 
 /// Map a loaded manifest with a model (`model_path` names it in errors): DoLP per capture, then fit and classify every
 /// pixel (see the module documentation). Progress stages: `"captures (DoLP)"` (one
-/// step per capture), `"pixels (fit)"` (pixels done).
+/// step per capture), `"pixels (fit)"` (pixels done). A manifest with colour captures
+/// is mapped per band with the model's multi-band prototypes ([`map_manifest_bands`]).
 pub fn map_manifest(
     cfg: &MapConfig,
     m: &Manifest,
@@ -423,6 +431,10 @@ pub fn map_manifest(
     model_path: &Path,
     progress: Progress<'_>,
 ) -> Result<MapResult> {
+    if is_colour(m) {
+        let label = model_path.display().to_string();
+        return map_manifest_bands(cfg, m, &model.multi_prototypes(), &label, progress);
+    }
     let mut pc = pixel_classifier(cfg, model, model_path)?;
     if cfg.rule == Rule::Set {
         pc = pc
@@ -670,6 +682,7 @@ pub fn map_manifest(
         seconds_dolp: t_dolp,
         seconds_fit: t_fit,
         warnings,
+        bands: Vec::new(),
     })
 }
 

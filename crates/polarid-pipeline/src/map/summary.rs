@@ -182,6 +182,35 @@ impl MapResult {
             }),
             None => Value::Null,
         };
+        if !self.bands.is_empty() {
+            v["bands"] = json!(
+                self.bands
+                    .iter()
+                    .map(|b| {
+                        let tag = super::band_tag(b.wavelength_nm);
+                        let files: Vec<String> = super::BAND_IMAGES
+                            .iter()
+                            .map(|f| format!("{f}_{tag}.tif"))
+                            .collect();
+                        let reasons: serde_json::Map<String, Value> = names
+                            .iter()
+                            .zip(b.reasons)
+                            .filter(|(_, c)| *c > 0)
+                            .map(|(n, c)| (n.to_string(), json!(c)))
+                            .collect();
+                        let captures: Vec<usize> = b.captures.iter().map(|&i| i + 1).collect();
+                        json!({
+                            "wavelength_nm": b.wavelength_nm,
+                            "captures": captures,
+                            "fitted": b.reasons[polarid_core::map::reason::CLASSIFIED as usize],
+                            "reasons": reasons,
+                            "weights": if b.noise.is_some() { "noise" } else { "none" },
+                            "files": files,
+                        })
+                    })
+                    .collect::<Vec<_>>()
+            );
+        }
         if self.calibrated {
             v["geometry"] = json!("calibrated");
             v["beta_range_deg"] = json!(
