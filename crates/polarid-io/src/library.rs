@@ -27,7 +27,10 @@
 //!   lacks that band's row.
 //!
 //! `builtin`'s rows have no `wavelength_nm` column; as multi-band prototypes they are the
-//! 650 nm band.
+//! 650 nm band. Both built-in libraries of the refractiveindex.info materials can be
+//! evaluated at any wavelength their data cover ([`Library::at_wavelengths`], from the
+//! embedded files [`BUILTIN_SOURCES`]), so that data at 500 or 800 nm are compared with
+//! the materials at 500 or 800 nm.
 //!
 //! # refractiveindex.info YAML
 //!
