@@ -429,8 +429,8 @@ fn problem(p: &Proxy, a: &Answer, cats: &HashMap<String, String>, variant: &str)
         }
         "lsat" => !classified || cands_in(&["dielectric"]),
         "oxide" => {
-            !(classified && p.flips())
-                && !(classified && a.candidates.iter().any(|m| cat(m) == "metal"))
+            // Never classified where the AoLP flips; never a metal.
+            !classified || (!p.flips() && !a.candidates.iter().any(|m| cat(m) == "metal"))
         }
         "ptfe" => !classified,
         _ => unreachable!(),
