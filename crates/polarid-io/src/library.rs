@@ -27,7 +27,10 @@
 //!   lacks that band's row.
 //!
 //! `builtin`'s rows have no `wavelength_nm` column; as multi-band prototypes they are the
-//! 650 nm band.
+//! 650 nm band. Both built-in libraries of the refractiveindex.info materials can be
+//! evaluated at any wavelength their data cover ([`Library::at_wavelengths`], from the
+//! embedded files [`BUILTIN_SOURCES`]), so that data at 500 or 800 nm are compared with
+//! the materials at 500 or 800 nm.
 //!
 //! # refractiveindex.info YAML
 //!
@@ -55,7 +58,7 @@
 
 use std::path::{Path, PathBuf};
 
-use polarid_core::classify::{BandPoint, MultiPrototype, Prototype, check_class_name};
+use polarid_core::classify::{BandPoint, MultiPrototype, Prototype, check_class_name, same_band};
 use saphyr::{LoadableYamlNode, Yaml};
 
 use crate::error::{IoError, Result};
@@ -654,6 +657,359 @@ impl RiiData {
             sk += k;
         }
         Ok((sn / count as f64, sk / count as f64))
+    }
+}
+
+/// One built-in material's refractiveindex.info file, embedded in the binary (the files of
+/// `data/materials/refractiveindex` named in `data/materials/builtin_names.csv`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BuiltinSource {
+    /// The material's name in the built-in libraries.
+    pub name: &'static str,
+    /// The file's path in the database (`shelf/book/nk/page.yml`).
+    pub file: &'static str,
+    /// The YAML text.
+    pub text: &'static str,
+}
+
+/// The files behind the built-in libraries, in library order: [`Library::at_wavelengths`]
+/// evaluates the built-in materials at any wavelength their data cover.
+pub const BUILTIN_SOURCES: [BuiltinSource; 39] = [
+    BuiltinSource {
+        name: "aluminum",
+        file: "main/Al/nk/Rakic.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/Al/nk/Rakic.yml"),
+    },
+    BuiltinSource {
+        name: "copper",
+        file: "main/Cu/nk/Johnson.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/Cu/nk/Johnson.yml"),
+    },
+    BuiltinSource {
+        name: "gold",
+        file: "main/Au/nk/Johnson.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/Au/nk/Johnson.yml"),
+    },
+    BuiltinSource {
+        name: "silver",
+        file: "main/Ag/nk/Johnson.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/Ag/nk/Johnson.yml"),
+    },
+    BuiltinSource {
+        name: "iron",
+        file: "main/Fe/nk/Johnson.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/Fe/nk/Johnson.yml"),
+    },
+    BuiltinSource {
+        name: "nickel",
+        file: "main/Ni/nk/Johnson.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/Ni/nk/Johnson.yml"),
+    },
+    BuiltinSource {
+        name: "chromium",
+        file: "main/Cr/nk/Johnson.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/Cr/nk/Johnson.yml"),
+    },
+    BuiltinSource {
+        name: "titanium",
+        file: "main/Ti/nk/Johnson.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/Ti/nk/Johnson.yml"),
+    },
+    BuiltinSource {
+        name: "tungsten",
+        file: "main/W/nk/Weaver.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/W/nk/Weaver.yml"),
+    },
+    BuiltinSource {
+        name: "zinc",
+        file: "main/Zn/nk/Werner.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/Zn/nk/Werner.yml"),
+    },
+    BuiltinSource {
+        name: "lead",
+        file: "main/Pb/nk/Golovashkin-293K.yml",
+        text: include_str!(
+            "../../../data/materials/refractiveindex/main/Pb/nk/Golovashkin-293K.yml"
+        ),
+    },
+    BuiltinSource {
+        name: "magnesium",
+        file: "main/Mg/nk/Hagemann.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/Mg/nk/Hagemann.yml"),
+    },
+    BuiltinSource {
+        name: "platinum",
+        file: "main/Pt/nk/Rakic-BB.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/Pt/nk/Rakic-BB.yml"),
+    },
+    BuiltinSource {
+        name: "brass_Cu70Zn30",
+        file: "other/alloys/Cu-Zn/nk/Querry-Cu70Zn30.yml",
+        text: include_str!(
+            "../../../data/materials/refractiveindex/other/alloys/Cu-Zn/nk/Querry-Cu70Zn30.yml"
+        ),
+    },
+    BuiltinSource {
+        name: "stainless_steel_austenitic",
+        file: "other/alloys/stainless steel/nk/Karlsson-austenitic.yml",
+        text: include_str!(
+            "../../../data/materials/refractiveindex/other/alloys/stainless steel/nk/Karlsson-austenitic.yml"
+        ),
+    },
+    BuiltinSource {
+        name: "silicon",
+        file: "main/Si/nk/Aspnes.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/Si/nk/Aspnes.yml"),
+    },
+    BuiltinSource {
+        name: "germanium",
+        file: "main/Ge/nk/Aspnes.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/Ge/nk/Aspnes.yml"),
+    },
+    BuiltinSource {
+        name: "gallium_arsenide",
+        file: "main/GaAs/nk/Aspnes.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/GaAs/nk/Aspnes.yml"),
+    },
+    BuiltinSource {
+        name: "graphite_o",
+        file: "main/C/nk/Djurisic-o.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/C/nk/Djurisic-o.yml"),
+    },
+    BuiltinSource {
+        name: "carbon_soot_acetylene",
+        file: "other/soots/acetylene soot/nk/Dalzell.yml",
+        text: include_str!(
+            "../../../data/materials/refractiveindex/other/soots/acetylene soot/nk/Dalzell.yml"
+        ),
+    },
+    BuiltinSource {
+        name: "hematite_Fe2O3_o",
+        file: "main/Fe2O3/nk/Querry-o.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/Fe2O3/nk/Querry-o.yml"),
+    },
+    BuiltinSource {
+        name: "magnetite_Fe3O4",
+        file: "main/Fe3O4/nk/Querry.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/Fe3O4/nk/Querry.yml"),
+    },
+    BuiltinSource {
+        name: "N-BK7",
+        file: "specs/schott/optical/N-BK7.yml",
+        text: include_str!(
+            "../../../data/materials/refractiveindex/specs/schott/optical/N-BK7.yml"
+        ),
+    },
+    BuiltinSource {
+        name: "fused_silica",
+        file: "main/SiO2/nk/Malitson.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/SiO2/nk/Malitson.yml"),
+    },
+    BuiltinSource {
+        name: "soda_lime_glass_clear",
+        file: "glass/misc/soda-lime/nk/Rubin-clear.yml",
+        text: include_str!(
+            "../../../data/materials/refractiveindex/glass/misc/soda-lime/nk/Rubin-clear.yml"
+        ),
+    },
+    BuiltinSource {
+        name: "sapphire_o",
+        file: "main/Al2O3/nk/Malitson-o.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/Al2O3/nk/Malitson-o.yml"),
+    },
+    BuiltinSource {
+        name: "water",
+        file: "main/H2O/nk/Hale.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/H2O/nk/Hale.yml"),
+    },
+    BuiltinSource {
+        name: "ice",
+        file: "main/H2O/nk/Warren-2008.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/H2O/nk/Warren-2008.yml"),
+    },
+    BuiltinSource {
+        name: "PMMA",
+        file: "organic/(C5H8O2)n - poly(methyl methacrylate)/nk/Sultanova.yml",
+        text: include_str!(
+            "../../../data/materials/refractiveindex/organic/(C5H8O2)n - poly(methyl methacrylate)/nk/Sultanova.yml"
+        ),
+    },
+    BuiltinSource {
+        name: "polycarbonate",
+        file: "organic/(C16H14O3)n - polycarbonate/nk/Sultanova.yml",
+        text: include_str!(
+            "../../../data/materials/refractiveindex/organic/(C16H14O3)n - polycarbonate/nk/Sultanova.yml"
+        ),
+    },
+    BuiltinSource {
+        name: "polystyrene",
+        file: "organic/(C8H8)n - polystyrene/nk/Sultanova.yml",
+        text: include_str!(
+            "../../../data/materials/refractiveindex/organic/(C8H8)n - polystyrene/nk/Sultanova.yml"
+        ),
+    },
+    BuiltinSource {
+        name: "PET",
+        file: "organic/(C10H8O4)n - polyethylene terephthalate/nk/Zhang.yml",
+        text: include_str!(
+            "../../../data/materials/refractiveindex/organic/(C10H8O4)n - polyethylene terephthalate/nk/Zhang.yml"
+        ),
+    },
+    BuiltinSource {
+        name: "PVC",
+        file: "organic/(C2H3Cl)n - polyvinyl chloride/nk/Zhang.yml",
+        text: include_str!(
+            "../../../data/materials/refractiveindex/organic/(C2H3Cl)n - polyvinyl chloride/nk/Zhang.yml"
+        ),
+    },
+    BuiltinSource {
+        name: "PDMS_silicone_Sylgard184",
+        file: "organic/(C2H6OSi)n - polydimethylsiloxane/nk/Schneider-Sylgard184.yml",
+        text: include_str!(
+            "../../../data/materials/refractiveindex/organic/(C2H6OSi)n - polydimethylsiloxane/nk/Schneider-Sylgard184.yml"
+        ),
+    },
+    BuiltinSource {
+        name: "cellulose",
+        file: "organic/(C6H10O5)n - cellulose/nk/Sultanova.yml",
+        text: include_str!(
+            "../../../data/materials/refractiveindex/organic/(C6H10O5)n - cellulose/nk/Sultanova.yml"
+        ),
+    },
+    BuiltinSource {
+        name: "polyimide_Kapton_HN",
+        file: "other/commercial polymers/Kapton/nk/French.yml",
+        text: include_str!(
+            "../../../data/materials/refractiveindex/other/commercial polymers/Kapton/nk/French.yml"
+        ),
+    },
+    BuiltinSource {
+        name: "TiO2_rutile_o",
+        file: "main/TiO2/nk/Devore-o.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/TiO2/nk/Devore-o.yml"),
+    },
+    BuiltinSource {
+        name: "ZnO_o",
+        file: "main/ZnO/nk/Bond-o.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/ZnO/nk/Bond-o.yml"),
+    },
+    BuiltinSource {
+        name: "CaCO3_calcite_o",
+        file: "main/CaCO3/nk/Ghosh-o.yml",
+        text: include_str!("../../../data/materials/refractiveindex/main/CaCO3/nk/Ghosh-o.yml"),
+    },
+];
+
+/// The parsed [`BUILTIN_SOURCES`] (parsed once per process).
+fn builtin_dispersion() -> Result<&'static [RiiData]> {
+    static DATA: std::sync::OnceLock<std::result::Result<Vec<RiiData>, String>> =
+        std::sync::OnceLock::new();
+    let parsed = DATA.get_or_init(|| {
+        BUILTIN_SOURCES
+            .iter()
+            .map(|s| RiiData::parse(Path::new(s.file), s.text).map_err(|e| e.to_string()))
+            .collect()
+    });
+    match parsed {
+        Ok(v) => Ok(v.as_slice()),
+        Err(e) => Err(IoError::Model {
+            path: PathBuf::from("builtin"),
+            reason: e.clone(),
+        }),
+    }
+}
+
+/// Built-in materials a wavelength could not be evaluated at ([`Library::at_wavelengths`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Uncovered {
+    /// The wavelength, nm.
+    pub wavelength_nm: f64,
+    /// The materials whose data do not cover it (left out at that wavelength).
+    pub names: Vec<String>,
+}
+
+impl Library {
+    /// Whether `spec` names a built-in library of the refractiveindex.info materials
+    /// (`builtin`, `builtin-rgb`), which [`Library::at_wavelengths`] can evaluate at any
+    /// wavelength.
+    pub fn is_dispersive_builtin(spec: &str) -> bool {
+        matches!(spec, "builtin" | "builtin-rgb")
+    }
+
+    /// The bands of this library's rows: `wavelength_nm`, or [`BUILTIN_WAVELENGTH_NM`] for
+    /// the `builtin` library's rows.
+    fn band_of(&self, m: &Material) -> Option<f64> {
+        m.wavelength_nm
+            .or_else(|| (self.source == "builtin").then_some(BUILTIN_WAVELENGTH_NM))
+    }
+
+    /// A built-in library (`builtin`, `builtin-rgb`) at the wavelengths of the data:
+    /// a multi-band library with one row per material per wavelength. At a wavelength
+    /// within [`BAND_TOLERANCE_NM`](polarid_core::classify::BAND_TOLERANCE_NM) of one of
+    /// the library's own bands the library's row is kept (its band mean, e.g. 650 nm:
+    /// 610–690 nm); at any other wavelength `λ` the material's `n(λ)`, `k(λ)` from its
+    /// refractiveindex.info file ([`BUILTIN_SOURCES`], [`RiiData::nk`]: tabulated data
+    /// linearly interpolated, formulas evaluated, never extrapolated). A material whose
+    /// data do not cover `λ` has no row there; the [`Uncovered`] list names them.
+    /// Wavelengths must be finite and > 0 (others are skipped). Other libraries are
+    /// returned unchanged with an empty list.
+    pub fn at_wavelengths(&self, wavelengths: &[f64]) -> Result<(Library, Vec<Uncovered>)> {
+        if !Self::is_dispersive_builtin(&self.source) {
+            return Ok((self.clone(), Vec::new()));
+        }
+        let data = builtin_dispersion()?;
+        let mut wls: Vec<f64> = Vec::new();
+        for &w in wavelengths {
+            if w.is_finite() && w > 0.0 && !wls.iter().any(|&x| same_band(Some(x), Some(w))) {
+                wls.push(w);
+            }
+        }
+        let mut names: Vec<&str> = Vec::new();
+        for m in &self.materials {
+            if !names.contains(&m.name.as_str()) {
+                names.push(&m.name);
+            }
+        }
+        let mut uncovered: Vec<Uncovered> = wls
+            .iter()
+            .map(|&w| Uncovered {
+                wavelength_nm: w,
+                names: Vec::new(),
+            })
+            .collect();
+        let mut materials = Vec::new();
+        for name in names {
+            let rows: Vec<&Material> = self.materials.iter().filter(|m| m.name == name).collect();
+            // ok: `name` was taken from `self.materials`.
+            let first = rows[0];
+            let source = BUILTIN_SOURCES.iter().position(|s| s.name == name);
+            for (wi, &w) in wls.iter().enumerate() {
+                if let Some(m) = rows.iter().find(|m| same_band(self.band_of(m), Some(w))) {
+                    materials.push(Material {
+                        wavelength_nm: self.band_of(m),
+                        ..(*m).clone()
+                    });
+                    continue;
+                }
+                match source.map(|i| data[i].nk(w / 1000.0)) {
+                    Some(Ok((n, k))) => materials.push(Material {
+                        n,
+                        k,
+                        wavelength_nm: Some(w),
+                        ..first.clone()
+                    }),
+                    _ => uncovered[wi].names.push(name.to_string()),
+                }
+            }
+        }
+        uncovered.retain(|u| !u.names.is_empty());
+        Ok((
+            Library {
+                source: self.source.clone(),
+                materials,
+            },
+            uncovered,
+        ))
     }
 }
 

@@ -39,6 +39,11 @@ pub struct Args {
     /// (the range of n and k they span; docs/CLASSIFY.md).
     #[arg(long, default_value_t = 3)]
     pub explain: usize,
+    /// Wavelength (nm) of the fit rows that carry no `wavelength_nm`. The built-in
+    /// libraries are evaluated at the fits' wavelengths (docs/CLASSIFY.md "Wavelength");
+    /// fits without one are compared with `builtin`'s 650 nm values.
+    #[arg(long, value_name = "NM")]
+    pub wavelength_nm: Option<f64>,
 }
 
 /// Run `polarid classify`.
@@ -53,6 +58,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         classifier,
         explain: args.explain,
         wolff: args.wolff.request()?,
+        wavelength_nm: args.wavelength_nm,
     };
     let out = pipe::classify(&args.fits, &fits, &source, &cfg).cli()?;
     let out_path = args.output.clone();

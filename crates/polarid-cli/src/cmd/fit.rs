@@ -108,7 +108,8 @@ pub struct Args {
     /// Standard thickness of an unmodelled surface layer (native oxide), nm.
     #[arg(long, value_name = "NM", default_value_t = DEFAULT_FILM_SD_NM)]
     pub film_sd_nm: f64,
-    /// The wavelength that layer's thickness is compared with, nm.
+    /// The wavelength that layer's thickness is compared with, nm, for rows without a
+    /// `wavelength_nm` (rows with one use their own).
     #[arg(long, value_name = "NM", default_value_t = DEFAULT_WAVELENGTH_NM)]
     pub wavelength_nm: f64,
     /// Do not decide from the brightness (s0 with exposures) whether a target reflects

@@ -145,6 +145,108 @@ impl PrototypeSource {
     }
 }
 
+impl PrototypeSource {
+    /// The prototypes for fits at `wavelengths` (nm; empty: no fit row has one), with a
+    /// label and warnings (docs/CLASSIFY.md "Wavelength"):
+    ///
+    /// - a built-in library (`builtin`, `builtin-rgb`) is evaluated at the fits'
+    ///   wavelengths ([`Library::at_wavelengths`]): its own band where a wavelength is one
+    ///   (650 nm for `builtin`), else each material's index at that wavelength from its
+    ///   refractiveindex.info data; materials whose data do not cover a wavelength are left
+    ///   out there, with a warning naming them;
+    /// - fits without a wavelength (`without` of them) against `builtin` are compared
+    ///   with its 650 nm values, with a warning saying so;
+    /// - a library or model without `wavelength_nm` compared with fits that have one is
+    ///   used as it is, with a warning (its wavelength is unknown).
+    pub fn load_multi_for(
+        &self,
+        wavelengths: &[f64],
+        without: usize,
+    ) -> Result<(Vec<MultiPrototype>, String, Vec<Warning>)> {
+        let mut warnings = Vec::new();
+        let list = |w: &[f64]| {
+            w.iter()
+                .map(|x| format!("{x}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        if let PrototypeSource::Library(spec) = self
+            && Library::is_dispersive_builtin(spec)
+        {
+            let lib = Library::load(spec)?;
+            let label = format!("library {spec}");
+            if without > 0 && spec == "builtin" {
+                warnings.push(Warning(format!(
+                    "{without} fit row(s) carry no wavelength_nm: compared with the built-in \
+                     library's 650 nm values (means over 610-690 nm); if the data were taken \
+                     at another wavelength give wavelength_nm in the measurements (or \
+                     classify --wavelength-nm), and the materials are evaluated there"
+                )));
+            }
+            if wavelengths.is_empty() {
+                return Ok((lib.multi_prototypes(), label, warnings));
+            }
+            let (at, uncovered) = lib.at_wavelengths(wavelengths)?;
+            let own: Vec<f64> = lib
+                .materials
+                .iter()
+                .filter_map(|m| {
+                    m.wavelength_nm.or_else(|| {
+                        (lib.source == "builtin")
+                            .then_some(polarid_io::library::BUILTIN_WAVELENGTH_NM)
+                    })
+                })
+                .collect();
+            let evaluated: Vec<f64> = wavelengths
+                .iter()
+                .copied()
+                .filter(|&w| {
+                    !own.iter()
+                        .any(|&o| polarid_core::classify::same_band(Some(o), Some(w)))
+                })
+                .collect();
+            if !evaluated.is_empty() {
+                let mut e: Vec<f64> = Vec::new();
+                for w in evaluated {
+                    if !e
+                        .iter()
+                        .any(|&x| polarid_core::classify::same_band(Some(x), Some(w)))
+                    {
+                        e.push(w);
+                    }
+                }
+                warnings.push(Warning(format!(
+                    "library {spec} evaluated at {} nm from its refractiveindex.info data \
+                     (n and k at that wavelength; its own bands are kept where the fits are in \
+                     them)",
+                    list(&e)
+                )));
+            }
+            for u in uncovered {
+                warnings.push(Warning(format!(
+                    "library {spec} at {} nm: no data for {} (left out at that wavelength)",
+                    u.wavelength_nm,
+                    u.names.join(", ")
+                )));
+            }
+            return Ok((at.multi_prototypes(), label, warnings));
+        }
+        let (protos, label) = self.load_multi()?;
+        if !wavelengths.is_empty()
+            && protos
+                .iter()
+                .all(|p| p.bands.iter().all(|b| b.wavelength_nm.is_none()))
+        {
+            warnings.push(Warning(format!(
+                "{label} has no wavelength_nm: compared with the fits at {} nm as it is \
+                 (make sure its values are for that wavelength)",
+                list(wavelengths)
+            )));
+        }
+        Ok((protos, label, warnings))
+    }
+}
+
 /// Wolff's baseline as requested: the measurements CSV and the settings.
 #[derive(Debug, Clone)]
 pub struct WolffRequest {
@@ -165,6 +267,9 @@ pub struct ClassifyConfig {
     pub explain: usize,
     /// Also run Wolff's metal/dielectric baseline.
     pub wolff: Option<WolffRequest>,
+    /// The wavelength (nm) of fit rows that carry no `wavelength_nm` (`classify
+    /// --wavelength-nm`); `None`: such rows stay without one.
+    pub wavelength_nm: Option<f64>,
 }
 
 /// A classifier setting as a [`PipelineError::Config`] naming the setting and value.
@@ -194,6 +299,7 @@ impl Default for ClassifyConfig {
             classifier: ClassifierConfig::set(polarid_core::classify::DEFAULT_CONFIDENCE),
             explain: 3,
             wolff: None,
+            wavelength_nm: None,
         }
     }
 }
@@ -202,6 +308,15 @@ impl ClassifyConfig {
     /// Check every value ([`PipelineError::Config`] naming it).
     pub fn validate(&self) -> Result<()> {
         check_classifier(&self.classifier)?;
+        if let Some(w) = self.wavelength_nm
+            && !(w.is_finite() && (100.0..100_000.0).contains(&w))
+        {
+            return Err(PipelineError::config(
+                "wavelength_nm",
+                w.to_string(),
+                "must be a wavelength in [100, 100000) nm",
+            ));
+        }
         if let Some(w) = &self.wolff {
             w.settings.validate()?;
         }
@@ -220,7 +335,8 @@ pub struct ClassifyOutput {
     pub label: String,
     /// The classifier used.
     pub classifier: Classifier,
-    /// Nothing yet; kept for the front ends' uniform handling.
+    /// How the prototypes were matched to the fits' wavelengths
+    /// ([`PrototypeSource::load_multi_for`]).
     pub warnings: Vec<Warning>,
 }
 
@@ -303,7 +419,34 @@ pub fn classify(
             reason: "no fits to classify".into(),
         });
     }
-    let (protos, label) = source.load_multi()?;
+    let assigned: Vec<(u64, FitRow)>;
+    let fits = match cfg.wavelength_nm {
+        Some(w) => {
+            assigned = fits
+                .iter()
+                .map(|(l, f)| {
+                    let mut f = f.clone();
+                    f.wavelength_nm = f.wavelength_nm.or(Some(w));
+                    (*l, f)
+                })
+                .collect();
+            &assigned[..]
+        }
+        None => fits,
+    };
+    let mut wavelengths: Vec<f64> = Vec::new();
+    for (_, f) in fits {
+        if let Some(w) = f.wavelength_nm
+            && !wavelengths.contains(&w)
+        {
+            wavelengths.push(w);
+        }
+    }
+    let without = fits
+        .iter()
+        .filter(|(_, f)| f.wavelength_nm.is_none())
+        .count();
+    let (protos, label, warnings) = source.load_multi_for(&wavelengths, without)?;
     let clf = multi_classifier(protos, &label, cfg.classifier)?;
     let wolff = cfg
         .wolff
@@ -364,6 +507,6 @@ pub fn classify(
         notes,
         label,
         classifier: clf,
-        warnings: Vec::new(),
+        warnings,
     })
 }

@@ -124,8 +124,8 @@ pub struct FitConfig {
     /// contamination), nanometres, in `[0, 1000)` (docs/ERRORS.md).
     pub film_sd_nm: f64,
     /// Specular fit: the wavelength the layer's thickness is compared with, nanometres,
-    /// in `[100, 100000)` (the rows carry none; the shortest visible wavelengths make the
-    /// layer matter most).
+    /// in `[100, 100000)`, for rows without a `wavelength_nm` (rows with one use their
+    /// own; [`FitConfig::polarimetric_at`]).
     pub wavelength_nm: f64,
     /// Specular fit: when every row of a target carries its brightness (`s0` and
     /// `exposure`, as `measure` writes them) and its angles, decide by the mixed model
@@ -258,13 +258,24 @@ impl FitConfig {
         }
     }
 
-    /// The polarimetric part of the error model.
+    /// The polarimetric part of the error model, with the surface layer compared with
+    /// [`FitConfig::wavelength_nm`].
     pub fn polarimetric(&self) -> Polarimetric {
+        self.polarimetric_at(None)
+    }
+
+    /// The polarimetric part of the error model for rows of wavelength `band` (nm): the
+    /// surface-layer allowance `film_sd_nm / λ` uses the rows' own wavelength when they
+    /// have one (a finite value > 0), else [`FitConfig::wavelength_nm`].
+    pub fn polarimetric_at(&self, band: Option<f64>) -> Polarimetric {
+        let wl = band
+            .filter(|w| w.is_finite() && *w > 0.0)
+            .unwrap_or(self.wavelength_nm);
         Polarimetric {
             dolp_floor: self.dolp_floor,
             extinction_ratio: self.extinction_ratio,
             retardance: self.retardance_deg.to_radians(),
-            film_sd_waves: self.film_sd_nm / self.wavelength_nm,
+            film_sd_waves: self.film_sd_nm / wl,
         }
     }
 

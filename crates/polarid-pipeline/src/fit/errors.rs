@@ -50,7 +50,7 @@ pub(crate) fn assess(g: &Group, f: &NkFit, corr: &[f64], cfg: &FitConfig) -> Err
     if !(f.n.is_finite() && f.k.is_finite()) || f.status == FitStatus::InvalidInput {
         return rep;
     }
-    let pol = cfg.polarimetric();
+    let pol = cfg.polarimetric_at(g.wavelength_nm);
     let t_len = g.rows.len();
     let betas: Vec<f64> = g
         .rows
@@ -93,6 +93,34 @@ pub(crate) fn assess(g: &Group, f: &NkFit, corr: &[f64], cfg: &FitConfig) -> Err
         rep.gof_p = Some(gof.p_value);
         if gof.p_value < cfg.mismatch_p {
             rep.mismatch.push(residual_reason(g, gof));
+        }
+    } else if se.is_none() && cfg.dolp_floor > 0.0 {
+        // No stated noise (some row lacks dolp_se): the residuals are tested against the
+        // systematic error alone, whose DoLP floor is the least error any row can have
+        // (docs/ERRORS.md "Rows without dolp_se"). Residuals beyond it are a model
+        // mismatch, or noise the file does not state.
+        let tiny = vec![1e-9; t_len];
+        if let Ok(p2) = propagate(
+            f.n,
+            f.k,
+            &betas,
+            &residual,
+            Some(&tiny),
+            &sys,
+            cfg.k_range.0 == 0.0,
+        ) && let Some(gof) = &p2.gof
+        {
+            rep.gof_p = Some(gof.p_value);
+            if gof.p_value < cfg.mismatch_p {
+                rep.mismatch.push(format!(
+                    "{} (the rows have no dolp_se: tested against the systematic error \
+                     alone; give dolp_se if the data are noisier)",
+                    residual_reason(g, gof).replace(
+                        "against noise + systematic error",
+                        "against the systematic error"
+                    )
+                ));
+            }
         }
     }
     let (aolp_p, why) = aolp_check(g, cfg);

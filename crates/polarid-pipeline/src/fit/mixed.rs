@@ -131,7 +131,13 @@ fn checked_row(
         .iter()
         .map(|(_, m)| m.angle_sd_deg.unwrap_or(cfg.angle_sd_deg).to_radians())
         .collect();
-    if let Some(c) = mixed::total_nk_cov(caps, opts, f, &angle_sd, &cfg.polarimetric()) {
+    if let Some(c) = mixed::total_nk_cov(
+        caps,
+        opts,
+        f,
+        &angle_sd,
+        &cfg.polarimetric_at(g.wavelength_nm),
+    ) {
         r.n_se_noise = Some(r.n_se);
         r.k_se_noise = Some(r.k_se);
         r.nk_corr_noise = Some(r.nk_corr);
