@@ -65,6 +65,7 @@
 
 mod calibrated;
 mod camera;
+mod colour;
 mod context;
 mod plates;
 mod raw;
@@ -75,7 +76,8 @@ use std::path::Path;
 
 pub use plates::default_region;
 pub use types::{
-    Calibrated, CaptureKind, Geometry, ImageFormat, MAX_SIDE, Placement, Plate, Scene, SceneSource,
+    Calibrated, CaptureKind, Geometry, ImageFormat, MAX_SIDE, Placement, Plate, Scene, SceneBand,
+    SceneSource,
 };
 
 use crate::error::Result;
