@@ -333,3 +333,155 @@ impl Ctx<'_> {
         Ok(src.loaded.get_or_init(|| lib))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use crate::scene::{CaptureKind, parse};
+
+    const COLOUR: &str = r#"
+width = 32
+height = 32
+theta_r_deg = 60
+theta_i_deg = [40, 50]
+bands = { R = 650.0, G = 550.0, B = 450.0 }
+
+[sensor]
+band_response = { B = 0.5 }
+
+[capture]
+kind = "dofp"
+color = "RGGB"
+
+[[plate]]
+name = "cu"
+material = "copper"
+sigma = 0.2
+rect = [0, 0, 16, 32]
+
+[[plate]]
+name = "paint"
+class = "paint"
+n = { R = 1.39, G = 1.42, B = 1.45 }
+k = { R = 0.34, G = 0.12, B = 0.30 }
+rho_d = 0.1
+sigma = 0.3
+rect = [16, 0, 16, 32]
+"#;
+
+    fn err(text: &str) -> String {
+        parse(Path::new("s.toml"), text).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn colour_scene_has_bands_and_per_band_optics() {
+        let s = parse(Path::new("s.toml"), COLOUR).unwrap();
+        let CaptureKind::ColourDofp { pattern, bands } = &s.capture else {
+            panic!("colour capture expected")
+        };
+        assert_eq!(pattern.color(), "RGGB");
+        let wl: Vec<(char, f64, f64)> = bands
+            .iter()
+            .map(|b| (b.letter, b.wavelength_nm, b.response))
+            .collect();
+        assert_eq!(
+            wl,
+            vec![('R', 650.0, 1.0), ('G', 550.0, 1.0), ('B', 450.0, 0.5)]
+        );
+        // copper from builtin-rgb, band by band (R, G, B).
+        let lib = crate::library::Library::builtin_rgb().unwrap();
+        let cu = &s.plates[0];
+        assert_eq!(cu.material.as_deref(), Some("copper"));
+        assert_eq!(cu.class.as_deref(), Some("copper"));
+        for (o, b) in cu.bands.iter().zip(bands) {
+            let m = lib
+                .materials
+                .iter()
+                .find(|m| m.name == "copper" && m.wavelength_nm == Some(b.wavelength_nm))
+                .unwrap();
+            assert_eq!((o.n, o.k, o.sigma), (m.n, m.k, 0.2));
+        }
+        assert_eq!(cu.optics, cu.bands[0]);
+        let p = &s.plates[1];
+        let nk: Vec<(f64, f64, f64)> = p.bands.iter().map(|o| (o.n, o.k, o.rho_d)).collect();
+        assert_eq!(
+            nk,
+            vec![(1.39, 0.34, 0.1), (1.42, 0.12, 0.1), (1.45, 0.30, 0.1)]
+        );
+        // Without `bands`: R 650, G 550, B 450 nm.
+        let s = parse(
+            Path::new("s.toml"),
+            &COLOUR.replace("bands = { R = 650.0, G = 550.0, B = 450.0 }", ""),
+        )
+        .unwrap();
+        assert_eq!(s.capture.bands().unwrap()[2].wavelength_nm, 450.0);
+    }
+
+    #[test]
+    fn material_in_a_single_band_scene_takes_the_scene_wavelength() {
+        let mono = COLOUR
+            .replace(
+                "bands = { R = 650.0, G = 550.0, B = 450.0 }",
+                "wavelength_nm = 550",
+            )
+            .replace("band_response = { B = 0.5 }", "")
+            .replace("color = \"RGGB\"", "")
+            .replace("n = { R = 1.39, G = 1.42, B = 1.45 }", "n = 1.4")
+            .replace("k = { R = 0.34, G = 0.12, B = 0.30 }", "k = 0.1");
+        let s = parse(Path::new("s.toml"), &mono).unwrap();
+        assert!(s.plates[0].bands.is_empty());
+        let lib = crate::library::Library::builtin_rgb().unwrap();
+        let m = lib
+            .materials
+            .iter()
+            .find(|m| m.name == "copper" && m.wavelength_nm == Some(550.0))
+            .unwrap();
+        assert_eq!((s.plates[0].optics.n, s.plates[0].optics.k), (m.n, m.k));
+        assert!(matches!(s.capture, CaptureKind::Dofp { .. }));
+    }
+
+    #[test]
+    fn colour_errors_name_the_field() {
+        let e = err(&COLOUR.replace("color = \"RGGB\"", "color = \"RGB\""));
+        assert!(e.contains("capture.color") && e.contains("four"), "{e}");
+        let e = err(&COLOUR.replace("R = 650.0, ", ""));
+        assert!(e.contains("bands") && e.contains("band missing"), "{e}");
+        let e = err(&COLOUR.replace("material = \"copper\"", "material = \"unobtainium\""));
+        assert!(
+            e.contains("plate[1].material") && e.contains("unobtainium"),
+            "{e}"
+        );
+        let e = err(&COLOUR.replace("material = \"copper\"", "material = \"PMMA\""));
+        assert!(
+            e.contains("plate[1].material") && e.contains("450 nm"),
+            "{e}"
+        );
+        let e = err(&COLOUR.replace(
+            "n = { R = 1.39, G = 1.42, B = 1.45 }",
+            "n = { R = 1.39, G = 1.42 }",
+        ));
+        assert!(e.contains("plate[2].n.B") && e.contains("missing"), "{e}");
+        let e = err(&COLOUR.replace(
+            "k = { R = 0.34, G = 0.12, B = 0.30 }",
+            "k = { R = 0.34, G = -1, B = 0.3 }",
+        ));
+        assert!(e.contains("plate[2].k.G"), "{e}");
+        let e = err(&COLOUR.replace("sigma = 0.2\n", "sigma = 0.2\nn = 1.0\n"));
+        assert!(e.contains("plate[1].n") && e.contains("not both"), "{e}");
+        let e = err(&COLOUR.replace("[capture]\nkind = \"dofp\"\ncolor = \"RGGB\"", ""));
+        assert!(e.contains("bands") && e.contains("colour captures"), "{e}");
+        let e = err(&COLOUR.replace(
+            "theta_i_deg = [40, 50]",
+            "theta_i_deg = [40, 50]\nwavelength_nm = 600",
+        ));
+        assert!(e.contains("wavelength_nm") && e.contains("bands"), "{e}");
+        let e = err(&COLOUR.replace("{ B = 0.5 }", "{ Y = 0.5 }"));
+        assert!(e.contains("sensor.band_response.Y"), "{e}");
+        let e = err(&COLOUR.replace(
+            "theta_i_deg = [40, 50]",
+            "theta_i_deg = [40, 50]\nlibrary = \"no/such.csv\"",
+        ));
+        assert!(e.contains("`library`") && e.contains("cannot read"), "{e}");
+    }
+}
