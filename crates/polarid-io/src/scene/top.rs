@@ -159,6 +159,21 @@ impl Ctx<'_> {
                  B 450 nm)",
             ));
         }
+        if capture.bands().is_some() {
+            for (v, field, x) in [
+                (&raw.width, "width", width),
+                (&raw.height, "height", height),
+            ] {
+                if !x.is_multiple_of(4) {
+                    return Err(self.err(
+                        &v.as_ref().map_or(0..0, |v| v.span()),
+                        field,
+                        "a colour polarization mosaic ([capture] color) has a 4x4 period: \
+                         width and height must be multiples of 4",
+                    ));
+                }
+            }
+        }
         if let (Some(cam), Some(_)) = (&raw.camera, capture.bands()) {
             return Err(self.err(
                 &cam.span(),

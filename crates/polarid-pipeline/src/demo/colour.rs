@@ -679,7 +679,7 @@ mod tests {
     /// Issue 17's acceptance from images: over many seeds, the three-band classifier
     /// (Mahalanobis nearest neighbour and the set rule, clean-surface fit) gets ≥ 99% of
     /// the copper and gold test plates right; on the 650 nm rows alone the set rule and
-    /// the Euclidean rule do not.
+    /// the Euclidean rule do not (about 190 s for 100 seeds on 2 loaded cores).
     /// `COLOUR_TABLE=1 cargo test --release -p polarid-pipeline --lib demo::colour --
     /// --nocapture` prints docs/BANDS.md's table (`COLOUR_SEEDS` seeds, default 100).
     #[test]
@@ -702,18 +702,22 @@ mod tests {
             let r = get("three", "--film", rule);
             assert!(r.copper_gold() >= 0.99, "{rule}: {r:?}");
         }
-        // 650 nm alone: the set rule (the default) cannot decide (mostly `ambiguous`, the
-        // honest answer: copper and gold are 0.09 apart in n there), and the paper's
-        // Euclidean rule is near chance. (The Mahalanobis nearest neighbour may separate
-        // them when the noise is as small as here: docs/BANDS.md reports it.)
+        // 650 nm alone: the set rule (the default) cannot decide (with the fit's default
+        // error model it calls most of them `ambiguous`, the honest answer: copper and
+        // gold are 0.09 apart in n there), and the paper's Euclidean rule is near chance.
+        // (The Mahalanobis nearest neighbour separates them in this simulation, where
+        // every plate has exactly its library index: docs/BANDS.md reports it.)
+        let r = get("one", "default", "set, 95%");
+        let cg = (r.copper.1 + r.gold.1) as f64;
+        assert!(
+            r.ambiguous as f64 >= 0.5 * cg,
+            "650 nm, default, set: {r:?}"
+        );
         for fit in ["default", "--film"] {
             for rule in ["nearest, Euclidean", "set, 95%"] {
                 let r = get("one", fit, rule);
                 assert!(r.copper_gold() < 0.99, "650 nm, {fit}, {rule}: {r:?}");
             }
-            let r = get("one", fit, "set, 95%");
-            let cg = (r.copper.1 + r.gold.1) as f64;
-            assert!(r.ambiguous as f64 >= 0.3 * cg, "650 nm, {fit}, set: {r:?}");
             for rule in ["nearest, Euclidean", "nearest, Mahalanobis"] {
                 let (r3, r1) = (get("three", fit, rule), get("one", fit, rule));
                 assert!(
