@@ -152,7 +152,7 @@ pub struct ColourPlate {
 /// The plates of seed `seed` (two training plates and one test plate per material, in
 /// material order), each with its scene text: true angles drawn about the nominal ones.
 pub fn colour_plates(materials: &[ColourMaterial], seed: u64) -> Vec<ColourPlate> {
-    let mut rng = Rng(0xC0_10_0000 ^ seed.wrapping_mul(0x1000_0001));
+    let mut rng = Rng(0xC010_0000 ^ seed.wrapping_mul(0x1000_0001));
     let mut out = Vec::new();
     for (mi, m) in materials.iter().enumerate() {
         for p in 0..3 {
@@ -607,7 +607,8 @@ pub fn run_colour(staged: &StagedDir, seeds: u64, progress: Progress) -> Result<
     })?;
     let all_fits = crate::classify::read_fits(&fits_path)?;
     let is_training = |t: &str| plates.iter().any(|p| p.training && p.target == t);
-    let (train, test): (Vec<(u64, FitRow)>, Vec<(u64, FitRow)>) = all_fits
+    type Fits = Vec<(u64, FitRow)>;
+    let (train, test): (Fits, Fits) = all_fits
         .iter()
         .cloned()
         .partition(|(_, f)| is_training(&f.target));
