@@ -56,6 +56,15 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     let kind = match &scene.capture {
         CaptureKind::Frames { angles_deg } => format!("{} polarizer angles", angles_deg.len()),
         CaptureKind::Dofp { .. } => "DoFP mosaics".to_string(),
+        CaptureKind::ColourDofp { pattern, bands } => format!(
+            "colour DoFP mosaics ({}, bands {})",
+            pattern.color(),
+            bands
+                .iter()
+                .map(|b| format!("{} {} nm", b.letter, b.wavelength_nm))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
     };
     ctx.info(format!(
         "polarid simulate: {} plate(s), {} capture(s) ({kind}), {} {} file(s) -> {}",

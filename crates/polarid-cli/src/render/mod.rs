@@ -18,6 +18,7 @@ use anyhow::{Context, Result, bail};
 pub mod base64;
 pub mod bench;
 pub mod colormap;
+pub mod colour_demo;
 pub mod demo;
 pub mod plots;
 pub mod report;

@@ -22,10 +22,17 @@
 //! Calibrated scenes (a perspective camera, plates on planes, a lamp at a finite
 //! distance or the sun): [`perspective`] renders a Stokes vector per pixel, and
 //! [`render_frame_stokes`] turns such a map into a raw frame with the same sensor model.
+//!
+//! Colour polarization cameras ([`colour`]): per-band optics, one raw colour mosaic per
+//! capture ([`render_colour_frame`], [`render_colour_frame_stokes`]).
 
+pub mod colour;
 pub mod imperfect;
 pub mod perspective;
 
+pub use colour::{
+    ColourRect, colour_plate_radiance, render_colour_frame, render_colour_frame_stokes,
+};
 pub use perspective::{Light, PerspectiveScene, PixelHit, PlanarPlate, StokesMaps, plate_stokes};
 
 use rand::SeedableRng;

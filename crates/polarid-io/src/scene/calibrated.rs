@@ -16,7 +16,7 @@ use polarid_core::simulate::{PerspectiveScene, PlanarPlate};
 use toml::Spanned;
 
 use super::context::Ctx;
-use super::plates::default_region;
+use super::plates::{PlateContext, default_region};
 use super::raw::{RawPlate, RawScene};
 use super::types::{Calibrated, Placement, Plate, SceneSource};
 use crate::error::Result;
@@ -104,6 +104,7 @@ impl Ctx<'_> {
         raw: &RawScene,
         width: usize,
         height: usize,
+        cx: &PlateContext<'_>,
     ) -> Result<(Calibrated, Vec<Plate>)> {
         for (k, span) in [
             ("theta_r_deg", raw.theta_r_deg.as_ref().map(|v| v.span())),
@@ -125,7 +126,7 @@ impl Ctx<'_> {
         };
         let sources = self.sources(raw, tables.site.as_ref())?;
         let planes = tables.planes;
-        let plates = self.placed_plates(&raw.plate, &camera.camera, &planes)?;
+        let plates = self.placed_plates(&raw.plate, &camera.camera, &planes, cx)?;
         let calibrated = Calibrated {
             camera,
             planes,
@@ -196,6 +197,7 @@ impl Ctx<'_> {
         raw: &[RawPlate],
         camera: &polarid_core::geometry::PinholeCamera,
         planes: &[crate::manifest::PlaneSpec],
+        cx: &PlateContext<'_>,
     ) -> Result<Vec<(Plate, PlanarPlate)>> {
         if raw.is_empty() {
             return Err(self.missing(None, "plate", "[[plate]]: at least one plate is needed"));
@@ -205,7 +207,7 @@ impl Ctx<'_> {
         for (i, p) in raw.iter().enumerate() {
             let pre = format!("plate[{}].", i + 1);
             let f = |k: &str| format!("{pre}{k}");
-            let b = self.plate_basics(p, i, &mut names)?;
+            let b = self.plate_basics(p, i, &mut names, cx)?;
             let near = Some(b.name_span.clone());
             let near = near.as_ref();
             if let Some(v) = &p.rect {
@@ -272,6 +274,8 @@ impl Ctx<'_> {
                     name: b.name,
                     class: b.class,
                     optics: b.optics,
+                    bands: b.bands,
+                    material: b.material,
                     rect: Rect {
                         x: 0,
                         y: 0,

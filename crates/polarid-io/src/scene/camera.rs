@@ -5,6 +5,8 @@ use polarid_core::mosaic::Pattern;
 use polarid_core::simulate::{Exposure, Sensor};
 use polarid_core::stokes::StokesSolver;
 
+use toml::Spanned;
+
 use super::CaptureKind;
 use super::context::Ctx;
 use super::raw::{RawCapture, RawExposure, RawSensor};
@@ -109,7 +111,27 @@ impl Ctx<'_> {
         }
     }
 
-    pub(super) fn capture(&self, raw: Option<&RawCapture>) -> Result<CaptureKind> {
+    /// The `[capture]` table; `bands` (top level) and `response` (`[sensor]
+    /// band_response`) belong to colour captures only.
+    pub(super) fn capture(
+        &self,
+        raw: Option<&RawCapture>,
+        bands: Option<&Spanned<toml::Value>>,
+        response: Option<&Spanned<toml::Value>>,
+    ) -> Result<CaptureKind> {
+        let colour = raw.and_then(|r| r.color.as_ref());
+        if colour.is_none() {
+            for (v, field) in [(bands, "bands"), (response, "sensor.band_response")] {
+                if let Some(v) = v {
+                    return Err(self.err(
+                        &v.span(),
+                        field,
+                        "is for colour captures: add color = \"RGGB\" (or another colour \
+                         pattern) to [capture] with kind = \"dofp\"",
+                    ));
+                }
+            }
+        }
         let default_angles = vec![0.0, 45.0, 90.0, 135.0];
         let Some(r) = raw else {
             return Ok(CaptureKind::Frames {
@@ -119,6 +141,13 @@ impl Ctx<'_> {
         let kind = r.kind.as_ref().map(|k| (k.get_ref().as_str(), k.span()));
         match kind {
             None | Some(("frames", _)) => {
+                if let Some(c) = &r.color {
+                    return Err(self.err(
+                        &c.span(),
+                        "capture.color",
+                        "`color` is for kind = \"dofp\" (a colour polarization mosaic)",
+                    ));
+                }
                 if let Some(p) = &r.pattern {
                     return Err(self.err(
                         &p.span(),
@@ -151,6 +180,10 @@ impl Ctx<'_> {
                     Some(v) => Pattern::new(v.get_ref())
                         .map_err(|e| self.err(&v.span(), "capture.pattern", e.to_string()))?,
                 };
+                if let Some(c) = &r.color {
+                    let (pattern, bands) = self.colour_capture(pattern, c, bands, response)?;
+                    return Ok(CaptureKind::ColourDofp { pattern, bands });
+                }
                 Ok(CaptureKind::Dofp { pattern })
             }
             Some((_, span)) => {

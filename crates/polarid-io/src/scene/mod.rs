@@ -65,6 +65,7 @@
 
 mod calibrated;
 mod camera;
+mod colour;
 mod context;
 mod plates;
 mod raw;
@@ -75,7 +76,8 @@ use std::path::Path;
 
 pub use plates::default_region;
 pub use types::{
-    Calibrated, CaptureKind, Geometry, ImageFormat, MAX_SIDE, Placement, Plate, Scene, SceneSource,
+    Calibrated, CaptureKind, Geometry, ImageFormat, MAX_SIDE, Placement, Plate, Scene, SceneBand,
+    SceneSource,
 };
 
 use crate::error::Result;
@@ -184,7 +186,7 @@ region = [36, 4, 20, 20]
         let e = parse_err(&GOOD.replace("theta_r_deg = 60", "theta_r_deg = 95"));
         assert!(e.contains("line 5") && e.contains("theta_r_deg"), "{e}");
         let e = parse_err(&GOOD.replace("k = 6.6", "k = \"big\""));
-        assert!(e.contains("line 19") && e.contains("`k`"), "{e}");
+        assert!(e.contains("line 19") && e.contains("plate[1].k"), "{e}");
         let e = parse_err(&GOOD.replace("dark_level_dn = 64", "dark_level_dn = 5000"));
         assert!(e.contains("sensor.dark_level_dn"), "{e}");
     }

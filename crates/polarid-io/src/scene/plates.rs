@@ -8,9 +8,10 @@ use polarid_core::region::Rect;
 use polarid_core::simulate::PlateOptics;
 use toml::Spanned;
 
-use super::Plate;
+use super::colour::MaterialSource;
 use super::context::Ctx;
 use super::raw::RawPlate;
+use super::{Plate, SceneBand};
 use crate::error::Result;
 
 /// The default measured region of a plate: the plate inset by an eighth of its smaller
@@ -32,11 +33,21 @@ pub fn default_region(rect: Rect) -> Option<Rect> {
     })
 }
 
+/// What the plates' values depend on: the capture's bands (colour scenes), the scene's
+/// wavelength and its library (for `material`).
+pub(super) struct PlateContext<'a> {
+    pub(super) bands: Option<&'a [SceneBand]>,
+    pub(super) wavelength_nm: Option<f64>,
+    pub(super) materials: &'a MaterialSource<'a>,
+}
+
 /// What every plate gives, far field or calibrated: name, class, optics, line.
 pub(super) struct PlateBasics {
     pub(super) name: String,
     pub(super) class: Option<String>,
     pub(super) optics: PlateOptics,
+    pub(super) bands: Vec<PlateOptics>,
+    pub(super) material: Option<String>,
     pub(super) line: usize,
     pub(super) name_span: std::ops::Range<usize>,
 }
@@ -48,6 +59,7 @@ impl Ctx<'_> {
         p: &RawPlate,
         i: usize,
         names: &mut HashSet<String>,
+        cx: &PlateContext<'_>,
     ) -> Result<PlateBasics> {
         let pre = format!("plate[{}].", i + 1);
         let f = |k: &str| format!("{pre}{k}");
@@ -66,37 +78,85 @@ impl Ctx<'_> {
             Some(v) => Some(self.name(v, &f("class"))?),
             None => None,
         };
-        let req = |v: &Option<Spanned<f64>>, key: &str, what: &str| {
-            v.as_ref()
-                .ok_or_else(|| self.missing(near, &f(key), what))
-                .cloned()
-        };
-        let n = self.num_in(
-            &req(&p.n, "n", "real part of the index `n`")?,
-            &f("n"),
-            |x| x > 0.0 && x <= 100.0,
-            "in (0, 100]",
-        )?;
-        let k = self.num_in(
-            &req(&p.k, "k", "imaginary part of the index `k`")?,
-            &f("k"),
-            |x| (0.0..=100.0).contains(&x),
-            "in [0, 100]",
-        )?;
+        let sigma_v = p
+            .sigma
+            .as_ref()
+            .ok_or_else(|| self.missing(near, &f("sigma"), "roughness `sigma`"))?;
         let sigma = self.num_in(
-            &req(&p.sigma, "sigma", "roughness `sigma`")?,
+            sigma_v,
             &f("sigma"),
             |x| (1e-3..=10.0).contains(&x),
             "in [0.001, 10] (slope standard deviation)",
         )?;
+        let nb = cx.bands.map_or(1, <[SceneBand]>::len);
         let rho_d = match &p.rho_d {
-            Some(v) => self.num_in(v, &f("rho_d"), |x| (0.0..=1.0).contains(&x), "in [0, 1]")?,
-            None => 0.0,
+            Some(v) => self.per_band(
+                v,
+                &f("rho_d"),
+                cx.bands,
+                |x| (0.0..=1.0).contains(&x),
+                "in [0, 1]",
+            )?,
+            None => vec![0.0; nb],
         };
+        let nk: Vec<(f64, f64)> = match &p.material {
+            Some(m) => {
+                for (key, v) in [("n", &p.n), ("k", &p.k)] {
+                    if let Some(v) = v {
+                        return Err(self.err(
+                            &v.span(),
+                            &f(key),
+                            "give either `material` (the index from the library) or `n` and \
+                             `k`, not both",
+                        ));
+                    }
+                }
+                self.material_nk(cx.materials, m, &f("material"), cx.bands, cx.wavelength_nm)?
+            }
+            None => {
+                let req = |v: &Option<Spanned<toml::Value>>, key: &str, what: &str| {
+                    v.as_ref()
+                        .ok_or_else(|| self.missing(near, &f(key), what))
+                        .cloned()
+                };
+                let n = self.per_band(
+                    &req(
+                        &p.n,
+                        "n",
+                        "real part of the index `n` (or a library `material`)",
+                    )?,
+                    &f("n"),
+                    cx.bands,
+                    |x| x > 0.0 && x <= 100.0,
+                    "in (0, 100]",
+                )?;
+                let k = self.per_band(
+                    &req(&p.k, "k", "imaginary part of the index `k`")?,
+                    &f("k"),
+                    cx.bands,
+                    |x| (0.0..=100.0).contains(&x),
+                    "in [0, 100]",
+                )?;
+                n.into_iter().zip(k).collect()
+            }
+        };
+        let per_band: Vec<PlateOptics> = nk
+            .iter()
+            .zip(&rho_d)
+            .map(|(&(n, k), &rho_d)| PlateOptics { n, k, sigma, rho_d })
+            .collect();
+        let optics = per_band[0];
+        let class = class.or_else(|| p.material.as_ref().map(|m| m.get_ref().clone()));
         Ok(PlateBasics {
             name,
             class,
-            optics: PlateOptics { n, k, sigma, rho_d },
+            optics,
+            bands: if cx.bands.is_some() {
+                per_band
+            } else {
+                Vec::new()
+            },
+            material: p.material.as_ref().map(|m| m.get_ref().clone()),
             line: self.line(name_v.span().start),
             name_span: name_v.span(),
         })
@@ -107,6 +167,7 @@ impl Ctx<'_> {
         raw: &[RawPlate],
         width: usize,
         height: usize,
+        cx: &PlateContext<'_>,
     ) -> Result<Vec<Plate>> {
         if raw.is_empty() {
             return Err(self.missing(None, "plate", "[[plate]]: at least one plate is needed"));
@@ -116,7 +177,7 @@ impl Ctx<'_> {
         for (i, p) in raw.iter().enumerate() {
             let pre = format!("plate[{}].", i + 1);
             let f = |k: &str| format!("{pre}{k}");
-            let b = self.plate_basics(p, i, &mut names)?;
+            let b = self.plate_basics(p, i, &mut names, cx)?;
             let near = Some(b.name_span.clone());
             let near = near.as_ref();
             let placement_keys = [
@@ -185,6 +246,8 @@ impl Ctx<'_> {
                 name: b.name,
                 class: b.class,
                 optics: b.optics,
+                bands: b.bands,
+                material: b.material,
                 rect,
                 region,
                 placement: None,

@@ -17,6 +17,8 @@ pub(super) struct RawScene {
     pub(super) background: Option<Spanned<f64>>,
     pub(super) seed: Option<Spanned<i64>>,
     pub(super) format: Option<Spanned<String>>,
+    pub(super) bands: Option<Spanned<toml::Value>>,
+    pub(super) library: Option<Spanned<String>>,
     pub(super) sensor: Option<RawSensor>,
     pub(super) exposure: Option<RawExposure>,
     pub(super) capture: Option<RawCapture>,
@@ -86,6 +88,7 @@ pub(super) struct RawSensor {
     pub(super) read_noise_e: Option<Spanned<f64>>,
     pub(super) dark_level_dn: Option<Spanned<f64>>,
     pub(super) shot_noise: Option<Spanned<bool>>,
+    pub(super) band_response: Option<Spanned<toml::Value>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -102,6 +105,7 @@ pub(super) struct RawCapture {
     pub(super) kind: Option<Spanned<String>>,
     pub(super) angles_deg: Option<Spanned<Vec<f64>>>,
     pub(super) pattern: Option<Spanned<Vec<f64>>>,
+    pub(super) color: Option<Spanned<String>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -109,10 +113,11 @@ pub(super) struct RawCapture {
 pub(super) struct RawPlate {
     pub(super) name: Option<Spanned<String>>,
     pub(super) class: Option<Spanned<String>>,
-    pub(super) n: Option<Spanned<f64>>,
-    pub(super) k: Option<Spanned<f64>>,
+    pub(super) material: Option<Spanned<String>>,
+    pub(super) n: Option<Spanned<toml::Value>>,
+    pub(super) k: Option<Spanned<toml::Value>>,
     pub(super) sigma: Option<Spanned<f64>>,
-    pub(super) rho_d: Option<Spanned<f64>>,
+    pub(super) rho_d: Option<Spanned<toml::Value>>,
     pub(super) rect: Option<Spanned<Vec<i64>>>,
     pub(super) region: Option<Spanned<Vec<i64>>>,
     pub(super) plane: Option<Spanned<String>>,

@@ -5,7 +5,9 @@
 
 use toml::Spanned;
 
+use super::colour::MaterialSource;
 use super::context::Ctx;
+use super::plates::PlateContext;
 use super::raw::RawScene;
 use super::{Geometry, ImageFormat, MAX_SIDE, Scene};
 use crate::error::{IoError, Result};
@@ -144,9 +146,53 @@ impl Ctx<'_> {
         };
         let sensor = self.sensor(raw.sensor.as_ref())?;
         let exposure = self.exposure(raw.exposure.as_ref())?;
-        let capture = self.capture(raw.capture.as_ref())?;
+        let capture = self.capture(
+            raw.capture.as_ref(),
+            raw.bands.as_ref(),
+            raw.sensor.as_ref().and_then(|s| s.band_response.as_ref()),
+        )?;
+        if let (Some(w), Some(_)) = (&raw.wavelength_nm, capture.bands()) {
+            return Err(self.err(
+                &w.span(),
+                "wavelength_nm",
+                "a colour capture's wavelengths come from `bands` (default R 650, G 550, \
+                 B 450 nm)",
+            ));
+        }
+        if capture.bands().is_some() {
+            for (v, field, x) in [
+                (&raw.width, "width", width),
+                (&raw.height, "height", height),
+            ] {
+                if !x.is_multiple_of(4) {
+                    return Err(self.err(
+                        &v.as_ref().map_or(0..0, |v| v.span()),
+                        field,
+                        "a colour polarization mosaic ([capture] color) has a 4x4 period: \
+                         width and height must be multiples of 4",
+                    ));
+                }
+            }
+        }
+        if let (Some(cam), Some(_)) = (&raw.camera, capture.bands()) {
+            return Err(self.err(
+                &cam.span(),
+                "camera",
+                "colour captures ([capture] color) are simulated in the far field only for \
+                 now: give theta_r_deg and theta_i_deg instead of [camera]",
+            ));
+        }
+        let materials = MaterialSource {
+            spec: raw.library.as_ref(),
+            loaded: std::cell::OnceCell::new(),
+        };
+        let cx = PlateContext {
+            bands: capture.bands(),
+            wavelength_nm,
+            materials: &materials,
+        };
         let (geometry, plates) = if raw.camera.is_some() {
-            let (c, plates) = self.calibrated(&raw, width, height)?;
+            let (c, plates) = self.calibrated(&raw, width, height, &cx)?;
             (Geometry::Calibrated(Box::new(c)), plates)
         } else {
             for (k, span) in [
@@ -177,7 +223,7 @@ impl Ctx<'_> {
                     return Err(self.missing(None, "theta_i_deg", "source zenith angles"));
                 }
             };
-            let plates = self.plates(&raw.plate, width, height)?;
+            let plates = self.plates(&raw.plate, width, height, &cx)?;
             (
                 Geometry::FarField {
                     theta_r_deg,

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use polarid_core::geometry::Source;
-use polarid_core::mosaic::Pattern;
+use polarid_core::mosaic::{ColourPattern, Pattern};
 use polarid_core::region::Rect;
 use polarid_core::simulate::{Exposure, Light, PlateOptics, Sensor};
 
@@ -45,6 +45,14 @@ pub enum CaptureKind {
         /// The pattern, row by row from the top-left.
         pattern: Pattern,
     },
+    /// A colour polarization raw mosaic (`[capture] color = "RGGB"`; docs/SCENE.md): a
+    /// 2×2 polarizer block under each colour of a 2×2 colour pattern of blocks.
+    ColourDofp {
+        /// The polarizer block and the colours of the 4×4 period.
+        pattern: ColourPattern,
+        /// The bands, in the order of [`ColourPattern::bands`].
+        bands: Vec<SceneBand>,
+    },
 }
 
 impl CaptureKind {
@@ -53,8 +61,30 @@ impl CaptureKind {
         match self {
             CaptureKind::Frames { angles_deg } => angles_deg.clone(),
             CaptureKind::Dofp { pattern } => pattern.angles_deg().to_vec(),
+            CaptureKind::ColourDofp { pattern, .. } => pattern.polar().angles_deg().to_vec(),
         }
     }
+
+    /// The bands of a colour capture (`None` for single-band captures).
+    pub fn bands(&self) -> Option<&[SceneBand]> {
+        match self {
+            CaptureKind::ColourDofp { bands, .. } => Some(bands),
+            _ => None,
+        }
+    }
+}
+
+/// One band (colour) of a colour polarization scene.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SceneBand {
+    /// The colour letter (upper case), as in the capture's `color`.
+    pub letter: char,
+    /// The band's wavelength, nm (`bands`, default R 650, G 550, B 450).
+    pub wavelength_nm: f64,
+    /// Relative response of the band (`[sensor] band_response`, default 1): the
+    /// expected electrons of the band's pixels are scaled by it (filter transmission ×
+    /// quantum efficiency × the source's spectrum).
+    pub response: f64,
 }
 
 /// Where a plate of a calibrated scene lies (scene frame, scene length units).
@@ -137,8 +167,14 @@ pub struct Plate {
     pub name: String,
     /// Material class, if given.
     pub class: Option<String>,
-    /// Index, roughness and diffuse albedo.
+    /// Index, roughness and diffuse albedo (a colour scene: those of its first band,
+    /// `bands[0]`).
     pub optics: PlateOptics,
+    /// A colour scene's optics per band, in the order of the capture's bands
+    /// ([`CaptureKind::bands`]); empty in single-band scenes.
+    pub bands: Vec<PlateOptics>,
+    /// The library material the index was taken from (`material`), if any.
+    pub material: Option<String>,
     /// The plate's rectangle in the frame (calibrated scenes: the bounding box of the
     /// pixels that see it).
     pub rect: Rect,

@@ -17,10 +17,12 @@
 //! report and printout. Deterministic (fixed seeds).
 //!
 //! [`bench`](mod@bench) is the second demo (`polarid demo --bench`): a lamp-and-lens bench with
-//! calibrated geometry, from renders to a material map.
+//! calibrated geometry, from renders to a material map. [`colour`] is the third
+//! (`polarid demo --color`): a colour polarization camera telling copper from gold.
 
 pub mod bench;
 mod bench_tables;
+pub mod colour;
 mod plates;
 mod steps;
 mod tables;

@@ -116,6 +116,7 @@ fn region_truth(
         dolp_eq9_specular: dop(p.optics.n, p.optics.k, b_mean.to_radians()),
         exposure,
         peak_electrons,
+        band: None,
         calibrated: Some(CalibratedTruth {
             capture: capture_dir(scene, ci),
             n: p.optics.n,
@@ -160,6 +161,12 @@ pub(super) fn simulate(
             .collect(),
         CaptureKind::Dofp { pattern } => {
             vec![Analyzer::Mosaic(pattern.angles_deg().map(f64::to_radians))]
+        }
+        CaptureKind::ColourDofp { .. } => {
+            return Err(crate::PipelineError::Data {
+                path: scene.path.display().to_string(),
+                reason: "colour captures are simulated in the far field only".into(),
+            });
         }
     };
     let ncap = cal.sources.len();

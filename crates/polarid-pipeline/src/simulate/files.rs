@@ -82,6 +82,13 @@ pub fn manifest_text(scene: &Scene, exposures: &[f64]) -> String {
     if let Some(wl) = scene.wavelength_nm {
         let _ = writeln!(m, "wavelength_nm = {}", toml_num(wl));
     }
+    if let CaptureKind::ColourDofp { bands, .. } = &scene.capture {
+        let b: Vec<String> = bands
+            .iter()
+            .map(|b| format!("{} = {}", b.letter, toml_num(b.wavelength_nm)))
+            .collect();
+        let _ = writeln!(m, "bands = {{ {} }}", b.join(", "));
+    }
     if let Some(c) = cal {
         geometry_tables(&mut m, c);
     }
@@ -142,6 +149,16 @@ pub fn manifest_text(scene: &Scene, exposures: &[f64]) -> String {
                         scene.format.extension()
                     )),
                     p.join(", ")
+                );
+            }
+            CaptureKind::ColourDofp { pattern, .. } => {
+                let p = pattern.polar().angles_deg().map(toml_num);
+                let _ = writeln!(
+                    m,
+                    "dofp = {{ file = {}, pattern = [{}], color = {} }}",
+                    toml_str(&frame_file(scene, ci, 0)),
+                    p.join(", "),
+                    toml_str(&pattern.color())
                 );
             }
         }
@@ -219,6 +236,10 @@ pub fn write_truth(
         "exposure",
         "peak_electrons",
     ];
+    let colour = !truth.is_empty() && truth.iter().all(|t| t.band.is_some());
+    if colour {
+        header.extend(["band", "wavelength_nm", "n", "k"]);
+    }
     if calibrated {
         header.extend([
             "capture",
@@ -251,6 +272,14 @@ pub fn write_truth(
                 fmt_f64(t.exposure),
                 fmt_f64(t.peak_electrons),
             ];
+            if let (true, Some(b)) = (colour, &t.band) {
+                row.extend([
+                    b.letter.to_string(),
+                    fmt_f64(b.wavelength_nm),
+                    fmt_f64(b.n),
+                    fmt_f64(b.k),
+                ]);
+            }
             if let (true, Some(c)) = (calibrated, &t.calibrated) {
                 row.extend([
                     c.capture.clone(),

@@ -22,12 +22,19 @@
 //! each plate's (n, k) and the spread of β over its region ([`CalibratedTruth`]).
 //! [`beta_map`] gives a capture's per-pixel β for reports.
 //!
+//! **Colour scenes** (`[capture] color`, far field; module `colour`): one raw colour
+//! polarization mosaic per capture from each plate's per-band optics, a manifest with
+//! `bands` and `dofp.color`, and one `truth.csv` row per plate, capture and band (with
+//! `band`, `wavelength_nm`, `n`, `k`); [`render_colour_set`] renders the same frames in
+//! memory.
+//!
 //! Units: with relative exposure `x`, a radiance `I` behind the polarizer gives
 //! `x · I · full_well` expected electrons; the manifest records `x` as the capture's
 //! `exposure`, so `S0 / exposure` in DN (what `measure` writes) equals the radiance times
 //! `2^bits − 1 − dark_level` whatever the exposure; `truth.csv`'s `s0` is in these units.
 
 mod calibrated;
+mod colour;
 mod files;
 
 use polarid_core::CoreError;
@@ -45,6 +52,7 @@ use polarid_io::table::fmt_f64;
 use rayon::prelude::*;
 
 pub use calibrated::beta_map;
+pub use colour::{ColourFrames, render_colour_set};
 pub use files::{manifest_text, write_truth};
 
 use crate::error::Result;
@@ -78,6 +86,22 @@ pub struct TruthRow {
     /// Calibrated scenes: the capture, the plate's optics and the spread of the
     /// region's geometry (`None` for far-field scenes).
     pub calibrated: Option<CalibratedTruth>,
+    /// Colour scenes: the band of the row and the plate's index in it (`None` for
+    /// single-band scenes); `dolp`, `s0` and `dolp_eq9_specular` are then the band's.
+    pub band: Option<TruthBand>,
+}
+
+/// The band of a colour scene's truth row.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TruthBand {
+    /// Colour letter.
+    pub letter: char,
+    /// Wavelength, nm.
+    pub wavelength_nm: f64,
+    /// Real part of the plate's index in the band.
+    pub n: f64,
+    /// Imaginary part.
+    pub k: f64,
 }
 
 /// The extra truth of a plate in a capture of a calibrated scene. The angles of
@@ -253,7 +277,9 @@ pub fn frame_file(scene: &Scene, capture: usize, frame: usize) -> String {
             let a = angles_deg.get(frame).copied().unwrap_or(f64::NAN);
             format!("{dir}/pol{}.{ext}", fmt_angle(a))
         }
-        CaptureKind::Dofp { .. } => format!("{dir}/raw.{ext}"),
+        CaptureKind::Dofp { .. } | CaptureKind::ColourDofp { .. } => {
+            format!("{dir}/raw.{ext}")
+        }
     }
 }
 
@@ -345,6 +371,7 @@ fn plan(scene: &Scene) -> Result<Plan> {
                 exposure,
                 peak_electrons: peak_e,
                 calibrated: None,
+                band: None,
             });
         }
         rects.push(caps);
@@ -357,6 +384,12 @@ fn plan(scene: &Scene) -> Result<Plan> {
             .collect(),
         CaptureKind::Dofp { pattern } => {
             vec![Analyzer::Mosaic(pattern.angles_deg().map(f64::to_radians))]
+        }
+        CaptureKind::ColourDofp { .. } => {
+            return Err(crate::PipelineError::Data {
+                path: scene.path.display().to_string(),
+                reason: "internal error: a colour scene has no monochrome plan".into(),
+            });
         }
     };
     let spec = RenderSpec {
@@ -391,6 +424,9 @@ pub fn simulate_into(
 ) -> Result<Simulated> {
     if let Geometry::Calibrated(cal) = &scene.geometry {
         return calibrated::simulate(scene, cal, staged, prefix, progress);
+    }
+    if scene.capture.bands().is_some() {
+        return colour::simulate(scene, staged, prefix, progress);
     }
     let Plan {
         spec,

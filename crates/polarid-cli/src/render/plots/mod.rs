@@ -7,8 +7,9 @@
 //! - [`class_map`]: a material map (class index image, 0 = unclassified) with a legend;
 //! - [`scalar_map`]: a scalar image (n, k, DoLP, ...) in the viridis colour map with a
 //!   colour bar;
-//! - `bands::nk_spectra`: `n(λ)`, `k(λ)` of multi-band targets against a library's
-//!   curves, and `bands::by_band`, the per-band split of the DoLP and `(n, k)` figures.
+//! - [`bands::nk_spectra`]: `n(λ)`, `k(λ)` of multi-band targets against a library's
+//!   curves, and [`bands::by_band`], the per-band split of the DoLP and `(n, k)` figures
+//!   (drawn per band in the colour demo's report, `render::colour_demo`).
 //!
 //! Every function returns a [`Rendered`](crate::render::Rendered) (PNG bytes and SVG text of the same drawing);
 //! [`Rendered::write`](crate::render::Rendered::write) writes `STEM.png` and `STEM.svg`. Text is drawn with the bundled
@@ -30,9 +31,8 @@ pub use maps::class_map;
 pub use maps::scalar_map;
 pub use nk::{NkEstimate, Prototype, nk_plane};
 
-// Multi-band figures (docs/BANDS.md); not wired into a command or the report yet.
-#[allow(dead_code)]
-mod bands;
+// Multi-band figures (docs/BANDS.md), drawn by `polarid demo --color`.
+pub mod bands;
 mod canvas;
 mod dolp;
 mod maps;

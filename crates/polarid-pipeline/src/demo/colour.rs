@@ -1,0 +1,766 @@
+//! `polarid demo --color`: a colour polarization camera (Sony IMX250MYR-type, RGGB blocks
+//! of 90/45/135/0° polarizers) tells aluminum, copper, gold, brass, a green paint and a
+//! clear plastic (PET) apart with three bands, where the 650 nm band alone cannot tell
+//! copper from gold (issue 17; docs/BANDS.md, "Acceptance from images").
+//!
+//! **From images.** For every seed, each material has two training plates and one test
+//! plate; each plate is its own far-field scene (`polarid simulate`'s colour scenes:
+//! per-band `(n, k)` from the built-in three-band library `builtin-rgb`, paint given per
+//! band) seen at the nominal θr = 60° with the source at θi = 30, 37, …, 79° (β = 45 to
+//! 69.5°, eq. 5). The geometry is off as on a real bench: the true camera zenith by
+//! N(0, 0.2°) per plate and the true source zenith by N(0, 0.2°) per capture — the same
+//! in the three bands of a capture, which share one frame. Each capture is one raw 12-bit
+//! colour mosaic (32 × 32 pixels, auto exposure, shot and read noise, the blue band's
+//! response half the others'). Then, per capture: the mosaic is demosaiced per band
+//! (bilinear per lattice, `polarid_io::bands::colour_stokes`, as `measure` does), the
+//! DoLP of the plate's 24 × 24 region and its standard error are taken from the region's
+//! mean Stokes vector (`polarid_core::region::region_stats`), and a measurement row per
+//! band is written with the nominal angles; `fit` fits each band (eq. 9), `train` makes
+//! three-band prototypes from the training plates, and every test plate is classified on
+//! its three bands at once, and again on its 650 nm rows alone.
+//!
+//! Seed 0's captures are written to files (scene, manifest with `bands` and
+//! `dofp.color`, raw mosaics, truth per band), measured from those files, and its
+//! measurements, fits, model and classification are written and returned for the
+//! report's figures. The accuracy table runs the whole chain on `seeds` seeds, in
+//! memory (the same frames: the same scene text and noise seeds), under the fit's
+//! default error model (with its 3 nm surface-layer allowance) and without the
+//! allowance (`--film-sd-nm 0`), for the nearest (Euclidean, Mahalanobis) and set rules.
+
+use std::path::Path;
+
+use polarid_core::classify::{ClassifierConfig, Metric, MultiPrototype};
+use polarid_core::mosaic::ColourMethod;
+use polarid_core::region::region_stats;
+use polarid_io::atomic::StagedDir;
+use polarid_io::image::{Frame, SampleKind};
+use polarid_io::library::Library;
+use polarid_io::model::Model;
+use polarid_io::scene::{CaptureKind, Scene};
+use polarid_io::table::classification::{self, ClassificationRow};
+use polarid_io::table::fits::{self, FitRow};
+use polarid_io::table::measurements::{self, Measurement, RowStatus};
+use polarid_io::{manifest, measure::rules_for};
+use rayon::prelude::*;
+
+use super::stage;
+use crate::classify::{classification_row, group_fits, multi_classifier, multi_estimate_of};
+use crate::fit::{FitConfig, fit};
+use crate::progress::{Progress, Warning};
+use crate::{PipelineError, Result};
+
+/// The bands of the demo's camera, nm (B, G, R).
+pub const COLOUR_BANDS_NM: [f64; 3] = [450.0, 550.0, 650.0];
+/// Nominal camera zenith, degrees.
+pub const COLOUR_THETA_R: f64 = 60.0;
+/// Nominal source zeniths, degrees.
+pub const COLOUR_THETA_I: [f64; 8] = [30.0, 37.0, 44.0, 51.0, 58.0, 65.0, 72.0, 79.0];
+/// Standard deviation of the true angles about the nominal ones, degrees.
+pub const COLOUR_ANGLE_SD: f64 = 0.2;
+/// Frame side, pixels (one plate fills the frame; its region is the default inset).
+pub const COLOUR_SIDE: usize = 32;
+/// The default number of seeds of the accuracy table.
+pub const COLOUR_SEEDS: u64 = 100;
+
+/// One material of the colour demo.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ColourMaterial {
+    /// Class (and target name stem).
+    pub class: &'static str,
+    /// How the scene gives its index: `material = "..."` or per-band `n`, `k`.
+    pub scene_keys: String,
+    /// Roughness σ.
+    pub sigma: f64,
+    /// `(n, k)` at 450, 550, 650 nm.
+    pub nk: [(f64, f64); 3],
+}
+
+/// The six materials: aluminum, copper, gold, brass (Cu70Zn30) and PET from
+/// `builtin-rgb`, a green paint given per band (the paper's 1.39 + 0.34i at 650 nm).
+pub fn colour_materials() -> Result<Vec<ColourMaterial>> {
+    let lib = Library::builtin_rgb()?;
+    let from_lib = |class: &'static str, name: &str, sigma: f64| -> Result<ColourMaterial> {
+        let mut nk = [(0.0, 0.0); 3];
+        for (i, wl) in COLOUR_BANDS_NM.iter().enumerate() {
+            let m = lib
+                .materials
+                .iter()
+                .find(|m| m.name == name && m.wavelength_nm == Some(*wl))
+                .ok_or_else(|| PipelineError::Data {
+                    path: "builtin-rgb".into(),
+                    reason: format!("internal error: no {name} at {wl} nm"),
+                })?;
+            nk[i] = (m.n, m.k);
+        }
+        Ok(ColourMaterial {
+            class,
+            scene_keys: format!("material = \"{name}\"\nclass = \"{class}\""),
+            sigma,
+            nk,
+        })
+    };
+    let paint = [(1.45, 0.30), (1.42, 0.12), (1.39, 0.34)];
+    Ok(vec![
+        from_lib("aluminum", "aluminum", 0.2)?,
+        from_lib("copper", "copper", 0.2)?,
+        from_lib("gold", "gold", 0.2)?,
+        from_lib("brass", "brass_Cu70Zn30", 0.2)?,
+        ColourMaterial {
+            class: "paint",
+            scene_keys: format!(
+                "class = \"paint\"\nn = {{ B = {}, G = {}, R = {} }}\nk = {{ B = {}, G = {}, R = {} }}",
+                paint[0].0, paint[1].0, paint[2].0, paint[0].1, paint[1].1, paint[2].1
+            ),
+            sigma: 0.25,
+            nk: paint,
+        },
+        from_lib("plastic", "PET", 0.2)?,
+    ])
+}
+
+/// splitmix64 with Box–Muller: the demo's deterministic normal numbers.
+struct Rng(u64);
+
+impl Rng {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    fn normal(&mut self) -> f64 {
+        let u = ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
+        let v = ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
+        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    }
+}
+
+/// One plate of one seed: its target name, class, and its scene's text (true angles).
+#[derive(Debug, Clone)]
+pub struct ColourPlate {
+    /// Target name (`copper_train1`, `copper_test`).
+    pub target: String,
+    /// Class.
+    pub class: String,
+    /// Training plate (else test).
+    pub training: bool,
+    /// The scene file's text.
+    pub scene: String,
+}
+
+/// The plates of seed `seed` (two training plates and one test plate per material, in
+/// material order), each with its scene text: true angles drawn about the nominal ones.
+pub fn colour_plates(materials: &[ColourMaterial], seed: u64) -> Vec<ColourPlate> {
+    let mut rng = Rng(0xC010_0000 ^ seed.wrapping_mul(0x1000_0001));
+    let mut out = Vec::new();
+    for (mi, m) in materials.iter().enumerate() {
+        for p in 0..3 {
+            let training = p < 2;
+            let target = if training {
+                format!("{}_train{}", m.class, p + 1)
+            } else {
+                format!("{}_test", m.class)
+            };
+            let tr = COLOUR_THETA_R + COLOUR_ANGLE_SD * rng.normal();
+            let ti: Vec<String> = COLOUR_THETA_I
+                .iter()
+                .map(|t| format!("{:.4}", t + COLOUR_ANGLE_SD * rng.normal()))
+                .collect();
+            let noise_seed = seed * 1000 + mi as u64 * 10 + p as u64;
+            let scene = format!(
+                "# polarid demo --color: {target} (seed {seed}); true angles (the manifest \
+                 the demo measures records the nominal ones)\n\
+                 name = \"{target}\"\nwidth = {s}\nheight = {s}\ntheta_r_deg = {tr:.4}\n\
+                 theta_i_deg = [{ti}]\nseed = {noise_seed}\nbands = {{ R = 650.0, G = 550.0, \
+                 B = 450.0 }}\n\n[sensor]\nbit_depth = 12\nfull_well_e = 10000.0\n\
+                 read_noise_e = 3.0\ndark_level_dn = 64.0\nband_response = {{ R = 1.0, G = 1.0, \
+                 B = 0.5 }}\n\n[capture]\nkind = \"dofp\"\npattern = [90, 45, 135, 0]\n\
+                 color = \"RGGB\"\n\n[[plate]]\nname = \"{target}\"\n{keys}\nsigma = {sigma}\n\
+                 rect = [0, 0, {s}, {s}]\n",
+                s = COLOUR_SIDE,
+                ti = ti.join(", "),
+                keys = m.scene_keys,
+                sigma = m.sigma,
+            );
+            out.push(ColourPlate {
+                target,
+                class: m.class.to_string(),
+                training,
+                scene,
+            });
+        }
+    }
+    out
+}
+
+/// Parse a demo scene (an internal error when it is invalid).
+fn parse_scene(path: &Path, text: &str) -> Result<Scene> {
+    polarid_io::scene::parse(path, text).map_err(|e| PipelineError::Data {
+        path: path.display().to_string(),
+        reason: format!(
+            "internal error: a demo scene is invalid: {}",
+            polarid_io::error::chain_message(&e)
+        ),
+    })
+}
+
+/// The measurement rows of one capture of a colour scene's plates from its raw mosaic
+/// `raw` (`scene.width` wide): per band (increasing wavelength) and plate, the DoLP of
+/// the plate's region (bilinear per-band demosaic, region mean Stokes vector), with the
+/// nominal angles `theta_i_deg`, `theta_r_deg` and the capture's `exposure`.
+pub fn colour_capture_rows(
+    scene: &Scene,
+    raw: &Frame,
+    theta_i_deg: f64,
+    theta_r_deg: f64,
+    exposure: f64,
+) -> Result<Vec<Measurement>> {
+    let CaptureKind::ColourDofp { pattern, bands } = &scene.capture else {
+        return Err(PipelineError::Data {
+            path: scene.path.display().to_string(),
+            reason: "not a colour scene".into(),
+        });
+    };
+    let rules = rules_for(raw, scene.sensor.dark_level_dn, Some(scene.sensor.max_dn()));
+    let imgs = polarid_io::bands::colour_stokes(raw, pattern, &rules, ColourMethod::Bilinear)?;
+    let mut order: Vec<usize> = (0..bands.len()).collect();
+    order.sort_by(|&a, &b| bands[a].wavelength_nm.total_cmp(&bands[b].wavelength_nm));
+    let mut rows = Vec::new();
+    for b in order {
+        let img = &imgs[b];
+        for p in &scene.plates {
+            let st = region_stats(
+                img.width,
+                &img.s0,
+                &img.s1,
+                &img.s2,
+                &img.mask,
+                p.region,
+                img.sampling,
+            )
+            .map_err(|e| polarid_io::IoError::Core {
+                path: raw.path.clone(),
+                source: e,
+            })?;
+            rows.push(Measurement {
+                target: p.name.clone(),
+                class: p.class.clone(),
+                theta_i_deg: Some(theta_i_deg),
+                theta_r_deg: Some(theta_r_deg),
+                phi_deg: 180.0,
+                beta_deg: 0.5 * (theta_i_deg + theta_r_deg),
+                dolp: st.dolp,
+                dolp_se: st.dolp_se,
+                s0: Some(st.s0() / exposure),
+                pixels: Some(st.pixels),
+                rejected: Some(st.rejected),
+                exposure: Some(exposure),
+                saturated: Some(st.saturated),
+                status: RowStatus::Ok,
+                wavelength_nm: Some(bands[b].wavelength_nm),
+                ..Default::default()
+            });
+        }
+    }
+    Ok(rows)
+}
+
+/// A raw mosaic in memory as a [`Frame`] (16-bit samples) labelled `path`.
+fn frame(path: &Path, width: usize, data: &[u16]) -> Frame {
+    Frame {
+        path: path.to_path_buf(),
+        width,
+        height: data.len() / width.max(1),
+        kind: SampleKind::U16,
+        data: data.iter().map(|&v| f32::from(v)).collect(),
+    }
+}
+
+/// Every row of one plate's scene, rendered in memory: per capture, per band.
+fn plate_rows(plate: &ColourPlate) -> Result<Vec<Measurement>> {
+    let path = Path::new("scene.toml");
+    let scene = parse_scene(path, &plate.scene)?;
+    let set = crate::simulate::render_colour_set(&scene)?;
+    let mut rows = Vec::new();
+    for (ci, raw) in set.frames.iter().enumerate() {
+        let f = frame(path, set.width, raw);
+        rows.extend(colour_capture_rows(
+            &scene,
+            &f,
+            COLOUR_THETA_I[ci],
+            COLOUR_THETA_R,
+            set.exposures[ci],
+        )?);
+    }
+    Ok(rows)
+}
+
+/// One line of the accuracy table: a classifier (bands, fit error model, rule) over the
+/// test plates of every seed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AccuracyRow {
+    /// `three bands (450, 550, 650 nm)` or `one band (650 nm)`.
+    pub bands: String,
+    /// The fit's error model: `default` or `--film-sd-nm 0`.
+    pub fit: String,
+    /// `nearest, Euclidean`, `nearest, Mahalanobis` or `set, 95%`.
+    pub rule: String,
+    /// Copper test plates classified copper / all copper test plates.
+    pub copper: (u64, u64),
+    /// Gold test plates classified gold / all.
+    pub gold: (u64, u64),
+    /// Copper and gold test plates answered `ambiguous`.
+    pub ambiguous: u64,
+    /// Copper and gold test plates answered `unknown`.
+    pub unknown: u64,
+    /// All six materials' test plates right / all.
+    pub all: (u64, u64),
+}
+
+impl AccuracyRow {
+    /// Copper and gold test plates right, as a fraction.
+    pub fn copper_gold(&self) -> f64 {
+        (self.copper.0 + self.gold.0) as f64 / (self.copper.1 + self.gold.1).max(1) as f64
+    }
+}
+
+/// The classifiers of the table: `(label, config)`.
+fn rules() -> [(&'static str, ClassifierConfig); 3] {
+    [
+        ("nearest, Euclidean", ClassifierConfig::default()),
+        (
+            "nearest, Mahalanobis",
+            ClassifierConfig {
+                metric: Metric::Mahalanobis,
+                ..Default::default()
+            },
+        ),
+        ("set, 95%", ClassifierConfig::set(0.95)),
+    ]
+}
+
+/// The fits of `rows` (lines from 2) under `cfg`, keeping only the bands in `keep`.
+fn fits_of(rows: &[Measurement], keep: &[f64], cfg: &FitConfig) -> Result<Vec<(u64, FitRow)>> {
+    let rows: Vec<(u64, Measurement)> = rows
+        .iter()
+        .filter(|m| m.wavelength_nm.is_some_and(|w| keep.contains(&w)))
+        .cloned()
+        .enumerate()
+        .map(|(i, m)| (i as u64 + 2, m))
+        .collect();
+    let out = fit(
+        Path::new("measurements.csv"),
+        &rows,
+        cfg,
+        &crate::progress::no_progress,
+    )?;
+    Ok(out
+        .rows()
+        .into_iter()
+        .enumerate()
+        .map(|(i, r)| (i as u64 + 2, r))
+        .collect())
+}
+
+/// The multi-band prototypes trained on `train` (three-band or one-band fits).
+fn prototypes(train: &[(u64, FitRow)]) -> Result<(Model, Vec<MultiPrototype>)> {
+    let t = crate::train::train(train, Path::new("fits.csv"), "fits.csv")?;
+    let protos = t.model.multi_prototypes();
+    Ok((t.model, protos))
+}
+
+/// Per (bands, fit, rule), per test plate: `(class, predicted)`.
+type Outcomes = Vec<((usize, usize, usize), Vec<(String, String)>)>;
+
+/// The fit error models of the table: `(label, config)`.
+fn fit_configs() -> [(&'static str, FitConfig); 2] {
+    [
+        ("default (3 nm surface layer)", FitConfig::default()),
+        (
+            "--film-sd-nm 0",
+            FitConfig {
+                film_sd_nm: 0.0,
+                ..FitConfig::default()
+            },
+        ),
+    ]
+}
+
+/// The band sets of the table: `(label, bands kept)`.
+const BAND_SETS: [(&str, &[f64]); 2] = [
+    ("three bands (450, 550, 650 nm)", &COLOUR_BANDS_NM),
+    ("one band (650 nm)", &[650.0]),
+];
+
+/// Classify the test plates of one seed's rows under every (bands, fit, rule).
+fn seed_outcomes(train: &[Measurement], test: &[Measurement]) -> Result<Outcomes> {
+    let mut out = Vec::new();
+    for (bi, (_, keep)) in BAND_SETS.iter().enumerate() {
+        for (fi, (_, cfg)) in fit_configs().iter().enumerate() {
+            let tr = fits_of(train, keep, cfg)?;
+            let te = fits_of(test, keep, cfg)?;
+            let (_, protos) = prototypes(&tr)?;
+            for (ri, (_, rcfg)) in rules().iter().enumerate() {
+                let clf = multi_classifier(protos.clone(), "the trained prototypes", *rcfg)?;
+                let mut v = Vec::new();
+                for g in group_fits(&te) {
+                    let f = &te[g[0]].1;
+                    let d = clf.classify_multi(&multi_estimate_of(g.iter().map(|&i| &te[i].1)));
+                    v.push((f.class.clone().unwrap_or_default(), d.predicted));
+                }
+                out.push(((bi, fi, ri), v));
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Split rows into training and test plates' rows.
+fn split(plates: &[ColourPlate], rows: Vec<Measurement>) -> (Vec<Measurement>, Vec<Measurement>) {
+    rows.into_iter()
+        .partition(|m| plates.iter().any(|p| p.training && p.target == m.target))
+}
+
+/// The accuracy table over seeds `first..first + seeds` (in parallel over seeds),
+/// everything in memory; progress stage `seeds`.
+pub fn colour_accuracy(first: u64, seeds: u64, progress: Progress<'_>) -> Result<Vec<AccuracyRow>> {
+    let materials = colour_materials()?;
+    let done = std::sync::atomic::AtomicU64::new(0);
+    let per_seed: Vec<Outcomes> = (first..first + seeds)
+        .into_par_iter()
+        .map(|seed| -> Result<Outcomes> {
+            let plates = colour_plates(&materials, seed);
+            let mut rows = Vec::new();
+            for p in &plates {
+                rows.extend(plate_rows(p)?);
+            }
+            let (train, test) = split(&plates, rows);
+            let o = seed_outcomes(&train, &test)?;
+            let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            progress("seeds", d, seeds);
+            Ok(o)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(tally(&per_seed))
+}
+
+/// Count the outcomes of every seed into the table's rows.
+fn tally(per_seed: &[Outcomes]) -> Vec<AccuracyRow> {
+    let mut rows = Vec::new();
+    for (bi, (bl, _)) in BAND_SETS.iter().enumerate() {
+        for (fi, (fl, _)) in fit_configs().iter().enumerate() {
+            for (ri, (rl, _)) in rules().iter().enumerate() {
+                let mut r = AccuracyRow {
+                    bands: bl.to_string(),
+                    fit: fl.to_string(),
+                    rule: rl.to_string(),
+                    copper: (0, 0),
+                    gold: (0, 0),
+                    ambiguous: 0,
+                    unknown: 0,
+                    all: (0, 0),
+                };
+                for o in per_seed {
+                    let Some((_, v)) = o.iter().find(|(k, _)| *k == (bi, fi, ri)) else {
+                        continue;
+                    };
+                    for (class, pred) in v {
+                        let right = u64::from(class == pred);
+                        r.all.0 += right;
+                        r.all.1 += 1;
+                        let slot = match class.as_str() {
+                            "copper" => &mut r.copper,
+                            "gold" => &mut r.gold,
+                            _ => continue,
+                        };
+                        slot.0 += right;
+                        slot.1 += 1;
+                        r.ambiguous += u64::from(pred == "ambiguous");
+                        r.unknown += u64::from(pred == "unknown");
+                    }
+                }
+                rows.push(r);
+            }
+        }
+    }
+    rows
+}
+
+/// The accuracy table as Markdown (docs/BANDS.md's format), `seeds` seeds.
+pub fn accuracy_table(rows: &[AccuracyRow], seeds: u64) -> String {
+    let pct = |a: u64, n: u64| format!("{:.1}%", 100.0 * a as f64 / n.max(1) as f64);
+    let mut t = format!(
+        "Copper against gold from simulated colour images, {seeds} seeds (one copper and one \
+         gold test plate per seed; two training plates per material).\n\n\
+         | classifier | fit error model | rule | copper right | gold right | copper+gold right \
+         | ambiguous | unknown | all six right |\n|---|---|---|---|---|---|---|---|---|\n"
+    );
+    for r in rows {
+        let cg = r.copper.1 + r.gold.1;
+        t.push_str(&format!(
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+            r.bands,
+            r.fit,
+            r.rule,
+            pct(r.copper.0, r.copper.1),
+            pct(r.gold.0, r.gold.1),
+            pct(r.copper.0 + r.gold.0, cg),
+            pct(r.ambiguous, cg),
+            pct(r.unknown, cg),
+            pct(r.all.0, r.all.1)
+        ));
+    }
+    t
+}
+
+/// Everything the colour demo produced besides its files.
+#[derive(Debug, Clone)]
+pub struct ColourDemoOutput {
+    /// The materials (true `(n, k)` per band).
+    pub materials: Vec<ColourMaterial>,
+    /// Staged names of seed 0's scene files, one per plate.
+    pub scenes: Vec<String>,
+    /// Staged names of seed 0's manifests, one per plate.
+    pub manifests: Vec<String>,
+    /// Seed 0's plates.
+    pub plates: Vec<ColourPlate>,
+    /// Seed 0's measurements (per capture, band, plate), as re-read from
+    /// `measurements.csv`.
+    pub measurements: Vec<(u64, Measurement)>,
+    /// Seed 0's three-band fits (default error model), as re-read from `fits.csv`.
+    pub fits: Vec<(u64, FitRow)>,
+    /// The three-band model trained on seed 0's training plates.
+    pub model: Model,
+    /// Seed 0's test plates classified on three bands (set rule, 95%).
+    pub classification: Vec<ClassificationRow>,
+    /// Seed 0's test plates classified on the 650 nm rows alone (set rule, 95%).
+    pub classification_650: Vec<ClassificationRow>,
+    /// The accuracy table's rows.
+    pub accuracy: Vec<AccuracyRow>,
+    /// Seeds of the table.
+    pub seeds: u64,
+    /// The table as Markdown.
+    pub table: String,
+    /// Simulation and training warnings.
+    pub warnings: Vec<Warning>,
+}
+
+/// Run the colour demo into `staged` with `seeds` seeds for the accuracy table (module
+/// documentation). Progress stages: `simulating` (seed 0's plates), `seeds`.
+pub fn run_colour(staged: &StagedDir, seeds: u64, progress: Progress) -> Result<ColourDemoOutput> {
+    if seeds == 0 {
+        return Err(PipelineError::config(
+            "--seeds",
+            seeds,
+            "must be at least 1",
+        ));
+    }
+    let materials = colour_materials()?;
+    let plates = colour_plates(&materials, 0);
+    let mut warnings = Vec::new();
+    let (mut scenes, mut manifests) = (Vec::new(), Vec::new());
+    let mut rows: Vec<Measurement> = Vec::new();
+    for (i, p) in plates.iter().enumerate() {
+        progress("simulating", i as u64, plates.len() as u64);
+        let dir = format!("captures/{}/", p.target);
+        let scene_path = staged.final_path(&format!("{dir}scene.toml"));
+        let scene = parse_scene(&scene_path, &p.scene)?;
+        let sim = crate::simulate::simulate_into(&scene, staged, &dir, progress)?;
+        warnings.extend(sim.warnings);
+        // Measure from the files: the manifest the simulator wrote, the per-band images
+        // of each capture, the region means (nominal angles).
+        let man = manifest::load(&staged.path(&sim.manifest)?)?;
+        for (ci, c) in man.captures.iter().enumerate() {
+            let raw = match &c.source {
+                manifest::CaptureSource::ColourDofp { file, .. } => {
+                    polarid_io::image::read_frame(file)?
+                }
+                _ => {
+                    return Err(PipelineError::Data {
+                        path: man.path.display().to_string(),
+                        reason: "internal error: not a colour capture".into(),
+                    });
+                }
+            };
+            rows.extend(colour_capture_rows(
+                &scene,
+                &raw,
+                COLOUR_THETA_I[ci],
+                COLOUR_THETA_R,
+                c.exposure,
+            )?);
+        }
+        scenes.push(format!("{dir}scene.toml"));
+        manifests.push(sim.manifest);
+    }
+    progress("simulating", plates.len() as u64, plates.len() as u64);
+    // Rows in measurement order: by capture set, band, capture.
+    let meas_path = stage(staged, "measurements.csv", |w| {
+        measurements::write(w, Path::new("measurements.csv"), &rows)
+    })?;
+    let meas = crate::fit::read_measurements(&meas_path)?;
+    let cfg = FitConfig::default();
+    let fit_rows = fit(Path::new("measurements.csv"), &meas, &cfg, progress)?.rows();
+    let fits_path = stage(staged, "fits.csv", |w| {
+        fits::write(w, Path::new("fits.csv"), &fit_rows)
+    })?;
+    let all_fits = crate::classify::read_fits(&fits_path)?;
+    let is_training = |t: &str| plates.iter().any(|p| p.training && p.target == t);
+    type Fits = Vec<(u64, FitRow)>;
+    let (train, test): (Fits, Fits) = all_fits
+        .iter()
+        .cloned()
+        .partition(|(_, f)| is_training(&f.target));
+    let trained = crate::train::train(&train, Path::new("fits.csv"), "fits.csv")?;
+    warnings.extend(trained.warnings);
+    let model = trained.model;
+    stage(staged, "model.json", |w| {
+        model.write(w, Path::new("model.json"))
+    })?;
+    let classify_rows =
+        |fits: &[(u64, FitRow)], protos: Vec<MultiPrototype>| -> Result<Vec<ClassificationRow>> {
+            let clf = multi_classifier(protos, "model.json", ClassifierConfig::set(0.95))?;
+            Ok(group_fits(fits)
+                .iter()
+                .map(|g| {
+                    let d = clf.classify_multi(&multi_estimate_of(g.iter().map(|&i| &fits[i].1)));
+                    classification_row(&fits[g[0]].1, &d, &clf)
+                })
+                .collect())
+        };
+    let classification = classify_rows(&test, model.multi_prototypes())?;
+    stage(staged, "classification.csv", |w| {
+        classification::write(w, Path::new("classification.csv"), &classification)
+    })?;
+    let only = |f: &[(u64, FitRow)]| -> Vec<(u64, FitRow)> {
+        f.iter()
+            .filter(|(_, r)| r.wavelength_nm == Some(650.0))
+            .cloned()
+            .collect()
+    };
+    let (_, protos650) = prototypes(&only(&train))?;
+    let classification_650 = classify_rows(&only(&test), protos650)?;
+    stage(staged, "classification_650nm.csv", |w| {
+        classification::write(
+            w,
+            Path::new("classification_650nm.csv"),
+            &classification_650,
+        )
+    })?;
+
+    let accuracy = colour_accuracy(0, seeds, progress)?;
+    let table = accuracy_table(&accuracy, seeds);
+    let tpath = staged.path("accuracy.md")?;
+    polarid_io::atomic::write_atomic(&tpath, false, |w| {
+        w.write_all(table.as_bytes())
+            .map_err(|e| polarid_io::IoError::io(&tpath, e))
+    })?;
+    Ok(ColourDemoOutput {
+        materials,
+        scenes,
+        manifests,
+        plates,
+        measurements: meas,
+        fits: all_fits,
+        model,
+        classification,
+        classification_650,
+        accuracy,
+        seeds,
+        table,
+        warnings,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Issue 17's acceptance from images: over many seeds, the three-band classifier
+    /// (Mahalanobis nearest neighbour and the set rule, clean-surface fit) gets ≥ 99% of
+    /// the copper and gold test plates right; on the 650 nm rows alone the set rule and
+    /// the Euclidean rule do not (about 190 s for 100 seeds on 2 loaded cores).
+    /// `COLOUR_TABLE=1 cargo test --release -p polarid-pipeline --lib demo::colour --
+    /// --nocapture` prints docs/BANDS.md's table (`COLOUR_SEEDS` seeds, default 100).
+    #[test]
+    fn three_bands_from_images_tell_copper_from_gold_where_650nm_cannot() {
+        let seeds = std::env::var("COLOUR_SEEDS")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(COLOUR_SEEDS);
+        let rows = colour_accuracy(0, seeds, &crate::progress::no_progress).unwrap();
+        if std::env::var_os("COLOUR_TABLE").is_some() {
+            println!("{}", accuracy_table(&rows, seeds));
+        }
+        let get = |bands: &str, fit: &str, rule: &str| {
+            rows.iter()
+                .find(|r| r.bands.starts_with(bands) && r.fit.starts_with(fit) && r.rule == rule)
+                .unwrap()
+                .clone()
+        };
+        for rule in ["nearest, Mahalanobis", "set, 95%"] {
+            let r = get("three", "--film", rule);
+            assert!(r.copper_gold() >= 0.99, "{rule}: {r:?}");
+        }
+        // 650 nm alone: the set rule (the default) cannot decide (with the fit's default
+        // error model it calls most of them `ambiguous`, the honest answer: copper and
+        // gold are 0.09 apart in n there), and the paper's Euclidean rule is near chance.
+        // (The Mahalanobis nearest neighbour separates them in this simulation, where
+        // every plate has exactly its library index: docs/BANDS.md reports it.)
+        let r = get("one", "default", "set, 95%");
+        let cg = (r.copper.1 + r.gold.1) as f64;
+        assert!(
+            r.ambiguous as f64 >= 0.5 * cg,
+            "650 nm, default, set: {r:?}"
+        );
+        for fit in ["default", "--film"] {
+            for rule in ["nearest, Euclidean", "set, 95%"] {
+                let r = get("one", fit, rule);
+                assert!(r.copper_gold() < 0.99, "650 nm, {fit}, {rule}: {r:?}");
+            }
+            for rule in ["nearest, Euclidean", "nearest, Mahalanobis"] {
+                let (r3, r1) = (get("three", fit, rule), get("one", fit, rule));
+                assert!(
+                    r3.copper_gold() >= r1.copper_gold(),
+                    "{fit}, {rule}: three bands {r3:?}, one band {r1:?}"
+                );
+            }
+        }
+        assert_eq!(get("three", "--film", "set, 95%").copper.1, seeds);
+    }
+
+    /// Seed 0 measured from the written files equals the in-memory chain, and the files
+    /// are a colour capture set `measure` can read (manifest with `bands`, `dofp.color`).
+    #[test]
+    fn files_and_memory_give_the_same_rows() {
+        let dir = tempfile::tempdir().unwrap();
+        let staged = StagedDir::new(&dir.path().join("out"), false).unwrap();
+        let out = run_colour(&staged, 1, &crate::progress::no_progress).unwrap();
+        staged.commit().unwrap();
+        let mut mem = Vec::new();
+        for p in &out.plates {
+            mem.extend(plate_rows(p).unwrap());
+        }
+        let files: Vec<Measurement> = out.measurements.iter().map(|(_, m)| m.clone()).collect();
+        assert_eq!(files.len(), 18 * 8 * 3);
+        assert_eq!(files.len(), mem.len());
+        for (a, b) in files.iter().zip(&mem) {
+            assert_eq!((&a.target, a.wavelength_nm), (&b.target, b.wavelength_nm));
+            assert!((a.dolp - b.dolp).abs() < 1e-9, "{a:?} {b:?}");
+        }
+        let m = manifest::load(&dir.path().join("out").join(&out.manifests[0])).unwrap();
+        let bands = polarid_io::bands::capture_band_images(&m, &m.captures[0]).unwrap();
+        let wl: Vec<Option<f64>> = bands.iter().map(|b| b.wavelength_nm).collect();
+        assert_eq!(wl, vec![Some(450.0), Some(550.0), Some(650.0)]);
+        // Three fits per target, the test plates classified on three bands.
+        assert_eq!(out.fits.len(), 18 * 3);
+        assert_eq!(out.classification.len(), 6);
+        assert!(
+            out.classification
+                .iter()
+                .all(|c| c.bands_used == "450;550;650")
+        );
+        assert!(out.classification_650.iter().all(|c| c.bands_used == "650"));
+    }
+}
