@@ -674,7 +674,7 @@ pub fn map_manifest_bands(
         beta_maps_deg: beta_maps
             .beta
             .into_iter()
-            .map(|b| b.into_iter().map(|v| v.to_degrees()).collect())
+            .map(|b| b.into_iter().map(|v| f64::from(v).to_degrees()).collect())
             .collect(),
         min_s0_dn: thresholds,
         max_distance: cfg.max_distance,
