@@ -45,8 +45,6 @@ pub struct FitWorkspace {
     bands4: Vec<scan::BandMin>,
     /// f32 measurements of four pixels.
     yf4: Vec<f32>,
-    /// Lower bounds of the clusters of the pruned scan.
-    lb: Vec<f32>,
     /// Valid pixels of a chunk.
     valid: Vec<usize>,
     /// Weights `1/se²` of a chunk.
@@ -73,7 +71,6 @@ impl FitPlan {
             bands: vec![scan::BandMin::default(); self.grid.bands()],
             bands4: vec![scan::BandMin::default(); 4 * self.grid.bands()],
             yf4: vec![0.0; 4 * self.len()],
-            lb: Vec::new(),
             valid: Vec::new(),
             wall: Vec::new(),
             yf: vec![0.0; tp],
@@ -173,7 +170,6 @@ impl FitPlan {
             bands,
             bands4,
             yf4,
-            lb,
             valid,
             wall,
             yf,
@@ -201,23 +197,6 @@ impl FitPlan {
                 Ok(()) => valid.push(p),
                 Err(e) => *o = NkFit::invalid(invalid_reason(&e)),
             }
-        }
-        // Unweighted pixels without competing basins: the pruned scan (the best node
-        // of the full scan for a fraction of the work).
-        if wall.is_none() && self.grid.band == self.grid.gc_pad && bands.len() == 1 {
-            for &p in valid.iter() {
-                let rows = p * t_len..(p + 1) * t_len;
-                for (d, &v) in yf4[..t_len].iter_mut().zip(&y[rows.clone()]) {
-                    *d = -(v as f32);
-                }
-                bands[0] = scan::prune::pruned_scan(k, &self.clusters, &yf4[..t_len], lb);
-                let first = jobs.len();
-                self.pad_pixel(&y[rows.clone()], None, yf, wf);
-                self.grid
-                    .queue(self, p, bands, &y[rows], None, yf, wf, jobs);
-                spans[p] = (first, jobs.len() - first);
-            }
-            valid.clear();
         }
         // Unweighted pixels four at a time (one read of the grid curves per four).
         let quads = if wall.is_none() && K::FOUR {

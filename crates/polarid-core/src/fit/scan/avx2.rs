@@ -8,7 +8,6 @@
 
 use std::arch::x86_64::*;
 
-use super::prune::CLUSTER;
 use super::{BandMin, SCAN_BLOCK, Scan, reduce};
 use crate::cpu::Avx2Fma;
 
@@ -41,123 +40,6 @@ impl Scan for Avx2Fma {
     }
 
     #[inline(always)]
-    fn score16(
-        self,
-        curves: [&[f32]; 4],
-        base: [&[f32]; 4],
-        ny: &[f32],
-        nodes: [&[u32]; 4],
-        m: &mut [f32; CLUSTER],
-        ix: &mut [u32; CLUSTER],
-    ) {
-        let t_len = ny.len();
-        for j in 0..4 {
-            assert!(
-                curves[j].len() >= t_len * CLUSTER
-                    && base[j].len() >= CLUSTER
-                    && nodes[j].len() >= CLUSTER
-            );
-        }
-        // SAFETY: reads inside `curves[j][..T·16]`, `base[j][..16]`, `nodes[j][..16]`
-        // (asserted) and the arrays `m`, `ix`; the token proves the CPU has AVX2 + FMA.
-        unsafe {
-            let mut a = [[_mm256_setzero_ps(); 2]; 4];
-            for (j, aj) in a.iter_mut().enumerate() {
-                aj[0] = _mm256_loadu_ps(base[j].as_ptr());
-                aj[1] = _mm256_loadu_ps(base[j].as_ptr().add(8));
-            }
-            for (t, &nyt) in ny.iter().enumerate() {
-                let n = _mm256_set1_ps(nyt);
-                for (j, aj) in a.iter_mut().enumerate() {
-                    let r = curves[j].as_ptr().add(t * CLUSTER);
-                    aj[0] = _mm256_fmadd_ps(_mm256_loadu_ps(r), n, aj[0]);
-                    aj[1] = _mm256_fmadd_ps(_mm256_loadu_ps(r.add(8)), n, aj[1]);
-                }
-            }
-            let sign = _mm256_set1_epi32(i32::MIN);
-            for h in 0..2 {
-                let mut mv = _mm256_loadu_ps(m.as_ptr().add(8 * h));
-                let mut iv = _mm256_loadu_si256(ix.as_ptr().add(8 * h).cast());
-                for (j, aj) in a.iter().enumerate() {
-                    let ah = aj[h];
-                    let nv = _mm256_loadu_si256(nodes[j].as_ptr().add(8 * h).cast());
-                    let lt = _mm256_cmp_ps::<_CMP_LT_OQ>(ah, mv);
-                    let eq = _mm256_cmp_ps::<_CMP_EQ_OQ>(ah, mv);
-                    // nodes < ix, unsigned: compare with the sign bits flipped.
-                    let nlt =
-                        _mm256_cmpgt_epi32(_mm256_xor_si256(iv, sign), _mm256_xor_si256(nv, sign));
-                    let take = _mm256_or_ps(lt, _mm256_and_ps(eq, _mm256_castsi256_ps(nlt)));
-                    mv = _mm256_blendv_ps(mv, ah, take);
-                    iv = _mm256_blendv_epi8(iv, nv, _mm256_castps_si256(take));
-                }
-                _mm256_storeu_ps(m.as_mut_ptr().add(8 * h), mv);
-                _mm256_storeu_si256(ix.as_mut_ptr().add(8 * h).cast(), iv);
-            }
-        }
-    }
-
-    #[inline(always)]
-    fn bounds16(
-        self,
-        curves: &[f32],
-        base: &[f32],
-        ny: &[f32],
-        r: &[f32],
-        s0: f32,
-        half_yy: f32,
-        out: &mut [f32],
-    ) -> (f32, usize) {
-        assert!(r.len() >= CLUSTER && out.len() >= CLUSTER);
-        let w = values16_avx2(self, curves, base, ny);
-        let mut wa = [0f32; CLUSTER];
-        // SAFETY: 8-value reads and writes inside `r`, `out` (asserted) and `wa`; the
-        // token proves the CPU has AVX2 and FMA.
-        unsafe {
-            let zero = _mm256_setzero_ps();
-            for (h, &wh) in w.iter().enumerate() {
-                let s = _mm256_max_ps(
-                    _mm256_fmadd_ps(_mm256_set1_ps(2.0), wh, _mm256_set1_ps(s0)),
-                    zero,
-                );
-                let e = _mm256_max_ps(
-                    _mm256_sub_ps(_mm256_sqrt_ps(s), _mm256_loadu_ps(r.as_ptr().add(8 * h))),
-                    zero,
-                );
-                let lb = _mm256_fmsub_ps(
-                    _mm256_mul_ps(_mm256_set1_ps(0.5), e),
-                    e,
-                    _mm256_set1_ps(half_yy),
-                );
-                _mm256_storeu_ps(out.as_mut_ptr().add(8 * h), lb);
-                _mm256_storeu_ps(wa.as_mut_ptr().add(8 * h), wh);
-            }
-        }
-        let mut best = (f32::INFINITY, 0);
-        for (i, &v) in wa.iter().enumerate() {
-            if v < best.0 {
-                best = (v, i);
-            }
-        }
-        best
-    }
-
-    #[inline(always)]
-    fn not_above16(self, v: &[f32], limit: f32) -> u32 {
-        assert!(v.len() >= CLUSTER);
-        // SAFETY: 8-value reads inside `v` (asserted); the token proves the CPU has AVX.
-        unsafe {
-            let l = _mm256_set1_ps(limit);
-            let lo =
-                _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_NGT_UQ>(_mm256_loadu_ps(v.as_ptr()), l));
-            let hi = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_NGT_UQ>(
-                _mm256_loadu_ps(v.as_ptr().add(8)),
-                l,
-            ));
-            (lo as u32 & 0xff) | ((hi as u32 & 0xff) << 8)
-        }
-    }
-
-    #[inline(always)]
     fn scan_rows(
         self,
         rows: &[&[f32]],
@@ -168,30 +50,6 @@ impl Scan for Avx2Fma {
         bands: &mut [BandMin],
     ) {
         scan_rows_avx2(self, rows, base, y, w, band, bands)
-    }
-}
-
-/// The unweighted scan values of 16 nodes (see [`Scan::score16`]): one fused
-/// multiply-add per position, in two f32x8 halves.
-///
-/// Safe: the `Avx2Fma` token proves the CPU has AVX2 and FMA; reads stay inside the
-/// asserted slice lengths.
-#[inline(always)]
-fn values16_avx2(_tok: Avx2Fma, curves: &[f32], base: &[f32], ny: &[f32]) -> [__m256; 2] {
-    let t_len = ny.len();
-    assert!(curves.len() >= t_len * CLUSTER && base.len() >= CLUSTER);
-    // SAFETY: reads inside `curves[..T·16]` and `base[..16]` (asserted); the token
-    // proves the CPU has AVX2 and FMA.
-    unsafe {
-        let mut a0 = _mm256_loadu_ps(base.as_ptr());
-        let mut a1 = _mm256_loadu_ps(base.as_ptr().add(8));
-        for (t, &nyt) in ny.iter().enumerate() {
-            let r = curves.as_ptr().add(t * CLUSTER);
-            let n = _mm256_set1_ps(nyt);
-            a0 = _mm256_fmadd_ps(_mm256_loadu_ps(r), n, a0);
-            a1 = _mm256_fmadd_ps(_mm256_loadu_ps(r.add(8)), n, a1);
-        }
-        [a0, a1]
     }
 }
 

@@ -9,7 +9,6 @@
 
 use std::arch::x86_64::*;
 
-use super::prune::CLUSTER;
 use super::{BandMin, SCAN_BLOCK, Scan};
 use crate::cpu::Avx512;
 
@@ -42,107 +41,6 @@ impl Scan for Avx512 {
     }
 
     #[inline(always)]
-    fn score16(
-        self,
-        curves: [&[f32]; 4],
-        base: [&[f32]; 4],
-        ny: &[f32],
-        nodes: [&[u32]; 4],
-        m: &mut [f32; CLUSTER],
-        ix: &mut [u32; CLUSTER],
-    ) {
-        let t_len = ny.len();
-        for j in 0..4 {
-            assert!(
-                curves[j].len() >= t_len * CLUSTER
-                    && base[j].len() >= CLUSTER
-                    && nodes[j].len() >= CLUSTER
-            );
-        }
-        // SAFETY: reads inside `curves[j][..T·16]`, `base[j][..16]`, `nodes[j][..16]`
-        // (asserted) and the arrays `m`, `ix`; the token proves the CPU has AVX-512F.
-        unsafe {
-            let mut a = [0; 4].map(|_| _mm512_setzero_ps());
-            for (j, aj) in a.iter_mut().enumerate() {
-                *aj = _mm512_loadu_ps(base[j].as_ptr());
-            }
-            for (t, &nyt) in ny.iter().enumerate() {
-                let n = _mm512_set1_ps(nyt);
-                for (j, aj) in a.iter_mut().enumerate() {
-                    let c = _mm512_loadu_ps(curves[j].as_ptr().add(t * CLUSTER));
-                    *aj = _mm512_fmadd_ps(c, n, *aj);
-                }
-            }
-            let mut mv = _mm512_loadu_ps(m.as_ptr());
-            let mut iv = _mm512_loadu_si512(ix.as_ptr().cast());
-            for (j, &aj) in a.iter().enumerate() {
-                let nv = _mm512_loadu_si512(nodes[j].as_ptr().cast());
-                let lt = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(aj, mv);
-                let eq = _mm512_cmp_ps_mask::<_CMP_EQ_OQ>(aj, mv);
-                let take = lt | (eq & _mm512_cmplt_epu32_mask(nv, iv));
-                mv = _mm512_mask_mov_ps(mv, take, aj);
-                iv = _mm512_mask_mov_epi32(iv, take, nv);
-            }
-            _mm512_storeu_ps(m.as_mut_ptr(), mv);
-            _mm512_storeu_si512(ix.as_mut_ptr().cast(), iv);
-        }
-    }
-
-    #[inline(always)]
-    fn bounds16(
-        self,
-        curves: &[f32],
-        base: &[f32],
-        ny: &[f32],
-        r: &[f32],
-        s0: f32,
-        half_yy: f32,
-        out: &mut [f32],
-    ) -> (f32, usize) {
-        assert!(r.len() >= CLUSTER && out.len() >= CLUSTER);
-        let w = values16_avx512(self, curves, base, ny);
-        // SAFETY: 16-value reads and writes inside `r` and `out` (asserted); the token
-        // proves the CPU has AVX-512F.
-        unsafe {
-            let zero = _mm512_setzero_ps();
-            let s = _mm512_max_ps(
-                _mm512_fmadd_ps(_mm512_set1_ps(2.0), w, _mm512_set1_ps(s0)),
-                zero,
-            );
-            let e = _mm512_max_ps(
-                _mm512_sub_ps(_mm512_sqrt_ps(s), _mm512_loadu_ps(r.as_ptr())),
-                zero,
-            );
-            let lb = _mm512_fmsub_ps(
-                _mm512_mul_ps(_mm512_set1_ps(0.5), e),
-                e,
-                _mm512_set1_ps(half_yy),
-            );
-            _mm512_storeu_ps(out.as_mut_ptr(), lb);
-            let wmin = _mm512_reduce_min_ps(w);
-            let at = _mm512_cmp_ps_mask::<_CMP_EQ_OQ>(w, _mm512_set1_ps(wmin));
-            if at == 0 {
-                (f32::INFINITY, 0)
-            } else {
-                (wmin, at.trailing_zeros() as usize)
-            }
-        }
-    }
-
-    #[inline(always)]
-    fn not_above16(self, v: &[f32], limit: f32) -> u32 {
-        assert!(v.len() >= CLUSTER);
-        // SAFETY: a 16-value read inside `v` (asserted); the token proves the CPU has
-        // AVX-512F.
-        unsafe {
-            u32::from(_mm512_cmp_ps_mask::<_CMP_NGT_UQ>(
-                _mm512_loadu_ps(v.as_ptr()),
-                _mm512_set1_ps(limit),
-            ))
-        }
-    }
-
-    #[inline(always)]
     fn scan_rows(
         self,
         rows: &[&[f32]],
@@ -153,27 +51,6 @@ impl Scan for Avx512 {
         bands: &mut [BandMin],
     ) {
         scan_rows_avx512(self, rows, base, y, w, band, bands)
-    }
-}
-
-/// The unweighted scan values of 16 nodes (see [`Scan::score16`]): one fused
-/// multiply-add per position.
-///
-/// Safe: the `Avx512` token proves the CPU has AVX-512F; reads stay inside the asserted
-/// slice lengths.
-#[inline(always)]
-fn values16_avx512(_tok: Avx512, curves: &[f32], base: &[f32], ny: &[f32]) -> __m512 {
-    let t_len = ny.len();
-    assert!(curves.len() >= t_len * CLUSTER && base.len() >= CLUSTER);
-    // SAFETY: reads inside `curves[..T·16]` and `base[..16]` (asserted); the token
-    // proves the CPU has AVX-512F.
-    unsafe {
-        let mut a = _mm512_loadu_ps(base.as_ptr());
-        for (t, &nyt) in ny.iter().enumerate() {
-            let c = _mm512_loadu_ps(curves.as_ptr().add(t * CLUSTER));
-            a = _mm512_fmadd_ps(c, _mm512_set1_ps(nyt), a);
-        }
-        a
     }
 }
 

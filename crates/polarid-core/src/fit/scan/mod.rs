@@ -31,7 +31,6 @@ mod avx2;
 #[cfg(target_arch = "x86_64")]
 mod avx512;
 mod portable;
-pub(crate) mod prune;
 
 /// Nodes per block of the scan's curve layout.
 pub(crate) const SCAN_BLOCK: usize = 128;
@@ -115,47 +114,6 @@ pub(crate) trait Scan: Copy {
         band: usize,
         bands: [&mut [BandMin]; 4],
     );
-
-    /// The pruned scan's cluster step (`prune.rs`): the unweighted scan values of
-    /// [`prune::CLUSTER`] nodes, `base[i] + Σ_t curves[t · 16 + i] · ny[t]`, summed in
-    /// `t` order with the arithmetic of [`Scan::scan`] and [`Scan::scan4`] (one fused
-    /// multiply-add per term in the vector kernels, a multiply and an add in the
-    /// portable one), so that a node gets its value of the full scan; merged into the
-    /// lane minima `m` and their nodes `ix`: a smaller value, or an equal value at a
-    /// smaller node (`nodes[i]`), replaces lane `i`'s. `ny`: the `T` measurements,
-    /// negated.
-    ///
-    /// Four clusters per call (`curves[j]`, `base[j]`, `nodes[j]`), summed side by side
-    /// (four independent chains of multiply-adds); the merge does not depend on the
-    /// order, and scoring a cluster twice changes nothing.
-    fn score16(
-        self,
-        curves: [&[f32]; 4],
-        base: [&[f32]; 4],
-        ny: &[f32],
-        nodes: [&[u32]; 4],
-        m: &mut [f32; prune::CLUSTER],
-        ix: &mut [u32; prune::CLUSTER],
-    );
-
-    /// The pruned scan's bound step: the scan values `w` of 16 centroids (as in
-    /// [`Scan::score16`]), their lower bounds
-    /// `out[i] = ½ max(0, √max(0, 2 w_i + s0) − r_i)² − half_yy` and the smallest `w`
-    /// with its position (the first on ties; `(+∞, 0)` when none is below +∞).
-    #[allow(clippy::too_many_arguments)]
-    fn bounds16(
-        self,
-        curves: &[f32],
-        base: &[f32],
-        ny: &[f32],
-        r: &[f32],
-        s0: f32,
-        half_yy: f32,
-        out: &mut [f32],
-    ) -> (f32, usize);
-
-    /// Bit `i` set when `!(v[i] > limit)`, for 16 values.
-    fn not_above16(self, v: &[f32], limit: f32) -> u32;
 
     /// Scan of one pixel whose node curves are not stored together but come one source
     /// position at a time from separate rows (the fit with a β per pixel, `pixel/`:

@@ -1,7 +1,6 @@
 //! The grid scan in plain Rust (any CPU): 32 nodes at a time in an array the compiler
 //! may vectorise, separate multiply and add.
 
-use super::prune::CLUSTER;
 use super::{BandMin, L, SCAN_BLOCK, Scan, reduce};
 use crate::fit::simd::Portable;
 
@@ -38,60 +37,6 @@ impl Scan for Portable {
     }
 
     #[inline(always)]
-    fn score16(
-        self,
-        curves: [&[f32]; 4],
-        base: [&[f32]; 4],
-        ny: &[f32],
-        nodes: [&[u32]; 4],
-        m: &mut [f32; CLUSTER],
-        ix: &mut [u32; CLUSTER],
-    ) {
-        for j in 0..4 {
-            let a = values16(curves[j], base[j], ny);
-            let nodes = nodes[j];
-            for i in 0..CLUSTER {
-                if a[i] < m[i] || (a[i] == m[i] && nodes[i] < ix[i]) {
-                    m[i] = a[i];
-                    ix[i] = nodes[i];
-                }
-            }
-        }
-    }
-
-    #[inline(always)]
-    fn bounds16(
-        self,
-        curves: &[f32],
-        base: &[f32],
-        ny: &[f32],
-        r: &[f32],
-        s0: f32,
-        half_yy: f32,
-        out: &mut [f32],
-    ) -> (f32, usize) {
-        let w = values16(curves, base, ny);
-        let mut best = (f32::INFINITY, 0);
-        for i in 0..CLUSTER {
-            let e = ((2.0 * w[i] + s0).max(0.0).sqrt() - r[i]).max(0.0);
-            out[i] = 0.5 * e * e - half_yy;
-            if w[i] < best.0 {
-                best = (w[i], i);
-            }
-        }
-        best
-    }
-
-    #[inline(always)]
-    fn not_above16(self, v: &[f32], limit: f32) -> u32 {
-        let mut bits = 0;
-        for (i, &x) in v[..CLUSTER].iter().enumerate() {
-            bits |= u32::from(!(x > limit)) << i;
-        }
-        bits
-    }
-
-    #[inline(always)]
     fn scan_rows(
         self,
         rows: &[&[f32]],
@@ -103,21 +48,6 @@ impl Scan for Portable {
     ) {
         scan_rows_portable(rows, base, y, w, band, bands)
     }
-}
-
-/// The unweighted scan values of 16 nodes (see [`Scan::score16`]), separate multiply
-/// and add.
-#[inline(always)]
-fn values16(curves: &[f32], base: &[f32], ny: &[f32]) -> [f32; CLUSTER] {
-    let mut a = [0f32; CLUSTER];
-    a.copy_from_slice(&base[..CLUSTER]);
-    for (t, &nyt) in ny.iter().enumerate() {
-        let row = &curves[t * CLUSTER..(t + 1) * CLUSTER];
-        for l in 0..CLUSTER {
-            a[l] += row[l] * nyt;
-        }
-    }
-    a
 }
 
 /// [`Scan::scan_rows`] in plain Rust (separate multiply and add).
