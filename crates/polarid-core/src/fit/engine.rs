@@ -162,7 +162,9 @@ fn lane<S: Simd>(s: S, v: S::V, l: usize) -> f64 {
 
 /// Cost `Σ w (P − y)²` and normal equations at `(n_l, k_l)` for every lane: eq. (9)
 /// and its analytic gradient in the arithmetic of [`crate::dop::dop_grad_terms`] (the
-/// `hypot` fallback dropped, exact for bounds below `1e100`, checked by the plan).
+/// `hypot` fallback dropped, exact for bounds below `1e100`, checked by the plan),
+/// except that the quotients by `ρ`, `q`, `r` and `r (v + r)` share one reciprocal
+/// (see [`R_LO`]): equal up to rounding.
 /// `y`, `w`: lane-major, `y[t * W + l]`. The β terms: `PIX = false`, those of `lanes`,
 /// shared by every lane; `PIX = true`, each lane's own from `pb` (lane-major, see
 /// [`LaneScratch`]; `lanes` is then not read).
