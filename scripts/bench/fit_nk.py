@@ -15,7 +15,11 @@ so no conversion), best of `--repeats`, interleaved with the numpy runs. Both ar
 judged by the global-optimum rate: the fraction of pixels whose fitted cost is at or
 below the cost at the true (n, k) (`baselines.cost_vs_truth`). Next to the wall-clock
 figures, the process CPU time per fit of each (less sensitive to other load on a shared
-machine: numpy runs on one core, polarid on all).
+machine: numpy runs on one core, polarid on all) and their ratio, `ratio_cpu_per_core`.
+On a loaded Linux machine with autogroup scheduling (`env.sched_autogroup`, 1 on the
+build machine) each process gets a fair share of the cores whatever its thread count,
+so polarid's second thread buys nothing and the wall-clock ratio falls to about the
+per-core ratio; on a quiet 2-core machine it approaches twice that.
 
 Also reported: where polarid's time goes (the fit itself against the Python-side work:
 array conversion and the output dict), from a call on a stack 10x smaller and on a
@@ -42,6 +46,14 @@ def loadavg():
         return os.getloadavg()[0]
     except OSError:  # pragma: no cover
         return float("nan")
+
+
+def autogroup():
+    try:
+        with open("/proc/sys/kernel/sched_autogroup_enabled") as f:
+            return int(f.read().strip())
+    except (OSError, ValueError):
+        return None
 
 
 def main(argv=None):
@@ -120,6 +132,7 @@ def main(argv=None):
         "numpy": numpy_runs,
         "numpy_best_chunk": int(best_chunk),
         "ratio": round(fps / best["fits_per_s"], 1),
+        "ratio_cpu_per_core": round(best["cpu_us_per_fit"] / (min(cpu) / a.pixels * 1e6), 1),
         "rate_ok": rate >= best["frac_cost_le_truth"],
         "env": {
             "python": platform.python_version(),
@@ -128,6 +141,7 @@ def main(argv=None):
             "cpus": os.cpu_count(),
             "loadavg_1min_start": round(load0, 2),
             "loadavg_1min_end": round(loadavg(), 2),
+            "sched_autogroup": autogroup(),
         },
     }
     print(json.dumps(out))

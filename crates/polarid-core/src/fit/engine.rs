@@ -38,6 +38,13 @@ const LAM_0: f64 = 1e-6;
 /// factors of [`LAM_UP`] would cost several rejected evaluations.
 const LAM_REJECT: f64 = 1e-3;
 
+/// Smallest `r = √C` and `q = cos²β·r + sin⁴β` of the one-reciprocal evaluation in
+/// [`eval_lanes`]: with `r, q ∈ [R_LO, R_HI]` the product `ρ·q·r·(v + r)` and every
+/// partial product lie within about `1e±180`, far from overflow and underflow.
+const R_LO: f64 = 1e-50;
+/// Largest `r` and `q` of the one-reciprocal evaluation (see [`R_LO`]).
+const R_HI: f64 = 1e50;
+
 /// One polish to run.
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct Job {
@@ -155,7 +162,9 @@ fn lane<S: Simd>(s: S, v: S::V, l: usize) -> f64 {
 
 /// Cost `Σ w (P − y)²` and normal equations at `(n_l, k_l)` for every lane: eq. (9)
 /// and its analytic gradient in the arithmetic of [`crate::dop::dop_grad_terms`] (the
-/// `hypot` fallback dropped, exact for bounds below `1e100`, checked by the plan).
+/// `hypot` fallback dropped, exact for bounds below `1e100`, checked by the plan),
+/// except that the quotients by `ρ`, `q`, `r` and `r (v + r)` share one reciprocal
+/// (see [`R_LO`]): equal up to rounding.
 /// `y`, `w`: lane-major, `y[t * W + l]`. The β terms: `PIX = false`, those of `lanes`,
 /// shared by every lane; `PIX = true`, each lane's own from `pb` (lane-major, see
 /// [`LaneScratch`]; `lanes` is then not read).
@@ -218,12 +227,35 @@ fn eval_lanes<S: Simd, const WEIGHTED: bool, const PIX: bool>(
         let d = s.sub(d0, s2); // eq. (15)
         let r = s.sqrt(s.fma(d, d, q4)); // √C, eq. (14)
         let rho = s.sqrt(s.mul(s.add(r, s.abs(d)), half));
-        let small = s.div(nk, s.max(rho, tiny));
+        let q = s.fma(c2, r, s4);
+        let u = s.sub(nn_kk, s2);
+        let v = s.add(nn_kk, s2);
+        let vr = s.add(v, r);
+        // The four quotients by ρ, q, r and r (v + r) from one reciprocal of the
+        // product ρ·q·r·(v + r) (one division instead of four): exact up to rounding
+        // while every factor stays far from the ends of the f64 range, which
+        // `r, q ∈ [R_LO, R_HI]` guarantees (ρ ≥ √(r/2), r ≤ v + r ≤ 3r + 2, see
+        // [`R_LO`]); other lanes (r = 0, extreme bounds) take the four divisions.
+        let rvr = s.mul(r, vr);
+        let qrvr = s.mul(q, rvr);
+        let inv = s.div(one, s.mul(rho, qrvr));
+        let rho_inv = s.mul(rho, inv); // 1 / (q r (v + r))
+        let mut inv_rvr = s.mul(q, rho_inv);
+        let mut inv_r = s.mul(vr, inv_rvr);
+        let mut inv_q = s.mul(rvr, rho_inv);
+        let mut small = s.mul(nk, s.mul(qrvr, inv));
+        let (lo, hi) = (s.splat(R_LO), s.splat(R_HI));
+        let fast = s.and(s.le(lo, s.min(r, q)), s.le(s.max(r, q), hi));
+        if s.bits(s.not(fast)) != 0 {
+            let slow_r = s.div(one, s.max(r, tiny));
+            inv_r = s.select(fast, inv_r, slow_r);
+            inv_rvr = s.select(fast, inv_rvr, s.div(slow_r, vr));
+            inv_q = s.select(fast, inv_q, s.div(one, q));
+            small = s.select(fast, small, s.div(nk, s.max(rho, tiny)));
+        }
         let pos = s.le(zero, d);
         let a = s.select(pos, rho, small);
         let b = s.select(pos, small, rho);
-        let q = s.fma(c2, r, s4);
-        let inv_q = s.div(one, q);
         // P, eq. (9), with the cancellation-free form above 1/2 (see dop::p_value).
         let x = s.mul(c, a);
         let p_lo = s.mul(s.mul(s.add(x, x), s2), inv_q);
@@ -234,11 +266,8 @@ fn eval_lanes<S: Simd, const WEIGHTED: bool, const PIX: bool>(
         let p = s.min(s.max(p, zero), one);
         // Gradient (dop::dop_grad_terms).
         let ok = s.lt(zero, r);
-        let inv_r = s.div(one, s.max(r, tiny));
-        let u = s.sub(nn_kk, s2);
-        let v = s.add(nn_kk, s2);
         let da_dn = s.mul(s.fma(vn, a, s.mul(vk, b)), inv_r);
-        let da_dk = s.div(s.mul(s.mul(s.mul(two_n, s2), b), inv_r), s.add(v, r));
+        let da_dk = s.mul(s.mul(s.mul(two_n, s2), b), inv_rvr);
         let dr_dn = s.mul(s.mul(two_n, u), inv_r);
         let dr_dk = s.mul(s.mul(two_k, v), inv_r);
         let ac2 = s.mul(a, c2);
