@@ -559,6 +559,10 @@ impl<'a> Parser<'a> {
                      and contain no comma, quote or control character",
                 ));
             }
+            // NFC, no zero-width or bidirectional-formatting character (as CSV names),
+            // so that look-alike names are one target or refused.
+            let name = crate::table::clean_name(&name)
+                .map_err(|why| self.err(&name_v.span(), &format!("{pre}name"), why))?;
             if !names.insert(name.clone()) {
                 return Err(self.err(
                     &name_v.span(),
@@ -605,7 +609,9 @@ impl<'a> Parser<'a> {
                             "class names must contain no comma, quote or control character",
                         ));
                     }
-                    Some(c).filter(|c| !c.trim().is_empty())
+                    let c = crate::table::clean_name(&c)
+                        .map_err(|why| self.err(&v.span(), &format!("{pre}class"), why))?;
+                    Some(c).filter(|c| !c.is_empty())
                 }
                 None => None,
             };
