@@ -50,7 +50,10 @@ fuzz_target!(|data: &[u8]| {
             for se in [f.n_se, f.k_se] {
                 assert!(se.is_nan() || (se.is_finite() && se >= 0.0), "{f:?}");
             }
-            assert!(f.nk_corr.is_nan() || (-1.0..=1.0).contains(&f.nk_corr), "{f:?}");
+            assert!(
+                f.nk_corr.is_nan() || (-1.0..=1.0).contains(&f.nk_corr),
+                "{f:?}"
+            );
         }
         let mut buf = Vec::new();
         fits::write(&mut buf, path, &rows).expect("write to memory"); // ok: in memory
@@ -58,9 +61,15 @@ fuzz_target!(|data: &[u8]| {
         let back = fits::from_table(&t2).expect("re-parse own output");
         assert_eq!(back.len(), rows.len());
         for (a, b) in rows.iter().zip(&back) {
-            assert_eq!((&a.target, &a.class, a.status), (&b.target, &b.class, b.status));
+            assert_eq!(
+                (&a.target, &a.class, a.status),
+                (&b.target, &b.class, b.status)
+            );
             assert!(same(a.n, b.n) && same(a.k, b.k), "{a:?} vs {b:?}");
-            assert!(same(a.n_se, b.n_se) && same(a.k_se, b.k_se), "{a:?} vs {b:?}");
+            assert!(
+                same(a.n_se, b.n_se) && same(a.k_se, b.k_se),
+                "{a:?} vs {b:?}"
+            );
             assert!(same(a.nk_corr, b.nk_corr), "{a:?} vs {b:?}");
             assert!(same_opt(a.wavelength_nm, b.wavelength_nm), "{a:?} vs {b:?}");
         }
@@ -93,7 +102,10 @@ fuzz_target!(|data: &[u8]| {
         let back = classification::from_table(&t2).expect("re-parse own output");
         assert_eq!(back.len(), rows.len());
         for (a, b) in rows.iter().zip(&back) {
-            assert_eq!((&a.target, &a.predicted, &a.status), (&b.target, &b.predicted, &b.status));
+            assert_eq!(
+                (&a.target, &a.predicted, &a.status),
+                (&b.target, &b.predicted, &b.status)
+            );
         }
     }
 });

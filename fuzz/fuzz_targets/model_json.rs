@@ -34,8 +34,11 @@ fuzz_target!(|data: &[u8]| {
     // Round trip through the writer.
     let mut buf = Vec::new();
     m.write(&mut buf, path).expect("write to memory"); // ok: in memory
-    let back = Model::parse(path, std::str::from_utf8(&buf).expect("own output is UTF-8"))
-        .expect("re-parse own output");
+    let back = Model::parse(
+        path,
+        std::str::from_utf8(&buf).expect("own output is UTF-8"),
+    )
+    .expect("re-parse own output");
     assert_eq!(back.prototypes.len(), m.prototypes.len());
     for (a, b) in m.prototypes.iter().zip(&back.prototypes) {
         assert_eq!(a.class, b.class);

@@ -28,7 +28,9 @@ fuzz_target!(|data: &[u8]| {
                 };
                 let min = values.iter().copied().fold(f64::INFINITY, f64::min);
                 let max = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-                assert!(k >= min - 1e-9 * min.abs().max(1.0) && k <= max + 1e-9 * max.abs().max(1.0));
+                assert!(
+                    k >= min - 1e-9 * min.abs().max(1.0) && k <= max + 1e-9 * max.abs().max(1.0)
+                );
             }
         }
     }
