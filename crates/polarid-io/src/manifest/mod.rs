@@ -401,7 +401,12 @@ impl<'a> Parser<'a> {
         }
         let p = self.dir.join(&s);
         if !p.is_file() {
-            return Err(self.err(&v.span(), field, format!("file {} not found", p.display())));
+            let why = if p.exists() {
+                format!("{} is not a regular file", p.display())
+            } else {
+                format!("file {} not found", p.display())
+            };
+            return Err(self.err(&v.span(), field, why));
         }
         Ok(p)
     }
