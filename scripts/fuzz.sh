@@ -3,7 +3,7 @@
 #
 #   scripts/fuzz.sh [SECONDS] [TARGET...]     (default: 60 s each, every target)
 #
-# Works with the stable toolchain (no nightly on this machine): cargo-fuzz needs nightly
+# Works with the stable toolchain: cargo-fuzz needs nightly
 # only for sanitizers (`-Zsanitizer`), so the targets are built with `--sanitizer none`;
 # libFuzzer's coverage instrumentation (`-Cpasses=sancov-module`, `-Cllvm-args=...`) is
 # stable. polarid's readers are safe Rust, so bounds and overflow checks
@@ -21,7 +21,7 @@ secs=${1:-60}
 shift || true
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
-    targets=(manifest csv_tables image_frame dofp scene)
+    targets=(manifest csv_tables image_frame dofp scene model_json library_csv rii_yaml fits_classification)
 fi
 command -v cargo-fuzz >/dev/null || { echo "fuzz.sh: cargo-fuzz not installed (cargo install cargo-fuzz)" >&2; exit 1; }
 flags=(--sanitizer none -O --debug-assertions)
@@ -32,6 +32,10 @@ dict_for() {
         manifest) echo "-dict=dict/manifest.dict" ;;
         csv_tables) echo "-dict=dict/csv.dict" ;;
         scene) echo "-dict=dict/scene.dict" ;;
+        model_json) echo "-dict=dict/model.dict" ;;
+        library_csv) echo "-dict=dict/library.dict" ;;
+        rii_yaml) echo "-dict=dict/yaml.dict" ;;
+        fits_classification) echo "-dict=dict/fits.dict" ;;
         *) echo "" ;;
     esac
 }

@@ -63,16 +63,24 @@ fn parse_memory_limit(s: &str) -> Result<u64, String> {
     polarid_io::limits::parse_size(s)
 }
 
-/// Exit status after SIGINT, SIGTERM or SIGHUP (the shell's 128 + SIGINT).
-const INTERRUPTED: i32 = 130;
+/// Remove the run's staging, say so, and exit with 128 + the signal's number.
+fn stop_after_signal(sig: i32) -> ! {
+    polarid_io::atomic::remove_registered();
+    eprintln!("polarid: interrupted; partial outputs removed");
+    std::process::exit(polarid_io::atomic::exit_status_of_signal(sig));
+}
 
 /// Remove the run's staging directories and temporary files on SIGINT, SIGTERM and
-/// SIGHUP, then exit with status 130 (docs/RELIABILITY.md).
+/// SIGHUP, then exit with status 128 + the signal's number: 130, 143, 129
+/// (docs/RELIABILITY.md).
 fn install_signal_handler() {
+    #[cfg(unix)]
+    let _ = polarid_io::atomic::on_termination_signal(|sig| stop_after_signal(sig));
+    #[cfg(not(unix))]
     let _ = ctrlc::set_handler(|| {
-        polarid_io::atomic::remove_registered();
-        eprintln!("polarid: interrupted; partial outputs removed");
-        std::process::exit(INTERRUPTED);
+        // Ctrl-C: SIGINT's number (2), as the shell would report it.
+        polarid_io::atomic::note_signal_received(2);
+        stop_after_signal(2)
     });
 }
 
@@ -134,9 +142,7 @@ fn main() -> ExitCode {
     if polarid_io::atomic::terminating() {
         // A signal arrived: its handler is removing the staging (this thread may have
         // failed because of it); finish the cleaning here and exit as the handler would.
-        polarid_io::atomic::remove_registered();
-        eprintln!("polarid: interrupted; partial outputs removed");
-        std::process::exit(INTERRUPTED);
+        stop_after_signal(polarid_io::atomic::signal_received().unwrap_or(2));
     }
     match result {
         Ok(()) => ExitCode::SUCCESS,

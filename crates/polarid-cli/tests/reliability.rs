@@ -558,8 +558,8 @@ fn force_over_a_directory_keeps_its_other_files_and_replaces_in_one_step() {
 }
 
 #[test]
-fn signals_remove_staging_and_exit_130() {
-    for sig in ["-INT", "-TERM", "-HUP"] {
+fn signals_remove_staging_and_exit_128_plus_signal() {
+    for (sig, code) in [("-INT", 130), ("-TERM", 143), ("-HUP", 129)] {
         let d = tempfile::tempdir().unwrap();
         let p = d.path();
         let c = Command::new(bin())
@@ -585,7 +585,7 @@ fn signals_remove_staging_and_exit_130() {
         assert!(staged, "demo did not start staging");
         kill(&c, sig);
         let o = c.wait_with_output().unwrap();
-        assert_eq!(o.status.code(), Some(130), "{sig}: {}", text(&o.stderr));
+        assert_eq!(o.status.code(), Some(code), "{sig}: {}", text(&o.stderr));
         assert!(
             text(&o.stderr).contains("interrupted"),
             "{}",
@@ -777,13 +777,23 @@ fn out_of_range_fit_values_are_refused_naming_line_column_and_value() {
             );
         }
     }
-    // nan is an explicit "unknown" and still accepted.
+    // An empty cell is "unknown" and accepted; the literal nan in a usable row is not
+    // (it silently dropped the covariance), in a failed fit's row it is.
     fs::write(
         p.join("f.csv"),
-        format!("{FITS_HEADER}B,cu,0.5,3,nan,nan,nan,0,5,ok\nA,al,1.5,4,0.1,0.1,0.2,0,5,ok\n"),
+        format!("{FITS_HEADER}B,cu,0.5,3,,,,0,5,ok\nA,al,1.5,4,0.1,0.1,0.2,0,5,ok\n"),
     )
     .unwrap();
     ok(&run(p, &["train", "f.csv", "-o", "m2.json"]));
+    fs::write(
+        p.join("f.csv"),
+        format!(
+            "{FITS_HEADER}B,cu,nan,nan,nan,nan,nan,nan,5,not_converged\n\
+             A,al,1.5,4,0.1,0.1,0.2,0,5,ok\nC,cu,0.5,3,0.1,0.1,0,0,5,ok\n"
+        ),
+    )
+    .unwrap();
+    ok(&run(p, &["train", "f.csv", "-o", "m3.json"]));
 }
 
 #[test]

@@ -160,6 +160,100 @@ pub fn remove_registered() -> usize {
     n
 }
 
+/// The signal that made the run stop (0: none yet).
+static SIGNAL: std::sync::atomic::AtomicI32 = std::sync::atomic::AtomicI32::new(0);
+
+/// Write end of the pipe that wakes the signal thread (-1: not installed).
+#[cfg(unix)]
+static SIGNAL_PIPE: std::sync::atomic::AtomicI32 = std::sync::atomic::AtomicI32::new(-1);
+
+/// The signals after which polarid removes its staging and exits with status 128 + the
+/// signal's number: SIGINT (130), SIGTERM (143), SIGHUP (129).
+#[cfg(unix)]
+pub const CLEANUP_SIGNALS: [i32; 3] = [libc::SIGINT, libc::SIGTERM, libc::SIGHUP];
+
+/// The signal handler proper: only async-signal-safe work (an atomic store and one
+/// `write(2)`); the cleaning runs on the thread of [`on_termination_signal`].
+#[cfg(unix)]
+extern "C" fn note_signal(sig: libc::c_int) {
+    use std::sync::atomic::Ordering::SeqCst;
+    let _ = SIGNAL.compare_exchange(0, sig, SeqCst, SeqCst);
+    let fd = SIGNAL_PIPE.load(SeqCst);
+    if fd >= 0 {
+        let b = [sig as u8];
+        // SAFETY: write(2) is async-signal-safe; `b` lives across the call.
+        let _ = unsafe { libc::write(fd, b.as_ptr().cast(), 1) };
+    }
+}
+
+/// Run `action(signal)` on a dedicated thread when SIGINT, SIGTERM or SIGHUP arrives
+/// ([`CLEANUP_SIGNALS`]); `action` is expected to call [`remove_registered`] and exit
+/// with [`exit_status_of_signal`]. Install it once, at the start of `main`.
+#[cfg(unix)]
+pub fn on_termination_signal(action: impl Fn(i32) + Send + 'static) -> std::io::Result<()> {
+    use std::sync::atomic::Ordering::SeqCst;
+    let mut fds = [0 as libc::c_int; 2];
+    // SAFETY: `fds` has room for the two descriptors pipe(2) writes.
+    if unsafe { libc::pipe(fds.as_mut_ptr()) } != 0 {
+        return Err(std::io::Error::last_os_error());
+    }
+    for fd in fds {
+        // SAFETY: fd is a descriptor just returned by pipe(2).
+        unsafe { libc::fcntl(fd, libc::F_SETFD, libc::FD_CLOEXEC) };
+    }
+    let [read_fd, write_fd] = fds;
+    SIGNAL_PIPE.store(write_fd, SeqCst);
+    std::thread::Builder::new()
+        .name("polarid-signals".into())
+        .spawn(move || {
+            let mut b = [0u8; 1];
+            loop {
+                // SAFETY: reads at most one byte into `b`, which outlives the call.
+                let r = unsafe { libc::read(read_fd, b.as_mut_ptr().cast(), 1) };
+                if r == 1 {
+                    action(SIGNAL.load(SeqCst));
+                } else if r < 0
+                    && std::io::Error::last_os_error().kind() == std::io::ErrorKind::Interrupted
+                {
+                    continue;
+                } else {
+                    return;
+                }
+            }
+        })?;
+    for sig in CLEANUP_SIGNALS {
+        // SAFETY: a zeroed sigaction with a valid handler and an empty mask is a valid
+        // argument; the handler only does async-signal-safe work.
+        unsafe {
+            let mut sa: libc::sigaction = std::mem::zeroed();
+            sa.sa_sigaction = note_signal as *const () as libc::sighandler_t;
+            sa.sa_flags = libc::SA_RESTART;
+            libc::sigemptyset(&mut sa.sa_mask);
+            if libc::sigaction(sig, &sa, std::ptr::null_mut()) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The signal that stopped the run, if any (its number: SIGINT 2, SIGTERM 15, SIGHUP 1).
+pub fn signal_received() -> Option<i32> {
+    Some(SIGNAL.load(std::sync::atomic::Ordering::SeqCst)).filter(|&s| s != 0)
+}
+
+/// The exit status after signal `sig`: 128 + its number, as a shell reports a process
+/// killed by it (SIGINT 130, SIGTERM 143, SIGHUP 129).
+pub fn exit_status_of_signal(sig: i32) -> i32 {
+    128 + sig
+}
+
+/// Note that `sig` stopped the run (for platforms whose handler is installed elsewhere).
+pub fn note_signal_received(sig: i32) {
+    use std::sync::atomic::Ordering::SeqCst;
+    let _ = SIGNAL.compare_exchange(0, sig, SeqCst, SeqCst);
+}
+
 /// True once [`remove_registered`] was called (a signal is being handled): the caller
 /// should exit with the signal's status rather than report its own error.
 pub fn terminating() -> bool {

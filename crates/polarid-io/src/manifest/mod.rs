@@ -414,7 +414,12 @@ impl<'a> Parser<'a> {
         }
         let p = self.dir.join(&s);
         if !p.is_file() {
-            return Err(self.err(&v.span(), field, format!("file {} not found", p.display())));
+            let why = if p.exists() {
+                format!("{} is not a regular file", p.display())
+            } else {
+                format!("file {} not found", p.display())
+            };
+            return Err(self.err(&v.span(), field, why));
         }
         Ok(p)
     }
@@ -572,6 +577,10 @@ impl<'a> Parser<'a> {
                      and contain no comma, quote or control character",
                 ));
             }
+            // NFC, no zero-width or bidirectional-formatting character (as CSV names),
+            // so that look-alike names are one target or refused.
+            let name = crate::table::clean_name(&name)
+                .map_err(|why| self.err(&name_v.span(), &format!("{pre}name"), why))?;
             if !names.insert(name.clone()) {
                 return Err(self.err(
                     &name_v.span(),
@@ -618,7 +627,9 @@ impl<'a> Parser<'a> {
                             "class names must contain no comma, quote or control character",
                         ));
                     }
-                    Some(c).filter(|c| !c.trim().is_empty())
+                    let c = crate::table::clean_name(&c)
+                        .map_err(|why| self.err(&v.span(), &format!("{pre}class"), why))?;
+                    Some(c).filter(|c| !c.is_empty())
                 }
                 None => None,
             };

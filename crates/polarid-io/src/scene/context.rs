@@ -134,6 +134,8 @@ impl Ctx<'_> {
                 "names must be non-empty and contain no comma, quote, slash or newline",
             ));
         }
-        Ok(s.clone())
+        // Unicode NFC, no control, zero-width or bidirectional-formatting character
+        // (docs/RELIABILITY.md "Names and values"), as names read from CSV files.
+        crate::table::clean_name(s).map_err(|why| self.err(&v.span(), field, why))
     }
 }

@@ -90,7 +90,11 @@ pub struct FitRow {
 }
 
 /// Read a fits CSV: needs `target`, `n`, `k`; the rest is optional (`status` defaults to
-/// `ok`, standard errors to NaN).
+/// `ok`, standard errors to NaN: unknown).
+///
+/// `n_se`, `k_se` and `nk_corr` are unknown when their cell is empty; the literal `nan`
+/// is refused in a usable (`ok`) row (naming the file, line, column and value) and
+/// accepted only in a failed fit's row, whose `n` and `k` may be `nan` too.
 pub fn read(path: &Path) -> Result<Vec<FitRow>> {
     let t = CsvTable::read(path)?;
     from_table(&t)
@@ -150,7 +154,9 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<FitRow>> {
             })?,
             _ => FitStatus::Ok,
         };
-        // n, k of a failed fit may be nan; of a usable fit they must be numbers.
+        // n, k (and their errors) of a failed fit may be nan; of a usable fit they must
+        // be numbers (errors: numbers or empty cells).
+        let failed = !status.is_ok();
         let num = |c: usize| -> Result<f64> {
             if !status.is_ok() && t.text(r, c).eq_ignore_ascii_case("nan") {
                 Ok(f64::NAN)
@@ -178,9 +184,9 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<FitRow>> {
             wavelength_nm,
             n,
             k,
-            n_se: t.se(r, c_nse)?,
-            k_se: t.se(r, c_kse)?,
-            nk_corr: t.corr(r, c_corr)?,
+            n_se: t.se(r, c_nse, failed)?,
+            k_se: t.se(r, c_kse, failed)?,
+            nk_corr: t.corr(r, c_corr, failed)?,
             rms_residual: nan_ok(r, c_rms)?,
             measurements: t.opt_u64(r, c_meas)?.unwrap_or(0),
             status,
@@ -197,6 +203,17 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<FitRow>> {
         });
     }
     Ok(out)
+}
+
+/// A standard error or correlation as written: an unknown one (NaN) is an empty cell
+/// in a usable (`ok`) row — the reader refuses the literal `nan` there — and `nan` in a
+/// failed fit's row, like its `n` and `k`.
+fn fmt_se(f: &FitRow, x: f64) -> String {
+    if x.is_nan() && f.status.is_ok() {
+        String::new()
+    } else {
+        fmt_f64(x)
+    }
 }
 
 /// Write fits in the documented column order ([`COLUMNS`], with `wavelength_nm` after
@@ -217,9 +234,9 @@ pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[FitRow]) -> Resu
                 f.class.clone().unwrap_or_default(),
                 fmt_f64(f.n),
                 fmt_f64(f.k),
-                fmt_f64(f.n_se),
-                fmt_f64(f.k_se),
-                fmt_f64(f.nk_corr),
+                fmt_se(f, f.n_se),
+                fmt_se(f, f.k_se),
+                fmt_se(f, f.nk_corr),
                 fmt_f64(f.rms_residual),
                 f.measurements.to_string(),
                 f.status.as_str().to_string(),
@@ -240,4 +257,88 @@ pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[FitRow]) -> Resu
             cells
         }),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<Vec<FitRow>> {
+        from_table(&CsvTable::from_reader(Path::new("f.csv"), text.as_bytes())?)
+    }
+
+    #[test]
+    fn literal_nan_errors_refused_in_usable_rows() {
+        for (col, text) in [
+            (
+                "n_se",
+                "target,n,k,n_se,k_se,nk_corr,status\nA,1.5,0,NaN,0.1,0.2,ok\n",
+            ),
+            (
+                "k_se",
+                "target,n,k,n_se,k_se,nk_corr,status\nA,1.5,0,0.1,nan,0.2,ok\n",
+            ),
+            (
+                "nk_corr",
+                "target,n,k,n_se,k_se,nk_corr\nA,1.5,0,0.1,0.1,NAN\n",
+            ),
+        ] {
+            let e = parse(text).unwrap_err().to_string();
+            assert!(
+                e.contains("f.csv")
+                    && e.contains("line 2")
+                    && e.contains(&format!("`{col}`"))
+                    && e.to_lowercase().contains("\"nan\"")
+                    && e.contains("empty"),
+                "{e}"
+            );
+        }
+        // Empty cells: unknown.
+        let rows = parse("target,n,k,n_se,k_se,nk_corr,status\nA,1.5,0,,,,ok\n").unwrap();
+        assert!(rows[0].n_se.is_nan() && rows[0].k_se.is_nan() && rows[0].nk_corr.is_nan());
+        // A failed fit's row may hold nan, as its n and k.
+        let rows =
+            parse("target,n,k,n_se,k_se,nk_corr,status\nA,nan,nan,nan,nan,nan,not_converged\n")
+                .unwrap();
+        assert!(rows[0].n.is_nan() && rows[0].n_se.is_nan());
+    }
+
+    #[test]
+    fn unknown_errors_written_as_empty_cells_and_read_back() {
+        let rows = vec![
+            FitRow {
+                target: "A".into(),
+                n: 1.5,
+                k: 0.0,
+                n_se: f64::NAN,
+                k_se: 0.01,
+                nk_corr: f64::NAN,
+                status: FitStatus::Ok,
+                ..Default::default()
+            },
+            FitRow {
+                target: "B".into(),
+                n: f64::NAN,
+                k: f64::NAN,
+                n_se: f64::NAN,
+                k_se: f64::NAN,
+                nk_corr: f64::NAN,
+                status: FitStatus::InvalidInput,
+                ..Default::default()
+            },
+        ];
+        let mut buf = Vec::new();
+        write(&mut buf, Path::new("f.csv"), &rows).unwrap();
+        let text = String::from_utf8(buf).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        assert!(lines[1].starts_with("A,,1.5,0,,0.01,,"), "{}", lines[1]);
+        assert!(
+            lines[2].starts_with("B,,nan,nan,nan,nan,nan,"),
+            "{}",
+            lines[2]
+        );
+        let back = parse(&text).unwrap();
+        assert!(back[0].n_se.is_nan() && back[0].nk_corr.is_nan() && back[0].k_se == 0.01);
+        assert!(back[1].n_se.is_nan() && back[1].status == FitStatus::InvalidInput);
+    }
 }

@@ -174,32 +174,52 @@ impl CsvTable {
         }
     }
 
-    /// An optional standard error: `nan` (or an empty cell, or no column) for unknown,
-    /// else a finite number `>= 0`.
-    pub fn se(&self, row: usize, col: Option<usize>) -> Result<f64> {
+    /// An optional standard error: an empty cell (or no column) for unknown, else a
+    /// finite number `>= 0`. The literal `nan` is accepted only when `nan_ok` (a failed
+    /// fit's row, whose `n` and `k` may be `nan` too); elsewhere it is refused, so that
+    /// a usable estimate never loses its uncertainty silently.
+    pub fn se(&self, row: usize, col: Option<usize>, nan_ok: bool) -> Result<f64> {
         let Some(c) = col else { return Ok(f64::NAN) };
         let t = self.text(row, c);
-        if t.is_empty() || t.eq_ignore_ascii_case("nan") {
+        if t.is_empty() {
             return Ok(f64::NAN);
+        }
+        if t.eq_ignore_ascii_case("nan") {
+            if nan_ok {
+                return Ok(f64::NAN);
+            }
+            return Err(self.err(
+                row,
+                c,
+                "a standard error must be a number >= 0 (leave the cell empty when unknown)",
+            ));
         }
         let v = self.f64(row, c)?;
         if v < 0.0 {
-            return Err(self.err(row, c, "a standard error must be >= 0 (or nan: unknown)"));
+            return Err(self.err(
+                row,
+                c,
+                "a standard error must be >= 0 (leave the cell empty when unknown)",
+            ));
         }
         Ok(v)
     }
 
-    /// An optional correlation: `nan` (or an empty cell, or no column) for unknown, else
-    /// a number in `[-1, 1]`.
-    pub fn corr(&self, row: usize, col: Option<usize>) -> Result<f64> {
+    /// An optional correlation: an empty cell (or no column) for unknown, else a number
+    /// in `[-1, 1]`; the literal `nan` only when `nan_ok`, as for [`CsvTable::se`].
+    pub fn corr(&self, row: usize, col: Option<usize>, nan_ok: bool) -> Result<f64> {
         let Some(c) = col else { return Ok(f64::NAN) };
         let t = self.text(row, c);
-        if t.is_empty() || t.eq_ignore_ascii_case("nan") {
+        if t.is_empty() || (nan_ok && t.eq_ignore_ascii_case("nan")) {
             return Ok(f64::NAN);
+        }
+        let why = "a correlation must be in [-1, 1] (leave the cell empty when unknown)";
+        if t.eq_ignore_ascii_case("nan") {
+            return Err(self.err(row, c, why));
         }
         let v = self.f64(row, c)?;
         if !(-1.0..=1.0).contains(&v) {
-            return Err(self.err(row, c, "a correlation must be in [-1, 1] (or nan: unknown)"));
+            return Err(self.err(row, c, why));
         }
         Ok(v)
     }
