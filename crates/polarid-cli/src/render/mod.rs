@@ -20,8 +20,10 @@ pub mod bench;
 pub mod colormap;
 pub mod colour_demo;
 pub mod demo;
+pub mod map_figures;
 pub mod plots;
 pub mod report;
+pub mod table_report;
 pub mod views;
 
 /// One drawing, rendered both as a PNG image and as an SVG document.

@@ -37,6 +37,7 @@ mod canvas;
 mod dolp;
 mod maps;
 mod nk;
+pub mod panels;
 mod style;
 #[cfg(test)]
 mod tests;
