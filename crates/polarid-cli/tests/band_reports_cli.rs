@@ -112,7 +112,7 @@ fn colour_captures_get_per_band_figures_through_every_command() {
     }
     let md = read(&r.join("report.md"));
     assert!(md.contains("plots/nk_spectra.png"), "{md}");
-    assert!(md.contains("plate_cu @ 450 nm"), "{md}");
+    assert!(md.contains(r"plate\_cu @ 450 nm"), "{md}");
     // A second run without --force does not overwrite the report.
     let again = polarid_in(
         d,

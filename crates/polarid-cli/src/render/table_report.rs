@@ -169,14 +169,15 @@ pub fn figures(t: &Tables, refs: Option<&References>, what: &str) -> Result<Vec<
         String::new()
     };
     let classes = refs.map(|r| relevant_classes(t, r)).unwrap_or_default();
-    let chosen: Vec<&MultiPrototype> = refs
-        .map(|r| {
-            r.profiles
-                .iter()
-                .filter(|p| classes.contains(&p.class))
-                .collect()
+    // In the order of `classes`, so that a class has the same colour in every figure.
+    let chosen: Vec<&MultiPrototype> = classes
+        .iter()
+        .flat_map(|c| {
+            refs.into_iter()
+                .flat_map(|r| r.profiles.iter())
+                .filter(move |p| &p.class == c)
         })
-        .unwrap_or_default();
+        .collect();
     let ref_text = match refs {
         Some(r) if !chosen.is_empty() => {
             format!(" References: {} ({}).", r.label, classes.join(", "))

@@ -206,9 +206,10 @@ impl NkPanels<'_> {
         out
     }
 
-    /// Colour of target `j` (after the reference classes' colours).
+    /// Colour of target `j` (after the reference classes' colours, as in
+    /// [`nk_spectra`](super::bands::nk_spectra)).
     fn target_colour(&self, j: usize) -> RGBColor {
-        shade(class_colour(self.classes().len() + j), 0.85)
+        class_colour(self.classes().len() + j)
     }
 
     fn panel<DB: DrawingBackend>(&self, area: &DrawingArea<DB, Shift>, b: &NkBand) -> Result<()> {
