@@ -235,6 +235,27 @@ fn single_band_reports_draw_the_single_band_figures() {
         assert!(!svg.contains("λ = "), "{stem}");
     }
     assert!(!d.join("rep/plots/nk_spectra.svg").exists());
+    // A library that does not load is refused before the fit writes anything.
+    let bad = polarid_in(
+        d,
+        &[
+            "fit",
+            "meas.csv",
+            "-o",
+            "x.csv",
+            "--report",
+            "r2",
+            "--report-library",
+            "nope.csv",
+        ],
+    );
+    assert_eq!(bad.status.code(), Some(2), "{}", text(&bad.stderr));
+    assert!(
+        text(&bad.stderr).contains("nope.csv"),
+        "{}",
+        text(&bad.stderr)
+    );
+    assert!(!d.join("x.csv").exists() && !d.join("r2").exists());
     ok(&polarid_in(
         d,
         &[

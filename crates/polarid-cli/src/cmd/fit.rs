@@ -200,7 +200,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         .into());
     }
     let path = &args.measurements;
-    args.plots.dir.check(ctx)?;
+    args.plots.check(ctx)?;
     let meas = read_measurements(path).cli()?;
     let cfg = args.config();
     // Name the option as it was written: `--angle-sd-deg must be ..., got -1`.

@@ -491,6 +491,17 @@ pub struct FitReportArgs {
     pub report_library: String,
 }
 
+impl FitReportArgs {
+    /// Before any work: [`ReportArgs::check`], and the references' library must load.
+    pub fn check(&self, ctx: &crate::Ctx) -> Result<()> {
+        self.dir.check(ctx)?;
+        if self.dir.report.is_some() {
+            polarid_io::library::Library::load(&self.report_library)?;
+        }
+        Ok(())
+    }
+}
+
 /// The references of library `spec` for `fits`: a built-in library evaluated at the fits'
 /// bands (fits without a wavelength: at 650 nm, as `classify` compares them).
 pub fn library_references(spec: &str, fits: &[FitRow]) -> Result<References> {
