@@ -12,6 +12,7 @@ pub use super::common::MetricArg;
 use super::common::{MethodArgs, PipeResult};
 use super::wolff::WolffArgs;
 use crate::Ctx;
+use crate::render::table_report::{self, References};
 
 /// Arguments of `polarid classify`.
 #[derive(Debug, clap::Args)]
@@ -44,11 +45,15 @@ pub struct Args {
     /// fits without one are compared with `builtin`'s 650 nm values.
     #[arg(long, value_name = "NM")]
     pub wavelength_nm: Option<f64>,
+    /// `--report DIR`: the (n, k) plane per band and n(λ), k(λ) (docs/BANDS.md).
+    #[command(flatten)]
+    pub report: table_report::ReportArgs,
 }
 
 /// Run `polarid classify`.
 pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     let classifier = args.method.config()?;
+    args.report.check(ctx)?;
     let fits = read_fits(&args.fits).cli()?;
     let source = match &args.model {
         Some(m) => PrototypeSource::Model(m.clone()),
@@ -89,8 +94,17 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     for w in &out.warnings {
         ctx.info(format!("polarid: warning: {w}"));
     }
-    for n in out.notes {
+    for n in &out.notes {
         ctx.info(n);
     }
-    Ok(())
+    let refs = References {
+        label: out.label.clone(),
+        profiles: out.classifier.profiles().to_vec(),
+        builtin_curves: args.model.is_none()
+            && polarid_io::library::Library::is_dispersive_builtin(
+                args.library.as_deref().unwrap_or("builtin"),
+            ),
+    };
+    let rows: Vec<_> = fits.iter().map(|(_, f)| f.clone()).collect();
+    table_report::write_classify_report(&args.report, ctx, &args.fits, &rows, &out.rows, &refs)
 }

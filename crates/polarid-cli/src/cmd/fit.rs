@@ -26,6 +26,7 @@ use polarid_pipeline::fit::{
 };
 
 use super::common::{PipeResult, with_progress};
+use crate::render::table_report;
 use crate::{BadInput, Ctx};
 
 /// Reflectance model of the fit.
@@ -116,6 +117,9 @@ pub struct Args {
     /// specularly at all (docs/MIXED.md).
     #[arg(long)]
     pub no_brightness_check: bool,
+    /// `--report DIR`: per-band figures (docs/BANDS.md).
+    #[command(flatten)]
+    pub plots: table_report::FitReportArgs,
 }
 
 /// Parse a number in (0, 1].
@@ -196,7 +200,8 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         .into());
     }
     let path = &args.measurements;
-    let rows = read_measurements(path).cli()?;
+    args.plots.check(ctx)?;
+    let meas = read_measurements(path).cli()?;
     let cfg = args.config();
     // Name the option as it was written: `--angle-sd-deg must be ..., got -1`.
     if let Err(polarid_pipeline::PipelineError::Config {
@@ -208,7 +213,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         let option = option.replace('_', "-");
         return Err(BadInput(format!("--{option} {reason}, got {value}")).into());
     }
-    let out = with_progress(ctx, "fitting", |p| pipe::fit(path, &rows, &cfg, p)).cli()?;
+    let out = with_progress(ctx, "fitting", |p| pipe::fit(path, &meas, &cfg, p)).cli()?;
     if let Some(mp) = &args.models {
         if args.output.as_deref() == Some(mp.as_path()) {
             return Err(
@@ -241,5 +246,5 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
             write_rows(w, mp, &MODEL_COLUMNS, model_rows(&out.targets))
         })?;
     }
-    Ok(())
+    table_report::write_fit_report(&args.plots, ctx, path, &meas, &rows)
 }

@@ -20,7 +20,8 @@
 //! `k_450.tif`, `n_se_450.tif`, `k_se_450.tif`, `rms_residual_450.tif` per band (named
 //! by its wavelength) instead of `n.tif` ..., and one `class.tif` from the
 //! classification of each pixel on all its bands (`--model` trained on multi-band fits,
-//! or `--library builtin-rgb`).
+//! or `--library builtin-rgb`), with per band `n_450.png`, `k_450.png` (+ `.svg`) and,
+//! for labelled regions, `nk_bands` and `nk_spectra` figures (`render::map_figures`).
 
 use std::path::{Path, PathBuf};
 
@@ -34,7 +35,8 @@ use polarid_pipeline::map::{self, MapConfig, MapResult, Metric};
 
 use super::common::{Bars, PipeResult};
 use crate::Ctx;
-use crate::render::plots::{PlotSize, class_map};
+use crate::render::map_figures;
+use crate::render::table_report::References;
 
 /// Arguments of `polarid map`.
 #[derive(Debug, clap::Args)]
@@ -162,7 +164,8 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     for c in &m.captures {
         inputs.extend(c.source.files());
     }
-    for f in map::output_files(&m, &FILES) {
+    let files = map::output_files(&m, &FILES);
+    for f in files.iter().chain(&map_figures::band_files(&files)) {
         check_output(&args.output.join(f), ctx.force, &inputs)?;
     }
 
@@ -178,7 +181,8 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     for w in r.warnings.iter().skip(m.warnings.len()) {
         ctx.info(format!("polarid: warning: {}", w.0));
     }
-    write_outputs(&args, &r, ctx)?;
+    let refs = map_figures::references(&label, &profiles, args.library.as_deref(), model.is_some());
+    write_outputs(&args, &r, &refs, ctx)?;
     let a = r.answers();
     ctx.info(format!(
         "polarid map: {}x{} pixels: {} one material, {} ambiguous, {} unknown, {} not classified; written to {} (DoLP {:.2} s, fit {:.2} s)",
@@ -196,7 +200,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
 }
 
 /// Write the maps, staged so that a failure leaves nothing behind.
-fn write_outputs(args: &Args, r: &MapResult, ctx: &Ctx) -> anyhow::Result<()> {
+fn write_outputs(args: &Args, r: &MapResult, refs: &References, ctx: &Ctx) -> anyhow::Result<()> {
     let (w, h) = (r.width, r.height);
     let staged = StagedDir::new(&args.output, ctx.force)?;
     for (name, data) in r.fit_images() {
@@ -212,17 +216,12 @@ fn write_outputs(args: &Args, r: &MapResult, ctx: &Ctx) -> anyhow::Result<()> {
     let text = serde_json::to_string_pretty(&r.classes_json())?;
     std::fs::write(staged.path("classes.json")?, text + "\n")
         .context("cannot write classes.json")?;
-    let title = format!(
-        "Material map ({w}x{h}{})",
-        if r.bin > 1 {
-            format!(", {0}x{0} binning", r.bin)
-        } else {
-            String::new()
-        }
-    );
     let png = staged.path("class.png")?;
     let dir = png.parent().context("internal error: staging directory")?;
-    class_map(&title, w, h, &r.class, &r.class_names, PlotSize::REPORT)?.write(dir, "class")?;
+    map_figures::class_figure(r)?.write(dir, "class")?;
+    for (stem, plot) in map_figures::band_figures(r, refs)? {
+        plot.write(dir, &stem)?;
+    }
 
     let mut summary = r.summary_json();
     summary["manifest"] = serde_json::json!(args.manifest.display().to_string());

@@ -141,6 +141,7 @@ pub fn figures(out: &ColourDemoOutput) -> anyhow::Result<Vec<ColourFigure>> {
             None => targets.push(Spectrum {
                 label: f.target.clone(),
                 points: vec![p],
+                curve: Vec::new(),
             }),
         }
     }
@@ -160,6 +161,7 @@ pub fn figures(out: &ColourDemoOutput) -> anyhow::Result<Vec<ColourFigure>> {
                     k_se: None,
                 })
                 .collect(),
+            curve: Vec::new(),
         })
         .collect();
     figs.push(ColourFigure {

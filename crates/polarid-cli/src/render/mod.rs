@@ -9,7 +9,10 @@
 //!   embedded with [`base64`]);
 //! - [`report`] lays [`Rendered`] figures out in HTML (embedded with [`base64`]) and
 //!   Markdown, and never calls [`plots`];
-//! - [`views`] makes the `stokes` command's DoLP/AoLP PNG views with [`colormap`].
+//! - [`views`] makes the `stokes` command's DoLP/AoLP PNG views with [`colormap`];
+//! - [`table_report`] (the `--report` of `fit` and `classify`) and [`map_figures`]
+//!   (`map`'s figures) draw a user's tables with [`plots`] and lay them out with
+//!   [`report`], as [`demo`] and [`colour_demo`] do for the demos.
 
 use std::path::{Path, PathBuf};
 
@@ -20,8 +23,10 @@ pub mod bench;
 pub mod colormap;
 pub mod colour_demo;
 pub mod demo;
+pub mod map_figures;
 pub mod plots;
 pub mod report;
+pub mod table_report;
 pub mod views;
 
 /// One drawing, rendered both as a PNG image and as an SVG document.

@@ -39,6 +39,10 @@ pub struct Spectrum {
     pub label: String,
     /// The bands (drawn in wavelength order).
     pub points: Vec<SpectrumPoint>,
+    /// A library material's continuous `(λ nm, n, k)` curve (e.g. its refractiveindex.info
+    /// data), drawn as the line instead of the segments between `points` (within the
+    /// figure's wavelength range); empty: the line joins the points.
+    pub curve: Vec<(f64, f64, f64)>,
 }
 
 /// Items of `items` split by band: `(wavelength_nm, items of that band)` in increasing
@@ -88,6 +92,17 @@ fn ok(p: &SpectrumPoint) -> bool {
     p.wavelength_nm.is_finite() && p.n.is_finite() && p.k.is_finite()
 }
 
+/// A curve sample as a point without error bars.
+fn curve_point(wavelength_nm: f64, n: f64, k: f64) -> SpectrumPoint {
+    SpectrumPoint {
+        wavelength_nm,
+        n,
+        k,
+        n_se: None,
+        k_se: None,
+    }
+}
+
 fn bar(se: Option<f64>) -> f64 {
     se.filter(|s| s.is_finite() && *s > 0.0).unwrap_or(0.0)
 }
@@ -109,10 +124,20 @@ impl SpectraFigure<'_> {
         y_desc: &str,
         value: fn(&SpectrumPoint) -> (f64, f64),
     ) -> Result<()> {
-        let ys = self.all().flat_map(|p| {
-            let (v, e) = value(p);
-            [v - e, v + e]
+        let in_x = |w: f64| w >= x.0 && w <= x.1;
+        let curve_ys = self.library.iter().flat_map(|s| {
+            s.curve
+                .iter()
+                .filter(move |c| in_x(c.0))
+                .map(move |&(w, n, k)| value(&curve_point(w, n, k)).0)
         });
+        let ys = self
+            .all()
+            .flat_map(|p| {
+                let (v, e) = value(p);
+                [v - e, v + e]
+            })
+            .chain(curve_ys);
         let (y0, y1) = min_max(ys).unwrap_or((0.0, 1.0));
         let (y0, y1) = padded(y0, y1, 0.06, 0.1);
         let mut ch = chart(
@@ -131,7 +156,18 @@ impl SpectraFigure<'_> {
                 .map(|p| (p.wavelength_nm, value(p).0))
                 .collect();
             pts.sort_by(|a, b| a.0.total_cmp(&b.0));
-            ch.draw_series(LineSeries::new(pts.clone(), c.stroke_width(2)))
+            let mut line: Vec<(f64, f64)> = s
+                .curve
+                .iter()
+                .filter(|c| in_x(c.0))
+                .map(|&(w, n, k)| (w, value(&curve_point(w, n, k)).0))
+                .filter(|p| p.1.is_finite())
+                .collect();
+            line.sort_by(|a, b| a.0.total_cmp(&b.0));
+            if line.len() < 2 {
+                line = pts.clone();
+            }
+            ch.draw_series(LineSeries::new(line, c.stroke_width(2)))
                 .dr()?;
             for p in pts {
                 draw_marker(ch.plotting_area(), p, Marker::Circle, 3, c.filled())?;
@@ -211,6 +247,7 @@ mod tests {
                     k_se: se,
                 })
                 .collect(),
+            curve: Vec::new(),
         }
     }
 

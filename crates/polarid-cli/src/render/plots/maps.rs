@@ -38,7 +38,6 @@ pub fn class_map(
 /// viridis colour map with a colour bar labelled `quantity` (with its unit, e.g.
 /// `"DoLP"`, `"n"`). `range` fixes the colour scale; by default it spans the finite
 /// values.
-#[allow(dead_code)] // no command draws a scalar map yet (tested here and in the report)
 pub fn scalar_map<T: Copy + Into<f64>>(
     title: &str,
     width: usize,

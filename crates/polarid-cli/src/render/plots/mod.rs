@@ -9,7 +9,10 @@
 //!   colour bar;
 //! - [`bands::nk_spectra`]: `n(λ)`, `k(λ)` of multi-band targets against a library's
 //!   curves, and [`bands::by_band`], the per-band split of the DoLP and `(n, k)` figures
-//!   (drawn per band in the colour demo's report, `render::colour_demo`).
+//!   (drawn per band in the colour demo's report, `render::colour_demo`);
+//! - [`panels::dolp_by_band`], [`panels::nk_by_band`]: one panel per band in one figure
+//!   (the reports of a user's tables, `render::table_report`, and `map`'s colour figures,
+//!   `render::map_figures`).
 //!
 //! Every function returns a [`Rendered`](crate::render::Rendered) (PNG bytes and SVG text of the same drawing);
 //! [`Rendered::write`](crate::render::Rendered::write) writes `STEM.png` and `STEM.svg`. Text is drawn with the bundled
@@ -26,17 +29,16 @@ use anyhow::{Result, bail};
 
 pub use dolp::{DolpPoint, DolpSeries, dolp_vs_beta, eq9_curve};
 pub use maps::class_map;
-// No command draws a scalar map yet (the report's tests do).
-#[allow(unused_imports)]
 pub use maps::scalar_map;
 pub use nk::{NkEstimate, Prototype, nk_plane};
 
-// Multi-band figures (docs/BANDS.md), drawn by `polarid demo --color`.
+// Multi-band figures (docs/BANDS.md): `demo --color`, `fit`/`classify --report`, `map`.
 pub mod bands;
 mod canvas;
 mod dolp;
 mod maps;
 mod nk;
+pub mod panels;
 mod style;
 #[cfg(test)]
 mod tests;
