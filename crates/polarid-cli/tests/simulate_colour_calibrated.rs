@@ -185,8 +185,9 @@ fn nominal_manifest(d: &Path) -> String {
 }
 
 /// `measure` → `fit --film-sd-nm 0` of `manifest`: per `(target, band)`, the fit's
-/// `(n, k, n_se, k_se)`.
-fn measure_fit(d: &Path, manifest: &str, tag: &str) -> HashMap<(String, u32), [f64; 4]> {
+/// `(n, k, n_se, k_se, n_se_noise, k_se_noise)` (the reported standard errors, and
+/// those of the noise alone).
+fn measure_fit(d: &Path, manifest: &str, tag: &str) -> HashMap<(String, u32), [f64; 6]> {
     let (meas, fits) = (
         p(d, &format!("meas_{tag}.csv")),
         p(d, &format!("fits_{tag}.csv")),
@@ -202,15 +203,28 @@ fn measure_fit(d: &Path, manifest: &str, tag: &str) -> HashMap<(String, u32), [f
         .map(|r| {
             (
                 (r["target"].clone(), num(r, "wavelength_nm") as u32),
-                [num(r, "n"), num(r, "k"), num(r, "n_se"), num(r, "k_se")],
+                [
+                    num(r, "n"),
+                    num(r, "k"),
+                    num(r, "n_se"),
+                    num(r, "k_se"),
+                    num(r, "n_se_noise"),
+                    num(r, "k_se_noise"),
+                ],
             )
         })
         .collect()
 }
 
-/// The largest of `|n − n0| / n_se` and `|k − k0| / k_se`.
-fn error_se(f: &[f64; 4], (n0, k0): (f64, f64)) -> f64 {
+/// The largest of `|n − n0| / n_se` and `|k − k0| / k_se` (the reported standard
+/// errors).
+fn error_se(f: &[f64; 6], (n0, k0): (f64, f64)) -> f64 {
     ((f[0] - n0) / f[2]).abs().max(((f[1] - k0) / f[3]).abs())
+}
+
+/// The same in the standard errors of the noise alone (`n_se_noise`, `k_se_noise`).
+fn error_noise_se(f: &[f64; 6], (n0, k0): (f64, f64)) -> f64 {
+    ((f[0] - n0) / f[4]).abs().max(((f[1] - k0) / f[5]).abs())
 }
 
 /// `map --bin 4 --library builtin-rgb` of `manifest` into `d/out`: per plate, the blocks
@@ -388,4 +402,73 @@ fn nominal_angles_are_measurably_worse_at_a_wide_field() {
         100.0 * far_prec
     );
     assert!(cal_right > far_right + 0.1, "{cal_right} vs {far_right}");
+}
+
+/// Over many seeds (`cargo test --release -p polarid-cli --test
+/// simulate_colour_calibrated -- --ignored --nocapture`; `POLARID_SEEDS`, default 20):
+/// the share of (plate, band) fits within 3 SE of the truth, and the map's share of
+/// classified plate blocks and of right ones among them.
+#[test]
+#[ignore = "many seeds: run on demand for the figures of docs/SCENE.md"]
+fn calibrated_colour_scene_over_many_seeds() {
+    let seeds: u64 = std::env::var("POLARID_SEEDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(20);
+    let (mut inside, mut inside_noise, mut fits) = (0, 0, 0);
+    let (mut errors, mut noise_errors) = (Vec::new(), Vec::new());
+    let (mut blocks, mut classified, mut right) = ([0usize; 3], [0usize; 3], [0usize; 3]);
+    for seed in 0..seeds {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let truth = simulate(d, 100 + seed);
+        let manifest = p(d, "set/manifest.toml");
+        for (key, f) in measure_fit(d, &manifest, "cal") {
+            let e = error_se(&f, truth[&key]);
+            let en = error_noise_se(&f, truth[&key]);
+            inside += usize::from(e <= 3.0);
+            inside_noise += usize::from(en <= 3.0);
+            fits += 1;
+            errors.push(e);
+            noise_errors.push(en);
+        }
+        for (i, (n, c, r)) in map_scores(d, &manifest, "map").into_iter().enumerate() {
+            blocks[i] += n;
+            classified[i] += c;
+            right[i] += r;
+        }
+    }
+    errors.sort_by(f64::total_cmp);
+    noise_errors.sort_by(f64::total_cmp);
+    println!(
+        "{seeds} seeds: {inside} of {fits} fits within 3 reported SE (median error {:.2}, largest {:.2}); {inside_noise} within 3 SE of the noise alone (median {:.2}, largest {:.2})",
+        errors[errors.len() / 2],
+        errors[errors.len() - 1],
+        noise_errors[noise_errors.len() / 2],
+        noise_errors[noise_errors.len() - 1]
+    );
+    for (i, plate) in PLATES.iter().enumerate() {
+        println!(
+            "map {plate}: {:.1}% of {} plate blocks classified, {:.2}% of those right",
+            100.0 * classified[i] as f64 / blocks[i] as f64,
+            blocks[i],
+            100.0 * right[i] as f64 / classified[i].max(1) as f64
+        );
+    }
+    let (b, c, r) = (
+        blocks.iter().sum::<usize>(),
+        classified.iter().sum::<usize>(),
+        right.iter().sum::<usize>(),
+    );
+    println!(
+        "map, all plates: {:.1}% classified, {:.2}% of those right",
+        100.0 * c as f64 / b as f64,
+        100.0 * r as f64 / c as f64
+    );
+    assert!(inside as f64 >= 0.97 * fits as f64, "{inside} of {fits}");
+    assert!(
+        inside_noise as f64 >= 0.97 * fits as f64,
+        "{inside_noise} of {fits}"
+    );
+    assert!(2 * c >= b && r as f64 >= 0.95 * c as f64, "{r} {c} {b}");
 }
