@@ -1,7 +1,9 @@
 //! A colour polarization camera behind a wide lens (issues 15 and 17): `polarid
 //! simulate` of a calibrated colour scene (copper, gold and aluminum plates from the
-//! built-in three-band library, RGGB blocks of 90/45/135/0 polarizers, a 60° lens
-//! 0.65 m from the bench, nine lamp positions, four out of the plane of incidence), then
+//! built-in three-band library, RGGB blocks of 90/45/135/0 polarizers, a 60° × 46° lens
+//! 0.45 m from the bench, ten lamp positions 1.0–1.3 m away, four out of the plane of
+//! incidence; the plates near, at and beyond the image centre, their β 1–3° from the
+//! centre's), then
 //! from the files: `measure` → `fit` per band, and `map --bin 4 --library builtin-rgb`
 //! with per-pixel β. The same raw mosaics with one nominal set of angles per capture
 //! (those of the image centre, the far-field idealisation) are measurably worse.
@@ -335,9 +337,9 @@ fn calibrated_colour_scene_measures_fits_and_maps() {
 }
 
 /// The same raw mosaics with one nominal set of angles per capture (the image
-/// centre's): the side plates' β are off by degrees, and the fits miss by many standard
-/// errors where the per-pixel geometry stays within 3; the map gets fewer plate blocks
-/// right.
+/// centre's): the near and far plates' β are off by 1–3°, the fits miss by more than 3
+/// of their own (inflated) standard errors and by far more on average than with the
+/// per-pixel geometry, and the map gets far fewer plate blocks right.
 #[test]
 fn nominal_angles_are_measurably_worse_at_a_wide_field() {
     let dir = tempfile::tempdir().unwrap();
