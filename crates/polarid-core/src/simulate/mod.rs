@@ -33,7 +33,9 @@ pub mod perspective;
 pub use colour::{
     ColourRect, colour_plate_radiance, render_colour_frame, render_colour_frame_stokes,
 };
-pub use perspective::{Light, PerspectiveScene, PixelHit, PlanarPlate, StokesMaps, plate_stokes};
+pub use perspective::{
+    BandStokesMaps, Light, PerspectiveScene, PixelHit, PlanarPlate, StokesMaps, plate_stokes,
+};
 
 use rand::SeedableRng;
 use rand::rngs::Xoshiro256PlusPlus;

@@ -242,6 +242,16 @@ pub struct PerspectiveScene {
     views: Vec<ViewGeometry>,
 }
 
+/// Caller-owned outputs of [`PerspectiveScene::render_bands`]: per band, and for the
+/// plate seen, one value per pixel of the `width × height` frame, row-major.
+#[derive(Debug)]
+pub struct BandStokesMaps<'a> {
+    /// One radiance Stokes map `(S0, S1, S2)` per band (f32).
+    pub stokes: Vec<&'a mut [[f32; 3]]>,
+    /// Plate seen: 0 for the background, `i + 1` for plate `i`.
+    pub plate: &'a mut [u16],
+}
+
 /// Caller-owned outputs of [`PerspectiveScene::render`]: one value per pixel of the
 /// `width × height` frame, row-major.
 #[derive(Debug)]
@@ -359,33 +369,150 @@ impl PerspectiveScene {
     }
 
     fn pixel_checked(&self, u: f64, v: f64, light: &Light) -> Result<Option<PixelHit>> {
-        let Some(i) = self.plate_at(u, v)? else {
+        let Some((i, g, e)) = self.hit_geometry(u, v, light)? else {
             return Ok(None);
         };
-        let (plate, view) = (&self.plates[i], &self.views[i]);
-        let g = match view.pixel(u, v, &light.source) {
-            Ok(g) => g,
-            Err(CoreError::SourceBelowHorizon { .. }) => {
-                // Unlit: report the geometry of a light straight above for the point.
-                let up = Source::Direction(plate.plane.normal());
-                let g = view.pixel(u, v, &up)?;
-                return Ok(Some(PixelHit {
-                    plate: i,
-                    geometry: g,
-                    irradiance: 0.0,
-                    stokes: [0.0; 3],
-                }));
-            }
-            Err(e) => return Err(e),
+        let stokes = if e > 0.0 {
+            plate_stokes(&self.plates[i].optics, &g, e)?
+        } else {
+            [0.0; 3]
         };
-        let e = light.irradiance_at(g.point);
-        let stokes = plate_stokes(&plate.optics, &g, e)?;
         Ok(Some(PixelHit {
             plate: i,
             geometry: g,
             irradiance: e,
             stokes,
         }))
+    }
+
+    /// The plate pixel `(u, v)` sees, its geometry and `E⊥` there (0: unlit, the light
+    /// below the plane's horizon, with the geometry of a light straight above).
+    fn hit_geometry(
+        &self,
+        u: f64,
+        v: f64,
+        light: &Light,
+    ) -> Result<Option<(usize, PixelGeometry, f64)>> {
+        let Some(i) = self.plate_at(u, v)? else {
+            return Ok(None);
+        };
+        let (plate, view) = (&self.plates[i], &self.views[i]);
+        match view.pixel(u, v, &light.source) {
+            Ok(g) => Ok(Some((i, g, light.irradiance_at(g.point)))),
+            Err(CoreError::SourceBelowHorizon { .. }) => {
+                // Unlit: report the geometry of a light straight above for the point.
+                let up = Source::Direction(plate.plane.normal());
+                Ok(Some((i, view.pixel(u, v, &up)?, 0.0)))
+            }
+            Err(e) => Err(e),
+        }
+    }
+
+    /// Render a colour scene's per-band radiance Stokes maps and the plate map of a
+    /// `width × height` frame: every pixel's ray is traced once ([`Self::pixel`]'s
+    /// geometry) and its Stokes vector in band `b` is [`plate_stokes`] with the optics
+    /// `optics[plate][b]` of the plate it sees (`background[b]` where it sees none), in
+    /// parallel over rows. The plates' own optics ([`PlanarPlate::optics`]) are not used.
+    ///
+    /// Errors: [`CoreError::InvalidDimensions`] (an empty frame),
+    /// [`CoreError::LengthMismatch`] (a map that is not `width × height` long; `optics`
+    /// without one list per plate; a list, or `background`, without one entry per map),
+    /// [`CoreError::NonFinite`] (a non-finite background), those of
+    /// [`PlateOptics::validate`] and of [`PerspectiveScene::pixel`] for the first failing
+    /// row (the maps are then partly written).
+    pub fn render_bands(
+        &self,
+        width: usize,
+        height: usize,
+        light: &Light,
+        optics: &[Vec<PlateOptics>],
+        background: &[[f64; 3]],
+        out: BandStokesMaps<'_>,
+    ) -> Result<()> {
+        let light = light.validate()?;
+        if width == 0 || height == 0 {
+            return Err(CoreError::InvalidDimensions {
+                width,
+                height,
+                reason: "empty frame".into(),
+            });
+        }
+        let (n, nb) = (width * height, out.stokes.len());
+        let mut lens: Vec<(&'static str, usize, usize)> = vec![
+            ("plate map", n, out.plate.len()),
+            (
+                "band optics (one list per plate)",
+                self.plates.len(),
+                optics.len(),
+            ),
+            ("background (one per band)", nb, background.len()),
+        ];
+        lens.extend(out.stokes.iter().map(|m| ("stokes map", n, m.len())));
+        lens.extend(
+            optics
+                .iter()
+                .map(|o| ("band optics of a plate", nb, o.len())),
+        );
+        for (name, expected, got) in lens {
+            if expected != got {
+                return Err(CoreError::LengthMismatch {
+                    name,
+                    expected,
+                    got,
+                });
+            }
+        }
+        for o in optics.iter().flatten() {
+            o.validate()?;
+        }
+        for b in background.iter().flatten() {
+            crate::error::ensure_finite("background", *b)?;
+        }
+        let bg: Vec<[f32; 3]> = background.iter().map(|b| b.map(|x| x as f32)).collect();
+        // Row r of every band: rows[r][b].
+        let mut rows: Vec<Vec<&mut [[f32; 3]]>> =
+            (0..height).map(|_| Vec::with_capacity(nb)).collect();
+        for map in out.stokes {
+            for (r, chunk) in map.chunks_mut(width).enumerate() {
+                rows[r].push(chunk);
+            }
+        }
+        let first_error = rows
+            .into_par_iter()
+            .zip(out.plate.par_chunks_mut(width))
+            .enumerate()
+            .filter_map(|(row, (mut s, p))| {
+                for col in 0..width {
+                    match self.hit_geometry(col as f64, row as f64, &light) {
+                        Ok(Some((i, g, e))) => {
+                            for (b, line) in s.iter_mut().enumerate() {
+                                line[col] = if e > 0.0 {
+                                    match plate_stokes(&optics[i][b], &g, e) {
+                                        Ok(x) => x.map(|x| x as f32),
+                                        Err(e) => return Some((row, e)),
+                                    }
+                                } else {
+                                    [0.0; 3]
+                                };
+                            }
+                            p[col] = i as u16 + 1;
+                        }
+                        Ok(None) => {
+                            for (line, b) in s.iter_mut().zip(&bg) {
+                                line[col] = *b;
+                            }
+                            p[col] = 0;
+                        }
+                        Err(e) => return Some((row, e)),
+                    }
+                }
+                None
+            })
+            .min_by_key(|(row, _)| *row);
+        match first_error {
+            Some((_, e)) => Err(e),
+            None => Ok(()),
+        }
     }
 
     /// Render the radiance Stokes vector and the plate index of every pixel of a

@@ -629,6 +629,30 @@ size = [0.1, 0.08]
         );
     }
 
+    /// A calibrated scene may be a colour one (issue 17): every plate gets its optics per
+    /// band, the frame must still be whole 4×4 periods.
+    #[test]
+    fn calibrated_colour_scene_parses() {
+        let text = BENCH.replace(
+            "seed = 1\n",
+            "seed = 1\n[capture]\nkind = \"dofp\"\ncolor = \"RGGB\"\n",
+        );
+        let text = text.replace(
+            "n = 0.27\nk = 3.4\n",
+            "n = { R = 0.25, G = 0.97, B = 1.25 }\nk = { R = 3.6, G = 2.6, B = 2.4 }\n",
+        );
+        let s = parse(Path::new("b.toml"), &text).unwrap();
+        assert!(s.calibrated().is_some());
+        let bands = s.capture.bands().unwrap();
+        assert_eq!(bands.iter().map(|b| b.letter).collect::<String>(), "RGB");
+        assert_eq!(s.plates[0].bands.len(), 3);
+        assert!(s.plates[0].bands.iter().all(|o| (o.n, o.k) == (1.5, 7.6)));
+        let cu: Vec<(f64, f64)> = s.plates[1].bands.iter().map(|o| (o.n, o.k)).collect();
+        assert_eq!(cu, vec![(0.25, 3.6), (0.97, 2.6), (1.25, 2.4)]);
+        let e = err(&text.replace("width = 160", "width = 162"));
+        assert!(e.contains("width") && e.contains("multiples of 4"), "{e}");
+    }
+
     #[test]
     fn sun_sources_resolve_at_the_site() {
         let text = BENCH.replace(

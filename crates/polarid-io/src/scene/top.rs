@@ -174,14 +174,6 @@ impl Ctx<'_> {
                 }
             }
         }
-        if let (Some(cam), Some(_)) = (&raw.camera, capture.bands()) {
-            return Err(self.err(
-                &cam.span(),
-                "camera",
-                "colour captures ([capture] color) are simulated in the far field only for \
-                 now: give theta_r_deg and theta_i_deg instead of [camera]",
-            ));
-        }
         let materials = MaterialSource {
             spec: raw.library.as_ref(),
             loaded: std::cell::OnceCell::new(),

@@ -164,7 +164,9 @@ pub(crate) fn capture_dolp(
         }
         CaptureSource::ColourDofp { file, .. } => Err(PipelineError::Data {
             path: file.display().to_string(),
-            reason: "colour captures are not mapped yet (one map per band: issue 17)".into(),
+            reason: "internal error: a colour capture is mapped per band (map::bands), not as \
+                     one DoLP image"
+                .into(),
         }),
         CaptureSource::Stokes { s0, s1, s2 } => {
             let imgs = image::read_frames(&[s0, s1, s2])?;

@@ -7,21 +7,30 @@
 //! Stokes map with the sensor model (in parallel over frames and rows) and written; the
 //! truth of every plate's region is computed from its pixels (f64). Memory: one Stokes
 //! map (12 bytes a pixel), one plate map (2 bytes a pixel) and one frame per analyzer.
+//!
+//! **Colour** (`[capture] color`): per capture, one Stokes map per band from the same
+//! traced geometry (`PerspectiveScene::render_bands`, each band with the plates' optics
+//! in that band), the exposure from the brightest plate pixel over bands (weighted by
+//! their responses `r_b`) and polarizer angles, one raw colour mosaic
+//! (`render_colour_frame_stokes`, band `b` at `exposure · full_well · r_b` electrons per
+//! unit radiance), and the truth per plate and band. Memory: one Stokes map per band.
 
 use polarid_core::CoreError;
 use polarid_core::dop::dop;
+use polarid_core::mosaic::ColourPattern;
 use polarid_core::simulate::{
-    Analyzer, PerspectiveScene, PlanarPlate, StokesMaps, frame_seed, polarizer_intensity,
-    render_frame_stokes, stokes_dolp,
+    Analyzer, BandStokesMaps, PerspectiveScene, PlanarPlate, PlateOptics, StokesMaps, frame_seed,
+    plate_stokes, polarizer_intensity, render_colour_frame_stokes, render_frame_stokes,
+    stokes_dolp,
 };
 use polarid_io::IoError;
 use polarid_io::atomic::StagedDir;
-use polarid_io::scene::{Calibrated, CaptureKind, Plate, Scene};
+use polarid_io::scene::{Calibrated, CaptureKind, Plate, Scene, SceneBand};
 use rayon::prelude::*;
 
 use super::{
-    CalibratedTruth, Simulated, TruthRow, capture_dir, frame_file, manifest_text, write_frame,
-    write_text_files,
+    CalibratedTruth, ColourFrames, Simulated, TruthBand, TruthRow, capture_dir, frame_file,
+    manifest_text, write_frame, write_text_files,
 };
 use crate::error::Result;
 use crate::progress::{Progress, Warning};
@@ -65,7 +74,10 @@ fn stats(xs: &[f64]) -> (f64, f64, f64, f64) {
     (mean, var.sqrt(), lo, hi)
 }
 
-/// The truth of plate `p` (index `pi`) in capture `ci`: its region's pixels, traced in f64.
+/// The truth of plate `p` (index `pi`) in capture `ci`: its region's pixels, traced in
+/// f64. One row for a single-band scene; for a colour scene one row per band (`bands`),
+/// each with the band's optics, its S0 times the band's response and
+/// `peak_electrons[b]`.
 #[allow(clippy::too_many_arguments)]
 fn region_truth(
     scene: &Scene,
@@ -74,8 +86,9 @@ fn region_truth(
     ci: usize,
     pi: usize,
     exposure: f64,
-    peak_electrons: f64,
-) -> std::result::Result<TruthRow, CoreError> {
+    peak_electrons: &[f64],
+    bands: Option<&[SceneBand]>,
+) -> std::result::Result<Vec<TruthRow>, CoreError> {
     let p = &scene.plates[pi];
     let light = cal.sources[ci].light();
     let r = p.region;
@@ -86,50 +99,80 @@ fn region_truth(
         .par_iter()
         .map(|&(u, v)| ps.pixel(u, v, &light))
         .collect::<std::result::Result<Vec<_>, _>>()?;
-    let mut sum = [0.0f64; 3];
-    let (mut ti, mut tr, mut beta, mut eq9) = (vec![], vec![], vec![], vec![]);
+    let hits: Vec<_> = hits.iter().flatten().filter(|h| h.plate == pi).collect();
+    let (mut ti, mut tr, mut beta) = (vec![], vec![], vec![]);
     let (mut phs, mut phc) = (0.0, 0.0);
-    for h in hits.iter().flatten().filter(|h| h.plate == pi) {
+    for h in &hits {
         let g = &h.geometry;
-        for (s, x) in sum.iter_mut().zip(h.stokes) {
-            *s += x;
-        }
         ti.push(g.theta_i.to_degrees());
         tr.push(g.theta_r.to_degrees());
         beta.push(g.beta.to_degrees());
-        eq9.push(dop(p.optics.n, p.optics.k, g.beta));
         phs += g.phi.sin();
         phc += g.phi.cos();
     }
     let npx = beta.len();
     let (b_mean, b_sd, b_lo, b_hi) = stats(&beta);
     let sensor = &scene.sensor;
-    Ok(TruthRow {
-        target: p.name.clone(),
-        class: p.class.clone(),
-        theta_i_deg: stats(&ti).0,
-        theta_r_deg: stats(&tr).0,
-        phi_deg: phs.atan2(phc).to_degrees().rem_euclid(360.0),
-        beta_deg: b_mean,
-        dolp: stokes_dolp(&sum),
-        s0: sum[0] / npx.max(1) as f64 * sensor.dn_per_unit(),
-        dolp_eq9_specular: dop(p.optics.n, p.optics.k, b_mean.to_radians()),
-        exposure,
-        peak_electrons,
-        band: None,
-        calibrated: Some(CalibratedTruth {
-            capture: capture_dir(scene, ci),
-            n: p.optics.n,
-            k: p.optics.k,
-            sigma: p.optics.sigma,
-            rho_d: p.optics.rho_d,
-            beta_sd_deg: b_sd,
-            beta_min_deg: b_lo,
-            beta_max_deg: b_hi,
-            dolp_eq9_mean: stats(&eq9).0,
-            pixels: npx,
-        }),
-    })
+    // (optics, band, response) of every row: the plate's own, or one per band.
+    let rows: Vec<(PlateOptics, Option<&SceneBand>, f64)> = match bands {
+        None => vec![(p.optics, None, 1.0)],
+        Some(bs) => p
+            .bands
+            .iter()
+            .zip(bs)
+            .map(|(o, b)| (*o, Some(b), b.response))
+            .collect(),
+    };
+    let mut out = Vec::with_capacity(rows.len());
+    for (ri, (o, band, response)) in rows.into_iter().enumerate() {
+        let mut sum = [0.0f64; 3];
+        let mut eq9 = Vec::with_capacity(npx);
+        for h in &hits {
+            // The single-band scene's own Stokes vector, else the band's (the same
+            // function, `plate_stokes`, with the band's optics).
+            let st = match band {
+                None => h.stokes,
+                Some(_) if h.irradiance > 0.0 => plate_stokes(&o, &h.geometry, h.irradiance)?,
+                Some(_) => [0.0; 3],
+            };
+            for (s, x) in sum.iter_mut().zip(st) {
+                *s += x;
+            }
+            eq9.push(dop(o.n, o.k, h.geometry.beta));
+        }
+        out.push(TruthRow {
+            target: p.name.clone(),
+            class: p.class.clone(),
+            theta_i_deg: stats(&ti).0,
+            theta_r_deg: stats(&tr).0,
+            phi_deg: phs.atan2(phc).to_degrees().rem_euclid(360.0),
+            beta_deg: b_mean,
+            dolp: stokes_dolp(&sum),
+            s0: sum[0] / npx.max(1) as f64 * sensor.dn_per_unit() * response,
+            dolp_eq9_specular: dop(o.n, o.k, b_mean.to_radians()),
+            exposure,
+            peak_electrons: peak_electrons.get(ri).copied().unwrap_or(f64::NAN),
+            band: band.map(|b| TruthBand {
+                letter: b.letter,
+                wavelength_nm: b.wavelength_nm,
+                n: o.n,
+                k: o.k,
+            }),
+            calibrated: Some(CalibratedTruth {
+                capture: capture_dir(scene, ci),
+                n: o.n,
+                k: o.k,
+                sigma: o.sigma,
+                rho_d: o.rho_d,
+                beta_sd_deg: b_sd,
+                beta_min_deg: b_lo,
+                beta_max_deg: b_hi,
+                dolp_eq9_mean: stats(&eq9).0,
+                pixels: npx,
+            }),
+        });
+    }
+    Ok(out)
 }
 
 /// Simulate the calibrated scene `scene` (geometry `cal`) into `staged` under `prefix`
@@ -162,11 +205,8 @@ pub(super) fn simulate(
         CaptureKind::Dofp { pattern } => {
             vec![Analyzer::Mosaic(pattern.angles_deg().map(f64::to_radians))]
         }
-        CaptureKind::ColourDofp { .. } => {
-            return Err(crate::PipelineError::Data {
-                path: scene.path.display().to_string(),
-                reason: "colour captures are simulated in the far field only".into(),
-            });
+        CaptureKind::ColourDofp { pattern, bands } => {
+            return simulate_colour(scene, cal, &ps, pattern, bands, staged, prefix, progress);
         }
     };
     let ncap = cal.sources.len();
@@ -232,7 +272,9 @@ pub(super) fn simulate(
                     p.name, sensor.full_well_e
                 )));
             }
-            truth.push(region_truth(scene, &ps, cal, ci, pi, exposure, peak_e).map_err(label)?);
+            truth.extend(
+                region_truth(scene, &ps, cal, ci, pi, exposure, &[peak_e], None).map_err(label)?,
+            );
         }
         exposures.push(exposure);
     }
@@ -245,6 +287,206 @@ pub(super) fn simulate(
         truth,
         warnings,
     })
+}
+
+/// One capture of a calibrated colour scene, rendered.
+struct ColourCapture {
+    frame: Vec<u16>,
+    exposure: f64,
+    truth: Vec<TruthRow>,
+    warnings: Vec<Warning>,
+}
+
+/// Scratch maps of a calibrated colour scene: one Stokes map per band and the plate map.
+struct ColourMaps {
+    stokes: Vec<Vec<[f32; 3]>>,
+    plate: Vec<u16>,
+}
+
+impl ColourMaps {
+    fn new(npix: usize, bands: usize) -> Self {
+        Self {
+            stokes: vec![vec![[0f32; 3]; npix]; bands],
+            plate: vec![0u16; npix],
+        }
+    }
+}
+
+/// Render capture `ci` of a calibrated colour scene: every pixel's ray traced once and
+/// its radiance in each band from the band's optics
+/// ([`PerspectiveScene::render_bands`]); the exposure from the brightest plate pixel over
+/// bands (weighted by their responses) and polarizer angles; band `b`'s pixels get
+/// `exposure · full_well · r_b` expected electrons per unit radiance; one raw mosaic
+/// (`render_colour_frame_stokes`, seed `frame_seed(seed, ci, 0)`); the truth per plate
+/// and band.
+#[allow(clippy::too_many_arguments)]
+fn colour_capture(
+    scene: &Scene,
+    cal: &Calibrated,
+    ps: &PerspectiveScene,
+    pattern: &ColourPattern,
+    bands: &[SceneBand],
+    ci: usize,
+    maps: &mut ColourMaps,
+) -> std::result::Result<ColourCapture, CoreError> {
+    let sensor = &scene.sensor;
+    let (w, h) = (scene.width, scene.height);
+    let optics: Vec<Vec<PlateOptics>> = scene.plates.iter().map(|p| p.bands.clone()).collect();
+    let bg = vec![[scene.background, 0.0, 0.0]; bands.len()];
+    ps.render_bands(
+        w,
+        h,
+        &cal.sources[ci].light(),
+        &optics,
+        &bg,
+        BandStokesMaps {
+            stokes: maps.stokes.iter_mut().map(|m| m.as_mut_slice()).collect(),
+            plate: &mut maps.plate,
+        },
+    )?;
+    let angles: Vec<f64> = pattern
+        .polar()
+        .angles_deg()
+        .iter()
+        .map(|a| a.to_radians())
+        .collect();
+    // Brightest noise-free polarizer intensity per plate and band.
+    let nb = bands.len();
+    let mut peaks = vec![vec![0.0f64; nb]; scene.plates.len()];
+    for (b, map) in maps.stokes.iter().enumerate() {
+        for (s, &p) in map.iter().zip(&maps.plate) {
+            if let Some(pk) = (p as usize).checked_sub(1).and_then(|i| peaks.get_mut(i)) {
+                let s = s.map(f64::from);
+                for &a in &angles {
+                    pk[b] = pk[b].max(polarizer_intensity(&s, a));
+                }
+            }
+        }
+    }
+    let peak = peaks
+        .iter()
+        .flat_map(|pk| pk.iter().zip(bands).map(|(x, b)| x * b.response))
+        .fold(0.0, f64::max);
+    let exposure = scene.exposure.resolve(peak)?;
+    let epu: Vec<f64> = bands
+        .iter()
+        .map(|b| sensor.electrons_per_unit(exposure) * b.response)
+        .collect();
+    let mut frame = vec![0u16; w * h];
+    let refs: Vec<&[[f32; 3]]> = maps.stokes.iter().map(Vec::as_slice).collect();
+    let seed = frame_seed(scene.seed, ci as u64, 0);
+    render_colour_frame_stokes(w, h, &refs, pattern, sensor, &epu, seed, &mut frame)?;
+    let dir = capture_dir(scene, ci);
+    let (mut truth, mut warnings) = (Vec::new(), Vec::new());
+    for (pi, p) in scene.plates.iter().enumerate() {
+        let peak_e: Vec<f64> = peaks[pi].iter().zip(&epu).map(|(x, e)| x * e).collect();
+        for (band, &pe) in bands.iter().zip(&peak_e) {
+            if pe < 100.0 {
+                warnings.push(Warning(format!(
+                    "plate {:?} in capture {dir} is dim in band {} ({} nm): {pe:.0} electrons \
+                     at its brightest; its DoLP will be noisy",
+                    p.name, band.letter, band.wavelength_nm
+                )));
+            } else if pe > sensor.full_well_e {
+                warnings.push(Warning(format!(
+                    "plate {:?} in capture {dir} saturates in band {} ({} nm): {pe:.0} \
+                     electrons expected at its brightest pixel, full well {}",
+                    p.name, band.letter, band.wavelength_nm, sensor.full_well_e
+                )));
+            }
+        }
+        truth.extend(region_truth(
+            scene,
+            ps,
+            cal,
+            ci,
+            pi,
+            exposure,
+            &peak_e,
+            Some(bands),
+        )?);
+    }
+    Ok(ColourCapture {
+        frame,
+        exposure,
+        truth,
+        warnings,
+    })
+}
+
+/// Simulate a calibrated colour scene into `staged` under `prefix`: one raw colour
+/// mosaic per capture ([`colour_capture`]), rendered one capture at a time, the
+/// calibrated manifest with `bands` and `dofp.color`, and the truth per plate, capture
+/// and band.
+#[allow(clippy::too_many_arguments)]
+fn simulate_colour(
+    scene: &Scene,
+    cal: &Calibrated,
+    ps: &PerspectiveScene,
+    pattern: &ColourPattern,
+    bands: &[SceneBand],
+    staged: &StagedDir,
+    prefix: &str,
+    progress: Progress<'_>,
+) -> Result<Simulated> {
+    let label = |e: CoreError| IoError::Core {
+        path: scene.path.clone(),
+        source: e,
+    };
+    let (w, h) = (scene.width, scene.height);
+    let ncap = cal.sources.len();
+    let mut maps = ColourMaps::new(w * h, bands.len());
+    let (mut exposures, mut truth, mut warnings) = (Vec::new(), Vec::new(), Vec::new());
+    for ci in 0..ncap {
+        let c = colour_capture(scene, cal, ps, pattern, bands, ci, &mut maps).map_err(label)?;
+        let name = format!("{prefix}{}", frame_file(scene, ci, 0));
+        write_frame(staged, &name, &scene.sensor, w, h, &c.frame)?;
+        progress("frames", ci as u64 + 1, ncap as u64);
+        exposures.push(c.exposure);
+        truth.extend(c.truth);
+        warnings.extend(c.warnings);
+    }
+    let text = manifest_text(scene, &exposures);
+    write_text_files(scene, staged, prefix, &text, &truth)?;
+    Ok(Simulated {
+        manifest: format!("{prefix}manifest.toml"),
+        captures: ncap,
+        frames: ncap,
+        truth,
+        warnings,
+    })
+}
+
+/// Render every capture of a calibrated colour scene in memory (the frames that
+/// [`super::simulate_into`] writes, bit for bit).
+pub(super) fn render_colour_set(
+    scene: &Scene,
+    cal: &Calibrated,
+    pattern: &ColourPattern,
+    bands: &[SceneBand],
+) -> Result<ColourFrames> {
+    let label = |e: CoreError| IoError::Core {
+        path: scene.path.clone(),
+        source: e,
+    };
+    let ps = perspective_scene(scene, cal).map_err(label)?;
+    let mut maps = ColourMaps::new(scene.width * scene.height, bands.len());
+    let mut out = ColourFrames {
+        width: scene.width,
+        height: scene.height,
+        frames: Vec::new(),
+        exposures: Vec::new(),
+        truth: Vec::new(),
+        warnings: Vec::new(),
+    };
+    for ci in 0..cal.sources.len() {
+        let c = colour_capture(scene, cal, &ps, pattern, bands, ci, &mut maps).map_err(label)?;
+        out.frames.push(c.frame);
+        out.exposures.push(c.exposure);
+        out.truth.extend(c.truth);
+        out.warnings.extend(c.warnings);
+    }
+    Ok(out)
 }
 
 /// β (eq. 5, degrees) of every pixel of capture `capture` (0-based) of a calibrated
@@ -373,5 +615,86 @@ size = [0.2, 0.15]
         .unwrap();
         let on = map.iter().filter(|b| b.is_finite()).count();
         assert!(on > 500 && on < 96 * 64, "{on}");
+    }
+
+    /// The calibrated test scene as a colour camera: RGGB, copper from the library, a
+    /// second plate with per-band indices.
+    fn colour_scene(dir: &std::path::Path) -> Scene {
+        let text = SCENE
+            .replace("kind = \"dofp\"", "kind = \"dofp\"\ncolor = \"RGGB\"")
+            .replace(
+                "[capture]",
+                "[sensor]\nband_response = { B = 0.5 }\n[capture]",
+            )
+            .replace("n = 1.5\nk = 0.0\n", "material = \"copper\"\n")
+            .replace(
+                "n = 0.3\nk = 3.0\n",
+                "n = { R = 0.2, G = 0.9, B = 1.2 }\nk = { R = 3.6, G = 2.6, B = 2.4 }\n",
+            );
+        polarid_io::scene::parse(&dir.join("s.toml"), &text).unwrap()
+    }
+
+    /// A calibrated colour scene: one raw mosaic per capture, the same frames in memory
+    /// and on disk, a manifest that is calibrated and colour at once, and per plate,
+    /// capture and band a truth row whose geometry is shared by the bands and whose DoLP
+    /// is the band's (eq. 9 at the pixels' own β, rho_d = 0).
+    #[test]
+    fn colour_calibrated_scene_renders_every_band_from_one_geometry() {
+        let dir = tempfile::tempdir().unwrap();
+        let scene = colour_scene(dir.path());
+        assert_eq!(scene.capture.bands().map(<[_]>::len), Some(3));
+        let staged = StagedDir::new(&dir.path().join("out"), false).unwrap();
+        let sim = super::super::simulate_into(&scene, &staged, "", &crate::progress::no_progress)
+            .unwrap();
+        staged.commit().unwrap();
+        assert_eq!(
+            (sim.captures, sim.frames, sim.truth.len()),
+            (2, 2, 2 * 2 * 3)
+        );
+        let mem = super::super::render_colour_set(&scene).unwrap();
+        assert_eq!(mem.truth, sim.truth);
+        for (ci, f) in ["c01/raw.tif", "far/raw.tif"].iter().enumerate() {
+            let raw = polarid_io::image::read_frame(&dir.path().join("out").join(f)).unwrap();
+            let on_disk: Vec<u16> = raw.data.iter().map(|&v| v as u16).collect();
+            assert_eq!(on_disk, mem.frames[ci], "{f}");
+        }
+        let m = manifest::load(&dir.path().join("out/manifest.toml")).unwrap();
+        assert!(m.camera.is_some());
+        assert!(m.captures.iter().all(|c| c.illumination.is_some()
+            && matches!(c.source, manifest::CaptureSource::ColourDofp { .. })));
+        // Rows: capture by capture, plate by plate, band by band (R, G, B).
+        let copper = [(0.2514, 3.612), (0.9671, 2.6377), (1.2457, 2.3921)];
+        for (i, t) in sim.truth.iter().enumerate() {
+            let b = t.band.unwrap();
+            let c = t.calibrated.as_ref().unwrap();
+            assert_eq!(b.letter, ['R', 'G', 'B'][i % 3]);
+            assert_eq!((c.n, c.k), (b.n, b.k));
+            let first = &sim.truth[i - i % 3];
+            assert_eq!(
+                (t.beta_deg, t.theta_i_deg, c.beta_sd_deg, c.pixels),
+                (
+                    first.beta_deg,
+                    first.theta_i_deg,
+                    first.calibrated.as_ref().unwrap().beta_sd_deg,
+                    first.calibrated.as_ref().unwrap().pixels
+                )
+            );
+            // The region's DoLP is the brightness-weighted mix of its pixels' eq. (9).
+            assert!(
+                (t.dolp - c.dolp_eq9_mean).abs() < 0.01 * c.dolp_eq9_mean + 1e-4,
+                "{t:?}"
+            );
+            if t.target == "a" {
+                let (n, k) = copper[i % 3];
+                assert!((b.n - n).abs() < 0.05 && (b.k - k).abs() < 0.05, "{b:?}");
+            }
+        }
+        // Dispersion: copper's DoLP differs between R and B at the same geometry.
+        assert!((sim.truth[0].dolp - sim.truth[2].dolp).abs() > 0.01);
+        // The blue band's S0 carries its response (0.5) on top of its radiance.
+        let text = std::fs::read_to_string(dir.path().join("out/truth.csv")).unwrap();
+        assert!(text.lines().nth(1).unwrap().ends_with(
+            "band,wavelength_nm,n,k,capture,sigma,rho_d,beta_sd_deg,beta_min_deg,beta_max_deg,dolp_eq9_mean,pixels"
+        ));
     }
 }

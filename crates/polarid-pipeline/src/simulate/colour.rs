@@ -27,7 +27,7 @@ use super::{Simulated, TruthBand, TruthRow, frame_file, manifest_text, write_tex
 use crate::error::Result;
 use crate::progress::{Progress, Warning};
 
-/// The raw colour frames of a far-field colour scene, in memory ([`render_colour_set`]).
+/// The raw colour frames of a colour scene, in memory ([`render_colour_set`]).
 #[derive(Debug, Clone)]
 pub struct ColourFrames {
     /// Frame width, pixels.
@@ -200,13 +200,17 @@ impl Plan<'_> {
     }
 }
 
-/// Render every capture of a far-field colour scene in memory (the frames that
-/// [`super::simulate_into`] writes, bit for bit: the same seeds), in parallel.
+/// Render every capture of a colour scene in memory (the frames that
+/// [`super::simulate_into`] writes, bit for bit: the same seeds), in parallel for a
+/// far-field scene, one capture at a time for a calibrated one.
 ///
-/// Errors: [`crate::PipelineError::Data`] for a scene without a colour capture or
-/// without far-field geometry; the core's errors naming the scene (e.g. a frame that is
-/// not whole 4×4 periods).
+/// Errors: [`crate::PipelineError::Data`] for a scene without a colour capture; the
+/// core's errors naming the scene (e.g. a frame that is not whole 4×4 periods).
 pub fn render_colour_set(scene: &Scene) -> Result<ColourFrames> {
+    if let Some(cal) = scene.calibrated() {
+        let (pattern, bands) = colour_of(scene)?;
+        return super::calibrated::render_colour_set(scene, cal, pattern, bands);
+    }
     let plan = plan(scene)?;
     let npix = scene.width * scene.height;
     let frames = (0..plan.rects.len())

@@ -241,10 +241,12 @@ pub fn write_truth(
         header.extend(["band", "wavelength_nm", "n", "k"]);
     }
     if calibrated {
+        header.push("capture");
+        // A colour row already has the band's n and k.
+        if !colour {
+            header.extend(["n", "k"]);
+        }
         header.extend([
-            "capture",
-            "n",
-            "k",
             "sigma",
             "rho_d",
             "beta_sd_deg",
@@ -281,10 +283,11 @@ pub fn write_truth(
                 ]);
             }
             if let (true, Some(c)) = (calibrated, &t.calibrated) {
+                row.push(c.capture.clone());
+                if !colour {
+                    row.extend([fmt_f64(c.n), fmt_f64(c.k)]);
+                }
                 row.extend([
-                    c.capture.clone(),
-                    fmt_f64(c.n),
-                    fmt_f64(c.k),
                     fmt_f64(c.sigma),
                     fmt_f64(c.rho_d),
                     fmt_f64(c.beta_sd_deg),

@@ -22,11 +22,13 @@
 //! each plate's (n, k) and the spread of β over its region ([`CalibratedTruth`]).
 //! [`beta_map`] gives a capture's per-pixel β for reports.
 //!
-//! **Colour scenes** (`[capture] color`, far field; module `colour`): one raw colour
-//! polarization mosaic per capture from each plate's per-band optics, a manifest with
-//! `bands` and `dofp.color`, and one `truth.csv` row per plate, capture and band (with
-//! `band`, `wavelength_nm`, `n`, `k`); [`render_colour_set`] renders the same frames in
-//! memory.
+//! **Colour scenes** (`[capture] color`; module `colour`): one raw colour polarization
+//! mosaic per capture from each plate's per-band optics, a manifest with `bands` and
+//! `dofp.color`, and one `truth.csv` row per plate, capture and band (with `band`,
+//! `wavelength_nm`, `n`, `k`); [`render_colour_set`] renders the same frames in memory.
+//! A calibrated colour scene (`[camera]` and `color`, module `calibrated`) traces every
+//! pixel once per capture and renders each band from the same per-pixel geometry
+//! (`PerspectiveScene::render_bands`); its manifest is calibrated and colour at once.
 //!
 //! Units: with relative exposure `x`, a radiance `I` behind the polarizer gives
 //! `x · I · full_well` expected electrons; the manifest records `x` as the capture's

@@ -399,3 +399,132 @@ fn plate_construction_errors() {
         Err(CoreError::CameraBehindPlane { .. })
     ));
 }
+
+/// `render_bands` gives, in every band, the map `render` gives for the same plates with
+/// that band's optics (bit for bit), the same plate map, and the band's background; bad
+/// list lengths are refused.
+#[test]
+fn render_bands_matches_render_per_band() {
+    let cam = bench_camera(Distortion::from_array([-0.1, 0.02, 0.0, 0.0, 0.0]));
+    // Copper and gold at 650, 550, 450 nm (rho_d in the last band of the second plate).
+    let bands: Vec<Vec<PlateOptics>> = vec![
+        vec![
+            optics(0.25, 3.61, 0.2),
+            optics(0.97, 2.64, 0.2),
+            optics(1.25, 2.39, 0.2),
+        ],
+        vec![
+            optics(0.17, 3.15, 0.3),
+            optics(0.43, 2.45, 0.3),
+            PlateOptics {
+                rho_d: 0.2,
+                ..optics(1.47, 1.95, 0.3)
+            },
+        ],
+    ];
+    let centers = [[-0.08, 0.0, 0.0], [0.08, 0.05, 0.0]];
+    let scene_with = |b: usize| {
+        let plates = centers
+            .iter()
+            .zip(&bands)
+            .map(|(&c, o)| floor_plate(c, 0.12, o[b]))
+            .collect();
+        PerspectiveScene::new(cam, plates).unwrap()
+    };
+    let light = Light {
+        source: Source::Position([0.4, -0.1, 0.6]),
+        power: 0.5,
+    };
+    let (w, h) = (320, 240);
+    let bg = [[0.1, 0.0, 0.0], [0.2, 0.0, 0.0], [0.3, 0.01, 0.0]];
+    let mut maps = vec![vec![[0f32; 3]; w * h]; 3];
+    let mut pl = vec![0u16; w * h];
+    // Plates' own optics (band 0's here) are not used by render_bands.
+    let scene = scene_with(1);
+    scene
+        .render_bands(
+            w,
+            h,
+            &light,
+            &bands,
+            &bg,
+            BandStokesMaps {
+                stokes: maps.iter_mut().map(|m| m.as_mut_slice()).collect(),
+                plate: &mut pl,
+            },
+        )
+        .unwrap();
+    for (b, map) in maps.iter().enumerate() {
+        let mut st = vec![[0f32; 3]; w * h];
+        let mut pb = vec![0u16; w * h];
+        scene_with(b)
+            .render(
+                w,
+                h,
+                &light,
+                bg[b],
+                StokesMaps {
+                    stokes: &mut st,
+                    plate: &mut pb,
+                },
+            )
+            .unwrap();
+        assert_eq!(&st, map, "band {b}");
+        assert_eq!(pb, pl);
+    }
+    assert!(pl.iter().filter(|&&p| p == 1).count() > 1000);
+    assert!(pl.iter().filter(|&&p| p == 2).count() > 1000);
+    // Copper's DoLP differs between bands (dispersion).
+    let i = pl.iter().position(|&p| p == 1).unwrap();
+    let d: Vec<f64> = maps
+        .iter()
+        .map(|m| stokes_dolp(&m[i].map(f64::from)))
+        .collect();
+    assert!((d[0] - d[2]).abs() > 0.01, "{d:?}");
+    // One optics list per plate, one entry per band.
+    let mut pl2 = vec![0u16; w * h];
+    let e = scene.render_bands(
+        w,
+        h,
+        &light,
+        &bands[..1],
+        &bg,
+        BandStokesMaps {
+            stokes: maps.iter_mut().map(|m| m.as_mut_slice()).collect(),
+            plate: &mut pl2,
+        },
+    );
+    assert!(
+        matches!(
+            e,
+            Err(CoreError::LengthMismatch {
+                expected: 2,
+                got: 1,
+                ..
+            })
+        ),
+        "{e:?}"
+    );
+    let e = scene.render_bands(
+        w,
+        h,
+        &light,
+        &bands,
+        &bg[..2],
+        BandStokesMaps {
+            stokes: maps.iter_mut().map(|m| m.as_mut_slice()).collect(),
+            plate: &mut pl2,
+        },
+    );
+    assert!(
+        matches!(
+            e,
+            Err(CoreError::LengthMismatch {
+                expected: 3,
+                got: 2,
+                ..
+            })
+        ),
+        "{e:?}"
+    );
+}
