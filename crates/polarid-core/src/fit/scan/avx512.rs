@@ -215,6 +215,11 @@ fn scan_avx512(
     }
 }
 
+/// f32x16 vectors of nodes per pass of the four-pixel scan: 64 nodes, sixteen
+/// accumulators, so that each broadcast measurement serves four vectors and each loaded
+/// curve vector four pixels.
+const V4: usize = 4;
+
 /// Unweighted scans of four pixels at once: every curve vector loaded from memory
 /// serves the four. `ny[p]`: the `T` measurements of pixel `p`, negated; `bands[p]`:
 /// its band minima. The same results as four calls of [`scan_avx512`].
@@ -248,14 +253,14 @@ fn scan4_avx512(
 
         for b in 0..nb {
             let cb = curves.as_ptr().add(b * SCAN_BLOCK * t_len);
-            for h in 0..SCAN_BLOCK / 32 {
-                let o = b * SCAN_BLOCK + h * 32;
+            for h in 0..SCAN_BLOCK / (16 * V4) {
+                let o = b * SCAN_BLOCK + h * 16 * V4;
                 let bp = base.as_ptr().add(o);
-                let b2 = [_mm512_loadu_ps(bp), _mm512_loadu_ps(bp.add(16))];
-                let mut a = [b2; 4];
+                let bv: [__m512; V4] = std::array::from_fn(|i| _mm512_loadu_ps(bp.add(16 * i)));
+                let mut a = [bv; 4];
                 for t in 0..t_len {
-                    let r = cb.add(t * SCAN_BLOCK + h * 32);
-                    let c = [_mm512_loadu_ps(r), _mm512_loadu_ps(r.add(16))];
+                    let r = cb.add(t * SCAN_BLOCK + h * 16 * V4);
+                    let c: [__m512; V4] = std::array::from_fn(|i| _mm512_loadu_ps(r.add(16 * i)));
                     for (p, ap) in a.iter_mut().enumerate() {
                         let nyt = _mm512_set1_ps(*ny[p].get_unchecked(t));
                         for (i, ai) in ap.iter_mut().enumerate() {
@@ -263,7 +268,7 @@ fn scan4_avx512(
                         }
                     }
                 }
-                for i in 0..2 {
+                for i in 0..V4 {
                     let idx = _mm512_add_epi32(iota, _mm512_set1_epi32((o + 16 * i) as i32));
                     for p in 0..4 {
                         let lt = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(a[p][i], m[p]);
