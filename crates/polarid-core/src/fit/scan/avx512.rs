@@ -1,6 +1,8 @@
 //! The grid scan with AVX-512F intrinsics: a whole block of 128 nodes (eight f32x16
-//! accumulators) per pass over the `T` source positions for one pixel, 32 nodes for
-//! four pixels; the lane minima are reduced with masked AVX-512 reductions.
+//! accumulators) per pass over the `T` source positions for one pixel, 64 nodes for
+//! four pixels (sixteen accumulators: per source position four curve loads, four
+//! broadcasts and sixteen fused multiply-adds); the lane minima are reduced with
+//! masked AVX-512 reductions.
 //!
 //! # Safety
 //! Every function takes the [`Avx512`] token, which exists only when
@@ -256,11 +258,23 @@ fn scan4_avx512(
             for h in 0..SCAN_BLOCK / (16 * V4) {
                 let o = b * SCAN_BLOCK + h * 16 * V4;
                 let bp = base.as_ptr().add(o);
-                let bv: [__m512; V4] = std::array::from_fn(|i| _mm512_loadu_ps(bp.add(16 * i)));
+                // Explicit arrays, not `array::from_fn`: a closure would not inherit the
+                // caller's target features, and its intrinsics might not inline.
+                let bv: [__m512; V4] = [
+                    _mm512_loadu_ps(bp),
+                    _mm512_loadu_ps(bp.add(16)),
+                    _mm512_loadu_ps(bp.add(32)),
+                    _mm512_loadu_ps(bp.add(48)),
+                ];
                 let mut a = [bv; 4];
                 for t in 0..t_len {
                     let r = cb.add(t * SCAN_BLOCK + h * 16 * V4);
-                    let c: [__m512; V4] = std::array::from_fn(|i| _mm512_loadu_ps(r.add(16 * i)));
+                    let c: [__m512; V4] = [
+                        _mm512_loadu_ps(r),
+                        _mm512_loadu_ps(r.add(16)),
+                        _mm512_loadu_ps(r.add(32)),
+                        _mm512_loadu_ps(r.add(48)),
+                    ];
                     for (p, ap) in a.iter_mut().enumerate() {
                         let nyt = _mm512_set1_ps(*ny[p].get_unchecked(t));
                         for (i, ai) in ap.iter_mut().enumerate() {
