@@ -211,9 +211,9 @@ impl FitPlan {
                 valid[4 * q + 2],
                 valid[4 * q + 3],
             ];
-            for (i, &p) in ps.iter().enumerate() {
-                for t in 0..t_len {
-                    yf4[i * t_len + t] = -(y[p * t_len + t] as f32);
+            for (dst, &p) in yf4.chunks_exact_mut(t_len).zip(&ps) {
+                for (d, &v) in dst.iter_mut().zip(&y[p * t_len..(p + 1) * t_len]) {
+                    *d = -(v as f32);
                 }
             }
             let y4 = [
@@ -293,15 +293,21 @@ impl FitPlan {
     #[inline(always)]
     fn pad_pixel(&self, y: &[f64], w: Option<&[f64]>, yf: &mut [f32], wf: &mut [f32]) {
         let t_len = self.len();
-        for t in 0..yf.len() {
-            let (yt, wt) = if t < t_len {
-                (y[t], w.map_or(1.0, |w| w[t]))
-            } else {
-                (0.0, 0.0)
-            };
-            yf[t] = yt as f32;
-            wf[t] = wt as f32;
+        let (yd, yp) = yf.split_at_mut(t_len);
+        let (wd, wp) = wf.split_at_mut(t_len);
+        for (d, &v) in yd.iter_mut().zip(y) {
+            *d = v as f32;
         }
+        match w {
+            Some(w) => {
+                for (d, &v) in wd.iter_mut().zip(w) {
+                    *d = v as f32;
+                }
+            }
+            None => wd.fill(1.0),
+        }
+        yp.fill(0.0);
+        wp.fill(0.0);
     }
 
     /// Scan the grid for one pixel (padded f32 data from [`FitPlan::pad_pixel`]):

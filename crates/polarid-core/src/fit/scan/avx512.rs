@@ -1,6 +1,8 @@
 //! The grid scan with AVX-512F intrinsics: a whole block of 128 nodes (eight f32x16
-//! accumulators) per pass over the `T` source positions for one pixel, 32 nodes for
-//! four pixels; the lane minima are reduced with masked AVX-512 reductions.
+//! accumulators) per pass over the `T` source positions for one pixel, 64 nodes for
+//! four pixels (sixteen accumulators: per source position four curve loads, four
+//! broadcasts and sixteen fused multiply-adds); the lane minima are reduced with
+//! masked AVX-512 reductions.
 //!
 //! # Safety
 //! Every function takes the [`Avx512`] token, which exists only when
@@ -215,6 +217,11 @@ fn scan_avx512(
     }
 }
 
+/// f32x16 vectors of nodes per pass of the four-pixel scan: 64 nodes, sixteen
+/// accumulators, so that each broadcast measurement serves four vectors and each loaded
+/// curve vector four pixels.
+const V4: usize = 4;
+
 /// Unweighted scans of four pixels at once: every curve vector loaded from memory
 /// serves the four. `ny[p]`: the `T` measurements of pixel `p`, negated; `bands[p]`:
 /// its band minima. The same results as four calls of [`scan_avx512`].
@@ -248,14 +255,26 @@ fn scan4_avx512(
 
         for b in 0..nb {
             let cb = curves.as_ptr().add(b * SCAN_BLOCK * t_len);
-            for h in 0..SCAN_BLOCK / 32 {
-                let o = b * SCAN_BLOCK + h * 32;
+            for h in 0..SCAN_BLOCK / (16 * V4) {
+                let o = b * SCAN_BLOCK + h * 16 * V4;
                 let bp = base.as_ptr().add(o);
-                let b2 = [_mm512_loadu_ps(bp), _mm512_loadu_ps(bp.add(16))];
-                let mut a = [b2; 4];
+                // Explicit arrays, not `array::from_fn`: a closure would not inherit the
+                // caller's target features, and its intrinsics might not inline.
+                let bv: [__m512; V4] = [
+                    _mm512_loadu_ps(bp),
+                    _mm512_loadu_ps(bp.add(16)),
+                    _mm512_loadu_ps(bp.add(32)),
+                    _mm512_loadu_ps(bp.add(48)),
+                ];
+                let mut a = [bv; 4];
                 for t in 0..t_len {
-                    let r = cb.add(t * SCAN_BLOCK + h * 32);
-                    let c = [_mm512_loadu_ps(r), _mm512_loadu_ps(r.add(16))];
+                    let r = cb.add(t * SCAN_BLOCK + h * 16 * V4);
+                    let c: [__m512; V4] = [
+                        _mm512_loadu_ps(r),
+                        _mm512_loadu_ps(r.add(16)),
+                        _mm512_loadu_ps(r.add(32)),
+                        _mm512_loadu_ps(r.add(48)),
+                    ];
                     for (p, ap) in a.iter_mut().enumerate() {
                         let nyt = _mm512_set1_ps(*ny[p].get_unchecked(t));
                         for (i, ai) in ap.iter_mut().enumerate() {
@@ -263,7 +282,7 @@ fn scan4_avx512(
                         }
                     }
                 }
-                for i in 0..2 {
+                for i in 0..V4 {
                     let idx = _mm512_add_epi32(iota, _mm512_set1_epi32((o + 16 * i) as i32));
                     for p in 0..4 {
                         let lt = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(a[p][i], m[p]);
