@@ -255,6 +255,20 @@ fn three_bands_tell_copper_from_gold_where_650nm_cannot() {
             }
         }
     }
+    if std::env::var_os("BANDS_TABLE").is_some() {
+        println!("\nthree bands, set rule, per material (right / ambiguous / unknown):");
+        for (mi, (model, _)) in models.iter().enumerate() {
+            let m = &tallies[mi];
+            let per: Vec<String> = mats
+                .iter()
+                .map(|(c, _)| {
+                    let t = m[&("set, 95%".to_string(), c.to_string())];
+                    format!("{c} {}/{}/{}", t.right, t.ambiguous, t.unknown)
+                })
+                .collect();
+            println!("{model}: {}", per.join(", "));
+        }
+    }
     for (mi, (model, _)) in models.iter().enumerate() {
         let (three, one) = (&tallies[mi], &tallies[2 + mi]);
         // Three bands: copper and gold right on ≥ 99% of the test targets with the rules

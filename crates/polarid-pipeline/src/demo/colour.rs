@@ -26,6 +26,14 @@
 //! memory (the same frames: the same scene text and noise seeds), under the fit's
 //! default error model (with its 3 nm surface-layer allowance) and without the
 //! allowance (`--film-sd-nm 0`), for the nearest (Euclidean, Mahalanobis) and set rules.
+//!
+//! **Real plates are not their tabulated index.** Every metal plate (aluminum, copper,
+//! gold, brass; training and test alike) carries a native surface layer: thickness
+//! uniform in 0–[`COLOUR_LAYER_MAX_NM`] nm, index one of the error model's
+//! (`FILM_INDICES`: 1.5, 2.8, 2.8 + 0.3i) at random, the same layer in all three bands.
+//! The colour scenes have no layers, so each such plate is given, per band, the index a
+//! single-interface fit sees on the layered surface at the demo's β ([`apparent_index`]);
+//! paint and plastic keep their index.
 
 use std::path::Path;
 
@@ -601,7 +609,8 @@ pub fn accuracy_table(rows: &[AccuracyRow], seeds: u64) -> String {
     let pct = |a: u64, n: u64| format!("{:.1}%", 100.0 * a as f64 / n.max(1) as f64);
     let mut t = format!(
         "Copper against gold from simulated colour images, {seeds} seeds (one copper and one \
-         gold test plate per seed; two training plates per material).\n\n\
+         gold test plate per seed; two training plates per material; every metal plate under \
+         a native layer of 0-3 nm).\n\n\
          | classifier | fit error model | rule | copper right | gold right | copper+gold right \
          | ambiguous | unknown | all six right |\n|---|---|---|---|---|---|---|---|---|\n"
     );
@@ -787,9 +796,10 @@ mod tests {
     use super::*;
 
     /// Issue 17's acceptance from images: over many seeds, the three-band classifier
-    /// (Mahalanobis nearest neighbour and the set rule, clean-surface fit) gets ≥ 99% of
-    /// the copper and gold test plates right; on the 650 nm rows alone the set rule and
-    /// the Euclidean rule do not (about 190 s for 100 seeds on 2 loaded cores).
+    /// (Mahalanobis nearest neighbour ≥ 99%, the set rule with the fit's default error
+    /// model ≥ 98% and the rest ambiguous) gets the copper and gold test plates right; on
+    /// the 650 nm rows alone no rule reaches 99% (about 150-190 s for 100 seeds on 2
+    /// loaded cores). `COLOUR_LAYER_NM=0` runs plates without native layers.
     /// `COLOUR_TABLE=1 cargo test --release -p polarid-pipeline --lib demo::colour --
     /// --nocapture` prints docs/BANDS.md's table (`COLOUR_SEEDS` seeds, default 100).
     #[test]
@@ -812,15 +822,40 @@ mod tests {
                 .unwrap()
                 .clone()
         };
-        for rule in ["nearest, Mahalanobis", "set, 95%"] {
-            let r = get("three", "--film", rule);
-            assert!(r.copper_gold() >= 0.99, "{rule}: {r:?}");
+        // Three bands, the fit's default error model (its surface-layer allowance is ONE
+        // layer over a plate's bands): the Mahalanobis nearest neighbour gets ≥ 99% of
+        // copper and gold right, the set rule (the default) ≥ 98% with the rest
+        // `ambiguous`, never wrong (docs/BANDS.md: 98.5% over 100 seeds, 1.5% ambiguous;
+        // per-band allowances made every gold plate ambiguous).
+        let r = get("three", "default", "nearest, Mahalanobis");
+        assert!(r.copper_gold() >= 0.99, "{r:?}");
+        let r = get("three", "default", "set, 95%");
+        let cg = (r.copper.1 + r.gold.1) as f64;
+        assert!(r.copper_gold() >= 0.98, "three bands, default, set: {r:?}");
+        assert!(
+            r.copper_gold() + r.ambiguous as f64 / cg >= 0.999,
+            "three bands, default, set: {r:?}"
+        );
+        if layer > 0.0 {
+            // The metal plates carry native layers (0-3 nm): without the allowance
+            // (`--film-sd-nm 0`) the set rule rejects many of them, the reason for it.
+            let r = get("three", "--film", "set, 95%");
+            assert!(
+                r.unknown as f64 >= 0.2 * cg,
+                "three bands, --film 0, set: {r:?}"
+            );
+        } else {
+            let r = get("three", "--film", "set, 95%");
+            assert!(
+                r.copper_gold() >= 0.99,
+                "clean plates, --film 0, set: {r:?}"
+            );
         }
         // 650 nm alone: the set rule (the default) cannot decide (with the fit's default
         // error model it calls most of them `ambiguous`, the honest answer: copper and
         // gold are 0.09 apart in n there), and the paper's Euclidean rule is near chance.
-        // (The Mahalanobis nearest neighbour separates them in this simulation, where
-        // every plate has exactly its library index: docs/BANDS.md reports it.)
+        // (The Mahalanobis nearest neighbour does better here, on plates whose layers
+        // are thin: docs/BANDS.md reports it.)
         let r = get("one", "default", "set, 95%");
         let cg = (r.copper.1 + r.gold.1) as f64;
         assert!(
@@ -828,7 +863,12 @@ mod tests {
             "650 nm, default, set: {r:?}"
         );
         for fit in ["default", "--film"] {
-            for rule in ["nearest, Euclidean", "set, 95%"] {
+            let rules: &[&str] = if layer > 0.0 {
+                &["nearest, Euclidean", "nearest, Mahalanobis", "set, 95%"]
+            } else {
+                &["nearest, Euclidean", "set, 95%"]
+            };
+            for rule in rules {
                 let r = get("one", fit, rule);
                 assert!(r.copper_gold() < 0.99, "650 nm, {fit}, {rule}: {r:?}");
             }
