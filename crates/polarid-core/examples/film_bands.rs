@@ -4,6 +4,8 @@
 //! whether ONE layer (one thickness in all bands) can carry one metal onto the other, and
 //! the Mahalanobis distance of gold to copper with the per-band and the correlated
 //! allowance. `cargo run --release -p polarid-core --example film_bands`.
+#![allow(clippy::needless_range_loop, clippy::useless_vec)]
+
 use polarid_core::dop::{dop, dop_grad};
 use polarid_core::film::thin_film;
 use polarid_core::systematic::{FILM_INDICES, Polarimetric, propagate, systematic_covariance};

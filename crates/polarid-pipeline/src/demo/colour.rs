@@ -178,6 +178,7 @@ pub fn colour_plates(materials: &[ColourMaterial], seed: u64) -> Vec<ColourPlate
 /// `film` and thickness `d_nm` at `wl` nm: the least-squares fit (Gauss–Newton from
 /// `nk`) of eq. (9) to the layered surface's DoLP ([`polarid_core::film::thin_film`]) at
 /// the demo's nominal β. `nk` itself when `d_nm` is 0 or the fit fails.
+#[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN-safe on purpose
 pub fn apparent_index(nk: (f64, f64), film: (f64, f64), d_nm: f64, wl: f64) -> (f64, f64) {
     use polarid_core::dop::dop_grad;
     if d_nm <= 0.0 {
