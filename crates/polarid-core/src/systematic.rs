@@ -146,6 +146,88 @@ pub fn systematic_covariance(
     Ok(())
 }
 
+/// The fit's sensitivity to a surface layer of the error model: for each
+/// [`FILM_INDICES`] index `N_j`, the `(n, k)` shift `h_j = A g_j` that a layer of one
+/// standard thickness `σ_d` makes in the fit (`g_j`: its DoLP change at the rows' β, as in
+/// [`systematic_covariance`]; `A = (JᵀWJ)⁻¹JᵀW` the linearised fit, paper eq. 9),
+/// `self.0[j] = [δn_j, δk_j]`.
+///
+/// The surface-layer part of the propagated covariance is `Σ_j h_j h_jᵀ`
+/// ([`FilmShifts::block`]). A layer's thickness in nanometres is the same at every
+/// wavelength, so the shifts of one target's bands (each at its own `σ_d = film_sd_nm/λ`)
+/// are those of ONE layer: stacked over the bands they give the cross-band covariance
+/// `Σ_j H_j H_jᵀ` that multi-band classification uses (docs/BANDS.md).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FilmShifts(pub [[f64; 2]; 3]);
+
+impl FilmShifts {
+    /// `Σ_j h_j h_jᵀ` as `[nn, nk, kk]`: the layer's part of the fit's `(n, k)` covariance.
+    pub fn block(&self) -> [f64; 3] {
+        let mut c = [0.0; 3];
+        for h in &self.0 {
+            c[0] += h[0] * h[0];
+            c[1] += h[0] * h[1];
+            c[2] += h[1] * h[1];
+        }
+        c
+    }
+
+    /// Whether every shift is a finite number.
+    pub fn is_finite(&self) -> bool {
+        self.0.iter().flatten().all(|v| v.is_finite())
+    }
+}
+
+/// The [`FilmShifts`] of a fit at `(n, k)` in the `(n, k)` parameterisation: `betas`
+/// radians; `noise_se` the rows' standard errors when the fit was weighted by them
+/// (`None`: unweighted, `W = I`). `None` when `pol.film_sd_waves` is 0 or `JᵀWJ` is
+/// singular.
+///
+/// Errors: [`CoreError::LengthMismatch`].
+#[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN-safe on purpose
+pub fn film_shifts(
+    n: f64,
+    k: f64,
+    betas: &[f64],
+    noise_se: Option<&[f64]>,
+    pol: &Polarimetric,
+) -> Result<Option<FilmShifts>, CoreError> {
+    let t_len = betas.len();
+    if let Some(se) = noise_se {
+        check_len("noise_se", t_len, se.len())?;
+    }
+    if !(pol.film_sd_waves > 0.0) {
+        return Ok(None);
+    }
+    let w: Vec<f64> = match noise_se {
+        Some(se) => se.iter().map(|s| 1.0 / (s * s)).collect(),
+        None => vec![1.0; t_len],
+    };
+    let grads: Vec<_> = betas.iter().map(|&b| dop_grad(n, k, b)).collect();
+    let (mut h00, mut h01, mut h11) = (0.0, 0.0, 0.0);
+    for (g, wt) in grads.iter().zip(&w) {
+        h00 += wt * g.dp_dn * g.dp_dn;
+        h01 += wt * g.dp_dn * g.dp_dk;
+        h11 += wt * g.dp_dk * g.dp_dk;
+    }
+    let Some((i00, i01, i11)) = inv2(h00, h01, h11) else {
+        return Ok(None);
+    };
+    let mut out = [[0.0; 2]; 3];
+    for (j, &film) in FILM_INDICES.iter().enumerate() {
+        let (mut bn, mut bk) = (0.0, 0.0);
+        for ((&b, g), wt) in betas.iter().zip(&grads).zip(&w) {
+            let gj = thin_film(film, pol.film_sd_waves, (n, k), b, 1.0)
+                .map_or(0.0, |r| r.signed_dolp() - g.p);
+            bn += wt * g.dp_dn * gj;
+            bk += wt * g.dp_dk * gj;
+        }
+        out[j] = [i00 * bn + i01 * bk, i01 * bn + i11 * bk];
+    }
+    let f = FilmShifts(out);
+    Ok(f.is_finite().then_some(f))
+}
+
 /// Standard errors and correlation of `(n, k)`.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct NkCov {
@@ -588,6 +670,46 @@ mod tests {
         assert!((d - (1.6 - std::f64::consts::FRAC_PI_2)).abs() < 1e-15);
         assert!((sd - 0.01).abs() < 1e-15);
         assert!(aolp_deviation(1.6, 0.0, 0.01, 0.0, 0.0, 0.7).is_none());
+    }
+
+    #[test]
+    fn film_shifts_are_the_layer_part_of_the_propagated_covariance() {
+        // Gold at 550 nm, the demo's eight β, only a 3 nm layer in the error model: the
+        // propagated systematic covariance is Σ_j h_j h_jᵀ of the shifts.
+        let betas: Vec<f64> = (0..8)
+            .map(|i| (0.5 * (90.0 + 7.0 * i as f64)).to_radians())
+            .collect();
+        let se = vec![0.004; 8];
+        let pol = Polarimetric {
+            dolp_floor: 0.0,
+            extinction_ratio: f64::INFINITY,
+            retardance: 0.0,
+            film_sd_waves: 3.0 / 550.0,
+        };
+        let (n, k) = (0.458, 2.462);
+        let h = film_shifts(n, k, &betas, Some(&se), &pol).unwrap().unwrap();
+        let mut sys = vec![0.0; 64];
+        let zero = vec![0.0; 8];
+        systematic_covariance(n, k, &betas, &zero, &pol, &mut sys).unwrap();
+        let p = propagate(n, k, &betas, &zero, Some(&se), &sys, false).unwrap();
+        let b = h.block();
+        let s = p.systematic;
+        assert!((b[0] - s.n_se * s.n_se).abs() < 1e-12 * b[0].max(1e-9));
+        assert!((b[2] - s.k_se * s.k_se).abs() < 1e-10 * b[2]);
+        assert!((b[1] - s.nk_corr * s.n_se * s.k_se).abs() < 1e-10 * (b[0] * b[2]).sqrt());
+        // A layer lowers the fitted k of gold (every index) by 0.1-0.5 at 550 nm.
+        for sh in h.0 {
+            assert!(sh[1] < -0.1 && sh[1] > -0.5, "{sh:?}");
+        }
+        let none = Polarimetric {
+            film_sd_waves: 0.0,
+            ..pol
+        };
+        assert!(
+            film_shifts(n, k, &betas, Some(&se), &none)
+                .unwrap()
+                .is_none()
+        );
     }
 
     #[test]

@@ -17,6 +17,7 @@ fn band(wl: f64, n: f64, k: f64, cov: Option<Cov2>) -> BandPoint {
         n,
         k,
         cov,
+        film: None,
     }
 }
 
@@ -47,6 +48,7 @@ fn est_band(wl: f64, n: f64, k: f64, se: f64) -> EstimateBand {
             cov: Cov2::from_se(se, se, 0.0),
             fit_status: FitStatus::Ok,
         },
+        film: None,
     }
 }
 
@@ -135,6 +137,7 @@ fn one_band_is_the_single_band_classifier_bit_for_bit() {
                 bands: vec![EstimateBand {
                     wavelength_nm: Some(650.0),
                     estimate: est.clone(),
+                    film: None,
                 }],
             });
         assert_eq!(a.predicted, b.predicted);
@@ -170,6 +173,7 @@ fn set_rule_and_gate_use_two_degrees_of_freedom_per_band() {
                     cov: Some(cov),
                     fit_status: FitStatus::Ok,
                 },
+                film: None,
             })
             .collect(),
     };
@@ -199,6 +203,7 @@ fn set_rule_and_gate_use_two_degrees_of_freedom_per_band() {
                 cov: Some(cov),
                 fit_status: FitStatus::Ok,
             },
+            film: None,
         }],
     };
     let d = clf.classify_multi(&one);

@@ -276,6 +276,7 @@ impl Library {
                 n: m.n,
                 k: m.k,
                 cov: None,
+                film: None,
             };
             match out.iter_mut().find(|p| p.class == m.name) {
                 Some(p) if m.wavelength_nm.is_some() => p.bands.push(band),

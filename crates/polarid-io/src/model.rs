@@ -16,7 +16,10 @@
 //! ```
 //!
 //! `covariance` is the `(n, k)` covariance of the training estimate (`null` when the fit
-//! gave no standard errors).
+//! gave no standard errors). A prototype trained on a multi-band fit with the surface-layer
+//! shifts (fits columns `film1_dn` … `film3_dk`) has them as `"film_shifts"`
+//! (`[[δn, δk], ...]`, three pairs; absent otherwise and optional on input), so that
+//! classification correlates the layer across the prototype's bands (docs/BANDS.md).
 //!
 //! A model trained on multi-band fits has one prototype per target per band, each with
 //! `"wavelength_nm"` (after `class`; absent from single-band models, whose JSON is
@@ -30,7 +33,7 @@ use std::io::Write;
 use std::path::Path;
 
 use polarid_core::classify::{
-    BandPoint, Cov2, MultiPrototype, Prototype, check_class_name, same_band,
+    BandPoint, Cov2, FilmShifts, MultiPrototype, Prototype, check_class_name, same_band,
 };
 use serde::{Deserialize, Serialize};
 
@@ -66,6 +69,10 @@ pub struct ModelPrototype {
     pub k: f64,
     /// Covariance `[[var n, cov nk], [cov nk, var k]]` of the training estimate.
     pub covariance: Option<[[f64; 2]; 2]>,
+    /// The training fit's surface-layer shifts `[[δn, δk]; 3]` (part of `covariance`;
+    /// multi-band fits with a layer allowance only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub film_shifts: Option<[[f64; 2]; 3]>,
     /// Category, when known.
     #[serde(default)]
     pub category: Option<String>,
@@ -147,6 +154,13 @@ impl Model {
                     "{at}: wavelength_nm = {w} (need a finite wavelength > 0 nm)"
                 )));
             }
+            if let Some(f) = p.film_shifts
+                && !f.iter().flatten().all(|v| v.is_finite())
+            {
+                return Err(bad(format!(
+                    "{at}: film_shifts {f:?} (need finite numbers)"
+                )));
+            }
             if let Some(c) = p.covariance
                 && (Cov2::from_matrix(c).is_none())
             {
@@ -218,6 +232,7 @@ impl Model {
                 n: p.n,
                 k: p.k,
                 cov: p.covariance.and_then(Cov2::from_matrix),
+                film: p.film_shifts.map(FilmShifts),
             };
             let key = (
                 p.class.as_str(),

@@ -117,6 +117,7 @@ prop_compose! {
             gof_p: None,
             aolp_p: None,
             theta_r_deg: None,
+            film: None,
         }
     }
 }

@@ -14,6 +14,7 @@ fn sample() -> Model {
             n: 1.64,
             k: 4.56,
             covariance: Some(cov_matrix(&cov)),
+            film_shifts: None,
             category: None,
             source: PrototypeSource {
                 file: "fits.csv".into(),
@@ -27,6 +28,7 @@ fn sample() -> Model {
             n: 1.5,
             k: 4.4,
             covariance: None,
+            film_shifts: None,
             category: Some("metal".into()),
             source: PrototypeSource {
                 file: "other/fits.csv".into(),

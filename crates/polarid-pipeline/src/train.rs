@@ -59,6 +59,7 @@ pub fn train(fits: &[(u64, FitRow)], fits_path: &Path, file: &str) -> Result<Tra
             n: f.n,
             k: f.k,
             covariance: est.cov.as_ref().map(cov_matrix),
+            film_shifts: f.film.map(|h| h.0),
             category: None,
             source: PrototypeSource {
                 file: file.to_string(),

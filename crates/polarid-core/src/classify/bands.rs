@@ -21,6 +21,23 @@
 //! that correlation makes the test slightly too strict, not too lenient, only when the
 //! geometry error dominates (docs/BANDS.md).
 //!
+//! **One surface layer over all bands.** The fit's error model allows an unmodelled surface
+//! layer (docs/ERRORS.md), and folds it into each band's covariance. A layer has one
+//! thickness in nanometres and one index however many bands see it, so its part is NOT
+//! independent between bands. When a band carries the fit's layer shifts
+//! ([`FilmShifts`]: `h_bj`, the `(n, k)` shift in band `b` of a layer of index `N_j` of
+//! one standard thickness), each side's layer blocks `Σ_j h_bj h_bjᵀ` are taken out of
+//! its band covariances and replaced by ONE rank-3 term over the stacked bands:
+//!
+//! ```text
+//! d_M² = Δᵀ (B + H_est H_estᵀ + H_proto H_protoᵀ)⁻¹ Δ,   B = blockdiag_b(Σ_b − Σ_j h_bj h_bjᵀ)
+//! ```
+//!
+//! (`H`: `2|C| × 3`, column `j` the shifts `h_bj` stacked over the bands; exact under the
+//! fit's linearisation). One band is the per-band covariance again, bit for bit (the
+//! single-band path is taken). The set rule's bands compared in `(n, u = k²)` keep their
+//! own allowance.
+//!
 //! Under the block-diagonal model `d_M²` is χ² with `2·|C|` degrees of freedom, so the set
 //! rule and the χ² gate compare it with [`chi2_quantile`]`(p, 2·|C|)`, each prototype at
 //! its own `|C|`.
@@ -31,6 +48,7 @@
 
 use super::{Cov2, Estimate, Prototype};
 use crate::status::FitStatus;
+pub use crate::systematic::FilmShifts;
 
 /// Two wavelengths closer than this (nm) are the same band.
 pub const BAND_TOLERANCE_NM: f64 = 0.5;
@@ -55,6 +73,10 @@ pub struct BandPoint {
     pub k: f64,
     /// Covariance of `(n, k)` when the prototype is itself an estimate.
     pub cov: Option<Cov2>,
+    /// The fit's surface-layer shifts when the prototype is an estimate whose fit wrote
+    /// them (part of `cov`; correlated across the prototype's bands, see
+    /// [`FilmShifts`]).
+    pub film: Option<FilmShifts>,
 }
 
 /// A labelled point measured in one or several bands: a multi-band training target or a
@@ -83,6 +105,7 @@ impl From<Prototype> for MultiPrototype {
                 n: p.n,
                 k: p.k,
                 cov: p.cov,
+                film: None,
             }],
         }
     }
@@ -110,6 +133,9 @@ pub struct EstimateBand {
     pub wavelength_nm: Option<f64>,
     /// The band's estimate (with its covariance and fit status).
     pub estimate: Estimate,
+    /// The fit's surface-layer shifts of this band, when the fit wrote them (part of the
+    /// estimate's covariance; correlated across the target's bands, see [`FilmShifts`]).
+    pub film: Option<FilmShifts>,
 }
 
 /// A target's estimates in one or several bands.
@@ -126,6 +152,7 @@ impl From<Estimate> for MultiEstimate {
             bands: vec![EstimateBand {
                 wavelength_nm: None,
                 estimate,
+                film: None,
             }],
         }
     }
@@ -163,6 +190,7 @@ impl MultiEstimate {
                     n: b.estimate.n,
                     k: b.estimate.k,
                     cov: b.estimate.cov,
+                    film: b.film,
                 })
                 .collect(),
         }
@@ -189,6 +217,106 @@ pub(super) fn common_bands(est: &[&EstimateBand], p: &[BandPoint]) -> Vec<(usize
         }
     }
     out
+}
+
+/// One band of a comparison with correlated surface layers ([`joint_distance2`]).
+pub(super) struct JointBand {
+    /// `Δ = (n̂ − n_p, k̂ − k_p)`.
+    pub delta: [f64; 2],
+    /// The band's covariance without the layers' blocks `Σ_j h_j h_jᵀ` of the sides whose
+    /// shifts are given (`[nn, nk, kk]`; estimate's plus prototype's).
+    pub base: [f64; 3],
+    /// The estimate's layer shifts in this band (`None`: its layer allowance, if any, is
+    /// in `base`, independent of the other bands).
+    pub est_film: Option<FilmShifts>,
+    /// The prototype's layer shifts in this band.
+    pub proto_film: Option<FilmShifts>,
+}
+
+/// The squared Mahalanobis distance over several bands with ONE surface layer per side
+/// seen in all its bands:
+///
+/// ```text
+/// d² = Δᵀ (B + H_est H_estᵀ + H_proto H_protoᵀ)⁻¹ Δ
+/// ```
+///
+/// `Δ` and `B = blockdiag(base_b)` stacked over the bands (`2m`), `H` the `2m × 3`
+/// matrix of a side's layer shifts (column `j`: the layer of index `N_j` of one standard
+/// thickness in nanometres, the same at every band; zero rows where a band has no
+/// shifts). Solved by Cholesky; `None` when the matrix is not positive definite.
+pub(super) fn joint_distance2(bands: &[JointBand]) -> Option<f64> {
+    let m = 2 * bands.len();
+    let mut a = vec![0.0; m * m];
+    let mut d = vec![0.0; m];
+    for (b, jb) in bands.iter().enumerate() {
+        let (r, c) = (2 * b, 2 * b + 1);
+        a[r * m + r] = jb.base[0];
+        a[r * m + c] = jb.base[1];
+        a[c * m + r] = jb.base[1];
+        a[c * m + c] = jb.base[2];
+        d[r] = jb.delta[0];
+        d[c] = jb.delta[1];
+    }
+    for side in 0..2 {
+        let col = |b: &JointBand| if side == 0 { b.est_film } else { b.proto_film };
+        for j in 0..3 {
+            let h: Vec<f64> = bands
+                .iter()
+                .flat_map(|b| col(b).map_or([0.0, 0.0], |f| f.0[j]))
+                .collect();
+            for r in 0..m {
+                for c in 0..m {
+                    a[r * m + c] += h[r] * h[c];
+                }
+            }
+        }
+    }
+    // Cholesky a = L Lᵀ, then d² = |L⁻¹ Δ|².
+    let mut l = vec![0.0; m * m];
+    for i in 0..m {
+        for j in 0..=i {
+            let mut s = a[i * m + j];
+            for p in 0..j {
+                s -= l[i * m + p] * l[j * m + p];
+            }
+            if i == j {
+                if !(s > 0.0 && s.is_finite()) {
+                    return None;
+                }
+                l[i * m + i] = s.sqrt();
+            } else {
+                l[i * m + j] = s / l[j * m + j];
+            }
+        }
+    }
+    let mut q = 0.0;
+    let mut x = vec![0.0; m];
+    for i in 0..m {
+        let mut s = d[i];
+        for p in 0..i {
+            s -= l[i * m + p] * x[p];
+        }
+        x[i] = s / l[i * m + i];
+        q += x[i] * x[i];
+    }
+    q.is_finite().then_some(q)
+}
+
+/// A covariance `c` without the layer block of `film`: `(base, film)` when `c − Σ h hᵀ`
+/// stays positive definite, else `(c, None)` (the band keeps its own allowance).
+pub(super) fn strip_film(c: Cov2, film: Option<FilmShifts>) -> ([f64; 3], Option<FilmShifts>) {
+    let full = [c.nn, c.nk, c.kk];
+    let Some(f) = film else {
+        return (full, None);
+    };
+    let b = f.block();
+    let r = [c.nn - b[0], c.nk - b[1], c.kk - b[2]];
+    let det = r[0] * r[2] - r[1] * r[1];
+    if r[0] > 0.0 && r[2] > 0.0 && det > 1e-9 * c.nn * c.kk && det.is_finite() {
+        (r, Some(f))
+    } else {
+        (full, None)
+    }
 }
 
 /// The χ² quantile with `dof` degrees of freedom, `dof` even (`2·bands`): the `x` with
@@ -254,16 +382,55 @@ mod tests {
     }
 
     #[test]
+    fn one_layer_in_all_bands_is_the_joint_covariance() {
+        let f = |a: f64| FilmShifts([[a, 2.0 * a], [0.5 * a, -a], [0.0, a]]);
+        let band = |dn: f64, dk: f64, a: f64| JointBand {
+            delta: [dn, dk],
+            base: [0.01, 0.002, 0.04],
+            est_film: Some(f(a)),
+            proto_film: None,
+        };
+        // One band: base + Σ h hᵀ, the per-band covariance.
+        let one = joint_distance2(&[band(0.1, 0.2, 0.1)]).unwrap();
+        let b = f(0.1).block();
+        let c = Cov2 {
+            nn: 0.01 + b[0],
+            nk: 0.002 + b[1],
+            kk: 0.04 + b[2],
+        };
+        assert!((one - c.mahalanobis2(0.1, 0.2).unwrap()).abs() < 1e-12);
+        // Two bands whose differences are ONE layer (coefficients c = (1, -0.5, 0.3)) are
+        // much closer than two whose differences need opposite layers.
+        let shift = |a: f64| {
+            let h = f(a).0;
+            let c = [1.0, -0.5, 0.3];
+            [
+                c[0] * h[0][0] + c[1] * h[1][0] + c[2] * h[2][0],
+                c[0] * h[0][1] + c[1] * h[1][1] + c[2] * h[2][1],
+            ]
+        };
+        let (s1, s2) = (shift(1.0), shift(2.0));
+        let same = joint_distance2(&[band(s1[0], s1[1], 1.0), band(s2[0], s2[1], 2.0)]).unwrap();
+        let opposite =
+            joint_distance2(&[band(s1[0], s1[1], 1.0), band(-s2[0], -s2[1], 2.0)]).unwrap();
+        let c1 = [1.0, -0.5, 0.3].iter().map(|x| x * x).sum::<f64>();
+        assert!(same < c1 + 1e-9, "{same}");
+        assert!(opposite > 10.0 * same, "{opposite} vs {same}");
+    }
+
+    #[test]
     fn bands_match_by_wavelength_or_single() {
         let e = |wl: Option<f64>| EstimateBand {
             wavelength_nm: wl,
             estimate: Estimate::point(1.0, 1.0),
+            film: None,
         };
         let b = |wl: Option<f64>| BandPoint {
             wavelength_nm: wl,
             n: 1.0,
             k: 1.0,
             cov: None,
+            film: None,
         };
         let (e450, e550, e0) = (e(Some(450.0)), e(Some(550.0)), e(None));
         assert_eq!(common_bands(&[&e0], &[b(Some(650.0))]), vec![(0, 0)]);

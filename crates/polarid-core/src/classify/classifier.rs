@@ -20,7 +20,8 @@
 //! Thilak, Creusere & Voelz, ICIP 2007, section 6 (Tables 1 and 2 in the tests).
 
 use super::bands::{
-    BandPoint, EstimateBand, MultiEstimate, MultiPrototype, chi2_quantile, common_bands,
+    BandPoint, EstimateBand, JointBand, MultiEstimate, MultiPrototype, chi2_quantile, common_bands,
+    joint_distance2, strip_film,
 };
 use super::{
     AMBIGUOUS, Candidate, ClassifierConfig, Cov2, Decision, Estimate, Metric, Neighbour, Prototype,
@@ -94,15 +95,20 @@ fn mahalanobis(est: &Estimate, p: &BandPoint) -> Option<f64> {
     cov.mahalanobis2(est.n - p.n, est.k - p.k).map(f64::sqrt)
 }
 
-/// The set rule's distance in one band (see [`Classifier::set_distance`]).
-fn set_distance_band(est: &Estimate, p: &BandPoint) -> Option<f64> {
-    let near_zero = est.cov.is_some_and(|c| {
+/// Whether the set rule compares `est` and `p` in `(n, u = k²)` (see
+/// [`Classifier::set_distance`]).
+fn near_zero(est: &Estimate, p: &BandPoint) -> bool {
+    est.cov.is_some_and(|c| {
         let k_se = c.kk.sqrt();
         c.k_is_one_sided(est.k)
             || est.k <= NEAR_ZERO_SIGMAS * k_se
             || p.k <= NEAR_ZERO_SIGMAS * k_se
-    });
-    if !near_zero {
+    })
+}
+
+/// The set rule's distance in one band (see [`Classifier::set_distance`]).
+fn set_distance_band(est: &Estimate, p: &BandPoint) -> Option<f64> {
+    if !near_zero(est, p) {
         return mahalanobis(est, p);
     }
     let ce = est.cov.map(|c| c.to_nu(est.k));
@@ -114,6 +120,65 @@ fn set_distance_band(est: &Estimate, p: &BandPoint) -> Option<f64> {
     };
     cov.mahalanobis2(est.n - p.n, est.k * est.k - p.k * p.k)
         .map(f64::sqrt)
+}
+
+/// The Mahalanobis distance (`set_rule`: the set rule's distance) over the bands in
+/// common with ONE surface layer per side: when several bands are compared and some carry
+/// the fit's layer shifts ([`super::FilmShifts`]), each side's per-band layer blocks are
+/// replaced by the rank-3 term `H Hᵀ` of its shifts stacked over the bands
+/// ([`joint_distance2`]; see `bands`). Bands compared in `(n, u = k²)` by the set rule
+/// keep their own allowance and add their squares. Otherwise (one band, or no shifts) the
+/// block-diagonal distance of [`over_bands`], bit for bit.
+fn correlated(est: &[&EstimateBand], p: &MultiPrototype, set_rule: bool) -> BandDistance {
+    let single = if set_rule {
+        set_distance_band
+    } else {
+        mahalanobis
+    };
+    let pairs = common_bands(est, &p.bands);
+    let any_film = pairs.len() > 1
+        && pairs
+            .iter()
+            .any(|&(i, j)| est[i].film.is_some() || p.bands[j].film.is_some());
+    if !any_film {
+        return over_bands(est, p, single);
+    }
+    let mut apart = 0.0;
+    let mut joint = Vec::with_capacity(pairs.len());
+    for &(i, j) in &pairs {
+        let (e, b) = (&est[i].estimate, &p.bands[j]);
+        if set_rule && near_zero(e, b) {
+            match set_distance_band(e, b) {
+                Some(d) => apart += d * d,
+                None => return BandDistance::NoCovariance,
+            }
+            continue;
+        }
+        let se = e.cov.map(|c| strip_film(c, est[i].film));
+        let sp = b.cov.map(|c| strip_film(c, b.film));
+        let (base, est_film, proto_film) = match (se, sp) {
+            (Some((a, fa)), Some((c, fc))) => ([a[0] + c[0], a[1] + c[1], a[2] + c[2]], fa, fc),
+            (Some((a, fa)), None) => (a, fa, None),
+            (None, Some((c, fc))) => (c, None, fc),
+            (None, None) => return BandDistance::NoCovariance,
+        };
+        joint.push(JointBand {
+            delta: [e.n - b.n, e.k - b.k],
+            base,
+            est_film,
+            proto_film,
+        });
+    }
+    let q = if joint.is_empty() {
+        Some(0.0)
+    } else {
+        joint_distance2(&joint)
+    };
+    match q {
+        Some(q) => BandDistance::Distance((apart + q).sqrt(), pairs.len()),
+        // Not positive definite (it should be): the block-diagonal distance.
+        None => over_bands(est, p, single),
+    }
 }
 
 /// Distances to the comparable prototypes, ranked (ties in the prototypes' order), and the
@@ -261,6 +326,7 @@ impl Classifier {
                 n: p.n,
                 k: p.k,
                 cov: p.cov,
+                film: None,
             },
         )
     }
@@ -270,12 +336,12 @@ impl Classifier {
     fn rank(
         &self,
         est: &[&EstimateBand],
-        f: impl Fn(&Estimate, &BandPoint) -> Option<f64> + Copy,
+        f: impl Fn(&[&EstimateBand], &MultiPrototype) -> BandDistance,
     ) -> std::result::Result<Ranking, usize> {
         let mut ranked = Vec::with_capacity(self.profiles.len());
         let mut bands = vec![0; self.profiles.len()];
         for (index, p) in self.profiles.iter().enumerate() {
-            match over_bands(est, p, f) {
+            match f(est, p) {
                 BandDistance::NoBand => {}
                 BandDistance::NoCovariance => return Err(index),
                 BandDistance::Distance(distance, m) => {
@@ -399,7 +465,7 @@ impl Classifier {
             Rule::Nearest => {
                 let mut d = self.classify_nearest(&ok);
                 if d.status != Status::NoCovariance
-                    && let Ok(r) = self.rank(&ok, set_distance_band)
+                    && let Ok(r) = self.rank(&ok, |e, p| correlated(e, p, true))
                 {
                     let (c, cat) = self.candidates(&r);
                     d.candidates = c;
@@ -418,7 +484,7 @@ impl Classifier {
 
     /// The set rule (estimate already checked).
     fn classify_set(&self, est: &[&EstimateBand]) -> Decision {
-        let r = match self.rank(est, set_distance_band) {
+        let r = match self.rank(est, |e, p| correlated(e, p, true)) {
             Ok(r) => r,
             Err(i) => {
                 let p = &self.profiles[i];
@@ -493,8 +559,8 @@ impl Classifier {
     /// (estimate already checked).
     fn classify_nearest(&self, est: &[&EstimateBand]) -> Decision {
         let ranking = match self.config.metric {
-            Metric::Euclidean => self.rank(est, euclidean),
-            Metric::Mahalanobis => self.rank(est, mahalanobis),
+            Metric::Euclidean => self.rank(est, |e, p| over_bands(e, p, euclidean)),
+            Metric::Mahalanobis => self.rank(est, |e, p| correlated(e, p, false)),
         };
         let r = match ranking {
             Ok(r) => r,
@@ -580,7 +646,7 @@ impl Classifier {
                 let proto = &self.profiles[near.index];
                 let dm = match self.config.metric {
                     Metric::Mahalanobis => Some(distance),
-                    Metric::Euclidean => match over_bands(est, proto, mahalanobis) {
+                    Metric::Euclidean => match correlated(est, proto, false) {
                         BandDistance::Distance(d, _) => Some(d),
                         _ => None,
                     },

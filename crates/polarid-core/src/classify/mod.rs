@@ -88,8 +88,8 @@ mod points;
 mod wolff;
 
 pub use bands::{
-    BAND_TOLERANCE_NM, BandPoint, EstimateBand, MultiEstimate, MultiPrototype, chi2_quantile,
-    same_band,
+    BAND_TOLERANCE_NM, BandPoint, EstimateBand, FilmShifts, MultiEstimate, MultiPrototype,
+    chi2_quantile, same_band,
 };
 pub use classifier::{Classifier, NEAR_ZERO_SIGMAS};
 pub use config::{ClassifierConfig, DEFAULT_CONFIDENCE, Metric, Reject, Rule, chi2_2dof_quantile};

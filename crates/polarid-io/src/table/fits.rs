@@ -9,6 +9,12 @@
 //! Multi-band fits (a colour camera) carry `wavelength_nm`, one row per target per band;
 //! the column is written after `class` only when some row has a wavelength, so
 //! single-band files keep exactly the columns above.
+//!
+//! Multi-band fits with the error model's surface layer also carry the fit's layer shifts
+//! [`FILM_COLUMNS`] (`film1_dn`, `film1_dk`, … `film3_dk`, after `aolp_p`; written only
+//! when some row has them, optional on input): the `(n, k)` shift of a layer of one
+//! standard thickness of each index of `polarid_core::systematic::FILM_INDICES`, which
+//! multi-band classification correlates across a target's bands (docs/BANDS.md).
 
 use std::io::Write;
 use std::path::Path;
@@ -16,6 +22,7 @@ use std::path::Path;
 use super::{CsvTable, fmt_f64, fmt_opt, write_rows};
 use crate::error::Result;
 use polarid_core::FitStatus;
+use polarid_core::systematic::FilmShifts;
 
 /// Column order of the fits CSV.
 pub const COLUMNS: [&str; 20] = [
@@ -39,6 +46,12 @@ pub const COLUMNS: [&str; 20] = [
     "nk_corr_noise",
     "gof_p",
     "aolp_p",
+];
+
+/// The layer-shift columns, in order: `[δn, δk]` of the layers of index 1.5, 2.8 and
+/// 2.8 + 0.3i (`FILM_INDICES`), written after [`COLUMNS`] when some row has them.
+pub const FILM_COLUMNS: [&str; 6] = [
+    "film1_dn", "film1_dk", "film2_dn", "film2_dk", "film3_dn", "film3_dk",
 ];
 
 /// One fitted target.
@@ -87,6 +100,9 @@ pub struct FitRow {
     pub gof_p: Option<f64>,
     /// p-value of the AoLP test (rows with `aolp_poi_deg`).
     pub aolp_p: Option<f64>,
+    /// The fit's `(n, k)` shifts by a surface layer of one standard thickness of each
+    /// `FILM_INDICES` index ([`FILM_COLUMNS`]; multi-band fits with a layer allowance).
+    pub film: Option<FilmShifts>,
 }
 
 /// Read a fits CSV: needs `target`, `n`, `k`; the rest is optional (`status` defaults to
@@ -134,6 +150,7 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<FitRow>> {
             _ => t.opt_f64(r, c),
         }
     };
+    let c_film: Vec<Option<usize>> = FILM_COLUMNS.iter().map(|c| t.col(c)).collect();
     let mut out = Vec::with_capacity(t.rows.len());
     for r in 0..t.rows.len() {
         let target = t.name(r, c_target)?;
@@ -200,9 +217,47 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<FitRow>> {
             nk_corr_noise: opt_nan(r, t.col("nk_corr_noise"))?,
             gof_p: opt_nan(r, t.col("gof_p"))?,
             aolp_p: opt_nan(r, t.col("aolp_p"))?,
+            film: film_cells(t, r, &c_film)?,
         });
     }
     Ok(out)
+}
+
+/// The layer shifts of row `r`: all six cells numbers (finite), or all empty (`None`);
+/// a partial set is an error naming the first missing column.
+fn film_cells(t: &CsvTable, r: usize, cols: &[Option<usize>]) -> Result<Option<FilmShifts>> {
+    let mut v = [0.0; 6];
+    let mut given = 0;
+    for (i, &c) in cols.iter().enumerate() {
+        if let Some(x) = t.opt_f64(r, c)? {
+            if let (false, Some(c)) = (x.is_finite(), c) {
+                return Err(t.err(r, c, "a layer shift must be a finite number"));
+            }
+            v[i] = x;
+            given += 1;
+        }
+    }
+    if given == 0 {
+        return Ok(None);
+    }
+    if given < cols.len() {
+        let any = cols.iter().flatten().copied().next().unwrap_or(0);
+        let (i, c) = cols
+            .iter()
+            .enumerate()
+            .find(|(_, c)| c.is_none_or(|c| t.text(r, c).is_empty()))
+            .map_or((0, None), |(i, c)| (i, *c));
+        return Err(t.err(
+            r,
+            c.unwrap_or(any),
+            format!(
+                "the layer shifts come in six ({}): `{}` is missing or empty",
+                FILM_COLUMNS.join(", "),
+                FILM_COLUMNS[i]
+            ),
+        ));
+    }
+    Ok(Some(FilmShifts([[v[0], v[1]], [v[2], v[3]], [v[4], v[5]]])))
 }
 
 /// A standard error or correlation as written: an unknown one (NaN) is an empty cell
@@ -220,9 +275,13 @@ fn fmt_se(f: &FitRow, x: f64) -> String {
 /// `class` when some row has a wavelength).
 pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[FitRow]) -> Result<()> {
     let banded = rows.iter().any(|f| f.wavelength_nm.is_some());
+    let filmed = rows.iter().any(|f| f.film.is_some());
     let mut headers: Vec<&str> = COLUMNS.to_vec();
     if banded {
         headers.insert(2, "wavelength_nm");
+    }
+    if filmed {
+        headers.extend(FILM_COLUMNS);
     }
     write_rows(
         w,
@@ -253,6 +312,12 @@ pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[FitRow]) -> Resu
             ];
             if banded {
                 cells.insert(2, fmt_opt(f.wavelength_nm));
+            }
+            if filmed {
+                match &f.film {
+                    Some(h) => cells.extend(h.0.iter().flatten().map(|&x| fmt_f64(x))),
+                    None => cells.extend(std::iter::repeat_n(String::new(), 6)),
+                }
             }
             cells
         }),
@@ -301,6 +366,61 @@ mod tests {
             parse("target,n,k,n_se,k_se,nk_corr,status\nA,nan,nan,nan,nan,nan,not_converged\n")
                 .unwrap();
         assert!(rows[0].n.is_nan() && rows[0].n_se.is_nan());
+    }
+
+    #[test]
+    fn layer_shifts_round_trip_and_come_in_six() {
+        let h = FilmShifts([[-0.04, -0.13], [-0.076, -0.37], [-0.023, -0.41]]);
+        let rows = vec![
+            FitRow {
+                target: "A".into(),
+                wavelength_nm: Some(550.0),
+                n: 0.46,
+                k: 2.46,
+                n_se: 0.1,
+                k_se: 0.5,
+                nk_corr: 0.3,
+                film: Some(h),
+                ..Default::default()
+            },
+            FitRow {
+                target: "A".into(),
+                wavelength_nm: Some(650.0),
+                n: 0.16,
+                k: 3.6,
+                n_se: 0.1,
+                k_se: 0.5,
+                nk_corr: 0.3,
+                ..Default::default()
+            },
+        ];
+        let mut buf = Vec::new();
+        write(&mut buf, Path::new("f.csv"), &rows).unwrap();
+        let text = String::from_utf8(buf).unwrap();
+        assert!(
+            text.lines()
+                .next()
+                .unwrap()
+                .ends_with("aolp_p,film1_dn,film1_dk,film2_dn,film2_dk,film3_dn,film3_dk"),
+            "{text}"
+        );
+        let back = parse(&text).unwrap();
+        assert_eq!(back[0].film, Some(h));
+        assert_eq!(back[1].film, None);
+        // Old files (no columns) load; a partial set is refused naming the column.
+        assert!(parse("target,n,k\nA,1.5,0\n").unwrap()[0].film.is_none());
+        let e = parse("target,n,k,film1_dn,film1_dk\nA,1.5,0,0.1,0.2\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("line 2") && e.contains("film2_dn"), "{e}");
+        // Without any layer shift the columns are not written.
+        let mut buf = Vec::new();
+        let plain = vec![FitRow {
+            film: None,
+            ..rows[1].clone()
+        }];
+        write(&mut buf, Path::new("f.csv"), &plain).unwrap();
+        assert!(!String::from_utf8(buf).unwrap().contains("film1_dn"));
     }
 
     #[test]

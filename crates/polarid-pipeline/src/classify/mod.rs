@@ -70,6 +70,7 @@ pub fn multi_estimate_of<'a>(rows: impl IntoIterator<Item = &'a FitRow>) -> Mult
             .map(|f| EstimateBand {
                 wavelength_nm: f.wavelength_nm,
                 estimate: estimate_of(f),
+                film: f.film,
             })
             .collect(),
     }

@@ -26,12 +26,21 @@
 //! memory (the same frames: the same scene text and noise seeds), under the fit's
 //! default error model (with its 3 nm surface-layer allowance) and without the
 //! allowance (`--film-sd-nm 0`), for the nearest (Euclidean, Mahalanobis) and set rules.
+//!
+//! **Real plates are not their tabulated index.** Every metal plate (aluminum, copper,
+//! gold, brass; training and test alike) carries a native surface layer: thickness
+//! uniform in 0–[`COLOUR_LAYER_MAX_NM`] nm, index one of the error model's
+//! (`FILM_INDICES`: 1.5, 2.8, 2.8 + 0.3i) at random, the same layer in all three bands.
+//! The colour scenes have no layers, so each such plate is given, per band, the index a
+//! single-interface fit sees on the layered surface at the demo's β ([`apparent_index`]);
+//! paint and plastic keep their index.
 
 use std::path::Path;
 
 use polarid_core::classify::{ClassifierConfig, Metric, MultiPrototype};
 use polarid_core::mosaic::ColourMethod;
 use polarid_core::region::region_stats;
+use polarid_core::systematic::FILM_INDICES;
 use polarid_io::atomic::StagedDir;
 use polarid_io::image::{Frame, SampleKind};
 use polarid_io::library::Library;
@@ -61,6 +70,9 @@ pub const COLOUR_ANGLE_SD: f64 = 0.2;
 pub const COLOUR_SIDE: usize = 32;
 /// The default number of seeds of the accuracy table.
 pub const COLOUR_SEEDS: u64 = 100;
+/// Native surface layer of the metal plates: thickness uniform in `[0, this]` nm per
+/// plate, its index one of `polarid_core::systematic::FILM_INDICES` at random.
+pub const COLOUR_LAYER_MAX_NM: f64 = 3.0;
 
 /// One material of the colour demo.
 #[derive(Debug, Clone, PartialEq)]
@@ -73,6 +85,8 @@ pub struct ColourMaterial {
     pub sigma: f64,
     /// `(n, k)` at 450, 550, 650 nm.
     pub nk: [(f64, f64); 3],
+    /// Whether its plates carry a native surface layer (the metals).
+    pub layered: bool,
 }
 
 /// The six materials: aluminum, copper, gold, brass (Cu70Zn30) and PET from
@@ -97,6 +111,7 @@ pub fn colour_materials() -> Result<Vec<ColourMaterial>> {
             scene_keys: format!("material = \"{name}\"\nclass = \"{class}\""),
             sigma,
             nk,
+            layered: matches!(class, "aluminum" | "copper" | "gold" | "brass"),
         })
     };
     let paint = [(1.45, 0.30), (1.42, 0.12), (1.39, 0.34)];
@@ -113,6 +128,7 @@ pub fn colour_materials() -> Result<Vec<ColourMaterial>> {
             ),
             sigma: 0.25,
             nk: paint,
+            layered: false,
         },
         from_lib("plastic", "PET", 0.2)?,
     ])
@@ -128,6 +144,9 @@ impl Rng {
         z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
         z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
         z ^ (z >> 31)
+    }
+    fn uniform(&mut self) -> f64 {
+        ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
     }
     fn normal(&mut self) -> f64 {
         let u = ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
@@ -152,7 +171,67 @@ pub struct ColourPlate {
 /// The plates of seed `seed` (two training plates and one test plate per material, in
 /// material order), each with its scene text: true angles drawn about the nominal ones.
 pub fn colour_plates(materials: &[ColourMaterial], seed: u64) -> Vec<ColourPlate> {
+    colour_plates_with(materials, seed, COLOUR_LAYER_MAX_NM)
+}
+
+/// The `(n, k)` a single-interface fit sees on a substrate `nk` under a layer of index
+/// `film` and thickness `d_nm` at `wl` nm: the least-squares fit (Gauss–Newton from
+/// `nk`) of eq. (9) to the layered surface's DoLP ([`polarid_core::film::thin_film`]) at
+/// the demo's nominal β. `nk` itself when `d_nm` is 0 or the fit fails.
+#[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN-safe on purpose
+pub fn apparent_index(nk: (f64, f64), film: (f64, f64), d_nm: f64, wl: f64) -> (f64, f64) {
+    use polarid_core::dop::dop_grad;
+    if d_nm <= 0.0 {
+        return nk;
+    }
+    let betas: Vec<f64> = COLOUR_THETA_I
+        .iter()
+        .map(|t| (0.5 * (t + COLOUR_THETA_R)).to_radians())
+        .collect();
+    let mut y = Vec::with_capacity(betas.len());
+    for &b in &betas {
+        match polarid_core::film::thin_film(film, d_nm / wl, nk, b, 1.0) {
+            Ok(r) => y.push(r.signed_dolp()),
+            Err(_) => return nk,
+        }
+    }
+    let (mut n, mut k) = nk;
+    for _ in 0..40 {
+        let (mut h, mut r0, mut r1) = ([0.0f64; 3], 0.0, 0.0);
+        for (&b, &yt) in betas.iter().zip(&y) {
+            let g = dop_grad(n, k, b);
+            let r = yt - g.p;
+            h[0] += g.dp_dn * g.dp_dn;
+            h[1] += g.dp_dn * g.dp_dk;
+            h[2] += g.dp_dk * g.dp_dk;
+            r0 += g.dp_dn * r;
+            r1 += g.dp_dk * r;
+        }
+        let det = h[0] * h[2] - h[1] * h[1];
+        if !(det > 0.0) {
+            return nk;
+        }
+        n += (h[2] * r0 - h[1] * r1) / det;
+        k += (h[0] * r1 - h[1] * r0) / det;
+    }
+    if n.is_finite() && k.is_finite() && n > 0.0 && k >= 0.0 {
+        (n, k)
+    } else {
+        nk
+    }
+}
+
+/// [`colour_plates`] with the metal plates' native layers up to `layer_max_nm` (0: every
+/// plate has exactly its tabulated index).
+pub fn colour_plates_with(
+    materials: &[ColourMaterial],
+    seed: u64,
+    layer_max_nm: f64,
+) -> Vec<ColourPlate> {
     let mut rng = Rng(0xC010_0000 ^ seed.wrapping_mul(0x1000_0001));
+    // The layers come from their own stream, so the angles and noise of a seed do not
+    // depend on them.
+    let mut layer_rng = Rng(0x1A7E_0000 ^ seed.wrapping_mul(0x1000_0001));
     let mut out = Vec::new();
     for (mi, m) in materials.iter().enumerate() {
         for p in 0..3 {
@@ -168,6 +247,34 @@ pub fn colour_plates(materials: &[ColourMaterial], seed: u64) -> Vec<ColourPlate
                 .map(|t| format!("{:.4}", t + COLOUR_ANGLE_SD * rng.normal()))
                 .collect();
             let noise_seed = seed * 1000 + mi as u64 * 10 + p as u64;
+            let (d_nm, film) = (
+                layer_max_nm * layer_rng.uniform(),
+                FILM_INDICES[(layer_rng.next_u64() % 3) as usize],
+            );
+            let keys = if m.layered && layer_max_nm > 0.0 {
+                let nk: Vec<(f64, f64)> =
+                    m.nk.iter()
+                        .zip(COLOUR_BANDS_NM)
+                        .map(|(&nk, wl)| apparent_index(nk, film, d_nm, wl))
+                        .collect();
+                format!(
+                    "class = \"{}\"\n# {} with a native layer of {d_nm:.2} nm, index {} + {}i: \
+                     the index a single-interface fit sees per band\n\
+                     n = {{ B = {:.6}, G = {:.6}, R = {:.6} }}\nk = {{ B = {:.6}, G = {:.6}, R = {:.6} }}",
+                    m.class,
+                    m.class,
+                    film.0,
+                    film.1,
+                    nk[0].0,
+                    nk[1].0,
+                    nk[2].0,
+                    nk[0].1,
+                    nk[1].1,
+                    nk[2].1
+                )
+            } else {
+                m.scene_keys.clone()
+            };
             let scene = format!(
                 "# polarid demo --color: {target} (seed {seed}); true angles (the manifest \
                  the demo measures records the nominal ones)\n\
@@ -180,7 +287,7 @@ pub fn colour_plates(materials: &[ColourMaterial], seed: u64) -> Vec<ColourPlate
                  rect = [0, 0, {s}, {s}]\n",
                 s = COLOUR_SIDE,
                 ti = ti.join(", "),
-                keys = m.scene_keys,
+                keys = keys,
                 sigma = m.sigma,
             );
             out.push(ColourPlate {
@@ -425,12 +532,23 @@ fn split(plates: &[ColourPlate], rows: Vec<Measurement>) -> (Vec<Measurement>, V
 /// The accuracy table over seeds `first..first + seeds` (in parallel over seeds),
 /// everything in memory; progress stage `seeds`.
 pub fn colour_accuracy(first: u64, seeds: u64, progress: Progress<'_>) -> Result<Vec<AccuracyRow>> {
+    colour_accuracy_with(first, seeds, COLOUR_LAYER_MAX_NM, progress)
+}
+
+/// [`colour_accuracy`] with the metal plates' native layers up to `layer_max_nm` (0:
+/// every plate exactly at its tabulated index).
+pub fn colour_accuracy_with(
+    first: u64,
+    seeds: u64,
+    layer_max_nm: f64,
+    progress: Progress<'_>,
+) -> Result<Vec<AccuracyRow>> {
     let materials = colour_materials()?;
     let done = std::sync::atomic::AtomicU64::new(0);
     let per_seed: Vec<Outcomes> = (first..first + seeds)
         .into_par_iter()
         .map(|seed| -> Result<Outcomes> {
-            let plates = colour_plates(&materials, seed);
+            let plates = colour_plates_with(&materials, seed, layer_max_nm);
             let mut rows = Vec::new();
             for p in &plates {
                 rows.extend(plate_rows(p)?);
@@ -492,7 +610,8 @@ pub fn accuracy_table(rows: &[AccuracyRow], seeds: u64) -> String {
     let pct = |a: u64, n: u64| format!("{:.1}%", 100.0 * a as f64 / n.max(1) as f64);
     let mut t = format!(
         "Copper against gold from simulated colour images, {seeds} seeds (one copper and one \
-         gold test plate per seed; two training plates per material).\n\n\
+         gold test plate per seed; two training plates per material; every metal plate under \
+         a native layer of 0-3 nm).\n\n\
          | classifier | fit error model | rule | copper right | gold right | copper+gold right \
          | ambiguous | unknown | all six right |\n|---|---|---|---|---|---|---|---|---|\n"
     );
@@ -678,9 +797,10 @@ mod tests {
     use super::*;
 
     /// Issue 17's acceptance from images: over many seeds, the three-band classifier
-    /// (Mahalanobis nearest neighbour and the set rule, clean-surface fit) gets ≥ 99% of
-    /// the copper and gold test plates right; on the 650 nm rows alone the set rule and
-    /// the Euclidean rule do not (about 190 s for 100 seeds on 2 loaded cores).
+    /// (Mahalanobis nearest neighbour ≥ 99%, the set rule with the fit's default error
+    /// model ≥ 98% and the rest ambiguous) gets the copper and gold test plates right; on
+    /// the 650 nm rows alone no rule reaches 99% (about 150-190 s for 100 seeds on 2
+    /// loaded cores). `COLOUR_LAYER_NM=0` runs plates without native layers.
     /// `COLOUR_TABLE=1 cargo test --release -p polarid-pipeline --lib demo::colour --
     /// --nocapture` prints docs/BANDS.md's table (`COLOUR_SEEDS` seeds, default 100).
     #[test]
@@ -689,7 +809,11 @@ mod tests {
             .ok()
             .and_then(|s| s.parse().ok())
             .unwrap_or(COLOUR_SEEDS);
-        let rows = colour_accuracy(0, seeds, &crate::progress::no_progress).unwrap();
+        let layer = std::env::var("COLOUR_LAYER_NM")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(COLOUR_LAYER_MAX_NM);
+        let rows = colour_accuracy_with(0, seeds, layer, &crate::progress::no_progress).unwrap();
         if std::env::var_os("COLOUR_TABLE").is_some() {
             println!("{}", accuracy_table(&rows, seeds));
         }
@@ -699,15 +823,40 @@ mod tests {
                 .unwrap()
                 .clone()
         };
-        for rule in ["nearest, Mahalanobis", "set, 95%"] {
-            let r = get("three", "--film", rule);
-            assert!(r.copper_gold() >= 0.99, "{rule}: {r:?}");
+        // Three bands, the fit's default error model (its surface-layer allowance is ONE
+        // layer over a plate's bands): the Mahalanobis nearest neighbour gets ≥ 99% of
+        // copper and gold right, the set rule (the default) ≥ 98% with the rest
+        // `ambiguous`, never wrong (docs/BANDS.md: 98.5% over 100 seeds, 1.5% ambiguous;
+        // per-band allowances made every gold plate ambiguous).
+        let r = get("three", "default", "nearest, Mahalanobis");
+        assert!(r.copper_gold() >= 0.99, "{r:?}");
+        let r = get("three", "default", "set, 95%");
+        let cg = (r.copper.1 + r.gold.1) as f64;
+        assert!(r.copper_gold() >= 0.98, "three bands, default, set: {r:?}");
+        assert!(
+            r.copper_gold() + r.ambiguous as f64 / cg >= 0.999,
+            "three bands, default, set: {r:?}"
+        );
+        if layer > 0.0 {
+            // The metal plates carry native layers (0-3 nm): without the allowance
+            // (`--film-sd-nm 0`) the set rule rejects many of them, the reason for it.
+            let r = get("three", "--film", "set, 95%");
+            assert!(
+                r.unknown as f64 >= 0.2 * cg,
+                "three bands, --film 0, set: {r:?}"
+            );
+        } else {
+            let r = get("three", "--film", "set, 95%");
+            assert!(
+                r.copper_gold() >= 0.99,
+                "clean plates, --film 0, set: {r:?}"
+            );
         }
         // 650 nm alone: the set rule (the default) cannot decide (with the fit's default
         // error model it calls most of them `ambiguous`, the honest answer: copper and
         // gold are 0.09 apart in n there), and the paper's Euclidean rule is near chance.
-        // (The Mahalanobis nearest neighbour separates them in this simulation, where
-        // every plate has exactly its library index: docs/BANDS.md reports it.)
+        // (The Mahalanobis nearest neighbour does better here, on plates whose layers
+        // are thin: docs/BANDS.md reports it.)
         let r = get("one", "default", "set, 95%");
         let cg = (r.copper.1 + r.gold.1) as f64;
         assert!(
@@ -715,7 +864,12 @@ mod tests {
             "650 nm, default, set: {r:?}"
         );
         for fit in ["default", "--film"] {
-            for rule in ["nearest, Euclidean", "set, 95%"] {
+            let rules: &[&str] = if layer > 0.0 {
+                &["nearest, Euclidean", "nearest, Mahalanobis", "set, 95%"]
+            } else {
+                &["nearest, Euclidean", "set, 95%"]
+            };
+            for rule in rules {
                 let r = get("one", fit, rule);
                 assert!(r.copper_gold() < 0.99, "650 nm, {fit}, {rule}: {r:?}");
             }

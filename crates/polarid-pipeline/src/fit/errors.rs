@@ -8,7 +8,9 @@
 use polarid_core::FitStatus;
 use polarid_core::dop::dop;
 use polarid_core::fit::NkFit;
-use polarid_core::systematic::{Gof, aolp_deviation, chi2_sf, propagate, systematic_covariance};
+use polarid_core::systematic::{
+    FilmShifts, Gof, aolp_deviation, chi2_sf, film_shifts, propagate, systematic_covariance,
+};
 
 use super::{FitConfig, Group};
 
@@ -28,6 +30,10 @@ pub struct ErrorReport {
     /// did, so `model_mismatch` takes precedence over the fit's own troubles
     /// ([`overrides`]).
     pub aolp_failed: bool,
+    /// The fit's surface-layer shifts ([`film_shifts`]): for rows with a `wavelength_nm`
+    /// (one band of a multi-band target), a layer allowance and a covariance in `(n, k)`
+    /// (not `(n, k²)`), so that classification can correlate the layer across the bands.
+    pub film: Option<FilmShifts>,
 }
 
 /// Whether a failed AoLP test replaces the fit status `s`: an `ok` fit, and the fit's
@@ -88,6 +94,11 @@ pub(crate) fn assess(g: &Group, f: &NkFit, corr: &[f64], cfg: &FitConfig) -> Err
     // A fit without standard errors (singular) keeps them unknown.
     if f.n_se.is_finite() && f.k_se.is_finite() {
         rep.total = (prop.total.n_se, prop.total.k_se, prop.total.nk_corr);
+        if g.wavelength_nm.is_some() && !prop.total.in_u {
+            rep.film = film_shifts(f.n, f.k, &betas, se.as_deref(), &pol)
+                .ok()
+                .flatten();
+        }
     }
     if let Some(gof) = &prop.gof {
         rep.gof_p = Some(gof.p_value);

@@ -436,6 +436,7 @@ fn specular(
             nk_corr_noise: Some(f.nk_corr),
             gof_p: err.gof_p,
             aolp_p: err.aolp_p,
+            film: err.film,
         },
         report: None,
     })

@@ -602,6 +602,7 @@ pub fn map_manifest_bands(
                     cov: Some(cov),
                     fit_status: FitStatus::Ok,
                 },
+                film: None,
             });
         }
         if est.bands.is_empty() {
