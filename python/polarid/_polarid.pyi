@@ -18,6 +18,7 @@ __all__ = [
     "__version__",
     "aolp",
     "classify",
+    "classify_table",
     "demosaic",
     "dolp",
     "dolp_aolp",
@@ -259,6 +260,8 @@ def classify(
     k_se: ArrayLike | None = None,
     nk_corr: ArrayLike | None = None,
     fit_status: ArrayLike | str | None = None,
+    wavelength_nm: ArrayLike | None = None,
+    band_axis: int | None = None,
     rule: Literal["set", "nearest"] | None = None,
     confidence: float = 0.95,
     metric: Literal["euclidean", "mahalanobis"] | None = None,
@@ -268,12 +271,37 @@ def classify(
     strings: bool = False,
 ) -> dict[str, Any]:
     """Scalar input, keys: predicted, distance, runner_up, runner_up_distance, margin,
-    status, candidates, n_candidates, category. Array input: distance,
+    status, candidates, n_candidates, category, bands_used. Array input: distance,
     runner_up_distance, margin, n_candidates and integer codes with name tables:
     predicted_code / runner_up_code (class_names), status_code (status_names),
-    candidates_code (candidates_names), category_code (category_names); with
-    ``strings=True`` also predicted, runner_up, status, candidates, category as str
-    arrays."""
+    candidates_code (candidates_names), category_code (category_names), bands_used_code
+    (bands_used_names); with ``strings=True`` also predicted, runner_up, status,
+    candidates, category, bands_used as str arrays.
+
+    ``library_or_model``: single- or multi-band (``"builtin-rgb"``, a multi-band library
+    CSV or model JSON), as ``polarid classify``. ``wavelength_nm`` (NaN: none) gives
+    each estimate's wavelength (the built-in libraries are evaluated there);
+    ``band_axis``: the axis holding the bands of one estimate (classified on all of
+    them at once; removed from the results)."""
+
+def classify_table(
+    fits: _Path,
+    library_or_model: _Path | Sequence[tuple[str, float, float] | tuple[str, float, float, str | None]] | None = None,
+    *,
+    wavelength_nm: float | None = None,
+    rule: Literal["set", "nearest"] = "set",
+    confidence: float = 0.95,
+    metric: Literal["euclidean", "mahalanobis"] | None = None,
+    neighbours: int = 1,
+    reject: float | None = None,
+    max_distance: float | None = None,
+) -> dict[str, list[Any]]:
+    """Classify every target of a fits CSV exactly as ``polarid classify`` does (a
+    target's rows with ``wavelength_nm`` together, on all their bands;
+    ``wavelength_nm``: ``--wavelength-nm``). Returns the columns of the classification
+    CSV: target, class, predicted, distance, runner_up, runner_up_distance, status,
+    candidates (list of str), bands_used (only when some target has wavelengths),
+    margin, nearest, category, metric, rule, confidence, gate, votes, reason."""
 
 # --- files -----------------------------------------------------------------------------
 def load_manifest(path: _Path) -> dict[str, Any]: ...
