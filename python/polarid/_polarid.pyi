@@ -28,6 +28,7 @@ __all__ = [
     "fit_nk",
     "fit_table",
     "load_manifest",
+    "map_manifest",
     "measure",
     "pbrdf",
     "simulate",
@@ -330,20 +331,47 @@ def simulate(
 ) -> dict[str, Any]: ...
 
 # --- maps ------------------------------------------------------------------------------
+class MapBand(TypedDict):
+    """One band of a colour map (``map_manifest(...)["bands"][450]``): the band's
+    per-pixel fit, as the CLI's ``n_450.tif`` ... (float32 (H, W), NaN where not
+    fitted), and why each pixel's fit of the band is not used (uint8 reason codes)."""
+
+    wavelength_nm: float
+    captures: list[int]
+    n: NDArray[np.float32]
+    k: NDArray[np.float32]
+    n_se: NDArray[np.float32]
+    k_se: NDArray[np.float32]
+    rms_residual: NDArray[np.float32]
+    reason: NDArray[np.uint8]
+    reason_counts: NDArray[np.int64]
+
 def map_manifest(
     manifest_path: _Path,
-    model: _Path,
+    model: _Path | None = None,
     *,
+    library: str | None = None,
     bin: int = 1,
     min_s0: float | None = None,
     max_distance: float | None = None,
     metric: Literal["euclidean", "mahalanobis"] = "euclidean",
     tile: int = 65536,
+    rule: Literal["set", "nearest"] = "set",
+    confidence: float = 0.95,
+    weights: Literal["auto", "noise", "none"] = "auto",
+    angle_sd_deg: float = 0.2,
+    dolp_floor: float = 0.002,
+    extinction_ratio: float = 100.0,
+    retardance_deg: float = 0.0,
 ) -> dict[str, Any]:
-    """keys: n, k, n_se, k_se, rms_residual (float32 (H, W)), class, reason (uint8 codes),
-    class_names, reason_names, class_counts, reason_counts, summary; with calibrated
-    geometry ([camera], a source per capture) also beta_deg (float64 (T, H, W), every
-    pixel's β per capture, NaN without geometry) and the reason no_geometry."""
+    """keys: n, k, n_se, k_se, rms_residual (float32 (H, W); single-band manifests),
+    class, reason (uint8 codes), class_names, reason_names, class_counts, reason_counts,
+    summary; with calibrated geometry ([camera], a source per capture) also beta_deg
+    (float64 (T, H, W), every pixel's β per capture, NaN without geometry) and the
+    reason no_geometry. A colour manifest (``model``: a multi-band model, or
+    ``library="builtin-rgb"`` / a multi-band library CSV) gives ``bands`` instead of
+    n ... rms_residual: ``{wavelength_nm: MapBand}``, and class/reason of the
+    classification of every pixel on all its bands."""
 
 # --- one block of a map (private: polarid.dask.material_map) ----------------------------
 def _map_names(

@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 import polarid
-from conftest import DATA_DIR, read_csv
+from conftest import DATA_DIR, REPO_ROOT, read_csv
+
+REPO_SCENES = REPO_ROOT / "examples" / "scenes"
 
 #: A colour polarization camera (RGGB blocks of 90/45/135/0 polarizers) looking at three
 #: metals whose (n, k) per band are builtin-rgb's, 8 source positions (docs/SCENE.md).
@@ -216,3 +218,64 @@ def test_classify_multi_band_errors(colour):
     with pytest.raises(FileNotFoundError, match="nope.csv"):
         polarid.classify_table(colour["dir"] / "nope.csv", "builtin-rgb")
 
+
+# --- maps of colour manifests (polarid.map_manifest == polarid map) -----------------------
+
+@pytest.mark.parametrize("source,bin,rule", [("builtin-rgb", 1, "set"), ("model", 2, "set"), ("lib3", 1, "nearest")])
+def test_map_manifest_bands_equals_cli(colour, polarid_cli, source, bin, rule):
+    """Per-band images == the CLI's n_450.tif ... (bit for bit), the multi-band class and
+    reason images and the summary == the CLI's."""
+    from test_map_manifest import read_tiff
+    import json
+
+    manifest = colour["dir"] / "sim3" / "manifest.toml"
+    spec = colour.get(source, source)
+    out = colour["dir"] / f"map_{source}_{bin}_{rule}"
+    opt = "--model" if source == "model" else "--library"
+    run(polarid_cli, "map", manifest, opt, spec, "-o", out, "--bin", bin, "--rule", rule)
+    if source == "model":
+        py = polarid.map_manifest(manifest, spec, bin=bin, rule=rule)
+    else:
+        py = polarid.map_manifest(manifest, library=str(spec), bin=bin, rule=rule)
+
+    assert "n" not in py and list(py["bands"]) == [450.0, 550.0, 650.0]
+    summary = json.loads((out / "map_summary.json").read_text())
+    for key in ("manifest", "model"):
+        summary.pop(key)
+    assert py["summary"] == summary
+    for (wl, b), sb in zip(py["bands"].items(), summary["bands"]):
+        assert b["wavelength_nm"] == wl == sb["wavelength_nm"] and b["captures"] == sb["captures"]
+        for key in ("n", "k", "n_se", "k_se", "rms_residual"):
+            cli = read_tiff(out / f"{key}_{wl:.0f}.tif")
+            assert b[key].dtype == np.float32 and b[key].shape == cli.shape == py["class"].shape, key
+            np.testing.assert_array_equal(b[key], cli, err_msg=f"{key} {wl}")
+        assert b["reason"].shape == py["class"].shape
+        counts = {r: int(c) for r, c in zip(py["reason_names"], b["reason_counts"]) if c > 0}
+        assert counts == sb["reasons"]
+        assert int((b["reason"] == 0).sum()) == sb["fitted"] > 0
+    for key in ("class", "reason"):
+        np.testing.assert_array_equal(py[key], read_tiff(out / f"{key}.tif"), err_msg=key)
+    classes = json.loads((out / "classes.json").read_text())
+    assert py["class_names"] == [classes[str(i)] for i in range(len(classes))]
+    if source != "builtin-rgb":
+        return
+    # Copper and gold told apart per pixel: most of each plate's pixels are its material
+    # and none is the other metal.
+    x = lambda c: slice(c + 8, c + 24)
+    cu, au = py["class_names"].index("copper"), py["class_names"].index("gold")
+    for col, code, other in ((0, cu, au), (32, au, cu)):
+        block = py["class"][x(0), x(col)]
+        assert (block == code).mean() > 0.5 and not (block == other).any(), py["class_names"][code]
+
+
+def test_map_manifest_bands_options(colour, polarid_cli):
+    manifest = colour["dir"] / "sim3" / "manifest.toml"
+    with pytest.raises(ValueError, match="give model .* or library"):
+        polarid.map_manifest(manifest)
+    with pytest.raises(ValueError, match="not both or neither"):
+        polarid.map_manifest(manifest, colour["model"], library="builtin-rgb")
+    with pytest.raises(FileNotFoundError, match="builtin-tv"):
+        polarid.map_manifest(manifest, library="builtin-tv")
+    run(polarid_cli, "simulate", REPO_SCENES / "aluminum_test_60.toml", "-o", colour["dir"] / "mono_sim")
+    with pytest.raises(ValueError, match="colour captures only"):
+        polarid.map_manifest(colour["dir"] / "mono_sim" / "manifest.toml", library="builtin-rgb")
