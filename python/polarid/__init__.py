@@ -50,7 +50,8 @@ Submodule (optional dependency dask: ``pip install "./python[dask]"``)
 ---------------------------------------------------------------------
 polarid.dask.material_map(frames, angles_deg, beta_deg, model, **options)
     The maps of ``polarid map`` as lazy dask arrays, block by block, on any Dask
-    scheduler (``import polarid.dask``; not imported by ``import polarid``).
+    scheduler (``import polarid.dask``; not imported by ``import polarid``); colour
+    mosaics per band with ``color="RGGB"``.
 
 Large results hold no per-pixel strings: ``fit_nk`` and ``classify`` on arrays return
 integer codes with their name tables (``status_code`` / ``status_names``,

@@ -418,6 +418,48 @@ def _map_block(
 
 _NOISE_SAMPLE: int
 
+def _map_names_colour(
+    *,
+    model_json: str | None = None,
+    library: str | None = None,
+    label: str = "<model>",
+    color: str = "RGGB",
+    pattern: Sequence[float] = (90.0, 45.0, 135.0, 0.0),
+    bands: Mapping[str, float] | None = None,
+    bin: int = 1,
+    min_s0: float | None = None,
+    max_distance: float | None = None,
+    metric: Literal["euclidean", "mahalanobis"] = "euclidean",
+    tile: int = 65536,
+    rule: Literal["set", "nearest"] = "set",
+    confidence: float = 0.95,
+) -> tuple[list[str], list[str], list[float]]: ...
+def _map_block_colour(
+    raw: ArrayLike,
+    beta_deg: Sequence[float],
+    *,
+    model_json: str | None = None,
+    library: str | None = None,
+    label: str = "<model>",
+    color: str = "RGGB",
+    pattern: Sequence[float] = (90.0, 45.0, 135.0, 0.0),
+    bands: Mapping[str, float] | None = None,
+    halo: tuple[int, int, int, int] = (0, 0, 0, 0),
+    bin: int = 1,
+    dark_level: Sequence[float] | None = None,
+    saturation: Sequence[float | None] | None = None,
+    min_s0: float | None = None,
+    max_distance: float | None = None,
+    metric: Literal["euclidean", "mahalanobis"] = "euclidean",
+    tile: int = 65536,
+    rule: Literal["set", "nearest"] = "set",
+    confidence: float = 0.95,
+    angle_sd_deg: Sequence[float] | None = None,
+    dolp_floor: float = 0.002,
+    extinction_ratio: float = 100.0,
+    retardance_deg: float = 0.0,
+) -> NDArray[np.float32]: ...
+
 def _noise_block(
     frames: ArrayLike,
     angles_deg: Sequence[float] | None,
