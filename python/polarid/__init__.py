@@ -34,8 +34,11 @@ fit_mixed(theta_i_deg, theta_r_deg, dolp, s0, ...)
     Depolarization-aware fit (specular + Lambertian diffuse) with model selection.
 fit_table(measurements_csv, reflectance="specular", ...)
     Every target of a measurements CSV, as ``polarid fit``: a dict of its columns.
-classify(n, k, library_or_model)
-    Nearest-prototype material classification (paper section 6).
+classify(n, k, library_or_model, wavelength_nm=None, band_axis=None)
+    Material classification (paper section 6) of arrays of estimates, single- or
+    multi-band (``"builtin-rgb"``, multi-band libraries and models).
+classify_table(fits_csv, library_or_model, wavelength_nm=None)
+    Every target of a fits CSV, as ``polarid classify``: a dict of its columns.
 load_manifest(path), measure(manifest_path)
     Capture-set manifests and the per-region DoLP measurements of ``polarid measure``.
 simulate(plates, theta_i_deg, ...)
@@ -47,7 +50,8 @@ Submodule (optional dependency dask: ``pip install "./python[dask]"``)
 ---------------------------------------------------------------------
 polarid.dask.material_map(frames, angles_deg, beta_deg, model, **options)
     The maps of ``polarid map`` as lazy dask arrays, block by block, on any Dask
-    scheduler (``import polarid.dask``; not imported by ``import polarid``).
+    scheduler (``import polarid.dask``; not imported by ``import polarid``); colour
+    mosaics per band with ``color="RGGB"``.
 
 Large results hold no per-pixel strings: ``fit_nk`` and ``classify`` on arrays return
 integer codes with their name tables (``status_code`` / ``status_names``,
@@ -60,6 +64,7 @@ from ._polarid import (
     __version__,
     aolp,
     classify,
+    classify_table,
     demosaic,
     dofp_dolp_aolp,
     dolp,
@@ -83,6 +88,7 @@ __all__ = [
     "__version__",
     "aolp",
     "classify",
+    "classify_table",
     "demosaic",
     "dofp_dolp_aolp",
     "dolp",

@@ -18,6 +18,7 @@ __all__ = [
     "__version__",
     "aolp",
     "classify",
+    "classify_table",
     "demosaic",
     "dolp",
     "dolp_aolp",
@@ -27,6 +28,7 @@ __all__ = [
     "fit_nk",
     "fit_table",
     "load_manifest",
+    "map_manifest",
     "measure",
     "pbrdf",
     "simulate",
@@ -259,6 +261,8 @@ def classify(
     k_se: ArrayLike | None = None,
     nk_corr: ArrayLike | None = None,
     fit_status: ArrayLike | str | None = None,
+    wavelength_nm: ArrayLike | None = None,
+    band_axis: int | None = None,
     rule: Literal["set", "nearest"] | None = None,
     confidence: float = 0.95,
     metric: Literal["euclidean", "mahalanobis"] | None = None,
@@ -268,12 +272,37 @@ def classify(
     strings: bool = False,
 ) -> dict[str, Any]:
     """Scalar input, keys: predicted, distance, runner_up, runner_up_distance, margin,
-    status, candidates, n_candidates, category. Array input: distance,
+    status, candidates, n_candidates, category, bands_used. Array input: distance,
     runner_up_distance, margin, n_candidates and integer codes with name tables:
     predicted_code / runner_up_code (class_names), status_code (status_names),
-    candidates_code (candidates_names), category_code (category_names); with
-    ``strings=True`` also predicted, runner_up, status, candidates, category as str
-    arrays."""
+    candidates_code (candidates_names), category_code (category_names), bands_used_code
+    (bands_used_names); with ``strings=True`` also predicted, runner_up, status,
+    candidates, category, bands_used as str arrays.
+
+    ``library_or_model``: single- or multi-band (``"builtin-rgb"``, a multi-band library
+    CSV or model JSON), as ``polarid classify``. ``wavelength_nm`` (NaN: none) gives
+    each estimate's wavelength (the built-in libraries are evaluated there);
+    ``band_axis``: the axis holding the bands of one estimate (classified on all of
+    them at once; removed from the results)."""
+
+def classify_table(
+    fits: _Path,
+    library_or_model: _Path | Sequence[tuple[str, float, float] | tuple[str, float, float, str | None]] | None = None,
+    *,
+    wavelength_nm: float | None = None,
+    rule: Literal["set", "nearest"] = "set",
+    confidence: float = 0.95,
+    metric: Literal["euclidean", "mahalanobis"] | None = None,
+    neighbours: int = 1,
+    reject: float | None = None,
+    max_distance: float | None = None,
+) -> dict[str, list[Any]]:
+    """Classify every target of a fits CSV exactly as ``polarid classify`` does (a
+    target's rows with ``wavelength_nm`` together, on all their bands;
+    ``wavelength_nm``: ``--wavelength-nm``). Returns the columns of the classification
+    CSV: target, class, predicted, distance, runner_up, runner_up_distance, status,
+    candidates (list of str), bands_used (only when some target has wavelengths),
+    margin, nearest, category, metric, rule, confidence, gate, votes, reason."""
 
 # --- files -----------------------------------------------------------------------------
 def load_manifest(path: _Path) -> dict[str, Any]: ...
@@ -302,20 +331,47 @@ def simulate(
 ) -> dict[str, Any]: ...
 
 # --- maps ------------------------------------------------------------------------------
+class MapBand(TypedDict):
+    """One band of a colour map (``map_manifest(...)["bands"][450]``): the band's
+    per-pixel fit, as the CLI's ``n_450.tif`` ... (float32 (H, W), NaN where not
+    fitted), and why each pixel's fit of the band is not used (uint8 reason codes)."""
+
+    wavelength_nm: float
+    captures: list[int]
+    n: NDArray[np.float32]
+    k: NDArray[np.float32]
+    n_se: NDArray[np.float32]
+    k_se: NDArray[np.float32]
+    rms_residual: NDArray[np.float32]
+    reason: NDArray[np.uint8]
+    reason_counts: NDArray[np.int64]
+
 def map_manifest(
     manifest_path: _Path,
-    model: _Path,
+    model: _Path | None = None,
     *,
+    library: str | None = None,
     bin: int = 1,
     min_s0: float | None = None,
     max_distance: float | None = None,
     metric: Literal["euclidean", "mahalanobis"] = "euclidean",
     tile: int = 65536,
+    rule: Literal["set", "nearest"] = "set",
+    confidence: float = 0.95,
+    weights: Literal["auto", "noise", "none"] = "auto",
+    angle_sd_deg: float = 0.2,
+    dolp_floor: float = 0.002,
+    extinction_ratio: float = 100.0,
+    retardance_deg: float = 0.0,
 ) -> dict[str, Any]:
-    """keys: n, k, n_se, k_se, rms_residual (float32 (H, W)), class, reason (uint8 codes),
-    class_names, reason_names, class_counts, reason_counts, summary; with calibrated
-    geometry ([camera], a source per capture) also beta_deg (float64 (T, H, W), every
-    pixel's β per capture, NaN without geometry) and the reason no_geometry."""
+    """keys: n, k, n_se, k_se, rms_residual (float32 (H, W); single-band manifests),
+    class, reason (uint8 codes), class_names, reason_names, class_counts, reason_counts,
+    summary; with calibrated geometry ([camera], a source per capture) also beta_deg
+    (float64 (T, H, W), every pixel's β per capture, NaN without geometry) and the
+    reason no_geometry. A colour manifest (``model``: a multi-band model, or
+    ``library="builtin-rgb"`` / a multi-band library CSV) gives ``bands`` instead of
+    n ... rms_residual: ``{wavelength_nm: MapBand}``, and class/reason of the
+    classification of every pixel on all its bands."""
 
 # --- one block of a map (private: polarid.dask.material_map) ----------------------------
 def _map_names(
@@ -361,6 +417,48 @@ def _map_block(
 ) -> NDArray[np.float32]: ...
 
 _NOISE_SAMPLE: int
+
+def _map_names_colour(
+    *,
+    model_json: str | None = None,
+    library: str | None = None,
+    label: str = "<model>",
+    color: str = "RGGB",
+    pattern: Sequence[float] = (90.0, 45.0, 135.0, 0.0),
+    bands: Mapping[str, float] | None = None,
+    bin: int = 1,
+    min_s0: float | None = None,
+    max_distance: float | None = None,
+    metric: Literal["euclidean", "mahalanobis"] = "euclidean",
+    tile: int = 65536,
+    rule: Literal["set", "nearest"] = "set",
+    confidence: float = 0.95,
+) -> tuple[list[str], list[str], list[float]]: ...
+def _map_block_colour(
+    raw: ArrayLike,
+    beta_deg: Sequence[float],
+    *,
+    model_json: str | None = None,
+    library: str | None = None,
+    label: str = "<model>",
+    color: str = "RGGB",
+    pattern: Sequence[float] = (90.0, 45.0, 135.0, 0.0),
+    bands: Mapping[str, float] | None = None,
+    halo: tuple[int, int, int, int] = (0, 0, 0, 0),
+    bin: int = 1,
+    dark_level: Sequence[float] | None = None,
+    saturation: Sequence[float | None] | None = None,
+    min_s0: float | None = None,
+    max_distance: float | None = None,
+    metric: Literal["euclidean", "mahalanobis"] = "euclidean",
+    tile: int = 65536,
+    rule: Literal["set", "nearest"] = "set",
+    confidence: float = 0.95,
+    angle_sd_deg: Sequence[float] | None = None,
+    dolp_floor: float = 0.002,
+    extinction_ratio: float = 100.0,
+    retardance_deg: float = 0.0,
+) -> NDArray[np.float32]: ...
 
 def _noise_block(
     frames: ArrayLike,

@@ -31,9 +31,10 @@ block, and the last bits of a group's fits depend on its members (as with ``pola
 worker.
 
 Colour polarization mosaics (a 2×2 polarizer block under each colour of a Bayer
-pattern) are not mapped: ``polarid map`` does not map them either yet (one map per band
-is being added to the pipeline), and this map is defined as the CLI's.
-``polarid.stokes_color`` gives each band's Stokes images, DoLP and AoLP.
+pattern, ``color="RGGB"``) are mapped per band as ``polarid map`` maps a colour
+manifest: every band fitted per pixel (``maps["bands"][450]["n"]`` ...), every pixel
+classified on all its bands against a multi-band model or library (far field, one β
+per capture, unweighted fits; each block reads 4 raw pixels around it).
 
 Dask is an optional dependency: ``pip install "./python[dask]"`` (dask[array]; add
 ``distributed`` for clusters).
@@ -61,7 +62,15 @@ from typing import Any
 
 import numpy as np
 
-from ._polarid import _NOISE_SAMPLE, _estimate_noise, _map_block, _map_names, _noise_block
+from ._polarid import (
+    _NOISE_SAMPLE,
+    _estimate_noise,
+    _map_block,
+    _map_block_colour,
+    _map_names,
+    _map_names_colour,
+    _noise_block,
+)
 
 __all__ = ["material_map", "aligned_chunks", "PLANES"]
 
@@ -254,9 +263,12 @@ def material_map(
     frames: Any,
     angles_deg: Sequence[float] | None,
     beta_deg: Any,
-    model: Any,
+    model: Any = None,
     *,
     pattern: Sequence[float] | None = None,
+    color: str | None = None,
+    bands: Mapping[str, float] | None = None,
+    library: str | None = None,
     bin: int = 1,
     dark_level: float | Sequence[float] = 0.0,
     saturation: float | Sequence[float | None] | None = None,
@@ -304,11 +316,24 @@ def material_map(
         (at least 3 must remain).
     model : str, os.PathLike or dict
         A model JSON written by ``polarid train`` (its path, or its content as a dict).
-        It is read once here and shipped to the workers with the tasks.
+        It is read once here and shipped to the workers with the tasks. With ``color``:
+        a multi-band model, or ``library`` instead.
     pattern : sequence of 4 float, optional
         The DoFP polarizer pattern of the 2×2 cell, row by row (IMX250MZR:
         ``(90, 45, 135, 0)``); frames are then mosaics, demosaiced bilinearly as by
         ``polarid map`` (each block reads 2 raw pixels around it: ``dask.array.overlap``).
+    color : str, optional
+        Colour polarization mosaics (T, H, W) (H, W multiples of 4): the colour of each
+        2×2 polarizer block of the 4×4 period, block-row by block-row (``"RGGB"`` for the
+        IMX250MYR; a manifest's ``dofp.color``), with ``pattern`` the polarizer block
+        (default ``(90, 45, 135, 0)``). Mapped per band as ``polarid map`` maps a colour
+        manifest (far field: ``beta_deg`` of shape (T,); unweighted fits).
+    bands : dict, optional
+        With ``color``: the wavelength (nm) of each colour letter (default R 650, G 550,
+        B 450; a manifest's ``bands``).
+    library : str, optional
+        With ``color``, instead of ``model``: ``"builtin-rgb"`` or a multi-band library
+        CSV (read by every worker: a path they can open).
     bin : int, default 1
         Sum ``bin`` × ``bin`` blocks of pixels before the DoLP (1 to 64). Incomplete
         blocks at the right and bottom edges are dropped.
@@ -375,6 +400,12 @@ def material_map(
         arrays share one task per block: compute them together
         (``dask.compute(*maps.values())``, ``dask.array.to_zarr``, ...).
 
+        With ``color``: ``bands`` instead of ``n`` ... ``rms_residual``: a dict keyed by
+        each band's wavelength (float, increasing) of dicts ``n``, ``k``, ``n_se``,
+        ``k_se``, ``rms_residual`` (float32) and ``reason`` (uint8: why the band's fit of
+        a pixel is not used; 0 ``classified``), as ``map_manifest``'s ``bands``; ``class``
+        and ``reason`` of the classification on all bands; ``weights`` ``"none"``.
+
     Raises
     ------
     ValueError
@@ -391,6 +422,16 @@ def material_map(
         the fits are unweighted (as ``polarid map`` warns).
     """
     da = _dask_array()
+    if color is not None:
+        return _colour_map(da, frames, angles_deg, beta_deg, model, library=library, color=color,
+                           pattern=(90.0, 45.0, 135.0, 0.0) if pattern is None else pattern, bands=bands,
+                           bin=bin, dark_level=dark_level, saturation=saturation, min_s0=min_s0,
+                           rule=rule, confidence=confidence, weights=weights, noise=noise,
+                           angle_sd_deg=angle_sd_deg, dolp_floor=dolp_floor,
+                           extinction_ratio=extinction_ratio, retardance_deg=retardance_deg,
+                           max_distance=max_distance, metric=metric, tile=tile, rechunk=rechunk)
+    if library is not None:
+        raise ValueError("library= maps colour mosaics only (give color=); give model for mono frames")
     dofp = pattern is not None
     if not isinstance(frames, da.Array):
         frames = da.from_array(np.asarray(frames))
@@ -511,4 +552,108 @@ def material_map(
     out["reason_names"] = reason_names
     out["weights"] = "noise" if kw["noise"] is not None else "none"
     out["noise"] = noise_info
+    return out
+
+
+#: Raw pixels around a colour block read by the per-band bilinear interpolation (3,
+#: rounded up to the 4×4 period).
+COLOUR_HALO = 4
+
+
+def _colour_block(x, *, block_id, nblocks, kw):
+    """One colour map block (float32 (6 B + 2, h/bin, w/bin))."""
+    i, j = block_id[1], block_id[2]
+    halo = (
+        COLOUR_HALO if i > 0 else 0,
+        COLOUR_HALO if i < nblocks[0] - 1 else 0,
+        COLOUR_HALO if j > 0 else 0,
+        COLOUR_HALO if j < nblocks[1] - 1 else 0,
+    )
+    raw = np.require(x, requirements=("C", "A"))
+    return _map_block_colour(raw, kw["beta_deg"], halo=halo, **kw["opts"])
+
+
+def _colour_map(da, frames, angles_deg, beta_deg, model, *, library, color, pattern, bands, bin,
+                dark_level, saturation, min_s0, rule, confidence, weights, noise, angle_sd_deg,
+                dolp_floor, extinction_ratio, retardance_deg, max_distance, metric, tile, rechunk):
+    """``material_map`` of colour mosaics (see its documentation)."""
+    if not isinstance(frames, da.Array):
+        frames = da.from_array(np.asarray(frames))
+    if frames.ndim != 3:
+        raise ValueError(f"frames must have shape (captures, rows, columns) with color, got shape {frames.shape}")
+    if angles_deg is not None:
+        raise ValueError("give angles_deg=None with color (the pattern gives the angles)")
+    if weights == "noise" or noise is not None:
+        raise ValueError("colour maps use unweighted fits (polarid map's far-field default): "
+                         "weights='noise' and noise= are not available with color")
+    if weights not in ("auto", "none"):
+        raise ValueError(f'weights must be "auto", "noise" or "none", got {weights!r}')
+    if (model is None) == (library is None):
+        raise ValueError("give model (a multi-band model JSON) or library (builtin-rgb or a "
+                         "multi-band library CSV), not both or neither")
+    if not isinstance(bin, (int, np.integer)) or isinstance(bin, bool):
+        raise TypeError(f"bin must be an int, got {bin!r}")
+    bin = int(bin)
+    t = int(frames.shape[0])
+    height, width = int(frames.shape[-2]), int(frames.shape[-1])
+    per_capture_beta = np.asarray(beta_deg.compute() if isinstance(beta_deg, da.Array) else beta_deg,
+                                  dtype=np.float64)
+    if per_capture_beta.shape != (t,):
+        raise ValueError(f"beta_deg must have shape ({t},) with color (one angle per capture, far "
+                         f"field), got shape {per_capture_beta.shape}")
+    if height % 4 or width % 4:
+        raise ValueError(f"colour mosaics need whole 4x4 periods, got {width}x{height}")
+    if model is not None:
+        model_json, label = _model_json(model)
+        src = dict(model_json=model_json, label=label)
+    else:
+        src = dict(library=str(library), label=f"library {library}")
+    opts = dict(src, color=str(color), pattern=[float(v) for v in pattern],
+                bands=None if bands is None else {str(k): float(v) for k, v in bands.items()},
+                bin=bin, min_s0=min_s0, max_distance=max_distance, metric=metric, tile=int(tile),
+                rule=rule, confidence=float(confidence))
+    class_names, reason_names, wavelengths = _map_names_colour(**opts)
+    if bin > height or bin > width:
+        raise ValueError(f"bin {bin} does not fit the {width}x{height} frames")
+    opts.update(dark_level=[0.0 if v is None else v for v in _per_capture("dark_level", dark_level, t)],
+                saturation=_per_capture("saturation", saturation, t),
+                angle_sd_deg=[float(v) for v in _per_capture("angle_sd_deg", angle_sd_deg, t)],
+                dolp_floor=float(dolp_floor), extinction_ratio=float(extinction_ratio),
+                retardance_deg=float(retardance_deg))
+
+    unit = math.lcm(bin, 4)
+    frames = frames.rechunk({0: -1})
+    new = [aligned_chunks(frames.chunks[ax], unit, 2 * COLOUR_HALO) for ax in (-2, -1)]
+    if tuple(new) != (frames.chunks[-2], frames.chunks[-1]):
+        if not rechunk:
+            raise ValueError(
+                f"the chunks of frames along rows {frames.chunks[-2]} and columns "
+                f"{frames.chunks[-1]} must end at multiples of {unit} (bin={bin} and the 4x4 "
+                f"colour period), except the last; rechunk (e.g. to {new[0]} and {new[1]}) or "
+                f"pass rechunk=True")
+        frames = frames.rechunk({1: new[0], 2: new[1]})
+    rows, cols = frames.chunks[-2], frames.chunks[-1]
+    out_rows = tuple(c // bin for c in rows)
+    out_cols = tuple(c // bin for c in cols)
+    x = frames
+    if len(rows) > 1 or len(cols) > 1:
+        x = da.overlap.overlap(frames, depth={0: 0, 1: COLOUR_HALO, 2: COLOUR_HALO}, boundary="none")
+    nb = len(wavelengths)
+    planes = 6 * nb + 2
+    kw = dict(beta_deg=[float(v) for v in per_capture_beta], opts=opts)
+    stack = da.map_blocks(_colour_block, x, chunks=((planes,), out_rows, out_cols), dtype=np.float32,
+                          meta=np.empty((0, 0, 0), dtype=np.float32), nblocks=(len(rows), len(cols)),
+                          kw=kw, token="polarid-map-colour")
+    class_dtype = np.uint8 if len(class_names) <= 256 else np.uint16
+    out: dict[str, Any] = {"bands": {}}
+    for b, wl in enumerate(wavelengths):
+        band = {p: stack[6 * b + i] for i, p in enumerate(PLANES[:5])}
+        band["reason"] = stack[6 * b + 5].astype(np.uint8)
+        out["bands"][float(wl)] = band
+    out["class"] = stack[6 * nb].astype(class_dtype)
+    out["reason"] = stack[6 * nb + 1].astype(np.uint8)
+    out["class_names"] = class_names
+    out["reason_names"] = reason_names
+    out["weights"] = "none"
+    out["noise"] = None
     return out

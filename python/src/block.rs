@@ -76,7 +76,7 @@ fn parse_model(model_json: &str, label: &str) -> PyResult<Model> {
 
 /// The map's options, checked as `polarid map` checks them (errors name the option).
 #[allow(clippy::too_many_arguments)]
-fn config(
+pub(crate) fn config(
     bin: usize,
     min_s0: Option<f64>,
     max_distance: Option<f64>,
@@ -107,16 +107,27 @@ fn config(
 
 /// The set rule's systematic error model as the Python side passes it: one angle
 /// uncertainty per capture (degrees) and the analyzer's terms.
-struct ErrorArgs {
-    angle_sd_deg: Vec<f64>,
-    dolp_floor: f64,
-    extinction_ratio: f64,
-    retardance_deg: f64,
+pub(crate) struct ErrorArgs {
+    pub(crate) angle_sd_deg: Vec<f64>,
+    pub(crate) dolp_floor: f64,
+    pub(crate) extinction_ratio: f64,
+    pub(crate) retardance_deg: f64,
 }
 
 impl ErrorArgs {
+    /// `polarid map`'s defaults for `t` captures.
+    pub(crate) fn default_for(t: usize) -> Self {
+        let d = MapErrors::default();
+        Self {
+            angle_sd_deg: vec![d.angle_sd_deg; t],
+            dolp_floor: d.dolp_floor,
+            extinction_ratio: d.extinction_ratio,
+            retardance_deg: d.retardance_deg,
+        }
+    }
+
     /// Check every capture's angle uncertainty as `--angle-sd-deg` is checked.
-    fn check(&self) -> PyResult<()> {
+    pub(crate) fn check(&self) -> PyResult<()> {
         for &a in &self.angle_sd_deg {
             if !(a.is_finite() && (0.0..90.0).contains(&a)) {
                 return Err(value_error(format!(
@@ -129,7 +140,7 @@ impl ErrorArgs {
 
     /// The core error model (as `polarid_pipeline::map`'s `error_model`: radians, no
     /// surface-film term in maps).
-    fn model(&self) -> MapErrorModel {
+    pub(crate) fn model(&self) -> MapErrorModel {
         MapErrorModel {
             polarimetric: Polarimetric {
                 dolp_floor: self.dolp_floor,
@@ -213,7 +224,7 @@ fn _map_names(
 }
 
 /// Crop rows `top..h-bottom` and columns `left..w-right` of a `w`-wide image.
-fn crop<T: Copy>(v: &[T], w: usize, h: usize, c: [usize; 4]) -> Vec<T> {
+pub(crate) fn crop<T: Copy>(v: &[T], w: usize, h: usize, c: [usize; 4]) -> Vec<T> {
     let [top, bottom, left, right] = c;
     let mut out = Vec::with_capacity((h - top - bottom) * (w - left - right));
     for y in top..h - bottom {

@@ -25,7 +25,10 @@ const QUANTITIES: [&str; 5] = ["s0", "s1", "s2", "dolp", "aolp"];
 
 /// The wavelength of every band letter: `bands` (letter → nm) over the nominal bands of
 /// colour sensors (R 650, G 550, B 450 nm; `polarid_io::manifest::DEFAULT_BANDS`).
-fn wavelengths(pattern: &ColourPattern, bands: Option<HashMap<String, f64>>) -> PyResult<Vec<f64>> {
+pub(crate) fn wavelengths(
+    pattern: &ColourPattern,
+    bands: Option<HashMap<String, f64>>,
+) -> PyResult<Vec<f64>> {
     let mut table: Vec<(char, f64)> = Vec::new();
     for (k, nm) in bands.unwrap_or_default() {
         let mut ch = k.trim().chars();

@@ -5,6 +5,7 @@
 //! map` calls, so the arrays equal the CLI's TIFFs (python/tests/test_map_manifest.py).
 
 use ndarray::{ArrayD, IxDyn};
+use polarid_io::library::Library;
 use polarid_io::manifest;
 use polarid_io::model::Model;
 use polarid_pipeline::map::{self, MapConfig};
@@ -14,7 +15,7 @@ use pyo3::types::PyDict;
 
 use crate::arrays::to_numpy;
 use crate::errors::{IntoPyErr, PyResultExt, value_error};
-use crate::files::{path_arg, warn_all};
+use crate::files::{path_arg, warn_all, warn_texts};
 
 /// Register this module's functions.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -40,6 +41,12 @@ fn image<'py, T: numpy::Element>(
 /// a material, ``ambiguous`` or unknown) or the nearest prototype (``rule="nearest"``). Same code as ``polarid map
 /// MANIFEST --model MODEL`` (its TIFFs hold the very same numbers). The GIL is released.
 ///
+/// A manifest with colour captures (``dofp`` with ``color``, docs/BANDS.md) is mapped per
+/// band, as ``polarid map`` maps it: every band is fitted per pixel on its own (the
+/// arrays of ``bands``, the CLI's ``n_450.tif`` ...), and every pixel is classified once
+/// on all its bands together (``class``, ``reason``) against a multi-band model or a
+/// library (``library="builtin-rgb"`` or a multi-band library CSV).
+///
 /// A manifest with calibrated geometry (``[camera]``, ``[[plane]]``, a ``source`` per
 /// capture) is mapped with a β per pixel and capture: where the ray through the centre
 /// of the pixel's ``bin`` × ``bin`` block (coordinates of the files as stored) meets
@@ -51,8 +58,13 @@ fn image<'py, T: numpy::Element>(
 /// ----------
 /// manifest_path : str or os.PathLike
 ///     The capture-set manifest (TOML).
-/// model : str or os.PathLike
-///     A model JSON written by ``polarid train``.
+/// model : str or os.PathLike, optional
+///     A model JSON written by ``polarid train`` (``--model``; for a colour manifest, a
+///     multi-band model).
+/// library : str, optional
+///     Colour manifests only, instead of ``model``: a material library (``--library``):
+///     ``"builtin-rgb"`` or a multi-band library CSV (``polarid library ... --band 450
+///     --band 550 --band 650``).
 /// bin : int, default 1
 ///     Sum ``bin`` × ``bin`` blocks of pixels before the DoLP (1 to 64).
 /// min_s0 : float, optional
@@ -83,7 +95,14 @@ fn image<'py, T: numpy::Element>(
 /// -------
 /// dict
 ///     ``n``, ``k``, ``n_se``, ``k_se``, ``rms_residual``: float32 (H, W), NaN where not
-///     fitted; ``class``: uint8 (H, W) class codes (uint16 above 255 classes), 0 = not
+///     fitted (single-band manifests); for a colour manifest instead ``bands``: a dict
+///     keyed by each band's wavelength in nm (float, increasing; ``bands[450]``) of
+///     dicts ``wavelength_nm``, ``captures`` (the band's captures, numbered from 1 as in
+///     ``map_summary.json``), ``n``, ``k``, ``n_se``, ``k_se``, ``rms_residual``
+///     (float32 (H, W), the band's per-pixel fit: the CLI's ``n_450.tif`` ...),
+///     ``reason`` (uint8 (H, W): why the band's fit of a pixel is not used by the
+///     classification, codes into ``reason_names``; ``classified``: fitted ``ok``) and
+///     ``reason_counts``; ``class``: uint8 (H, W) class codes (uint16 above 255 classes), 0 = not
 ///     classified, code ``i`` is ``class_names[i]``; ``reason``: uint8 (H, W), why a pixel
 ///     is (not) classified, code ``i`` is ``reason_names[i]``; ``class_names`` (list,
 ///     ``"unknown"`` first), ``reason_names`` (list, ``"classified"`` first);
@@ -97,16 +116,25 @@ fn image<'py, T: numpy::Element>(
 /// Raises
 /// ------
 /// FileNotFoundError
-///     A missing manifest or model.
+///     A missing manifest, model or library file.
 /// ValueError
-///     An invalid option (``bin must be in 1..=64, got 0``), manifest, model or image.
+///     An invalid option (``bin must be in 1..=64, got 0``), manifest, model, library
+///     or image; neither or both of ``model`` and ``library``; a library with a
+///     single-band manifest.
+///
+/// Warns
+/// -----
+/// UserWarning
+///     The manifest's warnings and those of the map (e.g. too few pixels for the noise
+///     model), as ``polarid map`` prints them.
 #[pyfunction]
-#[pyo3(signature = (manifest_path, model, *, bin = 1, min_s0 = None, max_distance = None, metric = "euclidean", tile = map::DEFAULT_TILE, rule = "set", confidence = 0.95, weights = "auto", angle_sd_deg = map::MapErrors::default().angle_sd_deg, dolp_floor = map::MapErrors::default().dolp_floor, extinction_ratio = map::MapErrors::default().extinction_ratio, retardance_deg = map::MapErrors::default().retardance_deg))]
+#[pyo3(signature = (manifest_path, model = None, *, library = None, bin = 1, min_s0 = None, max_distance = None, metric = "euclidean", tile = map::DEFAULT_TILE, rule = "set", confidence = 0.95, weights = "auto", angle_sd_deg = map::MapErrors::default().angle_sd_deg, dolp_floor = map::MapErrors::default().dolp_floor, extinction_ratio = map::MapErrors::default().extinction_ratio, retardance_deg = map::MapErrors::default().retardance_deg))]
 #[allow(clippy::too_many_arguments)]
 pub fn map_manifest<'py>(
     py: Python<'py>,
     manifest_path: &Bound<'py, PyAny>,
-    model: &Bound<'py, PyAny>,
+    model: Option<&Bound<'py, PyAny>>,
+    library: Option<String>,
     bin: usize,
     min_s0: Option<f64>,
     max_distance: Option<f64>,
@@ -133,17 +161,51 @@ pub fn map_manifest<'py>(
         .and_then(|c| Ok(c.with_weights(map::parse_weights(weights)?)))
         .py_err()?;
     let mpath = path_arg(manifest_path)?;
-    let model_path = path_arg(model)?;
+    let model_path = model.map(path_arg).transpose()?;
+    if model_path.is_some() == library.is_some() {
+        return Err(value_error(
+            "give model (a model JSON of polarid train) or library (colour manifests: \
+             \"builtin-rgb\" or a multi-band library CSV), not both or neither",
+        ));
+    }
     let m = py
         .detach(|| manifest::load(&mpath))
         .map_err(IntoPyErr::into_py_err)?;
     warn_all(py, &m)?;
-    let mdl = py
-        .detach(|| Model::read(&model_path))
-        .map_err(IntoPyErr::into_py_err)?;
-    let r = py
-        .detach(|| map::map_manifest(&cfg, &m, &mdl, &model_path, &no_progress))
-        .py_err()?;
+    let r = match (&model_path, &library) {
+        (Some(p), _) => {
+            let mdl = py
+                .detach(|| Model::read(p))
+                .map_err(IntoPyErr::into_py_err)?;
+            py.detach(|| map::map_manifest(&cfg, &m, &mdl, p, &no_progress))
+        }
+        (None, Some(spec)) if map::is_colour(&m) => py.detach(|| {
+            let profiles = Library::load(spec)?.multi_prototypes();
+            map::map_manifest_bands(
+                &cfg,
+                &m,
+                &profiles,
+                &format!("library {spec}"),
+                &no_progress,
+            )
+        }),
+        (None, spec) => {
+            return Err(value_error(format!(
+                "library={:?}: a library maps manifests with colour captures only; give \
+                 model for {}",
+                spec.as_deref().unwrap_or(""),
+                mpath.display()
+            )));
+        }
+    }
+    .py_err()?;
+    warn_texts(
+        py,
+        r.warnings
+            .iter()
+            .skip(m.warnings.len())
+            .map(|w| w.0.as_str()),
+    )?;
     let summary = r.summary_json().to_string();
     let (h, w) = (r.height, r.width);
     let d = PyDict::new(py);
@@ -157,7 +219,8 @@ pub fn map_manifest<'py>(
         Ok(to_numpy(py, a))
     };
     let classes: Vec<i64> = r.counts.classes.iter().map(|&c| c as i64).collect();
-    let reasons: Vec<i64> = r.counts.reasons[..r.reason_names().len()]
+    let nreasons = r.reason_names().len();
+    let reasons: Vec<i64> = r.counts.reasons[..nreasons]
         .iter()
         .map(|&c| c as i64)
         .collect();
@@ -172,11 +235,31 @@ pub fn map_manifest<'py>(
         d.set_item("class", image(py, h, w, r.class)?)?;
     }
     d.set_item("reason", image(py, h, w, r.reason)?)?;
-    d.set_item("n", image(py, h, w, r.n)?)?;
-    d.set_item("k", image(py, h, w, r.k)?)?;
-    d.set_item("n_se", image(py, h, w, r.n_se)?)?;
-    d.set_item("k_se", image(py, h, w, r.k_se)?)?;
-    d.set_item("rms_residual", image(py, h, w, r.rms_residual)?)?;
+    if r.bands.is_empty() {
+        d.set_item("n", image(py, h, w, r.n)?)?;
+        d.set_item("k", image(py, h, w, r.k)?)?;
+        d.set_item("n_se", image(py, h, w, r.n_se)?)?;
+        d.set_item("k_se", image(py, h, w, r.k_se)?)?;
+        d.set_item("rms_residual", image(py, h, w, r.rms_residual)?)?;
+    } else {
+        let bands = PyDict::new(py);
+        for b in r.bands {
+            let bd = PyDict::new(py);
+            bd.set_item("wavelength_nm", b.wavelength_nm)?;
+            let caps: Vec<usize> = b.captures.iter().map(|&i| i + 1).collect();
+            bd.set_item("captures", caps)?;
+            bd.set_item("n", image(py, h, w, b.n)?)?;
+            bd.set_item("k", image(py, h, w, b.k)?)?;
+            bd.set_item("n_se", image(py, h, w, b.n_se)?)?;
+            bd.set_item("k_se", image(py, h, w, b.k_se)?)?;
+            bd.set_item("rms_residual", image(py, h, w, b.rms_residual)?)?;
+            bd.set_item("reason", image(py, h, w, b.reason)?)?;
+            let rc: Vec<i64> = b.reasons[..nreasons].iter().map(|&c| c as i64).collect();
+            bd.set_item("reason_counts", counts(rc)?)?;
+            bands.set_item(b.wavelength_nm, bd)?;
+        }
+        d.set_item("bands", bands)?;
+    }
     if r.calibrated {
         let t = r.beta_maps_deg.len();
         let flat: Vec<f64> = r.beta_maps_deg.into_iter().flatten().collect();

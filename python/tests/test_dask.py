@@ -320,3 +320,85 @@ def test_noise_weighted_equals_cli(client, sets, polarid_cli, name, bin, chunks)
     np.testing.assert_array_equal(from_cli["class"], cli["class"])
     for key in ("n", "k"):
         np.testing.assert_allclose(from_cli[key], cli[key], rtol=0, atol=1e-6)
+
+
+# --- colour polarization mosaics (per band, docs/BANDS.md) ----------------------------------
+
+@pytest.fixture(scope="module")
+def colour_set(tmp_path_factory, polarid_cli):
+    """Colour captures of copper, gold and aluminum (RGGB blocks; the scene of
+    test_classify_bands), a three-band model trained on another seed of them."""
+    from test_classify_bands import SCENE
+
+    d = tmp_path_factory.mktemp("dask_colour")
+    for seed in (3, 4):
+        (d / f"scene{seed}.toml").write_text(SCENE.format(seed=seed))
+        run(polarid_cli, "simulate", d / f"scene{seed}.toml", "-o", d / f"sim{seed}")
+    run(polarid_cli, "measure", d / "sim4" / "manifest.toml", "-o", d / "m4.csv")
+    run(polarid_cli, "fit", d / "m4.csv", "-o", d / "f4.csv")
+    run(polarid_cli, "train", d / "f4.csv", "-o", d / "model.json")
+    return d
+
+
+@pytest.mark.parametrize("bin,chunks,source", [(1, (12, 40), "builtin-rgb"), (2, (16, 36), "model"),
+                                               (4, (32, 96), "builtin-rgb")])
+def test_colour_equal_cli(client, colour_set, polarid_cli, bin, chunks, source):
+    """Colour mosaics with color="RGGB": every band's n, k, standard errors, RMS residual
+    and the multi-band classes and reasons equal `polarid map`'s on the same captures."""
+    manifest = colour_set / "sim3" / "manifest.toml"
+    m = polarid.load_manifest(manifest)
+    caps = m["captures"]
+    assert caps[0]["kind"] == "colour_dofp"
+    raw = np.stack([read_image(c["dofp"]["file"]) for c in caps])
+    beta = np.array([c["beta_deg"] for c in caps])
+    levels = dict(dark_level=[c["dark_level"] for c in caps], saturation=[c["saturation"] for c in caps])
+    out = colour_set / f"cli_{bin}_{source}"
+    spec = colour_set / "model.json" if source == "model" else source
+    run(polarid_cli, "map", manifest, "--model" if source == "model" else "--library", spec, "-o", out,
+        "--bin", bin)
+    x = da.from_array(raw, chunks=(2, *chunks))
+    src = dict(model=spec) if source == "model" else dict(library=source)
+    maps = pdask.material_map(x, None, beta, color=caps[0]["dofp"]["color"],
+                              pattern=caps[0]["dofp"]["pattern"], bin=bin, **src, **levels)
+    if chunks != (32, 96):
+        assert maps["class"].numblocks[0] > 1 and maps["class"].numblocks[1] > 1  # edges inside
+    assert list(maps["bands"]) == [450.0, 550.0, 650.0]
+    arrays = {"class": maps["class"], "reason": maps["reason"]}
+    for wl, b in maps["bands"].items():
+        for key, a in b.items():
+            arrays[(wl, key)] = a
+    got = dict(zip(arrays, dask.compute(*arrays.values(), scheduler=client)))
+    classes = json.loads((out / "classes.json").read_text())
+    assert maps["class_names"] == [classes[str(i)] for i in range(len(classes))]
+    np.testing.assert_array_equal(got["class"], read_image(out / "class.tif"))
+    np.testing.assert_array_equal(got["reason"], read_image(out / "reason.tif"))
+    summary = json.loads((out / "map_summary.json").read_text())
+    assert summary["weights"] == maps["weights"] == "none"
+    worst = 0.0
+    for wl, sb in zip(maps["bands"], summary["bands"]):
+        for key in FLOATS:
+            g, c = got[(wl, key)], read_image(out / f"{key}_{wl:.0f}.tif")
+            assert g.dtype == np.float32 and g.shape == c.shape, key
+            np.testing.assert_array_equal(np.isnan(g), np.isnan(c), err_msg=f"{key} {wl}")
+            ok = ~np.isnan(c)
+            diff = np.abs(g[ok].astype(np.float64) - c[ok])
+            tol = 1e-6 if key in ("n", "k") else 1e-6 * np.maximum(1.0, np.abs(c[ok]))
+            assert (diff <= tol).all(), (key, wl, diff.max())
+            if key in ("n", "k"):
+                worst = max(worst, float(diff.max()))
+        assert int((got[(wl, "reason")] == 0).sum()) == sb["fitted"] > 0
+    assert (got["reason"] == 0).sum() > 0
+    print(f"dask colour vs cli (bin {bin}, {source}): {got['class'].size} pixels, classes equal "
+          f"{(got['class'] == read_image(out / 'class.tif')).sum()}, max |dn|, |dk| {worst:.2e}")
+
+
+def test_colour_options(colour_set):
+    raw = np.zeros((3, 16, 16), np.uint16)
+    with pytest.raises(ValueError, match="unweighted"):
+        pdask.material_map(raw, None, [50, 55, 60], library="builtin-rgb", color="RGGB", weights="noise")
+    with pytest.raises(ValueError, match="not both or neither"):
+        pdask.material_map(raw, None, [50, 55, 60], color="RGGB")
+    with pytest.raises(ValueError, match="one angle per capture"):
+        pdask.material_map(raw, None, np.zeros((3, 16, 16)), library="builtin-rgb", color="RGGB")
+    with pytest.raises(ValueError, match="colour mosaics only"):
+        pdask.material_map(raw, None, [50, 55, 60], library="builtin-rgb", pattern=[90, 45, 135, 0])

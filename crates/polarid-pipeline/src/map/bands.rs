@@ -14,6 +14,7 @@
 //! a pixel is compared with the prototypes on the bands they have in common.
 
 use std::collections::BTreeSet;
+use std::path::Path;
 use std::time::Instant;
 
 use polarid_core::classify::{
@@ -36,7 +37,9 @@ use rayon::prelude::*;
 
 use super::capture::{self, Dims, check_dims};
 use super::rules::min_s0_for;
-use super::{MapConfig, MapResult, Rule, Weights, error_model, geometry, mean_deg, summary};
+use super::{
+    MapConfig, MapResult, Rule, Weights, beta_degrees, error_model, geometry, mean_deg, summary,
+};
 use crate::error::{PipelineError, Result};
 use crate::progress::{Progress, Warning};
 
@@ -142,8 +145,11 @@ pub fn is_colour(m: &Manifest) -> bool {
         .any(|c| matches!(c.source, CaptureSource::ColourDofp { .. }))
 }
 
-/// One band's DoLP images while the captures are read.
-struct BandAcc {
+/// One band's binned DoLP images over its captures (stage 1 of a colour map), the input
+/// of [`fit_bands`]: built by [`map_manifest_bands`] from the manifest's files, or from
+/// frames in memory by the blocks of `polarid.dask.material_map`.
+#[derive(Debug, Clone)]
+pub struct BandDolp {
     wavelength_nm: f64,
     captures: Vec<usize>,
     dolp: Vec<Vec<f32>>,
@@ -153,11 +159,26 @@ struct BandAcc {
     shot: Vec<Vec<f32>>,
 }
 
-impl BandAcc {
-    /// Add one capture's DoLP `d` with its flags `cf` (the far-field rule: a flag in any
-    /// capture flags the pixel; calibrated geometry: a dark or saturated capture is left
-    /// out of the pixel's fit, as in single-band maps).
-    fn push(
+impl BandDolp {
+    /// A band at `wavelength_nm` measured in `captures` (indices of the map's captures,
+    /// in the order their DoLP images will be pushed).
+    pub fn new(wavelength_nm: f64, captures: Vec<usize>) -> Self {
+        Self {
+            wavelength_nm,
+            captures,
+            dolp: Vec::new(),
+            flags: Vec::new(),
+            dropped: Vec::new(),
+            read: Vec::new(),
+            shot: Vec::new(),
+        }
+    }
+
+    /// Add one capture's DoLP `d` with its flags `cf` and, for weighted fits, its noise
+    /// terms (the far-field rule: a flag in any capture flags the pixel; calibrated
+    /// geometry: a dark or saturated capture is left out of the pixel's fit, as in
+    /// single-band maps).
+    pub fn push(
         &mut self,
         calibrated: bool,
         mut d: Vec<f32>,
@@ -197,7 +218,7 @@ impl BandAcc {
 }
 
 /// The bands of `m`, in increasing wavelength, each with its captures.
-fn band_list(m: &Manifest) -> Result<Vec<BandAcc>> {
+fn band_list(m: &Manifest) -> Result<Vec<BandDolp>> {
     let mut per_capture: Vec<Vec<f64>> = Vec::with_capacity(m.captures.len());
     for c in &m.captures {
         per_capture.push(match (&c.source, c.wavelength_nm) {
@@ -235,15 +256,7 @@ fn band_list(m: &Manifest) -> Result<Vec<BandAcc>> {
                 ),
             });
         }
-        out.push(BandAcc {
-            wavelength_nm: w,
-            captures,
-            dolp: Vec::new(),
-            flags: Vec::new(),
-            dropped: Vec::new(),
-            read: Vec::new(),
-            shot: Vec::new(),
-        });
+        out.push(BandDolp::new(w, captures));
     }
     Ok(out)
 }
@@ -278,34 +291,8 @@ pub fn map_manifest_bands(
     label: &str,
     progress: Progress<'_>,
 ) -> Result<MapResult> {
-    let proto_err = |e| IoError::Core {
-        path: label.into(),
-        source: e,
-    };
-    let core_err = |e| IoError::Core {
-        path: m.path.clone(),
-        source: e,
-    };
-    let ccfg = match cfg.rule {
-        Rule::Set => ClassifierConfig::set(cfg.confidence),
-        Rule::Nearest => ClassifierConfig {
-            metric: cfg.metric,
-            reject: cfg.max_distance.map_or(Reject::Never, Reject::MaxDistance),
-            ..ClassifierConfig::default()
-        },
-    };
-    let classifier = Classifier::multi(profiles.to_vec(), ccfg).map_err(proto_err)?;
-    let names: Vec<String> = profiles
-        .iter()
-        .map(|p| p.class.clone())
-        .collect::<BTreeSet<_>>()
-        .into_iter()
-        .collect();
-    let mut class_names = names.clone();
-    if cfg.rule == Rule::Set {
-        class_names.push(AMBIGUOUS.to_string());
-    }
-    let ambiguous = (names.len() + 1) as u16;
+    // The prototypes are checked before any work.
+    bands_classifier(cfg, profiles, label)?;
     let mut accs = band_list(m)?;
     let calibrated = m.camera.is_some();
     let weighted = match cfg.weights {
@@ -427,11 +414,181 @@ pub fn map_manifest_bands(
         .collect();
     let t_dolp = t0.elapsed().as_secs_f64();
 
+    let fit = fit_bands(
+        cfg,
+        accs,
+        FitGeometry {
+            npix: d.out_w * d.out_h,
+            far_betas: &far_betas,
+            beta: &beta_maps.beta,
+            errors: &error_model(m, &cfg.errors),
+        },
+        profiles,
+        label,
+        &m.path,
+        progress,
+    )?;
+    let mut warnings: Vec<Warning> = m.warnings.iter().map(|w| Warning(w.clone())).collect();
+    warnings.extend(fit.warnings);
+    let (bands, class, why, class_names, counts) = (
+        fit.bands,
+        fit.class,
+        fit.reason,
+        fit.class_names,
+        fit.counts,
+    );
+    let t_fit = t0.elapsed().as_secs_f64() - t_dolp;
+    let regions = summary::region_summary(m, d, cfg.bin, &class, &class_names);
+    let beta_deg: Vec<f64> = if calibrated {
+        beta_maps.beta.iter().map(|b| mean_deg(b)).collect()
+    } else {
+        far_betas.iter().map(|b| b.to_degrees()).collect()
+    };
+    let (beta_range_deg, beta_maps_deg) = beta_degrees(beta_maps);
+    Ok(MapResult {
+        frame_width: d.width,
+        frame_height: d.height,
+        bin: cfg.bin,
+        width: d.out_w,
+        height: d.out_h,
+        n: Vec::new(),
+        k: Vec::new(),
+        n_se: Vec::new(),
+        k_se: Vec::new(),
+        rms_residual: Vec::new(),
+        class,
+        reason: why,
+        class_names,
+        counts,
+        calibrated,
+        beta_deg,
+        beta_range_deg,
+        beta_maps_deg,
+        min_s0_dn: thresholds,
+        max_distance: cfg.max_distance,
+        metric: cfg.metric,
+        rule: cfg.rule,
+        confidence: cfg.confidence,
+        errors: cfg.errors,
+        weighted: bands.iter().any(|b| b.noise.is_some()),
+        noise: bands.iter().find_map(|b| b.noise),
+        regions,
+        seconds_dolp: t_dolp,
+        seconds_fit: t_fit,
+        warnings,
+        bands,
+    })
+}
+
+/// The multi-band classifier of a colour map, the class names (sorted) and the map's
+/// class names (those, then `ambiguous` under the set rule).
+fn bands_classifier(
+    cfg: &MapConfig,
+    profiles: &[MultiPrototype],
+    label: &str,
+) -> Result<(Classifier, Vec<String>, Vec<String>)> {
+    let ccfg = match cfg.rule {
+        Rule::Set => ClassifierConfig::set(cfg.confidence),
+        Rule::Nearest => ClassifierConfig {
+            metric: cfg.metric,
+            reject: cfg.max_distance.map_or(Reject::Never, Reject::MaxDistance),
+            ..ClassifierConfig::default()
+        },
+    };
+    let classifier = Classifier::multi(profiles.to_vec(), ccfg).map_err(|e| IoError::Core {
+        path: label.into(),
+        source: e,
+    })?;
+    let names: Vec<String> = profiles
+        .iter()
+        .map(|p| p.class.clone())
+        .collect::<BTreeSet<_>>()
+        .into_iter()
+        .collect();
+    let mut class_names = names.clone();
+    if cfg.rule == Rule::Set {
+        class_names.push(AMBIGUOUS.to_string());
+    }
+    Ok((classifier, names, class_names))
+}
+
+/// The class names of a colour map against `profiles` (`label` names them in errors):
+/// their classes sorted, then `ambiguous` under the set rule (class code `i` of the map is
+/// name `i - 1`; 0 is not classified).
+pub fn band_class_names(
+    cfg: &MapConfig,
+    profiles: &[MultiPrototype],
+    label: &str,
+) -> Result<Vec<String>> {
+    Ok(bands_classifier(cfg, profiles, label)?.2)
+}
+
+/// The angles and error model of [`fit_bands`].
+#[derive(Debug, Clone, Copy)]
+pub struct FitGeometry<'a> {
+    /// Pixels of the map (of every image of [`BandDolp`]).
+    pub npix: usize,
+    /// β of every capture of the map, radians (far field; unused with `beta`).
+    pub far_betas: &'a [f64],
+    /// β of every pixel and capture, radians (calibrated geometry; empty: far field).
+    pub beta: &'a [Vec<f32>],
+    /// The set rule's systematic error model, one angle uncertainty per capture.
+    pub errors: &'a MapErrorModel,
+}
+
+/// What [`fit_bands`] returns.
+#[derive(Debug, Clone)]
+pub struct BandsFit {
+    /// One fit per band.
+    pub bands: Vec<BandMap>,
+    /// Class code per pixel (0: not classified; `i`: `class_names[i - 1]`).
+    pub class: Vec<u16>,
+    /// Reason code per pixel.
+    pub reason: Vec<u8>,
+    /// The class names (sorted, then `ambiguous` under the set rule).
+    pub class_names: Vec<String>,
+    /// Pixels per class and reason.
+    pub counts: MapCounts,
+    /// Bands whose noise model could not be estimated.
+    pub warnings: Vec<Warning>,
+}
+
+/// Stages 2 and 3 of a colour map on its bands' DoLP images (stage 1,
+/// [`BandDolp`]): every band fitted per pixel as a single-band map is, then every pixel
+/// classified once on all its bands against `profiles` (module documentation). `path`
+/// names the data in errors and warnings, `label` the prototypes. Progress stages:
+/// `"pixels (fit, 450 nm)"` per band, `"pixels (classify)"`.
+#[allow(clippy::too_many_arguments)]
+pub fn fit_bands(
+    cfg: &MapConfig,
+    accs: Vec<BandDolp>,
+    geo: FitGeometry<'_>,
+    profiles: &[MultiPrototype],
+    label: &str,
+    path: &Path,
+    progress: Progress<'_>,
+) -> Result<BandsFit> {
     // Stage 2: every band fitted per pixel as a single-band map.
-    let npix = d.out_w * d.out_h;
+    let npix = geo.npix;
+    let calibrated = !geo.beta.is_empty();
+    let weighted = match cfg.weights {
+        Weights::Auto => calibrated,
+        Weights::Noise => true,
+        Weights::None => false,
+    };
+    let proto_err = |e| IoError::Core {
+        path: label.into(),
+        source: e,
+    };
+    let core_err = |e| IoError::Core {
+        path: path.to_path_buf(),
+        source: e,
+    };
+    let (classifier, names, class_names) = bands_classifier(cfg, profiles, label)?;
+    let ambiguous = (names.len() + 1) as u16;
     let options = FitOptions::default();
     let k_can_be_zero = options.bounds.k_min == 0.0;
-    let mut warnings: Vec<Warning> = m.warnings.iter().map(|w| Warning(w.clone())).collect();
+    let mut warnings: Vec<Warning> = Vec::new();
     let mut bands: Vec<BandMap> = Vec::with_capacity(accs.len());
     let mut plans: Vec<Option<FitPlan>> = Vec::with_capacity(accs.len());
     let pixel_plan = PixelBetaPlan::new(options).map_err(core_err)?;
@@ -443,13 +600,13 @@ pub fn map_manifest_bands(
         let plan = if calibrated {
             None
         } else {
-            let b: Vec<f64> = a.captures.iter().map(|&i| far_betas[i]).collect();
+            let b: Vec<f64> = a.captures.iter().map(|&i| geo.far_betas[i]).collect();
             Some(FitPlan::new(&b, options).map_err(core_err)?)
         };
         let beta_views: Vec<&[f32]> = a
             .captures
             .iter()
-            .filter_map(|&i| beta_maps.beta.get(i).map(Vec::as_slice))
+            .filter_map(|&i| geo.beta.get(i).map(Vec::as_slice))
             .collect();
         let betas = match &plan {
             Some(p) => Betas::Shared(p),
@@ -488,7 +645,7 @@ pub fn map_manifest_bands(
                 warnings.push(Warning(format!(
                     "{}: band {} nm: too few usable pixels to estimate the noise model; the \
                      per-pixel fits are unweighted",
-                    m.path.display(),
+                    path.display(),
                     band_tag(a.wavelength_nm)
                 )));
             }
@@ -539,7 +696,7 @@ pub fn map_manifest_bands(
 
     // Stage 3: every pixel classified on all its bands.
     progress("pixels (classify)", 0, npix as u64);
-    let full = error_model(m, &cfg.errors);
+    let full = geo.errors;
     let models: Vec<MapErrorModel> = accs
         .iter()
         .map(|a| match cfg.rule {
@@ -569,7 +726,7 @@ pub fn map_manifest_bands(
                 }
                 let beta = match &plans[bi] {
                     Some(plan) => plan.betas()[j],
-                    None => beta_maps.beta[ci][p] as f64,
+                    None => geo.beta[ci][p] as f64,
                 };
                 let se = match &b.noise {
                     Some(e) => e.model.dolp_se(a.read[j][p], a.shot[j][p]),
@@ -643,52 +800,12 @@ pub fn map_manifest_bands(
             *n += 1;
         }
     }
-    let t_fit = t0.elapsed().as_secs_f64() - t_dolp;
-    let regions = summary::region_summary(m, d, cfg.bin, &class, &class_names);
-    drop(accs);
-    Ok(MapResult {
-        frame_width: d.width,
-        frame_height: d.height,
-        bin: cfg.bin,
-        width: d.out_w,
-        height: d.out_h,
-        n: Vec::new(),
-        k: Vec::new(),
-        n_se: Vec::new(),
-        k_se: Vec::new(),
-        rms_residual: Vec::new(),
+    Ok(BandsFit {
+        bands,
         class,
         reason: why,
         class_names,
         counts,
-        calibrated,
-        beta_deg: if calibrated {
-            beta_maps.beta.iter().map(|b| mean_deg(b)).collect()
-        } else {
-            far_betas.iter().map(|b| b.to_degrees()).collect()
-        },
-        beta_range_deg: beta_maps
-            .range
-            .iter()
-            .map(|r| [r[0].to_degrees(), r[1].to_degrees()])
-            .collect(),
-        beta_maps_deg: beta_maps
-            .beta
-            .into_iter()
-            .map(|b| b.into_iter().map(|v| f64::from(v).to_degrees()).collect())
-            .collect(),
-        min_s0_dn: thresholds,
-        max_distance: cfg.max_distance,
-        metric: cfg.metric,
-        rule: cfg.rule,
-        confidence: cfg.confidence,
-        errors: cfg.errors,
-        weighted: bands.iter().any(|b| b.noise.is_some()),
-        noise: bands.iter().find_map(|b| b.noise),
-        regions,
-        seconds_dolp: t_dolp,
-        seconds_fit: t_fit,
         warnings,
-        bands,
     })
 }

@@ -54,7 +54,10 @@ use polarid_io::IoError;
 use polarid_io::manifest::Manifest;
 use polarid_io::model::Model;
 
-pub use bands::{BAND_IMAGES, BandMap, band_tag, is_colour, map_manifest_bands, output_files};
+pub use bands::{
+    BAND_IMAGES, BandDolp, BandMap, BandsFit, FitGeometry, band_class_names, band_tag, fit_bands,
+    is_colour, map_manifest_bands, output_files,
+};
 pub use polarid_core::map::reason::NAMES as REASON_NAMES;
 pub use summary::RegionSummary;
 
@@ -640,6 +643,11 @@ pub fn map_manifest(
     drop(flags);
     let t_fit = t0.elapsed().as_secs_f64() - t_dolp;
     let regions = summary::region_summary(m, d, cfg.bin, &class, &names);
+    let beta_deg: Vec<f64> = match &plan {
+        Some(p) => p.betas().iter().map(|b| b.to_degrees()).collect(),
+        None => beta_maps.beta.iter().map(|b| mean_deg(b)).collect(),
+    };
+    let (beta_range_deg, beta_maps_deg) = beta_degrees(beta_maps);
     Ok(MapResult {
         frame_width: d.width,
         frame_height: d.height,
@@ -656,20 +664,9 @@ pub fn map_manifest(
         class_names: names,
         counts,
         calibrated,
-        beta_deg: match &plan {
-            Some(p) => p.betas().iter().map(|b| b.to_degrees()).collect(),
-            None => beta_maps.beta.iter().map(|b| mean_deg(b)).collect(),
-        },
-        beta_range_deg: beta_maps
-            .range
-            .iter()
-            .map(|r| [r[0].to_degrees(), r[1].to_degrees()])
-            .collect(),
-        beta_maps_deg: beta_maps
-            .beta
-            .into_iter()
-            .map(|b| b.into_iter().map(|v| f64::from(v).to_degrees()).collect())
-            .collect(),
+        beta_deg,
+        beta_range_deg,
+        beta_maps_deg,
         min_s0_dn: thresholds,
         max_distance: cfg.max_distance,
         metric: cfg.metric,
@@ -684,6 +681,22 @@ pub fn map_manifest(
         warnings,
         bands: Vec::new(),
     })
+}
+
+/// `MapResult::beta_range_deg` and `MapResult::beta_maps_deg` of the β maps (radians):
+/// each capture's range and every pixel's β, in degrees.
+fn beta_degrees(b: geometry::BetaMaps) -> (Vec<[f64; 2]>, Vec<Vec<f64>>) {
+    let range = b
+        .range
+        .iter()
+        .map(|r| [r[0].to_degrees(), r[1].to_degrees()])
+        .collect();
+    let maps = b
+        .beta
+        .into_iter()
+        .map(|m| m.into_iter().map(|v| f64::from(v).to_degrees()).collect())
+        .collect();
+    (range, maps)
 }
 
 /// The mean of the finite values of a β image (radians), degrees (NaN when none).
