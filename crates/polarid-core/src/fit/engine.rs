@@ -21,7 +21,7 @@
 
 use super::FitBounds;
 use super::lanes::{self, Lanes};
-use super::lm::{Eval, K_FLOOR, K_U};
+use super::lm::{ARC_MAX, Eval, K_FLOOR, K_U};
 use super::simd::{Simd, W};
 use crate::dop::BetaTerms;
 
@@ -368,6 +368,35 @@ fn step_lanes<S: Simd>(
     let k_p = if b.k_min == 0.0 { s.abs(k_raw) } else { k_raw };
     let n1 = s.min(s.max(n_p, n_min), n_max);
     let k1 = s.min(s.max(k_p, k_lo_v), k_max);
+    // The step along the line through 1/N (lm::arc_step), where it applies.
+    let ar = s.sub(s.mul(vn, vn), s.mul(vk, vk));
+    let ai = s.mul(two, s.mul(vn, vk));
+    let br = s.sub(vn, dn);
+    let bi = s.sub(vk, dk);
+    let inv = s.div(one, s.add(s.mul(br, br), s.mul(bi, bi)));
+    let na = s.mul(s.add(s.mul(ar, br), s.mul(ai, bi)), inv);
+    let ka = s.mul(s.sub(s.mul(ai, br), s.mul(ar, bi)), inv);
+    let arc = s.and(
+        s.and(
+            s.and(s.not(in_u), s.and(n_free, k_free)),
+            s.and(s.and(s.lt(n_min, vn), s.lt(vn, n_max)), s.lt(vk, k_max)),
+        ),
+        s.and(
+            s.lt(
+                s.add(s.mul(dn, dn), s.mul(dk, dk)),
+                s.mul(
+                    s.splat(ARC_MAX * ARC_MAX),
+                    s.add(s.mul(vn, vn), s.mul(vk, vk)),
+                ),
+            ),
+            s.and(
+                s.and(s.lt(n_min, na), s.lt(na, n_max)),
+                s.and(s.lt(k_lo_v, ka), s.lt(ka, k_max)),
+            ),
+        ),
+    );
+    let n1 = s.select(arc, na, n1);
+    let k1 = s.select(arc, ka, k1);
     let en = s.sub(n1, vn);
     let ek = s.select(in_u, s.sub(s.mul(k1, k1), s.mul(vk, vk)), s.sub(k1, vk));
     // −(2 gᵀδ + δᵀ H δ)

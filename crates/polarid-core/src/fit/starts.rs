@@ -237,7 +237,13 @@ impl Grid {
         } else {
             k + dk
         };
-        let (n1, k1) = lm::project(n + dn, k_new, b);
+        let both = det > 1e-12 * ev.h00 * ev.h11 && det > 0.0;
+        let arc = if k < lm::K_U {
+            None
+        } else {
+            lm::arc_step(n, k, dn, dk, b, both)
+        };
+        let (n1, k1) = arc.unwrap_or_else(|| lm::project(n + dn, k_new, b));
         (n1, k1, pred)
     }
 }
