@@ -181,9 +181,9 @@ impl Grid {
                             .zip(yf.chunks_exact(L))
                             .zip(wf.chunks_exact(L))
                         {
-                            for l in 0..L {
-                                let d = c[l] - y[l];
-                                a[l] += w[l] * d * d;
+                            for (((al, &c), &y), &w) in a.iter_mut().zip(c).zip(y).zip(w) {
+                                let d = c - y;
+                                *al += w * d * d;
                             }
                         }
                     }
