@@ -21,7 +21,7 @@
 
 use super::FitBounds;
 use super::lanes::{self, Lanes};
-use super::lm::{Eval, K_FLOOR, K_U};
+use super::lm::{ARC_MAX, Eval, K_FLOOR, K_U};
 use super::simd::{Simd, W};
 use crate::dop::BetaTerms;
 
@@ -168,9 +168,38 @@ fn lane<S: Simd>(s: S, v: S::V, l: usize) -> f64 {
 /// `y`, `w`: lane-major, `y[t * W + l]`. The β terms: `PIX = false`, those of `lanes`,
 /// shared by every lane; `PIX = true`, each lane's own from `pb` (lane-major, see
 /// [`LaneScratch`]; `lanes` is then not read).
+///
+/// When every lane has `nk ≥ 2 R_LO` and `n² + k² ≤ 1e49`, every source position has
+/// `r, q ∈ [R_LO, R_HI]` (`r ≥ 2nk`, `r ≤ 2(n² + k²) + 1`; `q ≥ c²r ≥ nk` where
+/// `cos²β ≥ ½`, else `q ≥ sin⁴β ≥ ¼`), so the per-position range test and the `r = 0`
+/// guards are skipped: the same values bit for bit.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn eval_lanes<S: Simd, const WEIGHTED: bool, const PIX: bool>(
+    s: S,
+    lanes: &Lanes,
+    t_len: usize,
+    y: &[f64],
+    w: &[f64],
+    pb: &[Vec<f64>; 5],
+    vn: S::V,
+    vk: S::V,
+) -> EvalV<S> {
+    let nk = s.mul(vn, vk);
+    let nn_kk = s.add(s.mul(vn, vn), s.mul(vk, vk));
+    let safe = s.and(s.le(s.splat(2.0 * R_LO), nk), s.le(nn_kk, s.splat(1e49)));
+    if s.bits(safe) == (1u32 << W) - 1 {
+        eval_terms::<S, WEIGHTED, PIX, false>(s, lanes, t_len, y, w, pb, vn, vk)
+    } else {
+        eval_terms::<S, WEIGHTED, PIX, true>(s, lanes, t_len, y, w, pb, vn, vk)
+    }
+}
+
+/// [`eval_lanes`]; `CHECK`: test every position's `r, q` range (else every lane is
+/// known to be in range).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn eval_terms<S: Simd, const WEIGHTED: bool, const PIX: bool, const CHECK: bool>(
     s: S,
     lanes: &Lanes,
     t_len: usize,
@@ -206,7 +235,7 @@ fn eval_lanes<S: Simd, const WEIGHTED: bool, const PIX: bool>(
     let mut a_h11 = zero;
     let mut a_g0 = zero;
     let mut a_g1 = zero;
-    for t in 0..t_len {
+    for (t, (yt, wt)) in y.chunks_exact(W).zip(w.chunks_exact(W)).enumerate() {
         let (s2, c, c2, s4, num) = if PIX {
             (
                 s.load(&pb[0][t * W..]),
@@ -244,14 +273,16 @@ fn eval_lanes<S: Simd, const WEIGHTED: bool, const PIX: bool>(
         let mut inv_r = s.mul(vr, inv_rvr);
         let mut inv_q = s.mul(rvr, rho_inv);
         let mut small = s.mul(nk, s.mul(qrvr, inv));
-        let (lo, hi) = (s.splat(R_LO), s.splat(R_HI));
-        let fast = s.and(s.le(lo, s.min(r, q)), s.le(s.max(r, q), hi));
-        if s.bits(s.not(fast)) != 0 {
-            let slow_r = s.div(one, s.max(r, tiny));
-            inv_r = s.select(fast, inv_r, slow_r);
-            inv_rvr = s.select(fast, inv_rvr, s.div(slow_r, vr));
-            inv_q = s.select(fast, inv_q, s.div(one, q));
-            small = s.select(fast, small, s.div(nk, s.max(rho, tiny)));
+        if CHECK {
+            let (lo, hi) = (s.splat(R_LO), s.splat(R_HI));
+            let fast = s.and(s.le(lo, s.min(r, q)), s.le(s.max(r, q), hi));
+            if s.bits(s.not(fast)) != 0 {
+                let slow_r = s.div(one, s.max(r, tiny));
+                inv_r = s.select(fast, inv_r, slow_r);
+                inv_rvr = s.select(fast, inv_rvr, s.div(slow_r, vr));
+                inv_q = s.select(fast, inv_q, s.div(one, q));
+                small = s.select(fast, small, s.div(nk, s.max(rho, tiny)));
+            }
         }
         let pos = s.le(zero, d);
         let a = s.select(pos, rho, small);
@@ -265,7 +296,6 @@ fn eval_lanes<S: Simd, const WEIGHTED: bool, const PIX: bool>(
         let p = s.select(s.lt(half, p_lo), p_hi, p_lo);
         let p = s.min(s.max(p, zero), one);
         // Gradient (dop::dop_grad_terms).
-        let ok = s.lt(zero, r);
         let da_dn = s.mul(s.fma(vn, a, s.mul(vk, b)), inv_r);
         let da_dk = s.mul(s.mul(s.mul(two_n, s2), b), inv_rvr);
         let dr_dn = s.mul(s.mul(two_n, u), inv_r);
@@ -274,14 +304,21 @@ fn eval_lanes<S: Simd, const WEIGHTED: bool, const PIX: bool>(
         let f = s.mul(s.mul(num, inv_q), inv_q);
         let jn = s.mul(f, s.sub(s.mul(da_dn, q), s.mul(ac2, dr_dn)));
         let jk = s.mul(f, s.sub(s.mul(da_dk, q), s.mul(ac2, dr_dk)));
-        let jn = s.select(ok, jn, zero);
-        let jk = s.select(ok, jk, zero);
-        let p = s.select(ok, p, zero);
-        let res = s.sub(p, s.load(&y[t * W..]));
+        let (jn, jk, p) = if CHECK {
+            let ok = s.lt(zero, r);
+            (
+                s.select(ok, jn, zero),
+                s.select(ok, jk, zero),
+                s.select(ok, p, zero),
+            )
+        } else {
+            (jn, jk, p)
+        };
+        let res = s.sub(p, s.load(yt));
         // Unweighted: the same sums without the multiplications by w = 1 (bitwise
         // equal: 1·x = x).
         let (wr, wjn, wjk) = if WEIGHTED {
-            let wt = s.load(&w[t * W..]);
+            let wt = s.load(wt);
             (s.mul(wt, res), s.mul(wt, jn), s.mul(wt, jk))
         } else {
             (res, jn, jk)
@@ -368,6 +405,35 @@ fn step_lanes<S: Simd>(
     let k_p = if b.k_min == 0.0 { s.abs(k_raw) } else { k_raw };
     let n1 = s.min(s.max(n_p, n_min), n_max);
     let k1 = s.min(s.max(k_p, k_lo_v), k_max);
+    // The step along the line through 1/N (lm::arc_step), where it applies.
+    let ar = s.sub(s.mul(vn, vn), s.mul(vk, vk));
+    let ai = s.mul(two, s.mul(vn, vk));
+    let br = s.sub(vn, dn);
+    let bi = s.sub(vk, dk);
+    let inv = s.div(one, s.add(s.mul(br, br), s.mul(bi, bi)));
+    let na = s.mul(s.add(s.mul(ar, br), s.mul(ai, bi)), inv);
+    let ka = s.mul(s.sub(s.mul(ai, br), s.mul(ar, bi)), inv);
+    let arc = s.and(
+        s.and(
+            s.and(s.not(in_u), s.and(n_free, k_free)),
+            s.and(s.and(s.lt(n_min, vn), s.lt(vn, n_max)), s.lt(vk, k_max)),
+        ),
+        s.and(
+            s.lt(
+                s.add(s.mul(dn, dn), s.mul(dk, dk)),
+                s.mul(
+                    s.splat(ARC_MAX * ARC_MAX),
+                    s.add(s.mul(vn, vn), s.mul(vk, vk)),
+                ),
+            ),
+            s.and(
+                s.and(s.lt(n_min, na), s.lt(na, n_max)),
+                s.and(s.lt(k_lo_v, ka), s.lt(ka, k_max)),
+            ),
+        ),
+    );
+    let n1 = s.select(arc, na, n1);
+    let k1 = s.select(arc, ka, k1);
     let en = s.sub(n1, vn);
     let ek = s.select(in_u, s.sub(s.mul(k1, k1), s.mul(vk, vk)), s.sub(k1, vk));
     // −(2 gᵀδ + δᵀ H δ)

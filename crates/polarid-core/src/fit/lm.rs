@@ -118,13 +118,57 @@ pub(crate) fn step(ev: &Eval, lam: f64, n: f64, k: f64, b: &FitBounds) -> (f64, 
         let u = (k * k + dk).clamp(k_lo * k_lo, b.k_max * b.k_max);
         project(n + dn, u.sqrt(), b)
     } else {
-        project(n + dn, k + dk, b)
+        match arc_step(n, k, dn, dk, b, n_free && k_free) {
+            Some(p) => p,
+            None => project(n + dn, k + dk, b),
+        }
     };
     // Decrease of the cost predicted by the Gauss–Newton model for the step taken.
     let en = nt - n;
     let ek = if in_u { kt * kt - k * k } else { kt - k };
     let pred = -(2.0 * (g0 * en + g1 * ek) + h00 * en * en + 2.0 * h01 * en * ek + h11 * ek * ek);
     (nt, kt, pred)
+}
+
+/// Largest `|δN| / |N|` of an [`arc_step`].
+pub(crate) const ARC_MAX: f64 = 0.7;
+
+/// The step `δN = δn + i δk` taken along the straight line through `1/N` instead of
+/// `N`: `N' = N² / (N − δN)` (`1/N' = 1/N − δN/N²`, the first-order image of `δN`), the
+/// same step to first order. For a strongly absorbing medium eq. (9) depends to first
+/// order in `1/|N|` on `Re(1/N) = n/(n² + k²)` only (the Fresnel reflectances are
+/// `1 − 4 cos β Re(1/N)` and `1 − 4 Re(1/N)/cos β` to that order), so the long, curved
+/// valleys of χ² of metals (`n ∝ k²` along the valley) are nearly straight lines in
+/// `1/N`, and Gauss–Newton steps taken there follow them instead of overshooting.
+///
+/// Taken only when both parameters are free (`free`), `(n, k)` is strictly inside the
+/// box, `|δN| < ARC_MAX |N|` and `N'` is strictly inside the box too; `None`
+/// otherwise (the caller takes the straight step).
+#[inline(always)]
+pub(crate) fn arc_step(
+    n: f64,
+    k: f64,
+    dn: f64,
+    dk: f64,
+    b: &FitBounds,
+    free: bool,
+) -> Option<(f64, f64)> {
+    let (ar, ai) = (n * n - k * k, 2.0 * n * k);
+    let (br, bi) = (n - dn, k - dk);
+    let inv = 1.0 / (br * br + bi * bi);
+    let na = (ar * br + ai * bi) * inv;
+    let ka = (ai * br - ar * bi) * inv;
+    let k_lo = if b.k_min > 0.0 { b.k_min } else { K_FLOOR };
+    let ok = free
+        && n > b.n_min
+        && n < b.n_max
+        && k < b.k_max
+        && dn * dn + dk * dk < ARC_MAX * ARC_MAX * (n * n + k * k)
+        && na > b.n_min
+        && na < b.n_max
+        && ka > k_lo
+        && ka < b.k_max;
+    ok.then_some((na, ka))
 }
 
 /// Bring a trial point back into the box: reflection at a lower bound of 0 (the model

@@ -22,6 +22,13 @@ pub(super) trait Nodes {
     /// Jacobian of grid node `g` at position `t < t_len()`: `∂P/∂n` and `∂P/∂k` (or
     /// `∂P/∂u` below [`lm::K_U`]).
     fn jac(&self, g: usize, t: usize) -> (f32, f32);
+    /// Node `g`'s curve (`t_pad()` values, 0 on padding) and Jacobian rows (`∂P/∂n`,
+    /// `∂P/∂k` or `∂P/∂u`, `t_len()` values each) as contiguous slices, when stored
+    /// so (the same values as [`Nodes::curve`] and [`Nodes::jac`]).
+    #[inline(always)]
+    fn rows(&self, _g: usize) -> Option<(&[f32], &[f32], &[f32])> {
+        None
+    }
 }
 
 impl Nodes for FitPlan {
@@ -44,6 +51,14 @@ impl Nodes for FitPlan {
             self.jac[g * 2 * t_len + t],
             self.jac[g * 2 * t_len + t_len + t],
         )
+    }
+    #[inline(always)]
+    fn rows(&self, g: usize) -> Option<(&[f32], &[f32], &[f32])> {
+        let (t_len, tp) = (self.betas.len(), self.lanes.len);
+        let curve = self.node_curves.get(g * tp..(g + 1) * tp)?;
+        let jac = self.jac.get(g * 2 * t_len..(g + 1) * 2 * t_len)?;
+        let (jn, jk) = jac.split_at(t_len);
+        Some((curve, jn, jk))
     }
 }
 
@@ -158,11 +173,28 @@ impl Grid {
             for i in ic.saturating_sub(h)..(ic + h + 1).min(gn) {
                 let g = j * gn + i;
                 let mut a = [0f32; L];
-                for ch in 0..tp / L {
-                    for l in 0..L {
-                        let t = ch * L + l;
-                        let d = nodes.curve(g, t) - yf[t];
-                        a[l] += wf[t] * d * d;
+                match nodes.rows(g) {
+                    // The same sums from the contiguous row.
+                    Some((curve, _, _)) => {
+                        for ((c, y), w) in curve[..tp]
+                            .chunks_exact(L)
+                            .zip(yf.chunks_exact(L))
+                            .zip(wf.chunks_exact(L))
+                        {
+                            for (((al, &c), &y), &w) in a.iter_mut().zip(c).zip(y).zip(w) {
+                                let d = c - y;
+                                *al += w * d * d;
+                            }
+                        }
+                    }
+                    None => {
+                        for ch in 0..tp / L {
+                            for l in 0..L {
+                                let t = ch * L + l;
+                                let d = nodes.curve(g, t) - yf[t];
+                                a[l] += wf[t] * d * d;
+                            }
+                        }
                     }
                 }
                 let v = (a[0] + a[2]) + (a[1] + a[3]);
@@ -193,6 +225,25 @@ impl Grid {
         };
         match w {
             // The same sums with w_t = 1 (bitwise: 1·x = x).
+            None if nodes.rows(g).is_some() => {
+                // The same sums from the contiguous rows.
+                if let Some((curve, jn, jk)) = nodes.rows(g) {
+                    for (((&c, &yt), &jn), &jk) in curve[..t_len]
+                        .iter()
+                        .zip(&y[..t_len])
+                        .zip(&jn[..t_len])
+                        .zip(&jk[..t_len])
+                    {
+                        let r = c as f64 - yt;
+                        let (a, b) = (jn as f64, jk as f64);
+                        ev.h00 += a * a;
+                        ev.h01 += a * b;
+                        ev.h11 += b * b;
+                        ev.g0 += a * r;
+                        ev.g1 += b * r;
+                    }
+                }
+            }
             None => {
                 for (t, &yt) in y[..t_len].iter().enumerate() {
                     let r = nodes.curve(g, t) as f64 - yt;
@@ -237,7 +288,13 @@ impl Grid {
         } else {
             k + dk
         };
-        let (n1, k1) = lm::project(n + dn, k_new, b);
+        let both = det > 1e-12 * ev.h00 * ev.h11 && det > 0.0;
+        let arc = if k < lm::K_U {
+            None
+        } else {
+            lm::arc_step(n, k, dn, dk, b, both)
+        };
+        let (n1, k1) = arc.unwrap_or_else(|| lm::project(n + dn, k_new, b));
         (n1, k1, pred)
     }
 }

@@ -5,6 +5,13 @@ use crate::error::{CoreError, Result};
 
 /// Reason a pixel's data cannot be fitted.
 pub(super) fn check_pixel(dolp: &[f64], dolp_se: Option<&[f64]>) -> Result<()> {
+    // Fast path: every value in [0, 1] (NaN fails both comparisons), no branches.
+    let in_range = dolp
+        .iter()
+        .fold(true, |ok, &v| ok & (0.0..=1.0).contains(&v));
+    if in_range && dolp_se.is_none() {
+        return Ok(());
+    }
     for &v in dolp {
         crate::error::ensure_range("dolp", v, 0.0, 1.0, "[0, 1]")?;
     }
