@@ -262,6 +262,7 @@ def classify(
     nk_corr: ArrayLike | None = None,
     fit_status: ArrayLike | str | None = None,
     wavelength_nm: ArrayLike | None = None,
+    film_shifts: ArrayLike | None = None,
     band_axis: int | None = None,
     rule: Literal["set", "nearest"] | None = None,
     confidence: float = 0.95,

@@ -18,6 +18,7 @@ use polarid_core::classify::{
     AMBIGUOUS, ClassifierConfig, Cov2, Estimate, EstimateBand, Metric, MultiEstimate, Prototype,
     Reject, UNKNOWN,
 };
+use polarid_core::systematic::FilmShifts;
 use polarid_pipeline::classify::{
     self as pipe, ClassifyConfig, PrototypeSource, multi_classifier, read_fits,
 };
@@ -276,6 +277,12 @@ fn fit_statuses(
 ///     ``wavelength_nm=[[[450]], [[550]], [[650]]]``, ``band_axis=0``): each estimate is
 ///     classified on all its bands at once (bands whose fit is not ``ok`` are left out)
 ///     and the results lack that axis.
+/// film_shifts : array_like, optional
+///     The fits' surface-layer shifts (the fits table's ``film1_dn, film1_dk, film2_dn,
+///     film2_dk, film3_dn, film3_dk``), shape = the inputs' broadcast shape + (6,); NaN
+///     where a fit has none. With them the bands of one estimate share ONE surface
+///     layer, as in ``polarid classify`` (docs/BANDS.md); without, each band keeps the
+///     allowance folded into its covariance.
 /// rule : {"set", "nearest"}, optional
 ///     ``set``: every material consistent with the estimate at ``confidence`` (squared
 ///     Mahalanobis distance <= the chi-square quantile of 2 dof per band compared, in
@@ -336,7 +343,7 @@ fn fit_statuses(
 /// FileNotFoundError
 ///     A library or model file that does not exist.
 #[pyfunction]
-#[pyo3(signature = (n, k, library_or_model = None, *, n_se = None, k_se = None, nk_corr = None, fit_status = None, wavelength_nm = None, band_axis = None, rule = None, confidence = 0.95, metric = None, neighbours = 1, reject = None, max_distance = None, strings = false))]
+#[pyo3(signature = (n, k, library_or_model = None, *, n_se = None, k_se = None, nk_corr = None, fit_status = None, wavelength_nm = None, film_shifts = None, band_axis = None, rule = None, confidence = 0.95, metric = None, neighbours = 1, reject = None, max_distance = None, strings = false))]
 #[allow(clippy::too_many_arguments)]
 pub fn classify<'py>(
     py: Python<'py>,
@@ -348,6 +355,7 @@ pub fn classify<'py>(
     nk_corr: Option<F64Like<'py>>,
     fit_status: Option<&Bound<'py, PyAny>>,
     wavelength_nm: Option<F64Like<'py>>,
+    film_shifts: Option<F64Like<'py>>,
     band_axis: Option<isize>,
     rule: Option<&str>,
     confidence: f64,
@@ -435,6 +443,26 @@ pub fn classify<'py>(
     let fsk = sk.as_ref().map(|v| flat("k_se", v)).transpose()?;
     let fsc = sc.as_ref().map(|v| flat("nk_corr", v)).transpose()?;
     let fw = wv.as_ref().map(|v| flat("wavelength_nm", v)).transpose()?;
+    // The six surface-layer shift columns, each flattened like the other inputs.
+    let ffilm: Option<Vec<Vec<f64>>> = match film_shifts.as_ref().map(|x| x.as_array()) {
+        None => None,
+        Some(v) => {
+            let nd = v.ndim();
+            if nd == 0 || v.shape()[nd - 1] != 6 {
+                return Err(value_error(format!(
+                    "film_shifts needs a last axis of length 6 (film1_dn, film1_dk, ..., \
+                     film3_dk), got shape {}",
+                    fmt_shape(v.shape())
+                )));
+            }
+            let mut cols = Vec::with_capacity(6);
+            for c in 0..6 {
+                let comp = v.index_axis(ndarray::Axis(nd - 1), c);
+                cols.push(flat("film_shifts", &comp)?);
+            }
+            Some(cols)
+        }
+    };
     let (status_words, status_codes) = match fit_status {
         Some(s) => {
             let (w, c) = fit_statuses(s, &shape)?;
@@ -525,6 +553,19 @@ pub fn classify<'py>(
                                     cov,
                                     fit_status,
                                 },
+                                // Without shifts each band keeps the allowance folded
+                                // into its covariance.
+                                film: ffilm.as_ref().and_then(|c| {
+                                    let a = [
+                                        [c[0][j], c[1][j]],
+                                        [c[2][j], c[3][j]],
+                                        [c[4][j], c[5][j]],
+                                    ];
+                                    a.iter()
+                                        .flatten()
+                                        .all(|x| x.is_finite())
+                                        .then_some(FilmShifts(a))
+                                }),
                             }
                         })
                         .collect(),

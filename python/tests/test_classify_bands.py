@@ -174,6 +174,7 @@ def test_classify_arrays_band_axis_equals_cli(colour, polarid_cli, source):
         warnings.simplefilter("ignore")
         py = polarid.classify(col("n"), col("k"), spec, n_se=col("n_se"), k_se=col("k_se"),
                               nk_corr=col("nk_corr"), fit_status=status, wavelength_nm=col("wavelength_nm"),
+                              film_shifts=np.stack([col(f"film{j}_{q}") for j in (1, 2, 3) for q in ("dn", "dk")], axis=-1),
                               band_axis=-1, strings=True)
     assert py["predicted"].shape == (t,)
     assert list(py["predicted"]) == cli["predicted"]
@@ -183,7 +184,8 @@ def test_classify_arrays_band_axis_equals_cli(colour, polarid_cli, source):
     np.testing.assert_array_equal(py["distance"], [opt_float(v) or np.nan for v in cli["distance"]])
     # One estimate at a time (scalar result).
     one = polarid.classify(col("n")[1], col("k")[1], spec, n_se=col("n_se")[1], k_se=col("k_se")[1],
-                           nk_corr=col("nk_corr")[1], wavelength_nm=col("wavelength_nm")[1], band_axis=0)
+                           nk_corr=col("nk_corr")[1], wavelength_nm=col("wavelength_nm")[1], band_axis=0,
+                           film_shifts=np.stack([col(f"film{j}_{q}")[1] for j in (1, 2, 3) for q in ("dn", "dk")], axis=-1))
     assert one["predicted"] == cli["predicted"][1] and one["bands_used"] == cli["bands_used"][1]
 
 
