@@ -29,6 +29,21 @@ pub struct ColourFigure {
     pub plot: Rendered,
 }
 
+/// The report's entries of `figs`: each drawn as `plots/<stem>.png` with its `.svg`.
+pub fn report_figures(figs: &[ColourFigure]) -> Vec<Figure> {
+    figs.iter()
+        .map(|f| {
+            Figure::from_rendered(
+                f.title.clone(),
+                f.caption.clone(),
+                &f.plot,
+                format!("plots/{}.png", f.stem),
+                Some(format!("plots/{}.svg", f.stem)),
+            )
+        })
+        .collect()
+}
+
 fn is_test(out: &ColourDemoOutput, target: &str) -> bool {
     out.plates.iter().any(|p| !p.training && p.target == target)
 }
@@ -402,18 +417,7 @@ pub fn report(out: &ColourDemoOutput, figs: &[ColourFigure]) -> Report {
             headers: headers.iter().map(|s| s.to_string()).collect(),
             rows,
         }],
-        figures: figs
-            .iter()
-            .map(|f| {
-                Figure::from_rendered(
-                    f.title.clone(),
-                    f.caption.clone(),
-                    &f.plot,
-                    format!("plots/{}.png", f.stem),
-                    Some(format!("plots/{}.svg", f.stem)),
-                )
-            })
-            .collect(),
+        figures: report_figures(figs),
         generator: format!("polarid {} demo --color", env!("CARGO_PKG_VERSION")),
         ..Default::default()
     }

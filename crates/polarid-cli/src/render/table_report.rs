@@ -22,7 +22,7 @@ use polarid_io::table::measurements::Measurement;
 use super::plots::bands::{Spectrum, SpectrumPoint, nk_spectra};
 use super::plots::panels::{DolpBand, NkBand, band_label, dolp_by_band, nk_by_band};
 use super::plots::{self, PlotSize};
-use super::report::{self, Figure, Report};
+use super::report::{self, Report};
 use super::{Rendered, colour_demo::ColourFigure};
 
 /// At most this many targets are drawn (the first ones, in table order).
@@ -415,18 +415,7 @@ pub fn report(
         inputs,
         estimates,
         classification: super::demo::report_classification(&numbered, t.classification, None),
-        figures: figs
-            .iter()
-            .map(|f| {
-                Figure::from_rendered(
-                    f.title.clone(),
-                    f.caption.clone(),
-                    &f.plot,
-                    format!("plots/{}.png", f.stem),
-                    Some(format!("plots/{}.svg", f.stem)),
-                )
-            })
-            .collect(),
+        figures: super::colour_demo::report_figures(figs),
         generator,
         ..Default::default()
     }
