@@ -10,6 +10,7 @@
 //! scan kernels and the engine (all `#[inline(always)]`) become vector code; the call
 //! is sound because the caller holds the token that proves the CPU has them.
 
+use super::covariance::FinishLanes;
 use super::engine;
 use super::scan::{self, Scan};
 use super::simd::{Portable, Simd};
@@ -22,15 +23,23 @@ use crate::cpu::{Isa, cpu_features};
 /// all of them.
 #[inline(always)]
 pub(super) fn best_polish(polished: &[engine::JobOut]) -> (engine::JobOut, u32, u32) {
-    let mut best = polished[0];
+    let (best, iters, evals) = best_index(polished);
+    (polished[best], iters, evals)
+}
+
+/// [`best_polish`] as the index of the best polish in `polished`.
+#[inline(always)]
+fn best_index(polished: &[engine::JobOut]) -> (usize, u32, u32) {
+    let mut best = 0;
     let (mut iters, mut evals) = (0u32, 0u32);
-    for other in polished {
+    for (i, other) in polished.iter().enumerate() {
         iters += other.iters;
         evals += other.evals;
-        if other.ev.cost < best.ev.cost
-            || (!best.converged && other.converged && other.ev.cost <= best.ev.cost * (1.0 + 1e-9))
+        let b = &polished[best];
+        if other.ev.cost < b.ev.cost
+            || (!b.converged && other.converged && other.ev.cost <= b.ev.cost * (1.0 + 1e-9))
         {
-            best = *other;
+            best = i;
         }
     }
     (best, iters, evals)
@@ -273,18 +282,28 @@ impl FitPlan {
             outs,
             lane,
         );
-        for (p, o) in out.iter_mut().enumerate() {
-            let (first, count) = spans[p];
+        // The best polish of every fitted pixel, its uncertainties and status W
+        // pixels at a time in the vector lanes (`covariance.rs`).
+        let mut fin = FinishLanes::default();
+        for (p, &(first, count)) in spans.iter().enumerate() {
             if count == 0 {
                 continue;
             }
-            let (best, iters, evals) = best_polish(&outs[first..first + count]);
-            let rows = p * t_len..(p + 1) * t_len;
-            let mut fit = self.finish(&best, &y[rows.clone()], wall.map(|w| &w[rows]));
-            fit.iterations = iters;
-            fit.evaluations = evals;
-            fit.starts = count as u32;
-            *o = fit;
+            let (best, iters, evals) = best_index(&outs[first..first + count]);
+            fin.push(
+                p,
+                first + best,
+                &outs[first + best],
+                iters,
+                evals,
+                count as u32,
+            );
+            if fin.is_full() {
+                self.finish_lanes(k, &mut fin, outs, y, wall, out);
+            }
+        }
+        if !fin.is_empty() {
+            self.finish_lanes(k, &mut fin, outs, y, wall, out);
         }
     }
 
