@@ -380,14 +380,21 @@ impl FitPlan {
             let p = lanes.pixel[l];
             let rows = p * t_len..(p + 1) * t_len;
             let yp = &y[rows.clone()];
-            let mut fit = if scalar >> l & 1 != 0 {
+            // Written in place, field by field: a copy of a whole NkFit assembled on
+            // the stack would reload its scalar stores as wide vectors (a stalled
+            // store-to-load forward per pixel).
+            if scalar >> l & 1 != 0 {
                 let wp = w.map(|w| &w[rows]);
-                self.finish(&outs[lanes.job[l]], yp, wp)
+                let mut fit = self.finish(&outs[lanes.job[l]], yp, wp);
+                fit.iterations = lanes.iters[l];
+                fit.evaluations = lanes.evals[l];
+                fit.starts = lanes.starts[l];
+                out[p] = fit;
             } else {
                 let (n, k) = (lanes.n[l], kv[l]);
                 let (status, reason) =
                     status_rule(self.issue, is_flat(yp), false, lanes.converged[l], n, k, b);
-                NkFit {
+                out[p] = NkFit {
                     n,
                     k,
                     n_se: n_sev[l],
@@ -395,15 +402,13 @@ impl FitPlan {
                     nk_corr: corrv[l],
                     rms_residual: rmsv[l],
                     cost: lanes.cost[l],
+                    iterations: lanes.iters[l],
+                    evaluations: lanes.evals[l],
+                    starts: lanes.starts[l],
                     status,
                     reason,
-                    ..Default::default()
-                }
-            };
-            fit.iterations = lanes.iters[l];
-            fit.evaluations = lanes.evals[l];
-            fit.starts = lanes.starts[l];
-            out[p] = fit;
+                };
+            }
         }
         lanes.len = 0;
     }
