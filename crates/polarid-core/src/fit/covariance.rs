@@ -24,11 +24,20 @@ impl FitPlan {
     pub(super) fn finish(&self, out: &engine::JobOut, y: &[f64], w: Option<&[f64]>) -> NkFit {
         self.grid.finish(&self.terms, self.issue, out, y, w)
     }
+
+    /// [`FitPlan::finish`] written into `o` in place (field by field: no copy of a
+    /// just-assembled NkFit through the stack, whose wide reload of scalar stores
+    /// would stall).
+    #[inline(never)]
+    fn finish_into(&self, out: &engine::JobOut, y: &[f64], w: Option<&[f64]>, o: &mut NkFit) {
+        *o = self.grid.finish(&self.terms, self.issue, out, y, w);
+    }
 }
 
 impl Grid {
     /// Standard errors, correlation and status of a polished minimum of a fit at the
     /// angles of `terms`; `issue`: why that β set is ill-conditioned, if it is.
+    #[inline]
     pub(super) fn finish(
         &self,
         terms: &[BetaTerms],
@@ -385,11 +394,11 @@ impl FitPlan {
             // store-to-load forward per pixel).
             if scalar >> l & 1 != 0 {
                 let wp = w.map(|w| &w[rows]);
-                let mut fit = self.finish(&outs[lanes.job[l]], yp, wp);
-                fit.iterations = lanes.iters[l];
-                fit.evaluations = lanes.evals[l];
-                fit.starts = lanes.starts[l];
-                out[p] = fit;
+                let o = &mut out[p];
+                self.finish_into(&outs[lanes.job[l]], yp, wp, o);
+                o.iterations = lanes.iters[l];
+                o.evaluations = lanes.evals[l];
+                o.starts = lanes.starts[l];
             } else {
                 let (n, k) = (lanes.n[l], kv[l]);
                 let (status, reason) =
