@@ -19,8 +19,9 @@ use super::{FitBounds, FitPlan, FitStatus, NkFit};
 use crate::dop::{BetaTerms, dop_grad_terms, dop_terms};
 
 impl FitPlan {
-    /// Standard errors, correlation and status of a polished minimum.
-    #[inline]
+    /// Standard errors, correlation and status of a polished minimum (the chunk driver
+    /// goes through [`FitPlan::finish_lanes`]; the tests compare them).
+    #[cfg(test)]
     pub(super) fn finish(&self, out: &engine::JobOut, y: &[f64], w: Option<&[f64]>) -> NkFit {
         self.grid.finish(&self.terms, self.issue, out, y, w)
     }
