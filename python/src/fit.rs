@@ -282,10 +282,13 @@ pub fn fit_nk<'py>(
         let out = py
             .detach(|| {
                 let plan = pixel_plan_for(opts)?;
-                let brad: Vec<f64> = bs.iter().map(|b| b.to_radians()).collect();
+                // β in radians chunk by chunk (no full-size copy of the angles).
                 let fit = |y: &[f64], se: Option<&[f64]>, first: usize, out: &mut [NkFit]| {
-                    let b = &brad[first * t..(first + out.len()) * t];
-                    fit_batch_pixel_beta(&plan, b, y, se, out)
+                    let b: Vec<f64> = bs[first * t..(first + out.len()) * t]
+                        .iter()
+                        .map(|b| b.to_radians())
+                        .collect();
+                    fit_batch_pixel_beta(&plan, &b, y, se, out)
                 };
                 ys.batch(t, &fit, ses, pixels)
             })
@@ -464,7 +467,9 @@ fn batch<Y: DolpSample>(
                     ev[j] = f.evaluations;
                     st[j] = f.starts;
                     code[j] = f.status.code();
-                    rc[j] = if std::ptr::eq(f.reason, last.0) || f.reason == last.0 {
+                    rc[j] = if f.reason.is_empty() {
+                        0
+                    } else if std::ptr::eq(f.reason, last.0) {
                         last.1
                     } else {
                         let r = match table.iter().position(|x| *x == f.reason) {
