@@ -539,7 +539,7 @@ impl<T: Clone + Default> Column<T> {
     fn new(len: usize) -> Self {
         let size = std::mem::size_of::<T>().max(1);
         let bytes = len * size;
-        if !cfg!(target_os = "linux") || bytes < HUGE_PAGE || HUGE_PAGE % size != 0 {
+        if !cfg!(target_os = "linux") || bytes < HUGE_PAGE || !HUGE_PAGE.is_multiple_of(size) {
             return Self {
                 vec: vec![T::default(); len],
                 off: 0,
@@ -549,7 +549,7 @@ impl<T: Clone + Default> Column<T> {
         let vec = vec![T::default(); len + HUGE_PAGE / size];
         let start = vec.as_ptr() as usize;
         let a = start.next_multiple_of(HUGE_PAGE);
-        if (a - start) % size != 0 {
+        if !(a - start).is_multiple_of(size) {
             return Self { vec, off: 0, len };
         }
         let off = (a - start) / size;
