@@ -282,10 +282,13 @@ pub fn fit_nk<'py>(
         let out = py
             .detach(|| {
                 let plan = pixel_plan_for(opts)?;
-                let brad: Vec<f64> = bs.iter().map(|b| b.to_radians()).collect();
+                // β in radians chunk by chunk (no full-size copy of the angles).
                 let fit = |y: &[f64], se: Option<&[f64]>, first: usize, out: &mut [NkFit]| {
-                    let b = &brad[first * t..(first + out.len()) * t];
-                    fit_batch_pixel_beta(&plan, b, y, se, out)
+                    let b: Vec<f64> = bs[first * t..(first + out.len()) * t]
+                        .iter()
+                        .map(|b| b.to_radians())
+                        .collect();
+                    fit_batch_pixel_beta(&plan, &b, y, se, out)
                 };
                 ys.batch(t, &fit, ses, pixels)
             })
@@ -310,18 +313,18 @@ const CHUNK: usize = 1024;
 /// The columns of a batch fit (struct of arrays).
 #[derive(Default)]
 struct BatchOut {
-    n: Vec<f64>,
-    k: Vec<f64>,
-    n_se: Vec<f64>,
-    k_se: Vec<f64>,
-    nk_corr: Vec<f64>,
-    rms: Vec<f64>,
-    cost: Vec<f64>,
-    iterations: Vec<u32>,
-    evaluations: Vec<u32>,
-    starts: Vec<u32>,
-    status: Vec<u8>,
-    reason: Vec<u8>,
+    n: Column<f64>,
+    k: Column<f64>,
+    n_se: Column<f64>,
+    k_se: Column<f64>,
+    nk_corr: Column<f64>,
+    rms: Column<f64>,
+    cost: Column<f64>,
+    iterations: Column<u32>,
+    evaluations: Column<u32>,
+    starts: Column<u32>,
+    status: Column<u8>,
+    reason: Column<u8>,
     /// `reason` codes index this table; 0 is "".
     reasons: Vec<&'static str>,
 }
@@ -387,6 +390,12 @@ type FitFn<'a> =
 /// Fit `pixels` pixels of `t` measurements with `fit`, `CHUNK` at a time in parallel,
 /// writing the results straight into the output columns (no per-pixel intermediate of
 /// the whole stack: large stacks would otherwise spend their time in page faults).
+///
+/// The columns are fresh memory (numpy takes them over), so their first touch costs
+/// page faults: [`column`] asks for transparent huge pages. Each chunk codes its
+/// reasons in a table of its own (no lock shared by the workers); the tables are then
+/// merged in pixel order, so `reasons` lists the reasons in the order of their first
+/// pixel whatever the scheduling.
 fn batch<Y: DolpSample>(
     t: usize,
     fit: &FitFn<'_>,
@@ -403,52 +412,49 @@ fn batch<Y: DolpSample>(
         });
     }
     let mut o = BatchOut {
-        n: vec![0.0; pixels],
-        k: vec![0.0; pixels],
-        n_se: vec![0.0; pixels],
-        k_se: vec![0.0; pixels],
-        nk_corr: vec![0.0; pixels],
-        rms: vec![0.0; pixels],
-        cost: vec![0.0; pixels],
-        iterations: vec![0; pixels],
-        evaluations: vec![0; pixels],
-        starts: vec![0; pixels],
-        status: vec![0; pixels],
-        reason: vec![0; pixels],
+        n: Column::new(pixels),
+        k: Column::new(pixels),
+        n_se: Column::new(pixels),
+        k_se: Column::new(pixels),
+        nk_corr: Column::new(pixels),
+        rms: Column::new(pixels),
+        cost: Column::new(pixels),
+        iterations: Column::new(pixels),
+        evaluations: Column::new(pixels),
+        starts: Column::new(pixels),
+        status: Column::new(pixels),
+        reason: Column::new(pixels),
         reasons: Vec::new(),
     };
-    let reasons: Mutex<Vec<&'static str>> = Mutex::new(vec![""]);
-    let err: Mutex<Option<CoreError>> = Mutex::new(None);
     let c = CHUNK;
-    (
-        o.n.par_chunks_mut(c),
-        o.k.par_chunks_mut(c),
-        o.n_se.par_chunks_mut(c),
-        o.k_se.par_chunks_mut(c),
-        o.nk_corr.par_chunks_mut(c),
-        o.rms.par_chunks_mut(c),
-        o.cost.par_chunks_mut(c),
-        o.iterations.par_chunks_mut(c),
-        o.evaluations.par_chunks_mut(c),
-        o.starts.par_chunks_mut(c),
-        o.status.par_chunks_mut(c),
-        o.reason.par_chunks_mut(c),
+    // Per chunk: its reasons; local code i + 1 is `table[i]` (0 is "").
+    let tables: Vec<Vec<&'static str>> = (
+        o.n.as_mut_slice().par_chunks_mut(c),
+        o.k.as_mut_slice().par_chunks_mut(c),
+        o.n_se.as_mut_slice().par_chunks_mut(c),
+        o.k_se.as_mut_slice().par_chunks_mut(c),
+        o.nk_corr.as_mut_slice().par_chunks_mut(c),
+        o.rms.as_mut_slice().par_chunks_mut(c),
+        o.cost.as_mut_slice().par_chunks_mut(c),
+        o.iterations.as_mut_slice().par_chunks_mut(c),
+        o.evaluations.as_mut_slice().par_chunks_mut(c),
+        o.starts.as_mut_slice().par_chunks_mut(c),
+        o.status.as_mut_slice().par_chunks_mut(c),
+        o.reason.as_mut_slice().par_chunks_mut(c),
     )
         .into_par_iter()
         .enumerate()
-        .for_each_init(
+        .map_init(
             || (vec![NkFit::default(); c], Vec::new()),
             |(buf, ybuf), (i, (n, k, nse, kse, corr, rms, cost, it, ev, st, code, rc))| {
                 let len = n.len();
                 let y = Y::as_f64(&ys[i * c * t..(i * c + len) * t], ybuf);
                 let se = ses.map(|s| &s[i * c * t..(i * c + len) * t]);
                 let buf = &mut buf[..len];
-                if let Err(e) = fit(y, se, i * c, buf) {
-                    if let Ok(mut slot) = err.lock() {
-                        *slot = Some(e);
-                    }
-                    return;
-                }
+                fit(y, se, i * c, buf)?;
+                let mut table: Vec<&'static str> = Vec::new();
+                // The last reason seen and its code (runs of one reason are common).
+                let mut last: (&'static str, u8) = ("", 0);
                 for (j, f) in buf.iter().enumerate() {
                     n[j] = f.n;
                     k[j] = f.k;
@@ -463,27 +469,122 @@ fn batch<Y: DolpSample>(
                     code[j] = f.status.code();
                     rc[j] = if f.reason.is_empty() {
                         0
+                    } else if std::ptr::eq(f.reason, last.0) {
+                        last.1
                     } else {
-                        reasons.lock().map_or(0, |mut r| {
-                            match r.iter().position(|x| *x == f.reason) {
-                                Some(p) => p as u8,
-                                None if r.len() < 255 => {
-                                    r.push(f.reason);
-                                    (r.len() - 1) as u8
-                                }
-                                None => 0,
+                        let r = match table.iter().position(|x| *x == f.reason) {
+                            Some(p) => p as u8 + 1,
+                            None if table.len() < 255 => {
+                                table.push(f.reason);
+                                table.len() as u8
                             }
-                        })
+                            None => 0,
+                        };
+                        last = (f.reason, r);
+                        r
                     };
                 }
+                Ok(table)
             },
-        );
-    if let Some(e) = err.into_inner().ok().flatten() {
-        return Err(e);
+        )
+        .collect::<Result<_, CoreError>>()?;
+    // Merge the chunk tables in pixel order; recode the chunks whose codes differ.
+    let mut reasons: Vec<&'static str> = vec![""];
+    let mut map: Vec<u8> = Vec::new();
+    for (table, rc) in tables.iter().zip(o.reason.as_mut_slice().chunks_mut(c)) {
+        map.clear();
+        map.push(0);
+        for r in table {
+            let g = match reasons.iter().position(|x| x == r) {
+                Some(p) => p as u8,
+                None if reasons.len() < 255 => {
+                    reasons.push(r);
+                    (reasons.len() - 1) as u8
+                }
+                None => 0,
+            };
+            map.push(g);
+        }
+        if map.iter().enumerate().any(|(i, &g)| usize::from(g) != i) {
+            for x in rc.iter_mut() {
+                *x = map[usize::from(*x)];
+            }
+        }
     }
-    o.reasons = reasons.into_inner().unwrap_or_default();
+    o.reasons = reasons;
     Ok(o)
 }
+
+/// Size of a transparent huge page (x86-64, aarch64 with 4 KiB pages).
+const HUGE_PAGE: usize = 2 << 20;
+
+/// A zeroed output column of `len` values: `vec[off..off + len]`.
+///
+/// The column is fresh memory (numpy takes it over), so the workers' first writes
+/// cost page faults. A column of at least one huge page starts at a 2 MiB boundary
+/// inside a slightly larger zeroed allocation (fresh, untouched memory) and its whole
+/// 2 MiB pages are asked to be backed by transparent huge pages
+/// (`madvise(MADV_HUGEPAGE)`, before any write): one page fault per 2 MiB rather than
+/// per 4 KiB. Only a hint: where the kernel declines (THP disabled, no huge page free)
+/// or elsewhere than Linux nothing changes but the alignment. numpy receives the
+/// column as an array over `vec` at offset `off` (no copy).
+#[derive(Default)]
+struct Column<T> {
+    vec: Vec<T>,
+    off: usize,
+    len: usize,
+}
+
+impl<T: Clone + Default> Column<T> {
+    fn new(len: usize) -> Self {
+        let size = std::mem::size_of::<T>().max(1);
+        let bytes = len * size;
+        if !cfg!(target_os = "linux") || bytes < HUGE_PAGE || !HUGE_PAGE.is_multiple_of(size) {
+            return Self {
+                vec: vec![T::default(); len],
+                off: 0,
+                len,
+            };
+        }
+        let vec = vec![T::default(); len + HUGE_PAGE / size];
+        let start = vec.as_ptr() as usize;
+        let a = start.next_multiple_of(HUGE_PAGE);
+        if !(a - start).is_multiple_of(size) {
+            return Self { vec, off: 0, len };
+        }
+        let off = (a - start) / size;
+        // [a, a + whole pages) lies inside the allocation: a - start < HUGE_PAGE.
+        advise_huge_pages(a, bytes / HUGE_PAGE * HUGE_PAGE);
+        Self { vec, off, len }
+    }
+
+    fn as_mut_slice(&mut self) -> &mut [T] {
+        &mut self.vec[self.off..self.off + self.len]
+    }
+}
+
+impl<T> Column<T> {
+    /// The column as an array of shape `lead` (no copy).
+    fn into_array(self, lead: &[usize]) -> Result<ArrayD<T>, ndarray::ShapeError> {
+        let (off, len) = (self.off, self.len);
+        ndarray::Array1::from(self.vec)
+            .slice_move(ndarray::s![off..off + len])
+            .into_shape_with_order(IxDyn(lead))
+    }
+}
+
+/// `madvise(addr, len, MADV_HUGEPAGE)`, its result ignored (a hint).
+#[cfg(target_os = "linux")]
+fn advise_huge_pages(addr: usize, len: usize) {
+    // SAFETY: the callers pass a range inside one live allocation; MADV_HUGEPAGE
+    // changes no contents and no mapping, only how later page faults are served.
+    unsafe {
+        libc::madvise(addr as *mut libc::c_void, len, libc::MADV_HUGEPAGE);
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn advise_huge_pages(_: usize, _: usize) {}
 
 /// The dict of a stack fit: numeric arrays, the status as codes with their name table
 /// (``status_code``, ``status_names``) and, when `status_strings`, also a str array
@@ -497,9 +598,9 @@ fn batch_dict<'py>(
     fn arr<'py, T: numpy::Element>(
         py: Python<'py>,
         lead: &[usize],
-        v: Vec<T>,
+        v: Column<T>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let a = ArrayD::from_shape_vec(IxDyn(lead), v).map_err(|e| value_error(e.to_string()))?;
+        let a = v.into_array(lead).map_err(|e| value_error(e.to_string()))?;
         Ok(to_numpy(py, a))
     }
     let d = PyDict::new(py);
