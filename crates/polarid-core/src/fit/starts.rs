@@ -308,14 +308,16 @@ fn gn_step(ev: &Eval, n: f64, k: f64, b: &FitBounds) -> (f64, f64, f64) {
     (n1, k1, pred)
 }
 
-/// `JᵀJ` of every node's stored Jacobian, `[h00, h01, h11]` (the sums of
-/// [`Grid::node_step`] in the same order, so bit for bit the same values): `jac` as
-/// [`FitPlan`] stores it, `2T` values per node.
-pub(super) fn node_hessians(jac: &[f32], t_len: usize) -> Vec<[f64; 3]> {
+/// `[h00, h01, h11, n, k]` of every grid node: `JᵀJ` of its stored Jacobian (the sums
+/// of [`Grid::node_step`] in the same order, so bit for bit the same values; `jac` as
+/// [`FitPlan`] stores it, `2T` values per node) and its `(n, k)`.
+pub(super) fn start_nodes(grid: &Grid, jac: &[f32], t_len: usize) -> Vec<[f64; 5]> {
     jac.chunks_exact(2 * t_len)
-        .map(|row| {
+        .enumerate()
+        .map(|(g, row)| {
             let (jn, jk) = row.split_at(t_len);
-            let mut h = [0.0f64; 3];
+            let (_, _, n, k) = grid.node(g);
+            let mut h = [0.0, 0.0, 0.0, n, k];
             for (&a, &b) in jn.iter().zip(jk) {
                 let (a, b) = (a as f64, b as f64);
                 h[0] += a * a;
@@ -369,7 +371,8 @@ impl FitPlan {
         } else {
             best.node as usize
         };
-        let g = self.grid.coarse_node(c0);
+        // Coarse stride 1 (`lane_starts`): coarse node `c` is grid node `c`.
+        let g = c0;
         let mut sums = StartSums {
             pixel: p,
             node: g,
@@ -423,9 +426,8 @@ impl FitPlan {
             for l in 0..W {
                 // Spare lanes repeat the first pixel (results not used).
                 let q = group.get(l).unwrap_or(&group[0]);
-                let (_, _, n, k) = self.grid.node(q.node);
-                let h = self.start_h.get(q.node).copied().unwrap_or_default();
-                for (dst, x) in v.iter_mut().zip([h[0], h[1], h[2], q.g0, q.g1, n, k]) {
+                let h = self.start_nodes.get(q.node).copied().unwrap_or_default();
+                for (dst, x) in v.iter_mut().zip([h[0], h[1], h[2], q.g0, q.g1, h[3], h[4]]) {
                     dst[l] = x;
                 }
             }
@@ -435,7 +437,8 @@ impl FitPlan {
             s.store(n1, &mut n1s);
             s.store(s.max(k1, s.splat(k_floor)), &mut k1s);
             for (l, q) in group.iter().enumerate() {
-                let (_, _, nn, kk) = self.grid.node(q.node);
+                let h = self.start_nodes.get(q.node).copied().unwrap_or_default();
+                let (nn, kk) = (h[3], h[4]);
                 spans[q.pixel] = (jobs.len(), 1);
                 jobs.push(engine::Job {
                     pixel: q.pixel,
