@@ -14,6 +14,7 @@ use super::covariance::FinishLanes;
 use super::engine;
 use super::scan::{self, Scan};
 use super::simd::{Portable, Simd};
+use super::starts;
 use super::validate::{check_pixel, invalid_reason};
 use super::{FitPlan, NkFit};
 use crate::cpu::{Isa, cpu_features};
@@ -66,6 +67,8 @@ pub struct FitWorkspace {
     jobs: Vec<engine::Job>,
     /// First job and number of jobs of each pixel of a chunk.
     spans: Vec<(usize, usize)>,
+    /// Best nodes and gradients of the pixels whose starts are taken in lanes.
+    sums: Vec<starts::StartSums>,
     /// Results of the polishes.
     outs: Vec<engine::JobOut>,
     /// Lane-major measurements of the polishes in flight.
@@ -86,6 +89,7 @@ impl FitPlan {
             wf: vec![0.0; tp],
             jobs: Vec::new(),
             spans: Vec::new(),
+            sums: Vec::new(),
             outs: Vec::new(),
             lane: engine::LaneScratch::default(),
         }
@@ -185,6 +189,7 @@ impl FitPlan {
             wf,
             jobs,
             spans,
+            sums,
             outs,
             lane,
         } = ws;
@@ -197,6 +202,10 @@ impl FitPlan {
             None => None,
         };
         jobs.clear();
+        sums.clear();
+        // Unweighted one-start pixels: starts in lanes after the scans (no padded
+        // f32 copy of the pixel needed for them).
+        let in_lanes = wall.is_none() && self.lane_starts();
         spans.clear();
         spans.resize(out.len(), (0, 0));
         valid.clear();
@@ -237,6 +246,17 @@ impl FitPlan {
             let mut parts = bands4.chunks_exact_mut(nbands);
             let b4 = [(); 4].map(|_| parts.next().unwrap_or_default());
             k.scan4(curves, base, y4, self.grid.band, b4);
+            if in_lanes {
+                for (i, &p) in ps.iter().enumerate() {
+                    sums.push(self.start_sums::<true>(
+                        p,
+                        &bands4[i * nbands..(i + 1) * nbands],
+                        &yf4[i * t_len..(i + 1) * t_len],
+                        &y[p * t_len..(p + 1) * t_len],
+                    ));
+                }
+                continue;
+            }
             for (i, &p) in ps.iter().enumerate() {
                 let first = jobs.len();
                 self.pad_pixel(&y[p * t_len..(p + 1) * t_len], None, yf, wf);
@@ -259,8 +279,15 @@ impl FitPlan {
             let w = wall.map(|w| &w[rows.clone()]);
             self.pad_pixel(&y[rows.clone()], w, yf, wf);
             self.scan_one(k, t_len, w.is_some(), yf, wf, bands);
+            if in_lanes {
+                sums.push(self.start_sums::<false>(p, bands, yf, &y[rows]));
+                continue;
+            }
             self.grid.queue(self, p, bands, &y[rows], w, yf, wf, jobs);
             spans[p] = (first, jobs.len() - first);
+        }
+        if in_lanes {
+            self.push_starts(k, sums, jobs, spans);
         }
         outs.clear();
         outs.resize(jobs.len(), engine::JobOut::default());

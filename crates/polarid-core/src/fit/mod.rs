@@ -39,7 +39,10 @@
 //!    25–50% of the pixels, often by 4–11 grid steps); every second node along one axis
 //!    (512 nodes) raised it to 7.1 and the instructions per fit from 8,646 to 9,082.
 //! 2. **Start**: one Gauss–Newton step from the best node with its stored Jacobian (no
-//!    model evaluation); the node itself if that start turns out worse.
+//!    model evaluation); the node itself if that start turns out worse. Unweighted,
+//!    with one start per pixel, a node's `JᵀJ` is taken from the plan, only the
+//!    gradient is summed per pixel, and the step is taken for sixteen pixels at once
+//!    in branch-free vector lanes (`starts.rs`; bit for bit the scalar step).
 //! 3. **Polish** (`engine.rs`): Levenberg–Marquardt with the analytic Jacobian, 2×2
 //!    normal equations in closed form and Marquardt scaling, run for sixteen fits side
 //!    by side, one per SIMD lane (two f64x8 or four f64x4 vectors): the `T` values and

@@ -41,6 +41,9 @@ pub struct FitPlan {
     pub(super) coarse_half_norm: Vec<f32>,
     /// Jacobian of node `g`: `jac[g * 2T + t]` = ∂P/∂n, `jac[g * 2T + T + t]` = ∂P/∂k.
     pub(super) jac: Vec<f32>,
+    /// `JᵀJ` of every node's stored Jacobian and the node's `(n, k)`: `[h00, h01,
+    /// h11, n, k]` (the lane starts of `starts.rs`).
+    pub(super) start_nodes: Vec<[f64; 5]>,
     /// Why every fit with this β set is ill-conditioned, if it is.
     pub(super) issue: Option<&'static str>,
 }
@@ -149,6 +152,7 @@ impl FitPlan {
             coarse_half_norm[c] = (0.5 * sq) as f32;
         }
         let issue = beta_issue(betas, &mut Vec::with_capacity(t_len));
+        let start_nodes = super::starts::start_nodes(&grid, &jac, t_len);
         Ok(Self {
             betas: betas.to_vec(),
             terms,
@@ -158,6 +162,7 @@ impl FitPlan {
             coarse_curves,
             coarse_half_norm,
             jac,
+            start_nodes,
             issue,
         })
     }
