@@ -343,10 +343,13 @@ fn eval_terms<S: Simd, const WEIGHTED: bool, const PIX: bool, const CHECK: bool>
 /// The damped step of `lm::step` for every lane, without branches: solve
 /// `(H + λ diag H) δ = −g` (in `(n, u = k²)` below `k = 1`), hold a parameter fixed on
 /// a bound the descent direction points out of, project into the box, and return the
-/// trial points and the decrease the Gauss–Newton model predicts for them.
+/// trial points and the decrease the Gauss–Newton model predicts for them. Lanes
+/// outside `live` get unspecified values.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn step_lanes<S: Simd>(
     s: S,
+    live: S::M,
     e: &EvalV<S>,
     lam: S::V,
     vn: S::V,
@@ -356,11 +359,20 @@ fn step_lanes<S: Simd>(
     let k_lo = if b.k_min > 0.0 { b.k_min } else { K_FLOOR };
     let (zero, one, two, neg) = (s.splat(0.0), s.splat(1.0), s.splat(2.0), s.splat(-1.0));
     let in_u = s.and(s.lt(vk, s.splat(K_U)), s.lt(zero, vk));
-    let su = s.div(s.splat(0.5), vk);
+    // The divisions and square root below run only when some live lane reads them
+    // (the divider bounds the engine's speed); other lanes' values are never selected.
+    let any_u = s.bits(s.and(live, in_u)) != 0;
     let (h00, h01, h11, g0, g1) = (e.h00, e.h01, e.h11, e.g0, e.g1);
-    let h01 = s.select(in_u, s.mul(h01, su), h01);
-    let h11 = s.select(in_u, s.mul(h11, s.mul(su, su)), h11);
-    let g1 = s.select(in_u, s.mul(g1, su), g1);
+    let (h01, h11, g1) = if any_u {
+        let su = s.div(s.splat(0.5), vk);
+        (
+            s.select(in_u, s.mul(h01, su), h01),
+            s.select(in_u, s.mul(h11, s.mul(su, su)), h11),
+            s.select(in_u, s.mul(g1, su), g1),
+        )
+    } else {
+        (h01, h11, g1)
+    };
     let finite = s.eq(s.mul(s.add(s.add(h00, h01), h11), zero), zero);
     let damp = s.add(one, lam);
     let a00 = s.mul(h00, damp);
@@ -379,9 +391,15 @@ fn step_lanes<S: Simd>(
     let n_free = s.and(s.not(n_blocked), s.lt(zero, h00));
     let k_free = s.and(s.not(k_blocked), s.lt(zero, h11));
     let det = s.sub(s.mul(a00, a11), s.mul(a01, a01));
-    let dn_1 = s.div(s.mul(neg, g0), a00);
-    let dk_1 = s.div(s.mul(neg, g1), a11);
     let joint = s.lt(s.mul(s.splat(1e-15), s.mul(a00, a11)), det);
+    // The one-parameter steps, read by lanes with one parameter free or a singular
+    // joint system only.
+    let both = s.and(s.and(n_free, k_free), joint);
+    let (dn_1, dk_1) = if s.bits(s.and(live, s.and(s.or(n_free, k_free), s.not(both)))) != 0 {
+        (s.div(s.mul(neg, g0), a00), s.div(s.mul(neg, g1), a11))
+    } else {
+        (zero, zero)
+    };
     let inv_det = s.div(neg, det);
     let dn_2 = s.select(
         joint,
@@ -399,7 +417,11 @@ fn step_lanes<S: Simd>(
         s.max(s.fma(vk, vk, dk), s.splat(k_lo * k_lo)),
         s.splat(b.k_max * b.k_max),
     );
-    let k_raw = s.select(in_u, s.sqrt(u), s.add(vk, dk));
+    let k_raw = if any_u {
+        s.select(in_u, s.sqrt(u), s.add(vk, dk))
+    } else {
+        s.add(vk, dk)
+    };
     let n_raw = s.add(vn, dn);
     let n_p = if b.n_min == 0.0 { s.abs(n_raw) } else { n_raw };
     let k_p = if b.k_min == 0.0 { s.abs(k_raw) } else { k_raw };
@@ -641,7 +663,7 @@ pub(crate) fn run<S: Simd, const PIX: bool>(
         // 1. Levenberg–Marquardt lanes: the next trial point, or the end of the
         //    polish (before an evaluation).
         let lm_m = s.mask(lm_b);
-        let (nt, kt, pred) = step_lanes(s, &cur, lam, n, k, b);
+        let (nt, kt, pred) = step_lanes(s, lm_m, &cur, lam, n, k, b);
         let maxed = s.and(lm_m, s.le(max_iter, iters));
         let going = s.and(lm_m, s.not(maxed));
         iters = s.add(iters, s.select(going, one, zero));
