@@ -245,7 +245,8 @@ impl FitPlan {
             let nbands = bands.len();
             let mut parts = bands4.chunks_exact_mut(nbands);
             let b4 = [(); 4].map(|_| parts.next().unwrap_or_default());
-            k.scan4(curves, base, y4, self.grid.band, b4);
+            let groups = self.groups.as_ref();
+            scan::scan4_grid(k, groups, curves, base, y4, self.grid.band, b4);
             if in_lanes {
                 for (i, &p) in ps.iter().enumerate() {
                     sums.push(self.start_sums::<true>(

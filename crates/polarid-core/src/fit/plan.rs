@@ -11,7 +11,7 @@ use super::crb::{Crb, crb};
 use super::grid::Grid;
 use super::lanes::Lanes;
 use super::lm;
-use super::scan::SCAN_BLOCK;
+use super::scan::{Groups, SCAN_BLOCK};
 use crate::dop::{BetaTerms, dop_grad_terms, dop_terms};
 use crate::error::{CoreError, Result};
 
@@ -39,6 +39,10 @@ pub struct FitPlan {
     /// `½ Σ_t curve_c(t)²` of coarse node `c` (padding: +∞): the unweighted scan
     /// ranks nodes by `½‖c‖² − c·y = (cost − ‖y‖²)/2`.
     pub(super) coarse_half_norm: Vec<f32>,
+    /// The coarse nodes in groups for the pruned unweighted scan (`scan/prune.rs`):
+    /// only when the whole grid is one band (`max_candidates = 1`) and has at most
+    /// `prune::MAX_GROUPS` groups (the default grid has 64).
+    pub(super) groups: Option<Groups>,
     /// Jacobian of node `g`: `jac[g * 2T + t]` = ∂P/∂n, `jac[g * 2T + T + t]` = ∂P/∂k.
     pub(super) jac: Vec<f32>,
     /// `JᵀJ` of every node's stored Jacobian and the node's `(n, k)`: `[h00, h01,
@@ -151,6 +155,17 @@ impl FitPlan {
                 .sum();
             coarse_half_norm[c] = (0.5 * sq) as f32;
         }
+        let groups = (grid.band >= gc_pad)
+            .then(|| {
+                Groups::new(
+                    grid.coarse_i.len(),
+                    grid.coarse_j.len(),
+                    t_len,
+                    |c, t| node_curves[grid.coarse_node(c) * tp + t],
+                    &coarse_half_norm,
+                )
+            })
+            .flatten();
         let issue = beta_issue(betas, &mut Vec::with_capacity(t_len));
         let start_nodes = super::starts::start_nodes(&grid, &jac, t_len);
         Ok(Self {
@@ -161,6 +176,7 @@ impl FitPlan {
             node_curves,
             coarse_curves,
             coarse_half_norm,
+            groups,
             jac,
             start_nodes,
             issue,

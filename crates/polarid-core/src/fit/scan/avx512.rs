@@ -11,6 +11,7 @@
 
 use std::arch::x86_64::*;
 
+use super::prune::{GROUP, Groups, MAX_GROUPS, NV, V16};
 use super::{BandMin, SCAN_BLOCK, Scan};
 use crate::cpu::Avx512;
 
@@ -40,6 +41,13 @@ impl Scan for Avx512 {
         bands: [&mut [BandMin]; 4],
     ) {
         scan4_avx512(self, curves, base, ny, band, bands)
+    }
+
+    const PRUNED: bool = true;
+
+    #[inline(always)]
+    fn scan4_pruned(self, groups: &Groups, ny: [&[f32]; 4], bands: [&mut [BandMin]; 4]) {
+        scan4_pruned_avx512(self, groups, ny, bands)
     }
 
     #[inline(always)]
@@ -298,6 +306,202 @@ fn scan4_avx512(
                     ix[p] = _mm512_set1_epi32(-1);
                 }
             }
+        }
+    }
+}
+
+/// The aligned load of one [`V16`] (not a closure: closures do not inherit the
+/// caller's target features).
+///
+/// # Safety
+/// The CPU has AVX-512F.
+#[inline(always)]
+unsafe fn ld(x: &V16) -> __m512 {
+    // SAFETY: `V16` is 64 bytes, aligned to 64; AVX-512F (the caller's contract).
+    unsafe { _mm512_load_ps(x.0.as_ptr()) }
+}
+
+/// The pruned unweighted scans of four pixels (see `prune.rs`), each stage over the four
+/// pixels side by side. `ny[p]`: the `T` measurements of pixel `p`, negated;
+/// `bands[p][0]`: its best node, the same as [`scan4_avx512`] with one band gives (and
+/// as `prune::pruned_reference`).
+///
+/// Safe: the `Avx512` token proves the CPU has AVX-512F (and FMA); every index is
+/// checked against the asserted lengths of the group arrays (group indices come from
+/// masks limited to the `q` groups).
+#[inline(always)]
+fn scan4_pruned_avx512(tok: Avx512, g: &Groups, ny: [&[f32]; 4], bands: [&mut [BandMin]; 4]) {
+    // A copy per `T` up to 16, so that the loops over the source positions unroll and
+    // each pixel's broadcast measurements stay in registers; `T` at run time beyond.
+    macro_rules! by_len {
+        ($($n:literal)*) => {
+            match g.t_len {
+                $($n => pruned4::<$n>(tok, g, ny, bands),)*
+                _ => pruned4::<0>(tok, g, ny, bands),
+            }
+        };
+    }
+    by_len!(3 4 5 6 7 8 9 10 11 12 13 14 15 16)
+}
+
+/// [`scan4_pruned_avx512`] for `T = TC` (`TC = 0`: `T` at run time, at most 16
+/// broadcast measurements kept in registers).
+///
+/// Safe: as [`scan4_pruned_avx512`].
+#[inline(always)]
+fn pruned4<const TC: usize>(tok: Avx512, g: &Groups, ny: [&[f32]; 4], bands: [&mut [BandMin]; 4]) {
+    let t_len = if TC == 0 { g.t_len } else { TC };
+    let q = g.q;
+    assert!(
+        ny.iter().all(|y| y.len() == t_len)
+            && bands.iter().all(|b| !b.is_empty())
+            && (1..=MAX_GROUPS).contains(&q)
+            && g.cen.len() == NV * t_len
+            && g.cen_half.len() == NV
+            && g.radius.len() == NV
+            && g.curves.len() == q * t_len
+            && g.half.len() == q
+            && g.node.len() == q
+    );
+    let qmask = u64::MAX >> (MAX_GROUPS - q);
+    let mut yy = [0f32; 4];
+    for (s, y) in yy.iter_mut().zip(&ny) {
+        for &v in y.iter() {
+            *s = v.mul_add(v, *s);
+        }
+    }
+    // SAFETY: every vector read is of an element of the asserted arrays (`v < NV`,
+    // groups `< q`, `t < T`) or of the local `cv`; the CPU has AVX-512F and FMA (the
+    // token).
+    unsafe {
+        // Stage 1: the centre values (sixteen accumulators: four vectors of centres
+        // for four pixels), and the nearest centre of each pixel (the first on ties).
+        let mut a = [[_mm512_setzero_ps(); NV]; 4];
+        for v in 0..NV {
+            let b = ld(g.cen_half.get_unchecked(v));
+            for ap in a.iter_mut() {
+                ap[v] = b;
+            }
+        }
+        for t in 0..t_len {
+            let c = [
+                ld(g.cen.get_unchecked(t * NV)),
+                ld(g.cen.get_unchecked(t * NV + 1)),
+                ld(g.cen.get_unchecked(t * NV + 2)),
+                ld(g.cen.get_unchecked(t * NV + 3)),
+            ];
+            for (p, ap) in a.iter_mut().enumerate() {
+                let n = _mm512_set1_ps(*ny[p].get_unchecked(t));
+                for (v, av) in ap.iter_mut().enumerate() {
+                    *av = _mm512_fmadd_ps(c[v], n, *av);
+                }
+            }
+        }
+        let mut cv = [[V16([0.0; GROUP]); NV]; 4];
+        let mut all = [false; 4];
+        let mut g0 = [0usize; 4];
+        for p in 0..4 {
+            let ap = &a[p];
+            for (c, &av) in cv[p].iter_mut().zip(ap) {
+                _mm512_store_ps(c.0.as_mut_ptr(), av);
+            }
+            let mn = _mm512_min_ps(_mm512_min_ps(ap[0], ap[1]), _mm512_min_ps(ap[2], ap[3]));
+            let b = _mm512_set1_ps(_mm512_reduce_min_ps(mn));
+            let mut at = 0u64;
+            for (v, &av) in ap.iter().enumerate() {
+                at |= u64::from(_mm512_cmp_ps_mask::<_CMP_EQ_OQ>(av, b)) << (GROUP * v);
+            }
+            // (No finite centre value cannot happen for data in [0, 1]: then group 0
+            // and every group.)
+            let n = at.trailing_zeros() as usize;
+            all[p] = n >= q;
+            g0[p] = if n < q { n } else { 0 };
+        }
+        // Stage 2: the best value of the nearest group bounds each pixel's best value.
+        let mut a = [
+            ld(g.half.get_unchecked(g0[0])),
+            ld(g.half.get_unchecked(g0[1])),
+            ld(g.half.get_unchecked(g0[2])),
+            ld(g.half.get_unchecked(g0[3])),
+        ];
+        for t in 0..t_len {
+            for (p, ap) in a.iter_mut().enumerate() {
+                let c = ld(g.curves.get_unchecked(g0[p] * t_len + t));
+                *ap = _mm512_fmadd_ps(c, _mm512_set1_ps(*ny[p].get_unchecked(t)), *ap);
+            }
+        }
+        // Stage 3: the candidate groups of each pixel.
+        let two = _mm512_set1_ps(2.0);
+        let dv = _mm512_set1_ps(g.delta);
+        let mut masks = [0u64; 4];
+        for p in 0..4 {
+            let v0 = _mm512_reduce_min_ps(a[p]);
+            let lim = (2f32.mul_add(v0, yy[p]).max(0.0) + g.delta).sqrt();
+            let (lv, yv) = (_mm512_set1_ps(lim), _mm512_set1_ps(yy[p]));
+            let mut mask = 1u64 << g0[p];
+            for (v, c) in cv[p].iter().enumerate() {
+                let lhs = _mm512_fmadd_ps(ld(c), two, yv);
+                let s = _mm512_add_ps(ld(g.radius.get_unchecked(v)), lv);
+                let rhs = _mm512_fmadd_ps(s, s, dv);
+                let k = _mm512_cmp_ps_mask::<_CMP_NGT_UQ>(lhs, rhs);
+                mask |= u64::from(k) << (GROUP * v);
+            }
+            if all[p] {
+                mask = u64::MAX;
+            }
+            masks[p] = mask & qmask;
+        }
+        // Stage 4: their nodes, in group order, into lane minima; two pixels side by
+        // side (two independent chains of multiply-adds per step, each pixel's
+        // broadcast measurements in registers). When one pixel has no candidate left it
+        // scores its last group again, which leaves its minima as they are (equal
+        // values do not replace).
+        let held = if TC == 0 { t_len.min(8) } else { TC };
+        let [b0, b1, b2, b3] = bands;
+        for (pa, pb, ba, bb) in [(0, 1, b0, b1), (2, 3, b2, b3)] {
+            let (mut ma, mut mb) = (masks[pa], masks[pb]);
+            let mut na = [_mm512_setzero_ps(); 16];
+            let mut nb = [_mm512_setzero_ps(); 16];
+            for t in 0..held {
+                na[t] = _mm512_set1_ps(*ny[pa].get_unchecked(t));
+                nb[t] = _mm512_set1_ps(*ny[pb].get_unchecked(t));
+            }
+            let mut m = [_mm512_set1_ps(f32::INFINITY); 2];
+            let mut ix = [_mm512_set1_epi32(-1); 2];
+            let (mut ga, mut gb) = (g0[pa], g0[pb]);
+            while (ma | mb) != 0 {
+                if ma != 0 {
+                    ga = ma.trailing_zeros() as usize;
+                }
+                if mb != 0 {
+                    gb = mb.trailing_zeros() as usize;
+                }
+                ma &= ma.wrapping_sub(1);
+                mb &= mb.wrapping_sub(1);
+                let mut acc = [ld(g.half.get_unchecked(ga)), ld(g.half.get_unchecked(gb))];
+                for t in 0..t_len {
+                    let (xa, xb) = if t < held {
+                        (na[t], nb[t])
+                    } else {
+                        (
+                            _mm512_set1_ps(*ny[pa].get_unchecked(t)),
+                            _mm512_set1_ps(*ny[pb].get_unchecked(t)),
+                        )
+                    };
+                    acc[0] =
+                        _mm512_fmadd_ps(ld(g.curves.get_unchecked(ga * t_len + t)), xa, acc[0]);
+                    acc[1] =
+                        _mm512_fmadd_ps(ld(g.curves.get_unchecked(gb * t_len + t)), xb, acc[1]);
+                }
+                for (i, gi) in [ga, gb].into_iter().enumerate() {
+                    let lt = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(acc[i], m[i]);
+                    m[i] = _mm512_mask_mov_ps(m[i], lt, acc[i]);
+                    let nodes = _mm512_load_si512(g.node.get_unchecked(gi).0.as_ptr().cast());
+                    ix[i] = _mm512_mask_mov_epi32(ix[i], lt, nodes);
+                }
+            }
+            *ba.get_unchecked_mut(0) = reduce512(tok, m[0], ix[0]);
+            *bb.get_unchecked_mut(0) = reduce512(tok, m[1], ix[1]);
         }
     }
 }

@@ -31,6 +31,9 @@ mod avx2;
 #[cfg(target_arch = "x86_64")]
 mod avx512;
 mod portable;
+pub(crate) mod prune;
+
+pub(crate) use prune::Groups;
 
 /// Nodes per block of the scan's curve layout.
 pub(crate) const SCAN_BLOCK: usize = 128;
@@ -83,6 +86,25 @@ pub(crate) fn best_of(bands: &[BandMin]) -> BandMin {
     best
 }
 
+/// Unweighted scans of four pixels ([`Scan::scan4`]): pruned ([`Scan::scan4_pruned`])
+/// when the plan has `groups` (the whole grid is one band) and the backend a pruned
+/// kernel; the same band minima either way.
+#[inline(always)]
+pub(crate) fn scan4_grid<K: Scan>(
+    k: K,
+    groups: Option<&Groups>,
+    curves: &[f32],
+    base: &[f32],
+    ny: [&[f32]; 4],
+    band: usize,
+    bands: [&mut [BandMin]; 4],
+) {
+    match groups {
+        Some(g) if K::PRUNED && band >= base.len() => k.scan4_pruned(g, ny, bands),
+        _ => k.scan4(curves, base, ny, band, bands),
+    }
+}
+
 /// The grid-scan kernels of one instruction set (the backend value is the token of
 /// [`crate::cpu`] for the vector ones).
 pub(crate) trait Scan: Copy {
@@ -114,6 +136,20 @@ pub(crate) trait Scan: Copy {
         band: usize,
         bands: [&mut [BandMin]; 4],
     );
+
+    /// Whether [`Scan::scan4_pruned`] is this backend's own kernel (worth running
+    /// instead of [`Scan::scan4`]).
+    const PRUNED: bool = false;
+
+    /// Pruned unweighted scans of four pixels over the whole grid as one band (see
+    /// `prune.rs`): `ny[p]` the `T` measurements of pixel `p`, negated; `bands[p][0]`
+    /// receives its best node, the same as [`Scan::scan4`] with one band gives.
+    /// Default: the plain-Rust reference with fused multiply-adds, a pixel at a time.
+    fn scan4_pruned(self, groups: &Groups, ny: [&[f32]; 4], bands: [&mut [BandMin]; 4]) {
+        for (y, b) in ny.into_iter().zip(bands) {
+            b[0] = prune::pruned_reference(groups, y);
+        }
+    }
 
     /// Scan of one pixel whose node curves are not stored together but come one source
     /// position at a time from separate rows (the fit with a β per pixel, `pixel/`:
