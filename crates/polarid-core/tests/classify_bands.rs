@@ -18,6 +18,7 @@ fn band(wl: f64, n: f64, k: f64, cov: Option<Cov2>) -> BandPoint {
         k,
         cov,
         film: None,
+        layer: None,
     }
 }
 
@@ -32,6 +33,7 @@ fn protos() -> Vec<MultiPrototype> {
             .zip(nk)
             .map(|(&w, (n, k))| band(w, n, k, None))
             .collect(),
+        surface: None,
     };
     vec![
         mk("copper", [(1.25, 2.38), (0.97, 2.63), (0.25, 3.61)]),

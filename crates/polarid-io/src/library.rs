@@ -277,6 +277,7 @@ impl Library {
                 k: m.k,
                 cov: None,
                 film: None,
+                layer: None,
             };
             match out.iter_mut().find(|p| p.class == m.name) {
                 Some(p) if m.wavelength_nm.is_some() => p.bands.push(band),
@@ -285,6 +286,7 @@ impl Library {
                     category: m.category.clone(),
                     source: format!("library {} line {}", self.source, m.line),
                     bands: vec![band],
+                    surface: None,
                 }),
             }
         }

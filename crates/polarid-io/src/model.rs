@@ -233,6 +233,7 @@ impl Model {
                 k: p.k,
                 cov: p.covariance.and_then(Cov2::from_matrix),
                 film: p.film_shifts.map(FilmShifts),
+                layer: None,
             };
             let key = (
                 p.class.as_str(),
@@ -254,6 +255,7 @@ impl Model {
                             p.source.file, p.source.line, p.source.target
                         ),
                         bands: vec![band],
+                        surface: None,
                     });
                 }
             }

@@ -77,6 +77,23 @@ pub struct BandPoint {
     /// them (part of `cov`; correlated across the prototype's bands, see
     /// [`FilmShifts`]).
     pub film: Option<FilmShifts>,
+    /// The index `(n, k)` of the material's native surface layer in this band (library
+    /// materials as they are found, [`NativeLayer`]); `None`: no layer known.
+    pub layer: Option<(f64, f64)>,
+}
+
+/// A material's native surface layer as it is found (an oxide or adsorbed
+/// contamination): its name and the range of thicknesses it has on real surfaces. Its
+/// index per band is [`BandPoint::layer`]. Hypothesis tests take the thickness as a
+/// bounded nuisance within `[min_nm, max_nm]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NativeLayer {
+    /// Layer material, e.g. `Al2O3`, `Cu2O`, `contamination`.
+    pub name: String,
+    /// Thinnest layer found on real surfaces, nm (`≥ 0`).
+    pub min_nm: f64,
+    /// Thickest layer found on real surfaces, nm (`≥ min_nm`).
+    pub max_nm: f64,
 }
 
 /// A labelled point measured in one or several bands: a multi-band training target or a
@@ -91,6 +108,8 @@ pub struct MultiPrototype {
     pub source: String,
     /// Its `(n, k)` per band (at least one; no two the same band).
     pub bands: Vec<BandPoint>,
+    /// Its native surface layer (library materials as they are found), when known.
+    pub surface: Option<NativeLayer>,
 }
 
 impl From<Prototype> for MultiPrototype {
@@ -106,7 +125,9 @@ impl From<Prototype> for MultiPrototype {
                 k: p.k,
                 cov: p.cov,
                 film: None,
+                layer: None,
             }],
+            surface: None,
         }
     }
 }
@@ -191,8 +212,10 @@ impl MultiEstimate {
                     k: b.estimate.k,
                     cov: b.estimate.cov,
                     film: b.film,
+                    layer: None,
                 })
                 .collect(),
+            surface: None,
         }
     }
 }
@@ -431,6 +454,7 @@ mod tests {
             k: 1.0,
             cov: None,
             film: None,
+            layer: None,
         };
         let (e450, e550, e0) = (e(Some(450.0)), e(Some(550.0)), e(None));
         assert_eq!(common_bands(&[&e0], &[b(Some(650.0))]), vec![(0, 0)]);

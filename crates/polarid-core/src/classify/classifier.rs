@@ -327,6 +327,7 @@ impl Classifier {
                 k: p.k,
                 cov: p.cov,
                 film: None,
+                layer: None,
             },
         )
     }

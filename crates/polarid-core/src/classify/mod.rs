@@ -89,7 +89,7 @@ mod wolff;
 
 pub use bands::{
     BAND_TOLERANCE_NM, BandPoint, EstimateBand, FilmShifts, MultiEstimate, MultiPrototype,
-    chi2_quantile, same_band,
+    NativeLayer, chi2_quantile, same_band,
 };
 pub use classifier::{Classifier, NEAR_ZERO_SIGMAS};
 pub use config::{ClassifierConfig, DEFAULT_CONFIDENCE, Metric, Reject, Rule, chi2_2dof_quantile};
