@@ -58,10 +58,13 @@
 
 use std::path::{Path, PathBuf};
 
-use polarid_core::classify::{BandPoint, MultiPrototype, Prototype, check_class_name, same_band};
+use polarid_core::classify::{
+    BandPoint, MultiPrototype, NativeLayer, Prototype, check_class_name, same_band,
+};
 use saphyr::{LoadableYamlNode, Yaml};
 
 use crate::error::{IoError, Result};
+use crate::surfaces::{builtin_surface, layer_index, layer_index_builtin_band};
 use crate::table::{CsvTable, fmt_f64, write_rows};
 
 /// The built-in 650 nm library (refractiveindex.info, CC0), as shipped.
@@ -70,6 +73,15 @@ pub const BUILTIN_CSV: &str = include_str!("../data/library_650nm.csv");
 pub const PAPER_2007_CSV: &str = include_str!("../data/paper_2007.csv");
 /// Columns written by [`Library::write_csv`].
 pub const CSV_COLUMNS: [&str; 5] = ["name", "category", "n", "k", "reference"];
+/// The surface-layer columns of a library CSV (optional on input; written after
+/// [`CSV_COLUMNS`] when some material has a layer).
+pub const LAYER_COLUMNS: [&str; 5] = [
+    "layer",
+    "layer_n",
+    "layer_k",
+    "layer_min_nm",
+    "layer_max_nm",
+];
 /// The built-in three-band library (450, 550, 650 nm; refractiveindex.info, CC0).
 pub const BUILTIN_RGB_CSV: &str = include_str!("../data/library_rgb.csv");
 /// Names accepted by [`Library::load`] for the built-in libraries.
@@ -94,6 +106,24 @@ pub struct Material {
     pub line: u64,
     /// Centre wavelength of the band, nm (multi-band libraries).
     pub wavelength_nm: Option<f64>,
+    /// The material's native surface layer as it is found (oxide or contamination), with
+    /// its index at this row's band; `None`: no layer known.
+    pub layer: Option<MaterialLayer>,
+}
+
+/// A material's native surface layer in one row of a library: the layer material, its
+/// index at the row's band (the same band as the row's `n`, `k`) and the range of
+/// thicknesses found on real surfaces.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MaterialLayer {
+    /// Layer material, e.g. `Al2O3`, `Cu2O`, `contamination`.
+    pub name: String,
+    /// Its index `(n, k)` at the row's band; `None` where its data do not cover the band.
+    pub index: Option<(f64, f64)>,
+    /// Thinnest layer found on real surfaces, nm (`>= 0`).
+    pub min_nm: f64,
+    /// Thickest layer found on real surfaces, nm (`>= min_nm`).
+    pub max_nm: f64,
 }
 
 /// A material library.
@@ -106,19 +136,44 @@ pub struct Library {
 }
 
 impl Library {
-    /// The built-in 650 nm library (39 materials, band means over 610–690 nm).
+    /// The built-in 650 nm library (39 materials, band means over 610–690 nm), with
+    /// their native surfaces ([`crate::surfaces`]).
     pub fn builtin() -> Result<Self> {
-        Self::from_csv_text("builtin", BUILTIN_CSV)
+        Self::from_csv_text("builtin", BUILTIN_CSV)?.with_builtin_surfaces()
     }
 
-    /// The built-in three-band library (450, 550, 650 nm; see the module documentation).
+    /// The built-in three-band library (450, 550, 650 nm; see the module documentation),
+    /// with the materials' native surfaces.
     pub fn builtin_rgb() -> Result<Self> {
-        Self::from_csv_text("builtin-rgb", BUILTIN_RGB_CSV)
+        Self::from_csv_text("builtin-rgb", BUILTIN_RGB_CSV)?.with_builtin_surfaces()
     }
 
-    /// The paper's Table 1 reference values.
+    /// The paper's Table 1 reference values, with the materials' native surfaces.
     pub fn paper_2007() -> Result<Self> {
-        Self::from_csv_text("paper2007", PAPER_2007_CSV)
+        Self::from_csv_text("paper2007", PAPER_2007_CSV)?.with_builtin_surfaces()
+    }
+
+    /// Give every material without a layer that has a built-in native surface
+    /// ([`crate::surfaces::BUILTIN_SURFACES`], by name) that surface, its layer index the
+    /// band mean over the row's band (`wavelength_nm ± 40 nm`, every nm; rows without a
+    /// wavelength are the 650 nm band), the band of the built-in bulk values.
+    pub fn with_builtin_surfaces(mut self) -> Result<Self> {
+        for m in &mut self.materials {
+            if m.layer.is_some() {
+                continue;
+            }
+            let Some(s) = builtin_surface(&m.name) else {
+                continue;
+            };
+            let wl = m.wavelength_nm.unwrap_or(BUILTIN_WAVELENGTH_NM);
+            m.layer = Some(MaterialLayer {
+                name: s.layer.to_string(),
+                index: layer_index_builtin_band(s.layer, wl)?,
+                min_nm: s.min_nm,
+                max_nm: s.max_nm,
+            });
+        }
+        Ok(self)
     }
 
     /// A built-in library by name (`builtin`, `paper2007`), or else a library CSV file.
@@ -156,6 +211,7 @@ impl Library {
         let c_cat = t.col("category");
         let c_ref = t.col("reference");
         let c_wl = t.col("wavelength_nm");
+        let layer_cols = Self::layer_columns(t)?;
         let mut materials: Vec<Material> = Vec::with_capacity(t.rows.len());
         for r in 0..t.rows.len() {
             let name = t.name(r, c_name)?;
@@ -200,6 +256,32 @@ impl Library {
                     }
                 }
             }
+            let layer = match layer_cols {
+                Some(c) => Self::layer_cell(t, r, c)?,
+                None => None,
+            };
+            if let Some(prev) = materials.iter().find(|m| m.name == name) {
+                let same = match (&prev.layer, &layer) {
+                    (None, None) => true,
+                    (Some(a), Some(b)) => {
+                        a.name == b.name && a.min_nm == b.min_nm && a.max_nm == b.max_nm
+                    }
+                    _ => false,
+                };
+                if !same {
+                    // ok: layer columns exist when the layers differ.
+                    let c = layer_cols.map_or(c_name, |c| c[0]);
+                    return Err(t.err(
+                        r,
+                        c,
+                        format!(
+                            "material {name:?} has another surface layer on line {} (the rows \
+                             of one material must give the same layer and thickness range)",
+                            prev.line
+                        ),
+                    ));
+                }
+            }
             materials.push(Material {
                 name,
                 category: t.opt_text(r, c_cat),
@@ -208,6 +290,7 @@ impl Library {
                 reference: t.opt_text(r, c_ref),
                 line: t.rows[r].0, // ok: r < rows.len()
                 wavelength_nm,
+                layer,
             });
         }
         if materials.is_empty() {
@@ -219,9 +302,85 @@ impl Library {
         Ok(Self { source, materials })
     }
 
+    /// The columns [`LAYER_COLUMNS`], when the table has any of them (then it must have
+    /// all five).
+    fn layer_columns(t: &CsvTable) -> Result<Option<[usize; 5]>> {
+        if LAYER_COLUMNS.iter().all(|c| t.col(c).is_none()) {
+            return Ok(None);
+        }
+        let mut cols = [0; 5];
+        for (slot, name) in cols.iter_mut().zip(LAYER_COLUMNS) {
+            *slot = t.col(name).ok_or_else(|| IoError::CsvStructure {
+                path: t.path.clone(),
+                reason: format!(
+                    "missing column `{name}`: a surface layer needs all of {} (columns are: \
+                     {})",
+                    LAYER_COLUMNS.join(","),
+                    t.headers.join(",")
+                ),
+            })?;
+        }
+        Ok(Some(cols))
+    }
+
+    /// The layer of row `r`: empty `layer` cell → none (then the other layer cells must be
+    /// empty); else `layer_min_nm`, `layer_max_nm` (`0 <= min <= max`), and `layer_n`,
+    /// `layer_k` both given (`n > 0`, `k >= 0`) or both empty (no index at this band).
+    fn layer_cell(t: &CsvTable, r: usize, c: [usize; 5]) -> Result<Option<MaterialLayer>> {
+        let [c_layer, c_n, c_k, c_min, c_max] = c;
+        let name = t.name(r, c_layer)?;
+        if name.is_empty() {
+            for &cc in &c[1..] {
+                if !t.text(r, cc).is_empty() {
+                    return Err(t.err(r, cc, "a layer value without a `layer` name"));
+                }
+            }
+            return Ok(None);
+        }
+        let n = t.opt_f64(r, Some(c_n))?;
+        let k = t.opt_f64(r, Some(c_k))?;
+        let index = match (n, k) {
+            (None, None) => None,
+            (Some(n), Some(k)) => {
+                if n <= 0.0 {
+                    return Err(t.err(r, c_n, "layer n must be > 0"));
+                }
+                if k < 0.0 {
+                    return Err(t.err(r, c_k, "layer k must be >= 0"));
+                }
+                Some((n, k))
+            }
+            (None, Some(_)) => {
+                return Err(t.err(r, c_n, "missing value (layer_n and layer_k go together)"));
+            }
+            (Some(_), None) => {
+                return Err(t.err(r, c_k, "missing value (layer_n and layer_k go together)"));
+            }
+        };
+        let min_nm = t.f64(r, c_min)?;
+        if min_nm < 0.0 {
+            return Err(t.err(r, c_min, "layer thickness must be >= 0 nm"));
+        }
+        let max_nm = t.f64(r, c_max)?;
+        if max_nm < min_nm {
+            return Err(t.err(
+                r,
+                c_max,
+                format!("layer_max_nm must be >= layer_min_nm ({min_nm})"),
+            ));
+        }
+        Ok(Some(MaterialLayer {
+            name,
+            index,
+            min_nm,
+            max_nm,
+        }))
+    }
+
     /// Write the library as CSV with the columns [`CSV_COLUMNS`] (`name,category,n,k,reference`;
     /// empty cells for a missing category or reference; `wavelength_nm` after `category`
-    /// when some material has one), readable by [`Library::read_csv`].
+    /// when some material has one; the surface columns [`LAYER_COLUMNS`] last when some
+    /// material has a layer), readable by [`Library::read_csv`].
     /// Each line of `comment` is written first as a `#` comment line, which the reader
     /// skips. `path` names the output in errors.
     pub fn write_csv<W: std::io::Write + ?Sized>(
@@ -236,9 +395,13 @@ impl Library {
             }
         }
         let banded = self.materials.iter().any(|m| m.wavelength_nm.is_some());
+        let layered = self.materials.iter().any(|m| m.layer.is_some());
         let mut headers: Vec<&str> = CSV_COLUMNS.to_vec();
         if banded {
             headers.insert(2, "wavelength_nm");
+        }
+        if layered {
+            headers.extend(LAYER_COLUMNS);
         }
         write_rows(
             w,
@@ -255,6 +418,18 @@ impl Library {
                 if banded {
                     cells.insert(2, m.wavelength_nm.map(fmt_f64).unwrap_or_default());
                 }
+                if layered {
+                    match &m.layer {
+                        Some(l) => cells.extend([
+                            l.name.clone(),
+                            l.index.map(|x| fmt_f64(x.0)).unwrap_or_default(),
+                            l.index.map(|x| fmt_f64(x.1)).unwrap_or_default(),
+                            fmt_f64(l.min_nm),
+                            fmt_f64(l.max_nm),
+                        ]),
+                        None => cells.extend(std::iter::repeat_n(String::new(), 5)),
+                    }
+                }
                 cells
             }),
         )
@@ -264,7 +439,9 @@ impl Library {
     /// name are its bands (first-appearance order), class = name, no covariance, source
     /// `library <source> line <first line>`. The `builtin` library's rows are the 650 nm
     /// band ([`BUILTIN_WAVELENGTH_NM`]); rows of other libraries without `wavelength_nm`
-    /// are single-band prototypes without a wavelength.
+    /// are single-band prototypes without a wavelength. A material's surface layer
+    /// becomes [`MultiPrototype::surface`] (name and thickness range) and each band's
+    /// [`BandPoint::layer`] (the layer's index at that band).
     pub fn multi_prototypes(&self) -> Vec<MultiPrototype> {
         let mut out: Vec<MultiPrototype> = Vec::new();
         for m in &self.materials {
@@ -277,7 +454,7 @@ impl Library {
                 k: m.k,
                 cov: None,
                 film: None,
-                layer: None,
+                layer: m.layer.as_ref().and_then(|l| l.index),
             };
             match out.iter_mut().find(|p| p.class == m.name) {
                 Some(p) if m.wavelength_nm.is_some() => p.bands.push(band),
@@ -286,7 +463,11 @@ impl Library {
                     category: m.category.clone(),
                     source: format!("library {} line {}", self.source, m.line),
                     bands: vec![band],
-                    surface: None,
+                    surface: m.layer.as_ref().map(|l| NativeLayer {
+                        name: l.name.clone(),
+                        min_nm: l.min_nm,
+                        max_nm: l.max_nm,
+                    }),
                 }),
             }
         }
@@ -995,12 +1176,23 @@ impl Library {
                     continue;
                 }
                 match source.map(|i| data[i].nk(w / 1000.0)) {
-                    Some(Ok((n, k))) => materials.push(Material {
-                        n,
-                        k,
-                        wavelength_nm: Some(w),
-                        ..first.clone()
-                    }),
+                    Some(Ok((n, k))) => {
+                        // The layer's index at the same wavelength as the bulk's.
+                        let layer = match &first.layer {
+                            Some(l) => Some(MaterialLayer {
+                                index: layer_index(&l.name, w, w, 1.0)?,
+                                ..l.clone()
+                            }),
+                            None => None,
+                        };
+                        materials.push(Material {
+                            n,
+                            k,
+                            wavelength_nm: Some(w),
+                            layer,
+                            ..first.clone()
+                        })
+                    }
                     _ => uncovered[wi].names.push(name.to_string()),
                 }
             }
@@ -1064,9 +1256,10 @@ mod tests {
         )
         .unwrap();
         let text = String::from_utf8(buf).unwrap();
-        assert!(
-            text.starts_with("# band 610-690 nm\n# second line\nname,category,n,k,reference\n")
-        );
+        assert!(text.starts_with(
+            "# band 610-690 nm\n# second line\nname,category,n,k,reference,layer,layer_n,\
+             layer_k,layer_min_nm,layer_max_nm\n"
+        ));
         let back = Library::from_csv_text("out.csv", &text).unwrap();
         assert_eq!(back.materials.len(), lib.materials.len());
         for (a, b) in lib.materials.iter().zip(&back.materials) {
@@ -1086,6 +1279,7 @@ mod tests {
                 reference: Some("a \"quoted\" ref".into()),
                 line: 0,
                 wavelength_nm: None,
+                layer: None,
             }],
         };
         let mut buf = Vec::new();
@@ -1097,6 +1291,159 @@ mod tests {
             ("brass, yellow", None, 0.5, 3.25)
         );
         assert_eq!(m.reference.as_deref(), Some("a \"quoted\" ref"));
+    }
+
+    #[test]
+    fn builtin_materials_carry_their_surfaces() {
+        for lib in [
+            Library::builtin().unwrap(),
+            Library::builtin_rgb().unwrap(),
+            Library::paper_2007().unwrap(),
+        ] {
+            for m in &lib.materials {
+                let l = m
+                    .layer
+                    .as_ref()
+                    .unwrap_or_else(|| panic!("{} {}", lib.source, m.name));
+                assert!(
+                    l.index.is_some(),
+                    "{} {} {:?}",
+                    lib.source,
+                    m.name,
+                    m.wavelength_nm
+                );
+            }
+            let protos = lib.multi_prototypes();
+            for p in &protos {
+                assert!(p.surface.is_some(), "{}", p.class);
+                assert!(p.bands.iter().all(|b| b.layer.is_some()), "{}", p.class);
+            }
+        }
+        let lib = Library::builtin().unwrap();
+        let protos = lib.multi_prototypes();
+        let get = |name: &str| protos.iter().find(|p| p.class == name).unwrap();
+        let al = get("aluminum");
+        let s = al.surface.as_ref().unwrap();
+        assert_eq!((s.name.as_str(), s.min_nm, s.max_nm), ("Al2O3", 2.0, 5.0));
+        let (n, k) = al.bands[0].layer.unwrap();
+        assert!((1.6..1.7).contains(&n) && k < 1e-3, "{n} {k}");
+        assert_eq!(get("copper").surface.as_ref().unwrap().name, "Cu2O");
+        assert_eq!(get("gold").surface.as_ref().unwrap().name, "contamination");
+        assert_eq!(get("gold").bands[0].layer, Some((1.5, 0.0)));
+        assert_eq!(get("nickel").surface.as_ref().unwrap().name, "NiO");
+        let si = get("silicon");
+        assert_eq!(si.surface.as_ref().unwrap().name, "SiO2");
+        assert!((si.bands[0].layer.unwrap().0 - 1.4566).abs() < 1e-3);
+        assert_eq!(get("N-BK7").surface.as_ref().unwrap().min_nm, 0.0);
+        // builtin-rgb: the layer index at each row's band (dispersive Al2O3: higher in the blue).
+        let rgb = Library::builtin_rgb().unwrap().multi_prototypes();
+        let al = rgb.iter().find(|p| p.class == "aluminum").unwrap();
+        let n: Vec<f64> = al.bands.iter().map(|b| b.layer.unwrap().0).collect();
+        assert_eq!(al.bands.len(), 3);
+        assert!(n[0] > n[1] && n[1] > n[2], "{n:?}");
+    }
+
+    #[test]
+    fn at_wavelengths_evaluates_the_layer_at_the_bulk_wavelength() {
+        let lib = Library::builtin().unwrap();
+        let (at, _) = lib.at_wavelengths(&[500.0, 650.0, 900.0]).unwrap();
+        let rows = |name: &str| -> Vec<&Material> {
+            at.materials.iter().filter(|m| m.name == name).collect()
+        };
+        let si = rows("silicon");
+        let (n500, _) = si[0].layer.as_ref().unwrap().index.unwrap();
+        let fused = RiiData::parse(Path::new("s"), BUILTIN_SOURCES[23].text).unwrap();
+        assert_eq!(BUILTIN_SOURCES[23].name, "fused_silica");
+        assert!((n500 - fused.nk(0.5).unwrap().0).abs() < 1e-12);
+        // 650 nm: the library's own row (band mean) keeps its band-mean layer.
+        assert_eq!(
+            si[1].layer,
+            lib.materials
+                .iter()
+                .find(|m| m.name == "silicon")
+                .unwrap()
+                .layer
+        );
+        // Titanium at 900 nm: the bulk is covered, the amorphous TiO2 data (to 827 nm) are
+        // not: the surface stays, without an index at that band.
+        let ti = rows("titanium");
+        let l = ti.iter().find(|m| m.wavelength_nm == Some(900.0)).unwrap();
+        let l = l.layer.as_ref().unwrap();
+        assert_eq!((l.name.as_str(), l.index), ("TiO2", None));
+        let p = at.multi_prototypes();
+        let ti = p.iter().find(|p| p.class == "titanium").unwrap();
+        assert_eq!(ti.surface.as_ref().unwrap().name, "TiO2");
+        assert_eq!(ti.bands.iter().filter(|b| b.layer.is_none()).count(), 1);
+    }
+
+    #[test]
+    fn layer_columns_round_trip_and_are_checked() {
+        for lib in [Library::builtin().unwrap(), Library::builtin_rgb().unwrap()] {
+            let mut buf = Vec::new();
+            lib.write_csv(&mut buf, Path::new("out.csv"), None).unwrap();
+            let text = String::from_utf8(buf).unwrap();
+            assert!(
+                text.lines()
+                    .next()
+                    .unwrap()
+                    .ends_with("reference,layer,layer_n,layer_k,layer_min_nm,layer_max_nm")
+            );
+            let back = Library::from_csv_text("out.csv", &text).unwrap();
+            for (a, b) in lib.materials.iter().zip(&back.materials) {
+                assert_eq!(a.layer, b.layer, "{}", a.name);
+            }
+            assert_eq!(back.multi_prototypes().len(), lib.multi_prototypes().len());
+        }
+        let head = "name,n,k,layer,layer_n,layer_k,layer_min_nm,layer_max_nm\n";
+        let ok = Library::from_csv_text(
+            "l.csv",
+            &format!("{head}al,1.5,7.7,Al2O3,1.65,0,2,5\nglass,1.5,0,,,,,\nx,1,1,ox,,,0,1\n"),
+        )
+        .unwrap();
+        assert_eq!(ok.materials[1].layer, None);
+        assert_eq!(ok.materials[2].layer.as_ref().unwrap().index, None);
+        let p = ok.multi_prototypes();
+        assert_eq!(p[0].bands[0].layer, Some((1.65, 0.0)));
+        assert_eq!(p[0].surface.as_ref().unwrap().max_nm, 5.0);
+        let bad = |rows: &str| {
+            Library::from_csv_text("l.csv", &format!("{head}{rows}"))
+                .unwrap_err()
+                .to_string()
+        };
+        let e = bad("al,1.5,7.7,Al2O3,1.65,0,5,2\n");
+        assert!(
+            e.contains("l.csv")
+                && e.contains("line 2")
+                && e.contains("layer_max_nm")
+                && e.contains('2'),
+            "{e}"
+        );
+        let e = bad("al,1.5,7.7,Al2O3,-1.65,0,2,5\n");
+        assert!(e.contains("layer_n") && e.contains("-1.65"), "{e}");
+        let e = bad("al,1.5,7.7,Al2O3,1.65,,2,5\n");
+        assert!(e.contains("layer_k") && e.contains("together"), "{e}");
+        let e = bad("al,1.5,7.7,Al2O3,1.65,0,-1,5\n");
+        assert!(e.contains("layer_min_nm") && e.contains("-1"), "{e}");
+        let e = bad("al,1.5,7.7,,1.65,0,2,5\n");
+        assert!(e.contains("layer_n") && e.contains("without"), "{e}");
+        let e = bad("al,1.5,7.7,Al2O3,1.65,0,2,x\n");
+        assert!(e.contains("layer_max_nm") && e.contains("\"x\""), "{e}");
+        let e = Library::from_csv_text("l.csv", "name,n,k,layer\nal,1,1,x\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("layer_n"), "{e}");
+        // The rows of one material agree on the layer.
+        let e = Library::from_csv_text(
+            "l.csv",
+            "name,n,k,wavelength_nm,layer,layer_n,layer_k,layer_min_nm,layer_max_nm\n\
+             al,1,7,550,Al2O3,1.66,0,2,5\nal,1.5,7.7,650,Al2O3,1.65,0,2,6\n",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("line 3") && e.contains("line 2") && e.contains("surface"),
+            "{e}"
+        );
     }
 
     #[test]

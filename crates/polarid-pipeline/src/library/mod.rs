@@ -333,6 +333,7 @@ pub fn build_library(
                 reference: reference.clone(),
                 line: 0,
                 wavelength_nm: multi.then(|| band.centre()),
+                layer: None,
             });
         }
     }
