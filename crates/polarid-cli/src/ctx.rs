@@ -60,7 +60,7 @@ impl Ctx {
     }
 
     /// Write a text output to `path` atomically, or to standard output when `path` is
-    /// `None`. `inputs` are never overwritten.
+    /// `None` or `-`. `inputs` are never overwritten.
     #[allow(dead_code)]
     pub fn write_output(
         &self,
@@ -68,7 +68,7 @@ impl Ctx {
         inputs: &[&Path],
         write: impl FnOnce(&mut dyn Write) -> polarid_io::Result<()>,
     ) -> anyhow::Result<()> {
-        match path {
+        match path.filter(|p| !polarid_io::limits::is_stdin(p)) {
             Some(p) => {
                 polarid_io::atomic::check_output(p, self.force, inputs)?;
                 polarid_io::atomic::write_atomic(p, self.force, write)?;

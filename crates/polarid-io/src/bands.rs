@@ -12,6 +12,13 @@
 //! capture's brackets are merged on the raw mosaic before the reconstruction
 //! ([`COLOUR_REACH`]). `polarid_io::measure::measure_capture_bands` turns them into
 //! measurement rows with `wavelength_nm`.
+//!
+//! A colour mosaic whose width or height is not a whole number of 4×4 periods (a
+//! sensor read out with a partial period at the right or bottom edge) is measured on
+//! its whole periods: the partial period's columns and rows are dropped
+//! ([`polarid_core::mosaic::crop_to_whole_periods`]; pixel coordinates are unchanged,
+//! the images are the whole periods' size) and a warning in
+//! [`StokesImages::warnings`] says so.
 
 use polarid_core::mosaic::{ColourMethod, ColourPattern, DofpOutputs, colour_polar};
 use polarid_core::region::Sampling;
@@ -20,7 +27,9 @@ use polarid_core::stokes::PixelRules;
 use crate::error::{IoError, Result};
 use crate::image::{self, Frame, SampleKind};
 use crate::manifest::{Capture, CaptureSource, Manifest};
-use crate::measure::{StokesImages, capture_images, dark_threshold_dn, rules_for};
+use crate::measure::{
+    StokesImages, capture_images, dark_threshold_dn, rules_for, saturation_notes,
+};
 
 /// The Stokes images of one band of a capture.
 #[derive(Debug, Clone, PartialEq)]
@@ -92,14 +101,23 @@ pub fn capture_band_images(m: &Manifest, c: &Capture) -> Result<Vec<BandImages>>
             pattern,
             wavelengths_nm,
         } => {
-            let (imgs, dark_signal_dn) = if c.brackets.is_empty() {
+            let (mut imgs, dark_signal_dn, notes) = if c.brackets.is_empty() {
                 let raw = image::read_frame(file)?;
                 let rules = rules_for(&raw, c.dark_level, c.saturation);
+                let mut notes = saturation_notes(c, [&raw], rules.saturation);
+                let raw = whole_periods(c, raw, &mut notes)?;
                 let imgs = colour_stokes(&raw, pattern, &rules, ColourMethod::Bilinear)?;
-                (imgs, dark_threshold_dn(c, &rules, raw.kind.is_integer()))
+                (
+                    imgs,
+                    dark_threshold_dn(c, &rules, raw.kind.is_integer()),
+                    notes,
+                )
             } else {
                 hdr_colour_images(m, c, pattern)?
             };
+            for i in &mut imgs {
+                i.warnings = notes.clone();
+            }
             let mut bands: Vec<BandImages> = imgs
                 .into_iter()
                 .zip(pattern.bands())
@@ -126,6 +144,40 @@ pub fn capture_band_images(m: &Manifest, c: &Capture) -> Result<Vec<BandImages>>
             images: capture_images(m, c)?,
         }]),
     }
+}
+
+/// `raw` cut to its whole 4×4 periods when its width or height is not a multiple of 4
+/// (module docs), with a warning naming capture `c`, the file and both sizes pushed to
+/// `notes`; `raw` itself otherwise.
+///
+/// Errors: [`IoError::Core`] naming the file when not one whole period is left.
+fn whole_periods(c: &Capture, raw: Frame, notes: &mut Vec<String>) -> Result<Frame> {
+    let cropped =
+        polarid_core::mosaic::crop_to_whole_periods(&raw.data, raw.width).map_err(|source| {
+            IoError::Core {
+                path: raw.path.clone(),
+                source,
+            }
+        })?;
+    let Some((data, width, height)) = cropped else {
+        return Ok(raw);
+    };
+    notes.push(format!(
+        "capture {} (line {}): {} is {}x{} pixels, not a whole number of 4x4 colour \
+         periods: the partial period is dropped and the capture is measured on its \
+         {width}x{height} whole periods (regions must lie inside them)",
+        c.index,
+        c.line,
+        raw.path.display(),
+        raw.width,
+        raw.height
+    ));
+    Ok(Frame {
+        data,
+        width,
+        height,
+        ..raw
+    })
 }
 
 /// How far (pixels, in x and in y) the bilinear colour reconstruction reaches for a
@@ -171,7 +223,7 @@ fn hdr_colour_images(
     m: &Manifest,
     c: &Capture,
     pattern: &ColourPattern,
-) -> Result<(Vec<StokesImages>, f64)> {
+) -> Result<(Vec<StokesImages>, f64, Vec<String>)> {
     let paths = c.files();
     let frames = image::read_frames(&paths)?;
     let (Some(first), Some(reference)) = (frames.first(), c.brackets.first()) else {
@@ -184,6 +236,7 @@ fn hdr_colour_images(
         });
     };
     let raw_rules = rules_for(first, c.dark_level, c.saturation);
+    let mut notes = saturation_notes(c, &frames, raw_rules.saturation);
     let (dark, sat) = (raw_rules.dark_level, raw_rules.saturation);
     let near: Vec<Vec<bool>> = frames
         .iter()
@@ -209,6 +262,7 @@ fn hdr_colour_images(
         height: first.height,
         kind: SampleKind::F32,
         data,
+        recorded_max: None,
     };
     // Merged values are dark-subtracted; f32::MAX marks a pixel saturated everywhere.
     let merged_rules = PixelRules {
@@ -216,9 +270,11 @@ fn hdr_colour_images(
         saturation: f32::MAX,
         min_s0: 0.0,
     };
+    let merged = whole_periods(c, merged, &mut notes)?;
     let imgs = colour_stokes(&merged, pattern, &merged_rules, ColourMethod::Bilinear)?;
     Ok((
         imgs,
         dark_threshold_dn(c, &raw_rules, first.kind.is_integer()),
+        notes,
     ))
 }

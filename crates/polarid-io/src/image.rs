@@ -5,8 +5,16 @@
 //! its first bytes, not its name. Everything else — colour, alpha, palettes, several
 //! pages, other bit depths, truncated or corrupt files — is an [`IoError::Image`] naming
 //! the file and saying what is wrong. Pixel values are returned as `f32` (exact for 8-
-//! and 16-bit integers), row-major, with the sample type so that callers know the
-//! type's maximum (the default saturation level).
+//! and 16-bit integers), row-major, with the sample type and the largest value the
+//! file says its samples can take ([`Frame::recorded_max`]) so that callers know the
+//! default saturation level ([`Frame::level_max`]).
+//!
+//! **Bit depth.** A 12-bit sensor's data is stored in 16-bit samples. The file can say
+//! so: a PNG's `sBIT` chunk (significant bits, e.g. 12: largest value 4095) or a TIFF's
+//! `MaxSampleValue` tag (281, e.g. 4095). Without either, the PNG and TIFF
+//! specifications make every stored bit significant (16-bit samples: 65535), and
+//! nothing in the file tells a 12-bit camera's data from a 16-bit one's.
+//! [`write_gray16_bits`] records the bit depth when writing.
 //!
 //! Reading is bounded ([`crate::limits`]): the file must be a regular file no larger
 //! than the memory budget, and before any pixel is decoded the frame's cost —
@@ -74,12 +82,28 @@ pub struct Frame {
     pub kind: SampleKind,
     /// Pixel values, row-major, `width × height`.
     pub data: Vec<f32>,
+    /// The largest value the file says its samples can take when it is below the
+    /// type's maximum: `2^bits − 1` from a PNG's `sBIT` chunk, or a TIFF's
+    /// `MaxSampleValue` tag (module docs); `None` when the file records no bit depth
+    /// (or the full one).
+    pub recorded_max: Option<f32>,
 }
 
 impl Frame {
     /// Largest value of the stored type ([`SampleKind::type_max`]).
     pub fn type_max(&self) -> f32 {
         self.kind.type_max()
+    }
+
+    /// Largest value the samples can take: [`Frame::recorded_max`] when the file
+    /// records a bit depth, else the type's maximum (the default saturation level).
+    pub fn level_max(&self) -> f32 {
+        self.recorded_max.unwrap_or_else(|| self.type_max())
+    }
+
+    /// Largest sample value of the frame (NaN samples ignored; `-inf` for none).
+    pub fn data_max(&self) -> f32 {
+        self.data.iter().copied().fold(f32::NEG_INFINITY, f32::max)
     }
 
     /// Bits per sample as stored.
@@ -227,6 +251,8 @@ fn read_png(path: &Path, bytes: &[u8], lim: Limits) -> Result<Frame> {
     check_dims(path, info.width, info.height, max_pixels)?;
     let (w, h) = (info.width as usize, info.height as usize);
     let depth = info.bit_depth;
+    // sBIT of a grayscale image: one byte, the significant bits (1..=bit depth).
+    let sbit = info.sbit.as_deref().and_then(|b| b.first().copied());
     match info.color_type {
         png::ColorType::Grayscale => {}
         png::ColorType::GrayscaleAlpha => {
@@ -286,12 +312,16 @@ fn read_png(path: &Path, bytes: &[u8], lim: Limits) -> Result<Frame> {
             ),
         ));
     }
+    let recorded_max = sbit
+        .filter(|&b| b < kind.bit_depth() && b > 0)
+        .map(|b| ((1u32 << b) - 1) as f32);
     Ok(Frame {
         path: path.to_path_buf(),
         width: w,
         height: h,
         kind,
         data,
+        recorded_max,
     })
 }
 
@@ -362,6 +392,11 @@ fn read_tiff(path: &Path, bytes: &[u8], lim: Limits) -> Result<Frame> {
             format!("is a multi-page TIFF ({pages} pages); one image per file is needed"),
         ));
     }
+    // MaxSampleValue (281): the largest value of the samples, when recorded.
+    let max_sample: Option<u32> = dec
+        .find_tag_unsigned(tiff::tags::Tag::MaxSampleValue)
+        .ok()
+        .flatten();
     let (kind, data) = match dec.read_image().map_err(corrupt)? {
         DecodingResult::U8(v) => (SampleKind::U8, v.into_iter().map(|x| x as f32).collect()),
         DecodingResult::U16(v) => (SampleKind::U16, v.into_iter().map(|x| x as f32).collect()),
@@ -384,12 +419,17 @@ fn read_tiff(path: &Path, bytes: &[u8], lim: Limits) -> Result<Frame> {
             ),
         ));
     }
+    let recorded_max = max_sample
+        .filter(|_| kind.is_integer())
+        .map(|v| v as f32)
+        .filter(|&v| v > 0.0 && v < kind.type_max());
     Ok(Frame {
         path: path.to_path_buf(),
         width: w,
         height: h,
         kind,
         data,
+        recorded_max,
     })
 }
 
@@ -487,10 +527,31 @@ where
     C: tiff::encoder::colortype::ColorType,
     [C::Inner]: tiff::encoder::TiffValue,
 {
+    tiff_bytes_max::<C>(path, w, h, data, None)
+}
+
+/// [`tiff_bytes`] with a `MaxSampleValue` tag when `max_sample` is given.
+fn tiff_bytes_max<C>(
+    path: &Path,
+    w: u32,
+    h: u32,
+    data: &[C::Inner],
+    max_sample: Option<u16>,
+) -> Result<Vec<u8>>
+where
+    C: tiff::encoder::colortype::ColorType,
+    [C::Inner]: tiff::encoder::TiffValue,
+{
     let mut cur = Cursor::new(Vec::new());
     let enc_err = |e: tiff::TiffError| image_err(path, format!("cannot encode TIFF: {e}"));
     let mut enc = tiff::encoder::TiffEncoder::new(&mut cur).map_err(enc_err)?;
-    enc.write_image::<C>(w, h, data).map_err(enc_err)?;
+    let mut img = enc.new_image::<C>(w, h).map_err(enc_err)?;
+    if let Some(v) = max_sample {
+        img.encoder()
+            .write_tag(tiff::tags::Tag::MaxSampleValue, v)
+            .map_err(enc_err)?;
+    }
+    img.write_data(data).map_err(enc_err)?;
     Ok(cur.into_inner())
 }
 
@@ -538,6 +599,19 @@ fn png_bytes(
     depth: png::BitDepth,
     data: &[u8],
 ) -> Result<Vec<u8>> {
+    png_bytes_sbit(path, w, h, color, depth, data, None)
+}
+
+/// [`png_bytes`] with an `sBIT` chunk (grayscale: one byte) when `sbit` is given.
+fn png_bytes_sbit(
+    path: &Path,
+    w: u32,
+    h: u32,
+    color: png::ColorType,
+    depth: png::BitDepth,
+    data: &[u8],
+    sbit: Option<u8>,
+) -> Result<Vec<u8>> {
     let enc_err = |e: png::EncodingError| image_err(path, format!("cannot encode PNG: {e}"));
     let mut out = Vec::new();
     {
@@ -545,6 +619,9 @@ fn png_bytes(
         enc.set_color(color);
         enc.set_depth(depth);
         let mut wr = enc.write_header().map_err(enc_err)?;
+        if let Some(b) = sbit {
+            wr.write_chunk(png::chunk::sBIT, &[b]).map_err(enc_err)?;
+        }
         wr.write_image_data(data).map_err(enc_err)?;
         wr.finish().map_err(enc_err)?;
     }
@@ -595,6 +672,52 @@ pub fn write_gray16(
             png::ColorType::Grayscale,
             png::BitDepth::Sixteen,
             &be,
+        )?
+    };
+    write_bytes(path, force, &bytes)
+}
+
+/// Write 16-bit grayscale samples holding `bits`-bit data (1..=16, e.g. 12 for a
+/// 12-bit sensor) as PNG or TIFF (from the file name's extension), recording the bit
+/// depth: a PNG `sBIT` chunk, a TIFF `MaxSampleValue` tag of `2^bits − 1` (module
+/// docs), which readers return as [`Frame::recorded_max`].
+///
+/// Errors: `bits` outside 1..=16, a sample above `2^bits − 1`, and those of
+/// [`write_gray16`].
+pub fn write_gray16_bits(
+    path: &Path,
+    force: bool,
+    width: usize,
+    height: usize,
+    data: &[u16],
+    bits: u8,
+) -> Result<()> {
+    let (w, h) = check_buf(path, width, height, data.len())?;
+    if !(1..=16).contains(&bits) {
+        return Err(image_err(
+            path,
+            format!("cannot record {bits} significant bits in 16-bit samples"),
+        ));
+    }
+    let max = ((1u32 << bits) - 1) as u16;
+    if let Some(v) = data.iter().find(|&&v| v > max) {
+        return Err(image_err(
+            path,
+            format!("sample {v} does not fit in {bits} bits (at most {max})"),
+        ));
+    }
+    let bytes = if wants_tiff(path)? {
+        tiff_bytes_max::<tiff::encoder::colortype::Gray16>(path, w, h, data, Some(max))?
+    } else {
+        let be: Vec<u8> = data.iter().flat_map(|v| v.to_be_bytes()).collect();
+        png_bytes_sbit(
+            path,
+            w,
+            h,
+            png::ColorType::Grayscale,
+            png::BitDepth::Sixteen,
+            &be,
+            Some(bits),
         )?
     };
     write_bytes(path, force, &bytes)

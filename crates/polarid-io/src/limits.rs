@@ -10,10 +10,14 @@
 //! - **Decompression bombs**: a compressed frame that would expand more than
 //!   [`MAX_EXPANSION`] times its file size (beyond what deflate or LZW give on any real
 //!   image) into more than [`EXPANSION_FLOOR`] bytes is refused too.
-//! - **Capped reads** ([`read_capped`], [`read_text`]): inputs must be regular files
-//!   (`/dev/zero`, FIFOs, sockets and devices are refused, [`IoError::NotRegular`]) and
-//!   are read with a size cap: images up to the budget, text files (CSV, JSON, TOML,
-//!   YAML) up to [`text_cap`] = budget / 16 (256 MiB by default).
+//! - **Capped reads** ([`read_capped`], [`read_text`]): inputs must be regular files or
+//!   streams — a FIFO (a named pipe, `/dev/stdin` fed by a shell pipe) or [`STDIN`]
+//!   (`-`, standard input) — (`/dev/zero`, sockets, other devices and directories are
+//!   refused, [`IoError::NotRegular`]) and are read with a size cap: images up to the
+//!   budget, text files (CSV, JSON, TOML, YAML) up to [`text_cap`] = budget / 16
+//!   (256 MiB by default). A stream's size is not known in advance: it is read up to
+//!   the cap and refused ([`IoError::TooLarge`]) as soon as it holds more. Reading a
+//!   named pipe waits for its writer, as every Unix tool does.
 
 use std::io::Read;
 use std::path::Path;
@@ -142,6 +146,38 @@ pub fn check_budget(path: &Path, what: &str, need: u64) -> Result<()> {
     Ok(())
 }
 
+/// The path that means standard input for the readers ([`read_capped`], and so
+/// [`read_text`] and the CSV tables): `-`.
+pub const STDIN: &str = "-";
+
+/// True when `path` is [`STDIN`] (`-`).
+pub fn is_stdin(path: &Path) -> bool {
+    path.as_os_str() == STDIN
+}
+
+/// Error unless `path` can be read as an input: `Some(size)` for a regular file (after
+/// following symbolic links), `None` for a stream (a FIFO: a named pipe, or
+/// `/dev/stdin` when standard input is a pipe), whose size is not known in advance.
+/// `/dev/zero` and other devices, sockets and directories are refused.
+pub fn check_readable(path: &Path) -> Result<Option<u64>> {
+    let md = std::fs::metadata(path).map_err(|e| IoError::io(path, e))?;
+    if is_fifo(&md.file_type()) {
+        return Ok(None);
+    }
+    check_regular(path).map(Some)
+}
+
+#[cfg(unix)]
+fn is_fifo(ft: &std::fs::FileType) -> bool {
+    use std::os::unix::fs::FileTypeExt;
+    ft.is_fifo()
+}
+
+#[cfg(not(unix))]
+fn is_fifo(_ft: &std::fs::FileType) -> bool {
+    false
+}
+
 /// Error unless `path` is a regular file (after following symbolic links): `/dev/zero`,
 /// FIFOs, sockets, devices and directories are refused. Returns its size in bytes.
 pub fn check_regular(path: &Path) -> Result<u64> {
@@ -182,24 +218,36 @@ fn special_kind(_ft: &std::fs::FileType) -> &'static str {
     "not a regular file"
 }
 
-/// Read the regular file `path` (a `what`, e.g. `image`), refusing it when it holds
-/// more than `cap` bytes (checked from its size, and again while reading, in case it
-/// grows).
+/// Read the input `path` (a `what`, e.g. `image`): a regular file, a FIFO, or standard
+/// input when `path` is [`STDIN`] (`-`); refused when it holds more than `cap` bytes
+/// (checked from a file's size, and again while reading, in case it grows; a stream is
+/// read up to `cap + 1` bytes and refused then).
 pub fn read_capped(path: &Path, cap: u64, what: &str) -> Result<Vec<u8>> {
-    let len = check_regular(path)?;
     let too_big = |size: String| IoError::TooLarge {
         path: path.to_path_buf(),
-        what: format!("{what} file of {size}, more than the {} read", human(cap)),
+        what: format!("{what} input of {size}, more than the {} read", human(cap)),
         limit: memory_limit(),
     };
-    if len > cap {
-        return Err(too_big(human(len)));
+    let mut out = Vec::new();
+    if is_stdin(path) {
+        std::io::stdin()
+            .lock()
+            .take(cap.saturating_add(1))
+            .read_to_end(&mut out)
+            .map_err(|e| IoError::io("<stdin>", e))?;
+    } else {
+        let len = check_readable(path)?;
+        if let Some(len) = len {
+            if len > cap {
+                return Err(too_big(human(len)));
+            }
+            out.reserve(usize::try_from(len).unwrap_or(0));
+        }
+        let f = std::fs::File::open(path).map_err(|e| IoError::io(path, e))?;
+        f.take(cap.saturating_add(1))
+            .read_to_end(&mut out)
+            .map_err(|e| IoError::io(path, e))?;
     }
-    let f = std::fs::File::open(path).map_err(|e| IoError::io(path, e))?;
-    let mut out = Vec::with_capacity(usize::try_from(len).unwrap_or(0));
-    f.take(cap.saturating_add(1))
-        .read_to_end(&mut out)
-        .map_err(|e| IoError::io(path, e))?;
     if out.len() as u64 > cap {
         return Err(too_big(format!("more than {}", human(cap))));
     }
@@ -257,7 +305,36 @@ mod tests {
 
     #[cfg(unix)]
     #[test]
-    fn devices_and_fifos_are_refused() {
+    fn fifos_are_read_to_their_end_within_the_cap() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("pipe");
+        let made = std::process::Command::new("mkfifo").arg(&p).status();
+        if !made.is_ok_and(|s| s.success()) {
+            return;
+        }
+        assert_eq!(check_readable(&p).unwrap(), None);
+        let w = {
+            let p = p.clone();
+            std::thread::spawn(move || std::fs::write(&p, vec![b'x'; 3000]).unwrap())
+        };
+        assert_eq!(read_capped(&p, 4000, "text").unwrap().len(), 3000);
+        w.join().unwrap();
+        // Over the cap: refused once more than the cap has arrived.
+        let w = {
+            let p = p.clone();
+            std::thread::spawn(move || {
+                // The reader stops at cap + 1 bytes: the writer may see a closed pipe.
+                let _ = std::fs::write(&p, vec![b'x'; 5000]);
+            })
+        };
+        let e = read_capped(&p, 4000, "text").unwrap_err();
+        assert!(matches!(e, IoError::TooLarge { .. }), "{e}");
+        w.join().unwrap();
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn devices_are_refused() {
         let e = read_text(Path::new("/dev/zero")).unwrap_err();
         assert!(matches!(e, IoError::NotRegular { .. }), "{e}");
         assert!(e.to_string().contains("character device"), "{e}");

@@ -104,6 +104,10 @@ pub struct StokesImages {
     /// Dark threshold, in the units of `s0` (DN): a region whose mean S0 over its used
     /// pixels is below it is `dark` ([`dark_threshold_dn`]; 0: no dark test).
     pub dark_signal_dn: f64,
+    /// What the user should know about how these images were made (a saturation level
+    /// the data contradict, [`saturation_notes`]; a colour mosaic's partial period
+    /// dropped), one message each.
+    pub warnings: Vec<String>,
 }
 
 impl StokesImages {
@@ -120,6 +124,7 @@ impl StokesImages {
             counts: PixelCounts::default(),
             sampling,
             dark_signal_dn: 0.0,
+            warnings: Vec::new(),
         }
     }
 }
@@ -148,14 +153,107 @@ pub fn dark_threshold_dn(c: &Capture, rules: &PixelRules, is_integer: bool) -> f
     }
 }
 
-/// Pixel rules from a dark level and an optional saturation (default: the frame's type
-/// maximum); `min_s0` is 0.
+/// Pixel rules from a dark level and an optional saturation (default: the largest
+/// value the frame's file records for its samples, [`Frame::level_max`]: `2^bits − 1`
+/// from a PNG `sBIT` chunk or a TIFF `MaxSampleValue` tag, else the type's maximum);
+/// `min_s0` is 0.
 pub fn rules_for(frame: &Frame, dark_level: f64, saturation: Option<f64>) -> PixelRules {
     PixelRules {
         dark_level: dark_level as f32,
-        saturation: saturation.map_or(frame.type_max(), |s| s as f32),
+        saturation: saturation.map_or(frame.level_max(), |s| s as f32),
         min_s0: 0.0,
     }
+}
+
+/// Largest sample value of a 16-bit file without a recorded bit depth below which
+/// [`saturation_notes`] suspects a 10-, 12- or 14-bit camera (`2^14 − 1`).
+pub const FEW_BITS_MAX: f32 = 16383.0;
+
+/// `Some(b)` when `v` is `2^b − 1` for some `b` in `10..=15`: the ceiling of `b`-bit data.
+fn ceiling_bits(v: f32) -> Option<u32> {
+    (10..=15).find(|&b| v == ((1u32 << b) - 1) as f32)
+}
+
+/// What the data of capture `c`'s integer frames (`frames`, read with the saturation
+/// level `saturation`) say against that level, one warning each (none for float
+/// frames):
+///
+/// - values exceed a level that is a bit depth's ceiling (`2^b − 1`, given or recorded
+///   in the file): the data have more bits than the level says, and every such pixel
+///   is rejected as saturated;
+/// - the values stop at exactly `2^b − 1` (the ceiling of `b`-bit data) below the
+///   level: a `b`-bit camera's saturated pixels would be measured as if valid;
+/// - the manifest gives no `saturation` and a 16-bit file records no bit depth (no PNG
+///   `sBIT`, no TIFF `MaxSampleValue`), so the level is 65535, but no value exceeds
+///   [`FEW_BITS_MAX`]: the data look like a 10-, 12- or 14-bit camera's.
+pub fn saturation_notes<'a>(
+    c: &Capture,
+    frames: impl IntoIterator<Item = &'a Frame>,
+    saturation: f32,
+) -> Vec<String> {
+    let frames: Vec<&Frame> = frames.into_iter().collect();
+    let Some(first) = frames.first() else {
+        return Vec::new();
+    };
+    if !first.kind.is_integer() {
+        return Vec::new();
+    }
+    let max = frames
+        .iter()
+        .map(|f| f.data_max())
+        .fold(f32::NEG_INFINITY, f32::max);
+    if !max.is_finite() {
+        return Vec::new();
+    }
+    let file = first.path.display();
+    let label = format!("capture {} (line {})", c.index, c.line);
+    let source = match (c.saturation, first.recorded_max) {
+        (Some(_), _) => "the manifest's `saturation`".to_string(),
+        (None, Some(_)) => format!("the bit depth recorded in {file}"),
+        (None, None) => format!(
+            "the {}-bit samples' maximum: {file} records no bit depth",
+            first.bit_depth()
+        ),
+    };
+    let sat = saturation;
+    let mut out = Vec::new();
+    if max > sat {
+        let level_is_depth = ceiling_bits(sat).is_some() || first.recorded_max == Some(sat);
+        if level_is_depth {
+            out.push(format!(
+                "{label}: {file} has values up to {max}, above the saturation level {sat} \
+                 ({source}): the data have more bits than that, and every such pixel is \
+                 rejected as saturated; check the bit depth and `saturation`"
+            ));
+        }
+    } else if max < sat
+        && let Some(b) = ceiling_bits(max)
+    {
+        out.push(format!(
+            "{label}: the values of {file} stop at exactly {max} = 2^{b} - 1, the ceiling \
+             of {b}-bit data, below the saturation level {sat} ({source}): if the camera \
+             is {b}-bit, its saturated pixels are measured as if valid; set \
+             `saturation = {max}`"
+        ));
+    } else if c.saturation.is_none()
+        && first.recorded_max.is_none()
+        && first.kind == SampleKind::U16
+        && max <= FEW_BITS_MAX
+    {
+        let b = [10u32, 12, 14]
+            .into_iter()
+            .find(|&b| max <= ((1u32 << b) - 1) as f32)
+            .unwrap_or(14);
+        out.push(format!(
+            "{label}: no `saturation` is given and {file} records no bit depth (16-bit \
+             samples without a PNG sBIT chunk or a TIFF MaxSampleValue tag), so the \
+             saturation level is 65535, but its values reach only {max}, as a {b}-bit \
+             camera's would: if the camera has fewer than 16 bits, set `saturation` \
+             (e.g. {} for {b} bits) or its saturated pixels are measured as if valid",
+            (1u32 << b) - 1
+        ));
+    }
+    out
 }
 
 /// Stokes images from rotating-polarizer frames (one per angle of `solver`, same size:
@@ -288,6 +386,7 @@ pub fn read_stokes(s0: &Path, s1: &Path, s2: &Path) -> Result<StokesImages> {
         counts,
         sampling: Sampling::Independent,
         dark_signal_dn: 0.0,
+        warnings: Vec::new(),
     })
 }
 
@@ -320,6 +419,7 @@ pub fn capture_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
             let rules = rules_for(first, c.dark_level, c.saturation);
             let mut out = frames_stokes(&imgs, &solver, &rules)?;
             out.dark_signal_dn = dark_threshold_dn(c, &rules, first.kind.is_integer());
+            out.warnings = saturation_notes(c, &imgs, rules.saturation);
             Ok(out)
         }
         CaptureSource::Dofp { file, pattern } => {
@@ -327,6 +427,7 @@ pub fn capture_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
             let rules = rules_for(&raw, c.dark_level, c.saturation);
             let mut out = dofp_stokes(&raw, pattern, &rules, Demosaic::Bilinear, false)?;
             out.dark_signal_dn = dark_threshold_dn(c, &rules, raw.kind.is_integer());
+            out.warnings = saturation_notes(c, [&raw], rules.saturation);
             Ok(out)
         }
         CaptureSource::Stokes { s0, s1, s2 } => {
@@ -410,6 +511,7 @@ pub fn hdr_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
         height,
         kind: SampleKind::F32,
         data,
+        recorded_max: None,
     };
     let mut out = match &reference.source {
         CaptureSource::Frames(refs) => {
@@ -465,6 +567,7 @@ pub fn hdr_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
         }
     };
     out.dark_signal_dn = dark_threshold_dn(c, &raw_rules, first.kind.is_integer());
+    out.warnings = saturation_notes(c, &frames, raw_rules.saturation);
     Ok(out)
 }
 
@@ -634,7 +737,7 @@ fn empty_row(
         angle_sd_deg: c.angle_sd_deg,
         status: status.0,
         reason: status.1,
-        wavelength_nm: None,
+        wavelength_nm: c.wavelength_nm,
     }
 }
 
@@ -690,7 +793,7 @@ fn far_field_rows(
             angle_sd_deg: c.angle_sd_deg,
             status,
             reason,
-            wavelength_nm: None,
+            wavelength_nm: c.wavelength_nm,
         });
     }
     Ok(rows)
@@ -896,7 +999,7 @@ fn calibrated_rows(
             angle_sd_deg: c.angle_sd_deg,
             status,
             reason,
-            wavelength_nm: None,
+            wavelength_nm: c.wavelength_nm,
         });
     }
     Ok(rows)
@@ -925,18 +1028,79 @@ pub fn measure_manifest_with(
     strict: bool,
     progress: &mut dyn FnMut(usize),
 ) -> Result<Vec<Measurement>> {
+    measure_manifest_report(m, strict, progress).map(|(rows, _)| rows)
+}
+
+/// [`measure_manifest_with`], with the warnings of the captures' images
+/// ([`StokesImages::warnings`]: a saturation level the data contradict, a colour
+/// mosaic's partial period dropped), in capture order.
+///
+/// Every capture must have the size of the first one (the regions' rectangles are in
+/// one frame's pixel coordinates): a capture of another size is an [`IoError::Image`]
+/// naming its first file, both captures and both sizes.
+pub fn measure_manifest_report(
+    m: &Manifest,
+    strict: bool,
+    progress: &mut dyn FnMut(usize),
+) -> Result<(Vec<Measurement>, Vec<String>)> {
     let mut rows = Vec::with_capacity(m.captures.len() * m.regions.len());
+    let mut warnings = Vec::new();
     let colour = has_colour(m);
+    let mut first: Option<(&Capture, usize, usize)> = None;
     for (i, c) in m.captures.iter().enumerate() {
         if colour {
-            rows.extend(measure_capture_bands(m, c, strict)?);
+            check_band_wavelength(m, c)?;
+            let bands = crate::bands::capture_band_images(m, c)?;
+            if let Some(b) = bands.first() {
+                check_capture_size(&mut first, c, b.images.width, b.images.height)?;
+                warnings.extend(b.images.warnings.iter().cloned());
+            }
+            rows.extend(band_rows(m, c, &bands, strict)?);
         } else {
             let img = capture_images(m, c)?;
+            check_capture_size(&mut first, c, img.width, img.height)?;
+            warnings.extend(img.warnings.iter().cloned());
             rows.extend(measure_images_with(m, c, &img, strict)?);
         }
         progress(i + 1);
     }
-    Ok(rows)
+    Ok((rows, warnings))
+}
+
+/// Error unless capture `c`'s images (`width × height`) have the size of the first
+/// capture's (recorded in `first` by the first call).
+fn check_capture_size<'a>(
+    first: &mut Option<(&'a Capture, usize, usize)>,
+    c: &'a Capture,
+    width: usize,
+    height: usize,
+) -> Result<()> {
+    let file_of = |c: &Capture| {
+        c.files()
+            .first()
+            .map(|p| p.to_path_buf())
+            .unwrap_or_default()
+    };
+    match first {
+        None => {
+            *first = Some((c, width, height));
+            Ok(())
+        }
+        Some((c0, w0, h0)) if (*w0, *h0) != (width, height) => Err(IoError::Image {
+            path: file_of(c),
+            reason: format!(
+                "capture {} (line {}) is {width}x{height} pixels but capture {} (line {}, \
+                 {}) is {w0}x{h0}: every capture of a manifest must have the same size \
+                 (the regions' rectangles are in one frame's pixel coordinates)",
+                c.index,
+                c.line,
+                c0.index,
+                c0.line,
+                file_of(c0).display()
+            ),
+        }),
+        Some(_) => Ok(()),
+    }
 }
 
 /// Whether some capture of `m` is a colour capture ([`CaptureSource::ColourDofp`]): its
@@ -968,6 +1132,14 @@ pub fn band_count(c: &Capture) -> usize {
 /// [`IoError::Manifest`] naming `capture[i].wavelength_nm` for a single-band capture
 /// without a wavelength (its rows could not be fitted with the colour captures' bands).
 pub fn measure_capture_bands(m: &Manifest, c: &Capture, strict: bool) -> Result<Vec<Measurement>> {
+    check_band_wavelength(m, c)?;
+    let bands = crate::bands::capture_band_images(m, c)?;
+    band_rows(m, c, &bands, strict)
+}
+
+/// Error unless capture `c` of a manifest with colour captures can be measured per band:
+/// a single-band capture needs a wavelength.
+fn check_band_wavelength(m: &Manifest, c: &Capture) -> Result<()> {
     if !matches!(c.source, CaptureSource::ColourDofp { .. }) && c.wavelength_nm.is_none() {
         return Err(IoError::Manifest {
             path: m.path.clone(),
@@ -979,10 +1151,20 @@ pub fn measure_capture_bands(m: &Manifest, c: &Capture, strict: bool) -> Result<
                 .into(),
         });
     }
-    let bands = crate::bands::capture_band_images(m, c)?;
+    Ok(())
+}
+
+/// The rows of capture `c` from its per-band images `bands` ([`measure_capture_bands`]).
+fn band_rows(
+    m: &Manifest,
+    c: &Capture,
+    bands: &[crate::bands::BandImages],
+    strict: bool,
+) -> Result<Vec<Measurement>> {
+    check_band_wavelength(m, c)?;
     let label = capture_label(c);
     let mut rows = Vec::with_capacity(bands.len() * m.regions.len());
-    for b in &bands {
+    for b in bands {
         let band_rows = measure_images_with(m, c, &b.images, false)?;
         let band = b
             .wavelength_nm

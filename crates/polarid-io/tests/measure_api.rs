@@ -276,6 +276,7 @@ fn stokes_kernels_name_the_file_and_report_sizes() {
         height: 4,
         kind: image::SampleKind::U16,
         data: vec![100.0; 20],
+        recorded_max: None,
     };
     let rules = measure::rules_for(&raw, 10.0, None);
     assert_eq!(

@@ -3,7 +3,9 @@
 //! The kernels live in `polarid_io::measure` (re-exported here, so that one path serves
 //! every front end); [`measure`] is the workflow around them: every capture of a loaded
 //! manifest, progress per capture, and the warnings a user should see (the manifest's
-//! own, regions with more than 1 % saturated pixels, and the rows that are not `ok`).
+//! own, a saturation level the data contradict, a colour mosaic's partial period
+//! dropped, regions with more than 1 % saturated pixels, and the rows that are not
+//! `ok`). Every capture must have the first one's size.
 //!
 //! Partial failure (docs/FORMATS.md): a region that is dark in a capture, or has no
 //! usable pixel there, gives a row with a status and a reason and the other rows are
@@ -60,11 +62,12 @@ pub fn measure_with(
 ) -> Result<MeasureOutput> {
     let total = m.captures.len() as u64;
     progress("captures", 0, total);
-    let rows = measure_manifest_with(m, cfg.strict, &mut |done| {
+    let (rows, notes) = measure_manifest_report(m, cfg.strict, &mut |done| {
         progress("captures", done as u64, total)
     })?;
-    let mut warnings: Vec<Warning> = saturation_warnings(m, &rows)
+    let mut warnings: Vec<Warning> = notes
         .into_iter()
+        .chain(saturation_warnings(m, &rows))
         .map(Warning)
         .collect();
     let bad: Vec<&Measurement> = rows.iter().filter(|r| !r.status.is_ok()).collect();

@@ -95,6 +95,36 @@ pub fn train(fits: &[(u64, FitRow)], fits_path: &Path, file: &str) -> Result<Tra
     })
 }
 
+/// Error unless every labelled fit (a row with a `class`) has status `ok`: a prototype
+/// from a fit that is not `ok` (`ill_conditioned`, `at_bound`, ...) would be trusted by
+/// the classifier as if it were. The [`PipelineError::Data`] names `fits_path` and every
+/// such row (target, status, line). `polarid train` calls it unless `--allow-not-ok`
+/// (then [`train`] skips those rows with a warning).
+pub fn refuse_not_ok(fits: &[(u64, FitRow)], fits_path: &Path) -> Result<()> {
+    let bad: Vec<String> = fits
+        .iter()
+        .filter(|(_, f)| f.class.is_some() && !f.status.is_ok())
+        .map(|(line, f)| {
+            let band = f
+                .wavelength_nm
+                .map_or(String::new(), |w| format!(" at {w} nm"));
+            format!("{}{band} ({}, line {line})", f.target, f.status)
+        })
+        .collect();
+    if bad.is_empty() {
+        return Ok(());
+    }
+    Err(PipelineError::Data {
+        path: fits_path.display().to_string(),
+        reason: format!(
+            "{} labelled fit(s) are not `ok` and cannot be prototypes: {} (refit them, \
+             remove their class, or pass --allow-not-ok to train on the others)",
+            bad.len(),
+            bad.join(", ")
+        ),
+    })
+}
+
 /// The distinct classes of a model, sorted.
 pub fn classes(model: &Model) -> Vec<&str> {
     let mut classes: Vec<&str> = model.prototypes.iter().map(|p| p.class.as_str()).collect();

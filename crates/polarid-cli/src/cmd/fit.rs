@@ -1,4 +1,4 @@
-//! `polarid fit MEASUREMENTS.csv [-o fits.csv] [--reflectance specular|mixed]`:
+//! `polarid fit MEASUREMENTS.csv [-o fits.csv] [--reflectance auto|specular|mixed]`:
 //! the complex index `(n, k)` of every target from its DoLP measurements (paper
 //! section 5, eq. 16), written as the fits CSV of `docs/FORMATS.md`.
 //!
@@ -32,7 +32,11 @@ use crate::{BadInput, Ctx};
 /// Reflectance model of the fit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum ReflectanceArg {
-    /// Specular Fresnel reflection only (the paper's eq. 9).
+    /// Specular, then the brightness check when the rows carry s0 and exposure: Lambert
+    /// brightness makes a target `depolarized`, and the mixed model replaces the
+    /// specular fit when BIC selects it (docs/MIXED.md).
+    Auto,
+    /// Specular Fresnel reflection only (the paper's eq. 9), with no brightness check.
     Specular,
     /// Specular plus a Lambertian depolarized diffuse term; uses `s0` too.
     Mixed,
@@ -50,13 +54,13 @@ pub enum ShadowingArg {
 /// Arguments of `polarid fit`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Measurements CSV (written by `polarid measure`).
+    /// Measurements CSV (written by `polarid measure`); `-`: standard input.
     pub measurements: PathBuf,
-    /// Output fits CSV (standard output when absent).
+    /// Output fits CSV (standard output when absent or `-`).
     #[arg(short, long)]
     pub output: Option<PathBuf>,
     /// Reflectance model.
-    #[arg(long, value_enum, default_value = "specular")]
+    #[arg(long, value_enum, default_value = "auto")]
     pub reflectance: ReflectanceArg,
     /// Search box for n, as MIN,MAX.
     #[arg(long, value_name = "MIN,MAX", default_value = "0.01,10", value_parser = parse_range)]
@@ -113,8 +117,9 @@ pub struct Args {
     /// `wavelength_nm` (rows with one use their own).
     #[arg(long, value_name = "NM", default_value_t = DEFAULT_WAVELENGTH_NM)]
     pub wavelength_nm: f64,
-    /// Do not decide from the brightness (s0 with exposures) whether a target reflects
-    /// specularly at all (docs/MIXED.md).
+    /// `--reflectance auto`: do not decide from the brightness (s0 with exposures)
+    /// whether a target reflects specularly at all (docs/MIXED.md); the same as
+    /// `--reflectance specular`.
     #[arg(long)]
     pub no_brightness_check: bool,
     /// `--report DIR`: per-band figures (docs/BANDS.md).
@@ -163,6 +168,7 @@ impl Args {
     fn config(&self) -> FitConfig {
         FitConfig {
             reflectance: match self.reflectance {
+                ReflectanceArg::Auto => Reflectance::Auto,
                 ReflectanceArg::Specular => Reflectance::Specular,
                 ReflectanceArg::Mixed => Reflectance::Mixed,
             },
@@ -237,7 +243,11 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         ctx.info(w.to_string());
     }
     let rows = out.rows();
-    let out_path = args.output.clone().unwrap_or_else(|| PathBuf::from("-"));
+    let out_path = args
+        .output
+        .clone()
+        .filter(|p| !polarid_io::limits::is_stdin(p))
+        .unwrap_or_else(|| PathBuf::from("<stdout>"));
     ctx.write_output(args.output.as_deref(), &[path.as_path()], |w| {
         fits::write(w, &out_path, &rows)
     })?;

@@ -52,7 +52,7 @@ use crate::Ctx;
 pub struct Args {
     /// The capture-set manifest (TOML, docs/FORMATS.md).
     pub manifest: PathBuf,
-    /// Output CSV (default: standard output).
+    /// Output CSV (default, or `-`: standard output).
     #[arg(short = 'o', long, value_name = "CSV")]
     pub output: Option<PathBuf>,
     /// Stop with exit status 2 at the first region that is dark or has no usable pixel
@@ -89,21 +89,23 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     for c in &m.captures {
         inputs.extend(c.files());
     }
-    if let Some(out) = &args.output {
+    // `-o -`: standard output.
+    let output = args
+        .output
+        .clone()
+        .filter(|p| !polarid_io::limits::is_stdin(p));
+    if let Some(out) = &output {
         polarid_io::atomic::check_output(out, ctx.force, &inputs)?;
     }
     let cfg = measure::MeasureConfig {
         strict: args.strict,
     };
     let rows = measure_manifest(&m, &cfg, ctx)?;
-    let label = args
-        .output
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("<stdout>"));
-    ctx.write_output(args.output.as_deref(), &inputs, |w| {
+    let label = output.clone().unwrap_or_else(|| PathBuf::from("<stdout>"));
+    ctx.write_output(output.as_deref(), &inputs, |w| {
         measurements::write(w, &label, &rows)
     })?;
-    if let Some(out) = &args.output {
+    if let Some(out) = &output {
         let bands = if measure::has_colour(&m) {
             " per band"
         } else {

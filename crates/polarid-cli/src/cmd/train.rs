@@ -7,7 +7,7 @@ use std::path::PathBuf;
 
 use polarid_io::model::path_relative_to_output;
 use polarid_pipeline::classify::read_fits;
-use polarid_pipeline::train::{classes, train};
+use polarid_pipeline::train::{classes, refuse_not_ok, train};
 
 use super::common::PipeResult;
 use crate::Ctx;
@@ -20,11 +20,18 @@ pub struct Args {
     /// Output model (JSON).
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Train on the `ok` labelled fits and skip the others with a warning, instead of
+    /// stopping (exit status 2) when a labelled fit's status is not `ok`.
+    #[arg(long)]
+    pub allow_not_ok: bool,
 }
 
 /// Run `polarid train`.
 pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     let fits = read_fits(&args.fits).cli()?;
+    if !args.allow_not_ok {
+        refuse_not_ok(&fits, &args.fits).cli()?;
+    }
     let file = path_relative_to_output(&args.fits, &args.output);
     let out = train(&fits, &args.fits, &file).cli()?;
     for w in &out.warnings {

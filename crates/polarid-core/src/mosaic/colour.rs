@@ -80,6 +80,48 @@ impl ColourMethod {
     }
 }
 
+/// The whole 4×4 periods of a `width × height` colour mosaic whose width or height is
+/// not a multiple of 4 (a sensor read out with a partial period at the right or bottom
+/// edge): the top-left `(width − width mod 4) × (height − height mod 4)` pixels, copied
+/// from `raw`, with their width and height; `None` when the mosaic is already whole
+/// periods. The partial period is dropped, not interpolated: its pixels lack samples
+/// of some of the period's 16 lattices. Pixel coordinates are unchanged (the origin is
+/// the top-left corner).
+///
+/// Errors: [`CoreError::InvalidDimensions`] when `raw` is not whole rows of `width`, or
+/// when not one whole period is left (width or height below 4).
+pub fn crop_to_whole_periods<T: Copy>(
+    raw: &[T],
+    width: usize,
+) -> Result<Option<(Vec<T>, usize, usize)>> {
+    let height = raw.len().checked_div(width).unwrap_or(0);
+    if width == 0 || raw.len() != width * height {
+        return Err(CoreError::InvalidDimensions {
+            width,
+            height,
+            reason: format!("{} pixels do not form whole rows", raw.len()),
+        });
+    }
+    let (w, h) = (width - width % 4, height - height % 4);
+    if w == 0 || h == 0 {
+        return Err(CoreError::InvalidDimensions {
+            width,
+            height,
+            reason: "a colour polarization mosaic has a 4x4 period: it needs at least one \
+                     whole period (4x4 pixels)"
+                .into(),
+        });
+    }
+    if (w, h) == (width, height) {
+        return Ok(None);
+    }
+    let mut out = Vec::with_capacity(w * h);
+    for row in raw.chunks_exact(width).take(h) {
+        out.extend_from_slice(&row[..w]);
+    }
+    Ok(Some((out, w, h)))
+}
+
 /// The fused colour reconstruction (module documentation): from the raw mosaic `raw`
 /// (`width × height`, both non-zero multiples of 4) straight to the outputs asked for in
 /// `out`, one [`DofpOutputs`] per band in the order of [`ColourPattern::bands`], each of
@@ -239,4 +281,27 @@ fn superpixel_dispatch<T: Sample, const POLAR: bool>(
     #[cfg(not(target_arch = "x86_64"))]
     let _ = isa;
     ck::superpixel_strip::<T, POLAR>(job, y0, rows, out, sc)
+}
+
+#[cfg(test)]
+mod crop_tests {
+    use super::*;
+
+    #[test]
+    fn partial_periods_are_dropped_at_the_right_and_bottom() {
+        // 10 x 7: two whole periods across, one down.
+        let raw: Vec<u16> = (0..70).collect();
+        let (c, w, h) = crop_to_whole_periods(&raw, 10).unwrap().unwrap();
+        assert_eq!((w, h), (8, 4));
+        assert_eq!(c.len(), 32);
+        // Coordinates are unchanged: pixel (x, y) of the crop is pixel (x, y) of raw.
+        for y in 0..4 {
+            for x in 0..8 {
+                assert_eq!(c[y * 8 + x], raw[y * 10 + x]);
+            }
+        }
+        assert!(crop_to_whole_periods(&raw[..64], 8).unwrap().is_none());
+        assert!(crop_to_whole_periods(&raw[..30], 10).is_err());
+        assert!(crop_to_whole_periods(&raw[..69], 10).is_err());
+    }
 }

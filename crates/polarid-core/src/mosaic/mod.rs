@@ -104,7 +104,7 @@ use rayon::prelude::*;
 use crate::cpu::{Isa, cpu_features};
 use crate::error::Result;
 use crate::stokes::{PixelCounts, PixelRules, Sample, check_len};
-pub use colour::{ColourMethod, ColourPattern, colour_polar};
+pub use colour::{ColourMethod, ColourPattern, colour_polar, crop_to_whole_periods};
 pub use kernel::IntSample;
 use kernel::{Bilinear, Scratch, StripOut, Superpixel};
 pub use pattern::Pattern;

@@ -314,6 +314,16 @@ pub fn parse(path: &Path, text: &str) -> Result<Manifest> {
     p.manifest()
 }
 
+/// True when `text` is a capture-set manifest: TOML with `[[capture]]` or
+/// `[[region]]` tables (so that a manifest given where a table is expected gets a
+/// message saying what it is, not a CSV error).
+pub fn looks_like_manifest(text: &str) -> bool {
+    DeTable::parse(text).is_ok_and(|root| {
+        let root = root.get_ref();
+        root.contains_key("capture") || root.contains_key("region")
+    })
+}
+
 type Table<'i> = DeTable<'i>;
 type Val<'i> = Spanned<DeValue<'i>>;
 

@@ -9,7 +9,7 @@ use super::colour::MaterialSource;
 use super::context::Ctx;
 use super::plates::PlateContext;
 use super::raw::RawScene;
-use super::{Geometry, ImageFormat, MAX_SIDE, Scene};
+use super::{CaptureKind, Geometry, ImageFormat, MAX_SIDE, Scene};
 use crate::error::{IoError, Result};
 
 impl Ctx<'_> {
@@ -158,6 +158,22 @@ impl Ctx<'_> {
                 "a colour capture's wavelengths come from `bands` (default R 650, G 550, \
                  B 450 nm)",
             ));
+        }
+        if matches!(capture, CaptureKind::Dofp { .. }) {
+            // What `measure` demosaics (bilinear): whole 2x2 cells, at least 4x4 pixels.
+            for (v, field, x) in [
+                (&raw.width, "width", width),
+                (&raw.height, "height", height),
+            ] {
+                if !x.is_multiple_of(2) || x < 4 {
+                    return Err(self.err(
+                        &v.as_ref().map_or(0..0, |v| v.span()),
+                        field,
+                        "a DoFP mosaic ([capture] dofp) has a 2x2 period: width and height \
+                         must be even and at least 4 (what `polarid measure` demosaics)",
+                    ));
+                }
+            }
         }
         if capture.bands().is_some() {
             for (v, field, x) in [

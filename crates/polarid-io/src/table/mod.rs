@@ -43,12 +43,14 @@ pub struct CsvTable {
 }
 
 impl CsvTable {
-    /// Read a CSV file.
+    /// Read a CSV file, or standard input when `path` is `-`
+    /// ([`crate::limits::STDIN`]; messages then name `<stdin>`).
     ///
-    /// The file must be a regular file of at most [`text_cap`] bytes.
+    /// The input must be a regular file or a stream (a FIFO, standard input) of at most
+    /// [`text_cap`] bytes ([`read_capped`]).
     pub fn read(path: &Path) -> Result<Self> {
         let bytes = read_capped(path, text_cap(), "CSV")?;
-        Self::from_reader(path, bytes.as_slice())
+        Self::from_reader(&input_label(path), bytes.as_slice())
     }
 
     /// Read CSV text from `reader`; `path` labels error messages.
@@ -261,6 +263,15 @@ impl CsvTable {
     pub fn opt_text(&self, row: usize, col: Option<usize>) -> Option<String> {
         col.map(|c| self.text(row, c).to_string())
             .filter(|s| !s.is_empty())
+    }
+}
+
+/// The name of an input in messages: `<stdin>` for `-` (standard input), else the path.
+pub fn input_label(path: &Path) -> PathBuf {
+    if crate::limits::is_stdin(path) {
+        PathBuf::from("<stdin>")
+    } else {
+        path.to_path_buf()
     }
 }
 

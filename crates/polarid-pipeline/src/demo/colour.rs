@@ -381,6 +381,7 @@ fn frame(path: &Path, width: usize, data: &[u16]) -> Frame {
         height: data.len() / width.max(1),
         kind: SampleKind::U16,
         data: data.iter().map(|&v| f32::from(v)).collect(),
+        recorded_max: None,
     }
 }
 

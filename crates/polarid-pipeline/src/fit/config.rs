@@ -10,8 +10,15 @@ use crate::{PipelineError, Result};
 /// Reflectance model of the fit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Reflectance {
-    /// Specular Fresnel reflection only (the paper's eq. 9): DoLP only.
+    /// The default: the specular DoLP-only fit, then, when
+    /// [`FitConfig::brightness_check`] is on and every row of a target carries its
+    /// brightness (`s0`, `exposure`), the brightness check (docs/MIXED.md): `s0`
+    /// following Lambert's law makes the target `depolarized`, and the mixed model
+    /// selected by BIC replaces the specular fit.
     #[default]
+    Auto,
+    /// Specular Fresnel reflection only (the paper's eq. 9): DoLP only, as asked, with
+    /// no brightness check.
     Specular,
     /// Specular plus a Lambertian depolarized diffuse term; uses `s0` too.
     Mixed,
@@ -19,11 +26,13 @@ pub enum Reflectance {
 
 impl Reflectance {
     /// Every model, in documentation order.
-    pub const ALL: [Reflectance; 2] = [Reflectance::Specular, Reflectance::Mixed];
+    pub const ALL: [Reflectance; 3] =
+        [Reflectance::Auto, Reflectance::Specular, Reflectance::Mixed];
 
-    /// The name used on the command line and in Python: `specular` or `mixed`.
+    /// The name used on the command line and in Python: `auto`, `specular` or `mixed`.
     pub fn as_str(self) -> &'static str {
         match self {
+            Reflectance::Auto => "auto",
             Reflectance::Specular => "specular",
             Reflectance::Mixed => "mixed",
         }
@@ -127,9 +136,10 @@ pub struct FitConfig {
     /// in `[100, 100000)`, for rows without a `wavelength_nm` (rows with one use their
     /// own; [`FitConfig::polarimetric_at`]).
     pub wavelength_nm: f64,
-    /// Specular fit: when every row of a target carries its brightness (`s0` and
-    /// `exposure`, as `measure` writes them) and its angles, decide by the mixed model
-    /// selection whether it reflects specularly at all (docs/MIXED.md).
+    /// [`Reflectance::Auto`]: when every row of a target carries its brightness (`s0`
+    /// and `exposure`, as `measure` writes them) and its angles, decide by the mixed
+    /// model selection whether it reflects specularly at all (docs/MIXED.md). Unused
+    /// by an explicit [`Reflectance::Specular`] or [`Reflectance::Mixed`].
     pub brightness_check: bool,
     /// Specular fit: status `model_mismatch` when the goodness-of-fit or the AoLP test
     /// has a p-value below this, in `[0, 1)` (0: never).
@@ -160,7 +170,7 @@ impl Default for FitConfig {
         let b = FitBounds::default();
         let m = MixedOptions::default();
         Self {
-            reflectance: Reflectance::Specular,
+            reflectance: Reflectance::Auto,
             n_range: (b.n_min, b.n_max),
             k_range: (b.k_min, b.k_max),
             depolarized_dolp: DEPOLARIZED_MAX_DOLP,

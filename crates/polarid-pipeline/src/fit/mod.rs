@@ -16,7 +16,9 @@
 //! standard errors follow from them; otherwise it is unweighted and the standard errors
 //! are scaled by the residual.
 //!
-//! [`Reflectance::Specular`] (default) is the paper's DoLP-only fit, one [`FitPlan`](polarid_core::fit::FitPlan) per
+//! [`Reflectance::Auto`] (default) is [`Reflectance::Specular`] followed by the
+//! brightness check (docs/MIXED.md) when the rows carry `s0` and `exposure`; an
+//! explicit [`Reflectance::Specular`] is the paper's DoLP-only fit and nothing else, one [`FitPlan`](polarid_core::fit::FitPlan) per
 //! distinct β set ([`PlanCache`]). Rows with a `beta_sd_deg` (regions of calibrated
 //! captures, which span a range of β) are fitted with the second-order spread model
 //! `P(β̄) + ½ P''(β̄) s_β²` ([`spread`], docs/GEOMETRY.md); a target none of whose rows
@@ -92,11 +94,35 @@ impl FitOutput {
     }
 }
 
-/// Read a measurements CSV with the line number of each row (for [`fit`]'s messages).
+/// Read a measurements CSV (a file, a FIFO, or standard input for `-`) with the line
+/// number of each row (for [`fit`]'s messages).
+///
+/// Errors: those of the CSV readers; a capture-set manifest given instead (TOML with
+/// `[[capture]]` or `[[region]]` tables) is a [`PipelineError::Data`] saying so and
+/// that `polarid measure` turns it into measurements.
 pub fn read_measurements(path: &Path) -> Result<Vec<(u64, Measurement)>> {
-    let table = CsvTable::read(path)?;
-    let rows = measurements::from_table(&table)?;
-    Ok(table.rows.iter().map(|(line, _)| *line).zip(rows).collect())
+    let bytes = polarid_io::limits::read_capped(path, polarid_io::limits::text_cap(), "CSV")?;
+    let label = polarid_io::table::input_label(path);
+    let parsed = CsvTable::from_reader(&label, bytes.as_slice())
+        .and_then(|table| Ok((measurements::from_table(&table)?, table)));
+    match parsed {
+        Ok((rows, table)) => Ok(table.rows.iter().map(|(line, _)| *line).zip(rows).collect()),
+        Err(e) => {
+            let text = String::from_utf8_lossy(&bytes);
+            if polarid_io::manifest::looks_like_manifest(&text) {
+                Err(data(
+                    &label,
+                    format!(
+                        "this is a capture-set manifest, not a measurements table; run \
+                         `polarid measure {} -o measurements.csv` first and fit that",
+                        label.display()
+                    ),
+                ))
+            } else {
+                Err(e.into())
+            }
+        }
+    }
 }
 
 /// One target's rows, with their line numbers in the input.
@@ -274,7 +300,8 @@ pub fn fit(
         } else {
             match cfg.reflectance {
                 Reflectance::Mixed => mixed::fit_target(path, &ug, class, &mopts, cfg),
-                Reflectance::Specular => specular(path, &ug, class, opts, cfg, &mut plans)
+                Reflectance::Specular => specular(path, &ug, class, opts, cfg, &mut plans),
+                Reflectance::Auto => specular(path, &ug, class, opts, cfg, &mut plans)
                     .map(|spec| mixed::brightness_check(&ug, class, spec, &mopts, cfg)),
             }
         };
@@ -288,6 +315,7 @@ pub fn fit(
             Err(e) => return Err(e),
         };
         t.row.wavelength_nm = g.wavelength_nm;
+        mark_ill_conditioned(&mut t.row, cfg);
         out.push(t);
         progress("fitting", out.len() as u64, total);
     }
@@ -328,6 +356,46 @@ pub fn fit(
     })
 }
 
+/// The largest standard error of an `ok` estimate, as a fraction of its search box's
+/// width ([`FitConfig::n_range`], [`FitConfig::k_range`]): an `n_se` above half the
+/// width of the `n` box (or a `k_se` above half the `k` box) means the ±1 standard
+/// error interval is wider than the whole box, so the data do not locate the estimate,
+/// and the fit is `ill_conditioned` ([`mark_ill_conditioned`]). With the default boxes
+/// (`n` in 0.01..10, `k` in 0..15): `n_se > 4.995` or `k_se > 7.5`.
+pub const MAX_SE_BOX_FRACTION: f64 = 0.5;
+
+/// Make an `ok` fit whose standard error (`n_se` or `k_se`, total: noise and systematic
+/// errors) exceeds [`MAX_SE_BOX_FRACTION`] of its search box `ill_conditioned`, with the
+/// reason naming the error and the bound.
+fn mark_ill_conditioned(row: &mut FitRow, cfg: &FitConfig) {
+    if row.status != FitStatus::Ok {
+        return;
+    }
+    let bound = |(lo, hi): (f64, f64)| MAX_SE_BOX_FRACTION * (hi - lo);
+    let (bn, bk) = (bound(cfg.n_range), bound(cfg.k_range));
+    let mut why = Vec::new();
+    if row.n_se > bn {
+        why.push(format!("n_se = {:.3} > {bn}", row.n_se));
+    }
+    if row.k_se > bk {
+        why.push(format!("k_se = {:.3} > {bk}", row.k_se));
+    }
+    if !why.is_empty() {
+        row.status = FitStatus::IllConditioned;
+        row.reason = format!(
+            "{}: a standard error larger than half the search box (n {}..{}, k {}..{}); \
+             the data do not locate the estimate (n = {:.3}, k = {:.3})",
+            why.join(", "),
+            cfg.n_range.0,
+            cfg.n_range.1,
+            cfg.k_range.0,
+            cfg.k_range.1,
+            row.n,
+            row.k
+        );
+    }
+}
+
 /// The row of a target that could not be fitted: status `invalid_input`, the error's
 /// reason, `n`, `k` and their errors NaN.
 fn unfitted(
@@ -355,7 +423,11 @@ fn unfitted(
             measurements: usable as u64,
             status: FitStatus::InvalidInput,
             reason,
-            model: model.as_str().into(),
+            model: match model {
+                Reflectance::Mixed => "mixed",
+                Reflectance::Auto | Reflectance::Specular => "specular",
+            }
+            .into(),
             ..FitRow::default()
         },
         report: None,
