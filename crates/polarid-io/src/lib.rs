@@ -8,6 +8,7 @@
 pub mod atomic;
 pub mod bands;
 pub mod error;
+pub mod frames_dir;
 pub mod image;
 pub mod library;
 pub mod limits;

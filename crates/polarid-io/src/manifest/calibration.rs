@@ -83,6 +83,8 @@ pub struct CameraSpec {
     pub line: usize,
     /// The core camera built from the above (validated when the manifest was loaded).
     pub camera: PinholeCamera,
+    /// The OpenCV calibration file the intrinsics were read from (`opencv`), if any.
+    pub opencv: Option<super::opencv::OpenCvCalibration>,
 }
 
 impl CameraSpec {
@@ -214,6 +216,7 @@ impl Parser<'_> {
         self.warn_unknown(
             t,
             &[
+                "opencv",
                 "focal_px",
                 "principal_point_px",
                 "distortion",
@@ -224,30 +227,37 @@ impl Parser<'_> {
             ],
             "camera.",
         );
-        let fv = self.req(t, "focal_px", "camera.", &span)?;
-        let focal_px = match fv.get_ref() {
-            DeValue::Array(_) => self.numbers::<2>(fv, "camera.focal_px")?,
-            _ => {
-                let f = self.num(fv, "camera.focal_px")?;
-                [f, f]
+        // `opencv = "calib.yml"`: the intrinsics from an OpenCV calibration file (opencv.rs).
+        let opencv = self.opencv_camera(t)?;
+        let (focal_px, principal_point_px, distortion, fv, pv) = if let Some((c, v)) = &opencv {
+            (c.focal_px, c.principal_point_px, c.distortion, *v, *v)
+        } else {
+            let fv = self.req(t, "focal_px", "camera.", &span)?;
+            let focal_px = match fv.get_ref() {
+                DeValue::Array(_) => self.numbers::<2>(fv, "camera.focal_px")?,
+                _ => {
+                    let f = self.num(fv, "camera.focal_px")?;
+                    [f, f]
+                }
+            };
+            let pv = self.req(t, "principal_point_px", "camera.", &span)?;
+            let principal_point_px = self.numbers::<2>(pv, "camera.principal_point_px")?;
+            let mut distortion = [0.0; 5];
+            if let Some(dv) = self.get(t, "distortion") {
+                let items = self.array(dv, "camera.distortion")?;
+                if !(items.len() == 4 || items.len() == 5) {
+                    return Err(self.err(
+                        &dv.span(),
+                        "camera.distortion",
+                        "expected [k1, k2, p1, p2] or [k1, k2, p1, p2, k3] (OpenCV order)",
+                    ));
+                }
+                for (d, it) in distortion.iter_mut().zip(items) {
+                    *d = self.num(it, "camera.distortion")?;
+                }
             }
+            (focal_px, principal_point_px, distortion, fv, pv)
         };
-        let pv = self.req(t, "principal_point_px", "camera.", &span)?;
-        let principal_point_px = self.numbers::<2>(pv, "camera.principal_point_px")?;
-        let mut distortion = [0.0; 5];
-        if let Some(dv) = self.get(t, "distortion") {
-            let items = self.array(dv, "camera.distortion")?;
-            if !(items.len() == 4 || items.len() == 5) {
-                return Err(self.err(
-                    &dv.span(),
-                    "camera.distortion",
-                    "expected [k1, k2, p1, p2] or [k1, k2, p1, p2, k3] (OpenCV order)",
-                ));
-            }
-            for (d, it) in distortion.iter_mut().zip(items) {
-                *d = self.num(it, "camera.distortion")?;
-            }
-        }
         let posv = self.req(t, "position", "camera.", &span)?;
         let position = self.numbers::<3>(posv, "camera.position")?;
         let intr = Intrinsics {
@@ -341,6 +351,7 @@ impl Parser<'_> {
             orientation,
             line: self.line(span.start),
             camera,
+            opencv: opencv.map(|(c, _)| c),
         }))
     }
 
@@ -646,6 +657,7 @@ impl Parser<'_> {
         captures: &[Capture],
         cap_vals: &[Val<'_>],
     ) -> Result<()> {
+        self.check_opencv_image_size(cam, captures)?;
         let views = planes
             .iter()
             .map(|p| {

@@ -38,6 +38,7 @@
 
 pub mod calibration;
 pub mod colour;
+pub mod opencv;
 pub mod shared;
 
 pub use calibration::{CameraOrientation, CameraSpec, PlaneSpec, SiteSpec, SourceSpec};
