@@ -16,6 +16,7 @@ pub mod manifest;
 pub mod measure;
 pub mod model;
 pub mod scene;
+pub mod suggest;
 pub mod surfaces;
 pub mod table;
 pub mod time;

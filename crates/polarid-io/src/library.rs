@@ -176,14 +176,59 @@ impl Library {
         Ok(self)
     }
 
-    /// A built-in library by name (`builtin`, `paper2007`), or else a library CSV file.
+    /// A built-in library by name (`builtin`, `builtin-rgb`, `paper2007`), or else a
+    /// library CSV file. A spec that is neither (no such file) is an error naming it, with
+    /// the nearest built-in names (`bultin`: "did you mean `builtin`?").
     pub fn load(spec: &str) -> Result<Self> {
         match spec {
             "builtin" => Self::builtin(),
             "paper2007" => Self::paper_2007(),
             "builtin-rgb" => Self::builtin_rgb(),
-            _ => Self::read_csv(Path::new(spec)),
+            _ => {
+                let path = Path::new(spec);
+                if std::fs::symlink_metadata(path).is_err() {
+                    return Err(IoError::Model {
+                        path: path.to_path_buf(),
+                        reason: format!(
+                            "No such file, and not a built-in library ({}){}",
+                            BUILTIN_NAMES.join(", "),
+                            crate::suggest::did_you_mean(
+                                // A scene's spec arrives joined to the scene's folder.
+                                &path.file_name().map_or_else(
+                                    || spec.to_string(),
+                                    |f| f.to_string_lossy().into_owned()
+                                ),
+                                BUILTIN_NAMES
+                            )
+                        ),
+                    });
+                }
+                Self::read_csv(path)
+            }
         }
+    }
+
+    /// The names of the materials, each once, in file order.
+    pub fn names(&self) -> Vec<&str> {
+        let mut out: Vec<&str> = Vec::new();
+        for m in &self.materials {
+            if !out.contains(&m.name.as_str()) {
+                out.push(&m.name);
+            }
+        }
+        out
+    }
+
+    /// The message for a material `name` that is not in this library: the library, the
+    /// nearest names (edit distance or a shared word: `Gold (Au)` → `gold`) and how to
+    /// list them all.
+    pub fn unknown_material(&self, name: &str) -> String {
+        let hint = crate::suggest::did_you_mean(name, self.names());
+        format!(
+            "no material {name:?} in library {}{hint} (`polarid library --list {}` lists \
+             the names)",
+            self.source, self.source
+        )
     }
 
     /// Read a library CSV file.
@@ -1444,6 +1489,42 @@ mod tests {
             e.contains("line 3") && e.contains("line 2") && e.contains("surface"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn mistyped_names_get_suggestions() {
+        let e = Library::load("bultin").unwrap_err();
+        assert!(e.is_bad_input());
+        let e = e.to_string();
+        assert!(
+            e.contains("bultin")
+                && e.contains("No such file")
+                && e.contains("did you mean `builtin`?"),
+            "{e}"
+        );
+        let e = Library::load("/some/scene/dir/builtin_rgb")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("did you mean `builtin-rgb`"), "{e}");
+        let e = Library::load("no_such_library.csv")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("No such file") && !e.contains("did you mean"),
+            "{e}"
+        );
+        let rgb = Library::builtin_rgb().unwrap();
+        assert_eq!(rgb.names().len(), 39);
+        let m = rgb.unknown_material("Gold (Au)");
+        assert!(
+            m.contains("\"Gold (Au)\"")
+                && m.contains("builtin-rgb")
+                && m.contains("did you mean `gold`?"),
+            "{m}"
+        );
+        assert!(m.contains("polarid library --list builtin-rgb"), "{m}");
+        let m = rgb.unknown_material("Aluminium");
+        assert!(m.contains("did you mean `aluminum`?"), "{m}");
     }
 
     #[test]

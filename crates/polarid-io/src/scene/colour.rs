@@ -238,14 +238,7 @@ impl Ctx<'_> {
         let entries: Vec<&crate::library::Material> =
             lib.materials.iter().filter(|x| &x.name == m).collect();
         if entries.is_empty() {
-            return Err(self.err(
-                &span,
-                field,
-                format!(
-                    "no material {m:?} in library {}; see `polarid library` for the names",
-                    lib.source
-                ),
-            ));
+            return Err(self.err(&span, field, lib.unknown_material(m)));
         }
         let wls: Vec<f64> = match bands {
             Some(b) => b.iter().map(|b| b.wavelength_nm).collect(),

@@ -21,6 +21,15 @@
 //! `semiconductor` or `other` between a file and the directory input it was found in (that
 //! directory included), else the configuration's category, else empty.
 //!
+//! Surfaces (materials as they are found, [`polarid_io::surfaces`]): the map's optional
+//! `layer`, `layer_min_nm`, `layer_max_nm` (and `layer_n`, `layer_k`, a constant index
+//! for a layer material without built-in data; `layer` = `none`: no layer), else the
+//! built-in surface of a file behind a built-in material
+//! ([`polarid_io::library::BUILTIN_SOURCES`], matched by its database path) or of a
+//! material named like a built-in one, else none. The layer's index in each band is the
+//! band mean of its data over the same band and step as the bulk; where its data do not
+//! cover the band, the row keeps the layer without an index, with a warning.
+//!
 //! [`build_library`] returns the materials; writing the library CSV (with
 //! [`LibraryConfig::comment`]) is the caller's.
 
@@ -31,7 +40,8 @@ use std::path::{Path, PathBuf};
 
 use polarid_core::classify::check_class_name;
 use polarid_io::IoError;
-use polarid_io::library::{Material, RiiData};
+use polarid_io::library::{BUILTIN_SOURCES, Material, MaterialLayer, RiiData};
+use polarid_io::surfaces::{builtin_surface, layer_index};
 
 pub use sources::default_name;
 
@@ -240,8 +250,11 @@ pub struct LibraryBuild {
     pub materials: Vec<Material>,
     /// Every YAML file read (folders expanded), in order.
     pub files: Vec<PathBuf>,
-    /// The files skipped because their data do not cover the band.
+    /// The files skipped because their data do not cover the band, and the surface
+    /// layers whose data do not cover a band.
     pub warnings: Vec<Warning>,
+    /// How many files were skipped.
+    pub skipped: usize,
 }
 
 fn nm(x_um: f64) -> String {
@@ -264,6 +277,7 @@ pub fn build_library(
     let multi = cfg.bands.len() > 1;
     let mut materials: Vec<Material> = Vec::new();
     let mut warnings = Vec::new();
+    let mut skipped = 0;
     let mut names: BTreeMap<String, PathBuf> = BTreeMap::new();
     for (i, s) in srcs.iter().enumerate() {
         progress("files", i as u64, srcs.len() as u64);
@@ -281,6 +295,7 @@ pub fn build_library(
                 );
                 if cfg.skip_missing {
                     warnings.push(Warning(format!("{}: {what}; skipped", s.path.display())));
+                    skipped += 1;
                     continue;
                 }
                 return Err(IoError::Model {
@@ -324,7 +339,45 @@ pub fn build_library(
             .or_else(|| sources::folder_category(s))
             .or_else(|| cfg.category.clone());
         let reference = m.reference.or_else(|| Some(s.rel.display().to_string()));
+        let layer: Option<sources::LayerSpec> = match m.layer {
+            Some(spec) => spec,
+            None => BUILTIN_SOURCES
+                .iter()
+                .find(|b| s.path.ends_with(b.file))
+                .map(|b| b.name)
+                .and_then(builtin_surface)
+                .or_else(|| builtin_surface(&name))
+                .map(|b| sources::LayerSpec {
+                    name: b.layer.to_string(),
+                    min_nm: b.min_nm,
+                    max_nm: b.max_nm,
+                    index: None,
+                }),
+        };
         for (band, n, k) in rows {
+            let layer = match &layer {
+                None => None,
+                Some(l) => {
+                    let index = match l.index {
+                        Some(x) => Some(x),
+                        None => layer_index(&l.name, band.lo, band.hi, cfg.step)?,
+                    };
+                    if index.is_none() {
+                        warnings.push(Warning(format!(
+                            "{}: the data of surface layer {} do not cover band {band}; \
+                             the layer has no index there",
+                            s.path.display(),
+                            l.name
+                        )));
+                    }
+                    Some(MaterialLayer {
+                        name: l.name.clone(),
+                        index,
+                        min_nm: l.min_nm,
+                        max_nm: l.max_nm,
+                    })
+                }
+            };
             materials.push(Material {
                 name: name.clone(),
                 category: category.clone(),
@@ -333,7 +386,7 @@ pub fn build_library(
                 reference: reference.clone(),
                 line: 0,
                 wavelength_nm: multi.then(|| band.centre()),
-                layer: None,
+                layer,
             });
         }
     }
@@ -349,6 +402,7 @@ pub fn build_library(
         materials,
         files: srcs.into_iter().map(|s| s.path).collect(),
         warnings,
+        skipped,
     })
 }
 

@@ -127,12 +127,130 @@ pub(crate) fn folder_category(s: &Source) -> Option<String> {
     })
 }
 
-/// Name, category and reference given by the map for one file.
+/// A surface layer named by the map: the layer material, the thickness range and, for a
+/// layer material without built-in data, its constant index.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct LayerSpec {
+    pub name: String,
+    pub min_nm: f64,
+    pub max_nm: f64,
+    pub index: Option<(f64, f64)>,
+}
+
+/// Name, category, reference and surface layer given by the map for one file.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Mapped {
     pub name: Option<String>,
     pub category: Option<String>,
     pub reference: Option<String>,
+    /// `None`: the map says nothing (the default applies); `Some(None)`: `none`, no layer.
+    pub layer: Option<Option<LayerSpec>>,
+}
+
+/// The map's optional surface columns (`layer`, `layer_min_nm`, `layer_max_nm`, and
+/// `layer_n`, `layer_k` for a constant index).
+struct LayerCols {
+    layer: usize,
+    min: Option<usize>,
+    max: Option<usize>,
+    n: Option<usize>,
+    k: Option<usize>,
+}
+
+/// The surface layer of map row `r`: an empty `layer` cell → the default (`None`);
+/// `none` → no layer; else a layer material with `0 <= layer_min_nm <= layer_max_nm`,
+/// whose index is `layer_n`, `layer_k` when given (both), else the built-in data of a
+/// known layer material ([`polarid_io::surfaces::LAYER_SOURCES`]).
+fn map_layer(t: &CsvTable, r: usize, c: &LayerCols) -> Result<Option<Option<LayerSpec>>> {
+    let name = t.name(r, c.layer)?;
+    let others = [c.min, c.max, c.n, c.k];
+    if name.is_empty() || name.eq_ignore_ascii_case("none") {
+        for cc in others.into_iter().flatten() {
+            if !t.text(r, cc).is_empty() {
+                return Err(t
+                    .err(r, cc, "a layer value without a `layer` material")
+                    .into());
+            }
+        }
+        return Ok((!name.is_empty()).then_some(None));
+    }
+    let need = |col: Option<usize>, what: &str| -> Result<f64> {
+        match col {
+            Some(cc) => Ok(t.f64(r, cc)?),
+            None => Err(t
+                .err(r, c.layer, format!("a layer needs the column `{what}`"))
+                .into()),
+        }
+    };
+    let min_nm = need(c.min, "layer_min_nm")?;
+    let max_nm = need(c.max, "layer_max_nm")?;
+    if min_nm < 0.0 {
+        // ok: need() succeeded, so the column exists.
+        return Err(t
+            .err(
+                r,
+                c.min.unwrap_or(c.layer),
+                "layer thickness must be >= 0 nm",
+            )
+            .into());
+    }
+    if max_nm < min_nm {
+        return Err(t
+            .err(
+                r,
+                c.max.unwrap_or(c.layer),
+                format!("layer_max_nm must be >= layer_min_nm ({min_nm})"),
+            )
+            .into());
+    }
+    let n = t.opt_f64(r, c.n)?;
+    let k = t.opt_f64(r, c.k)?;
+    let index = match (n, k) {
+        (Some(n), Some(k)) if n > 0.0 && k >= 0.0 => Some((n, k)),
+        (Some(_), Some(_)) => {
+            return Err(t
+                .err(
+                    r,
+                    c.n.unwrap_or(c.layer),
+                    "layer index needs layer_n > 0 and layer_k >= 0",
+                )
+                .into());
+        }
+        (None, None) => None,
+        _ => {
+            return Err(t
+                .err(
+                    r,
+                    c.layer,
+                    "layer_n and layer_k go together (give both or neither)",
+                )
+                .into());
+        }
+    };
+    if index.is_none() && polarid_io::surfaces::layer_source(&name).is_none() {
+        let known: Vec<&str> = polarid_io::surfaces::LAYER_SOURCES
+            .iter()
+            .map(|l| l.name)
+            .collect();
+        return Err(t
+            .err(
+                r,
+                c.layer,
+                format!(
+                    "unknown layer material{} (built-in ones: {}); give its index with \
+                     layer_n, layer_k",
+                    polarid_io::suggest::did_you_mean(&name, known.iter().copied()),
+                    known.join(", ")
+                ),
+            )
+            .into());
+    }
+    Ok(Some(Some(LayerSpec {
+        name,
+        min_nm,
+        max_nm,
+        index,
+    })))
 }
 
 /// Read the `--names` map and assign its rows to the sources (index → entry).
@@ -142,6 +260,24 @@ pub(crate) fn read_names(map: &Path, srcs: &[Source]) -> Result<BTreeMap<usize, 
     let c_name = t.require("name")?;
     let c_cat = t.col("category");
     let c_ref = t.col("reference");
+    let layer_cols = t.col("layer").map(|layer| LayerCols {
+        layer,
+        min: t.col("layer_min_nm"),
+        max: t.col("layer_max_nm"),
+        n: t.col("layer_n"),
+        k: t.col("layer_k"),
+    });
+    if layer_cols.is_none() {
+        for c in ["layer_min_nm", "layer_max_nm", "layer_n", "layer_k"] {
+            if t.col(c).is_some() {
+                return Err(IoError::CsvStructure {
+                    path: t.path.clone(),
+                    reason: format!("column `{c}` without a `layer` column"),
+                }
+                .into());
+            }
+        }
+    }
     let mut out: BTreeMap<usize, Mapped> = BTreeMap::new();
     let mut line_of: BTreeMap<usize, u64> = BTreeMap::new();
     for r in 0..t.rows.len() {
@@ -197,6 +333,10 @@ pub(crate) fn read_names(map: &Path, srcs: &[Source]) -> Result<BTreeMap<usize, 
                 name: Some(name),
                 category: t.opt_text(r, c_cat),
                 reference: t.opt_text(r, c_ref),
+                layer: match &layer_cols {
+                    Some(c) => map_layer(&t, r, c)?,
+                    None => None,
+                },
             },
         );
     }
