@@ -218,6 +218,12 @@ fn walkthrough_from_a_folder_of_frames_to_a_map() {
     for f in &fits {
         assert_eq!(f["status"], "ok", "{f:?}");
     }
+    for f in &fits {
+        eprintln!(
+            "fit {}: n {} ± {}, k {} ± {} ({} rows)",
+            f["class"], f["n"], f["n_se"], f["k"], f["k_se"], f["measurements"]
+        );
+    }
     let find = |class: &str| fits.iter().find(|f| f["class"] == class).unwrap();
     let n = |f: &std::collections::HashMap<String, String>| f["n"].parse::<f64>().unwrap();
     assert!(
@@ -264,6 +270,10 @@ fn walkthrough_from_a_folder_of_frames_to_a_map() {
         ],
     );
     for r in csv_rows(&root.join("library.csv")) {
+        eprintln!(
+            "library {}: {} {}",
+            r["class"], r["status"], r["candidates"]
+        );
         let cands: Vec<&str> = r["candidates"].split(';').collect();
         assert!(cands.contains(&r["class"].as_str()), "{r:?}");
     }
@@ -291,6 +301,7 @@ fn walkthrough_from_a_folder_of_frames_to_a_map() {
         let counts = r["classes"].as_object().unwrap();
         let total: f64 = counts.values().map(|v| v.as_f64().unwrap()).sum();
         let own = counts.get(class).and_then(|v| v.as_f64()).unwrap_or(0.0);
+        eprintln!("map {class}: {counts:?}");
         assert!(own / total >= 0.7, "{class}: {counts:?}");
         for (other, v) in counts {
             if other != class && other != "ambiguous" && other != "unknown" {
@@ -404,4 +415,36 @@ fn init_recognises_layouts_and_refuses_what_it_cannot_read() {
         text(&o.stderr)
     );
     assert!(!root.join("x.toml").exists());
+
+    // The real IMX250MZR frames of data/real-dofp (two 8-bit raw mosaics beside a README
+    // and a LICENSE): two DoFP captures, saturation 255; filled in, they measure.
+    let real = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/real-dofp");
+    let out = root.join("real.toml");
+    let err = ok_in(
+        root,
+        &["init", real.to_str().unwrap(), "-o", out.to_str().unwrap()],
+    );
+    assert!(
+        err.contains("LICENSE") && err.contains("README.md"),
+        "{err}"
+    );
+    assert!(err.contains("at the saturation level 255"), "{err}");
+    let t = std::fs::read_to_string(&out).unwrap();
+    assert_eq!(t.matches("dofp = { file = ").count(), 2, "{t}");
+    assert!(
+        t.contains("saturation = 255.0") && t.contains("pattern = [90, 45, 135, 0]"),
+        "{t}"
+    );
+    let filled = t
+        .replacen("theta_r_deg = nan", "theta_r_deg = 45.0", 1)
+        .replacen("theta_i_deg = nan", "theta_i_deg = 30.0", 1)
+        .replacen("theta_i_deg = nan", "theta_i_deg = 40.0", 1)
+        .replacen("name = \"target1\"", "name = \"centre\"", 1)
+        .replacen("rect = [0, 0, 0, 0]", "rect = [1200, 1000, 64, 64]", 1);
+    std::fs::write(&out, filled).unwrap();
+    ok_in(
+        root,
+        &["measure", out.to_str().unwrap(), "-o", "real.csv", "-q"],
+    );
+    assert_eq!(csv_rows(&root.join("real.csv")).len(), 2);
 }
