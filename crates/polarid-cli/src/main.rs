@@ -39,6 +39,8 @@ enum Command {
     Model(cmd::model::Args),
     /// Compute Stokes, DoLP and AoLP images from polarizer frames or a DoFP mosaic.
     Stokes(cmd::stokes::Args),
+    /// Write a commented manifest skeleton from a folder of frames.
+    Init(cmd::init::Args),
     /// Measure each region's DoLP per capture of a manifest.
     Measure(cmd::measure::Args),
     /// Fit the complex index (n, k) of each target to its DoLP measurements.
@@ -129,6 +131,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Model(a) => cmd::model::run(a, &ctx),
         Command::Stokes(a) => cmd::stokes::run(a, &ctx),
+        Command::Init(a) => cmd::init::run(a, &ctx),
         Command::Measure(a) => cmd::measure::run(a, &ctx),
         Command::Fit(a) => cmd::fit::run(a, &ctx),
         Command::Train(a) => cmd::train::run(a, &ctx),

@@ -14,6 +14,7 @@
 //! |---|---|
 //! | frames → Stokes images → region DoLP rows | [`measure`] (kernels from `polarid_io::measure`) |
 //! | measurement table → one `(n, k)` fit per target | [`fit`] |
+//! | a folder of frames → a commented manifest skeleton | [`init`] |
 //! | labelled fits → prototypes (model) | [`train`] |
 //! | fits → decisions against a model or library | [`classify`] |
 //! | leave-one-out evaluation, Wolff's baseline | [`evaluate`] |
@@ -28,6 +29,7 @@ pub mod demo;
 pub mod error;
 pub mod evaluate;
 pub mod fit;
+pub mod init;
 pub mod library;
 pub mod map;
 pub mod measure;

@@ -5,6 +5,7 @@ pub mod common;
 pub mod demo;
 pub mod evaluate;
 pub mod fit;
+pub mod init;
 pub mod library;
 pub mod map;
 pub mod measure;
