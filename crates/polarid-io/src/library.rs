@@ -26,6 +26,11 @@
 //!   510:590 --band 610:690`, docs/BANDS.md). A material whose data do not cover a band
 //!   lacks that band's row.
 //!
+//! Every built-in material carries its native surface layer as it is found (an oxide or
+//! adsorbed contamination, [`crate::surfaces`], docs/MATERIALS.md): [`Material::layer`],
+//! the layer's index evaluated over the same band as the bulk's. Library CSV files give
+//! layers in the optional columns [`LAYER_COLUMNS`].
+//!
 //! `builtin`'s rows have no `wavelength_nm` column; as multi-band prototypes they are the
 //! 650 nm band. Both built-in libraries of the refractiveindex.info materials can be
 //! evaluated at any wavelength their data cover ([`Library::at_wavelengths`], from the
@@ -1178,8 +1183,10 @@ impl Library {
     /// the library's own bands the library's row is kept (its band mean, e.g. 650 nm:
     /// 610–690 nm); at any other wavelength `λ` the material's `n(λ)`, `k(λ)` from its
     /// refractiveindex.info file ([`BUILTIN_SOURCES`], [`RiiData::nk`]: tabulated data
-    /// linearly interpolated, formulas evaluated, never extrapolated). A material whose
-    /// data do not cover `λ` has no row there; the [`Uncovered`] list names them.
+    /// linearly interpolated, formulas evaluated, never extrapolated), and its surface
+    /// layer's index at the same `λ` (no index there when the layer's data do not cover
+    /// it). A material whose data do not cover `λ` has no row there; the [`Uncovered`]
+    /// list names them.
     /// Wavelengths must be finite and > 0 (others are skipped). Other libraries are
     /// returned unchanged with an empty list.
     pub fn at_wavelengths(&self, wavelengths: &[f64]) -> Result<(Library, Vec<Uncovered>)> {

@@ -63,12 +63,12 @@ pub const LAYER_SOURCES: [LayerSource; 14] = [
     LayerSource {
         name: "Cu2O",
         index: LayerIndexSource::Constant { n: 2.9, k: 0.1 },
-        reference: "cuprite in the red: Roberts and Rastall 1978 (constant; no visible data in the database)",
+        reference: "cuprite in the red, cf. Roberts and Rastall 1978 (constant; no visible data in the database)",
     },
     LayerSource {
         name: "contamination",
         index: LayerIndexSource::Constant { n: 1.5, k: 0.0 },
-        reference: "adsorbed hydrocarbons, n = 1.5 (constant)",
+        reference: "adsorbed hydrocarbons (adventitious carbon), n = 1.5 (constant)",
     },
     LayerSource {
         name: "SiO2",
@@ -81,12 +81,12 @@ pub const LAYER_SOURCES: [LayerSource; 14] = [
     LayerSource {
         name: "NiO",
         index: LayerIndexSource::Constant { n: 2.3, k: 0.0 },
-        reference: "Powell and Spicer 1970 (constant; no data in the database)",
+        reference: "NiO in the visible, cf. Powell and Spicer 1970 (constant; no data in the database)",
     },
     LayerSource {
         name: "Cr2O3",
         index: LayerIndexSource::Constant { n: 2.3, k: 0.0 },
-        reference: "passive-film value between 2.2 and the crystal's 2.5 (constant; no data in the database)",
+        reference: "Cr-rich passive film, between ~2.2 and the crystal's 2.55 (CRC Handbook) (constant; no data in the database)",
     },
     LayerSource {
         name: "TiO2",
@@ -114,8 +114,8 @@ pub const LAYER_SOURCES: [LayerSource; 14] = [
     },
     LayerSource {
         name: "PbO",
-        index: LayerIndexSource::Constant { n: 2.5, k: 0.0 },
-        reference: "litharge, CRC Handbook (constant; no data in the database)",
+        index: LayerIndexSource::Constant { n: 2.6, k: 0.0 },
+        reference: "litharge/massicot 2.5-2.7, CRC Handbook (constant; no data in the database)",
     },
     LayerSource {
         name: "MgO",
@@ -144,7 +144,7 @@ pub const LAYER_SOURCES: [LayerSource; 14] = [
     LayerSource {
         name: "GaAs_oxide",
         index: LayerIndexSource::Constant { n: 1.8, k: 0.0 },
-        reference: "Ga2O3/As2O3 native oxide (constant; no data in the database)",
+        reference: "Ga2O3/As2O3 native oxide, between arsenolite 1.76 and Ga2O3 1.9 (CRC Handbook) (constant; no data in the database)",
     },
 ];
 
@@ -313,6 +313,22 @@ mod tests {
         names.sort_unstable();
         names.dedup();
         assert_eq!(names.len(), BUILTIN_SURFACES.len());
+    }
+
+    #[test]
+    fn the_names_map_gives_the_same_surfaces() {
+        let text = include_str!("../../../data/materials/builtin_names.csv");
+        let t =
+            crate::table::CsvTable::from_reader(Path::new("builtin_names.csv"), text.as_bytes())
+                .unwrap();
+        let c = |n: &str| t.require(n).unwrap();
+        assert_eq!(t.rows.len(), 39);
+        for r in 0..t.rows.len() {
+            let s = builtin_surface(t.text(r, c("name"))).unwrap();
+            assert_eq!(t.text(r, c("layer")), s.layer);
+            assert_eq!(t.f64(r, c("layer_min_nm")).unwrap(), s.min_nm);
+            assert_eq!(t.f64(r, c("layer_max_nm")).unwrap(), s.max_nm);
+        }
     }
 
     #[test]
