@@ -58,17 +58,17 @@ pub const LAYER_SOURCES: [LayerSource; 14] = [
             file: "main/Al2O3/nk/Franta.yml",
             text: include_str!("../../../data/materials/layers/main/Al2O3/nk/Franta.yml"),
         },
-        reference: "Franta et al. 2015 (amorphous Al2O3 film)",
+        reference: "Franta et al. 2015 (amorphous e-beam Al2O3 film, 121.5 nm)",
     },
     LayerSource {
         name: "Cu2O",
         index: LayerIndexSource::Constant { n: 2.9, k: 0.1 },
-        reference: "cuprite in the red, cf. Roberts and Rastall 1978 (constant; no visible data in the database)",
+        reference: "cuprite below its gap: n = 2.849 for the mineral (mineral data); ellipsometry of cuprite 250-850 nm: Roberts and Rastall 1978; k = 0.1 is a typical value, not from a specific measurement (constant; the database has Cu2O only from 2.5 um)",
     },
     LayerSource {
         name: "contamination",
         index: LayerIndexSource::Constant { n: 1.5, k: 0.0 },
-        reference: "adsorbed hydrocarbons (adventitious carbon), n = 1.5 (constant)",
+        reference: "adsorbed hydrocarbons (adventitious carbon), n = 1.5: typical value, not from a specific measurement (constant)",
     },
     LayerSource {
         name: "SiO2",
@@ -81,12 +81,12 @@ pub const LAYER_SOURCES: [LayerSource; 14] = [
     LayerSource {
         name: "NiO",
         index: LayerIndexSource::Constant { n: 2.3, k: 0.0 },
-        reference: "NiO in the visible, cf. Powell and Spicer 1970 (constant; no data in the database)",
+        reference: "typical value, not from a specific measurement; crystalline NiO (bunsenite) n = 2.37 (mineral data) (constant; no data in the database)",
     },
     LayerSource {
         name: "Cr2O3",
         index: LayerIndexSource::Constant { n: 2.3, k: 0.0 },
-        reference: "Cr-rich passive film, between ~2.2 and the crystal's 2.55 (CRC Handbook) (constant; no data in the database)",
+        reference: "typical value, not from a specific measurement; evaporated Cr2O3 films about 2.24 + 0.07i near 700 nm, depending on deposition (constant; no data in the database)",
     },
     LayerSource {
         name: "TiO2",
@@ -110,12 +110,12 @@ pub const LAYER_SOURCES: [LayerSource; 14] = [
             file: "main/ZnO/nk/Aguilar.yml",
             text: include_str!("../../../data/materials/layers/main/ZnO/nk/Aguilar.yml"),
         },
-        reference: "Aguilar et al. 2019 (ZnO thin film)",
+        reference: "Aguilar et al. 2019 (ZnO thin film, from a Zn(1-x)Cd(x)O study)",
     },
     LayerSource {
         name: "PbO",
         index: LayerIndexSource::Constant { n: 2.6, k: 0.0 },
-        reference: "litharge/massicot 2.5-2.7, CRC Handbook (constant; no data in the database)",
+        reference: "typical value, not from a specific measurement; massicot (PbO) 2.51/2.61/2.71 (mineral data) (constant; no data in the database)",
     },
     LayerSource {
         name: "MgO",
@@ -123,7 +123,7 @@ pub const LAYER_SOURCES: [LayerSource; 14] = [
             file: "main/MgO/nk/Stephens.yml",
             text: include_str!("../../../data/materials/layers/main/MgO/nk/Stephens.yml"),
         },
-        reference: "Stephens and Malitson 1952 (MgO)",
+        reference: "Stephens and Malitson 1952 (MgO, 0.36-5.4 um formula)",
     },
     LayerSource {
         name: "Fe3O4",
@@ -144,7 +144,7 @@ pub const LAYER_SOURCES: [LayerSource; 14] = [
     LayerSource {
         name: "GaAs_oxide",
         index: LayerIndexSource::Constant { n: 1.8, k: 0.0 },
-        reference: "Ga2O3/As2O3 native oxide, between arsenolite 1.76 and Ga2O3 1.9 (CRC Handbook) (constant; no data in the database)",
+        reference: "typical value, not from a specific measurement; Ga2O3/As2O3 native oxide, above arsenolite (As2O3, n = 1.755, mineral data) (constant; no data in the database)",
     },
 ];
 
@@ -177,7 +177,8 @@ const fn s(
 }
 
 /// The native surfaces of the built-in materials (every material of `builtin`,
-/// `builtin-rgb` and `paper2007`; docs/MATERIALS.md gives the references).
+/// `builtin-rgb` and `paper2007`; docs/MATERIALS.md gives the references, and says which
+/// ranges are typical values rather than taken from a specific measurement).
 pub const BUILTIN_SURFACES: [BuiltinSurface; 40] = [
     s("aluminum", "Al2O3", 2.0, 5.0),
     s("copper", "Cu2O", 0.5, 3.0),
