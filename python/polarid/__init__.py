@@ -32,7 +32,7 @@ fit_nk(dolp, beta_deg, dolp_se=None)
     (n, k) with standard errors for one target or a stack of pixels (eq. 16).
 fit_mixed(theta_i_deg, theta_r_deg, dolp, s0, ...)
     Depolarization-aware fit (specular + Lambertian diffuse) with model selection.
-fit_table(measurements_csv, reflectance="specular", ...)
+fit_table(measurements_csv, reflectance="auto", ...)
     Every target of a measurements CSV, as ``polarid fit``: a dict of its columns.
 classify(n, k, library_or_model, wavelength_nm=None, band_axis=None)
     Material classification (paper section 6) of arrays of estimates, single- or

@@ -218,7 +218,7 @@ def fit_nk(
 def fit_table(
     measurements: _Path,
     *,
-    reflectance: Literal["specular", "mixed"] = "specular",
+    reflectance: Literal["auto", "specular", "mixed"] = "auto",
     n_range: tuple[float, float] = (0.01, 10.0),
     k_range: tuple[float, float] = (0.0, 15.0),
     depolarized_dolp: float = 0.02,

@@ -633,15 +633,17 @@ fn batch_dict<'py>(
 /// (same Rust function, ``polarid_pipeline::fit``: same rows, statuses and numbers).
 ///
 /// Rows are grouped by ``target`` (targets keep the order of their first row); each
-/// target needs at least 3 rows. ``reflectance="specular"`` is the paper's DoLP-only fit
-/// (eq. 16) with the ``depolarized`` rule; ``"mixed"`` the specular + Lambertian diffuse
+/// target needs at least 3 rows. ``reflectance="auto"`` (the default, as ``polarid
+/// fit``) is the specular fit followed by the brightness check when the rows carry
+/// ``s0`` and ``exposure``; ``"specular"`` is the paper's DoLP-only fit (eq. 16) with the
+/// ``depolarized`` rule and nothing else; ``"mixed"`` the specular + Lambertian diffuse
 /// radiometric fit with BIC model selection (needs ``s0``).
 ///
 /// Parameters
 /// ----------
 /// measurements : str or os.PathLike
 ///     A measurements CSV (written by ``polarid measure``).
-/// reflectance : {"specular", "mixed"}
+/// reflectance : {"auto", "specular", "mixed"}
 /// n_range, k_range : (float, float)
 ///     The search box, ``0 <= MIN < MAX`` (``--n-range``, ``--k-range``).
 /// depolarized_dolp : float
@@ -702,7 +704,7 @@ fn batch_dict<'py>(
 /// FileNotFoundError
 ///     The file does not exist.
 #[pyfunction]
-#[pyo3(signature = (measurements, *, reflectance = "specular", n_range = (0.01, 10.0), k_range = (0.0, 15.0), depolarized_dolp = 0.02, estimate_theta_r = false, shadowing = "none", s0_rel_sd = 0.02, sigma_range = (0.02, 1.0), angle_sd_deg = 0.2, dolp_floor = 0.002, extinction_ratio = 100.0, retardance_deg = 0.0, mismatch_p = 0.001, film_sd_nm = None, strict = false))]
+#[pyo3(signature = (measurements, *, reflectance = "auto", n_range = (0.01, 10.0), k_range = (0.0, 15.0), depolarized_dolp = 0.02, estimate_theta_r = false, shadowing = "none", s0_rel_sd = 0.02, sigma_range = (0.02, 1.0), angle_sd_deg = 0.2, dolp_floor = 0.002, extinction_ratio = 100.0, retardance_deg = 0.0, mismatch_p = 0.001, film_sd_nm = None, strict = false))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit_table<'py>(
     py: Python<'py>,
@@ -726,7 +728,7 @@ pub fn fit_table<'py>(
     let cfg = FitConfig {
         reflectance: Reflectance::parse(reflectance).ok_or_else(|| {
             value_error(format!(
-                "reflectance must be \"specular\" or \"mixed\", got {reflectance:?}"
+                "reflectance must be \"auto\", \"specular\" or \"mixed\", got {reflectance:?}"
             ))
         })?,
         n_range,

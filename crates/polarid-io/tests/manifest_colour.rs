@@ -227,14 +227,28 @@ wavelength_nm = 550.0"#,
 }
 
 #[test]
-fn a_raw_frame_that_is_not_whole_periods_is_named() {
+fn a_raw_frame_that_is_not_whole_periods_is_measured_on_its_whole_periods() {
+    // 18x16: the partial period (2 columns) is dropped, with a warning naming the file.
     let (d, _) = setup(18, 16);
     let text = manifest_text("", r#"{ file = "raw.tif", color = "RGGB" }"#, "");
+    let m = load(d.path(), &text).unwrap();
+    let bands = capture_band_images(&m, &m.captures[0]).unwrap();
+    for b in &bands {
+        assert_eq!((b.images.width, b.images.height), (16, 16));
+        assert!(
+            b.images.warnings.iter().any(|w| w.contains("raw.tif")
+                && w.contains("18x16 pixels, not a whole number of 4x4 colour periods")),
+            "{:?}",
+            b.images.warnings
+        );
+    }
+    // Not one whole period left: refused, naming the file.
+    let (d, _) = setup(3, 16);
     let m = load(d.path(), &text).unwrap();
     match capture_band_images(&m, &m.captures[0]) {
         Err(IoError::Core { path, source }) => {
             assert!(path.ends_with("raw.tif"), "{path:?}");
-            assert!(source.to_string().contains("multiples of 4"), "{source}");
+            assert!(source.to_string().contains("whole period"), "{source}");
         }
         other => panic!("expected a Core error naming raw.tif, got {other:?}"),
     }

@@ -112,7 +112,7 @@ fn rows_per_band_with_wavelength_dark_band_and_mono_unchanged() {
         "{msg}"
     );
 
-    // a manifest without colour captures: no wavelength on its rows (as before)
+    // a manifest without colour captures: a capture's wavelength_nm reaches its rows
     write(d, "mono.tif", &mosaic(&SCENE, 1.0));
     let mono = load(
         d,
@@ -122,7 +122,7 @@ fn rows_per_band_with_wavelength_dark_band_and_mono_unchanged() {
     );
     let rows = measure::measure(&mono, &|_, _, _| {}).unwrap().rows;
     assert_eq!(rows.len(), 2);
-    assert!(rows.iter().all(|r| r.wavelength_nm.is_none()));
+    assert!(rows.iter().all(|r| r.wavelength_nm == Some(600.0)));
     // next to a colour capture, a single-band capture's rows carry its wavelength
     let mixed = load(
         d,

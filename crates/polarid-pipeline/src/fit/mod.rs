@@ -356,13 +356,20 @@ pub fn fit(
     })
 }
 
-/// The largest standard error of an `ok` estimate, as a fraction of its search box's
-/// width ([`FitConfig::n_range`], [`FitConfig::k_range`]): an `n_se` above half the
-/// width of the `n` box (or a `k_se` above half the `k` box) means the ±1 standard
-/// error interval is wider than the whole box, so the data do not locate the estimate,
-/// and the fit is `ill_conditioned` ([`mark_ill_conditioned`]). With the default boxes
-/// (`n` in 0.01..10, `k` in 0..15): `n_se > 4.995` or `k_se > 7.5`.
-pub const MAX_SE_BOX_FRACTION: f64 = 0.5;
+/// The largest standard error of an `ok` estimate, in widths of its search box
+/// ([`FitConfig::n_range`], [`FitConfig::k_range`]): an `n_se` above 3 times the width
+/// of the `n` box (or a `k_se` above 3 times the `k` box) means the ±1 standard error
+/// interval spans six boxes of plausible materials, so the data do not locate the
+/// estimate, and the fit is `ill_conditioned` ([`mark_ill_conditioned`]). With the
+/// default boxes (`n` in 0.01..10, `k` in 0..15): `n_se > 29.97` or `k_se > 45`.
+///
+/// Why so wide: metals are fitted along a ridge of nearly perfectly correlated `(n, k)`
+/// whose marginal errors are large while the covariance still locates the material
+/// across it; the multi-band acceptance study (docs/BANDS.md) classifies such aluminum
+/// estimates with `n_se` up to 21.5 (2.2 box widths, correlation 1.000) correctly. The
+/// bound lies above that and removes the estimates that say nothing, such as
+/// `5.56 ± 44 + (13.9 ± 25)i` (4.4 widths of the `n` box).
+pub const MAX_SE_BOX_FRACTION: f64 = 3.0;
 
 /// Make an `ok` fit whose standard error (`n_se` or `k_se`, total: noise and systematic
 /// errors) exceeds [`MAX_SE_BOX_FRACTION`] of its search box `ill_conditioned`, with the
@@ -383,8 +390,9 @@ fn mark_ill_conditioned(row: &mut FitRow, cfg: &FitConfig) {
     if !why.is_empty() {
         row.status = FitStatus::IllConditioned;
         row.reason = format!(
-            "{}: a standard error larger than half the search box (n {}..{}, k {}..{}); \
-             the data do not locate the estimate (n = {:.3}, k = {:.3})",
+            "{}: a standard error more than {MAX_SE_BOX_FRACTION} times the width of the \
+             search box (n {}..{}, k {}..{}); the data do not locate the estimate \
+             (n = {:.3}, k = {:.3})",
             why.join(", "),
             cfg.n_range.0,
             cfg.n_range.1,
