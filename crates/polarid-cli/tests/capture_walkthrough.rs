@@ -448,3 +448,84 @@ fn init_recognises_layouts_and_refuses_what_it_cannot_read() {
     );
     assert_eq!(csv_rows(&root.join("real.csv")).len(), 2);
 }
+
+/// Cells of docs/CAPTURE.md's table "How many source positions, and what β span": seven
+/// source positions evenly over the span, eq. (9) DoLP (`polarid model`) with standard
+/// error 0.002, fitted by `polarid fit` with its defaults; the noise part
+/// (`n_se_noise`, `k_se_noise`) and the total (`n_se`, `k_se`).
+#[test]
+fn beta_span_table_of_the_capture_guide() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    // (target, n, k, span, n_se noise, n_se total, k_se noise, k_se total) as in the guide.
+    type Cell = (&'static str, f64, f64, (f64, f64), [f64; 4]);
+    let cells: [Cell; 6] = [
+        ("al_35_55", 1.558, 7.712, (35.0, 55.0), [3.5, 5.1, 6.1, 8.2]),
+        (
+            "al_50_75",
+            1.558,
+            7.712,
+            (50.0, 75.0),
+            [0.19, 1.2, 0.52, 3.3],
+        ),
+        (
+            "cu_45_65",
+            0.238,
+            3.626,
+            (45.0, 65.0),
+            [0.06, 0.11, 0.56, 1.3],
+        ),
+        (
+            "si_45_65",
+            3.852,
+            0.0165,
+            (45.0, 65.0),
+            [0.06, 0.13, 0.42, 0.75],
+        ),
+        (
+            "ge_50_75",
+            5.317,
+            0.661,
+            (50.0, 75.0),
+            [0.05, 0.47, 0.15, 0.96],
+        ),
+        (
+            "pc_50_75",
+            1.579,
+            0.0,
+            (50.0, 75.0),
+            [0.002, 0.09, 0.05, 0.29],
+        ),
+    ];
+    let mut rows = String::from("n,k,beta_deg,target\n");
+    for (t, n, k, (a, b), _) in &cells {
+        for i in 0..7 {
+            let beta = a + (b - a) * f64::from(i) / 6.0;
+            rows += &format!("{n},{k},{beta},{t}\n");
+        }
+    }
+    std::fs::write(root.join("rows.csv"), rows).unwrap();
+    ok_in(
+        root,
+        &["model", "--input", "rows.csv", "-o", "dop.csv", "-q"],
+    );
+    let mut meas = String::from("target,beta_deg,dolp,dolp_se\n");
+    for r in csv_rows(&root.join("dop.csv")) {
+        meas += &format!("{},{},{},0.002\n", r["target"], r["beta_deg"], r["dop"]);
+    }
+    std::fs::write(root.join("meas.csv"), meas).unwrap();
+    ok_in(root, &["fit", "meas.csv", "-o", "fits.csv", "-q"]);
+    let fits = csv_rows(&root.join("fits.csv"));
+    for (t, _, _, _, want) in &cells {
+        let f = fits.iter().find(|f| f["target"] == *t).unwrap();
+        let got =
+            ["n_se_noise", "n_se", "k_se_noise", "k_se"].map(|c| f[c].parse::<f64>().unwrap());
+        for (g, w) in got.iter().zip(want) {
+            // The guide rounds to two significant figures.
+            assert!(
+                (g - w).abs() <= 0.06 * w + 0.0006,
+                "{t}: got {got:?}, guide {want:?}"
+            );
+        }
+    }
+}

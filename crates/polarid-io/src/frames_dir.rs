@@ -268,7 +268,7 @@ impl SensorDepth {
         }
         let zero_low = stats.iter().map(|s| s.zero_low_bits).min().unwrap_or(0);
         // A shift only counts when the values span enough levels to show it.
-        let shift = if zero_low >= 2 && zero_low < 16 && max >= 1024.0 {
+        let shift = if (2..16).contains(&zero_low) && max >= 1024.0 {
             zero_low.min(8)
         } else {
             0

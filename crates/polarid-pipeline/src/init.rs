@@ -403,6 +403,12 @@ fn numbers(s: &str) -> Vec<(usize, usize, f64)> {
     out
 }
 
+/// Files of one capture: the name without the angle, and `(angle_deg, file)`.
+type AngleGroup = (String, Vec<(f64, PathBuf)>);
+
+/// A number in a file name: `(start, end, value)`.
+type NumberRun = (usize, usize, f64);
+
 /// True when a set of angles (degrees, distinct) looks like a polarizer's: it holds 0°
 /// (mod 180) or is evenly spaced over 180°.
 fn polarizer_like(angles: &[f64]) -> bool {
@@ -424,8 +430,8 @@ fn polarizer_like(angles: &[f64]) -> bool {
 /// The polarizer angle of each file, when exactly one number of the names changes between
 /// them and its values look like a polarizer's; with `flat`, files are grouped by the
 /// rest of the name. Returns the groups `(key, [(angle, file)])`.
-fn angle_groups(files: &[PathBuf]) -> Option<Vec<(String, Vec<(f64, PathBuf)>)>> {
-    let parsed: Vec<(String, Vec<(usize, usize, f64)>)> = files
+fn angle_groups(files: &[PathBuf]) -> Option<Vec<AngleGroup>> {
+    let parsed: Vec<(String, Vec<NumberRun>)> = files
         .iter()
         .map(|f| {
             let s = stem(f);
@@ -436,7 +442,7 @@ fn angle_groups(files: &[PathBuf]) -> Option<Vec<(String, Vec<(f64, PathBuf)>)>>
     let max_runs = parsed.iter().map(|p| p.1.len()).max().unwrap_or(0);
     // From the last number of the names to the first: angles usually come last.
     for idx in (0..max_runs).rev() {
-        let mut groups: Vec<(String, Vec<(f64, PathBuf)>)> = Vec::new();
+        let mut groups: Vec<AngleGroup> = Vec::new();
         let mut ok = true;
         for ((s, nums), f) in parsed.iter().zip(files) {
             // The idx-th number counted from the end, so names with a different count of

@@ -166,7 +166,7 @@ pub fn parse_opencv_calibration(
     let at = |i: usize| v.get(i).copied().unwrap_or(f64::NAN);
     let (fx, skew, cx, fy, cy) = (at(0), at(1), at(2), at(4), at(5));
     for (i, name) in [(0usize, "fx"), (4, "fy")] {
-        if !(at(i) > 0.0) {
+        if at(i).is_nan() || at(i) <= 0.0 {
             return Err(err(
                 path,
                 k.lines[i],
@@ -731,9 +731,9 @@ fn strip_comment(line: &str, json: bool) -> String {
             None => {
                 if c == '"' || c == '\'' {
                     quote = Some(c);
-                } else if !json && c == '#' && prev_blank {
-                    return chars[..i].iter().collect();
-                } else if json && c == '/' && chars.get(i + 1) == Some(&'/') {
+                } else if (!json && c == '#' && prev_blank)
+                    || (json && c == '/' && chars.get(i + 1) == Some(&'/'))
+                {
                     return chars[..i].iter().collect();
                 }
             }
