@@ -384,6 +384,14 @@ fn init_recognises_layouts_and_refuses_what_it_cannot_read() {
         w(&noangle.join(n), 10);
     }
     refuse("noangle", "give no polarizer angles");
+    let hdr = root.join("hdr/c1");
+    std::fs::create_dir_all(&hdr).unwrap();
+    for e in [10, 40] {
+        for a in [0, 45, 90, 135] {
+            w(&hdr.join(format!("pol{a:03}_exp{e}.png")), 10);
+        }
+    }
+    refuse("hdr", "HDR brackets");
     let mixed = root.join("mixed");
     std::fs::create_dir_all(mixed.join("c1")).unwrap();
     w(&mixed.join("c1/raw.png"), 10);

@@ -520,6 +520,22 @@ fn one_capture(d: &Path, images: &[PathBuf]) -> Result<CaptureData> {
             };
             Ok(CaptureData::Frames(frames))
         }
+        Some(groups) => Err(data_err(
+            d,
+            format!(
+                "holds {} sets of polarizer frames ({}): several exposures (HDR brackets) or \
+                 several captures in one folder are not recognised; give each capture its own \
+                 folder, and write HDR brackets into the manifest by hand (docs/FORMATS.md, \
+                 \"HDR brackets\")",
+                groups.len(),
+                groups
+                    .iter()
+                    .take(3)
+                    .map(|g| g.0.replace("{}", "*"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        )),
         _ => Err(data_err(
             d,
             format!(
