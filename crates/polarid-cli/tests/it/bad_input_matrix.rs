@@ -855,7 +855,7 @@ fn fewer_than_three_measurements() {
             meas_rows()
         ),
     );
-    // Without --strict the target becomes an invalid_input row (tests/partial_failure.rs).
+    // Without --strict the target becomes an invalid_input row (tests/it/partial_failure.rs).
     bad(
         &c,
         &["fit", &f, "-o", "fits.csv", "--strict"],

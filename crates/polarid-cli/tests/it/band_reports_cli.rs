@@ -3,7 +3,7 @@
 //! to end from a colour scene rendered by `polarid simulate`; single-band reports draw
 //! the single-band figures, and a colour map's extra figures are absent from mono maps.
 
-mod common;
+use crate::common;
 
 use common::{csv_rows, polarid_in, text};
 

@@ -5,7 +5,7 @@
 //! out; `library --band ... --band ...` writes one row per material per band and rebuilds
 //! `builtin-rgb`.
 
-mod common;
+use crate::common;
 
 use common::{csv_rows, polarid_in, text};
 

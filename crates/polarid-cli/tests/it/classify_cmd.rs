@@ -1,7 +1,7 @@
 //! `polarid train`, `classify`, `evaluate`: outputs, explanations, exit statuses and
 //! messages.
 
-mod common;
+use crate::common;
 
 use common::{polarid_in, text};
 

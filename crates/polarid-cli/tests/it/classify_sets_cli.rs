@@ -1,7 +1,7 @@
 //! `classify` / `evaluate` with answers as sets: the CSV columns, one / several / no
 //! candidate, the nearest rule beside it, coverage in `evaluate`, and bad options.
 
-mod common;
+use crate::common;
 
 use common::{csv_rows, polarid_in, text};
 

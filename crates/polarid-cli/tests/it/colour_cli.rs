@@ -3,7 +3,7 @@
 //! manifest reader accepts, and whose per-band images give each band's eq. (9) DoLP;
 //! bad colour keys exit 2 naming the field; `polarid demo --color` runs end to end.
 
-mod common;
+use crate::common;
 
 use common::{csv_rows, polarid, text};
 use polarid_io::manifest::{self, CaptureSource};

@@ -6,10 +6,10 @@
 //! radiance, and the colour mosaic takes every raw pixel from the frame of its colour and
 //! polarizer. The surfaces are clean, so the fits use `--film-sd-nm 0`.
 //!
-//! Print the figures with `cargo test --release -p polarid-cli --test colour_measure_map
+//! Print the figures with `cargo test --release -p polarid-cli --test it colour_measure_map::
 //! -- --nocapture`.
 
-mod common;
+use crate::common;
 
 use common::{csv_rows, polarid_in, text};
 

@@ -4,7 +4,7 @@
 //! from polarid's simulator and (when `POLARID_RENDERS` names the directory holding
 //! `paper_lab_60/` and `paper_lab_50/`) on independent Mitsuba 3 renders.
 
-mod common;
+use crate::common;
 
 use common::{csv_rows, polarid};
 
@@ -121,7 +121,7 @@ fn e2e_simulator_captures_classify_through_the_cli() {
 #[test]
 fn e2e_mitsuba_renders_classify_through_the_cli() {
     let Some(root) = std::env::var_os("POLARID_RENDERS").map(PathBuf::from) else {
-        eprintln!(
+        polarid_testkit::note!(
             "skipped: set POLARID_RENDERS to the directory holding paper_lab_60/ and \
              paper_lab_50/ (tools/render/README.md)"
         );

@@ -4,7 +4,7 @@
 //! names file, line, field, reason and value; a core error is preceded by the file whose
 //! data it rejects.
 
-mod common;
+use crate::common;
 
 use common::{polarid_in, text};
 

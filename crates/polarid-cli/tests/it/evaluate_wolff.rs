@@ -2,7 +2,7 @@
 //! classifier's leave-one-out accuracy, on simulated captures (`simulate` → `measure` →
 //! `fit`), and its bad-input handling.
 
-mod common;
+use crate::common;
 
 use common::{polarid_in, text};
 

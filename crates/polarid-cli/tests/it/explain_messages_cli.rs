@@ -2,7 +2,7 @@
 //! `--wolff-beta MIN,MAX` is one word in degrees and its errors say degrees; a failed
 //! write to standard output says so (issue 19).
 
-mod common;
+use crate::common;
 
 use common::{polarid_in, text};
 

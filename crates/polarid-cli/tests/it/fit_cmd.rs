@@ -1,6 +1,6 @@
 //! `polarid fit`: measurements CSV in, fits CSV out (docs/FORMATS.md).
 
-mod common;
+use crate::common;
 
 use common::polarid_cmd;
 

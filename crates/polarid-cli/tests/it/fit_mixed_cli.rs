@@ -3,7 +3,7 @@
 //! `polarid_core::simulate::plate_radiance`, and (when POLARID_RENDERS is set) on the
 //! independent Mitsuba renders of `diffuse_paint`.
 
-mod common;
+use crate::common;
 
 use common::polarid_cmd;
 
@@ -12,25 +12,7 @@ use std::path::{Path, PathBuf};
 
 use polarid_core::simulate::{PlateOptics, plate_radiance};
 use polarid_io::table::fits::{self, FitRow};
-
-/// Deterministic standard normal deviates (SplitMix64 + Box–Muller), so that the test
-/// needs no extra dependency.
-struct Gauss(u64);
-
-impl Gauss {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        ((z >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-    fn sample(&mut self) -> f64 {
-        let (u, v) = (self.uniform(), self.uniform());
-        (-2.0 * u.ln()).sqrt() * (2.0 * PI * v).cos()
-    }
-}
+use polarid_testkit::Rng;
 
 const HEADER: &str =
     "target,class,theta_i_deg,theta_r_deg,phi_deg,beta_deg,dolp,dolp_se,s0,pixels,rejected\n";
@@ -39,13 +21,13 @@ const DOLP_SE: f64 = 0.003;
 /// Rows of one target at θr = 60°, θi = 35…80°: DoLP with Gaussian noise (reported
 /// dolp_se), s0 with 1% multiplicative noise and an arbitrary source scale.
 fn rows(target: &str, class: &str, optics: PlateOptics, seed: u64) -> String {
-    let mut rng = Gauss(seed);
+    let mut rng = Rng(seed);
     let mut s = String::new();
     for i in 0..10 {
         let ti = 35.0 + 5.0 * i as f64;
         let st = plate_radiance(&optics, f64::to_radians(ti), f64::to_radians(60.0), PI).unwrap();
-        let dolp = (st[1].hypot(st[2]) / st[0] + DOLP_SE * rng.sample()).clamp(0.0, 1.0);
-        let s0 = 800.0 * st[0] * (1.0 + 0.01 * rng.sample());
+        let dolp = (st[1].hypot(st[2]) / st[0] + DOLP_SE * rng.normal()).clamp(0.0, 1.0);
+        let s0 = 800.0 * st[0] * (1.0 + 0.01 * rng.normal());
         let beta = (ti + 60.0) / 2.0;
         s.push_str(&format!(
             "{target},{class},{ti},60,180,{beta},{dolp:.9},{DOLP_SE},{s0:.9},1600,0\n"
@@ -330,7 +312,9 @@ fn depolarized_surface_is_flagged_and_not_classified() {
 #[test]
 fn mitsuba_diffuse_paint_mixed_beats_paper() {
     let Some(root) = std::env::var_os("POLARID_RENDERS") else {
-        eprintln!("skipped: set POLARID_RENDERS=/work/renders to run on the Mitsuba renders");
+        polarid_testkit::note!(
+            "skipped: set POLARID_RENDERS=/work/renders to run on the Mitsuba renders"
+        );
         return;
     };
     let set = Path::new(&root).join("diffuse_paint");

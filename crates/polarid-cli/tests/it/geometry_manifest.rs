@@ -2,7 +2,7 @@
 //! `polarid measure` refuses bad geometry with exit status 2 and a message naming the
 //! field, and refuses a valid calibrated manifest cleanly (not implemented yet).
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

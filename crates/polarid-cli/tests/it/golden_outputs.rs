@@ -6,13 +6,13 @@
 //! wall-clock time).
 //!
 //! A deliberate change of an output regenerates the list:
-//! `POLARID_BLESS=1 cargo test --release -p polarid-cli --test golden_outputs`, and the
+//! `POLARID_BLESS=1 cargo test --release -p polarid-cli --test it golden_outputs::`, and the
 //! commit says why the bytes changed.
 //!
 //! The fit kernels give bit-identical results with AVX-512 and AVX2 + FMA; the portable
 //! path agrees only to ~1e-9, so on a CPU without AVX2 + FMA the test is skipped.
 
-mod common;
+use crate::common;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

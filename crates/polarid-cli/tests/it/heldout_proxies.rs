@@ -29,7 +29,7 @@
 //! semiconductor; oxide → never a metal, and not classified where its AoLP flips; PTFE →
 //! no class. All with `polarid fit` and `polarid classify --library builtin` defaults.
 
-mod common;
+use crate::common;
 
 use std::collections::HashMap;
 use std::fmt::Write as _;
@@ -38,32 +38,12 @@ use std::path::{Path, PathBuf};
 use common::{polarid_in, text};
 use polarid_core::film::thin_film;
 use polarid_io::library::RiiData;
+use polarid_testkit::Rng;
 
 const WAVELENGTHS: [f64; 3] = [500.0, 650.0, 800.0];
 const AOI: [f64; 7] = [45.0, 50.0, 55.0, 60.0, 65.0, 70.0, 75.0];
 const KINDS: [&str; 5] = ["silicon", "glass", "lsat", "oxide", "ptfe"];
 const VARIANTS: [&str; 4] = ["full", "band", "se", "bare"];
-
-/// A splitmix64 stream with Gaussian draws.
-struct Rng(u64);
-
-impl Rng {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.uniform()
-    }
-    fn normal(&mut self) -> f64 {
-        let u = self.uniform().max(1e-300);
-        let v = self.uniform();
-        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-    }
-}
 
 /// One row of a proxy measurements file.
 #[derive(Debug, Clone)]
@@ -140,12 +120,12 @@ fn ellipsometer(
     let sd_psi = 0.02f64.to_radians();
     AOI.iter()
         .map(|&a| {
-            let b = (a + offset + 0.01 * rng.normal()).to_radians();
+            let b = (a + offset + 0.01 * rng.normal_co()).to_radians();
             let p = thin_film(film, thickness_nm, substrate, b, wl)
                 .expect("film")
                 .signed_dolp();
             // cos 2Ψ = p; Ψ measured with noise σ_Ψ.
-            let psi = 0.5 * p.clamp(-1.0, 1.0).acos() + sd_psi * rng.normal();
+            let psi = 0.5 * p.clamp(-1.0, 1.0).acos() + sd_psi * rng.normal_co();
             let se = (2.0 * (2.0 * psi).sin().abs() * sd_psi).max(1e-5);
             Row {
                 theta_i: a,
@@ -182,7 +162,7 @@ fn ptfe(rng: &mut Rng) -> Vec<Row> {
     let c = rng.range(0.0, 0.15);
     let d0 = rng.range(0.005, 0.015);
     let d1 = rng.range(0.05, 0.08);
-    let parallel = rng.uniform() < 0.5;
+    let parallel = rng.uniform_co() < 0.5;
     let mut rows = Vec::new();
     for ti in [30.0, 45.0, 60.0] {
         for k in 0..11 {
@@ -195,11 +175,11 @@ fn ptfe(rng: &mut Rng) -> Vec<Row> {
             let f = rho / std::f64::consts::PI
                 * (1.0 + a * (-(g * g) / (2.0 * w * w)).exp())
                 * (1.0 - c * (1.0 - tr.to_radians().cos()));
-            let s0 = f * ti.to_radians().cos() * (1.0 + 0.01 * rng.normal());
+            let s0 = f * ti.to_radians().cos() * (1.0 + 0.01 * rng.normal_co());
             let d = d0 + (d1 - d0) * beta.to_radians().sin().powi(2);
             let se = 0.003;
-            let q = d + se * rng.normal();
-            let u = se * rng.normal();
+            let q = d + se * rng.normal_co();
+            let u = se * rng.normal_co();
             let mag = (q * q + u * u).sqrt();
             rows.push(Row {
                 theta_i: ti,
@@ -260,7 +240,7 @@ fn proxies(idx: &Indices, wl: f64, seed: u64) -> Vec<Proxy> {
 fn aolp_poi(rng: &mut Rng, signed: f64, se: f64) -> f64 {
     let base = if signed >= 0.0 { 90.0 } else { 0.0 };
     let sd = (se / (2.0 * signed.abs().max(1e-6))).min(1.0).to_degrees();
-    (base + sd * rng.normal()).rem_euclid(180.0)
+    (base + sd * rng.normal_co()).rem_euclid(180.0)
 }
 
 /// The measurements CSV of `targets` in `variant`.

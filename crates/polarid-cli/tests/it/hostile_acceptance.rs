@@ -11,7 +11,7 @@
 //! which the test sees), so the bound is checked either way. Run with `--nocapture` to
 //! see the figures.
 
-mod common;
+use crate::common;
 
 use std::fs;
 use std::io::Cursor;
@@ -132,7 +132,6 @@ fn bomb_tiff(w: u32, h: u32, bits: u16) -> Vec<u8> {
     dir.write_tag(Tag::StripByteCounts, &vec![block.len() as u32; strips][..])
         .unwrap();
     dir.finish().unwrap();
-    drop(enc);
     buf.into_inner()
 }
 

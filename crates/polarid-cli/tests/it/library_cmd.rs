@@ -4,7 +4,7 @@
 //! `polarid classify --library`, and bad inputs (exit status 2, file/field/value in the
 //! message, no output left behind).
 
-mod common;
+use crate::common;
 
 use common::{polarid_in, text};
 
@@ -62,7 +62,7 @@ fn material<'a>(lib: &'a Library, name: &str) -> &'a polarid_io::library::Materi
 }
 
 /// `db_path` of the built-in CSV → YAML file of the database copy (as in
-/// polarid-io/tests/library_yaml.rs; the CSV uses refractiveindex.info's page names).
+/// polarid-io/tests/it/library_yaml.rs; the CSV uses refractiveindex.info's page names).
 const YAML_OF_DB_PATH: [(&str, &str); 39] = [
     ("main/Al/Rakic", "main/Al/nk/Rakic.yml"),
     ("main/Cu/Johnson", "main/Cu/nk/Johnson.yml"),

@@ -12,7 +12,7 @@
 //! captures (one β per capture, from the angles at the image centre) give `(n, k)`
 //! many standard errors off.
 
-mod common;
+use crate::common;
 
 use common::polarid;
 
@@ -20,6 +20,7 @@ use std::path::{Path, PathBuf};
 
 use polarid_core::dop::dop;
 use polarid_core::geometry::{Distortion, Intrinsics, PinholeCamera, Plane, Source, ViewGeometry};
+use polarid_testkit::Rng;
 
 const W: usize = 160;
 const H: usize = 160;
@@ -60,27 +61,6 @@ const PLAIN: SceneNoise = SceneNoise {
     gain: f64::INFINITY,
     bright: |_| 1.0,
 };
-
-/// Gaussian noise from a small deterministic generator (SplitMix64, Box–Muller): the
-/// CLI tests have no random-number dependency.
-struct Noise(u64);
-
-impl Noise {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^= z >> 31;
-        ((z >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-
-    /// A normal deviate with standard deviation `sd`.
-    fn normal(&mut self, sd: f64) -> f64 {
-        let (u1, u2) = (self.uniform(), self.uniform());
-        sd * (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-    }
-}
 
 /// A plate: name, class, `(n, k)`, rectangle `[x, y, width, height]` (pixels).
 struct Plate {
@@ -152,7 +132,7 @@ fn plate_at(plates: &[Plate], x: usize, y: usize) -> Option<&Plate> {
 fn write_scene(dir: &Path, sn: &SceneNoise) -> (PathBuf, PathBuf, PathBuf) {
     let plates = plates();
     let view = ViewGeometry::new(camera(), Plane::horizontal()).unwrap();
-    let mut noise = Noise(sn.seed);
+    let mut noise = Rng(sn.seed);
     let mut cal = format!(
         "[camera]\nfocal_px = {FOCAL:?}\nprincipal_point_px = [{CX:?}, {CY:?}]\nposition = {CAMERA:?}\nlook_at = [0.0, 0.0, 0.0]\nup = [0.0, 0.0, 1.0]\n"
     );
@@ -191,7 +171,7 @@ fn write_scene(dir: &Path, sn: &SceneNoise) -> (PathBuf, PathBuf, PathBuf) {
                     let a = 2.0 * a.to_radians();
                     let mean = 0.5 * (s0 + s1 * a.cos() + s2 * a.sin());
                     let sd = (sn.read * sn.read + mean / sn.gain).sqrt();
-                    let v = mean + noise.normal(sd);
+                    let v = mean + sd * noise.normal();
                     f[y * W + x] = v as f32;
                 }
             }

@@ -4,7 +4,7 @@
 //! same captures' regions; and (when `POLARID_RENDERS` names the renders directory)
 //! on the independent Mitsuba renders `paper_lab_60`.
 
-mod common;
+use crate::common;
 
 use common::polarid;
 
@@ -376,7 +376,7 @@ fn bad_inputs_exit_2_and_name_the_fault() {
 #[test]
 fn mitsuba_renders_paper_lab_60() {
     let Some(root) = std::env::var_os("POLARID_RENDERS") else {
-        eprintln!("POLARID_RENDERS not set: skipping the Mitsuba render test");
+        polarid_testkit::note!("POLARID_RENDERS not set: skipping the Mitsuba render test");
         return;
     };
     let scene = Path::new(&root).join("paper_lab_60");
@@ -476,7 +476,7 @@ fn answers(
 #[test]
 fn mitsuba_paper_lab_50_held_out_pixels_are_right_ambiguous_or_unknown() {
     let Some(root) = std::env::var_os("POLARID_RENDERS") else {
-        eprintln!("POLARID_RENDERS not set: skipping the Mitsuba render test");
+        polarid_testkit::note!("POLARID_RENDERS not set: skipping the Mitsuba render test");
         return;
     };
     let root = Path::new(&root);

@@ -3,10 +3,9 @@
 //! `beta_sd_deg`, `aolp_deg` and `aolp_poi_deg`; `polarid fit` reads the file and
 //! recovers the plates' `(n, k)`.
 
-mod common;
+use crate::common;
 
-#[path = "../../polarid-io/tests/support/calibrated_bench.rs"]
-mod bench;
+use polarid_testkit::calibrated_bench as bench;
 
 use common::{csv_rows, polarid_in, text};
 

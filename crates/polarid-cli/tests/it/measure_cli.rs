@@ -1,7 +1,7 @@
 //! `polarid measure` end to end on generated rotating-polarizer, DoFP and Stokes
 //! captures of two uniform plates; errors name the manifest line; no partial output.
 
-mod common;
+use crate::common;
 
 use common::polarid;
 

@@ -3,7 +3,7 @@
 //! rows give exit status 2, a message naming the file, line, column and value, and no
 //! output file.
 
-mod common;
+use crate::common;
 
 use common::polarid;
 

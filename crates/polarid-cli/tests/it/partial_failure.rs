@@ -4,7 +4,7 @@
 //! `invalid_input`; the commands finish the rest and exit 0 with a warning, exit 2 only
 //! when nothing is usable, and `--strict` restores the error at the first problem.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

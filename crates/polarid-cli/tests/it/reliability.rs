@@ -8,7 +8,7 @@
 //! Peak memory is bounded with `ulimit -v` on the child (a process over its limit
 //! cannot allocate and aborts, which these tests would see as a failure, not exit 2).
 
-mod common;
+use crate::common;
 
 use std::fs;
 use std::io::Cursor;
@@ -112,7 +112,6 @@ fn bomb_tiff(w: u32, h: u32, bits: u16) -> Vec<u8> {
     dir.write_tag(Tag::StripByteCounts, &vec![block.len() as u32; strips][..])
         .unwrap();
     dir.finish().unwrap();
-    drop(enc);
     buf.into_inner()
 }
 

@@ -21,7 +21,7 @@
 //! paper's train-then-map workflow, as in `map_cmd.rs`); a library model would test the
 //! literature's spread between datasets, not the geometry.
 
-mod common;
+use crate::common;
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -36,7 +36,7 @@ const K_TOL: f64 = 0.06;
 /// The bench sets under `POLARID_RENDERS`, or `None` (with a note) when there are none.
 fn bench_sets(test: &str) -> Option<Vec<PathBuf>> {
     let Some(root) = std::env::var_os("POLARID_RENDERS").map(PathBuf::from) else {
-        eprintln!(
+        polarid_testkit::note!(
             "{test}: skipped: set POLARID_RENDERS to the directory holding bench_450/ and \
              bench_550/ (tools/render/README.md, \"Calibrated bench\")"
         );

@@ -31,7 +31,7 @@
 //! with the calibrated geometry, `measure`, the rows joined with `wavelength_nm`. It
 //! checks the renders and this file's machinery today.
 
-mod common;
+use crate::common;
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -53,7 +53,7 @@ const FIT_OPTS: [&str; 2] = ["--film-sd-nm", "0"];
 /// The colour set under `POLARID_RENDERS`, or `None` (with a note) when there is none.
 fn colour_set(test: &str) -> Option<PathBuf> {
     let Some(root) = std::env::var_os("POLARID_RENDERS").map(PathBuf::from) else {
-        eprintln!(
+        polarid_testkit::note!(
             "{test}: skipped: set POLARID_RENDERS to the directory holding {SET}/ \
              (tools/render/README.md, \"Colour camera\")"
         );

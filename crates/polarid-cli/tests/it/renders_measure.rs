@@ -110,7 +110,9 @@ fn check(dir: &Path, manifest: &str, tmp: &Path) -> (usize, f64, String) {
 #[test]
 fn rendered_plates_dolp_within_0_003_from_frames_and_dofp() {
     let Some(root) = std::env::var_os("POLARID_RENDERS").map(PathBuf::from) else {
-        eprintln!("POLARID_RENDERS not set: skipping the check on independent renders");
+        polarid_testkit::note!(
+            "POLARID_RENDERS not set: skipping the check on independent renders"
+        );
         return;
     };
     let tmp = tempfile::tempdir().unwrap();

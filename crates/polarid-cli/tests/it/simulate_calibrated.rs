@@ -7,7 +7,7 @@
 //! Bad scenes exit 2 naming the field and write nothing. `demo --bench` either runs end
 //! to end or stops, cleanly, where measurement with calibrated geometry is missing.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::Output;

@@ -1,7 +1,7 @@
 //! `polarid simulate`: simulated captures fed back through `measure` and `fit` recover
 //! each plate's (n, k) within 3 standard errors; scene errors exit 2 and create nothing.
 
-mod common;
+use crate::common;
 
 use common::{csv_rows, polarid};
 

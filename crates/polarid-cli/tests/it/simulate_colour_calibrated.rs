@@ -11,7 +11,7 @@
 //! Print the figures with `cargo test --release -p polarid-cli --test
 //! simulate_colour_calibrated -- --nocapture`.
 
-mod common;
+use crate::common;
 
 use common::{csv_rows, polarid_in, text};
 

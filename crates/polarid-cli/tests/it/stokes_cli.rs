@@ -1,7 +1,7 @@
 //! `polarid stokes` end to end: generated frames in a tempdir, outputs, exit codes,
 //! messages, and no partial output on failure.
 
-mod common;
+use crate::common;
 
 use common::polarid;
 

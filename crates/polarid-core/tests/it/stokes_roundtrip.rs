@@ -173,7 +173,7 @@ fn singular_angle_sets_are_errors_and_name_the_angles() {
 #[test]
 fn wrong_buffer_sizes_are_errors() {
     let solver = StokesSolver::from_degrees(&[0.0, 60.0, 120.0]).unwrap();
-    let f = vec![0.0f32; 12];
+    let f = [0.0f32; 12];
     let v = [&f[..], &f[..]];
     let (mut a, mut b, mut c, mut m) = (vec![0.0; 12], vec![0.0; 12], vec![0.0; 12], vec![0; 12]);
     assert!(matches!(
@@ -188,7 +188,7 @@ fn wrong_buffer_sizes_are_errors() {
         ),
         Err(CoreError::LengthMismatch { .. })
     ));
-    let short = vec![0.0f32; 11];
+    let short = [0.0f32; 11];
     let v = [&f[..], &f[..], &short[..]];
     assert!(
         solver

@@ -1,12 +1,11 @@
 //! `measure` on calibrated captures (issue 15, deliverables 2 and 5): a synthetic bench
-//! (tests/support/calibrated_bench.rs) with a perspective camera, lamps at 0.5 m in and
+//! (`polarid_testkit::calibrated_bench`) with a perspective camera, lamps at 0.5 m in and
 //! out of the plane of incidence, and plates whose brightness varies like a specular
 //! lobe. Checked: the S0-weighted region geometry and `beta_sd_deg`, `aolp_poi_deg` ≈
 //! 90°, `dolp` against `Σ S0 P(β_p) / Σ S0`, the coverage of `dolp_se` over many seeds,
 //! bad geometry naming the region and capture, and the CSV columns.
 
-#[path = "support/calibrated_bench.rs"]
-mod bench;
+use polarid_testkit::calibrated_bench as bench;
 
 use bench::{PLATES, clean, clean_with, lamps, lamps_at, load, noisy};
 use polarid_core::geometry::{self, Distortion, Intrinsics, PinholeCamera};

@@ -7,7 +7,7 @@
 //! and classification are the pipeline's (`fit`, `train`, `classify` on all bands of a
 //! target at once). The three-band classifier tells copper from gold on ≥ 99% of the test
 //! targets over many seeds; the single-band classifier (650 nm rows only) on the same data
-//! cannot. `BANDS_TABLE=1 cargo test --release -p polarid-pipeline --test bands_classify --
+//! cannot. `BANDS_TABLE=1 cargo test --release -p polarid-pipeline --test it bands_classify:: --
 //! --nocapture` prints the table of docs/BANDS.md.
 
 use std::collections::BTreeMap;
@@ -22,6 +22,7 @@ use polarid_pipeline::classify::{group_fits, multi_estimate_of};
 use polarid_pipeline::fit::{self, FitConfig};
 use polarid_pipeline::progress::no_progress;
 use polarid_pipeline::train;
+use polarid_testkit::Rng;
 
 /// Bands (nm) and the DoLP noise of one region's row in each (standard deviation).
 const BANDS: [(f64, f64); 3] = [(450.0, 0.006), (550.0, 0.004), (650.0, 0.003)];
@@ -30,26 +31,6 @@ const THETA_R: f64 = 60.0;
 const THETA_I: [f64; 8] = [30.0, 37.0, 44.0, 51.0, 58.0, 65.0, 72.0, 79.0];
 /// Standard deviation of the geometry's angles, degrees (the fit's default `angle_sd_deg`).
 const ANGLE_SD: f64 = 0.2;
-
-/// splitmix64 with Box–Muller: a deterministic normal generator (no dependency).
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn uniform(&mut self) -> f64 {
-        ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-    fn normal(&mut self) -> f64 {
-        let (u, v) = (self.uniform(), self.uniform());
-        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-    }
-}
 
 /// The six materials: `(class, [(n, k) at 450, 550, 650 nm])`. Metals and the clear
 /// plastic from the built-in three-band library (band means, docs/BANDS.md); the paint

@@ -16,6 +16,7 @@ use polarid_io::table::fits::FitRow;
 use polarid_io::table::measurements::Measurement;
 use polarid_pipeline::classify::estimate_of;
 use polarid_pipeline::fit::{FitConfig, fit};
+use polarid_testkit::Rng;
 
 fn silent(_: &str, _: u64, _: u64) {}
 
@@ -23,19 +24,6 @@ fn silent(_: &str, _: u64, _: u64) {}
 /// (section 7: θr = 60°, θi = 35–80° in 5° steps, β = 47.5–70°).
 const THETA_I: [f64; 10] = [35.0, 40.0, 45.0, 50.0, 55.0, 60.0, 65.0, 70.0, 75.0, 80.0];
 const THETA_R: f64 = 60.0;
-
-/// A splitmix64 stream for the targets' parameters (the simulator has its own seeds).
-struct Rng(u64);
-
-impl Rng {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
 
 /// Rows of the measurements CSV from simulated rows; `brightness`: with `s0` and
 /// `exposure` (as `measure` writes them), else without.
@@ -112,7 +100,7 @@ fn oxide_coverage(
         let mut rows = Vec::new();
         let mut thick = Vec::new();
         for t in 0..per_material {
-            let d = 1.0 + 4.0 * rng.uniform();
+            let d = 1.0 + 4.0 * rng.uniform_co();
             thick.push(d);
             let target = ImperfectTarget {
                 surface: Surface::Film {
@@ -120,7 +108,7 @@ fn oxide_coverage(
                     film,
                     thickness_nm: d,
                 },
-                sigma: 0.1 + 0.2 * rng.uniform(),
+                sigma: 0.1 + 0.2 * rng.uniform_co(),
                 rho_d: 0.0,
             };
             let theta_i: Vec<f64> = THETA_I.iter().map(|d| d.to_radians()).collect();
@@ -224,9 +212,9 @@ fn thick_films_whose_aolp_flips_are_model_mismatch() {
             surface: Surface::Film {
                 substrate: (p.n, p.k),
                 film,
-                thickness_nm: 80.0 + 1420.0 * rng.uniform(),
+                thickness_nm: 80.0 + 1420.0 * rng.uniform_co(),
             },
-            sigma: 0.1 + 0.2 * rng.uniform(),
+            sigma: 0.1 + 0.2 * rng.uniform_co(),
             rho_d: 0.0,
         };
         let sim = simulate_target(
@@ -267,12 +255,12 @@ fn diffusers_with_known_brightness_are_never_classified() {
     let mut rows = Vec::new();
     let count = 200;
     for t in 0..count {
-        let d0 = 0.01 + 0.02 * rng.uniform();
+        let d0 = 0.01 + 0.02 * rng.uniform_co();
         let target = ImperfectTarget {
             surface: Surface::Diffuser {
-                albedo: 0.3 + 0.69 * rng.uniform(),
+                albedo: 0.3 + 0.69 * rng.uniform_co(),
                 dolp_0: d0,
-                dolp_90: d0 + (0.06 - d0) * rng.uniform(),
+                dolp_90: d0 + (0.06 - d0) * rng.uniform_co(),
                 parallel: t % 2 == 0,
             },
             sigma: 0.0,

@@ -1,13 +1,12 @@
 //! `measure` → `fit` on calibrated captures (issue 15, deliverables 2 and 5): on the
-//! synthetic bench of `polarid-io/tests/support/calibrated_bench.rs` (perspective camera,
+//! synthetic bench of `polarid_testkit::calibrated_bench` (perspective camera,
 //! lamps at 0.5 m and 0.25 m in and out of the plane of incidence, a specular lobe on
 //! each plate), the fit of the measured rows recovers `(n, k)` within 3 reported standard
 //! errors for ≥ 99 % of the targets over many seeds; fitting the same rows at the
 //! rectangle's centre β without the spread model misses by many standard errors. And
 //! out-of-plane far-field captures (φ ≠ 180°) through measure and fit.
 
-#[path = "../../polarid-io/tests/support/calibrated_bench.rs"]
-mod bench;
+use polarid_testkit::calibrated_bench as bench;
 
 use std::path::Path;
 

@@ -10,27 +10,7 @@ use polarid_core::dop::dop;
 use polarid_io::table::fits::FitRow;
 use polarid_io::table::measurements::Measurement;
 use polarid_pipeline::fit::{FitConfig, fit};
-
-/// splitmix64 with Box–Muller normals: no dependency, reproducible.
-struct Rng(u64);
-
-impl Rng {
-    fn u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn uniform(&mut self) -> f64 {
-        (self.u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn normal(&mut self) -> f64 {
-        let u1 = self.uniform().max(1e-300);
-        let u2 = self.uniform();
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-    }
-}
+use polarid_testkit::Rng;
 
 /// Absorbing materials (gold and copper at 450 nm, copper at 650 nm, an absorbing
 /// semiconductor). Aluminium (1.2 + 7.0i) is left out of the coverage claim: with six
@@ -71,7 +51,7 @@ fn realistic(
     er: f64,
     se: f64,
 ) -> Vec<Measurement> {
-    let cam = (2.0 * rng.uniform() - 1.0) * max_off;
+    let cam = (2.0 * rng.uniform_co() - 1.0) * max_off;
     let scale = if er.is_finite() {
         (er - 1.0) / (er + 1.0)
     } else {
@@ -80,9 +60,9 @@ fn realistic(
     THETA_I
         .iter()
         .map(|&ti| {
-            let src = (2.0 * rng.uniform() - 1.0) * max_off;
+            let src = (2.0 * rng.uniform_co() - 1.0) * max_off;
             let beta_true = (0.5 * (ti + src + THETA_R + cam)).to_radians();
-            let dolp = (scale * dop(n, k, beta_true) + se * rng.normal()).clamp(0.0, 1.0);
+            let dolp = (scale * dop(n, k, beta_true) + se * rng.normal_co()).clamp(0.0, 1.0);
             Measurement {
                 target: name.into(),
                 theta_i_deg: Some(ti),
@@ -192,16 +172,16 @@ fn model_draw(
     se: f64,
 ) -> Vec<Measurement> {
     let sd = cfg.angle_sd_deg;
-    let cam = sd * rng.normal();
-    let eps = cfg.polarimetric().scale_sd() * rng.normal();
+    let cam = sd * rng.normal_co();
+    let eps = cfg.polarimetric().scale_sd() * rng.normal_co();
     THETA_I
         .iter()
         .map(|&ti| {
-            let src = sd * rng.normal();
+            let src = sd * rng.normal_co();
             let beta_true = (0.5 * (ti + src + THETA_R + cam)).to_radians();
             let dolp = (1.0 - eps) * dop(n, k, beta_true)
-                + cfg.dolp_floor * rng.normal()
-                + se * rng.normal();
+                + cfg.dolp_floor * rng.normal_co()
+                + se * rng.normal_co();
             Measurement {
                 target: name.into(),
                 phi_deg: 180.0,
@@ -351,7 +331,7 @@ fn films_whose_aolp_flips_are_model_mismatch() {
     for seed in 0..300 {
         // SiO2 on silicon, 0.3–3 wavelengths thick; or a bare metal for the false alarms.
         let bare = seed % 3 == 0;
-        let d = 0.3 + 2.7 * rng.uniform();
+        let d = 0.3 + 2.7 * rng.uniform_co();
         let sub = if bare {
             MATERIALS[seed % 4]
         } else {
@@ -367,9 +347,9 @@ fn films_whose_aolp_flips_are_model_mismatch() {
                 } else {
                     film_dolp(1.46, d, sub, beta)
                 };
-                let dolp = (p.abs() + se * rng.normal()).clamp(0.0, 1.0);
+                let dolp = (p.abs() + se * rng.normal_co()).clamp(0.0, 1.0);
                 let aolp_sd = (se / (2.0 * p.abs().max(1e-3))).to_degrees();
-                let aolp = if p >= 0.0 { 90.0 } else { 0.0 } + aolp_sd * rng.normal();
+                let aolp = if p >= 0.0 { 90.0 } else { 0.0 } + aolp_sd * rng.normal_co();
                 Measurement {
                     target: "t".into(),
                     phi_deg: 180.0,

@@ -1,5 +1,5 @@
-//! A synthetic calibrated bench for tests (shared by `polarid-io/tests/measure_calibrated.rs`
-//! and `polarid-pipeline/tests/measure_fit_calibrated.rs` through `#[path]`): a
+//! A synthetic calibrated bench for tests (used by the measure tests of polarid-io, the
+//! calibrated fit tests of polarid-pipeline and the CLI's calibrated measure tests): a
 //! perspective camera close to a bench plane, lamps at a finite distance (in and out of
 //! the plane of incidence), plates whose pixels reflect s-polarized light with the DoLP of
 //! eq. (9) at their own β, a brightness that varies across each plate like a specular
@@ -10,8 +10,6 @@
 //! Gaussian noise to four polarizer frames (0°, 45°, 90°, 135°) with variance
 //! `gain · I + read²` and recomputes the Stokes vectors.
 
-#![allow(dead_code)]
-
 use std::path::Path;
 
 use polarid_core::dop::dop;
@@ -20,6 +18,8 @@ use polarid_core::region::{Rect, Sampling};
 use polarid_core::stokes::PixelCounts;
 use polarid_io::manifest::{self, Manifest};
 use polarid_io::measure::StokesImages;
+
+use crate::Rng;
 
 /// Image width, pixels.
 pub const W: usize = 80;
@@ -222,40 +222,6 @@ pub fn clean_with(m: &Manifest, plates: &[Plate], lamp: [f64; 3], sigma: f64) ->
         });
     }
     Clean { s, truth }
-}
-
-/// SplitMix64's output function.
-fn mix(mut z: u64) -> u64 {
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-/// A small deterministic generator (SplitMix64) with Gaussian draws (Box–Muller).
-pub struct Rng(u64);
-
-impl Rng {
-    /// Seeded generator: the seed is hashed into the state, so that the streams of
-    /// nearby seeds do not overlap.
-    pub fn new(seed: u64) -> Self {
-        Self(mix(seed ^ 0xD1B5_4A32_D192_ED03).wrapping_add(mix(seed.wrapping_add(1))))
-    }
-
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        mix(self.0)
-    }
-
-    /// Uniform in (0, 1).
-    pub fn uniform(&mut self) -> f64 {
-        ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-
-    /// Standard normal.
-    pub fn normal(&mut self) -> f64 {
-        let (u1, u2) = (self.uniform(), self.uniform());
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-    }
 }
 
 /// Read noise of each polarizer frame, DN.
