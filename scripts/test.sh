@@ -1,16 +1,55 @@
 #!/usr/bin/env bash
-# The one command that runs every test of polarid (README, CI).
-# Rust: formatting check, the whole workspace's tests (release build: the Monte-Carlo
-# acceptance tests run 10^5 fits). Python: builds the package into a venv and runs pytest.
-# First of all: the repository must not read anything beside it (scripts/check_self_contained.sh).
+# The one command that runs every test of polarid (README, CI). It must finish within 8
+# minutes on 2 cores from a clean clone, build included:
+#   1. the repository reads nothing beside it (scripts/check_self_contained.sh);
+#   2. cargo fmt --check, then cargo clippy on every target (examples and benches
+#      included) with warnings as errors (the lints: [workspace.lints] of Cargo.toml);
+#   3. cargo test (release: the Monte-Carlo acceptance tests run 10^5 fits) of the
+#      workspace's libraries, binaries, integration tests (one test binary per crate,
+#      crates/*/tests/it/) and doc tests. The test harnesses themselves are compiled at
+#      opt-level 1 (the libraries under test and the `polarid` binary keep the release
+#      profile, opt-level 3): the unit-test build of polarid-core at opt-level 3 was the
+#      largest single compilation of the run;
+#   4. Python (scripts/test_python.sh): builds the package into the venv .venv-test and
+#      runs pytest; its package downloads run in the background while Rust compiles, and
+#      it uses the `polarid` binary built in step 3.
+# Statistical studies run a quick number of seeds; POLARID_FULL=1 runs them at full size
+# (.ci/run does, after this script). Tests on the independent renders run when
+# POLARID_RENDERS names their directory and say so on the terminal when skipped.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-echo "== self-contained (no reads outside the repository)"
+root=$(pwd)
+start=$SECONDS
+step() { echo "== $1 [$((SECONDS - start)) s]"; }
+
+step "self-contained (no reads outside the repository)"
 ./scripts/check_self_contained.sh
-echo "== cargo fmt --check"
+step "cargo fmt --check"
 cargo fmt --all -- --check
-echo "== cargo test (release)"
-cargo test --release --locked
-echo "== Python package (venv .venv-test, pytest)"
-./scripts/test_python.sh
-echo "== all tests passed"
+
+# Python packages (pip: downloads and unpacking, little CPU) while Rust compiles.
+prep_log=$(mktemp)
+./scripts/test_python.sh --prepare >"$prep_log" 2>&1 &
+prep=$!
+trap 'kill $prep 2>/dev/null || true; rm -f "$prep_log"' EXIT
+
+step "cargo clippy (all targets, warnings are errors)"
+cargo clippy --all-targets --locked -- -D warnings
+
+# The test harnesses (the `bench` profile of `cargo test --release`) at opt-level 1.
+fast=(--config profile.bench.opt-level=1)
+step "cargo test (release): libraries, binaries, integration tests"
+cargo test --release --locked "${fast[@]}" --lib --bins --tests
+step "cargo test (release): doc tests"
+cargo test --release --locked "${fast[@]}" --doc
+
+step "Python: waiting for the package downloads"
+if ! wait $prep; then
+    cat "$prep_log" >&2
+    echo "error: preparing the Python environment failed" >&2
+    exit 1
+fi
+step "Python package (venv .venv-test, pytest)"
+POLARID_CLI=${POLARID_CLI:-${CARGO_TARGET_DIR:-$root/target}/release/polarid} \
+    ./scripts/test_python.sh
+step "all tests passed"

@@ -12,7 +12,9 @@
 #   PYTHON          interpreter that creates the venv (default: python3)
 #   POLARID_VENV    the virtualenv (default: .venv-test at the repository root)
 #   POLARID_CLI     a prebuilt polarid binary (default: build target/release/polarid)
-# Extra arguments are passed to pytest.
+# Extra arguments are passed to pytest. `--prepare` only creates the venv and installs the
+# test requirements (scripts/test.sh runs it in the background while Rust compiles); the
+# requirements are installed again only when their list changes (a stamp in the venv).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$(pwd)
@@ -29,13 +31,24 @@ if [[ ! -x "$venv/bin/python" ]] || ! "$venv/bin/python" -c 'import sys' 2>/dev/
 fi
 pip=("$venv/bin/python" -m pip --disable-pip-version-check)
 
-echo "== installing test requirements"
-reqs=(pytest numpy "dask[array,distributed]==2026.8.0" -r scripts/bench/requirements.txt)
-"${pip[@]}" install -q "${reqs[@]}"
+# maturin: python/pyproject.toml's build backend, installed here so that the package
+# builds without an isolated build environment (--no-build-isolation below).
+reqs=(pytest numpy "dask[array,distributed]==2026.8.0" "maturin>=1.16,<2"
+      -r scripts/bench/requirements.txt)
+stamp="$venv/.polarid-test-requirements"
+want="${reqs[*]} $(cat scripts/bench/requirements.txt)"
+if [[ ! -f "$stamp" ]] || [[ "$(cat "$stamp")" != "$want" ]]; then
+    echo "== installing test requirements"
+    "${pip[@]}" install -q "${reqs[@]}"
+    printf '%s' "$want" >"$stamp"
+fi
+if [[ "${1:-}" == "--prepare" ]]; then
+    exit 0
+fi
 
 echo "== building and installing polarid (maturin, release, --locked)"
 # --force-reinstall: the version number does not change between builds.
-"${pip[@]}" install -q --force-reinstall --no-deps ./python
+"${pip[@]}" install -q --force-reinstall --no-deps --no-build-isolation ./python
 
 if [[ -z "${POLARID_CLI:-}" ]]; then
     echo "== building the polarid CLI (cargo build --release --locked -p polarid-cli)"

@@ -632,7 +632,8 @@ mod tests {
                 let e = single_band(&prev.estimate).unwrap();
                 (n_, k_) = (e.n, e.k);
             }
-            let cov = if cov_every == 1 || (cov_every > 1 && (t as u64) % cov_every != 0) {
+            let cov = if cov_every == 1 || (cov_every > 1 && !(t as u64).is_multiple_of(cov_every))
+            {
                 super::super::Cov2::from_se(0.02 + 0.1 * next(), 0.02 + 0.1 * next(), next() - 0.5)
             } else {
                 None

@@ -1,0 +1,11 @@
+//! Integration tests of polarid-pipeline, one module per topic, in one test binary (one
+//! link instead of one per file).
+//!
+//! A new test file `foo.rs` goes in this directory with a line `mod foo;` below.
+
+mod bands_classify;
+mod colour_measure;
+mod fit_train_classify;
+mod imperfect_acceptance;
+mod measure_fit_calibrated;
+mod systematic_errors;
