@@ -4,6 +4,7 @@
 //! A new test file `foo.rs` goes in this directory with a line `mod foo;` below.
 
 mod bad_input_roundtrip;
+mod bit_depth;
 mod geometry_manifest;
 mod image_io;
 mod library_paper;
@@ -14,3 +15,4 @@ mod measure_api;
 mod measure_calibrated;
 mod measure_hdr;
 mod model_json;
+mod opencv_filestorage;

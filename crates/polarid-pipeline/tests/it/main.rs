@@ -5,6 +5,7 @@
 
 mod bands_classify;
 mod colour_measure;
+mod fit_choices;
 mod fit_train_classify;
 mod imperfect_acceptance;
 mod measure_fit_calibrated;

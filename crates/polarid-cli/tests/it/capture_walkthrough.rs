@@ -9,7 +9,7 @@
 //! step must work and the map must name the plates. Also: `init` on the layouts it
 //! knows and refusing the folders it does not.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

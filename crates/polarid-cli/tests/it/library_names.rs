@@ -3,7 +3,7 @@
 //! or material name (`Gold (Au)` in a scene) exits 2 with the nearest names; `polarid
 //! library` writes the materials' native surface layers (docs/MATERIALS.md).
 
-mod common;
+use crate::common;
 
 use common::{polarid, polarid_in, text};
 

@@ -4,7 +4,7 @@
 //! write, wavelengths reaching the fits, `train` refusing fits that are not `ok`, and a
 //! colour mosaic with a partial period.
 
-mod common;
+use crate::common;
 
 use std::fs;
 use std::path::Path;
