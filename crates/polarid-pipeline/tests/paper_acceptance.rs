@@ -112,6 +112,7 @@ struct Answer {
     truth: String,
     predicted: String,
     candidates: Vec<String>,
+    reason: String,
 }
 
 fn run_seed(seed: u64, dir: &Path) -> (Vec<Answer>, Vec<Answer>) {
@@ -185,6 +186,22 @@ fn run_seed(seed: u64, dir: &Path) -> (Vec<Answer>, Vec<Answer>) {
     let is_training = |t: &str| views.iter().any(|v| v.training && v.target == t);
     let (training, tests): (Vec<_>, Vec<_>) =
         fits.into_iter().partition(|(_, f)| is_training(&f.target));
+    if std::env::var_os("POLARID_DEBUG").is_some() {
+        for (_, f) in training.iter().chain(&tests) {
+            println!(
+                "seed {seed} {} {:.4}+{:.4}i {} sample ({:?}, {:?}, {:?}) noise k_se {:?} {}",
+                f.target,
+                f.n,
+                f.k,
+                f.status,
+                f.n_se_sample,
+                f.k_se_sample,
+                f.nk_corr_sample,
+                f.k_se_noise,
+                f.reason
+            );
+        }
+    }
     let model = train(&training, Path::new("fits.csv"), "fits.csv")
         .unwrap()
         .model;
@@ -212,6 +229,7 @@ fn run_seed(seed: u64, dir: &Path) -> (Vec<Answer>, Vec<Answer>) {
                     truth: r.class.clone().unwrap_or_default(),
                     predicted: r.predicted.clone(),
                     candidates: r.candidates.clone(),
+                    reason: format!("seed {seed} {}: {} {}", r.target, r.status, r.reason),
                 }
             })
             .collect()
@@ -271,6 +289,11 @@ fn paper_experiment_same_bench_names_the_right_material_alone() {
         let (s, o) = run_seed(seed, dir.path());
         same.extend(s);
         other.extend(o);
+    }
+    if std::env::var_os("POLARID_DEBUG").is_some() {
+        for a in same.iter().filter(|a| a.predicted != a.truth) {
+            println!("{}", a.reason);
+        }
     }
     let (ts, right, covered, total) = table(&same);
     let (to, right_o, covered_o, _) = table(&other);

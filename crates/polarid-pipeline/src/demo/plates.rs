@@ -171,16 +171,33 @@ pub fn scene_text_at(
     theta_r: f64,
     theta_i: &[f64],
 ) -> String {
-    let ti: Vec<String> = theta_i.iter().map(|t| format!("{t:.4}")).collect();
+    let angle = |t: f64| {
+        if (t * 10.0 - (t * 10.0).round()).abs() < 1e-9 {
+            format!("{t:.1}")
+        } else {
+            format!("{t:.4}")
+        }
+    };
+    let nominal = p.theta_is();
+    let ti = if theta_i == nominal.as_slice() {
+        format!(
+            "{{ start = {:.1}, stop = {:.1}, step = 5.0 }}",
+            p.theta_i.0, p.theta_i.1
+        )
+    } else {
+        let v: Vec<String> = theta_i.iter().map(|&t| angle(t)).collect();
+        format!("[{}]", v.join(", "))
+    };
+    let tr = angle(theta_r);
     format!(
         r#"# polarid demo: {label} ({target}), the paper's section 7 in simulation.
 # Re-run it alone with: polarid simulate scene.toml -o DIR
 name = "{target}"
 width = {SIDE}
 height = {SIDE}
-theta_r_deg = {tr:.4}
+theta_r_deg = {tr}
 phi_deg = 180.0
-theta_i_deg = [{ti}]
+theta_i_deg = {ti}
 wavelength_nm = 650.0
 seed = {seed}
 format = "png"
@@ -213,8 +230,8 @@ region = [16, 16, 96, 96]
 "#,
         label = p.label,
         class = p.class,
-        tr = theta_r,
-        ti = ti.join(", "),
+        tr = tr,
+        ti = ti,
         n0 = p.n,
         k0 = p.k,
         ln = p.layer.1,

@@ -163,6 +163,20 @@ pub(crate) fn assess(g: &Group, f: &NkFit, corr: &[f64], cfg: &FitConfig) -> Err
     rep
 }
 
+/// The error model of the sample covariance: the surface layer alone, of standard
+/// thickness [`SAMPLE_LAYER_RATIO`] times `pol`'s (no floor, no scale error; the angle
+/// errors are left out by the caller).
+pub(crate) fn sample_polarimetric(
+    pol: &polarid_core::systematic::Polarimetric,
+) -> polarid_core::systematic::Polarimetric {
+    polarid_core::systematic::Polarimetric {
+        dolp_floor: 0.0,
+        extinction_ratio: f64::INFINITY,
+        retardance: 0.0,
+        film_sd_waves: SAMPLE_LAYER_RATIO * pol.film_sd_waves,
+    }
+}
+
 /// The sample covariance of the module documentation: the noise plus a layer of
 /// standard thickness `SAMPLE_LAYER_RATIO · film_sd` (the angle, floor and scale terms
 /// left out: a bench shares them between its plates), through the same propagation
@@ -176,12 +190,7 @@ fn sample_covariance(
     cfg: &FitConfig,
 ) -> Option<(f64, f64, f64)> {
     let t_len = betas.len();
-    let layer = polarid_core::systematic::Polarimetric {
-        dolp_floor: 0.0,
-        extinction_ratio: f64::INFINITY,
-        retardance: 0.0,
-        film_sd_waves: SAMPLE_LAYER_RATIO * pol.film_sd_waves,
-    };
+    let layer = sample_polarimetric(pol);
     let zero = vec![0.0; t_len];
     let mut sys = vec![0.0; t_len * t_len];
     systematic_covariance(f.n, f.k, betas, &zero, &layer, &mut sys).ok()?;
