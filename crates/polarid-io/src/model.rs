@@ -337,3 +337,51 @@ pub fn path_relative_to_output(path: &Path, out: &Path) -> String {
         _ => path.display().to_string(),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const OLD: &str = r#"{"format": "polarid-model", "format_version": 1, "created_by": "x",
+      "prototypes": [{"class": "aluminum", "n": 1.0, "k": 6.0,
+        "covariance": [[0.25, 0.9], [0.9, 4.0]], "source": {"file": "f", "line": 2, "target": "A"}}]}"#;
+
+    #[test]
+    fn sample_covariance_is_optional_and_used_on_the_same_bench() {
+        // A model written before the field loads; on the same bench it falls back to the
+        // total covariance, and it says it cannot give the same-bench comparison.
+        let m = Model::parse(Path::new("m.json"), OLD).unwrap();
+        assert!(!m.has_sample_covariances());
+        let total = m.multi_prototypes_on(Bench::Same)[0].bands[0].cov.unwrap();
+        assert_eq!(total.nn, 0.25);
+        // With the field: the same bench uses it (and no layer shifts), another bench
+        // the total; the field round-trips.
+        let with = OLD.replace(
+            r#""covariance": [[0.25, 0.9], [0.9, 4.0]],"#,
+            r#""covariance": [[0.25, 0.9], [0.9, 4.0]], "sample_covariance": [[0.04, 0.1], [0.1, 0.9]],"#,
+        );
+        let m = Model::parse(Path::new("m.json"), &with).unwrap();
+        assert!(m.has_sample_covariances());
+        assert_eq!(
+            m.multi_prototypes_on(Bench::Same)[0].bands[0]
+                .cov
+                .unwrap()
+                .nn,
+            0.04
+        );
+        assert_eq!(m.multi_prototypes()[0].bands[0].cov.unwrap().nn, 0.25);
+        let mut buf = Vec::new();
+        m.write(&mut buf, Path::new("m.json")).unwrap();
+        let back = Model::parse(Path::new("m.json"), std::str::from_utf8(&buf).unwrap()).unwrap();
+        assert_eq!(back, m);
+        // Not positive definite: refused, naming the field.
+        let bad = with.replace("[[0.04, 0.1], [0.1, 0.9]]", "[[0.04, 0.9], [0.9, 0.9]]");
+        let e = Model::parse(Path::new("m.json"), &bad)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("sample_covariance") && e.contains("prototypes[0]"),
+            "{e}"
+        );
+    }
+}

@@ -14,7 +14,10 @@
 //! angles, as on a real bench.
 //!
 //! Acceptance: with the defaults at least 99% of the answers are the right material
-//! alone. `POLARID_FULL=1`: 100 seeds (about 5 minutes on 2 cores); otherwise 2.
+//! alone. `POLARID_FULL=1`: 100 seeds (10–17 minutes on 2 shared cores); otherwise 2
+//! (about 10 s). Measured (docs/CLASSIFY.md "Trained models"): 786/800 right alone,
+//! the 14 others green paint `unknown` where its training fit was `at_bound`: the 99%
+//! level is not reached, and this test fails under `POLARID_FULL=1`.
 //! `POLARID_SEEDS=N` overrides. The figures are printed (`--nocapture`).
 
 use std::collections::BTreeMap;
@@ -113,6 +116,8 @@ struct Answer {
     predicted: String,
     candidates: Vec<String>,
     reason: String,
+    /// The distance to the nearest prototype when it is the true material.
+    truth_distance: Option<f64>,
 }
 
 fn run_seed(seed: u64, dir: &Path) -> (Vec<Answer>, Vec<Answer>) {
@@ -229,6 +234,9 @@ fn run_seed(seed: u64, dir: &Path) -> (Vec<Answer>, Vec<Answer>) {
                     truth: r.class.clone().unwrap_or_default(),
                     predicted: r.predicted.clone(),
                     candidates: r.candidates.clone(),
+                    truth_distance: r
+                        .distance
+                        .filter(|_| r.nearest.as_deref() == r.class.as_deref()),
                     reason: format!("seed {seed} {}: {} {}", r.target, r.status, r.reason),
                 }
             })
@@ -241,8 +249,14 @@ fn run_seed(seed: u64, dir: &Path) -> (Vec<Answer>, Vec<Answer>) {
 /// wrong (a wrong material alone, or a set without the truth).
 fn table(answers: &[Answer]) -> (String, usize, usize, usize) {
     let mut by: BTreeMap<(String, i64), [usize; 5]> = BTreeMap::new();
+    let mut d2: BTreeMap<(String, i64), Vec<f64>> = BTreeMap::new();
     let (mut right, mut covered, mut total) = (0, 0, 0);
     for a in answers {
+        if let Some(d) = a.truth_distance {
+            d2.entry((a.kind.clone(), a.view as i64))
+                .or_default()
+                .push(d * d);
+        }
         let e = by.entry((a.kind.clone(), a.view as i64)).or_default();
         let has = a.candidates.contains(&a.truth);
         let i = if a.predicted == a.truth {
@@ -261,12 +275,15 @@ fn table(answers: &[Answer]) -> (String, usize, usize, usize) {
         total += 1;
     }
     let mut s = String::from(
-        "| plate | θr | right alone | ambiguous (truth in set) | unknown | wrong | truth in set |\n| --- | --- | --- | --- | --- | --- | --- |\n",
+        "| plate | θr | right alone | ambiguous (truth in set) | unknown | wrong | truth in set | mean d² to the true material (χ²₂: 2) |\n| --- | --- | --- | --- | --- | --- | --- | --- |\n",
     );
     for ((k, v), c) in &by {
         let n: usize = c[..4].iter().sum();
+        let d = d2
+            .get(&(k.clone(), *v))
+            .map_or(f64::NAN, |x| x.iter().sum::<f64>() / x.len().max(1) as f64);
         s.push_str(&format!(
-            "| {k} | {v}° | {}/{n} | {} | {} | {} | {}/{n} |\n",
+            "| {k} | {v}° | {}/{n} | {} | {} | {} | {}/{n} | {d:.2} |\n",
             c[0], c[1], c[2], c[3], c[4]
         ));
     }
