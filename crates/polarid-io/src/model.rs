@@ -16,7 +16,12 @@
 //! ```
 //!
 //! `covariance` is the `(n, k)` covariance of the training estimate (`null` when the fit
-//! gave no standard errors). A prototype trained on a multi-band fit with the surface-layer
+//! gave no standard errors): the fit's total, noise plus systematic error.
+//! `sample_covariance` (written when the fit gave the sample columns `n_se_sample`,
+//! `k_se_sample`, `nk_corr_sample`; absent otherwise and optional on input, so older
+//! models load) is the noise plus the surface layer's variation from plate to plate: what
+//! an estimate from the same bench is compared with ([`Model::multi_prototypes_on`],
+//! docs/CLASSIFY.md "Trained models: the same bench"). A prototype trained on a multi-band fit with the surface-layer
 //! shifts (fits columns `film1_dn` … `film3_dk`) has them as `"film_shifts"`
 //! (`[[δn, δk], ...]`, three pairs; absent otherwise and optional on input), so that
 //! classification correlates the layer across the prototype's bands (docs/BANDS.md).
@@ -33,7 +38,7 @@ use std::io::Write;
 use std::path::Path;
 
 use polarid_core::classify::{
-    BandPoint, Cov2, FilmShifts, MultiPrototype, Prototype, check_class_name, same_band,
+    BandPoint, Bench, Cov2, FilmShifts, MultiPrototype, Prototype, check_class_name, same_band,
 };
 use serde::{Deserialize, Serialize};
 
@@ -69,6 +74,11 @@ pub struct ModelPrototype {
     pub k: f64,
     /// Covariance `[[var n, cov nk], [cov nk, var k]]` of the training estimate.
     pub covariance: Option<[[f64; 2]; 2]>,
+    /// Covariance of the training estimate from its noise and the surface layer's
+    /// variation between plates of one material (the same-bench comparison); `None` in
+    /// models trained on fits without the sample columns.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sample_covariance: Option<[[f64; 2]; 2]>,
     /// The training fit's surface-layer shifts `[[δn, δk]; 3]` (part of `covariance`;
     /// multi-band fits with a layer allowance only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -161,12 +171,17 @@ impl Model {
                     "{at}: film_shifts {f:?} (need finite numbers)"
                 )));
             }
-            if let Some(c) = p.covariance
-                && (Cov2::from_matrix(c).is_none())
-            {
-                return Err(bad(format!(
-                    "{at}: covariance {c:?} is not a symmetric positive definite matrix"
-                )));
+            for (field, c) in [
+                ("covariance", p.covariance),
+                ("sample_covariance", p.sample_covariance),
+            ] {
+                if let Some(c) = c
+                    && Cov2::from_matrix(c).is_none()
+                {
+                    return Err(bad(format!(
+                        "{at}: {field} {c:?} is not a symmetric positive definite matrix"
+                    )));
+                }
             }
         }
         if m.prototypes.is_empty() {
@@ -224,16 +239,46 @@ impl Model {
     /// `FILE target T`, or `FILE:LINE target T` for a single band). Single-band models give
     /// the prototypes of [`Model::prototypes`] one for one.
     pub fn multi_prototypes(&self) -> Vec<MultiPrototype> {
+        self.multi_prototypes_on(Bench::Other)
+    }
+
+    /// Whether every prototype has a sample covariance (the model can be compared with
+    /// estimates from its own bench, [`Bench::Same`]).
+    pub fn has_sample_covariances(&self) -> bool {
+        self.prototypes
+            .iter()
+            .all(|p| p.sample_covariance.is_some() || p.covariance.is_none())
+    }
+
+    /// [`Model::multi_prototypes`] with the covariances for estimates from `bench`:
+    /// [`Bench::Other`] the training fits' total covariance (and layer shifts);
+    /// [`Bench::Same`] their sample covariance where a prototype has one (no layer
+    /// shifts: the layer's variation is per band), else the total.
+    pub fn multi_prototypes_on(&self, bench: Bench) -> Vec<MultiPrototype> {
         let mut out: Vec<MultiPrototype> = Vec::new();
         let mut keys: Vec<(&str, &str, &str)> = Vec::new();
         for p in &self.prototypes {
-            let band = BandPoint {
-                wavelength_nm: p.wavelength_nm,
-                n: p.n,
-                k: p.k,
-                cov: p.covariance.and_then(Cov2::from_matrix),
-                film: p.film_shifts.map(FilmShifts),
-                layer: None,
+            let sample = match bench {
+                Bench::Same => p.sample_covariance.and_then(Cov2::from_matrix),
+                Bench::Other => None,
+            };
+            let band = match sample {
+                Some(c) => BandPoint {
+                    wavelength_nm: p.wavelength_nm,
+                    n: p.n,
+                    k: p.k,
+                    cov: Some(c),
+                    film: None,
+                    layer: None,
+                },
+                None => BandPoint {
+                    wavelength_nm: p.wavelength_nm,
+                    n: p.n,
+                    k: p.k,
+                    cov: p.covariance.and_then(Cov2::from_matrix),
+                    film: p.film_shifts.map(FilmShifts),
+                    layer: None,
+                },
             };
             let key = (
                 p.class.as_str(),
@@ -290,5 +335,53 @@ pub fn path_relative_to_output(path: &Path, out: &Path) -> String {
         },
         (Some(a), None) => a.display().to_string(),
         _ => path.display().to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const OLD: &str = r#"{"format": "polarid-model", "format_version": 1, "created_by": "x",
+      "prototypes": [{"class": "aluminum", "n": 1.0, "k": 6.0,
+        "covariance": [[0.25, 0.9], [0.9, 4.0]], "source": {"file": "f", "line": 2, "target": "A"}}]}"#;
+
+    #[test]
+    fn sample_covariance_is_optional_and_used_on_the_same_bench() {
+        // A model written before the field loads; on the same bench it falls back to the
+        // total covariance, and it says it cannot give the same-bench comparison.
+        let m = Model::parse(Path::new("m.json"), OLD).unwrap();
+        assert!(!m.has_sample_covariances());
+        let total = m.multi_prototypes_on(Bench::Same)[0].bands[0].cov.unwrap();
+        assert_eq!(total.nn, 0.25);
+        // With the field: the same bench uses it (and no layer shifts), another bench
+        // the total; the field round-trips.
+        let with = OLD.replace(
+            r#""covariance": [[0.25, 0.9], [0.9, 4.0]],"#,
+            r#""covariance": [[0.25, 0.9], [0.9, 4.0]], "sample_covariance": [[0.04, 0.1], [0.1, 0.9]],"#,
+        );
+        let m = Model::parse(Path::new("m.json"), &with).unwrap();
+        assert!(m.has_sample_covariances());
+        assert_eq!(
+            m.multi_prototypes_on(Bench::Same)[0].bands[0]
+                .cov
+                .unwrap()
+                .nn,
+            0.04
+        );
+        assert_eq!(m.multi_prototypes()[0].bands[0].cov.unwrap().nn, 0.25);
+        let mut buf = Vec::new();
+        m.write(&mut buf, Path::new("m.json")).unwrap();
+        let back = Model::parse(Path::new("m.json"), std::str::from_utf8(&buf).unwrap()).unwrap();
+        assert_eq!(back, m);
+        // Not positive definite: refused, naming the field.
+        let bad = with.replace("[[0.04, 0.1], [0.1, 0.9]]", "[[0.04, 0.9], [0.9, 0.9]]");
+        let e = Model::parse(Path::new("m.json"), &bad)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("sample_covariance") && e.contains("prototypes[0]"),
+            "{e}"
+        );
     }
 }

@@ -3,10 +3,13 @@
 //! each recording the file, line and target it came from. Multi-band fits give one
 //! prototype per target per band with its `wavelength_nm` (the bands whose fit is `ok`);
 //! the model groups them back by class, file and target (`Model::multi_prototypes`).
+//! Each prototype keeps the fit's total covariance and, when the fits have the sample
+//! columns, its sample covariance (noise and the surface layer's variation between
+//! plates), for estimates from the same bench (docs/CLASSIFY.md).
 
 use std::path::Path;
 
-use polarid_core::classify::check_class_name;
+use polarid_core::classify::{Cov2, check_class_name};
 use polarid_io::IoError;
 use polarid_io::model::{Model, ModelPrototype, PrototypeSource, cov_matrix};
 use polarid_io::table::fits::FitRow;
@@ -59,6 +62,7 @@ pub fn train(fits: &[(u64, FitRow)], fits_path: &Path, file: &str) -> Result<Tra
             n: f.n,
             k: f.k,
             covariance: est.cov.as_ref().map(cov_matrix),
+            sample_covariance: sample_cov(f).as_ref().map(cov_matrix),
             film_shifts: f.film.map(|h| h.0),
             category: None,
             source: PrototypeSource {
@@ -123,6 +127,20 @@ pub fn refuse_not_ok(fits: &[(u64, FitRow)], fits_path: &Path) -> Result<()> {
             bad.join(", ")
         ),
     })
+}
+
+/// The sample covariance of a fit row (`n_se_sample`, `k_se_sample`, `nk_corr_sample`:
+/// the noise and the surface layer's variation between plates), when it has a usable one.
+pub fn sample_cov(f: &FitRow) -> Option<Cov2> {
+    let corr = f.nk_corr_sample.filter(|c| !c.is_nan()).unwrap_or(0.0);
+    Cov2::from_se(f.n_se_sample?, f.k_se_sample?, corr)
+}
+
+/// The noise covariance of a fit row (`n_se_noise`, `k_se_noise`, `nk_corr_noise`), when
+/// it has a usable one.
+pub fn noise_cov(f: &FitRow) -> Option<Cov2> {
+    let corr = f.nk_corr_noise.filter(|c| !c.is_nan()).unwrap_or(0.0);
+    Cov2::from_se(f.n_se_noise?, f.k_se_noise?, corr)
 }
 
 /// The distinct classes of a model, sorted.

@@ -45,9 +45,25 @@ pub struct Args {
     /// fits without one are compared with `builtin`'s 650 nm values.
     #[arg(long, value_name = "NM")]
     pub wavelength_nm: Option<f64>,
+    /// Where the model was trained: `same` (the default) — on the bench the fits come
+    /// from, whose shared errors (angles, DoLP floor, extinction) cancel: the estimate's
+    /// noise against each prototype's noise and surface-layer variation; `other` — another
+    /// bench: both sides' total covariance (docs/CLASSIFY.md "Trained models"). No effect
+    /// with --library.
+    #[arg(long, value_enum, default_value_t = BenchArg::Same)]
+    pub bench: BenchArg,
     /// `--report DIR`: the (n, k) plane per band and n(λ), k(λ) (docs/BANDS.md).
     #[command(flatten)]
     pub report: table_report::ReportArgs,
+}
+
+/// `--bench`: where the model was trained.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum BenchArg {
+    /// The bench the fits come from.
+    Same,
+    /// Another bench.
+    Other,
 }
 
 /// Run `polarid classify`.
@@ -64,6 +80,10 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         explain: args.explain,
         wolff: args.wolff.request()?,
         wavelength_nm: args.wavelength_nm,
+        bench: match args.bench {
+            BenchArg::Same => polarid_core::classify::Bench::Same,
+            BenchArg::Other => polarid_core::classify::Bench::Other,
+        },
     };
     let out = pipe::classify(&args.fits, &fits, &source, &cfg).cli()?;
     let out_path = args.output.clone();

@@ -63,6 +63,46 @@ impl Rule {
     }
 }
 
+/// Where a trained model's prototypes were measured, relative to the estimates compared
+/// with them: which covariances the set distance adds (`docs/CLASSIFY.md`, "Trained
+/// models: the same bench").
+///
+/// ```text
+/// Same:   d_M² = Δᵀ (Σ_est,noise + Σ_proto,sample)⁻¹ Δ
+/// Other:  d_M² = Δᵀ (Σ_est,total + Σ_proto,total)⁻¹ Δ
+/// ```
+///
+/// `Σ_total` is noise plus every systematic error of the fit's error model (angles,
+/// DoLP floor, extinction, a surface layer of unknown thickness); `Σ_sample` is noise plus
+/// the surface layer's variation from plate to plate of one material. On one bench a
+/// training plate and a test plate share the camera (its extinction, its calibration),
+/// the rig's lamp positions and the camera's pose: those errors move both estimates
+/// alike and cancel in `Δ`, so adding them on both sides widens every answer for
+/// nothing. What differs between the two plates is their noise and their surface layer;
+/// the layer's variation is the prototype's, evaluated at its material (the hypothesis
+/// tested is "the test plate is this prototype's material").
+///
+/// Library materials (literature values) are always compared with the estimate's total
+/// covariance: a library has no bench.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Bench {
+    /// The model was trained on the bench the estimates come from (the default).
+    #[default]
+    Same,
+    /// The model was trained on another bench: the systematic errors on both sides.
+    Other,
+}
+
+impl Bench {
+    /// Name used in files and on the command line: `same` or `other`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Bench::Same => "same",
+            Bench::Other => "other",
+        }
+    }
+}
+
 /// Default confidence of the consistent set (95%).
 pub const DEFAULT_CONFIDENCE: f64 = 0.95;
 

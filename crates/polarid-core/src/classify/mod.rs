@@ -92,7 +92,9 @@ pub use bands::{
     NativeLayer, chi2_quantile, same_band,
 };
 pub use classifier::{Classifier, NEAR_ZERO_SIGMAS};
-pub use config::{ClassifierConfig, DEFAULT_CONFIDENCE, Metric, Reject, Rule, chi2_2dof_quantile};
+pub use config::{
+    Bench, ClassifierConfig, DEFAULT_CONFIDENCE, Metric, Reject, Rule, chi2_2dof_quantile,
+};
 pub use cov::{Cov2, ONE_SIDED_RATIO};
 pub use decision::{Candidate, Decision, Neighbour, Status};
 pub use evaluate::{Confusion, EvalItem, Evaluation, Labelled, SetStats, evaluate, leave_one_out};

@@ -4,7 +4,10 @@
 //! (extra columns written by polarid: `reason`, `model`, `sigma`, `rho_d`, `theta_r_deg`,
 //! then the error model's `n_se_noise`, `k_se_noise`, `nk_corr_noise`, `gof_p`,
 //! `aolp_p`; docs/ERRORS.md). `n_se`, `k_se`, `nk_corr` are the total (noise plus
-//! systematic) uncertainty; the `_noise` columns the noise's part alone.
+//! systematic) uncertainty; the `_noise` columns the noise's part alone; the `_sample`
+//! columns (`n_se_sample`, `k_se_sample`, `nk_corr_sample`, after `aolp_p`) the noise
+//! plus the surface layer's variation from plate to plate, what a model's prototype is
+//! compared with on its own bench (docs/ERRORS.md "Same bench"; optional on input).
 //!
 //! Multi-band fits (a colour camera) carry `wavelength_nm`, one row per target per band;
 //! the column is written after `class` only when some row has a wavelength, so
@@ -25,7 +28,7 @@ use polarid_core::FitStatus;
 use polarid_core::systematic::FilmShifts;
 
 /// Column order of the fits CSV.
-pub const COLUMNS: [&str; 20] = [
+pub const COLUMNS: [&str; 23] = [
     "target",
     "class",
     "n",
@@ -46,6 +49,9 @@ pub const COLUMNS: [&str; 20] = [
     "nk_corr_noise",
     "gof_p",
     "aolp_p",
+    "n_se_sample",
+    "k_se_sample",
+    "nk_corr_sample",
 ];
 
 /// The layer-shift columns, in order: `[δn, δk]` of the layers of index 1.5, 2.8 and
@@ -100,6 +106,14 @@ pub struct FitRow {
     pub gof_p: Option<f64>,
     /// p-value of the AoLP test (rows with `aolp_poi_deg`).
     pub aolp_p: Option<f64>,
+    /// Standard error of `n` from the noise and the surface layer's variation between
+    /// plates of one material (the sample covariance; docs/ERRORS.md "Same bench").
+    pub n_se_sample: Option<f64>,
+    /// Standard error of `k` of the sample covariance (one-sided upper deviation when
+    /// formed in `(n, k²)`, as `k_se`).
+    pub k_se_sample: Option<f64>,
+    /// Correlation of the sample covariance.
+    pub nk_corr_sample: Option<f64>,
     /// The fit's `(n, k)` shifts by a surface layer of one standard thickness of each
     /// `FILM_INDICES` index ([`FILM_COLUMNS`]; multi-band fits with a layer allowance).
     pub film: Option<FilmShifts>,
@@ -217,6 +231,9 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<FitRow>> {
             nk_corr_noise: opt_nan(r, t.col("nk_corr_noise"))?,
             gof_p: opt_nan(r, t.col("gof_p"))?,
             aolp_p: opt_nan(r, t.col("aolp_p"))?,
+            n_se_sample: opt_nan(r, t.col("n_se_sample"))?,
+            k_se_sample: opt_nan(r, t.col("k_se_sample"))?,
+            nk_corr_sample: opt_nan(r, t.col("nk_corr_sample"))?,
             film: film_cells(t, r, &c_film)?,
         });
     }
@@ -309,6 +326,9 @@ pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[FitRow]) -> Resu
                 fmt_opt(f.nk_corr_noise),
                 fmt_opt(f.gof_p),
                 fmt_opt(f.aolp_p),
+                fmt_opt(f.n_se_sample),
+                fmt_opt(f.k_se_sample),
+                fmt_opt(f.nk_corr_sample),
             ];
             if banded {
                 cells.insert(2, fmt_opt(f.wavelength_nm));
@@ -401,7 +421,7 @@ mod tests {
             text.lines()
                 .next()
                 .unwrap()
-                .ends_with("aolp_p,film1_dn,film1_dk,film2_dn,film2_dk,film3_dn,film3_dk"),
+                .ends_with("nk_corr_sample,film1_dn,film1_dk,film2_dn,film2_dk,film3_dn,film3_dk"),
             "{text}"
         );
         let back = parse(&text).unwrap();

@@ -116,6 +116,9 @@ prop_compose! {
             nk_corr_noise: None,
             gof_p: None,
             aolp_p: None,
+            n_se_sample: None,
+            k_se_sample: None,
+            nk_corr_sample: None,
             theta_r_deg: None,
             film: None,
         }

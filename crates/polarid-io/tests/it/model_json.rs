@@ -14,6 +14,7 @@ fn sample() -> Model {
             n: 1.64,
             k: 4.56,
             covariance: Some(cov_matrix(&cov)),
+            sample_covariance: None,
             film_shifts: None,
             category: None,
             source: PrototypeSource {
@@ -28,6 +29,7 @@ fn sample() -> Model {
             n: 1.5,
             k: 4.4,
             covariance: None,
+            sample_covariance: None,
             film_shifts: None,
             category: Some("metal".into()),
             source: PrototypeSource {

@@ -7,6 +7,7 @@
 //! `polarid_core::classify::bands`); the row says which bands were compared
 //! (`bands_used`).
 
+mod bench;
 mod explain;
 mod wolff;
 
@@ -22,6 +23,7 @@ use polarid_io::table::CsvTable;
 use polarid_io::table::classification::ClassificationRow;
 use polarid_io::table::fits::{self, FitRow};
 
+pub use bench::{Comparison, estimate_for, multi_estimate_for, prototypes_for};
 pub use explain::{
     ConfidenceRegion, DecisionRegion, RegionPlane, confidence_region, decision_regions, explain,
     regions_text,
@@ -271,6 +273,10 @@ pub struct ClassifyConfig {
     /// The wavelength (nm) of fit rows that carry no `wavelength_nm` (`classify
     /// --wavelength-nm`); `None`: such rows stay without one.
     pub wavelength_nm: Option<f64>,
+    /// Where a model was trained (`classify --bench`; default the same bench as the
+    /// fits: the estimate's noise against the prototypes' sample covariance). No effect
+    /// on libraries.
+    pub bench: polarid_core::classify::Bench,
 }
 
 /// A classifier setting as a [`PipelineError::Config`] naming the setting and value.
@@ -301,6 +307,7 @@ impl Default for ClassifyConfig {
             explain: 3,
             wolff: None,
             wavelength_nm: None,
+            bench: polarid_core::classify::Bench::Same,
         }
     }
 }
@@ -447,7 +454,9 @@ pub fn classify(
         .iter()
         .filter(|(_, f)| f.wavelength_nm.is_none())
         .count();
-    let (protos, label, warnings) = source.load_multi_for(&wavelengths, without)?;
+    let (protos, label, mut warnings) = source.load_multi_for(&wavelengths, without)?;
+    let rows_in: Vec<&FitRow> = fits.iter().map(|(_, f)| f).collect();
+    let (protos, cmp) = prototypes_for(source, protos, cfg.bench, &rows_in, &mut warnings)?;
     let clf = multi_classifier(protos, &label, cfg.classifier)?;
     let wolff = cfg
         .wolff
@@ -459,8 +468,8 @@ pub fn classify(
     for group in group_fits(fits) {
         // ok: group_fits returns non-empty groups of indices into `fits`.
         let (line, f) = &fits[group[0]];
-        let d = clf.classify_multi(&multi_estimate_of(group.iter().map(|&i| &fits[i].1)));
-        let mut note = explain(&f.target, &estimate_of(f), &d, &clf, cfg.explain);
+        let d = clf.classify_multi(&multi_estimate_for(group.iter().map(|&i| &fits[i].1), cmp));
+        let mut note = explain(&f.target, &estimate_for(f, cmp), &d, &clf, cfg.explain);
         if f.wavelength_nm.is_some() {
             let have: Vec<String> = group
                 .iter()

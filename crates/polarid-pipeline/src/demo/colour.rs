@@ -178,18 +178,29 @@ pub fn colour_plates(materials: &[ColourMaterial], seed: u64) -> Vec<ColourPlate
 /// `film` and thickness `d_nm` at `wl` nm: the least-squares fit (Gauss–Newton from
 /// `nk`) of eq. (9) to the layered surface's DoLP ([`polarid_core::film::thin_film`]) at
 /// the demo's nominal β. `nk` itself when `d_nm` is 0 or the fit fails.
-#[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN-safe on purpose
 pub fn apparent_index(nk: (f64, f64), film: (f64, f64), d_nm: f64, wl: f64) -> (f64, f64) {
-    use polarid_core::dop::dop_grad;
-    if d_nm <= 0.0 {
-        return nk;
-    }
     let betas: Vec<f64> = COLOUR_THETA_I
         .iter()
         .map(|t| (0.5 * (t + COLOUR_THETA_R)).to_radians())
         .collect();
+    apparent_index_at(nk, film, d_nm, wl, &betas)
+}
+
+/// [`apparent_index`] at the incidence angles `betas` (radians).
+#[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN-safe on purpose
+pub fn apparent_index_at(
+    nk: (f64, f64),
+    film: (f64, f64),
+    d_nm: f64,
+    wl: f64,
+    betas: &[f64],
+) -> (f64, f64) {
+    use polarid_core::dop::dop_grad;
+    if d_nm <= 0.0 {
+        return nk;
+    }
     let mut y = Vec::with_capacity(betas.len());
-    for &b in &betas {
+    for &b in betas {
         match polarid_core::film::thin_film(film, d_nm / wl, nk, b, 1.0) {
             Ok(r) => y.push(r.signed_dolp()),
             Err(_) => return nk,

@@ -7,7 +7,10 @@
 //! aluminum plate of another roughness at θr = 60° and 50° over θi = 35…80° (Table 2).
 //! Then the whole pipeline runs from the image files, as the commands would:
 //! measure (every manifest) → fit (eq. 9) → train (prototypes from the training fits) →
-//! classify (nearest neighbour in (n, k), § 6).
+//! classify (as `polarid classify --model` does by default: the materials consistent
+//! with the estimate at 95%, the model from the same bench; docs/CLASSIFY.md). Table 2
+//! gives the paper's nearest-neighbour answer (§ 6) beside it. Every plate carries its
+//! material's native surface layer, of its own thickness (see `plates`).
 //!
 //! The demo is about files: [`run`] writes the captures (scene, frames, manifest, truth
 //! per plate), `measurements.csv`, `fits.csv`, `model.json` and `classification.csv`
@@ -33,7 +36,10 @@ use polarid_io::table::classification::ClassificationRow;
 use polarid_io::table::fits::FitRow;
 use polarid_io::table::measurements::Measurement;
 
-pub use plates::{DemoPlate, PLATES, SIDE, paper_estimate, scene_text};
+pub use plates::{
+    DemoPlate, PLATES, SIDE, WAVELENGTH_NM, native_layer, paper_estimate, scene_text, scene_text_at,
+};
+pub use steps::same_bench_classifier;
 pub use tables::{paper_tables, pm, text_table};
 
 use crate::progress::{Progress, Warning};

@@ -1,5 +1,13 @@
 //! The demo's plates: the paper's section 7 laboratory set in simulation (Table 1's
 //! training plates, Table 2's test plate), and the scene file of each.
+//!
+//! **Real plates are not their tabulated index.** Each plate carries its material's
+//! native surface layer (field notes; Al under 2–5 nm of Al₂O₃, n ≈ 1.65; Cu under
+//! 0.5–3 nm of Cu₂O, 2.9 + 0.1i at 650 nm; a painted surface under up to 1 nm of adsorbed
+//! contamination, n ≈ 1.5), of its own thickness, so that two plates of one material
+//! differ by their layers. The scenes have no layers, so each plate is rendered with the
+//! index a single-interface fit sees on the layered surface at its own β
+//! ([`super::colour::apparent_index_at`]).
 
 /// One simulated plate of the demo.
 #[derive(Debug, Clone, Copy)]
@@ -22,7 +30,49 @@ pub struct DemoPlate {
     pub theta_i: (f64, f64),
     /// Training plate (else test).
     pub training: bool,
+    /// Its native surface layer: index `(n, k)` and thickness, nm.
+    pub layer: ((f64, f64), f64),
 }
+
+/// The native layer of each class: index `(n, k)` at 650 nm and the range of thicknesses
+/// found on real surfaces, nm (field notes, "Surfaces as they are found").
+pub fn native_layer(class: &str) -> ((f64, f64), (f64, f64)) {
+    match class {
+        "aluminum" => ((1.65, 0.0), (2.0, 5.0)),
+        "copper" => ((2.9, 0.1), (0.5, 3.0)),
+        _ => ((1.5, 0.0), (0.0, 1.0)),
+    }
+}
+
+impl DemoPlate {
+    /// The source zeniths, degrees (5° steps).
+    pub fn theta_is(&self) -> Vec<f64> {
+        let steps = ((self.theta_i.1 - self.theta_i.0) / 5.0).round() as usize;
+        (0..=steps)
+            .map(|i| self.theta_i.0 + 5.0 * i as f64)
+            .collect()
+    }
+
+    /// The index a single-interface fit sees on the plate (its bulk index under its
+    /// layer) at its nominal geometry, at 650 nm.
+    pub fn seen_index(&self) -> (f64, f64) {
+        let betas: Vec<f64> = self
+            .theta_is()
+            .iter()
+            .map(|t| (0.5 * (t + self.theta_r)).to_radians())
+            .collect();
+        super::colour::apparent_index_at(
+            (self.n, self.k),
+            self.layer.0,
+            self.layer.1,
+            WAVELENGTH_NM,
+            &betas,
+        )
+    }
+}
+
+/// The demo's wavelength, nm.
+pub const WAVELENGTH_NM: f64 = 650.0;
 
 /// The five plates: three training plates (paper Table 1) and the test aluminum plate
 /// seen from θr = 60° and 50° (Table 2).
@@ -37,6 +87,7 @@ pub const PLATES: [DemoPlate; 5] = [
         theta_r: 60.0,
         theta_i: (40.0, 80.0),
         training: true,
+        layer: ((1.5, 0.0), 0.4),
     },
     DemoPlate {
         target: "aluminum",
@@ -48,6 +99,7 @@ pub const PLATES: [DemoPlate; 5] = [
         theta_r: 60.0,
         theta_i: (35.0, 80.0),
         training: true,
+        layer: ((1.65, 0.0), 3.0),
     },
     DemoPlate {
         target: "copper",
@@ -59,6 +111,7 @@ pub const PLATES: [DemoPlate; 5] = [
         theta_r: 60.0,
         theta_i: (35.0, 70.0),
         training: true,
+        layer: ((2.9, 0.1), 1.5),
     },
     DemoPlate {
         target: "test_plate_60",
@@ -70,6 +123,7 @@ pub const PLATES: [DemoPlate; 5] = [
         theta_r: 60.0,
         theta_i: (35.0, 80.0),
         training: false,
+        layer: ((1.65, 0.0), 4.2),
     },
     DemoPlate {
         target: "test_plate_50",
@@ -81,6 +135,7 @@ pub const PLATES: [DemoPlate; 5] = [
         theta_r: 50.0,
         theta_i: (35.0, 80.0),
         training: false,
+        layer: ((1.65, 0.0), 4.2),
     },
 ];
 
@@ -99,17 +154,50 @@ pub fn paper_estimate(target: &str) -> Option<(f64, f64)> {
 /// Frame side, pixels (one plate per frame; the measured region is the central 96²).
 pub const SIDE: usize = 128;
 
-/// The scene file of one demo plate (see docs/SCENE.md).
+/// The scene file of one demo plate (see docs/SCENE.md): rendered with the index it
+/// shows under its layer ([`DemoPlate::seen_index`]) at its nominal angles.
 pub fn scene_text(p: &DemoPlate, seed: u64) -> String {
+    scene_text_at(p, p.target, seed, p.seen_index(), p.theta_r, &p.theta_is())
+}
+
+/// [`scene_text`] for the plate named `target`, with the index `seen` and the true
+/// camera and source zeniths (degrees; a bench whose angles are off renders at the true
+/// ones).
+pub fn scene_text_at(
+    p: &DemoPlate,
+    target: &str,
+    seed: u64,
+    seen: (f64, f64),
+    theta_r: f64,
+    theta_i: &[f64],
+) -> String {
+    let angle = |t: f64| {
+        if (t * 10.0 - (t * 10.0).round()).abs() < 1e-9 {
+            format!("{t:.1}")
+        } else {
+            format!("{t:.4}")
+        }
+    };
+    let nominal = p.theta_is();
+    let ti = if theta_i == nominal.as_slice() {
+        format!(
+            "{{ start = {:.1}, stop = {:.1}, step = 5.0 }}",
+            p.theta_i.0, p.theta_i.1
+        )
+    } else {
+        let v: Vec<String> = theta_i.iter().map(|&t| angle(t)).collect();
+        format!("[{}]", v.join(", "))
+    };
+    let tr = angle(theta_r);
     format!(
         r#"# polarid demo: {label} ({target}), the paper's section 7 in simulation.
 # Re-run it alone with: polarid simulate scene.toml -o DIR
 name = "{target}"
 width = {SIDE}
 height = {SIDE}
-theta_r_deg = {tr:.1}
+theta_r_deg = {tr}
 phi_deg = 180.0
-theta_i_deg = {{ start = {i0:.1}, stop = {i1:.1}, step = 5.0 }}
+theta_i_deg = {ti}
 wavelength_nm = 650.0
 seed = {seed}
 format = "png"
@@ -129,23 +217,28 @@ fraction = 0.7
 kind = "frames"
 angles_deg = [0, 45, 90, 135]
 
+# {label}: bulk {n0} + {k0}i under {ln:.2} nm of a layer of index {lfn} + {lfk}i: rendered
+# with the index a single-interface fit sees on it.
 [[plate]]
 name = "{target}"
 class = "{class}"
-n = {n}
-k = {k}
+n = {n:.6}
+k = {k:.6}
 sigma = {sigma}
 rect = [0, 0, {SIDE}, {SIDE}]
 region = [16, 16, 96, 96]
 "#,
         label = p.label,
-        target = p.target,
         class = p.class,
-        tr = p.theta_r,
-        i0 = p.theta_i.0,
-        i1 = p.theta_i.1,
-        n = p.n,
-        k = p.k,
+        tr = tr,
+        ti = ti,
+        n0 = p.n,
+        k0 = p.k,
+        ln = p.layer.1,
+        lfn = p.layer.0.0,
+        lfk = p.layer.0.1,
+        n = seen.0,
+        k = seen.1,
         sigma = p.sigma,
     )
 }

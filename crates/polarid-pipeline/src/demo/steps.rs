@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use polarid_core::classify::{Classifier, ClassifierConfig};
+use polarid_core::classify::{Bench, Classifier, ClassifierConfig, DEFAULT_CONFIDENCE};
 use polarid_io::atomic::StagedDir;
 use polarid_io::manifest::{self, Manifest};
 use polarid_io::model::Model;
@@ -13,7 +13,7 @@ use polarid_io::table::fits::{self, FitRow};
 use polarid_io::table::measurements::{self, Measurement};
 
 use super::stage;
-use crate::classify::{classification_row, estimate_of, explain, read_fits};
+use crate::classify::{Comparison, classification_row, estimate_for, explain, read_fits};
 use crate::fit::{FitConfig, fit, read_measurements};
 use crate::measure::measure;
 use crate::progress::{Progress, Warning};
@@ -81,8 +81,9 @@ pub(super) struct Classified {
 }
 
 /// Train a model on `training` (`polarid train`) into `model.json`, classify `tests`
-/// with it (`polarid classify`, default settings) into `classification.csv`. The
-/// training warnings are appended to `warnings`.
+/// with it (`polarid classify`, default settings: the set rule at 95%, the model from
+/// the same bench) into `classification.csv`. The training warnings are appended to
+/// `warnings`.
 pub(super) fn train_and_classify(
     staged: &StagedDir,
     training: &[(u64, FitRow)],
@@ -96,16 +97,15 @@ pub(super) fn train_and_classify(
         model.write(w, Path::new("model.json"))
     })?;
 
-    let clf = Classifier::new(model.prototypes(), ClassifierConfig::default()).map_err(|e| {
-        PipelineError::Data {
-            path: "model.json".into(),
-            reason: format!("cannot use the trained model: {e}"),
-        }
-    })?;
+    let clf = same_bench_classifier(&model)?;
+    let cmp = Comparison {
+        bench: Bench::Same,
+        same: model.has_sample_covariances(),
+    };
     let mut rows = Vec::new();
     let mut notes = Vec::new();
     for (_, f) in tests {
-        let est = estimate_of(f);
+        let est = estimate_for(f, cmp);
         let d = clf.classify(&est);
         notes.push(explain(&f.target, &est, &d, &clf, 3));
         rows.push(classification_row(f, &d, &clf));
@@ -114,4 +114,22 @@ pub(super) fn train_and_classify(
         classification::write(w, Path::new("classification.csv"), &rows)
     })?;
     Ok(Classified { model, rows, notes })
+}
+
+/// The classifier `polarid classify --model` uses by default: the set rule at 95% over
+/// the model's prototypes with their same-bench (sample) covariances.
+pub fn same_bench_classifier(model: &Model) -> Result<Classifier> {
+    let bench = if model.has_sample_covariances() {
+        Bench::Same
+    } else {
+        Bench::Other
+    };
+    Classifier::multi(
+        model.multi_prototypes_on(bench),
+        ClassifierConfig::set(DEFAULT_CONFIDENCE),
+    )
+    .map_err(|e| PipelineError::Data {
+        path: "model.json".into(),
+        reason: format!("cannot use the trained model: {e}"),
+    })
 }

@@ -4,6 +4,14 @@
 //! a χ² goodness of fit of the residuals against the total (noise + systematic)
 //! covariance and the AoLP relative to the plane of incidence — that turn an `ok` fit
 //! into `model_mismatch`.
+//!
+//! It also writes the **sample** covariance of a row (`n_se_sample`, `k_se_sample`,
+//! `nk_corr_sample`): the noise plus the surface layer's variation from plate to plate of
+//! one material, a layer of standard thickness [`SAMPLE_LAYER_RATIO`]` · film_sd_nm`
+//! (same three indices, same propagation). It is what differs between two plates of one
+//! material measured on one bench, where the bench's own errors (angles, DoLP floor,
+//! extinction) are shared and cancel (docs/ERRORS.md "Same bench"): a model's prototypes
+//! carry it, and a test plate is compared with them on its noise alone.
 
 use polarid_core::FitStatus;
 use polarid_core::dop::dop;
@@ -14,12 +22,25 @@ use polarid_core::systematic::{
 
 use super::{FitConfig, Group};
 
+/// The standard thickness of the layer's variation between two plates of one material,
+/// as a fraction of the fit's `film_sd_nm` (the allowance for a layer of unknown
+/// thickness on one plate). Native layers of one material span about 3 nm (Al₂O₃ on
+/// aluminum 2–5 nm, Cu₂O on copper 0.5–3 nm, SiO₂ on silicon 1–2 nm): two plates' layers,
+/// each anywhere in such a span, differ by a standard deviation of `span/√6` ≈ 0.4–1.2 nm
+/// (uniform), at most by the span. Half the 3 nm default, 1.5 nm, covers that (the
+/// largest difference, 3 nm, at 2 standard deviations) and is 0 with `--film-sd-nm 0`.
+pub const SAMPLE_LAYER_RATIO: f64 = 0.5;
+
 /// What the error model adds to a fit row.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ErrorReport {
     /// Total standard errors and correlation `(n_se, k_se, nk_corr)` (NaN when the fit
     /// has none).
     pub total: (f64, f64, f64),
+    /// The sample covariance `(n_se, k_se, nk_corr)`: the noise plus the layer's
+    /// variation between plates ([`SAMPLE_LAYER_RATIO`]); `None` when the fit has no
+    /// standard errors.
+    pub sample: Option<(f64, f64, f64)>,
     /// p-value of the χ² goodness of fit (weighted fits).
     pub gof_p: Option<f64>,
     /// p-value of the AoLP test (rows with `aolp_poi_deg`).
@@ -94,6 +115,7 @@ pub(crate) fn assess(g: &Group, f: &NkFit, corr: &[f64], cfg: &FitConfig) -> Err
     // A fit without standard errors (singular) keeps them unknown.
     if f.n_se.is_finite() && f.k_se.is_finite() {
         rep.total = (prop.total.n_se, prop.total.k_se, prop.total.nk_corr);
+        rep.sample = sample_covariance(f, &betas, &residual, se.as_deref(), &pol, cfg);
         if g.wavelength_nm.is_some() && !prop.total.in_u {
             rep.film = film_shifts(f.n, f.k, &betas, se.as_deref(), &pol)
                 .ok()
@@ -139,6 +161,42 @@ pub(crate) fn assess(g: &Group, f: &NkFit, corr: &[f64], cfg: &FitConfig) -> Err
     rep.aolp_failed = why.is_some();
     rep.mismatch.extend(why);
     rep
+}
+
+/// The error model of the sample covariance: the surface layer alone, of standard
+/// thickness [`SAMPLE_LAYER_RATIO`] times `pol`'s (no floor, no scale error; the angle
+/// errors are left out by the caller).
+pub(crate) fn sample_polarimetric(
+    pol: &polarid_core::systematic::Polarimetric,
+) -> polarid_core::systematic::Polarimetric {
+    polarid_core::systematic::Polarimetric {
+        dolp_floor: 0.0,
+        extinction_ratio: f64::INFINITY,
+        retardance: 0.0,
+        film_sd_waves: SAMPLE_LAYER_RATIO * pol.film_sd_waves,
+    }
+}
+
+/// The sample covariance of the module documentation: the noise plus a layer of
+/// standard thickness `SAMPLE_LAYER_RATIO · film_sd` (the angle, floor and scale terms
+/// left out: a bench shares them between its plates), through the same propagation
+/// (`(n, u = k²)` near `k = 0`).
+fn sample_covariance(
+    f: &NkFit,
+    betas: &[f64],
+    residual: &[f64],
+    se: Option<&[f64]>,
+    pol: &polarid_core::systematic::Polarimetric,
+    cfg: &FitConfig,
+) -> Option<(f64, f64, f64)> {
+    let t_len = betas.len();
+    let layer = sample_polarimetric(pol);
+    let zero = vec![0.0; t_len];
+    let mut sys = vec![0.0; t_len * t_len];
+    systematic_covariance(f.n, f.k, betas, &zero, &layer, &mut sys).ok()?;
+    let p = propagate(f.n, f.k, betas, residual, se, &sys, cfg.k_range.0 == 0.0).ok()?;
+    let c = p.total;
+    (c.n_se.is_finite() && c.k_se.is_finite()).then_some((c.n_se, c.k_se, c.nk_corr))
 }
 
 /// The AoLP check of a target's rows with `aolp_poi_deg` (docs/ERRORS.md): the p-value

@@ -144,6 +144,17 @@ fn checked_row(
         r.n_se = c.n_se;
         r.k_se = c.k_se;
         r.nk_corr = c.nk_corr;
+        // The sample covariance (noise and the layer's variation between plates,
+        // docs/ERRORS.md "Same bench").
+        let pol = super::errors::sample_polarimetric(&cfg.polarimetric_at(g.wavelength_nm));
+        if let Some(s) = mixed::total_nk_cov(caps, opts, f, &vec![0.0; angle_sd.len()], &pol)
+            && s.n_se.is_finite()
+            && s.k_se.is_finite()
+        {
+            r.n_se_sample = Some(s.n_se);
+            r.k_se_sample = Some(s.k_se);
+            r.nk_corr_sample = Some(s.nk_corr);
+        }
     }
     let (aolp_p, why) = aolp_check(g, cfg);
     r.aolp_p = aolp_p;
