@@ -42,3 +42,4 @@ mod simulate_cmd;
 mod simulate_colour_calibrated;
 mod stokes_cli;
 mod stokes_colour;
+mod same_bench_cli;

@@ -10,3 +10,4 @@ mod fit_train_classify;
 mod imperfect_acceptance;
 mod measure_fit_calibrated;
 mod systematic_errors;
+mod paper_acceptance;

@@ -4,7 +4,7 @@
 //! sample covariances (trained before) as from another bench, with a warning
 //! (docs/CLASSIFY.md "Trained models"). The README's step-by-step example.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 
