@@ -68,7 +68,10 @@ fn classify_train_then_classify_reproduces_paper_table2() {
     let d = dir.path();
     write_training(d);
     write_test(d);
-    let o = polarid_in(d, &["train", "train.csv", "-o", "model.json"]);
+    let o = polarid_in(
+        d,
+        &["train", "train.csv", "-o", "model.json", "--allow-not-ok"],
+    );
     assert!(o.status.success(), "{}", text(&o.stderr));
     let err = text(&o.stderr);
     assert!(
@@ -326,7 +329,10 @@ fn classify_train_exit_statuses_and_messages() {
         format!("{HEADER}A,,1.5,4.4,0.1,0.1,0,0,5,ok\nB,copper,nan,nan,nan,nan,nan,nan,3,ill_conditioned\n"),
     )
     .unwrap();
-    let o = polarid_in(d, &["train", "nolabel.csv", "-o", "m.json"]);
+    let o = polarid_in(
+        d,
+        &["train", "nolabel.csv", "-o", "m.json", "--allow-not-ok"],
+    );
     assert_eq!(o.status.code(), Some(2));
     let e = text(&o.stderr);
     assert!(
@@ -357,7 +363,7 @@ fn classify_train_exit_statuses_and_messages() {
     write_training(d);
     write_test(d);
     assert!(
-        polarid_in(d, &["train", "train.csv", "-o", "m.json"])
+        polarid_in(d, &["train", "train.csv", "-o", "m.json", "--allow-not-ok"])
             .status
             .success()
     );
@@ -443,7 +449,7 @@ fn classify_evaluate_against_model_names_unknown_classes() {
     let d = dir.path();
     write_training(d);
     assert!(
-        polarid_in(d, &["train", "train.csv", "-o", "m.json"])
+        polarid_in(d, &["train", "train.csv", "-o", "m.json", "--allow-not-ok"])
             .status
             .success()
     );

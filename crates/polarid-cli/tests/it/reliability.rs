@@ -788,7 +788,10 @@ fn out_of_range_fit_values_are_refused_naming_line_column_and_value() {
         ),
     )
     .unwrap();
-    ok(&run(p, &["train", "f.csv", "-o", "m3.json"]));
+    ok(&run(
+        p,
+        &["train", "f.csv", "-o", "m3.json", "--allow-not-ok"],
+    ));
 }
 
 #[test]
