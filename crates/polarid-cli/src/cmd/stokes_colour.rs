@@ -4,7 +4,9 @@
 //! `s0_<nm>.tif`, `s1_<nm>.tif`, `s2_<nm>.tif`, `dolp_<nm>.tif`, `aolp_<nm>.tif`,
 //! `dolp_<nm>.png`, `aolp_<nm>.png` per band, plus the colour previews `s0_rgb.png`
 //! (S0 of the R, G and B bands, gamma 1/2.2, scaled to the 99.5th percentile) and
-//! `dolp_rgb.png` (DoLP of the R, G, B bands over the DoLP scale).
+//! `dolp_rgb.png` (DoLP of the R, G, B bands over the DoLP scale). The per-band views
+//! are those of [`crate::render::views`] with each band's mask (saturated and dark
+//! pixels in their colours); all files are written in parallel ([`super::write_files`]).
 
 use std::path::Path;
 
