@@ -41,6 +41,9 @@ classify_table(fits_csv, library_or_model, wavelength_nm=None)
     Every target of a fits CSV, as ``polarid classify``: a dict of its columns.
 load_manifest(path), measure(manifest_path)
     Capture-set manifests and the per-region DoLP measurements of ``polarid measure``.
+read_image(path)
+    A grayscale PNG/TIFF (e.g. a raw mosaic, or an output of ``polarid stokes``) as a
+    float32 array (H, W), with the readers and limits of the CLI.
 simulate(plates, theta_i_deg, ...)
     Synthetic frames of plates of known (n, k, sigma).
 map_manifest(manifest_path, model, bin=1, ...)
@@ -77,6 +80,7 @@ from ._polarid import (
     load_manifest,
     measure,
     pbrdf,
+    read_image,
     simulate,
     stokes,
     stokes_color,
@@ -101,6 +105,7 @@ __all__ = [
     "load_manifest",
     "measure",
     "pbrdf",
+    "read_image",
     "simulate",
     "stokes",
     "stokes_color",

@@ -1,5 +1,7 @@
 //! Capture-set manifests: `load_manifest` (the validated manifest as a dict) and
-//! `measure` (each region's DoLP per capture, the numbers of `polarid measure`).
+//! `measure` (each region's DoLP per capture, the numbers of `polarid measure`); image
+//! files: `read_image` (a grayscale PNG/TIFF through the readers of the CLI,
+//! `polarid_io::image::read_frame`).
 //!
 //! `measure` calls `polarid_pipeline::measure::measure`, the pipeline `polarid
 //! measure` runs (crates/polarid-cli/src/cmd/measure.rs), so it produces the same
@@ -24,6 +26,7 @@ use crate::errors::{PyResultExt, value_error};
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(load_manifest, m)?)?;
     m.add_function(wrap_pyfunction!(measure, m)?)?;
+    m.add_function(wrap_pyfunction!(read_image, m)?)?;
     Ok(())
 }
 
@@ -53,6 +56,39 @@ pub(crate) fn warn_texts<'a>(
         PyErr::warn(py, cat.as_any(), &msg, 2)?;
     }
     Ok(())
+}
+
+/// Read a grayscale PNG or TIFF image as the ``polarid`` command-line program does.
+///
+/// The same reader and limits as the CLI (``polarid_io::image``): 8- or 16-bit PNG,
+/// 8/16/32-bit integer or 32-bit float grayscale TIFF; regular files only, at most
+/// 2**28 pixels, within the memory budget, no decompression bombs.
+///
+/// Parameters
+/// ----------
+/// path : str or os.PathLike
+///
+/// Returns
+/// -------
+/// numpy.ndarray
+///     float32, shape (height, width): the samples as stored (DN for integer files,
+///     no scaling), e.g. a raw DoFP mosaic for ``demosaic`` or the ``s0.tif`` ...
+///     ``aolp.tif`` of ``polarid stokes``.
+///
+/// Raises
+/// ------
+/// FileNotFoundError
+///     The file does not exist.
+/// ValueError
+///     The file is not a readable grayscale PNG/TIFF or exceeds a limit (the message
+///     names the file, as the CLI's).
+#[pyfunction]
+pub fn read_image<'py>(py: Python<'py>, path: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+    let p = path_arg(path)?;
+    let frame = py.detach(|| polarid_io::image::read_frame(&p)).py_err()?;
+    let a = ArrayD::from_shape_vec(IxDyn(&[frame.height, frame.width]), frame.data)
+        .map_err(|e| value_error(e.to_string()))?;
+    Ok(to_numpy(py, a))
 }
 
 /// Read and validate a capture-set manifest (TOML, docs/FORMATS.md).

@@ -2,8 +2,9 @@
 //! division-of-focal-plane (DoFP) mosaic.
 //!
 //! Writes `s0.tif`, `s1.tif`, `s2.tif`, `dolp.tif`, `aolp.tif` (float32; DoLP and AoLP are
-//! NaN where a pixel is rejected) and the views `dolp.png`, `aolp.png` into the output
-//! directory, all or nothing. The Stokes images of frames come from
+//! NaN where a pixel is rejected) and the views `s0.png`, `dolp.png`, `aolp.png`
+//! ([`crate::render::views`]) into the output directory, all or nothing. The files are
+//! rendered, encoded and written in parallel ([`write_files`]). The Stokes images of frames come from
 //! [`polarid_io::measure`]; those of a DoFP mosaic, with DoLP and AoLP, from the fused
 //! kernel [`polarid_core::mosaic::dofp_polar`] in one pass over the mosaic (the same
 //! numbers as [`polarid_io::measure::dofp_stokes`] followed by
@@ -19,6 +20,7 @@ use polarid_io::IoError;
 use polarid_io::atomic::{StagedDir, check_output};
 use polarid_io::image::{self, Frame};
 use polarid_io::measure::{self, StokesImages, frames_stokes, rules_for};
+use rayon::prelude::*;
 
 use polarid_pipeline::map::rules::check_levels;
 
@@ -26,6 +28,7 @@ use polarid_pipeline::map::rules::check_levels;
 mod colour;
 
 use super::common::PipeResult;
+use crate::render::views::{self, AolpView, DolpScale};
 use crate::{BadInput, Ctx};
 
 /// How a DoFP mosaic is turned into Stokes images.
@@ -93,9 +96,13 @@ pub struct Args {
     /// Raw values at or above this are saturated and rejected (default: the type's max).
     #[arg(long, value_name = "DN")]
     pub saturation: Option<f64>,
-    /// Upper end of the DoLP colour scale of the views (default: automatic).
-    #[arg(long, value_name = "DOLP")]
-    pub dolp_max: Option<f64>,
+    /// Upper end of the DoLP colour scale of the views, in (0, 1], or `auto` (a round
+    /// value above the 99th percentile, for weakly polarized scenes).
+    #[arg(long, value_name = "DOLP|auto", default_value = "1", value_parser = views::parse_dolp_scale)]
+    pub dolp_max: DolpScale,
+    /// The AoLP view: `hue` (AoLP as hue) or `hsv` (hue, with DoLP as brightness).
+    #[arg(long, value_enum, default_value_t = AolpView::Hue)]
+    pub aolp_view: AolpView,
     /// Output directory.
     #[arg(short = 'o', long, value_name = "DIR")]
     pub output: PathBuf,
@@ -132,6 +139,47 @@ fn dofp_images(
         },
     )?;
     Ok((img, dolp, aolp))
+}
+
+/// Renders an RGB view: (width, height, bytes).
+type Render<'a> = Box<dyn Fn() -> (usize, usize, Vec<u8>) + Send + Sync + 'a>;
+
+/// One output file of `polarid stokes`.
+enum OutFile<'a> {
+    /// A float32 TIFF of the output's size.
+    Tiff(&'a [f32]),
+    /// An RGB PNG view, rendered when it is written.
+    Png(Render<'a>),
+}
+
+impl<'a> OutFile<'a> {
+    fn png(f: impl Fn() -> (usize, usize, Vec<u8>) + Send + Sync + 'a) -> Self {
+        OutFile::Png(Box::new(f))
+    }
+}
+
+/// Render, encode and write `files` into `staged`, in parallel (TIFFs `w × h`; PNG
+/// views with fast compression, [`views::write_png_fast`]).
+fn write_files(
+    staged: &StagedDir,
+    w: usize,
+    h: usize,
+    files: Vec<(String, OutFile<'_>)>,
+) -> Result<(), IoError> {
+    let paths: Vec<PathBuf> = files
+        .iter()
+        .map(|(name, _)| staged.path(name))
+        .collect::<Result<_, _>>()?;
+    files
+        .par_iter()
+        .zip(paths.par_iter())
+        .try_for_each(|((_, file), path)| match file {
+            OutFile::Tiff(data) => image::write_tiff_f32(path, true, w, h, data),
+            OutFile::Png(render) => {
+                let (vw, vh, px) = render();
+                views::write_png_fast(path, vw, vh, &px)
+            }
+        })
 }
 
 /// Run `polarid stokes`.
@@ -194,40 +242,39 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         }
     };
     let (w, h) = (img.width, img.height);
-    let dolp_max = match args.dolp_max {
-        Some(m) if m.is_finite() && m > 0.0 => m as f32,
-        Some(m) => {
-            return Err(BadInput(format!("--dolp-max must be > 0, got {m}")).into());
-        }
-        None => crate::render::views::auto_dolp_max(&dolp),
-    };
-
-    let names = [
-        "s0.tif", "s1.tif", "s2.tif", "dolp.tif", "aolp.tif", "dolp.png", "aolp.png",
+    let dolp_max = args.dolp_max.resolve(&dolp);
+    let (mode, m) = (args.aolp_view, Some(&img.mask[..]));
+    let files: Vec<(String, OutFile)> = vec![
+        (
+            "s0.png".into(),
+            OutFile::png(|| (w, h, views::s0_view(w, h, &img.s0, m))),
+        ),
+        (
+            "dolp.png".into(),
+            OutFile::png(|| views::dolp_view(w, h, &dolp, m, dolp_max)),
+        ),
+        (
+            "aolp.png".into(),
+            OutFile::png(|| views::aolp_view(w, h, &aolp, &dolp, m, dolp_max, mode)),
+        ),
+        ("s0.tif".into(), OutFile::Tiff(&img.s0)),
+        ("s1.tif".into(), OutFile::Tiff(&img.s1)),
+        ("s2.tif".into(), OutFile::Tiff(&img.s2)),
+        ("dolp.tif".into(), OutFile::Tiff(&dolp)),
+        ("aolp.tif".into(), OutFile::Tiff(&aolp)),
     ];
     let input_refs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
     let staged = StagedDir::new(&args.output, ctx.force)?;
-    for name in names {
+    for (name, _) in &files {
         check_output(&staged.final_path(name), ctx.force, &input_refs)?;
     }
-    for (name, data) in [
-        ("s0.tif", &img.s0),
-        ("s1.tif", &img.s1),
-        ("s2.tif", &img.s2),
-        ("dolp.tif", &dolp),
-        ("aolp.tif", &aolp),
-    ] {
-        image::write_tiff_f32(&staged.path(name)?, true, w, h, data)?;
-    }
-    let (vw, vh, px) = crate::render::views::dolp_view(w, h, &dolp, dolp_max);
-    image::write_rgb8_png(&staged.path("dolp.png")?, true, vw, vh, &px)?;
-    let (vw, vh, px) = crate::render::views::aolp_view(w, h, &aolp, &dolp, dolp_max);
-    image::write_rgb8_png(&staged.path("aolp.png")?, true, vw, vh, &px)?;
+    let n_files = files.len();
+    write_files(&staged, w, h, files)?;
     staged.commit()?;
     let c = img.counts;
     ctx.info(format!(
         "polarid stokes: wrote {} files ({w}x{h}) to {}; pixels valid {}, saturated {}, dark {}, invalid {}",
-        names.len(),
+        n_files,
         args.output.display(),
         c.valid,
         c.saturated,

@@ -4,7 +4,9 @@
 //! `s0_<nm>.tif`, `s1_<nm>.tif`, `s2_<nm>.tif`, `dolp_<nm>.tif`, `aolp_<nm>.tif`,
 //! `dolp_<nm>.png`, `aolp_<nm>.png` per band, plus the colour previews `s0_rgb.png`
 //! (S0 of the R, G and B bands, gamma 1/2.2, scaled to the 99.5th percentile) and
-//! `dolp_rgb.png` (DoLP of the R, G, B bands over the DoLP scale).
+//! `dolp_rgb.png` (DoLP of the R, G, B bands over the DoLP scale). The per-band views
+//! are those of [`crate::render::views`] with each band's mask (saturated and dark
+//! pixels in their colours); all files are written in parallel ([`super::write_files`]).
 
 use std::path::Path;
 
@@ -14,7 +16,8 @@ use polarid_io::IoError;
 use polarid_io::atomic::{StagedDir, check_output};
 use polarid_io::image::{self, Frame};
 
-use super::{Args, Demosaic};
+use super::{Args, Demosaic, OutFile, write_files};
+use crate::render::views::{self, DolpScale};
 use crate::{BadInput, Ctx};
 
 /// The wavelength of each band of `pattern` from `--bands` (`L=NM,...`; default R 650,
@@ -78,6 +81,7 @@ struct Band {
     nm: f64,
     letter: char,
     s: [Vec<f32>; 3],
+    mask: Vec<u8>,
     dolp: Vec<f32>,
     aolp: Vec<f32>,
 }
@@ -128,6 +132,7 @@ pub fn run(
             nm,
             letter,
             s: [vec![0f32; n], vec![0f32; n], vec![0f32; n]],
+            mask: vec![0u8; n],
             dolp: vec![0f32; n],
             aolp: vec![0f32; n],
         })
@@ -140,7 +145,7 @@ pub fn run(
                 s0: Some(s0),
                 s1: Some(s1),
                 s2: Some(s2),
-                mask: None,
+                mask: Some(&mut b.mask),
                 dolp: Some(&mut b.dolp),
                 aolp: Some(&mut b.aolp),
             }
@@ -159,25 +164,21 @@ pub fn run(
         .flat_map(|b| b.dolp.iter().step_by(7).copied())
         .collect();
     let dolp_max = match args.dolp_max {
-        Some(m) if m.is_finite() && m > 0.0 => m as f32,
-        Some(m) => return Err(BadInput(format!("--dolp-max must be > 0, got {m}")).into()),
-        None => crate::render::views::auto_dolp_max(&all_dolp),
+        DolpScale::Fixed(m) => m,
+        DolpScale::Auto => views::auto_dolp_max(&all_dolp),
     };
-    let mut names: Vec<String> = Vec::new();
-    for b in &bands {
-        let l = nm_label(b.nm);
-        for q in ["s0", "s1", "s2", "dolp", "aolp"] {
-            names.push(format!("{q}_{l}.tif"));
-        }
-        names.push(format!("dolp_{l}.png"));
-        names.push(format!("aolp_{l}.png"));
-    }
-    names.push("s0_rgb.png".into());
-    names.push("dolp_rgb.png".into());
-    let staged = StagedDir::new(&args.output, ctx.force)?;
-    for name in &names {
-        check_output(&staged.final_path(name), ctx.force, &[raw_path])?;
-    }
+    // S0 scale: the 99.5th percentile of every band's finite S0
+    let s0s: Vec<f32> = bands
+        .iter()
+        .flat_map(|b| b.s[0].iter().step_by(7).copied())
+        .collect();
+    let scale = match views::sample_quantile(&s0s, 0.995) {
+        Some(p) if p > 0.0 => p,
+        _ => 1.0,
+    };
+    drop(s0s);
+    let mode = args.aolp_view;
+    let mut files: Vec<(String, OutFile)> = Vec::new();
     for b in &bands {
         let l = nm_label(b.nm);
         for (q, data) in [
@@ -187,32 +188,38 @@ pub fn run(
             ("dolp", &b.dolp),
             ("aolp", &b.aolp),
         ] {
-            image::write_tiff_f32(&staged.path(&format!("{q}_{l}.tif"))?, true, w, h, data)?;
+            files.push((format!("{q}_{l}.tif"), OutFile::Tiff(data)));
         }
-        let (vw, vh, px) = crate::render::views::dolp_view(w, h, &b.dolp, dolp_max);
-        image::write_rgb8_png(&staged.path(&format!("dolp_{l}.png"))?, true, vw, vh, &px)?;
-        let (vw, vh, px) = crate::render::views::aolp_view(w, h, &b.aolp, &b.dolp, dolp_max);
-        image::write_rgb8_png(&staged.path(&format!("aolp_{l}.png"))?, true, vw, vh, &px)?;
+        let m = Some(&b.mask[..]);
+        files.push((
+            format!("dolp_{l}.png"),
+            OutFile::png(move || views::dolp_view(w, h, &b.dolp, m, dolp_max)),
+        ));
+        files.push((
+            format!("aolp_{l}.png"),
+            OutFile::png(move || views::aolp_view(w, h, &b.aolp, &b.dolp, m, dolp_max, mode)),
+        ));
     }
-    // S0 scale: the 99.5th percentile of every band's finite S0
-    let mut s0s: Vec<f32> = bands
-        .iter()
-        .flat_map(|b| b.s[0].iter().step_by(7).copied())
-        .filter(|v| v.is_finite())
-        .collect();
-    let scale = if s0s.is_empty() {
-        1.0
-    } else {
-        let k = ((s0s.len() as f64 * 0.995) as usize).min(s0s.len() - 1);
-        let (_, p, _) = s0s.select_nth_unstable_by(k, f32::total_cmp);
-        if *p > 0.0 { *p } else { 1.0 }
-    };
-    let px = rgb_preview(&bands, n, |b, i| {
-        (b.s[0][i] / scale).max(0.0).powf(1.0 / 2.2)
-    });
-    image::write_rgb8_png(&staged.path("s0_rgb.png")?, true, w, h, &px)?;
-    let px = rgb_preview(&bands, n, |b, i| b.dolp[i] / dolp_max);
-    image::write_rgb8_png(&staged.path("dolp_rgb.png")?, true, w, h, &px)?;
+    let bands_ref = &bands;
+    files.push((
+        "s0_rgb.png".into(),
+        OutFile::png(move || {
+            let px = rgb_preview(bands_ref, n, |b, i| {
+                (b.s[0][i] / scale).max(0.0).powf(1.0 / 2.2)
+            });
+            (w, h, px)
+        }),
+    ));
+    files.push((
+        "dolp_rgb.png".into(),
+        OutFile::png(move || (w, h, rgb_preview(bands_ref, n, |b, i| b.dolp[i] / dolp_max))),
+    ));
+    let staged = StagedDir::new(&args.output, ctx.force)?;
+    for (name, _) in &files {
+        check_output(&staged.final_path(name), ctx.force, &[raw_path])?;
+    }
+    let n_files = files.len();
+    write_files(&staged, w, h, files)?;
     staged.commit()?;
     let per_band: Vec<String> = bands
         .iter()
@@ -231,7 +238,7 @@ pub fn run(
         .collect();
     ctx.info(format!(
         "polarid stokes: wrote {} files ({w}x{h}, {} bands) to {}; {}",
-        names.len(),
+        n_files,
         bands.len(),
         args.output.display(),
         per_band.join("; ")

@@ -342,8 +342,8 @@ fn stokes_inputs(dir: &Path, w: usize, seed: u16) -> Vec<String> {
     args
 }
 
-const STOKES_FILES: [&str; 7] = [
-    "aolp.png", "aolp.tif", "dolp.png", "dolp.tif", "s0.tif", "s1.tif", "s2.tif",
+const STOKES_FILES: [&str; 8] = [
+    "aolp.png", "aolp.tif", "dolp.png", "dolp.tif", "s0.png", "s0.tif", "s1.tif", "s2.tif",
 ];
 
 /// The files of a stokes output directory, as (name, bytes), sorted.
