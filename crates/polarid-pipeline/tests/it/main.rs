@@ -9,5 +9,5 @@ mod fit_choices;
 mod fit_train_classify;
 mod imperfect_acceptance;
 mod measure_fit_calibrated;
-mod systematic_errors;
 mod paper_acceptance;
+mod systematic_errors;

@@ -1,7 +1,7 @@
 //! The PNG views of `polarid stokes`: which files, the fixed DoLP scale, the AoLP
 //! modes and the colours of saturated and dark pixels (docs/FORMATS.md).
 
-mod common;
+use crate::common;
 
 use common::polarid;
 
