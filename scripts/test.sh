@@ -6,10 +6,8 @@
 #      included) with warnings as errors (the lints: [workspace.lints] of Cargo.toml);
 #   3. cargo test (release: the Monte-Carlo acceptance tests run 10^5 fits) of the
 #      workspace's libraries, binaries, integration tests (one test binary per crate,
-#      crates/*/tests/it/) and doc tests. The test harnesses themselves are compiled at
-#      opt-level 1 (the libraries under test and the `polarid` binary keep the release
-#      profile, opt-level 3): the unit-test build of polarid-core at opt-level 3 was the
-#      largest single compilation of the run;
+#      crates/*/tests/it/) and doc tests (examples and benches: checked by clippy, not
+#      built);
 #   4. Python (scripts/test_python.sh): builds the package into the venv .venv-test and
 #      runs pytest; its package downloads run in the background while Rust compiles, and
 #      it uses the `polarid` binary built in step 3.
@@ -36,12 +34,10 @@ trap 'kill $prep 2>/dev/null || true; rm -f "$prep_log"' EXIT
 step "cargo clippy (all targets, warnings are errors)"
 cargo clippy --all-targets --locked -- -D warnings
 
-# The test harnesses (the `bench` profile of `cargo test --release`) at opt-level 1.
-fast=(--config profile.bench.opt-level=1)
 step "cargo test (release): libraries, binaries, integration tests"
-cargo test --release --locked "${fast[@]}" --lib --bins --tests
+cargo test --release --locked --lib --bins --tests
 step "cargo test (release): doc tests"
-cargo test --release --locked "${fast[@]}" --doc
+cargo test --release --locked --doc
 
 step "Python: waiting for the package downloads"
 if ! wait $prep; then
