@@ -8,6 +8,7 @@
 //! (`bands_used`).
 
 mod explain;
+pub mod rows;
 mod wolff;
 
 use std::path::{Path, PathBuf};
@@ -271,6 +272,10 @@ pub struct ClassifyConfig {
     /// The wavelength (nm) of fit rows that carry no `wavelength_nm` (`classify
     /// --wavelength-nm`); `None`: such rows stay without one.
     pub wavelength_nm: Option<f64>,
+    /// Prior weights of materials for the hypothesis tests (`classify --prior NAME=W`;
+    /// materials not named weigh 1). Checked against the library by
+    /// [`rows::prior_weights`].
+    pub priors: Vec<(String, f64)>,
 }
 
 /// A classifier setting as a [`PipelineError::Config`] naming the setting and value.
@@ -301,6 +306,7 @@ impl Default for ClassifyConfig {
             explain: 3,
             wolff: None,
             wavelength_nm: None,
+            priors: Vec::new(),
         }
     }
 }
@@ -320,6 +326,15 @@ impl ClassifyConfig {
         }
         if let Some(w) = &self.wolff {
             w.settings.validate()?;
+        }
+        for (name, w) in &self.priors {
+            if !(w.is_finite() && *w >= 0.0) {
+                return Err(PipelineError::config(
+                    "prior",
+                    format!("{name}={w}"),
+                    "weights must be finite and >= 0",
+                ));
+            }
         }
         Ok(())
     }
