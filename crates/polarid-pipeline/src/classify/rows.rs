@@ -361,3 +361,79 @@ pub fn classify_measurements(
         fits,
     ))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use polarid_core::classify::layered_dolp;
+
+    fn rows(bulk: (f64, f64), layer: (f64, f64), d: f64) -> Vec<(u64, Measurement)> {
+        (0..8)
+            .map(|i| {
+                let beta = 47.5 + 22.5 * i as f64 / 7.0;
+                let y = 0.99 * layered_dolp(bulk, layer, d / 650.0, (beta + 0.1f64).to_radians());
+                (
+                    i as u64 + 2,
+                    Measurement {
+                        target: "T".into(),
+                        beta_deg: beta,
+                        phi_deg: 180.0,
+                        // A deterministic ±0.002 pattern in place of noise.
+                        dolp: y + if i % 2 == 0 { 0.002 } else { -0.002 },
+                        dolp_se: Some(0.003),
+                        ..Default::default()
+                    },
+                )
+            })
+            .collect()
+    }
+
+    #[test]
+    fn measurements_are_tested_against_the_library() {
+        let src = PrototypeSource::Library("builtin".into());
+        let cfg = ClassifyConfig::default();
+        let m = rows((1.55803, 7.7124), (1.65, 0.0), 3.0);
+        let (out, fits) =
+            classify_measurements(Path::new("m.csv"), &m, &src, &cfg, &FitConfig::default())
+                .unwrap();
+        assert_eq!(fits.len(), 1);
+        let r = &out.rows[0];
+        assert_eq!(r.rule, RULE_NAME);
+        assert!(r.candidates.iter().any(|c| c == "aluminum"), "{r:?}");
+        assert_eq!(r.candidates.len(), r.candidate_probabilities.len());
+        assert!(r.probability.is_some_and(|p| p > 0.0 && p <= 1.0 + 1e-12));
+        assert!(out.notes[0].contains("aluminum p "), "{}", out.notes[0]);
+        // Priors: a zero weight removes aluminium's probability; a name not in the
+        // library is a configuration error naming it.
+        let cfg0 = ClassifyConfig {
+            priors: vec![("aluminum".into(), 0.0)],
+            ..ClassifyConfig::default()
+        };
+        let (out0, _) =
+            classify_measurements(Path::new("m.csv"), &m, &src, &cfg0, &FitConfig::default())
+                .unwrap();
+        let r0 = &out0.rows[0];
+        if let Some(i) = r0.candidates.iter().position(|c| c == "aluminum") {
+            assert_eq!(r0.candidate_probabilities[i], 0.0);
+        }
+        let bad = ClassifyConfig {
+            priors: vec![("alumin".into(), 1.0)],
+            ..ClassifyConfig::default()
+        };
+        let e = classify_measurements(Path::new("m.csv"), &m, &src, &bad, &FitConfig::default())
+            .unwrap_err();
+        assert!(e.to_string().contains("alumin=1"), "{e}");
+    }
+
+    #[test]
+    fn measurements_tables_are_recognised() {
+        let dir = std::env::temp_dir().join(format!("polarid-rows-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("m.csv");
+        std::fs::write(&p, "target,beta_deg,dolp\nT,50,0.1\n").unwrap();
+        assert!(is_measurements(&CsvTable::read(&p).unwrap()));
+        std::fs::write(&p, "target,n,k,status\nT,1,2,ok\n").unwrap();
+        assert!(!is_measurements(&CsvTable::read(&p).unwrap()));
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}
