@@ -16,6 +16,8 @@
 //! 1–3 nm, 2.9 + 0.3i), and every other library material is given 0–2 nm of
 //! contamination (n = 1.5).
 
+#![allow(clippy::type_complexity)] // the study's case tables read as tuples
+
 use polarid_core::classify::{
     HypRow, HypothesisConfig, MultiPrototype, NativeLayer, Nuisances, Status, classify_rows,
     layered_dolp,

@@ -87,6 +87,16 @@
 //! several → [`AMBIGUOUS`], none → [`UNKNOWN`] ([`Status::Rejected`]): no material of the
 //! list, as it is found, explains the rows.
 
+// NaN-safe negated comparisons on purpose; index loops over 3×3 blocks read as the
+// equations.
+#![allow(
+    clippy::neg_cmp_op_on_partial_ord,
+    clippy::needless_range_loop,
+    clippy::nonminimal_bool,
+    clippy::type_complexity,
+    clippy::manual_range_contains
+)]
+
 use std::f64::consts::PI;
 
 use num_complex::Complex64;

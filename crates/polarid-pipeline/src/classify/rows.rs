@@ -8,6 +8,16 @@
 //! fit is kept as the description of the surface; a target whose fit status is not `ok`
 //! (too few rows, depolarized, model mismatch) is not classified, as with fits.
 
+// NaN-safe negated comparisons on purpose; index loops over 3×3 blocks read as the
+// equations.
+#![allow(
+    clippy::neg_cmp_op_on_partial_ord,
+    clippy::needless_range_loop,
+    clippy::nonminimal_bool,
+    clippy::type_complexity,
+    clippy::manual_range_contains
+)]
+
 use std::path::Path;
 
 use polarid_core::FitStatus;
