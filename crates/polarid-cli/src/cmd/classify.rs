@@ -2,6 +2,11 @@
 //! targets against a trained model or a material library (paper section 6), optionally
 //! with Wolff's metal/dielectric baseline computed from the measurements. The work is
 //! `polarid_pipeline::classify`.
+//!
+//! Given a measurements table instead (columns `dolp` and `beta_deg` or `theta_i_deg`, no
+//! `n`), each target is fitted and every material is tested directly against its rows
+//! (`polarid_pipeline::classify::rows`, docs/CLASSIFY.md); `--rule nearest` fits and
+//! applies the paper's rule to the fits.
 
 use std::path::{Path, PathBuf};
 
@@ -18,7 +23,8 @@ use crate::render::table_report::{self, References};
 #[derive(Debug, clap::Args)]
 #[command(group(clap::ArgGroup::new("prototypes").required(true).args(["model", "library"])))]
 pub struct Args {
-    /// Fits CSV written by `polarid fit`.
+    /// Fits CSV written by `polarid fit`, or a measurements CSV (`polarid measure`; then
+    /// every material is tested against the measured rows, docs/CLASSIFY.md).
     pub fits: PathBuf,
     /// Trained model (JSON) written by `polarid train`.
     #[arg(long, value_name = "MODEL.json")]
@@ -52,6 +58,10 @@ pub struct Args {
     /// with --library.
     #[arg(long, value_enum, default_value_t = BenchArg::Same)]
     pub bench: BenchArg,
+    /// Prior weight of a material for the tests against measured rows, `NAME=W` (W >= 0;
+    /// repeatable; materials not named weigh 1).
+    #[arg(long = "prior", value_name = "NAME=W", value_parser = parse_prior)]
+    pub priors: Vec<(String, f64)>,
     /// `--report DIR`: the (n, k) plane per band and n(λ), k(λ) (docs/BANDS.md).
     #[command(flatten)]
     pub report: table_report::ReportArgs,
@@ -66,10 +76,39 @@ pub enum BenchArg {
     Other,
 }
 
+/// `NAME=W` of `--prior`.
+fn parse_prior(s: &str) -> Result<(String, f64), String> {
+    let (name, w) = s
+        .rsplit_once('=')
+        .ok_or_else(|| format!("expected NAME=WEIGHT, got {s:?}"))?;
+    let w: f64 = w
+        .trim()
+        .parse()
+        .map_err(|_| format!("the weight of {name:?} is not a number: {w:?}"))?;
+    if !(w.is_finite() && w >= 0.0) {
+        return Err(format!(
+            "the weight of {name:?} must be finite and >= 0, got {w}"
+        ));
+    }
+    Ok((name.trim().to_string(), w))
+}
+
 /// Run `polarid classify`.
 pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     let classifier = args.method.config()?;
     args.report.check(ctx)?;
+    let table = polarid_io::table::CsvTable::read(&args.fits)?;
+    if pipe::rows::is_measurements(&table) {
+        return run_measurements(args, ctx, classifier, &table);
+    }
+    if !args.priors.is_empty() {
+        return Err(crate::BadInput(
+            "--prior applies to the tests against measured rows: give a measurements CSV \
+             (columns dolp and beta_deg), not fits"
+                .into(),
+        )
+        .into());
+    }
     let fits = read_fits(&args.fits).cli()?;
     let source = match &args.model {
         Some(m) => PrototypeSource::Model(m.clone()),
@@ -84,6 +123,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
             BenchArg::Same => polarid_core::classify::Bench::Same,
             BenchArg::Other => polarid_core::classify::Bench::Other,
         },
+        priors: Vec::new(),
     };
     let out = pipe::classify(&args.fits, &fits, &source, &cfg).cli()?;
     let out_path = args.output.clone();
@@ -127,4 +167,98 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     };
     let rows: Vec<_> = fits.iter().map(|(_, f)| f.clone()).collect();
     table_report::write_classify_report(&args.report, ctx, &args.fits, &rows, &out.rows, &refs)
+}
+
+/// `polarid classify MEASUREMENTS.csv`: the hypothesis tests against the measured rows
+/// (default), or the fits and the paper's rule (`--rule nearest`).
+fn run_measurements(
+    args: Args,
+    ctx: &Ctx,
+    classifier: polarid_core::classify::ClassifierConfig,
+    table: &polarid_io::table::CsvTable,
+) -> anyhow::Result<()> {
+    let rows = polarid_io::table::measurements::from_table(table)?;
+    let rows: Vec<_> = table.rows.iter().map(|(l, _)| *l).zip(rows).collect();
+    let source = match &args.model {
+        Some(m) => PrototypeSource::Model(m.clone()),
+        None => PrototypeSource::Library(args.library.clone().unwrap_or("builtin".into())),
+    };
+    let cfg = ClassifyConfig {
+        classifier,
+        explain: args.explain,
+        wolff: args.wolff.request()?,
+        wavelength_nm: args.wavelength_nm,
+        bench: match args.bench {
+            BenchArg::Same => polarid_core::classify::Bench::Same,
+            BenchArg::Other => polarid_core::classify::Bench::Other,
+        },
+        priors: args.priors.clone(),
+    };
+    let fit_cfg = polarid_pipeline::fit::FitConfig::default();
+    let nearest = classifier.rule == polarid_core::classify::Rule::Nearest;
+    let (out, fits) = if nearest {
+        if !cfg.priors.is_empty() {
+            return Err(crate::BadInput(
+                "--prior applies to the tests against measured rows, not --rule nearest".into(),
+            )
+            .into());
+        }
+        let measured: Vec<_> = rows.clone();
+        let mut with_wl = measured.clone();
+        for (_, m) in &mut with_wl {
+            m.wavelength_nm = m.wavelength_nm.or(args.wavelength_nm);
+        }
+        let fitted =
+            polarid_pipeline::fit::fit(&args.fits, &with_wl, &fit_cfg, &|_, _, _| {}).cli()?;
+        let fits: Vec<(u64, _)> = fitted.rows().into_iter().map(|f| (0, f)).collect();
+        let out = pipe::classify(&args.fits, &fits, &source, &cfg).cli()?;
+        (out, fits.into_iter().map(|(_, f)| f).collect::<Vec<_>>())
+    } else {
+        if cfg.wolff.is_some() {
+            return Err(crate::BadInput(
+                "--wolff needs a fits CSV (or --rule nearest with measurements)".into(),
+            )
+            .into());
+        }
+        pipe::rows::classify_measurements(&args.fits, &rows, &source, &cfg, &fit_cfg).cli()?
+    };
+    let out_path = args.output.clone();
+    let mut inputs: Vec<&Path> = vec![&args.fits];
+    inputs.extend(args.model.as_deref());
+    ctx.write_output(out_path.as_deref(), &inputs, |w| {
+        classification::write(w, out_path.as_deref().unwrap_or(Path::new("-")), &out.rows)
+    })?;
+    let count = |s: &str| out.rows.iter().filter(|r| r.status == s).count();
+    ctx.info(format!(
+        "classified {} target(s) from their measured rows against {} ({} materials, {}, \
+         confidence {}): {} ok, {} ambiguous, {} rejected, {} other",
+        out.rows.len(),
+        out.label,
+        out.classifier.prototypes().len(),
+        if nearest {
+            "fits, rule nearest"
+        } else {
+            "each material tested against the rows"
+        },
+        classifier.confidence,
+        count("ok"),
+        count("ambiguous"),
+        count("rejected"),
+        out.rows.len() - count("ok") - count("ambiguous") - count("rejected")
+    ));
+    for w in &out.warnings {
+        ctx.info(format!("polarid: warning: {w}"));
+    }
+    for n in &out.notes {
+        ctx.info(n);
+    }
+    let refs = References {
+        label: out.label.clone(),
+        profiles: out.classifier.profiles().to_vec(),
+        builtin_curves: args.model.is_none()
+            && polarid_io::library::Library::is_dispersive_builtin(
+                args.library.as_deref().unwrap_or("builtin"),
+            ),
+    };
+    table_report::write_classify_report(&args.report, ctx, &args.fits, &fits, &out.rows, &refs)
 }

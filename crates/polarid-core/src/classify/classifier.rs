@@ -400,6 +400,8 @@ impl Classifier {
                 index: nb.index,
                 distance: nb.distance,
                 category,
+                probability: None,
+                fit: None,
             });
         }
         let common = match out.first().and_then(|c| c.category.clone()) {

@@ -53,7 +53,9 @@ pub struct Neighbour {
 }
 
 /// A material consistent with an estimate: its class, its nearest prototype and the
-/// Mahalanobis distance to it (in `(n, u = k²)` near `k = 0`, see [`Cov2`](super::Cov2)).
+/// Mahalanobis distance to it (in `(n, u = k²)` near `k = 0`, see [`Cov2`](super::Cov2)),
+/// or, tested against the measured rows ([`hypothesis`](super::hypothesis)), its `χ²`,
+/// probability and nuisances.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Candidate {
     /// Class (material) name.
@@ -64,6 +66,13 @@ pub struct Candidate {
     pub distance: f64,
     /// The class's category, when known.
     pub category: Option<String>,
+    /// The material's probability given the rows (hypothesis tests against the measured
+    /// DoLP, [`classify_rows`](super::hypothesis::classify_rows)); `None` for the
+    /// `(n, k)` set rule.
+    pub probability: Option<f64>,
+    /// What the hypothesis test found (`χ²`, p-value, the nuisances it needed); `None`
+    /// for the `(n, k)` set rule. [`Candidate::distance`] is then its `χ²`.
+    pub fit: Option<super::hypothesis::NuisanceFit>,
 }
 
 /// The outcome of classifying one estimate.

@@ -59,6 +59,13 @@
 //! the bands an estimate and a prototype have in common (block-diagonal covariance), and
 //! the χ² tests use `2 × bands` degrees of freedom ([`chi2_quantile`]); see [`bands`].
 //!
+//! # Hypothesis tests against the measured rows
+//!
+//! [`hypothesis`] tests each material, as it is found (bulk under its native layer, a
+//! polarimeter that only loses DoLP, a bounded common angle offset), directly against a
+//! target's DoLP rows: a `χ²` test per material and a probability per material
+//! ([`classify_rows`]).
+//!
 //! # Leave-one-out evaluation
 //!
 //! [`leave_one_out`] classifies each labelled estimate against all the others and returns
@@ -84,6 +91,7 @@ mod config;
 mod cov;
 mod decision;
 mod evaluate;
+pub mod hypothesis;
 mod points;
 mod wolff;
 
@@ -98,6 +106,10 @@ pub use config::{
 pub use cov::{Cov2, ONE_SIDED_RATIO};
 pub use decision::{Candidate, Decision, Neighbour, Status};
 pub use evaluate::{Confusion, EvalItem, Evaluation, Labelled, SetStats, evaluate, leave_one_out};
+pub use hypothesis::{
+    CandidateModel, HypRow, HypothesisConfig, HypothesisOutcome, LayerModel, NuisanceFit,
+    Nuisances, OFFSET_SIGMAS, classify_rows, layered_dolp, test_hypothesis,
+};
 pub use points::{Estimate, Prototype, class_categories};
 pub use wolff::{
     WolffClass, WolffConfig, WolffDecision, WolffObservation, fresnel_ratio, wolff_classify,

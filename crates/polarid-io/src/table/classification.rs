@@ -18,6 +18,12 @@
 //! was not `ok` or the prototypes lack it. It is written only when some row has one, so
 //! single-band files keep exactly the columns above.
 //!
+//! Targets classified by the hypothesis tests against their measured rows (`classify
+//! MEASUREMENTS.csv`, `rule` `hypothesis`) carry each candidate's probability in
+//! `candidates` (`aluminum:0.97;copper:0.03`) and the column `probability` at the end:
+//! the probability of the answer (the named material's; for `ambiguous` the set's
+//! total; empty for `unknown`). `probability` is written only when some row has one.
+//!
 //! `predicted` is a class name, `ambiguous` or `unknown`; distances of an unclassified target are empty.
 
 use std::io::Write;
@@ -69,6 +75,12 @@ pub struct ClassificationRow {
     pub status: String,
     /// The consistent materials, best first (empty when none or not tested).
     pub candidates: Vec<String>,
+    /// The candidates' probabilities (hypothesis tests; empty otherwise), in the order
+    /// of `candidates`.
+    pub candidate_probabilities: Vec<f64>,
+    /// The probability of the answer (hypothesis tests): the named material's, or the
+    /// set's total for `ambiguous`.
+    pub probability: Option<f64>,
     /// `runner_up_distance − distance`.
     pub margin: Option<f64>,
     /// Class of the nearest prototype (also when rejected).
@@ -106,9 +118,15 @@ fn finite(x: Option<f64>) -> Option<f64> {
 /// `bands_used` after `candidates` when some row has bands).
 pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[ClassificationRow]) -> Result<()> {
     let banded = rows.iter().any(|r| !r.bands_used.is_empty());
+    let probable = rows
+        .iter()
+        .any(|r| r.probability.is_some() || !r.candidate_probabilities.is_empty());
     let mut headers: Vec<&str> = COLUMNS.to_vec();
     if banded {
         headers.insert(8, "bands_used");
+    }
+    if probable {
+        headers.push("probability");
     }
     write_rows(
         w,
@@ -123,7 +141,7 @@ pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[ClassificationRo
                 r.runner_up.clone().unwrap_or_default(),
                 fmt_opt(finite(r.runner_up_distance)),
                 r.status.clone(),
-                r.candidates.join(";"),
+                candidates_text(r),
                 fmt_opt(finite(r.margin)),
                 r.nearest.clone().unwrap_or_default(),
                 r.category.clone().unwrap_or_default(),
@@ -140,9 +158,36 @@ pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[ClassificationRo
             if banded {
                 cells.insert(8, r.bands_used.clone());
             }
+            if probable {
+                cells.push(fmt_opt(r.probability.filter(|p| p.is_finite())));
+            }
             cells
         }),
     )
+}
+
+/// The `candidates` cell: names joined with `;`, each as `name:probability` (3
+/// significant decimals) when the row has probabilities.
+fn candidates_text(r: &ClassificationRow) -> String {
+    if r.candidate_probabilities.len() == r.candidates.len() && !r.candidates.is_empty() {
+        r.candidates
+            .iter()
+            .zip(&r.candidate_probabilities)
+            .map(|(c, p)| format!("{c}:{}", prob_text(*p)))
+            .collect::<Vec<_>>()
+            .join(";")
+    } else {
+        r.candidates.join(";")
+    }
+}
+
+/// A probability with 4 decimals, or in scientific notation below 1e-4.
+fn prob_text(p: f64) -> String {
+    if p == 0.0 || p >= 1e-4 {
+        format!("{p:.4}")
+    } else {
+        format!("{p:.2e}")
+    }
 }
 
 /// Read a classification CSV (needs `target`, `predicted`, `status`; the rest optional).
@@ -165,6 +210,29 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<ClassificationRow>> {
                 col => t.opt_f64(r, col),
             }
         };
+        let mut names = Vec::new();
+        let mut probs = Vec::new();
+        for item in t
+            .opt_text(r, c("candidates"))
+            .unwrap_or_default()
+            .split(';')
+            .map(str::trim)
+            .filter(|x| !x.is_empty())
+        {
+            match item
+                .rsplit_once(':')
+                .and_then(|(n, p)| Some((n, p.parse::<f64>().ok()?)))
+            {
+                Some((n, p)) => {
+                    names.push(n.to_string());
+                    probs.push(p);
+                }
+                None => names.push(item.to_string()),
+            }
+        }
+        if probs.len() != names.len() {
+            probs.clear();
+        }
         out.push(ClassificationRow {
             target: t.text(r, c_target).to_string(),
             class: t.opt_text(r, c("class")),
@@ -173,16 +241,9 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<ClassificationRow>> {
             runner_up: t.opt_text(r, c("runner_up")),
             runner_up_distance: fnum("runner_up_distance")?,
             status: t.text(r, c_status).to_string(),
-            candidates: t
-                .opt_text(r, c("candidates"))
-                .map(|s| {
-                    s.split(';')
-                        .map(str::trim)
-                        .filter(|x| !x.is_empty())
-                        .map(String::from)
-                        .collect()
-                })
-                .unwrap_or_default(),
+            candidates: names,
+            candidate_probabilities: probs,
+            probability: fnum("probability")?,
             margin: fnum("margin")?,
             nearest: t.opt_text(r, c("nearest")),
             category: t.opt_text(r, c("category")),
@@ -263,6 +324,24 @@ mod tests {
         ));
         std::fs::write(&p, buf).unwrap();
         let mut expect = banded.clone();
+        expect[1].distance = None;
+        assert_eq!(read(&p).unwrap(), expect);
+        // Probabilities: in `candidates` and the last column, only when some row has them.
+        let mut prob = rows.clone();
+        prob[0].candidate_probabilities = vec![0.9712, 0.0288];
+        prob[0].probability = Some(1.0);
+        let mut buf = Vec::new();
+        write(&mut buf, &p, &prob).unwrap();
+        let text = String::from_utf8(buf.clone()).unwrap();
+        assert!(
+            text.lines()
+                .next()
+                .unwrap()
+                .ends_with(",wolff_beta_deg,probability")
+        );
+        assert!(text.contains(",aluminum:0.9712;tin:0.0288,"), "{text}");
+        std::fs::write(&p, buf).unwrap();
+        let mut expect = prob.clone();
         expect[1].distance = None;
         assert_eq!(read(&p).unwrap(), expect);
     }

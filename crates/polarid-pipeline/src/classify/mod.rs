@@ -9,6 +9,7 @@
 
 mod bench;
 mod explain;
+pub mod rows;
 mod wolff;
 
 use std::path::{Path, PathBuf};
@@ -277,6 +278,10 @@ pub struct ClassifyConfig {
     /// fits: the estimate's noise against the prototypes' sample covariance). No effect
     /// on libraries.
     pub bench: polarid_core::classify::Bench,
+    /// Prior weights of materials for the hypothesis tests (`classify --prior NAME=W`;
+    /// materials not named weigh 1). Checked against the library by
+    /// [`rows::prior_weights`].
+    pub priors: Vec<(String, f64)>,
 }
 
 /// A classifier setting as a [`PipelineError::Config`] naming the setting and value.
@@ -308,6 +313,7 @@ impl Default for ClassifyConfig {
             wolff: None,
             wavelength_nm: None,
             bench: polarid_core::classify::Bench::Same,
+            priors: Vec::new(),
         }
     }
 }
@@ -327,6 +333,15 @@ impl ClassifyConfig {
         }
         if let Some(w) = &self.wolff {
             w.settings.validate()?;
+        }
+        for (name, w) in &self.priors {
+            if !(w.is_finite() && *w >= 0.0) {
+                return Err(PipelineError::config(
+                    "prior",
+                    format!("{name}={w}"),
+                    "weights must be finite and >= 0",
+                ));
+            }
         }
         Ok(())
     }

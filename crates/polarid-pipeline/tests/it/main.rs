@@ -7,6 +7,7 @@ mod bands_classify;
 mod colour_measure;
 mod fit_choices;
 mod fit_train_classify;
+mod hypothesis_study;
 mod imperfect_acceptance;
 mod measure_fit_calibrated;
 mod paper_acceptance;

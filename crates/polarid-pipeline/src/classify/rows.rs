@@ -1,0 +1,449 @@
+//! Classification from the measured rows: each material hypothesis (as it is found: its
+//! bulk under its native layer, a polarimeter that only loses DoLP, a bounded common
+//! angle offset) tested directly against a target's DoLP rows
+//! (`polarid_core::classify::hypothesis`; docs/CLASSIFY.md "Testing each material against
+//! the rows"). The workflow of `polarid classify MEASUREMENTS.csv`.
+//!
+//! Each target is also fitted (the fit pipeline, [`crate::fit::fit`]) and its `(n, k)`
+//! fit is kept as the description of the surface; a target whose fit status is not `ok`
+//! (too few rows, depolarized, model mismatch) is not classified, as with fits.
+
+// NaN-safe negated comparisons on purpose; index loops over 3×3 blocks read as the
+// equations.
+#![allow(
+    clippy::neg_cmp_op_on_partial_ord,
+    clippy::needless_range_loop,
+    clippy::nonminimal_bool,
+    clippy::type_complexity,
+    clippy::manual_range_contains
+)]
+
+use std::path::Path;
+
+use polarid_core::FitStatus;
+use polarid_core::classify::{
+    Decision, HypRow, HypothesisConfig, HypothesisOutcome, MultiPrototype, Nuisances, Status,
+    UNKNOWN, classify_rows,
+};
+use polarid_io::table::CsvTable;
+use polarid_io::table::classification::ClassificationRow;
+use polarid_io::table::fits::FitRow;
+use polarid_io::table::measurements::Measurement;
+
+use super::{ClassifyConfig, ClassifyOutput, PrototypeSource};
+use crate::fit::{FitConfig, fit};
+use crate::{PipelineError, Result};
+
+/// The rule's name in the classification CSV (`rule` column).
+pub const RULE_NAME: &str = "hypothesis";
+
+/// Whether a table is a measurements table (the rows of `polarid measure`, with `dolp`
+/// and `beta_deg` or `theta_i_deg`) rather than a fits table (with `n`).
+pub fn is_measurements(t: &CsvTable) -> bool {
+    t.col("dolp").is_some()
+        && (t.col("beta_deg").is_some() || t.col("theta_i_deg").is_some())
+        && t.col("n").is_none()
+}
+
+/// The user's priors (`--prior NAME=W`) as one weight per prototype (1 for a material
+/// not named). Errors name the prior: an unknown material, a weight that is not finite
+/// and ≥ 0, all weights 0.
+pub fn prior_weights(priors: &[(String, f64)], protos: &[MultiPrototype]) -> Result<Vec<f64>> {
+    let mut w = vec![1.0; protos.len()];
+    for (name, v) in priors {
+        if !(v.is_finite() && *v >= 0.0) {
+            return Err(PipelineError::config(
+                "prior",
+                format!("{name}={v}"),
+                "weights must be finite and >= 0",
+            ));
+        }
+        let mut found = false;
+        for (i, p) in protos.iter().enumerate() {
+            if &p.class == name {
+                w[i] = *v;
+                found = true;
+            }
+        }
+        if !found {
+            return Err(PipelineError::config(
+                "prior",
+                format!("{name}={v}"),
+                "names no material of the library or model",
+            ));
+        }
+    }
+    if w.iter().all(|&x| x == 0.0) {
+        return Err(PipelineError::config(
+            "prior",
+            "all 0",
+            "at least one material needs a weight > 0",
+        ));
+    }
+    Ok(w)
+}
+
+/// One target's usable rows (status `ok`), with their band wavelengths.
+struct TargetRows<'a> {
+    target: &'a str,
+    rows: Vec<&'a Measurement>,
+}
+
+fn group<'a>(rows: &'a [(u64, Measurement)]) -> Vec<TargetRows<'a>> {
+    let mut out: Vec<TargetRows> = Vec::new();
+    for (_, m) in rows {
+        let i = match out.iter().position(|g| g.target == m.target) {
+            Some(i) => i,
+            None => {
+                out.push(TargetRows {
+                    target: &m.target,
+                    rows: Vec::new(),
+                });
+                out.len() - 1
+            }
+        };
+        if m.status.is_ok() {
+            out[i].rows.push(m);
+        }
+    }
+    out
+}
+
+/// A decision that classifies nothing (the fit's status, no rows).
+fn unclassified(status: Status, reason: String) -> Decision {
+    Decision {
+        predicted: UNKNOWN.into(),
+        nearest_class: None,
+        nearest: None,
+        distance: f64::NAN,
+        runner_up: None,
+        runner_up_distance: f64::NAN,
+        margin: f64::NAN,
+        gate: None,
+        votes: 0,
+        status,
+        reason,
+        ranked: Vec::new(),
+        candidates: Vec::new(),
+        set_tested: false,
+        set_category: None,
+        bands_used: Vec::new(),
+    }
+}
+
+/// The classification CSV row of a hypothesis decision: `candidates` with their
+/// probabilities, `probability` of the answer (the named material's; the sum of the set's
+/// for `ambiguous`; empty for `unknown`), `distance`/`gate` the best material's `χ²`,
+/// `rule` `hypothesis`, `metric` `chi2`.
+pub fn hypothesis_row(
+    f: &FitRow,
+    out: Option<&HypothesisOutcome>,
+    d: &Decision,
+    confidence: f64,
+) -> ClassificationRow {
+    let probability = match d.status {
+        Status::Ok | Status::Ambiguous => Some(
+            d.candidates
+                .iter()
+                .map(|c| c.probability.unwrap_or(0.0))
+                .sum(),
+        ),
+        _ => None,
+    };
+    ClassificationRow {
+        target: f.target.clone(),
+        class: f.class.clone(),
+        predicted: d.predicted.clone(),
+        distance: d.nearest.map(|_| d.distance),
+        runner_up: d.runner_up.clone(),
+        runner_up_distance: d.runner_up.as_ref().map(|_| d.runner_up_distance),
+        status: d.status.label(),
+        candidates: d.candidates.iter().map(|c| c.class.clone()).collect(),
+        candidate_probabilities: d
+            .candidates
+            .iter()
+            .map(|c| c.probability.unwrap_or(f64::NAN))
+            .collect(),
+        probability,
+        margin: Some(d.margin),
+        nearest: d.nearest_class.clone(),
+        category: d.set_category.clone(),
+        metric: "chi2".into(),
+        rule: RULE_NAME.into(),
+        confidence: out.map(|_| confidence),
+        gate: d.gate,
+        votes: None,
+        reason: d.reason.clone(),
+        bands_used: if d.bands_used.len() > 1 {
+            d.bands_used_text()
+        } else {
+            String::new()
+        },
+        ..Default::default()
+    }
+}
+
+/// The explanation of one target: its fit, then the `top` most probable materials with
+/// probability, `χ²` (p-value), and the nuisances they needed.
+pub fn explain_hypotheses(f: &FitRow, out: &HypothesisOutcome, top: usize, p: f64) -> String {
+    let d = &out.decision;
+    let mut s = format!(
+        "{}: fit n = {:.3}, k = {:.3}; tested against the rows at {}%: ",
+        f.target,
+        f.n,
+        f.k,
+        p * 100.0
+    );
+    s.push_str(&match d.status {
+        Status::Ok => format!(
+            "{} (probability {:.3})",
+            d.predicted,
+            d.candidates[0].probability.unwrap_or(f64::NAN)
+        ),
+        Status::Ambiguous => format!(
+            "ambiguous: {}",
+            d.candidates
+                .iter()
+                .map(|c| c.class.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+        _ => format!("unknown ({})", d.reason),
+    });
+    let list: Vec<String> = out
+        .tested
+        .iter()
+        .take(top)
+        .filter_map(|c| {
+            let fit = c.fit?;
+            Some(format!(
+                "{}{} p {:.3}, chi2 {:.2} on {:.1} (p-value {:.3}), layer {:.2} nm, scale {:.4}, offset {:+.3} deg",
+                c.class,
+                if fit.consistent { "" } else { " [rejected]" },
+                c.probability.unwrap_or(f64::NAN),
+                fit.chi2,
+                fit.dof,
+                fit.p_value,
+                fit.thickness_nm,
+                fit.scale,
+                fit.offset.to_degrees()
+            ))
+        })
+        .collect();
+    if !list.is_empty() {
+        s.push_str("; most probable: ");
+        s.push_str(&list.join("; "));
+    }
+    s
+}
+
+/// Classify every target of a measurements table (each row with its line in `path`)
+/// against `source` by the hypothesis tests, with the error model of `fit_cfg`
+/// (docs/ERRORS.md; nuisance bounds [`Nuisances::from_error_model`], the independent
+/// parts in each row's `σ`). Rows without `wavelength_nm` take `cfg.wavelength_nm`, else
+/// 650 nm (the built-in library's band; a warning says so). One classification row per
+/// target, in first-appearance order, with its fit's columns kept in `fits`.
+///
+/// Errors: unreadable or unusable measurements (naming the file, line and value), bad
+/// settings or priors, an unusable library.
+pub fn classify_measurements(
+    path: &Path,
+    rows: &[(u64, Measurement)],
+    source: &PrototypeSource,
+    cfg: &ClassifyConfig,
+    fit_cfg: &FitConfig,
+) -> Result<(ClassifyOutput, Vec<FitRow>)> {
+    cfg.validate()?;
+    fit_cfg.validate()?;
+    let assigned: Vec<(u64, Measurement)> = rows
+        .iter()
+        .map(|(l, m)| {
+            let mut m = m.clone();
+            m.wavelength_nm = m.wavelength_nm.or(cfg.wavelength_nm);
+            (*l, m)
+        })
+        .collect();
+    let fitted = fit(path, &assigned, fit_cfg, &|_, _, _| {})?;
+    let fits = fitted.rows();
+    let mut wavelengths: Vec<f64> = Vec::new();
+    for (_, m) in &assigned {
+        if let Some(w) = m.wavelength_nm
+            && !wavelengths.contains(&w)
+        {
+            wavelengths.push(w);
+        }
+    }
+    let without = fits.iter().filter(|f| f.wavelength_nm.is_none()).count();
+    let (protos, label, mut warnings) = source.load_multi_for(&wavelengths, without)?;
+    let priors = prior_weights(&cfg.priors, &protos)?;
+    let with_layer = protos.iter().filter(|p| p.surface.is_some()).count();
+    if with_layer < protos.len() {
+        warnings.push(crate::Warning(format!(
+            "{} of {} materials of {label} carry no native layer: they are tested bare",
+            protos.len() - with_layer,
+            protos.len()
+        )));
+    }
+    let mut out_rows = Vec::new();
+    let mut notes = Vec::new();
+    for g in group(&assigned) {
+        let Some(f) = fits.iter().find(|f| f.target == g.target) else {
+            continue;
+        };
+        let target_fits: Vec<&FitRow> = fits.iter().filter(|f| f.target == g.target).collect();
+        let not_ok = target_fits.iter().find(|f| f.status != FitStatus::Ok);
+        if let Some(bad) = not_ok {
+            let d = unclassified(
+                Status::FitNotOk(bad.status),
+                format!(
+                    "not classified: its fit{} is {} ({})",
+                    bad.wavelength_nm
+                        .map_or(String::new(), |w| format!(" at {w} nm")),
+                    bad.status,
+                    bad.reason
+                ),
+            );
+            notes.push(format!("{}: {}", g.target, d.reason));
+            out_rows.push(hypothesis_row(f, None, &d, cfg.classifier.confidence));
+            continue;
+        }
+        let mut bands: Vec<f64> = Vec::new();
+        let mut hrows = Vec::with_capacity(g.rows.len());
+        let mut angle_max: f64 = 0.0;
+        for m in &g.rows {
+            let w = m
+                .wavelength_nm
+                .unwrap_or(polarid_io::library::BUILTIN_WAVELENGTH_NM);
+            let band = match bands.iter().position(|&b| b == w) {
+                Some(b) => b,
+                None => {
+                    bands.push(w);
+                    bands.len() - 1
+                }
+            };
+            let angle_sd = m.angle_sd_deg.unwrap_or(fit_cfg.angle_sd_deg).to_radians();
+            angle_max = angle_max.max(angle_sd);
+            let se = m.dolp_se.unwrap_or(0.0);
+            hrows.push(HypRow {
+                beta: m.beta_deg.to_radians(),
+                dolp: m.dolp,
+                dolp_sd: (se * se + fit_cfg.dolp_floor * fit_cfg.dolp_floor).sqrt(),
+                angle_sd,
+                band,
+            });
+        }
+        let hcfg = HypothesisConfig {
+            confidence: cfg.classifier.confidence,
+            nuisances: Nuisances::from_error_model(
+                fit_cfg.extinction_ratio,
+                fit_cfg.retardance_deg.to_radians(),
+                angle_max,
+            ),
+        };
+        let out = classify_rows(&hrows, &bands, &protos, Some(&priors), &hcfg).map_err(|e| {
+            PipelineError::Data {
+                path: path.display().to_string(),
+                reason: format!("target {:?}: {e}", g.target),
+            }
+        })?;
+        notes.push(explain_hypotheses(
+            f,
+            &out,
+            cfg.explain,
+            cfg.classifier.confidence,
+        ));
+        out_rows.push(hypothesis_row(
+            f,
+            Some(&out),
+            &out.decision,
+            cfg.classifier.confidence,
+        ));
+    }
+    let clf = super::multi_classifier(protos, &label, cfg.classifier)?;
+    Ok((
+        ClassifyOutput {
+            rows: out_rows,
+            notes,
+            label,
+            classifier: clf,
+            warnings,
+        },
+        fits,
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use polarid_core::classify::layered_dolp;
+
+    fn rows(bulk: (f64, f64), layer: (f64, f64), d: f64) -> Vec<(u64, Measurement)> {
+        (0..8)
+            .map(|i| {
+                let beta = 47.5 + 22.5 * i as f64 / 7.0;
+                let y = 0.99 * layered_dolp(bulk, layer, d / 650.0, (beta + 0.1f64).to_radians());
+                (
+                    i as u64 + 2,
+                    Measurement {
+                        target: "T".into(),
+                        beta_deg: beta,
+                        phi_deg: 180.0,
+                        // A deterministic ±0.002 pattern in place of noise.
+                        dolp: y + if i % 2 == 0 { 0.002 } else { -0.002 },
+                        dolp_se: Some(0.003),
+                        ..Default::default()
+                    },
+                )
+            })
+            .collect()
+    }
+
+    #[test]
+    fn measurements_are_tested_against_the_library() {
+        let src = PrototypeSource::Library("builtin".into());
+        let cfg = ClassifyConfig::default();
+        let m = rows((1.55803, 7.7124), (1.65, 0.0), 3.0);
+        let (out, fits) =
+            classify_measurements(Path::new("m.csv"), &m, &src, &cfg, &FitConfig::default())
+                .unwrap();
+        assert_eq!(fits.len(), 1);
+        let r = &out.rows[0];
+        assert_eq!(r.rule, RULE_NAME);
+        assert!(r.candidates.iter().any(|c| c == "aluminum"), "{r:?}");
+        assert_eq!(r.candidates.len(), r.candidate_probabilities.len());
+        assert!(r.probability.is_some_and(|p| p > 0.0 && p <= 1.0 + 1e-12));
+        assert!(out.notes[0].contains("aluminum p "), "{}", out.notes[0]);
+        // Priors: a zero weight removes aluminium's probability; a name not in the
+        // library is a configuration error naming it.
+        let cfg0 = ClassifyConfig {
+            priors: vec![("aluminum".into(), 0.0)],
+            ..ClassifyConfig::default()
+        };
+        let (out0, _) =
+            classify_measurements(Path::new("m.csv"), &m, &src, &cfg0, &FitConfig::default())
+                .unwrap();
+        let r0 = &out0.rows[0];
+        if let Some(i) = r0.candidates.iter().position(|c| c == "aluminum") {
+            assert_eq!(r0.candidate_probabilities[i], 0.0);
+        }
+        let bad = ClassifyConfig {
+            priors: vec![("alumin".into(), 1.0)],
+            ..ClassifyConfig::default()
+        };
+        let e = classify_measurements(Path::new("m.csv"), &m, &src, &bad, &FitConfig::default())
+            .unwrap_err();
+        assert!(e.to_string().contains("alumin=1"), "{e}");
+    }
+
+    #[test]
+    fn measurements_tables_are_recognised() {
+        let dir = std::env::temp_dir().join(format!("polarid-rows-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("m.csv");
+        std::fs::write(&p, "target,beta_deg,dolp\nT,50,0.1\n").unwrap();
+        assert!(is_measurements(&CsvTable::read(&p).unwrap()));
+        std::fs::write(&p, "target,n,k,status\nT,1,2,ok\n").unwrap();
+        assert!(!is_measurements(&CsvTable::read(&p).unwrap()));
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}
