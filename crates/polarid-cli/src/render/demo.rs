@@ -200,6 +200,7 @@ pub fn report(out: &DemoOutput, figs: &[Rendered; 3]) -> Report {
 }
 
 /// The demo's report.
+#[allow(clippy::too_many_arguments)]
 fn build_report(
     fits: &[(u64, FitRow)],
     meas: &[(u64, Measurement)],
