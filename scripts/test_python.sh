@@ -48,7 +48,9 @@ fi
 
 echo "== building and installing polarid (maturin, release, --locked)"
 # --force-reinstall: the version number does not change between builds.
-"${pip[@]}" install -q --force-reinstall --no-deps --no-build-isolation ./python
+# The venv's bin first on PATH: without build isolation, maturin's build hook runs the
+# `maturin` executable installed in the venv.
+PATH="$venv/bin:$PATH" "${pip[@]}" install -q --force-reinstall --no-deps --no-build-isolation ./python
 
 if [[ -z "${POLARID_CLI:-}" ]]; then
     echo "== building the polarid CLI (cargo build --release --locked -p polarid-cli)"
