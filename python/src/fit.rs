@@ -793,5 +793,8 @@ pub fn fit_table<'py>(
     col!("nk_corr_noise", |r| r.nk_corr_noise);
     col!("gof_p", |r| r.gof_p);
     col!("aolp_p", |r| r.aolp_p);
+    col!("n_se_sample", |r| r.n_se_sample);
+    col!("k_se_sample", |r| r.k_se_sample);
+    col!("nk_corr_sample", |r| r.nk_corr_sample);
     Ok(d)
 }

@@ -160,11 +160,14 @@ def test_classify_table_warns_as_cli(colour, polarid_cli):
 
 @pytest.mark.parametrize("source", SOURCES)
 def test_classify_arrays_band_axis_equals_cli(colour, polarid_cli, source):
-    """The fits' columns as arrays (targets, bands) with band_axis=1: classify == the CLI."""
+    """The fits' columns as arrays (targets, bands) with band_axis=1: classify == the CLI.
+
+    The arrays carry the fits' total standard errors, so a model is compared as the CLI
+    compares a model from another bench (`--bench other`)."""
     spec = colour.get(source, source)
-    opt = "--model" if source == "model" else "--library"
+    opt = ["--model", spec, "--bench", "other"] if source == "model" else ["--library", spec]
     out = colour["dir"] / f"arr_{source}.csv"
-    run(polarid_cli, "classify", colour["fits"], opt, spec, "-o", out)
+    run(polarid_cli, "classify", colour["fits"], *opt, "-o", out)
     cli = read_csv(out)
     f = read_csv(colour["fits"])
     t = len(cli["target"])
@@ -276,7 +279,7 @@ def test_map_manifest_bands_options(colour, polarid_cli):
         polarid.map_manifest(manifest)
     with pytest.raises(ValueError, match="not both or neither"):
         polarid.map_manifest(manifest, colour["model"], library="builtin-rgb")
-    with pytest.raises(FileNotFoundError, match="builtin-tv"):
+    with pytest.raises(ValueError, match="builtin-tv: No such file, and not a built-in library"):
         polarid.map_manifest(manifest, library="builtin-tv")
     run(polarid_cli, "simulate", REPO_SCENES / "aluminum_test_60.toml", "-o", colour["dir"] / "mono_sim")
     with pytest.raises(ValueError, match="colour captures only"):
