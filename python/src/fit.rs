@@ -796,5 +796,11 @@ pub fn fit_table<'py>(
     col!("n_se_sample", |r| r.n_se_sample);
     col!("k_se_sample", |r| r.k_se_sample);
     col!("nk_corr_sample", |r| r.nk_corr_sample);
+    if rows.iter().any(|r| r.film.is_some()) {
+        for (j, name) in polarid_io::table::fits::FILM_COLUMNS.iter().enumerate() {
+            let cells = rows.iter().map(|r| r.film.map(|h| h.0[j / 2][j % 2]));
+            d.set_item(*name, PyList::new(py, cells)?)?;
+        }
+    }
     Ok(d)
 }
