@@ -151,22 +151,8 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         count("rejected"),
         out.rows.len() - count("ok") - count("ambiguous") - count("rejected")
     ));
-    for w in &out.warnings {
-        ctx.info(format!("polarid: warning: {w}"));
-    }
-    for n in &out.notes {
-        ctx.info(n);
-    }
-    let refs = References {
-        label: out.label.clone(),
-        profiles: out.classifier.profiles().to_vec(),
-        builtin_curves: args.model.is_none()
-            && polarid_io::library::Library::is_dispersive_builtin(
-                args.library.as_deref().unwrap_or("builtin"),
-            ),
-    };
     let rows: Vec<_> = fits.iter().map(|(_, f)| f.clone()).collect();
-    table_report::write_classify_report(&args.report, ctx, &args.fits, &rows, &out.rows, &refs)
+    finish(&args, ctx, &out, &rows)
 }
 
 /// `polarid classify MEASUREMENTS.csv`: the hypothesis tests against the measured rows
@@ -246,6 +232,16 @@ fn run_measurements(
         count("rejected"),
         out.rows.len() - count("ok") - count("ambiguous") - count("rejected")
     ));
+    finish(&args, ctx, &out, &fits)
+}
+
+/// The warnings and notes of a classification, then its `--report` (both inputs).
+fn finish(
+    args: &Args,
+    ctx: &Ctx,
+    out: &pipe::ClassifyOutput,
+    fits: &[polarid_io::table::fits::FitRow],
+) -> anyhow::Result<()> {
     for w in &out.warnings {
         ctx.info(format!("polarid: warning: {w}"));
     }
@@ -260,5 +256,5 @@ fn run_measurements(
                 args.library.as_deref().unwrap_or("builtin"),
             ),
     };
-    table_report::write_classify_report(&args.report, ctx, &args.fits, &fits, &out.rows, &refs)
+    table_report::write_classify_report(&args.report, ctx, &args.fits, fits, &out.rows, &refs)
 }
