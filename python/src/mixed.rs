@@ -1,4 +1,4 @@
-//! The depolarization-aware inversion of `polarid_core::mixed` (issue 10): the
+//! The depolarization-aware inversion of `polarid_core::mixed`: the
 //! Priest–Meier specular term plus a Lambertian depolarized term, fitted to a target's
 //! DoLP and exposure-normalised S0 across captures, with selection against the paper's
 //! pure-specular model.

@@ -16,7 +16,7 @@ pub use ctx::{BadInput, Ctx};
 
 /// Tell what a shiny surface is made of from passive polarization images.
 #[derive(Debug, Parser)]
-#[command(name = "polarid", version, about, long_about = None, propagate_version = true)]
+#[command(name = "polarid", version, long_about = None, propagate_version = true)]
 struct Cli {
     /// Overwrite existing output files.
     #[arg(long, global = true)]

@@ -312,7 +312,7 @@ mod tests {
 
     #[test]
     fn a_thick_oxide_turns_the_polarization_parallel_somewhere() {
-        // SiO2 on Si at β = 60°: some thickness makes Rp > Rs (the oxide wafer).
+        // SiO2 on Si at β = 60°: some thickness makes Rp > Rs (an oxidised wafer).
         let flips = (0..400).map(|i| f64::from(i) * 2.5).any(|d| {
             thin_film((1.46, 0.0), d, (3.85, 0.016), 1.05, 500.0)
                 .unwrap()

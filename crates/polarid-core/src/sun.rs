@@ -11,7 +11,7 @@
 //! into [`CoreError`]s that name the field and value, works in Unix seconds, picks a
 //! default ΔT and gives the sun's direction in the scene frame.
 //!
-//! Measured before choosing (issue 15, deliverable 4), on the SPA report's reference
+//! Measured before choosing, on the SPA report's reference
 //! case — 17 Oct 2003 12:30:30 at UTC−7 h, 39.742476° N, 105.1786° W, 1830.14 m,
 //! 820 mbar, 11 °C, ΔT = 67 s, ΔUT1 = 0:
 //!

@@ -13,6 +13,7 @@ mod classify_cmd;
 mod classify_sets_cli;
 mod colour_cli;
 mod colour_measure_map;
+mod commands_page;
 mod demo_cmd;
 mod e2e_classify;
 mod error_chain;

@@ -1,6 +1,6 @@
 //! Depolarization-aware inversion: the Priest–Meier specular pBRDF (paper eq. 3) plus
 //! a Lambertian, fully depolarizing diffuse term, fitted to the DoLP **and** the
-//! intensity `S0` of a target across captures (issue 10; see `docs/MIXED.md`).
+//! intensity `S0` of a target across captures (see `docs/MIXED.md`).
 //!
 //! # Model
 //! For an unpolarized source of unknown normal irradiance `E` (one value shared by the

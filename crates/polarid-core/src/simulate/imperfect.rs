@@ -1,6 +1,6 @@
 //! A simulator of real-world imperfections, for measuring how the fit, its error model
 //! and the model checks behave on data that the paper's single-interface model does not
-//! describe exactly (issue 16; docs/ERRORS.md "Measured").
+//! describe exactly (docs/ERRORS.md "Measured").
 //!
 //! One target is seen in `T` in-plane captures (`φ = 180°`, source zenith `θi_t`, camera
 //! zenith `θr`). Each capture's row is what `polarid measure` writes for a region: the

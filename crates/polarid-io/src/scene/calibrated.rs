@@ -629,7 +629,7 @@ size = [0.1, 0.08]
         );
     }
 
-    /// A calibrated scene may be a colour one (issue 17): every plate gets its optics per
+    /// A calibrated scene may be a colour one: every plate gets its optics per
     /// band, the frame must still be whole 4×4 periods.
     #[test]
     fn calibrated_colour_scene_parses() {

@@ -167,7 +167,7 @@ fn mirror_symmetry_and_in_plane_column() {
     assert!(((q.phi + p.phi) - 2.0 * PI).abs() < 1e-9 || (q.phi - p.phi).abs() < 1e-9);
 }
 
-/// The bench of issue 15: a 40° lens 0.8 m from 10 cm plates, a lamp 0.7 m away.
+/// A typical bench: a 40° lens 0.8 m from 10 cm plates, a lamp 0.7 m away.
 #[test]
 fn bench_beta_varies_by_a_fraction_of_a_degree_to_degrees() {
     let (w, h) = (640usize, 480usize);
