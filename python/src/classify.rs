@@ -15,13 +15,14 @@ use std::path::Path;
 use ndarray::{ArrayD, ArrayViewD, IxDyn};
 use polarid_core::FitStatus;
 use polarid_core::classify::{
-    AMBIGUOUS, ClassifierConfig, Cov2, Estimate, EstimateBand, Metric, MultiEstimate, Prototype,
-    Reject, UNKNOWN,
+    AMBIGUOUS, ClassifierConfig, Cov2, Estimate, EstimateBand, MultiEstimate, Prototype, Rule,
+    UNKNOWN,
 };
 use polarid_core::systematic::FilmShifts;
 use polarid_pipeline::classify::{
     self as pipe, ClassifyConfig, PrototypeSource, multi_classifier, read_fits,
 };
+use polarid_pipeline::options::{self, ClassifierOptions};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString};
 use rayon::prelude::*;
@@ -95,65 +96,21 @@ fn classifier_config(
     reject: Option<f64>,
     max_distance: Option<f64>,
 ) -> PyResult<ClassifierConfig> {
-    if !(confidence > 0.0 && confidence < 1.0) {
-        return Err(value_error(format!(
-            "confidence must be in (0, 1), got {confidence}"
-        )));
+    ClassifierOptions {
+        rule: if set_rule { Rule::Set } else { Rule::Nearest },
+        confidence,
+        metric: metric.map(options::parse_metric).transpose().py_err()?,
+        neighbours,
+        reject,
+        max_distance,
     }
-    if set_rule
-        && (metric == Some("euclidean")
-            || neighbours != 1
-            || reject.is_some()
-            || max_distance.is_some())
-    {
-        return Err(value_error(
-            "metric=\"euclidean\", neighbours, reject and max_distance are options of \
-             rule=\"nearest\"; the set rule uses the Mahalanobis distance and rejects by \
-             confidence",
-        ));
-    }
-    let metric = match metric.unwrap_or("euclidean") {
-        "euclidean" => Metric::Euclidean,
-        "mahalanobis" => Metric::Mahalanobis,
-        metric => {
-            return Err(value_error(format!(
-                "metric must be \"euclidean\" or \"mahalanobis\", got {metric:?}"
-            )));
-        }
-    };
-    let reject = match (reject, max_distance) {
-        (Some(_), Some(_)) => {
-            return Err(value_error("give reject or max_distance, not both"));
-        }
-        (Some(p), None) => Reject::Chi2 { p },
-        (None, Some(d)) => Reject::MaxDistance(d),
-        (None, None) => Reject::Never,
-    };
-    let cfg = if set_rule {
-        ClassifierConfig::set(confidence)
-    } else {
-        ClassifierConfig {
-            metric,
-            k: neighbours,
-            reject,
-            confidence,
-            ..ClassifierConfig::default()
-        }
-    };
-    cfg.validate()
-        .map_err(|e| value_error(format!("invalid classifier option: {e}")))?;
-    Ok(cfg)
+    .config()
+    .py_err()
 }
 
 /// `rule` as the set rule (`true`) or the nearest rule.
 fn parse_rule(rule: &str) -> PyResult<bool> {
-    match rule {
-        "set" => Ok(true),
-        "nearest" => Ok(false),
-        r => Err(value_error(format!(
-            "rule must be \"set\" or \"nearest\", got {r:?}"
-        ))),
-    }
+    Ok(options::parse_rule(rule).py_err()? == Rule::Set)
 }
 
 /// A wavelength checked as `polarid classify --wavelength-nm` checks it.

@@ -101,7 +101,7 @@ def test_classify_sets():
         polarid.classify(1.0, 1.0, PROTOS, n_se=0.1, k_se=0.1, confidence=1.5)
     with pytest.raises(ValueError, match="rule must be"):
         polarid.classify(1.0, 1.0, PROTOS, rule="vote")
-    with pytest.raises(ValueError, match="options of"):
+    with pytest.raises(ValueError, match="option of --rule nearest"):
         polarid.classify(1.0, 1.0, PROTOS, rule="set", metric="euclidean")
 
 

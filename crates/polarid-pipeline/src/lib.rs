@@ -33,6 +33,7 @@ pub mod init;
 pub mod library;
 pub mod map;
 pub mod measure;
+pub mod options;
 pub mod progress;
 pub mod simulate;
 pub mod train;

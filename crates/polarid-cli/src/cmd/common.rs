@@ -5,7 +5,8 @@
 use std::sync::{Mutex, OnceLock};
 
 use clap::ValueEnum;
-use polarid_core::classify::{ClassifierConfig, Confusion, Metric, Reject, Rule};
+use polarid_core::classify::{ClassifierConfig, Confusion, Metric, Rule};
+use polarid_pipeline::options::ClassifierOptions;
 use polarid_pipeline::{PipelineError, Progress, Warning};
 
 use crate::{BadInput, Ctx};
@@ -155,48 +156,21 @@ impl MethodArgs {
     /// The classifier settings, checked (a bad value is a usage error naming the option
     /// and the value).
     pub fn config(&self) -> anyhow::Result<ClassifierConfig> {
-        if !(self.confidence > 0.0 && self.confidence < 1.0) {
-            return Err(BadInput(format!(
-                "--confidence must be in (0, 1), got {}",
-                self.confidence
-            ))
-            .into());
-        }
-        if self.rule == RuleArg::Set {
-            let bad = match (self.metric, self.neighbours, self.reject, self.max_distance) {
-                (Some(MetricArg::Euclidean), ..) => Some(("--metric", "euclidean".to_string())),
-                (_, k, ..) if k != 1 => Some(("--k", k.to_string())),
-                (_, _, Some(p), _) => Some(("--reject", p.to_string())),
-                (_, _, _, Some(d)) => Some(("--max-distance", d.to_string())),
-                _ => None,
-            };
-            if let Some((opt, v)) = bad {
-                return Err(BadInput(format!(
-                    "{opt} {v} is an option of --rule nearest; the set rule uses the \
-                     Mahalanobis distance and rejects by --confidence (add --rule nearest)"
-                ))
-                .into());
-            }
-            return Ok(ClassifierConfig::set(self.confidence));
-        }
-        let reject = match (self.reject, self.max_distance) {
-            (Some(p), _) => Reject::Chi2 { p },
-            (None, Some(d)) => Reject::MaxDistance(d),
-            (None, None) => Reject::Never,
-        };
-        let cfg = ClassifierConfig {
-            metric: match self.metric {
-                None | Some(MetricArg::Euclidean) => Metric::Euclidean,
-                Some(MetricArg::Mahalanobis) => Metric::Mahalanobis,
+        Ok(ClassifierOptions {
+            rule: match self.rule {
+                RuleArg::Set => Rule::Set,
+                RuleArg::Nearest => Rule::Nearest,
             },
-            k: self.neighbours,
-            reject,
-            rule: Rule::Nearest,
             confidence: self.confidence,
-        };
-        cfg.validate()
-            .map_err(|e| BadInput(format!("invalid classifier option: {e}")))?;
-        Ok(cfg)
+            metric: self.metric.map(|m| match m {
+                MetricArg::Euclidean => Metric::Euclidean,
+                MetricArg::Mahalanobis => Metric::Mahalanobis,
+            }),
+            neighbours: self.neighbours,
+            reject: self.reject,
+            max_distance: self.max_distance,
+        }
+        .config()?)
     }
 }
 
