@@ -9,6 +9,8 @@ use polarid_core::mosaic::{ColourMethod, ColourPattern, DofpOutputs, Pattern, co
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+use polarid_io::manifest::colour::{band_table, pattern_wavelengths};
+
 use crate::arrays::raw_array;
 use crate::errors::{PyResultExt, value_error};
 use crate::stokes::{mosaic_shape, new_array, pixel_rules};
@@ -23,52 +25,18 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
 /// The quantities `stokes_color` can return per band.
 const QUANTITIES: [&str; 5] = ["s0", "s1", "s2", "dolp", "aolp"];
 
-/// The wavelength of every band letter: `bands` (letter → nm) over the nominal bands of
-/// colour sensors (R 650, G 550, B 450 nm; `polarid_io::manifest::DEFAULT_BANDS`).
+/// The wavelength of every band letter of `pattern`: `bands` (letter → nm) replaces the
+/// nominal bands of colour sensors (R 650, G 550, B 450 nm), as the manifest's `bands`
+/// and `polarid stokes --bands` do (`polarid_io::manifest::colour::band_table`).
 pub(crate) fn wavelengths(
     pattern: &ColourPattern,
     bands: Option<HashMap<String, f64>>,
 ) -> PyResult<Vec<f64>> {
-    let mut table: Vec<(char, f64)> = Vec::new();
-    for (k, nm) in bands.unwrap_or_default() {
-        let mut ch = k.trim().chars();
-        let letter = match (ch.next(), ch.next()) {
-            (Some(c), None) if c.is_ascii_alphabetic() => c.to_ascii_uppercase(),
-            _ => {
-                return Err(value_error(format!(
-                    "bands: keys must be one colour letter (e.g. \"R\"), got {k:?}"
-                )));
-            }
-        };
-        if !(nm.is_finite() && nm > 0.0) {
-            return Err(value_error(format!(
-                "bands: wavelength of {letter} must be > 0 nm, got {nm}"
-            )));
-        }
-        table.retain(|(l, _)| *l != letter);
-        table.push((letter, nm));
-    }
-    for (l, nm) in polarid_io::manifest::DEFAULT_BANDS {
-        if !table.iter().any(|(t, _)| *t == l) {
-            table.push((l, nm));
-        }
-    }
-    pattern
-        .bands()
-        .iter()
-        .map(|&c| {
-            table
-                .iter()
-                .find(|(l, _)| *l == c)
-                .map(|&(_, w)| w)
-                .ok_or_else(|| {
-                    value_error(format!(
-                        "color {}: band missing: colour {c} has no wavelength in bands",
-                        pattern.color()
-                    ))
-                })
-        })
-        .collect()
+    let bands = bands.unwrap_or_default();
+    let table = band_table(bands.iter().map(|(k, &nm)| (k.as_str(), nm)))
+        .map_err(|e| value_error(format!("bands: {e}")))?;
+    pattern_wavelengths(pattern, &table)
+        .map_err(|e| value_error(format!("color {}: {e} in bands", pattern.color())))
 }
 
 /// Per-band Stokes images, DoLP and AoLP of a colour polarization mosaic.
@@ -101,7 +69,9 @@ pub(crate) fn wavelengths(
 ///     ``superpixel``: one value per 4×4 period, (H/4, W/4).
 /// bands : dict of str to float, optional
 ///     Wavelength (nm) of each colour letter, e.g. ``{"R": 650, "G": 550, "B": 450}``
-///     (the default: the nominal bands of colour sensors); as ``--bands R=650,...``.
+///     (the default: the nominal bands of colour sensors); a table given replaces the
+///     default one, so it names every letter of ``color``; as ``--bands R=650,...`` and
+///     the manifest's ``bands``.
 /// dark_level : float, default 0
 ///     DN subtracted from every raw value.
 /// saturation : float, optional

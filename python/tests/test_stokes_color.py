@@ -58,7 +58,7 @@ def test_known_stokes_per_band():
 def test_options():
     truth = {"R": (1000.0, 300.0, 0.0), "G": (1000.0, 0.0, 0.0), "B": (10.0, 0.0, 0.0)}
     raw = mosaic(truth).astype(np.uint16)
-    out = polarid.stokes_color(raw, "rggb", method="superpixel", bands={"r": 700, "G": 532},
+    out = polarid.stokes_color(raw, "rggb", method="superpixel", bands={"r": 700, "G": 532, "B": 450},
                                quantities=("dolp",), return_mask=True, min_s0=20)
     assert [out[b]["wavelength_nm"] for b in "RGB"] == [700.0, 532.0, 450.0]
     assert set(out["R"]) == {"wavelength_nm", "dolp", "mask", "counts"}
@@ -69,13 +69,16 @@ def test_options():
     assert (sat["R"]["mask"] == 1).all() and (sat["G"]["mask"] == 0).all()
     dark = polarid.stokes_color(raw, dark_level=5, method="superpixel")
     np.testing.assert_allclose(dark["G"]["s0"], 1000 - 2 * 5)
+    # A band table replaces the default one (as the manifest's `bands` and --bands).
+    with pytest.raises(ValueError, match="colour B has no wavelength"):
+        polarid.stokes_color(raw, "RGGB", bands={"R": 700, "G": 532})
     # Four bands: a letter without a default wavelength needs one.
     with pytest.raises(ValueError, match="colour N has no wavelength"):
         polarid.stokes_color(raw, "RGBN")
-    four = polarid.stokes_color(raw, "RGBN", bands={"N": 850})
+    four = polarid.stokes_color(raw, "RGBN", bands={"R": 650, "G": 550, "B": 450, "N": 850})
     assert list(four) == ["R", "G", "B", "N"] and four["N"]["wavelength_nm"] == 850.0
     for bad, match in [(dict(color="RGB"), "colour pattern"), (dict(method="nearest"), "method must be"),
-                       (dict(quantities=("s3",)), "quantities"), (dict(bands={"RG": 1.0}), "one colour letter"),
+                       (dict(quantities=("s3",)), "quantities"), (dict(bands={"RG": 1.0}), "single colour letters"),
                        (dict(bands={"R": -1.0}), "must be > 0 nm"), (dict(pattern=(0, 0, 90, 135)), "distinct")]:
         with pytest.raises(ValueError, match=match):
             polarid.stokes_color(raw, **bad)

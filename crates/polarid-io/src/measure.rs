@@ -1166,9 +1166,9 @@ fn band_rows(
     let mut rows = Vec::with_capacity(bands.len() * m.regions.len());
     for b in bands {
         let band_rows = measure_images_with(m, c, &b.images, false)?;
-        let band = b
-            .wavelength_nm
-            .map_or_else(String::new, |w| format!(" band {} nm", fmt_nm(w)));
+        let band = b.wavelength_nm.map_or_else(String::new, |w| {
+            format!(" band {} nm", crate::manifest::colour::wavelength_label(w))
+        });
         for (r, mut row) in m.regions.iter().zip(band_rows) {
             row.wavelength_nm = b.wavelength_nm;
             if !row.status.is_ok() {
@@ -1206,15 +1206,6 @@ fn band_rows(
     Ok(rows)
 }
 
-/// A wavelength in nm as written in messages: `450`, `632.8`.
-fn fmt_nm(w: f64) -> String {
-    if w.fract() == 0.0 && w.abs() < 1e9 {
-        format!("{w:.0}")
-    } else {
-        format!("{w}")
-    }
-}
-
 /// One message per row of `rows` (as [`measure_manifest`] returned them for `m`) where
 /// more than [`SATURATED_WARN`] of the region's area is saturated, naming the target,
 /// the capture (index and line) and the fraction.
@@ -1239,9 +1230,9 @@ pub fn saturation_warnings(m: &Manifest, rows: &[Measurement]) -> Vec<String> {
         let area = px + rej;
         if area > 0 && sat as f64 > SATURATED_WARN * area as f64 {
             let cap = capture_of.get(i).and_then(|&j| m.captures.get(j));
-            let band = r
-                .wavelength_nm
-                .map_or_else(String::new, |w| format!(", band {} nm", fmt_nm(w)));
+            let band = r.wavelength_nm.map_or_else(String::new, |w| {
+                format!(", band {} nm", crate::manifest::colour::wavelength_label(w))
+            });
             out.push(format!(
                 "target {:?}, capture {} (line {}){band}: {sat} of {area} pixels ({:.1}%) \
                  saturated and left out",

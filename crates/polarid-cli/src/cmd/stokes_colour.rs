@@ -15,6 +15,7 @@ use polarid_core::stokes::PixelRules;
 use polarid_io::IoError;
 use polarid_io::atomic::{StagedDir, check_output};
 use polarid_io::image::{self, Frame};
+use polarid_io::manifest::colour::{band_table, pattern_wavelengths, wavelength_label};
 
 use super::{Args, Demosaic, OutFile, write_files};
 use crate::render::views::{self, DolpScale};
@@ -23,7 +24,7 @@ use crate::{BadInput, Ctx};
 /// The wavelength of each band of `pattern` from `--bands` (`L=NM,...`; default R 650,
 /// G 550, B 450).
 fn band_wavelengths(pattern: &ColourPattern, spec: &[String]) -> anyhow::Result<Vec<f64>> {
-    let mut table: Vec<(char, f64)> = Vec::new();
+    let mut entries: Vec<(&str, f64)> = Vec::new();
     for item in spec {
         let bad = || {
             BadInput(format!(
@@ -31,49 +32,11 @@ fn band_wavelengths(pattern: &ColourPattern, spec: &[String]) -> anyhow::Result<
             ))
         };
         let (k, v) = item.split_once('=').ok_or_else(bad)?;
-        let mut ch = k.trim().chars();
-        let letter = match (ch.next(), ch.next()) {
-            (Some(c), None) if c.is_ascii_alphabetic() => c.to_ascii_uppercase(),
-            _ => return Err(bad().into()),
-        };
-        let nm: f64 = v.trim().parse().map_err(|_| bad())?;
-        if !(nm.is_finite() && nm > 0.0) {
-            return Err(BadInput(format!(
-                "--bands: wavelength of {letter} must be > 0 nm, got {nm}"
-            ))
-            .into());
-        }
-        table.push((letter, nm));
+        entries.push((k, v.trim().parse().map_err(|_| bad())?));
     }
-    if table.is_empty() {
-        table = polarid_io::manifest::DEFAULT_BANDS.to_vec();
-    }
-    pattern
-        .bands()
-        .iter()
-        .map(|&c| {
-            table
-                .iter()
-                .find(|(l, _)| *l == c)
-                .map(|&(_, w)| w)
-                .ok_or_else(|| {
-                    BadInput(format!(
-                        "--color {}: band missing: colour {c} has no wavelength in --bands",
-                        pattern.color()
-                    ))
-                    .into()
-                })
-        })
-        .collect()
-}
-
-/// `650` for 650.0, `632.8` otherwise.
-fn nm_label(nm: f64) -> String {
-    if nm.fract() == 0.0 {
-        format!("{nm:.0}")
-    } else {
-        format!("{nm}")
-    }
+    let table = band_table(entries).map_err(|e| BadInput(format!("--bands: {e}")))?;
+    pattern_wavelengths(pattern, &table)
+        .map_err(|e| BadInput(format!("--color {}: {e} in --bands", pattern.color())).into())
 }
 
 /// The images of one band.
@@ -180,7 +143,7 @@ pub fn run(
     let mode = args.aolp_view;
     let mut files: Vec<(String, OutFile)> = Vec::new();
     for b in &bands {
-        let l = nm_label(b.nm);
+        let l = wavelength_label(b.nm);
         for (q, data) in [
             ("s0", &b.s[0]),
             ("s1", &b.s[1]),
@@ -228,7 +191,7 @@ pub fn run(
             format!(
                 "{} {} nm: valid {}, saturated {}, dark {}, invalid {}",
                 b.letter,
-                nm_label(b.nm),
+                wavelength_label(b.nm),
                 c.valid,
                 c.saturated,
                 c.dark,
