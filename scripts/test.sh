@@ -1,16 +1,22 @@
 #!/usr/bin/env bash
 # The one command that runs every test of polarid (README, CI). It must finish within 8
 # minutes on 2 cores from a clean clone, build included:
-#   1. the repository reads nothing beside it (scripts/check_self_contained.sh);
-#   2. cargo fmt --check, then cargo clippy on every target (examples and benches
-#      included) with warnings as errors (the lints: [workspace.lints] of Cargo.toml);
+#   1. the repository reads nothing beside it (scripts/check_self_contained.sh), and no
+#      crate has a module import cycle (scripts/check_cycles.py; the cycles of
+#      scripts/known_cycles.txt are reported but do not fail);
+#   2. cargo fmt --check, then cargo clippy on every target (examples and the benchmarks
+#      of benches/ included) with warnings as errors (the lints: [workspace.lints] of
+#      Cargo.toml);
+#      in the release profile, so that the build scripts and procedural macros it
+#      compiles are the test build's;
 #   3. cargo test (release: the Monte-Carlo acceptance tests run 10^5 fits) of the
 #      workspace's libraries, binaries, integration tests (one test binary per crate,
 #      crates/*/tests/it/) and doc tests (examples and benches: checked by clippy, not
 #      built);
 #   4. Python (scripts/test_python.sh): builds the package into the venv .venv-test and
-#      runs pytest; its package downloads run in the background while Rust compiles, and
-#      it uses the `polarid` binary built in step 3.
+#      runs pytest; its package downloads run in the background while Rust compiles, the
+#      extension's build reuses the crates compiled in step 3 (same profile, target
+#      directory and features) and the tests use the `polarid` binary built there.
 # Statistical studies run a quick number of seeds; POLARID_FULL=1 runs them at full size
 # (.ci/run does, after this script). Tests on the independent renders run when
 # POLARID_RENDERS names their directory and say so on the terminal when skipped.
@@ -22,6 +28,8 @@ step() { echo "== $1 [$((SECONDS - start)) s]"; }
 
 step "self-contained (no reads outside the repository)"
 ./scripts/check_self_contained.sh
+step "no module import cycles"
+python3 scripts/check_cycles.py --known scripts/known_cycles.txt
 step "cargo fmt --check"
 cargo fmt --all -- --check
 
@@ -32,7 +40,7 @@ prep=$!
 trap 'kill $prep 2>/dev/null || true; rm -f "$prep_log"' EXIT
 
 step "cargo clippy (all targets, warnings are errors)"
-cargo clippy --all-targets --locked -- -D warnings
+cargo clippy --release --workspace --exclude polarid-python --all-targets --locked -- -D warnings
 
 step "cargo test (release): libraries, binaries, integration tests"
 cargo test --release --locked --lib --bins --tests

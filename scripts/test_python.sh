@@ -50,7 +50,23 @@ echo "== building and installing polarid (maturin, release, --locked)"
 # --force-reinstall: the version number does not change between builds.
 # The venv's bin first on PATH: without build isolation, maturin's build hook runs the
 # `maturin` executable installed in the venv.
-PATH="$venv/bin:$PATH" "${pip[@]}" install -q --force-reinstall --no-deps --no-build-isolation ./python
+# The build shares target/ and the release profile with `cargo test --release` (and the
+# features of the shared dependencies, see python/Cargo.toml): after scripts/test.sh's
+# test build it compiles only PyO3, numpy and the extension crate itself. Cargo's
+# progress lines are shown; a warning says when polarid-core was compiled again.
+build_log=$(mktemp)
+if ! PATH="$venv/bin:$PATH" "${pip[@]}" install -v --force-reinstall --no-deps --no-build-isolation \
+        ./python >"$build_log" 2>&1; then
+    cat "$build_log" >&2
+    echo "error: building the Python package failed" >&2
+    exit 1
+fi
+grep -E '^ *(Compiling|Finished) ' "$build_log" | sed 's/^ */    /' || true
+if [[ -n "${POLARID_CLI:-}" ]] && grep -qE '^ *Compiling polarid-core ' "$build_log"; then
+    echo "warning: the extension's build compiled polarid-core again instead of reusing the" \
+         "test build's (the features of a shared dependency differ: python/Cargo.toml)" >&2
+fi
+rm -f "$build_log"
 
 if [[ -z "${POLARID_CLI:-}" ]]; then
     echo "== building the polarid CLI (cargo build --release --locked -p polarid-cli)"

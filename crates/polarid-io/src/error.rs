@@ -105,7 +105,7 @@ pub enum IoError {
     #[error(
         "{path}: {what}, more than the memory limit of {} (raise it with --memory-limit \
          or POLARID_MEMORY_LIMIT)",
-        crate::limits::human(*limit)
+        human(*limit)
     )]
     TooLarge {
         /// The file.
@@ -211,6 +211,20 @@ pub fn chain_message(err: &dyn StdError) -> String {
 
 /// Result alias of the I/O crate.
 pub type Result<T> = std::result::Result<T, IoError>;
+
+/// A byte count for messages: `3.0 GiB`, `12.5 MiB`, `800 bytes`.
+pub fn human(bytes: u64) -> String {
+    let b = bytes as f64;
+    if bytes >= 1 << 30 {
+        format!("{:.1} GiB", b / (1u64 << 30) as f64)
+    } else if bytes >= 1 << 20 {
+        format!("{:.1} MiB", b / (1u64 << 20) as f64)
+    } else if bytes >= 1 << 10 {
+        format!("{:.1} KiB", b / 1024.0)
+    } else {
+        format!("{bytes} bytes")
+    }
+}
 
 #[cfg(test)]
 mod tests {

@@ -119,19 +119,8 @@ pub fn short(s: &str) -> String {
     }
 }
 
-/// A byte count for messages: `3.0 GiB`, `12.5 MiB`, `800 bytes`.
-pub fn human(bytes: u64) -> String {
-    let b = bytes as f64;
-    if bytes >= 1 << 30 {
-        format!("{:.1} GiB", b / (1u64 << 30) as f64)
-    } else if bytes >= 1 << 20 {
-        format!("{:.1} MiB", b / (1u64 << 20) as f64)
-    } else if bytes >= 1 << 10 {
-        format!("{:.1} KiB", b / 1024.0)
-    } else {
-        format!("{bytes} bytes")
-    }
-}
+/// A byte count for messages (defined beside the errors that print it).
+pub use crate::error::human;
 
 /// Error unless `need` bytes (to do `what` with `path`) fit in the budget.
 pub fn check_budget(path: &Path, what: &str, need: u64) -> Result<()> {

@@ -156,8 +156,8 @@ impl Tally {
 
 #[test]
 fn library_materials_as_found() {
-    let full = std::env::var("POLARID_FULL").is_ok_and(|v| v == "1");
-    let per = if full { 300 } else { 20 };
+    let full = polarid_testkit::full();
+    let per = polarid_testkit::seeds(20, 300) as usize;
     let protos = library();
     let cfg = config(0.95);
     let mut rng = StdRng::seed_from_u64(2027);
@@ -244,8 +244,8 @@ fn library_materials_as_found() {
 /// run's 1% bound is not met yet (docs/CLASSIFY.md).
 #[test]
 fn surfaces_outside_the_hypotheses() {
-    let full = std::env::var("POLARID_FULL").is_ok_and(|v| v == "1");
-    let per = if full { 300 } else { 20 };
+    let full = polarid_testkit::full();
+    let per = polarid_testkit::seeds(20, 300) as usize;
     let protos = library();
     let cfg = config(0.95);
     let mut rng = StdRng::seed_from_u64(99);

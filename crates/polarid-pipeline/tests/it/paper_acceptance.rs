@@ -295,11 +295,7 @@ fn paper_experiment_same_bench_names_the_right_material_alone() {
     let seeds: u64 = std::env::var("POLARID_SEEDS")
         .ok()
         .and_then(|s| s.parse().ok())
-        .unwrap_or(if std::env::var("POLARID_FULL").is_ok_and(|v| v == "1") {
-            100
-        } else {
-            2
-        });
+        .unwrap_or_else(|| polarid_testkit::seeds(2, 100));
     let dir = tempfile::tempdir().unwrap();
     let (mut same, mut other) = (Vec::new(), Vec::new());
     for seed in 0..seeds {
