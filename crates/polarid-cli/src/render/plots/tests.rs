@@ -472,7 +472,7 @@ fn nk_plane_draws_the_regions_that_decide_the_sets_with_the_answers() {
             "t1: ambiguous: gold, copper",
             "t2: unknown (none at 95%)",
             "t3: silver",
-            "region (its own Σ)",
+            "Σ only",
         ],
     );
     // Prototypes with a covariance (a trained model): one region per covariance, dashed.
@@ -501,7 +501,7 @@ fn nk_plane_draws_the_regions_that_decide_the_sets_with_the_answers() {
         )
     );
     let r = nk_plane("model", &plot_protos, &[e], size).unwrap();
-    assert_outputs(&r, size, &["region with gold, copper"]);
+    assert_outputs(&r, size, &["with gold, copper"]);
     assert!(r.svg.contains("stroke-dasharray") || r.svg.matches("<polyline").count() > 20);
 }
 
