@@ -41,6 +41,9 @@ classify_table(fits_csv, library_or_model, wavelength_nm=None)
     Every target of a fits CSV, as ``polarid classify``: a dict of its columns.
 load_manifest(path), measure(manifest_path)
     Capture-set manifests and the per-region DoLP measurements of ``polarid measure``.
+beta_map(manifest_path, capture=0)
+    The per-pixel β (degrees) of a capture with calibrated geometry ([camera] and a
+    ``source``), where ``load_manifest`` gives ``beta_deg`` None.
 read_image(path)
     A grayscale PNG/TIFF (e.g. a raw mosaic, or an output of ``polarid stokes``) as a
     float32 array (H, W), with the readers and limits of the CLI.
@@ -66,6 +69,7 @@ from ._polarid import (
     FIT_STATUS,
     __version__,
     aolp,
+    beta_map,
     classify,
     classify_table,
     demosaic,
@@ -91,6 +95,7 @@ __all__ = [
     "FIT_STATUS",
     "__version__",
     "aolp",
+    "beta_map",
     "classify",
     "classify_table",
     "demosaic",

@@ -17,9 +17,11 @@ __all__ = [
     "FIT_STATUS",
     "__version__",
     "aolp",
+    "beta_map",
     "classify",
     "classify_table",
     "demosaic",
+    "dofp_dolp_aolp",
     "dolp",
     "dolp_aolp",
     "dolp_model",
@@ -31,8 +33,10 @@ __all__ = [
     "map_manifest",
     "measure",
     "pbrdf",
+    "read_image",
     "simulate",
     "stokes",
+    "stokes_color",
 ]
 
 __version__: str
@@ -306,7 +310,13 @@ def classify_table(
     margin, nearest, category, metric, rule, confidence, gate, votes, reason."""
 
 # --- files -----------------------------------------------------------------------------
-def load_manifest(path: _Path) -> dict[str, Any]: ...
+def load_manifest(path: _Path) -> dict[str, Any]:
+    """The validated manifest as a dict. A capture with calibrated geometry (a
+    ``source``) has ``beta_deg`` None and ``calibrated`` True: its β differs from pixel to
+    pixel, see ``beta_map``."""
+def beta_map(manifest_path: _Path, capture: int = 0) -> NDArray[np.float32]:
+    """Per-pixel β (degrees, (H, W), NaN where a pixel has no geometry) of capture
+    ``capture`` (0-based) of a manifest with calibrated geometry."""
 def measure(manifest_path: _Path, *, strict: bool = False) -> dict[str, NDArray[Any]]: ...
 def read_image(path: _Path) -> NDArray[np.float32]: ...
 

@@ -370,7 +370,7 @@ def material_map(
         (100; ``math.inf``: ideal), the largest retardance ahead of it (0°); as
         ``polarid map``.
     max_distance : float, optional
-        Nearest rule: leave pixels whose nearest prototype is farther unclassified
+        Nearest rule: leave pixels whose nearest prototype is farther ``unknown``
         (``rejected``).
     metric : {"euclidean", "mahalanobis"}
         Nearest rule: distance to the prototypes.
@@ -390,7 +390,8 @@ def material_map(
     dict
         ``n``, ``k``, ``n_se``, ``k_se``, ``rms_residual``: float32 dask arrays (H // bin,
         W // bin), NaN where not fitted; ``class``: uint8 (uint16 above 255 classes) class
-        codes, 0 = not classified, code ``i`` is ``class_names[i]``; ``reason``: uint8
+        codes, 0 = ``unknown`` (no material; ``reason`` says why), code ``i`` is
+        ``class_names[i]``; ``reason``: uint8
         codes, code ``i`` is ``reason_names[i]``; ``class_names`` (list, ``"unknown"``
         first, ``"ambiguous"`` last with the set rule), ``reason_names`` (list,
         ``"classified"`` first, as ``map_summary.json``'s ``reason_codes``); ``weights``

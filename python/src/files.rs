@@ -3,6 +3,8 @@
 //! files: `read_image` (a grayscale PNG/TIFF through the readers of the CLI,
 //! `polarid_io::image::read_frame`).
 //!
+//! `beta_map` gives the per-pixel β of a capture with calibrated geometry.
+//!
 //! `measure` calls `polarid_pipeline::measure::measure`, the pipeline `polarid
 //! measure` runs (crates/polarid-cli/src/cmd/measure.rs), so it produces the same
 //! numbers. The test suite compares it with the CLI's CSV.
@@ -27,6 +29,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(load_manifest, m)?)?;
     m.add_function(wrap_pyfunction!(measure, m)?)?;
     m.add_function(wrap_pyfunction!(read_image, m)?)?;
+    m.add_function(wrap_pyfunction!(beta_map, m)?)?;
     Ok(())
 }
 
@@ -91,6 +94,101 @@ pub fn read_image<'py>(py: Python<'py>, path: &Bound<'py, PyAny>) -> PyResult<Bo
     Ok(to_numpy(py, a))
 }
 
+/// The β (eq. 5, degrees) of every pixel of a capture with calibrated geometry.
+///
+/// Where each pixel's ray meets its plane, lit by the capture's ``source``: the plane of
+/// the first region (in manifest order) that contains the pixel, else the first
+/// ``[[plane]]`` (as ``polarid map`` and ``polarid measure`` do). Pixels in the
+/// coordinates of the files as stored (the raw mosaic for DoFP captures), centres at
+/// integers. The image size is that of the capture's first file.
+///
+/// Parameters
+/// ----------
+/// manifest_path : str or os.PathLike
+/// capture : int, optional
+///     The capture's position in ``load_manifest(...)["captures"]`` (0-based; the first
+///     capture, whose ``index`` is 1, is 0).
+///
+/// Returns
+/// -------
+/// numpy.ndarray
+///     float32, shape (height, width), degrees; NaN where a pixel has no geometry (its
+///     ray misses the plane, or the source is below the plane's horizon there).
+///
+/// Raises
+/// ------
+/// FileNotFoundError
+///     A missing manifest or image.
+/// ValueError
+///     An invalid manifest, a capture index out of range, or a far-field capture (one β
+///     for every pixel: ``load_manifest(...)["captures"][i]["beta_deg"]``).
+#[pyfunction]
+#[pyo3(signature = (manifest_path, capture = 0))]
+pub fn beta_map<'py>(
+    py: Python<'py>,
+    manifest_path: &Bound<'py, PyAny>,
+    capture: usize,
+) -> PyResult<Bound<'py, PyAny>> {
+    let p = path_arg(manifest_path)?;
+    let m = py.detach(|| manifest::load(&p)).py_err()?;
+    warn_all(py, &m)?;
+    let Some(c) = m.captures.get(capture) else {
+        return Err(value_error(format!(
+            "capture {capture} is out of range: {} has {} captures (0-based)",
+            p.display(),
+            m.captures.len()
+        )));
+    };
+    if c.illumination.is_none() {
+        return Err(value_error(format!(
+            "capture {capture} of {} has far-field angles (one beta_deg for every pixel: \
+             load_manifest(...)[\"captures\"][{capture}][\"beta_deg\"]); beta_map is for \
+             captures with a source",
+            p.display()
+        )));
+    }
+    let first = c
+        .files()
+        .first()
+        .map(|f| f.to_path_buf())
+        .ok_or_else(|| value_error(format!("capture {capture} has no file")))?;
+    let beta = py
+        .detach(
+            || -> Result<(usize, usize, Vec<f32>), polarid_io::IoError> {
+                let f = polarid_io::image::read_frame(&first)?;
+                let (w, h) = (f.width, f.height);
+                // The plane of every pixel: the first region containing it, else plane 0.
+                let mut plane = vec![0usize; w * h];
+                for r in m.regions.iter().rev() {
+                    for y in r.rect.y..(r.rect.y + r.rect.height).min(h) {
+                        for x in r.rect.x..(r.rect.x + r.rect.width).min(w) {
+                            plane[y * w + x] = r.plane;
+                        }
+                    }
+                }
+                let mut planes: Vec<usize> = plane.clone();
+                planes.sort_unstable();
+                planes.dedup();
+                let mut out = vec![f32::NAN; w * h];
+                for pi in planes {
+                    let Some(b) = polarid_io::measure::beta_map(&m, c, pi, w, h)? else {
+                        continue;
+                    };
+                    for ((o, &p), v) in out.iter_mut().zip(&plane).zip(b) {
+                        if p == pi {
+                            *o = v;
+                        }
+                    }
+                }
+                Ok((w, h, out))
+            },
+        )
+        .py_err()?;
+    let (w, h, data) = beta;
+    let a = ArrayD::from_shape_vec(IxDyn(&[h, w]), data).map_err(|e| value_error(e.to_string()))?;
+    Ok(to_numpy(py, a))
+}
+
 /// Read and validate a capture-set manifest (TOML, docs/FORMATS.md).
 ///
 /// Parameters
@@ -106,11 +204,14 @@ pub fn read_image<'py>(py: Python<'py>, path: &Bound<'py, PyAny>) -> PyResult<Bo
 ///     ``wavelength_nm``, ``regions`` (list of dicts ``name``, ``rect`` = (x, y, width,
 ///     height), ``class`` (or None), ``line``, ``index``), ``captures`` (list of dicts
 ///     ``index``, ``line``, ``name``, ``theta_i_deg``, ``theta_r_deg``, ``phi_deg``,
-///     ``exposure``, ``dark_level``, ``saturation``, ``beta_deg`` (derived, eq. 5),
+///     ``exposure``, ``dark_level``, ``saturation``, ``beta_deg`` (derived, eq. 5;
+///     ``None`` for a capture with calibrated geometry, whose β differs from pixel to
+///     pixel: ``polarid.beta_map(path, index)`` gives it), ``calibrated`` (bool),
 ///     ``kind`` = ``"frames"`` | ``"dofp"`` | ``"stokes"`` and, by kind, ``frames``
 ///     (list of dicts ``angle_deg``, ``file``), ``dofp`` (dict ``file``, ``pattern``)
-///     or ``stokes`` (dict ``s0``, ``s1``, ``s2``)), ``warnings`` (unknown keys, also
-///     issued as ``UserWarning``). File paths are resolved against the manifest's
+///     or ``stokes`` (dict ``s0``, ``s1``, ``s2``)), ``calibrated`` (bool: the manifest
+///     has a ``[camera]`` and every capture a ``source``), ``warnings`` (unknown keys,
+///     also issued as ``UserWarning``). File paths are resolved against the manifest's
 ///     directory.
 ///
 /// Raises
@@ -135,6 +236,7 @@ pub fn load_manifest<'py>(
     d.set_item("dark_level", m.dark_level)?;
     d.set_item("saturation", m.saturation)?;
     d.set_item("wavelength_nm", m.wavelength_nm)?;
+    d.set_item("calibrated", m.camera.is_some())?;
     let regions = PyList::empty(py);
     for r in &m.regions {
         let rd = PyDict::new(py);
@@ -158,7 +260,10 @@ pub fn load_manifest<'py>(
         cd.set_item("exposure", c.exposure)?;
         cd.set_item("dark_level", c.dark_level)?;
         cd.set_item("saturation", c.saturation)?;
-        cd.set_item("beta_deg", beta_deg(c))?;
+        // A calibrated capture has no single β (the far-field angles are not set).
+        let calibrated = c.illumination.is_some();
+        cd.set_item("beta_deg", (!calibrated).then(|| beta_deg(c)))?;
+        cd.set_item("calibrated", calibrated)?;
         cd.set_item("wavelength_nm", c.wavelength_nm)?;
         let show = |p: &Path| p.display().to_string();
         match &c.source {

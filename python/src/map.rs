@@ -71,7 +71,7 @@ fn image<'py, T: numpy::Element>(
 ///     Dark threshold on a block's mean dark-subtracted S0, DN (default: 1 % of the range
 ///     from the dark level to saturation for integer frames, 0 for float frames).
 /// max_distance : float, optional
-///     Leave pixels whose nearest prototype is farther unclassified (``rejected``).
+///     Leave pixels whose nearest prototype is farther ``unknown`` (reason ``rejected``).
 /// metric : {"euclidean", "mahalanobis"}
 ///     Distance to the prototypes (``mahalanobis``: with each pixel's fit covariance;
 ///     ``max_distance`` is then in standard deviations).
@@ -102,9 +102,9 @@ fn image<'py, T: numpy::Element>(
 ///     (float32 (H, W), the band's per-pixel fit: the CLI's ``n_450.tif`` ...),
 ///     ``reason`` (uint8 (H, W): why the band's fit of a pixel is not used by the
 ///     classification, codes into ``reason_names``; ``classified``: fitted ``ok``) and
-///     ``reason_counts``; ``class``: uint8 (H, W) class codes (uint16 above 255 classes), 0 = not
-///     classified, code ``i`` is ``class_names[i]``; ``reason``: uint8 (H, W), why a pixel
-///     is (not) classified, code ``i`` is ``reason_names[i]``; ``class_names`` (list,
+///     ``reason_counts``; ``class``: uint8 (H, W) class codes (uint16 above 255
+///     classes), 0 = ``unknown`` (no material; ``reason`` says why), code ``i`` is
+///     ``class_names[i]``; ``reason``: uint8 (H, W), why a pixel is (not) classified, code ``i`` is ``reason_names[i]``; ``class_names`` (list,
 ///     ``"unknown"`` first), ``reason_names`` (list, ``"classified"`` first);
 ///     ``class_counts``, ``reason_counts``: int64 pixel counts per code; ``summary``:
 ///     the content of ``map_summary.json`` without the input paths and timings (size,

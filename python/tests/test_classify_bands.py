@@ -279,7 +279,7 @@ def test_map_manifest_bands_options(colour, polarid_cli):
         polarid.map_manifest(manifest)
     with pytest.raises(ValueError, match="not both or neither"):
         polarid.map_manifest(manifest, colour["model"], library="builtin-rgb")
-    with pytest.raises(ValueError, match="builtin-tv: No such file, and not a built-in library"):
+    with pytest.raises(FileNotFoundError, match="builtin-tv: No such file, and not a built-in library"):
         polarid.map_manifest(manifest, library="builtin-tv")
     run(polarid_cli, "simulate", REPO_SCENES / "aluminum_test_60.toml", "-o", colour["dir"] / "mono_sim")
     with pytest.raises(ValueError, match="colour captures only"):

@@ -191,22 +191,31 @@ impl Library {
             "builtin-rgb" => Self::builtin_rgb(),
             _ => {
                 let path = Path::new(spec);
-                if std::fs::symlink_metadata(path).is_err() {
-                    return Err(IoError::Model {
-                        path: path.to_path_buf(),
-                        reason: format!(
-                            "No such file, and not a built-in library ({}){}",
-                            BUILTIN_NAMES.join(", "),
-                            crate::suggest::did_you_mean(
-                                // A scene's spec arrives joined to the scene's folder.
-                                &path.file_name().map_or_else(
-                                    || spec.to_string(),
-                                    |f| f.to_string_lossy().into_owned()
+                match std::fs::symlink_metadata(path) {
+                    // Not found: an operating-system "not found" error (exit status 2,
+                    // Python's FileNotFoundError) whose message lists the built-in names.
+                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                        return Err(IoError::io(
+                            path,
+                            std::io::Error::new(
+                                std::io::ErrorKind::NotFound,
+                                format!(
+                                    "No such file, and not a built-in library ({}){}",
+                                    BUILTIN_NAMES.join(", "),
+                                    crate::suggest::did_you_mean(
+                                        // A scene's spec arrives joined to the scene's folder.
+                                        &path.file_name().map_or_else(
+                                            || spec.to_string(),
+                                            |f| f.to_string_lossy().into_owned()
+                                        ),
+                                        BUILTIN_NAMES
+                                    )
                                 ),
-                                BUILTIN_NAMES
-                            )
-                        ),
-                    });
+                            ),
+                        ));
+                    }
+                    Err(e) => return Err(IoError::io(path, e)),
+                    Ok(_) => {}
                 }
                 Self::read_csv(path)
             }
@@ -1502,6 +1511,11 @@ mod tests {
     fn mistyped_names_get_suggestions() {
         let e = Library::load("bultin").unwrap_err();
         assert!(e.is_bad_input());
+        // The operating system's "not found" (Python: FileNotFoundError).
+        assert!(
+            matches!(&e, IoError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound),
+            "{e:?}"
+        );
         let e = e.to_string();
         assert!(
             e.contains("bultin")

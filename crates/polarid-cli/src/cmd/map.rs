@@ -185,13 +185,14 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     write_outputs(&args, &r, &refs, ctx)?;
     let a = r.answers();
     ctx.info(format!(
-        "polarid map: {}x{} pixels: {} one material, {} ambiguous, {} unknown, {} not classified; written to {} (DoLP {:.2} s, fit {:.2} s)",
+        "polarid map: {}x{} pixels: {} one material, {} ambiguous, {} unknown ({} rejected, {} without a usable fit); written to {} (DoLP {:.2} s, fit {:.2} s)",
         r.width,
         r.height,
         a.material,
         a.ambiguous,
         a.unknown,
-        a.not_classified,
+        a.rejected,
+        a.not_fitted(),
         args.output.display(),
         r.seconds_dolp,
         r.seconds_fit

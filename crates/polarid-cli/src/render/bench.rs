@@ -100,20 +100,28 @@ pub fn figures(out: &BenchOutput) -> anyhow::Result<Vec<BenchFigure>> {
     }
     let m = &out.map;
     figs.push(BenchFigure {
-        plot: plots::class_map(
+        plot: plots::answer_map(
             &format!("Material map of the test set ({MAP_BIN}x{MAP_BIN} binning)"),
-            m.width,
-            m.height,
-            &m.class,
-            &m.class_names,
+            &plots::ClassMap {
+                width: m.width,
+                height: m.height,
+                classes: &m.class,
+                names: &m.class_names,
+                reasons: Some(&m.reason),
+                regions: super::map_figures::map_regions(m),
+            },
             size,
         )?,
         stem: "class_map".into(),
         title: "Material map".into(),
-        caption: "Per-pixel (4 × 4 block) fit of (n, k) over the nine lamp positions and \
-                  nearest prototype of the trained model; unclassified blocks (background, \
-                  too dark, fit not ok) are blank."
-            .into(),
+        caption: format!(
+            "Per-pixel (4 × 4 block) fit of (n, k) over the nine lamp positions, answered \
+             by the {} against the trained model: a material, `ambiguous` (dark grey) or \
+             `unknown` (light greys: no material consistent, or no usable fit, e.g. the \
+             background; pink-magenta: saturated; dark slate: dark). The plate regions \
+             are outlined.",
+            polarid_pipeline::demo::map_rule(m)
+        ),
     });
     Ok(figs)
 }
@@ -289,9 +297,12 @@ pub fn report(out: &BenchOutput, figs: &[BenchFigure]) -> Report {
             ),
             (
                 "classifier".into(),
-                "nearest neighbour, Euclidean distance in (n, k); the consistent set at 95% \
-                 beside it (Mahalanobis, estimate's and prototype's covariance)"
-                    .into(),
+                format!(
+                    "test plates: {}; map: {} (answers: a material, `ambiguous` or \
+                     `unknown`)",
+                    polarid_pipeline::demo::rows_rule(&out.classification),
+                    polarid_pipeline::demo::map_rule(&out.map)
+                ),
             ),
         ],
         geometry,

@@ -179,6 +179,7 @@ pub fn report_classification_on(
                 candidates: c.confidence.map(|_| c.candidates.clone()),
                 confidence: c.confidence,
                 region,
+                rule: c.rule.clone(),
             }
         })
         .collect()

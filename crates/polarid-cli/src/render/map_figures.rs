@@ -14,10 +14,11 @@ use polarid_pipeline::map::MapResult;
 
 use super::Rendered;
 use super::plots::panels::band_label;
-use super::plots::{PlotSize, class_map, scalar_map};
+use super::plots::{ClassMap, MapRegion, PlotSize, answer_map, scalar_map};
 use super::table_report::{References, Tables, figures};
 
-/// `class.png`: the material map with its legend.
+/// `class.png`: the material map with its legend, the `unknown` pixels by reason and
+/// the manifest's regions outlined.
 pub fn class_figure(r: &MapResult) -> Result<Rendered> {
     let (w, h) = (r.width, r.height);
     let title = format!(
@@ -28,7 +29,31 @@ pub fn class_figure(r: &MapResult) -> Result<Rendered> {
             String::new()
         }
     );
-    class_map(&title, w, h, &r.class, &r.class_names, PlotSize::REPORT)
+    answer_map(
+        &title,
+        &ClassMap {
+            width: w,
+            height: h,
+            classes: &r.class,
+            names: &r.class_names,
+            reasons: Some(&r.reason),
+            regions: map_regions(r),
+        },
+        PlotSize::REPORT,
+    )
+}
+
+/// The manifest's regions in map pixels (their rectangles divided by the binning), to
+/// outline on the material map.
+pub fn map_regions(r: &MapResult) -> Vec<MapRegion> {
+    let b = r.bin.max(1) as f64;
+    r.regions
+        .iter()
+        .map(|g| MapRegion {
+            name: g.name.clone(),
+            rect: g.rect.map(|v| v as f64 / b),
+        })
+        .collect()
 }
 
 /// The references of a map: `profiles` (a model's or a library's), drawn with the

@@ -325,6 +325,36 @@ fn synthetic_plates_are_mapped_and_background_left_unclassified() {
         s["classified"].as_u64().unwrap() + s["answers"]["ambiguous"].as_u64().unwrap(),
         class.iter().filter(|&&c| c != 0).count() as u64
     );
+    // One vocabulary (docs/FORMATS.md, "Answers"): the answers are a material,
+    // `ambiguous` or `unknown`, add up to the pixels, and `unknown` is class 0 of
+    // `classes.json` and `class.tif`; the class map's legend uses the same words.
+    let a = &s["answers"];
+    let mut keys: Vec<&String> = a.as_object().unwrap().keys().collect();
+    keys.sort();
+    assert_eq!(keys, ["ambiguous", "material", "unknown"], "{a}");
+    assert_eq!(
+        a["material"].as_u64().unwrap()
+            + a["ambiguous"].as_u64().unwrap()
+            + a["unknown"].as_u64().unwrap(),
+        (w * h) as u64
+    );
+    assert_eq!(
+        a["unknown"].as_u64().unwrap(),
+        class.iter().filter(|&&c| c == 0).count() as u64
+    );
+    let svg = std::fs::read_to_string(out.join("class.svg")).unwrap();
+    assert!(svg.contains("unknown: dark or invalid"), "class.svg legend");
+    assert!(
+        !svg.contains("unclassified"),
+        "class.svg: another word for unknown"
+    );
+    for p in plates() {
+        assert!(
+            svg.contains(p.name),
+            "class.svg: region {} not labelled",
+            p.name
+        );
+    }
     // An existing output is not overwritten without --force.
     let o = polarid(&[
         "map",

@@ -79,8 +79,12 @@ pub(super) fn tables(
         })
         .collect();
     let table2 = text_table(
-        "Table 2. Test plates (another render, the lamp mirrored across the plane of \
-         incidence), nearest neighbour in (n, k) against the training fits.",
+        &format!(
+            "Table 2. Test plates (another render, the lamp mirrored across the plane of \
+             incidence) against the training fits, {}. Classification: a material, \
+             `ambiguous` or `unknown` (docs/FORMATS.md, \"Answers\").",
+            rows_rule(class_rows)
+        ),
         &[
             "Target",
             "truth",
@@ -95,12 +99,20 @@ pub(super) fn tables(
         .regions
         .iter()
         .map(|r| {
-            let unknown = r
-                .classes
-                .iter()
-                .find(|(c, _)| c == polarid_core::classify::UNKNOWN)
-                .map_or(0, |(_, n)| *n);
-            let classified = r.pixels.saturating_sub(unknown);
+            let count = |word: &str| {
+                r.classes
+                    .iter()
+                    .find(|(c, _)| c == word)
+                    .map_or(0, |(_, n)| *n)
+            };
+            let unknown = count(polarid_core::classify::UNKNOWN);
+            let ambiguous = if map.ambiguous_class().is_some() {
+                count(polarid_core::classify::AMBIGUOUS)
+            } else {
+                0
+            };
+            // One material: neither `unknown` nor `ambiguous`.
+            let material = r.pixels.saturating_sub(unknown + ambiguous);
             let share = |a: u64, b: u64| {
                 if b > 0 {
                     format!("{:.1} %", 100.0 * a as f64 / b as f64)
@@ -112,19 +124,54 @@ pub(super) fn tables(
                 r.name.clone(),
                 r.class.clone().unwrap_or_default(),
                 r.pixels.to_string(),
-                share(classified, r.pixels),
-                share(r.correct, classified),
+                share(material, r.pixels),
+                share(ambiguous, r.pixels),
+                share(unknown, r.pixels),
+                share(r.correct, material),
             ]
         })
         .collect();
     let table3 = text_table(
         &format!(
-            "Table 3. Map of the test set ({MAP_BIN} × {MAP_BIN} binning, per-pixel fit and \
-             nearest neighbour): per plate region, the share of its blocks classified and \
-             the share of those given the right class."
+            "Table 3. Map of the test set ({MAP_BIN} × {MAP_BIN} binning, per-pixel fit, {}): \
+             per plate region, the share of its blocks given one material, `ambiguous` and \
+             `unknown`, and the share of the one-material blocks given the right class.",
+            map_rule(map)
         ),
-        &["Region", "class", "blocks", "classified", "correct"],
+        &[
+            "Region",
+            "class",
+            "blocks",
+            "one material",
+            "ambiguous",
+            "unknown",
+            "correct",
+        ],
         &t3,
     );
     format!("{table1}\n{table2}\n{table3}")
+}
+
+/// The rule of the classification rows in words (their `rule` and `confidence`
+/// columns): e.g. "set rule at 95% (Mahalanobis)".
+pub fn rows_rule(rows: &[ClassificationRow]) -> String {
+    let Some(r) = rows.first() else {
+        return "no targets".into();
+    };
+    rule_words(&r.rule, r.confidence, &r.metric)
+}
+
+/// The rule of a map in words: e.g. "set rule at 95% (Mahalanobis)".
+pub fn map_rule(map: &MapResult) -> String {
+    let confidence = (map.rule == crate::map::Rule::Set).then_some(map.confidence);
+    rule_words(map.rule.name(), confidence, map.metric.name())
+}
+
+fn rule_words(rule: &str, confidence: Option<f64>, metric: &str) -> String {
+    match (rule, confidence) {
+        ("set", Some(c)) => format!("set rule at {}% (Mahalanobis)", c * 100.0),
+        ("hypothesis", Some(c)) => format!("hypothesis tests at {}%", c * 100.0),
+        ("nearest", _) => format!("nearest prototype ({metric})"),
+        (r, _) => format!("{r} rule"),
+    }
 }

@@ -36,6 +36,7 @@ use polarid_io::table::classification::ClassificationRow;
 use polarid_io::table::fits::FitRow;
 use polarid_io::table::measurements::Measurement;
 
+pub use bench_tables::{map_rule, rows_rule};
 pub use plates::{
     DemoPlate, PLATES, SIDE, WAVELENGTH_NM, native_layer, paper_estimate, scene_text, scene_text_at,
 };

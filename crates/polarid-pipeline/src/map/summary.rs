@@ -17,8 +17,8 @@ pub struct RegionSummary {
     pub rect: [usize; 4],
     /// Map pixels (blocks) entirely inside the rectangle.
     pub pixels: u64,
-    /// Pixels per class name (`unknown` for not classified), classes with pixels only,
-    /// in class-index order.
+    /// Pixels per answer (a material, `ambiguous`, or `unknown` for no material), answers
+    /// with pixels only, in class-index order.
     pub classes: Vec<(String, u64)>,
     /// The region's labelled class, if any.
     pub class: Option<String>,
@@ -224,7 +224,8 @@ impl MapResult {
         v
     }
 
-    /// `classes.json`: class index (as a string) → name, `"0": "unknown"`.
+    /// `classes.json`: class index (as a string) → answer, `"0": "unknown"` (no
+    /// material; `reason.tif` says why), `"ambiguous"` last under the set rule.
     pub fn classes_json(&self) -> Value {
         let mut m = serde_json::Map::new();
         m.insert("0".into(), json!(UNKNOWN));
@@ -235,18 +236,32 @@ impl MapResult {
     }
 }
 
-/// The pixels of a map by answer.
+/// The pixels of a map by answer (docs/FORMATS.md, "Answers"): one material, several
+/// (`ambiguous`) or none (`unknown`); the three add up to the map's pixels. Why a pixel
+/// is `unknown` is in its reason (`rejected`: fitted `ok` but no material consistent;
+/// the other reasons: no usable fit).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
 pub struct Answers {
     /// Pixels given one material.
     pub material: u64,
     /// Pixels consistent with several materials (set rule).
     pub ambiguous: u64,
-    /// Pixels fitted with status `ok` but placed nowhere (`rejected`: no consistent
-    /// material, or the nearest one beyond the maximum distance).
+    /// Pixels given no material (class 0, `unknown`): [`Answers::rejected`] plus the
+    /// pixels without a usable fit.
     pub unknown: u64,
-    /// Pixels without an answer: not fitted (signal, geometry) or a fit that is not `ok`.
-    pub not_classified: u64,
+    /// The `unknown` pixels fitted with status `ok` but placed nowhere (reason
+    /// `rejected`: no consistent material, or the nearest one beyond the maximum
+    /// distance). Not serialized: the summary's `reasons` carry it.
+    #[serde(skip)]
+    pub rejected: u64,
+}
+
+impl Answers {
+    /// The `unknown` pixels without a usable fit (signal, geometry, or a fit that is not
+    /// `ok`).
+    pub fn not_fitted(&self) -> u64 {
+        self.unknown - self.rejected
+    }
 }
 
 impl MapResult {
@@ -255,13 +270,13 @@ impl MapResult {
         let r = &self.counts.reasons;
         let material = r[polarid_core::map::reason::CLASSIFIED as usize];
         let ambiguous = r[polarid_core::map::reason::AMBIGUOUS as usize];
-        let unknown = r[polarid_core::map::reason::REJECTED as usize];
+        let rejected = r[polarid_core::map::reason::REJECTED as usize];
         let total: u64 = r.iter().sum();
         Answers {
             material,
             ambiguous,
-            unknown,
-            not_classified: total - material - ambiguous - unknown,
+            unknown: total - material - ambiguous,
+            rejected,
         }
     }
 }

@@ -27,6 +27,11 @@ pub(super) struct Raster {
 pub(super) trait Figure {
     /// Draw onto `root` (already white). Returns the raster to overlay, if any.
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<Option<Raster>>;
+
+    /// Draw over the raster (called after it is placed; nothing by default).
+    fn overlay<DB: DrawingBackend>(&self, _root: &DrawingArea<DB, Shift>) -> Result<()> {
+        Ok(())
+    }
 }
 
 pub(super) fn encode_png(rgb: &[u8], w: u32, h: u32) -> Result<Vec<u8>> {
@@ -53,6 +58,9 @@ pub(super) fn render(fig: &impl Figure, size: PlotSize) -> Result<Rendered> {
     };
     if let Some(r) = &raster {
         paste(&mut buf, w, h, r);
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        fig.overlay(&root)?;
+        root.present().dr()?;
     }
     let png = encode_png(&buf, w, h)?;
 
@@ -77,6 +85,24 @@ pub(super) fn render(fig: &impl Figure, size: PlotSize) -> Result<Rendered> {
             .rfind("</svg>")
             .ok_or_else(|| anyhow!("internal error: SVG output has no closing tag"))?;
         svg.insert_str(end, &tag);
+        // The overlay's elements after the image (without their own <svg> wrapper).
+        let mut over = String::new();
+        {
+            let root = SVGBackend::with_string(&mut over, (w, h)).into_drawing_area();
+            fig.overlay(&root)?;
+            root.present().dr()?;
+        }
+        let open = over
+            .find("<svg")
+            .and_then(|i| over[i..].find('>').map(|j| i + j + 1));
+        if let (Some(a), Some(b)) = (open, over.rfind("</svg>"))
+            && a < b
+        {
+            let end = svg
+                .rfind("</svg>")
+                .ok_or_else(|| anyhow!("internal error: SVG output has no closing tag"))?;
+            svg.insert_str(end, &over[a..b]);
+        }
     }
     Ok(Rendered {
         png,

@@ -4,6 +4,7 @@ use anyhow::Result;
 use anyhow::bail;
 use plotters::coord::Shift;
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use super::PlotSize;
 use super::canvas::*;
@@ -12,8 +13,10 @@ use super::style::*;
 use crate::render::Rendered;
 
 /// A material map: `classes` is a `width × height` row-major class-index image
-/// (0 = unclassified, `i ≥ 1` = `names[i - 1]`), drawn in the categorical palette with
-/// a legend. Indices without a name are labelled `class i`.
+/// (0 = `unknown`, `i ≥ 1` = `names[i - 1]`), drawn in the categorical palette with
+/// a legend. Indices without a name are labelled `class i`. The same as
+/// [`answer_map`] without reasons or regions.
+#[cfg(test)]
 pub fn class_map(
     title: &str,
     width: usize,
@@ -22,13 +25,122 @@ pub fn class_map(
     names: &[String],
     size: PlotSize,
 ) -> Result<Rendered> {
-    check_image(width, height, classes.len())?;
+    answer_map(
+        title,
+        &ClassMap {
+            width,
+            height,
+            classes,
+            names,
+            reasons: None,
+            regions: Vec::new(),
+        },
+        size,
+    )
+}
+
+/// A labelled rectangle outlined over a class map.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MapRegion {
+    /// The label (the region's name).
+    pub name: String,
+    /// `[x, y, width, height]` in map pixels (a manifest rectangle divided by the map's
+    /// binning).
+    pub rect: [f64; 4],
+}
+
+/// The data of a material map ([`answer_map`]).
+#[derive(Debug, Clone)]
+pub struct ClassMap<'a> {
+    /// Image width (map pixels).
+    pub width: usize,
+    /// Image height.
+    pub height: usize,
+    /// Class index per pixel, row-major (0 = `unknown`, `i ≥ 1` = `names[i - 1]`).
+    pub classes: &'a [u16],
+    /// The class names; a name `ambiguous` is the set rule's answer for several
+    /// materials and gets its own colour.
+    pub names: &'a [String],
+    /// The reason codes of `reason.tif` (`polarid_core::map::reason`), same size: the
+    /// `unknown` pixels are then coloured by why (docs/FORMATS.md, "Answers").
+    pub reasons: Option<&'a [u8]>,
+    /// Rectangles outlined and labelled over the image.
+    pub regions: Vec<MapRegion>,
+}
+
+/// The four kinds of `unknown` pixels a class map tells apart (with reasons).
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum UnknownKind {
+    /// Fitted `ok`, no material consistent (reason `rejected`).
+    Rejected,
+    /// No usable fit: a fit status other than `ok`, or no geometry.
+    NoFit,
+    /// Saturated in some capture.
+    Saturated,
+    /// Dark or invalid data.
+    Dark,
+}
+
+impl UnknownKind {
+    const ALL: [UnknownKind; 4] = [
+        UnknownKind::Rejected,
+        UnknownKind::NoFit,
+        UnknownKind::Saturated,
+        UnknownKind::Dark,
+    ];
+
+    fn of(reason: u8) -> Self {
+        use polarid_core::map::reason as r;
+        match reason {
+            r::REJECTED => UnknownKind::Rejected,
+            r::SATURATED => UnknownKind::Saturated,
+            r::DARK | r::INVALID => UnknownKind::Dark,
+            _ => UnknownKind::NoFit,
+        }
+    }
+
+    fn colour(self) -> RGBColor {
+        let [sr, sg, sb] = crate::render::views::SATURATED_RGB;
+        let [dr, dg, db] = crate::render::views::DARK_RGB;
+        match self {
+            UnknownKind::Rejected => REJECTED_COLOUR,
+            UnknownKind::NoFit => NO_DATA,
+            UnknownKind::Saturated => RGBColor(sr, sg, sb),
+            UnknownKind::Dark => RGBColor(dr, dg, db),
+        }
+    }
+
+    fn label(self) -> &'static str {
+        match self {
+            UnknownKind::Rejected => "unknown: rejected (no material consistent)",
+            UnknownKind::NoFit => "unknown: no usable fit",
+            UnknownKind::Saturated => "unknown: saturated",
+            UnknownKind::Dark => "unknown: dark or invalid",
+        }
+    }
+}
+
+/// A material map with the answer words of docs/FORMATS.md ("Answers"): each material
+/// in the categorical palette, `ambiguous` dark grey, and the `unknown` pixels by reason
+/// when `data.reasons` is given (`rejected` mid grey, no usable fit light grey,
+/// `saturated` pink-magenta and `dark`/`invalid` dark slate, the colours of the `stokes`
+/// views), with the regions outlined and labelled and a legend of the pixel shares.
+pub fn answer_map(title: &str, data: &ClassMap<'_>, size: PlotSize) -> Result<Rendered> {
+    check_image(data.width, data.height, data.classes.len())?;
+    if let Some(r) = data.reasons {
+        check_image(data.width, data.height, r.len())?;
+    }
     render(
         &MapFigure {
             title,
-            width,
-            height,
-            kind: MapKind::Classes { classes, names },
+            width: data.width,
+            height: data.height,
+            kind: MapKind::Classes {
+                classes: data.classes,
+                names: data.names,
+                reasons: data.reasons,
+                regions: &data.regions,
+            },
         },
         size,
     )
@@ -90,6 +202,8 @@ enum MapKind<'a> {
     Classes {
         classes: &'a [u16],
         names: &'a [String],
+        reasons: Option<&'a [u8]>,
+        regions: &'a [MapRegion],
     },
     Scalar {
         values: &'a [f64],
@@ -108,9 +222,20 @@ struct MapFigure<'a> {
 impl MapFigure<'_> {
     fn colour_at(&self, idx: usize) -> RGBColor {
         match &self.kind {
-            MapKind::Classes { classes, .. } => match classes.get(idx) {
-                Some(0) | None => NO_DATA,
-                Some(&c) => class_colour(c as usize - 1),
+            MapKind::Classes {
+                classes,
+                names,
+                reasons,
+                ..
+            } => match classes.get(idx) {
+                Some(0) | None => match reasons.and_then(|r| r.get(idx)) {
+                    Some(&r) => UnknownKind::of(r).colour(),
+                    None => NO_DATA,
+                },
+                Some(&c) => match names.get(c as usize - 1) {
+                    Some(n) if n == polarid_core::classify::AMBIGUOUS => AMBIGUOUS_COLOUR,
+                    _ => class_colour(c as usize - 1),
+                },
             },
             MapKind::Scalar { values, range, .. } => match (values.get(idx), range) {
                 (Some(v), Some((a, b))) if v.is_finite() => viridis((v - a) / (b - a)),
@@ -118,16 +243,12 @@ impl MapFigure<'_> {
             },
         }
     }
-}
 
-impl Figure for MapFigure<'_> {
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<Option<Raster>> {
-        let (main, side) = layout(root, self.title)?;
-        if self.width == 0 || self.height == 0 {
-            draw_notice(&main, "Empty image")?;
-            return Ok(None);
-        }
-        // Fit the image's aspect ratio into the main area.
+    /// The chart of the image in `main`: the image's aspect ratio fitted into the area.
+    fn image_chart<'a, DB: DrawingBackend>(
+        &self,
+        main: &'a DrawingArea<DB, Shift>,
+    ) -> Result<Chart2d<'a, DB>> {
         let (mw, mh) = main.dim_in_pixel();
         let (left, bottom, pad) = (86.0, 62.0, 12.0);
         let aw = (mw as f64 - left - 2.0 * pad).max(10.0);
@@ -138,8 +259,8 @@ impl Figure for MapFigure<'_> {
         let extra_w = ((aw - pw) / 2.0).max(0.0) as u32;
         let extra_h = ((ah - ph) / 2.0).max(0.0) as u32;
         let (w, h) = (self.width as f64, self.height as f64);
-        let mut ch = chart(
-            &main,
+        chart(
+            main,
             0.0..w,
             h..0.0,
             (
@@ -148,7 +269,19 @@ impl Figure for MapFigure<'_> {
                 pad as u32 + extra_h,
                 pad as u32 + extra_w,
             ),
-        )?;
+        )
+    }
+}
+
+impl Figure for MapFigure<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<Option<Raster>> {
+        let (main, side) = layout(root, self.title)?;
+        if self.width == 0 || self.height == 0 {
+            draw_notice(&main, "Empty image")?;
+            return Ok(None);
+        }
+        let (w, h) = (self.width as f64, self.height as f64);
+        let mut ch = self.image_chart(&main)?;
         configure_axes(&mut ch, "x (pixel column)", "y (pixel row)", false)?;
         let (xr, yr) = ch.plotting_area().get_pixel_range();
         let (rw, rh) = (
@@ -175,42 +308,73 @@ impl Figure for MapFigure<'_> {
         };
 
         match &self.kind {
-            MapKind::Classes { classes, names } => {
-                let mut present = vec![false; names.len() + 1];
-                let mut unnamed: Vec<u16> = Vec::new();
-                for &c in classes.iter() {
-                    match present.get_mut(c as usize) {
-                        Some(p) => *p = true,
-                        None => {
-                            if !unnamed.contains(&c) {
-                                unnamed.push(c);
-                            }
+            MapKind::Classes {
+                classes,
+                names,
+                reasons,
+                ..
+            } => {
+                let mut counts = vec![0u64; names.len() + 1];
+                let mut unnamed: Vec<(u16, u64)> = Vec::new();
+                let mut unknown = [0u64; UnknownKind::ALL.len()];
+                for (i, &c) in classes.iter().enumerate() {
+                    if c == 0
+                        && let Some(&r) = reasons.and_then(|r| r.get(i))
+                    {
+                        let k = UnknownKind::of(r);
+                        if let Some(j) = UnknownKind::ALL.iter().position(|&u| u == k) {
+                            unknown[j] += 1;
                         }
+                    }
+                    match counts.get_mut(c as usize) {
+                        Some(n) => *n += 1,
+                        None => match unnamed.iter_mut().find(|(u, _)| *u == c) {
+                            Some((_, n)) => *n += 1,
+                            None => unnamed.push((c, 1)),
+                        },
                     }
                 }
                 unnamed.sort_unstable();
                 let total = classes.len().max(1) as f64;
-                let count = |i: u16| classes.iter().filter(|&&c| c == i).count() as f64;
-                let mut legend = vec![LegendItem::Heading("Classes (pixel share)".into())];
+                let pct = |n: u64| 100.0 * n as f64 / total;
+                let mut legend = vec![LegendItem::Heading("Answers (pixel share)".into())];
                 for (i, name) in names.iter().enumerate() {
-                    let pct = 100.0 * count(i as u16 + 1) / total;
+                    let colour = if name == polarid_core::classify::AMBIGUOUS {
+                        AMBIGUOUS_COLOUR
+                    } else {
+                        class_colour(i)
+                    };
                     legend.push(LegendItem::Swatch(
-                        class_colour(i),
-                        format!("{name} ({pct:.0} %)"),
+                        colour,
+                        format!("{name} ({:.0} %)", pct(counts[i + 1])),
                     ));
                 }
-                for c in unnamed {
-                    let pct = 100.0 * count(c) / total;
+                for (c, n) in unnamed {
                     legend.push(LegendItem::Swatch(
                         class_colour(c as usize - 1),
-                        format!("class {c} ({pct:.0} %)"),
+                        format!("class {c} ({:.0} %)", pct(n)),
                     ));
                 }
-                let pct = 100.0 * count(0) / total;
-                legend.push(LegendItem::Swatch(
-                    NO_DATA,
-                    format!("unclassified ({pct:.0} %)"),
-                ));
+                let any_unknown = unknown.iter().any(|&n| n > 0);
+                if reasons.is_some() && any_unknown {
+                    for (k, n) in UnknownKind::ALL.iter().zip(unknown) {
+                        if n > 0 {
+                            legend.push(LegendItem::Swatch(
+                                k.colour(),
+                                format!("{} ({:.0} %)", k.label(), pct(n)),
+                            ));
+                        }
+                    }
+                } else {
+                    legend.push(LegendItem::Swatch(
+                        NO_DATA,
+                        format!(
+                            "{} ({:.0} %)",
+                            polarid_core::classify::UNKNOWN,
+                            pct(counts[0])
+                        ),
+                    ));
+                }
                 draw_legend(&side, &legend)?;
             }
             MapKind::Scalar {
@@ -234,6 +398,51 @@ impl Figure for MapFigure<'_> {
             },
         }
         Ok(Some(raster))
+    }
+
+    /// The regions' outlines and labels, over the image.
+    fn overlay<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()> {
+        let MapKind::Classes { regions, .. } = &self.kind else {
+            return Ok(());
+        };
+        if regions.is_empty() || self.width == 0 || self.height == 0 {
+            return Ok(());
+        }
+        let (main, _) = layout(root, self.title)?;
+        let ch = self.image_chart(&main)?;
+        let area = ch.plotting_area();
+        let (w, h) = (self.width as f64, self.height as f64);
+        let label = font(LEGEND_SIZE - 3).pos(Pos::new(HPos::Left, VPos::Top));
+        for r in regions.iter() {
+            let [x, y, rw, rh] = r.rect;
+            if !(x.is_finite() && y.is_finite() && rw > 0.0 && rh > 0.0) {
+                continue;
+            }
+            let (x0, y0) = (x.clamp(0.0, w), y.clamp(0.0, h));
+            let (x1, y1) = ((x + rw).clamp(0.0, w), (y + rh).clamp(0.0, h));
+            if x1 <= x0 || y1 <= y0 {
+                continue;
+            }
+            let corners = vec![(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)];
+            // White under black: visible on every colour of the map.
+            area.draw(&PathElement::new(corners.clone(), WHITE.stroke_width(4)))
+                .dr()?;
+            area.draw(&PathElement::new(corners, BLACK.stroke_width(2)))
+                .dr()?;
+            let (tw, th) = area
+                .estimate_text_size(&r.name, &label)
+                .unwrap_or((8 * r.name.len() as u32, 16));
+            area.draw(
+                &(EmptyElement::at((x0, y0))
+                    + Rectangle::new(
+                        [(2, 2), (tw as i32 + 8, th as i32 + 6)],
+                        WHITE.mix(0.85).filled(),
+                    )
+                    + Text::new(r.name.clone(), (5, 4), label.clone())),
+            )
+            .dr()?;
+        }
+        Ok(())
     }
 }
 

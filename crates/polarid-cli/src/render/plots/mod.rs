@@ -4,7 +4,9 @@
 //!   paper eq. (9) curve, one colour per target;
 //! - [`nk_plane`]: the (n, k) plane with class prototypes, test estimates with 1-σ
 //!   covariance ellipses and the nearest-neighbour decision regions (paper § 6);
-//! - [`class_map`]: a material map (class index image, 0 = unclassified) with a legend;
+//! - [`class_map`], [`answer_map`]: a material map (class index image, 0 = `unknown`)
+//!   with a legend of the answers (docs/FORMATS.md, "Answers"), the `unknown` pixels by
+//!   reason and the regions outlined;
 //! - [`scalar_map`]: a scalar image (n, k, DoLP, ...) in the viridis colour map with a
 //!   colour bar;
 //! - [`bands::nk_spectra`]: `n(λ)`, `k(λ)` of multi-band targets against a library's
@@ -28,8 +30,10 @@
 use anyhow::{Result, bail};
 
 pub use dolp::{DolpPoint, DolpSeries, dolp_vs_beta, eq9_curve};
+#[cfg(test)]
 pub use maps::class_map;
 pub use maps::scalar_map;
+pub use maps::{ClassMap, MapRegion, answer_map};
 pub use nk::{NkEstimate, Prototype, nk_plane};
 
 // Multi-band figures (docs/BANDS.md): `demo --color`, `fit`/`classify --report`, `map`.

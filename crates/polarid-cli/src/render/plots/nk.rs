@@ -195,6 +195,87 @@ pub fn covariance_ellipse(
         .collect()
 }
 
+/// Dash and gap lengths (pixels) of the dashed regions, one pattern per prototype class.
+const DASHES: [(u32, u32); 4] = [(10, 5), (3, 4), (16, 5), (6, 3)];
+
+/// The parts of the closed boundary `pts` (its last point joined to its first) that lie
+/// in `n ≥ 0, k ≥ 0`, as open paths (each segment clipped, Liang–Barsky), and whether
+/// anything was cut away. An uncut boundary comes back whole and closed.
+pub(super) fn clip_to_physical(pts: &[(f64, f64)]) -> (Vec<Vec<(f64, f64)>>, bool) {
+    let inside = |p: (f64, f64)| p.0 >= 0.0 && p.1 >= 0.0;
+    if pts.iter().all(|&p| inside(p)) {
+        let mut closed = pts.to_vec();
+        if let (Some(&a), Some(&b)) = (pts.first(), pts.last())
+            && a != b
+        {
+            closed.push(a);
+        }
+        return (vec![closed], false);
+    }
+    let mut pieces: Vec<Vec<(f64, f64)>> = Vec::new();
+    let mut cur: Vec<(f64, f64)> = Vec::new();
+    let n = pts.len();
+    for i in 0..n {
+        let (a, b) = (pts[i], pts[(i + 1) % n]);
+        // Keep a + t (b − a), t in [t0, t1], with both coordinates ≥ 0.
+        let (mut t0, mut t1) = (0.0f64, 1.0f64);
+        for (p, d) in [(a.0, b.0 - a.0), (a.1, b.1 - a.1)] {
+            if d == 0.0 {
+                if p < 0.0 {
+                    t0 = 1.0;
+                    t1 = 0.0;
+                }
+            } else {
+                let t = -p / d;
+                if d > 0.0 {
+                    t0 = t0.max(t);
+                } else {
+                    t1 = t1.min(t);
+                }
+            }
+        }
+        if t0 > t1 {
+            if !cur.is_empty() {
+                pieces.push(std::mem::take(&mut cur));
+            }
+            continue;
+        }
+        let at = |t: f64| {
+            (
+                (a.0 + t * (b.0 - a.0)).max(0.0),
+                (a.1 + t * (b.1 - a.1)).max(0.0),
+            )
+        };
+        let (p0, p1) = (at(t0), at(t1));
+        if t0 > 0.0 && !cur.is_empty() {
+            pieces.push(std::mem::take(&mut cur));
+        }
+        if cur.is_empty() {
+            cur.push(p0);
+        }
+        cur.push(p1);
+        if t1 < 1.0 {
+            pieces.push(std::mem::take(&mut cur));
+        }
+    }
+    if !cur.is_empty() {
+        pieces.push(cur);
+    }
+    // The walk starts anywhere on the loop: join the last piece to the first when the
+    // loop runs through the start.
+    if pieces.len() > 1
+        && let (Some(first), Some(last)) = (pieces.first(), pieces.last())
+        && first.first() == last.last()
+    {
+        let first = pieces.remove(0);
+        if let Some(last) = pieces.last_mut() {
+            last.extend(first.into_iter().skip(1));
+        }
+    }
+    pieces.retain(|p| p.len() >= 2);
+    (pieces, true)
+}
+
 /// The cell of prototype `i` in the Euclidean nearest-neighbour partition, clipped to
 /// the rectangle `[x0, x1] × [y0, y1]` (a convex polygon, possibly empty).
 pub(super) fn voronoi_cell(
@@ -332,10 +413,17 @@ impl Figure for NkFigure<'_> {
                 .unwrap_or(BLACK)
         };
         let mut est_legend = Vec::new();
+        let mut cut = false;
+        // The region styles, listed once: solid (the estimate's own Σ) and one dashed
+        // style per prototype class (colour, dash pattern, text).
+        let mut solid = false;
+        let mut dashed: Vec<(RGBColor, (u32, u32), String)> = Vec::new();
+        // Thinner lines when many regions overlap.
+        let n_regions: usize = ests.iter().map(|e| e.regions.len()).sum();
+        let width = if n_regions > 6 { 1 } else { 2 };
         for (j, e) in ests.iter().enumerate() {
             let m = ESTIMATE_MARKERS[j % ESTIMATE_MARKERS.len()];
             let c = est_colour(e);
-            let mut lines = Vec::new();
             if e.regions.is_empty() {
                 let ell = covariance_ellipse(e.n, e.k, e.n_se, e.k_se, e.corr, 96);
                 if ell.len() > 3 {
@@ -352,28 +440,37 @@ impl Figure for NkFigure<'_> {
                 if pts.len() < 4 {
                     continue;
                 }
+                // n < 0 and k < 0 are not physical: the boundary is drawn only where
+                // n ≥ 0 and k ≥ 0, open where it was cut (a note in the legend says so).
+                let (pieces, was_cut) = clip_to_physical(&pts);
+                cut |= was_cut;
                 match &r.with_prototype {
                     None => {
-                        area.draw(&PathElement::new(pts, c.stroke_width(2))).dr()?;
-                        lines.push(LegendItem::Line(c, "  region (its own Σ)".into()));
+                        for piece in pieces {
+                            area.draw(&PathElement::new(piece, c.stroke_width(2)))
+                                .dr()?;
+                        }
+                        solid = true;
                     }
                     Some(classes) => {
-                        let pc = classes
-                            .first()
-                            .and_then(|name| class_idx(name))
-                            .map(|i| shade(class_colour(i), 0.75))
-                            .unwrap_or(c);
-                        area.draw(&plotters::element::DashedPathElement::new(
-                            pts,
-                            9,
-                            5,
-                            pc.stroke_width(2),
-                        ))
-                        .dr()?;
-                        lines.push(LegendItem::Line(
-                            pc,
-                            format!("  region with {}'s Σ", classes.join(", ")),
-                        ));
+                        let ci = classes.first().and_then(|name| class_idx(name));
+                        let pc = ci.map(|i| shade(class_colour(i), 0.75)).unwrap_or(c);
+                        // One dash pattern per prototype class, so that overlapping
+                        // regions of different classes stay apart.
+                        let (dash, gap) = DASHES[ci.unwrap_or(0) % DASHES.len()];
+                        for piece in &pieces {
+                            area.draw(&plotters::element::DashedPathElement::new(
+                                piece.iter().copied(),
+                                dash,
+                                gap,
+                                pc.stroke_width(width),
+                            ))
+                            .dr()?;
+                        }
+                        let text = format!("with {}'s Σ", classes.join(", "));
+                        if !dashed.iter().any(|(_, _, t)| *t == text) {
+                            dashed.push((pc, (dash, gap), text));
+                        }
                     }
                 }
             }
@@ -382,7 +479,6 @@ impl Figure for NkFigure<'_> {
                 None => e.label.clone(),
             };
             est_legend.push(LegendItem::Marker(m, c, text));
-            est_legend.extend(lines);
         }
         for p in &protos {
             let c = class_colour(class_idx(&p.class).unwrap_or(0));
@@ -409,6 +505,22 @@ impl Figure for NkFigure<'_> {
             draw_marker(area, (e.n, e.k), m, 6, est_colour(e).filled())?;
         }
         legend.extend(est_legend);
+        if solid || !dashed.is_empty() {
+            legend.push(LegendItem::Heading("Regions".into()));
+        }
+        if solid {
+            legend.push(LegendItem::Line(BLACK, "with the estimate's Σ only".into()));
+        }
+        for (c, pattern, text) in dashed {
+            legend.push(LegendItem::Dashed(c, pattern, text));
+        }
+        if cut {
+            legend.push(LegendItem::Note(
+                "Regions are cut at n = 0 and k = 0: their parts at n < 0 or k < 0 are \
+                 not physical and not drawn (open ends)."
+                    .into(),
+            ));
+        }
         draw_legend(&side, &legend)?;
         Ok(None)
     }

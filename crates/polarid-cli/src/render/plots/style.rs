@@ -38,7 +38,7 @@ pub(super) const TICK_SIZE: u32 = 19;
 pub(super) const LEGEND_SIZE: u32 = 19;
 pub(super) const LEGEND_WIDTH: u32 = 290;
 
-/// Tableau-10 without its grey (grey marks "unclassified"/"no data").
+/// Tableau-10 without its grey (greys mark `ambiguous`, `unknown` and "no data").
 pub(super) const PALETTE: [RGBColor; 9] = [
     RGBColor(31, 119, 180),
     RGBColor(255, 127, 14),
@@ -51,8 +51,15 @@ pub(super) const PALETTE: [RGBColor; 9] = [
     RGBColor(23, 190, 207),
 ];
 
-/// Colour of unclassified pixels and missing values.
+/// Colour of missing values, and of `unknown` map pixels without a usable fit (or all
+/// `unknown` pixels when their reasons are not known).
 pub(super) const NO_DATA: RGBColor = RGBColor(200, 200, 200);
+
+/// Colour of `unknown` map pixels fitted `ok` but placed nowhere (reason `rejected`).
+pub(super) const REJECTED_COLOUR: RGBColor = RGBColor(150, 150, 150);
+
+/// Colour of `ambiguous` map pixels (several materials consistent).
+pub(super) const AMBIGUOUS_COLOUR: RGBColor = RGBColor(90, 90, 90);
 
 /// The categorical colour of class `i` (0-based): Tableau-10, then golden-ratio hues.
 pub fn class_colour(i: usize) -> RGBColor {
@@ -109,6 +116,10 @@ pub(super) enum LegendItem {
     Line(RGBColor, String),
     Swatch(RGBColor, String),
     Heading(String),
+    /// A dashed line sample (dashed confidence regions): colour, (dash, gap) in pixels.
+    Dashed(RGBColor, (u32, u32), String),
+    /// A small-print note (wrapped over the whole column).
+    Note(String),
 }
 
 /// Conversion of plotters' drawing errors (whose backend error type varies) to anyhow.
@@ -124,43 +135,6 @@ impl<T, E: std::error::Error + Send + Sync> DrawResult<T> for std::result::Resul
 
 pub(super) fn font(size: u32) -> TextStyle<'static> {
     (FONT, size).into_font().color(&BLACK)
-}
-
-/// Shorten `s` to at most `max` characters, with an ellipsis.
-pub(super) fn ellipsize(s: &str, max: usize) -> String {
-    if s.chars().count() <= max {
-        s.to_string()
-    } else {
-        let mut t: String = s.chars().take(max.saturating_sub(1)).collect();
-        t.push('…');
-        t
-    }
-}
-
-/// Shorten `s` (with an ellipsis) until it is at most `max_px` pixels wide in `style`.
-pub(super) fn fit_text<DB: DrawingBackend>(
-    area: &DrawingArea<DB, Shift>,
-    s: &str,
-    style: &TextStyle<'_>,
-    max_px: u32,
-) -> String {
-    let fits = |t: &str| {
-        area.estimate_text_size(t, style)
-            .map(|(w, _)| w <= max_px)
-            .unwrap_or(true)
-    };
-    if fits(s) {
-        return s.to_string();
-    }
-    let mut n = s.chars().count();
-    while n > 2 {
-        n -= 1;
-        let t = ellipsize(s, n);
-        if fits(&t) {
-            return t;
-        }
-    }
-    ellipsize(s, 2)
 }
 
 /// Tick label: at most 4 decimals, without trailing zeros.
@@ -205,62 +179,152 @@ pub(super) fn draw_marker<DB: DrawingBackend, CT: CoordTranslate>(
     }
 }
 
-/// Draw the legend column (pixel coordinates of `area`).
+/// Break `s` into lines at most `max_px` wide in `style`: at spaces (not before a `%`),
+/// a word wider than a line split between characters. Nothing is dropped.
+pub(super) fn wrap_text<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    s: &str,
+    style: &TextStyle<'_>,
+    max_px: u32,
+) -> Vec<String> {
+    let fits = |t: &str| {
+        area.estimate_text_size(t, style)
+            .map(|(w, _)| w <= max_px)
+            .unwrap_or(true)
+    };
+    let mut lines: Vec<String> = Vec::new();
+    let mut cur = String::new();
+    // Words, a percent sign kept with its number ("17 %").
+    let mut words: Vec<String> = Vec::new();
+    for w in s.split_inclusive(' ') {
+        match words.last_mut() {
+            Some(prev) if w.starts_with('%') => prev.push_str(w),
+            _ => words.push(w.to_string()),
+        }
+    }
+    for word in &words {
+        let candidate = format!("{cur}{word}");
+        if fits(candidate.trim_end()) {
+            cur = candidate;
+            continue;
+        }
+        if !cur.trim().is_empty() {
+            lines.push(cur.trim_end().to_string());
+        }
+        // A word wider than a line: split it between characters.
+        let mut piece = String::new();
+        for ch in word.chars() {
+            piece.push(ch);
+            if !fits(piece.trim_end()) && piece.chars().count() > 1 {
+                piece.pop();
+                lines.push(piece);
+                piece = ch.to_string();
+            }
+        }
+        cur = piece;
+    }
+    if !cur.trim().is_empty() || lines.is_empty() {
+        lines.push(cur.trim_end().to_string());
+    }
+    lines
+}
+
+/// Draw the legend column (pixel coordinates of `area`). Entries too long for the
+/// column are wrapped onto continuation lines, never cut. When the entries do not fit
+/// the column's height the lines are set closer; if that is not enough, the last
+/// entries are left out and a final line says how many.
 pub(super) fn draw_legend<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     items: &[LegendItem],
 ) -> Result<()> {
-    let line_h = 30;
-    let (w, _) = area.dim_in_pixel();
+    let (w, h) = area.dim_in_pixel();
     let text = font(LEGEND_SIZE).pos(Pos::new(HPos::Left, VPos::Center));
+    let small = font(LEGEND_SIZE - 3).pos(Pos::new(HPos::Left, VPos::Center));
     let room = w.saturating_sub(56).max(40);
-    let mut y = 24;
-    for item in items {
+    // Each entry's lines, wrapped to its column.
+    let wrapped: Vec<Vec<String>> = items
+        .iter()
+        .map(|item| match item {
+            LegendItem::Heading(s) => wrap_text(area, s, &text, room + 40),
+            LegendItem::Note(s) => wrap_text(area, s, &small, room + 40),
+            LegendItem::Marker(_, _, s)
+            | LegendItem::Line(_, s)
+            | LegendItem::Dashed(_, _, s)
+            | LegendItem::Swatch(_, s) => wrap_text(area, s, &text, room),
+        })
+        .collect();
+    let top = 24;
+    let avail = (h as i32 - top - 8).max(40);
+    let need = |line_h: i32, wrap_h: i32, k: usize| -> i32 {
+        wrapped[..k]
+            .iter()
+            .map(|l| line_h + wrap_h * (l.len() as i32 - 1).max(0))
+            .sum()
+    };
+    // Normal spacing, then closer, then fewer entries.
+    let (mut line_h, mut wrap_h) = (30, 22);
+    if need(line_h, wrap_h, items.len()) > avail {
+        (line_h, wrap_h) = (23, 19);
+    }
+    let mut shown = items.len();
+    while shown > 0
+        && need(line_h, wrap_h, shown) + if shown < items.len() { line_h } else { 0 } > avail
+    {
+        shown -= 1;
+    }
+    let mut y = top;
+    for (item, lines) in items.iter().zip(&wrapped).take(shown) {
+        let (x, style) = match item {
+            LegendItem::Heading(_) => (8, &text),
+            LegendItem::Note(_) => (8, &small),
+            _ => (48, &text),
+        };
         match item {
-            LegendItem::Heading(s) => {
-                area.draw(&Text::new(
-                    fit_text(area, s, &text, room + 40),
-                    (8, y),
-                    text.clone(),
-                ))
-                .dr()?;
-            }
-            LegendItem::Marker(m, c, s) => {
-                draw_marker(area, (26, y), *m, 6, c.filled())?;
-                area.draw(&Text::new(
-                    fit_text(area, s, &text, room),
-                    (48, y),
-                    text.clone(),
-                ))
-                .dr()?;
-            }
-            LegendItem::Line(c, s) => {
+            LegendItem::Heading(_) | LegendItem::Note(_) => {}
+            LegendItem::Marker(m, c, _) => draw_marker(area, (26, y), *m, 6, c.filled())?,
+            LegendItem::Line(c, _) => {
                 area.draw(&PathElement::new(vec![(10, y), (40, y)], c.stroke_width(3)))
                     .dr()?;
-                area.draw(&Text::new(
-                    fit_text(area, s, &text, room),
-                    (48, y),
-                    text.clone(),
+            }
+            LegendItem::Dashed(c, (dash, gap), _) => {
+                area.draw(&plotters::element::DashedPathElement::new(
+                    vec![(6, y), (44, y)],
+                    *dash,
+                    *gap,
+                    c.stroke_width(3),
                 ))
                 .dr()?;
             }
-            LegendItem::Swatch(c, s) => {
-                area.draw(&Rectangle::new([(12, y - 10), (38, y + 10)], c.filled()))
-                    .dr()?;
+            LegendItem::Swatch(c, _) => {
+                let half = (line_h / 3).min(10);
                 area.draw(&Rectangle::new(
-                    [(12, y - 10), (38, y + 10)],
-                    BLACK.stroke_width(1),
+                    [(12, y - half), (38, y + half)],
+                    c.filled(),
                 ))
                 .dr()?;
-                area.draw(&Text::new(
-                    fit_text(area, s, &text, room),
-                    (48, y),
-                    text.clone(),
+                area.draw(&Rectangle::new(
+                    [(12, y - half), (38, y + half)],
+                    BLACK.stroke_width(1),
                 ))
                 .dr()?;
             }
         }
+        for (i, line) in lines.iter().enumerate() {
+            if i > 0 {
+                y += wrap_h;
+            }
+            area.draw(&Text::new(line.clone(), (x, y), style.clone()))
+                .dr()?;
+        }
         y += line_h;
+    }
+    if shown < items.len() {
+        area.draw(&Text::new(
+            format!("… and {} more entries", items.len() - shown),
+            (8, y),
+            small.clone(),
+        ))
+        .dr()?;
     }
     Ok(())
 }

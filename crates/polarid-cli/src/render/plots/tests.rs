@@ -311,7 +311,7 @@ fn class_map_colours_pixels_and_lists_classes() {
             "y (pixel row)",
             "aluminum (42 %)",
             "class 3",
-            "unclassified (17 %)",
+            "unknown (17 %)",
         ],
     );
     assert!(r.svg.contains("<image") && r.svg.contains("data:image/png;base64,"));
@@ -351,7 +351,31 @@ fn viridis_end_points_and_palette() {
     assert_eq!(viridis(2.0), viridis(1.0));
     assert_eq!(viridis(f64::NAN), NO_DATA);
     assert_ne!(class_colour(9), class_colour(10));
-    assert_eq!(ellipsize("abcdef", 4), "abc…");
+}
+
+#[test]
+fn legend_text_is_wrapped_not_cut() {
+    ensure_fonts().unwrap();
+    let mut buf = vec![255u8; 300 * 200 * 3];
+    let root = BitMapBackend::with_buffer(&mut buf, (300, 200)).into_drawing_area();
+    let style = font(LEGEND_SIZE);
+    let s = "test_1, θr = 60°: ambiguous: aluminum, copper, brass; 95% set: aluminum_oxide_film";
+    let lines = wrap_text(&root, s, &style, 200);
+    assert!(lines.len() >= 3, "{lines:?}");
+    // Every character is kept, in order (spaces at the breaks aside).
+    assert_eq!(lines.concat().replace(' ', ""), s.replace(' ', ""));
+    for l in &lines {
+        let (w, _) = root.estimate_text_size(l, &style).unwrap();
+        assert!(w <= 200, "{l:?} is {w} px wide");
+    }
+    // A word wider than a line is split, not dropped.
+    let long = "a".repeat(80);
+    let lines = wrap_text(&root, &long, &style, 100);
+    assert!(lines.len() > 1 && lines.concat() == long, "{lines:?}");
+    assert_eq!(
+        wrap_text(&root, "short", &style, 200),
+        vec!["short".to_string()]
+    );
 }
 
 fn library_proto(
@@ -448,7 +472,7 @@ fn nk_plane_draws_the_regions_that_decide_the_sets_with_the_answers() {
             "t1: ambiguous: gold, copper",
             "t2: unknown (none at 95%)",
             "t3: silver",
-            "region (its own Σ)",
+            "Σ only",
         ],
     );
     // Prototypes with a covariance (a trained model): one region per covariance, dashed.
@@ -477,6 +501,119 @@ fn nk_plane_draws_the_regions_that_decide_the_sets_with_the_answers() {
         )
     );
     let r = nk_plane("model", &plot_protos, &[e], size).unwrap();
-    assert_outputs(&r, size, &["region with gold, copper"]);
+    assert_outputs(&r, size, &["with gold, copper"]);
     assert!(r.svg.contains("stroke-dasharray") || r.svg.matches("<polyline").count() > 20);
+}
+
+#[test]
+fn confidence_regions_are_cut_at_n_and_k_zero() {
+    // An ellipse reaching n < 0 and k < 0.
+    let ell = covariance_ellipse(0.2, 0.1, 0.5, 0.3, 0.4, 200);
+    assert!(ell.iter().any(|p| p.0 < -0.1) && ell.iter().any(|p| p.1 < -0.05));
+    let (pieces, cut) = clip_to_physical(&ell);
+    assert!(cut);
+    assert!(!pieces.is_empty());
+    let pts: Vec<(f64, f64)> = pieces.iter().flatten().copied().collect();
+    assert!(pts.iter().all(|p| p.0 >= 0.0 && p.1 >= 0.0), "{pts:?}");
+    // The kept boundary reaches the cut lines (open ends on n = 0 and k = 0).
+    assert!(pts.iter().any(|p| p.0 == 0.0) && pts.iter().any(|p| p.1 == 0.0));
+    // Every kept point of the original boundary is still there.
+    let kept = ell.iter().filter(|p| p.0 >= 0.0 && p.1 >= 0.0).count();
+    assert!(pts.len() >= kept, "{} < {kept}", pts.len());
+    // A region inside the quadrant is drawn whole and closed.
+    let inside = covariance_ellipse(2.0, 3.0, 0.1, 0.2, 0.0, 50);
+    let (pieces, cut) = clip_to_physical(&inside);
+    assert!(!cut);
+    assert_eq!(pieces.len(), 1);
+    assert_eq!(pieces[0].first(), pieces[0].last());
+    // Entirely outside: nothing drawn.
+    let out = covariance_ellipse(-2.0, 1.0, 0.1, 0.1, 0.0, 50);
+    assert!(clip_to_physical(&out).0.is_empty());
+}
+
+#[test]
+fn answer_map_colours_unknown_pixels_by_reason_and_outlines_regions() {
+    use polarid_core::map::reason;
+    let (w, h) = (40usize, 30usize);
+    // Rows 0-4: saturated; 5-9: dark; 10-14: rejected; 15-19: fit not ok;
+    // 20-24: aluminum; 25-29: ambiguous.
+    let kind = |i: usize| i / w / 5;
+    let classes: Vec<u16> = (0..w * h)
+        .map(|i| match kind(i) {
+            4 => 1,
+            5 => 2,
+            _ => 0,
+        })
+        .collect();
+    let reasons: Vec<u8> = (0..w * h)
+        .map(|i| match kind(i) {
+            0 => reason::SATURATED,
+            1 => reason::DARK,
+            2 => reason::REJECTED,
+            3 => reason::FIT_ILL_CONDITIONED,
+            4 => reason::CLASSIFIED,
+            _ => reason::AMBIGUOUS,
+        })
+        .collect();
+    let names = vec!["aluminum".to_string(), "ambiguous".to_string()];
+    let size = PlotSize::REPORT;
+    let data = ClassMap {
+        width: w,
+        height: h,
+        classes: &classes,
+        names: &names,
+        reasons: Some(&reasons),
+        regions: vec![MapRegion {
+            name: "plate_al".into(),
+            rect: [2.0, 20.0, 30.0, 5.0],
+        }],
+    };
+    let r = answer_map("Material map", &data, size).unwrap();
+    if let Ok(dir) = std::env::var("POLARID_PLOT_DIR") {
+        std::fs::write(Path::new(&dir).join("answer_map.png"), &r.png).unwrap();
+    }
+    assert_outputs(
+        &r,
+        size,
+        &[
+            "Answers (pixel share)",
+            "aluminum (17 %)",
+            "ambiguous (17 %)",
+            "unknown: saturated",
+            "unknown: dark or invalid",
+            "unknown: rejected",
+            "unknown: no usable fit",
+            "plate_al",
+        ],
+    );
+    // The region's label is drawn after (over) the image in the SVG.
+    let svg = &r.svg;
+    assert!(
+        svg.rfind("plate_al") > svg.find("<image"),
+        "label under the image"
+    );
+    let [sr, sg, sb] = crate::render::views::SATURATED_RGB;
+    let [dr, dg, db] = crate::render::views::DARK_RGB;
+    for (c, what) in [
+        (RGBColor(sr, sg, sb), "saturated"),
+        (RGBColor(dr, dg, db), "dark"),
+        (REJECTED_COLOUR, "rejected"),
+        (NO_DATA, "no fit"),
+        (AMBIGUOUS_COLOUR, "ambiguous"),
+        (PALETTE[0], "aluminum"),
+    ] {
+        let n = count_colour(&r.png, c, 0);
+        assert!(n > 2_000, "{what}: {n} pixels of {c:?}");
+    }
+    // The outline is black over the image.
+    let bare = answer_map(
+        "Material map",
+        &ClassMap {
+            regions: Vec::new(),
+            ..data.clone()
+        },
+        size,
+    )
+    .unwrap();
+    assert!(count_colour(&r.png, BLACK, 0) > count_colour(&bare.png, BLACK, 0) + 100);
 }

@@ -115,6 +115,32 @@ pub struct ClassificationRow {
     /// The confidence region(s) that decide the set, as text
     /// (`polarid_pipeline::classify::regions_text`).
     pub region: Option<String>,
+    /// The rule of the answer (the classification CSV's `rule`: `set`, `hypothesis`,
+    /// `nearest`; empty when not known).
+    pub rule: String,
+}
+
+/// The caption of the classification table: the rule(s) the answers used, in words.
+fn classification_caption(rows: &[ClassificationRow]) -> String {
+    let mut rules: Vec<&str> = Vec::new();
+    for r in rows {
+        if !r.rule.is_empty() && !rules.contains(&r.rule.as_str()) {
+            rules.push(&r.rule);
+        }
+    }
+    let rule = match rules.as_slice() {
+        ["set"] => "the set rule (a material when it is the only one consistent)",
+        ["hypothesis"] => "hypothesis tests against the measured rows",
+        ["nearest"] => "the nearest prototype in (n, k) (the paper's rule)",
+        [] => "the classifier's rule",
+        _ => "the rule of each row",
+    };
+    format!(
+        "Answers under {rule}: a material, `ambiguous` or `unknown` (the status says why); \
+         the consistent set: every material inside the estimate's confidence region \
+         (Mahalanobis distance with the estimate's and the prototype's covariance within \
+         the χ² quantile)."
+    )
 }
 
 impl ClassificationRow {
@@ -396,9 +422,7 @@ impl Report {
         out.push((
             "classification",
             t(
-                "Nearest-neighbour classification in (n, k), and the consistent set: every \
-                 material inside the estimate's confidence region (Mahalanobis distance with \
-                 the estimate's and the prototype's covariance within the χ²₂ quantile).",
+                &classification_caption(&self.classification),
                 &[
                     "Target",
                     "Known class",
