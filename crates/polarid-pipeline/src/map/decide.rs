@@ -439,9 +439,14 @@ pub(crate) fn decide_pixels(
             None => (0, first_reason.unwrap_or(reason::FIT_INVALID_INPUT)),
         }
     };
+    // Hypothesis tests take milliseconds a pixel: no batching of pixels.
+    let min_len = match d.decider {
+        Decider::Hypothesis { .. } => 1,
+        _ => 256,
+    };
     let decided: Vec<(u16, u8)> = (0..npix)
         .into_par_iter()
-        .with_min_len(256)
+        .with_min_len(min_len)
         .map_init(Scratch::default, |s, p| one(s, p))
         .collect();
     let mut counts = MapCounts {
