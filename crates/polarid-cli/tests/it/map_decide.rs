@@ -86,34 +86,103 @@ pub fn simulate_bench(dir: &Path, seed: u64, scale: usize) -> std::path::PathBuf
     out.join("manifest.toml")
 }
 
-/// Per labelled region of a map's summary: (name, blocks, classified as one material,
-/// right).
-pub fn region_scores(summary: &Path) -> Vec<(String, u64, u64, u64)> {
-    let v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(summary).unwrap()).unwrap();
-    v["regions"]
+/// What a plate became in a map: blocks inside its region, blocks decided (fitted `ok`:
+/// reason `classified`, `ambiguous` or `rejected`), and per answer (a material,
+/// `ambiguous`, `unknown`) the decided blocks given it.
+#[derive(Debug)]
+pub struct PlateScore {
+    pub name: String,
+    pub class: String,
+    pub blocks: usize,
+    pub decided: usize,
+    pub answers: std::collections::BTreeMap<String, usize>,
+}
+
+impl PlateScore {
+    /// Decided blocks given one material.
+    pub fn one(&self) -> usize {
+        self.answers
+            .iter()
+            .filter(|(a, _)| *a != "ambiguous" && *a != "unknown")
+            .map(|(_, n)| n)
+            .sum()
+    }
+
+    /// Decided blocks given the plate's own material.
+    pub fn right(&self) -> usize {
+        self.answers.get(&self.class).copied().unwrap_or(0)
+    }
+
+    /// The most frequent answer among the decided blocks.
+    pub fn plurality(&self) -> &str {
+        self.answers
+            .iter()
+            .max_by_key(|(_, n)| **n)
+            .map_or("", |(a, _)| a.as_str())
+    }
+}
+
+/// Every labelled region of the map in `dir` (`map_summary.json`, `class.tif`,
+/// `reason.tif`, `classes.json`).
+pub fn plate_scores(dir: &Path) -> Vec<PlateScore> {
+    let read = |f: &str| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(dir.join(f)).unwrap()).unwrap()
+    };
+    let (summary, classes) = (read("map_summary.json"), read("classes.json"));
+    let class = polarid_io::image::read_frame(&dir.join("class.tif")).unwrap();
+    let reason = polarid_io::image::read_frame(&dir.join("reason.tif")).unwrap();
+    let codes: Vec<String> = summary["reason_codes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap().to_string())
+        .collect();
+    let bin = summary["bin"].as_u64().unwrap() as usize;
+    let w = class.width;
+    summary["regions"]
         .as_array()
         .unwrap()
         .iter()
         .map(|r| {
-            let pixels = r["pixels"].as_u64().unwrap();
-            let classes = r["classes"].as_object().unwrap();
-            let none: u64 = ["unknown", "ambiguous"]
+            let rect: Vec<usize> = r["rect"]
+                .as_array()
+                .unwrap()
                 .iter()
-                .filter_map(|c| classes.get(*c).and_then(|x| x.as_u64()))
-                .sum();
-            (
-                r["name"].as_str().unwrap().to_string(),
-                pixels,
-                pixels - none,
-                r["correct"].as_u64().unwrap_or(0),
-            )
+                .map(|v| v.as_u64().unwrap() as usize)
+                .collect();
+            let (x0, y0) = (rect[0].div_ceil(bin), rect[1].div_ceil(bin));
+            let (x1, y1) = ((rect[0] + rect[2]) / bin, (rect[1] + rect[3]) / bin);
+            let mut s = PlateScore {
+                name: r["name"].as_str().unwrap().to_string(),
+                class: r["class"].as_str().unwrap_or("").to_string(),
+                blocks: 0,
+                decided: 0,
+                answers: Default::default(),
+            };
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    let p = y * w + x;
+                    s.blocks += 1;
+                    let why = codes[reason.data[p] as usize].as_str();
+                    let answer = match why {
+                        "classified" | "ambiguous" => classes[(class.data[p] as usize).to_string()]
+                            .as_str()
+                            .unwrap()
+                            .to_string(),
+                        "rejected" => "unknown".to_string(),
+                        _ => continue,
+                    };
+                    s.decided += 1;
+                    *s.answers.entry(answer).or_default() += 1;
+                }
+            }
+            s
         })
         .collect()
 }
 
-/// Map `manifest` with `args` into `dir/name`; the per-region scores.
-fn map(manifest: &Path, dir: &Path, name: &str, args: &[&str]) -> Vec<(String, u64, u64, u64)> {
+/// Map `manifest` with `args` into `dir/name`; the plates' scores.
+fn map(manifest: &Path, dir: &Path, name: &str, args: &[&str]) -> Vec<PlateScore> {
     let out = dir.join(name);
     let mut a = vec![
         "map",
@@ -124,7 +193,7 @@ fn map(manifest: &Path, dir: &Path, name: &str, args: &[&str]) -> Vec<(String, u
     a.extend_from_slice(args);
     let o = polarid(&a);
     assert!(o.status.success(), "{name}: {}", text(&o.stderr));
-    region_scores(&out.join("map_summary.json"))
+    plate_scores(&out)
 }
 
 #[test]
@@ -133,37 +202,63 @@ fn bench_plates_are_decided_per_block_against_a_library_and_a_same_bench_model()
     let _ = std::fs::remove_dir_all(&dir);
     let test = simulate_bench(&dir.join("test"), 27, 1);
     let train = simulate_bench(&dir.join("train"), 28, 1);
-
-    // Against the built-in library at the captures' 550 nm: the hypothesis tests.
-    let lib = map(&test, &dir, "lib", &["--library", "builtin", "--bin", "4"]);
-    // Against a model trained on the same bench.
-    let (m, f, model) = (dir.join("m.csv"), dir.join("f.csv"), dir.join("model.json"));
-    for args in [
-        vec![
-            "measure",
-            train.to_str().unwrap(),
-            "-o",
-            m.to_str().unwrap(),
-        ],
-        vec!["fit", m.to_str().unwrap(), "-o", f.to_str().unwrap()],
-        vec!["train", f.to_str().unwrap(), "-o", model.to_str().unwrap()],
-    ] {
-        let o = polarid(&args);
+    let run = |args: &[&str]| {
+        let o = polarid(args);
         assert!(o.status.success(), "{args:?}: {}", text(&o.stderr));
+    };
+    let (m, c) = (dir.join("m.csv"), dir.join("c.csv"));
+    let (mt, ft, model) = (
+        dir.join("mt.csv"),
+        dir.join("ft.csv"),
+        dir.join("model.json"),
+    );
+    run(&["measure", test.to_str().unwrap(), "-o", m.to_str().unwrap()]);
+    run(&[
+        "classify",
+        m.to_str().unwrap(),
+        "--library",
+        "builtin",
+        "-o",
+        c.to_str().unwrap(),
+    ]);
+    run(&[
+        "measure",
+        train.to_str().unwrap(),
+        "-o",
+        mt.to_str().unwrap(),
+    ]);
+    run(&["fit", mt.to_str().unwrap(), "-o", ft.to_str().unwrap()]);
+    run(&["train", ft.to_str().unwrap(), "-o", model.to_str().unwrap()]);
+
+    // Against the built-in library at the captures' 550 nm (single-band captures: the
+    // hypothesis tests on every block's rows): each plate's blocks mostly answer what
+    // `classify` answers from the plate's region rows.
+    let lib = map(&test, &dir, "lib", &["--library", "builtin", "--bin", "4"]);
+    let rows = common::csv_rows(&c);
+    assert_eq!(lib.len(), 6, "{lib:?}");
+    for s in &lib {
+        let row = rows.iter().find(|r| r["target"] == s.name).unwrap();
+        eprintln!("library {s:?}; classify: {}", row["predicted"]);
+        assert!(s.decided >= 10, "{s:?}");
+        assert_eq!(s.plurality(), row["predicted"], "{s:?}");
     }
+
+    // Against a model trained on the same bench (another noise seed): the same-bench
+    // test. No block is given a wrong material; copper, gold and silicon are named
+    // alone on at least 80% of their blocks (aluminum's blocks lie along the DoLP
+    // valley, PMMA and N-BK7 are within the blocks' resolution of each other).
     let mdl = map(
         &test,
         &dir,
         "model",
         &["--model", model.to_str().unwrap(), "--bin", "4"],
     );
-    for (what, scores) in [("library", &lib), ("model", &mdl)] {
-        assert_eq!(scores.len(), 6, "{what}: {scores:?}");
-        for (name, blocks, classified, right) in scores {
-            eprintln!("{what} {name}: {blocks} blocks, {classified} classified, {right} right");
-            assert!(*blocks >= 20, "{what} {name}: {blocks} blocks");
-            // No block is given a wrong material.
-            assert_eq!(classified, right, "{what} {name}: {scores:?}");
+    for s in &mdl {
+        eprintln!("model {s:?}");
+        assert!(s.decided >= 10, "{s:?}");
+        assert_eq!(s.one(), s.right(), "{s:?}");
+        if ["copper", "gold", "silicon"].contains(&s.name.as_str()) {
+            assert!(s.one() * 10 >= s.decided * 8, "{s:?}");
         }
     }
     std::fs::remove_dir_all(&dir).ok();

@@ -54,6 +54,32 @@ pub struct PixelBand {
     pub k: f64,
     /// The estimate's covariance for the comparison.
     pub cov: Option<Cov2>,
+    /// Degrees of freedom of the estimate's covariance when it is estimated from the
+    /// pixel's own residuals (an unweighted fit: `s² (JᵀJ)⁻¹`, `ν = T − 2`); infinite
+    /// when it is known (a fit weighted by the noise model).
+    pub dof: f64,
+}
+
+/// The threshold of `d²` for a single-band estimate whose covariance is estimated with
+/// `ν` degrees of freedom, at confidence `p`: `d²/2` then follows Snedecor's `F(2, ν)`
+/// (Hotelling's `T²` with a known mean, Anderson, *An Introduction to Multivariate
+/// Statistical Analysis*, 3rd ed., §5.2), whose survival function for 2 numerator
+/// degrees of freedom is `(1 + 2x/ν)^(−ν/2)`, so
+///
+/// ```text
+/// q = ν ((1 − p)^(−2/ν) − 1)          → −2 ln(1 − p) = χ²₂(p) as ν → ∞
+/// ```
+///
+/// (conservative when a prototype's known covariance is part of the sum). NaN for
+/// `ν ≤ 0`.
+pub fn estimated_cov_quantile(p: f64, nu: f64) -> f64 {
+    if !(nu > 0.0) {
+        return f64::NAN;
+    }
+    if nu.is_infinite() {
+        return -2.0 * (1.0 - p).ln();
+    }
+    nu * ((1.0 - p).powf(-2.0 / nu) - 1.0)
 }
 
 /// The covariance of a fit's `n_se`, `k_se`, `nk_corr` as `classify` reads a fit row: a
@@ -102,6 +128,7 @@ pub struct SetDecider {
     protos: Vec<(u16, Vec<Option<Prototype>>)>,
     /// `χ²_{2m}(p)` for `m = 1 ..= bands`.
     quantiles: Vec<f64>,
+    confidence: f64,
     /// The classifier itself, when prototypes' layer shifts correlate several bands.
     joint: Option<Classifier>,
 }
@@ -141,6 +168,7 @@ impl SetDecider {
             bands: bands.to_vec(),
             protos,
             quantiles,
+            confidence,
             joint,
         })
     }
@@ -193,9 +221,18 @@ impl SetDecider {
         if !any {
             return PixelAnswer::NoBand;
         }
+        // Covariances estimated from the pixels' own residuals widen the threshold
+        // (`estimated_cov_quantile`; over several bands its inflation of the one-band
+        // threshold is applied to `χ²_{2m}`, an approximation).
+        let nu = est.iter().map(|b| b.dof).fold(f64::INFINITY, f64::min);
+        let inflate = if nu.is_finite() {
+            estimated_cov_quantile(self.confidence, nu) / self.quantiles[0]
+        } else {
+            1.0
+        };
         let mut found: Option<u16> = None;
         for (c, &(d2, m)) in best.iter().enumerate() {
-            if m > 0 && d2 <= self.quantiles[m - 1] {
+            if m > 0 && d2 <= self.quantiles[m - 1] * inflate {
                 if found.is_some() {
                     return PixelAnswer::Ambiguous;
                 }
@@ -374,6 +411,7 @@ mod tests {
                         n: n0 + s * (rng.random::<f64>() - 0.5) * 4.0,
                         k: (k0 + s * (rng.random::<f64>() - 0.5) * 4.0).max(0.0),
                         cov: cov(&mut rng, s),
+                        dof: f64::INFINITY,
                     })
                     .collect();
                 let got = dec.decide(&est, &mut scratch);
@@ -403,5 +441,39 @@ mod tests {
             // Every kind of answer was exercised.
             assert!(seen.iter().all(|&s| s > 50), "{seen:?}");
         }
+    }
+
+    /// The threshold for estimated covariances: `P(2F(2, ν) > q) = 1 − p` (checked
+    /// against draws of `Δᵀ(s² C)⁻¹Δ`, `s² ~ χ²_ν/ν`, in both directions) and `χ²₂` in
+    /// the limit.
+    #[test]
+    fn estimated_covariance_threshold_covers_at_its_confidence() {
+        use rand_distr::{ChiSquared, Distribution, StandardNormal};
+        let mut rng = StdRng::seed_from_u64(11);
+        for &nu in &[3.0, 8.0, 20.0] {
+            for &p in &[0.8, 0.95] {
+                let q = estimated_cov_quantile(p, nu);
+                let chi = ChiSquared::new(nu).unwrap();
+                let n = 40_000;
+                let mut inside = 0;
+                for _ in 0..n {
+                    let (a, b): (f64, f64) = (
+                        StandardNormal.sample(&mut rng),
+                        StandardNormal.sample(&mut rng),
+                    );
+                    let s2 = chi.sample(&mut rng) / nu;
+                    if (a * a + b * b) / s2 <= q {
+                        inside += 1;
+                    }
+                }
+                let cover = inside as f64 / n as f64;
+                // 4 binomial standard errors.
+                let tol = 4.0 * (p * (1.0 - p) / n as f64).sqrt();
+                assert!((cover - p).abs() < tol, "nu {nu} p {p}: {cover}");
+            }
+        }
+        assert!((estimated_cov_quantile(0.95, f64::INFINITY) - 5.991_464_547).abs() < 1e-6);
+        assert!((estimated_cov_quantile(0.95, 1e7) - 5.991_464_547).abs() < 1e-4);
+        assert!(estimated_cov_quantile(0.95, 0.0).is_nan());
     }
 }

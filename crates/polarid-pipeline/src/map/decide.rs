@@ -326,11 +326,18 @@ pub(crate) fn decide_pixels(
                         valley = true;
                         continue;
                     }
+                    // An unweighted fit's covariance is its own residuals' (T − 2 dof).
+                    let dof = if b.noise.is_some() {
+                        f64::INFINITY
+                    } else {
+                        b.dolp.iter().filter(|d| !d[p].is_nan()).count() as f64 - 2.0
+                    };
                     s.bands.push(PixelBand {
                         band: bi,
                         n,
                         k,
                         cov,
+                        dof,
                     });
                 }
                 Decider::Set { noise: false, .. } | Decider::Nearest(_) => {
@@ -354,6 +361,7 @@ pub(crate) fn decide_pixels(
                             n,
                             k,
                             cov: Some(cov),
+                            dof: f64::INFINITY,
                         });
                     } else {
                         nearest.bands.push(EstimateBand {
