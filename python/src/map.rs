@@ -5,7 +5,6 @@
 //! map` calls, so the arrays equal the CLI's TIFFs (python/tests/test_map_manifest.py).
 
 use ndarray::{ArrayD, IxDyn};
-use polarid_io::library::Library;
 use polarid_io::manifest;
 use polarid_io::model::Model;
 use polarid_pipeline::map::{self, MapConfig};
@@ -62,9 +61,10 @@ fn image<'py, T: numpy::Element>(
 ///     A model JSON written by ``polarid train`` (``--model``; for a colour manifest, a
 ///     multi-band model).
 /// library : str, optional
-///     Colour manifests only, instead of ``model``: a material library (``--library``):
-///     ``"builtin-rgb"`` or a multi-band library CSV (``polarid library ... --band 450
-///     --band 550 --band 650``).
+///     Instead of ``model``: a material library (``--library``): ``"builtin"``,
+///     ``"builtin-rgb"`` or a library CSV; under the set rule each material, as it is
+///     found, is tested against every pixel's rows (single-band captures at their
+///     ``wavelength_nm``).
 /// bin : int, default 1
 ///     Sum ``bin`` × ``bin`` blocks of pixels before the DoLP (1 to 64).
 /// min_s0 : float, optional
@@ -82,6 +82,8 @@ fn image<'py, T: numpy::Element>(
 ///     ``confidence`` (noise plus the systematic error model), ``ambiguous`` (the last
 ///     class name) when several are, unknown (code 0, reason ``rejected``) when none is;
 ///     ``nearest``: the paper's nearest prototype (``metric``, ``max_distance``).
+///     With a model on the same bench (``bench="same"``) the pixel's noise covariance
+///     is compared with the prototypes' sample covariance (``polarid map --bench``).
 /// confidence : float, default 0.95
 ///     Confidence of the consistent set, in (0, 1).
 /// weights : {"auto", "noise", "none"}, default "auto"
@@ -90,6 +92,9 @@ fn image<'py, T: numpy::Element>(
 /// angle_sd_deg, dolp_floor, extinction_ratio, retardance_deg : float
 ///     The set rule's systematic error model (defaults as ``polarid fit``:
 ///     0.2, 0.002, 100, 0).
+/// bench : {"same", "other"}, default "same"
+///     Where the model was trained (``--bench``): ``other`` compares both sides' total
+///     covariance. No effect with a library.
 ///
 /// Returns
 /// -------
@@ -128,7 +133,7 @@ fn image<'py, T: numpy::Element>(
 ///     The manifest's warnings and those of the map (e.g. too few pixels for the noise
 ///     model), as ``polarid map`` prints them.
 #[pyfunction]
-#[pyo3(signature = (manifest_path, model = None, *, library = None, bin = 1, min_s0 = None, max_distance = None, metric = "euclidean", tile = map::DEFAULT_TILE, rule = "set", confidence = 0.95, weights = "auto", angle_sd_deg = map::MapErrors::default().angle_sd_deg, dolp_floor = map::MapErrors::default().dolp_floor, extinction_ratio = map::MapErrors::default().extinction_ratio, retardance_deg = map::MapErrors::default().retardance_deg))]
+#[pyo3(signature = (manifest_path, model = None, *, library = None, bin = 1, min_s0 = None, max_distance = None, metric = "euclidean", tile = map::DEFAULT_TILE, rule = "set", confidence = 0.95, weights = "auto", angle_sd_deg = map::MapErrors::default().angle_sd_deg, dolp_floor = map::MapErrors::default().dolp_floor, extinction_ratio = map::MapErrors::default().extinction_ratio, retardance_deg = map::MapErrors::default().retardance_deg, bench = "same"))]
 #[allow(clippy::too_many_arguments)]
 pub fn map_manifest<'py>(
     py: Python<'py>,
@@ -147,8 +152,18 @@ pub fn map_manifest<'py>(
     dolp_floor: f64,
     extinction_ratio: f64,
     retardance_deg: f64,
+    bench: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
     let metric = map::parse_metric(metric).py_err()?;
+    let bench = match bench {
+        "same" => polarid_core::classify::Bench::Same,
+        "other" => polarid_core::classify::Bench::Other,
+        b => {
+            return Err(value_error(format!(
+                "bench must be \"same\" or \"other\", got {b:?}"
+            )));
+        }
+    };
     let errors = map::MapErrors {
         angle_sd_deg,
         dolp_floor,
@@ -159,13 +174,14 @@ pub fn map_manifest<'py>(
         .and_then(|c| c.with_rule(map::parse_rule(rule)?, confidence))
         .and_then(|c| c.with_errors(errors))
         .and_then(|c| Ok(c.with_weights(map::parse_weights(weights)?)))
-        .py_err()?;
+        .py_err()?
+        .with_bench(bench);
     let mpath = path_arg(manifest_path)?;
     let model_path = model.map(path_arg).transpose()?;
     if model_path.is_some() == library.is_some() {
         return Err(value_error(
-            "give model (a model JSON of polarid train) or library (colour manifests: \
-             \"builtin-rgb\" or a multi-band library CSV), not both or neither",
+            "give model (a model JSON of polarid train) or library (\"builtin\", \
+             \"builtin-rgb\" or a library CSV), not both or neither",
         ));
     }
     let m = py
@@ -179,23 +195,11 @@ pub fn map_manifest<'py>(
                 .map_err(IntoPyErr::into_py_err)?;
             py.detach(|| map::map_manifest(&cfg, &m, &mdl, p, &no_progress))
         }
-        (None, Some(spec)) if map::is_colour(&m) => py.detach(|| {
-            let profiles = Library::load(spec)?.multi_prototypes();
-            map::map_manifest_bands(
-                &cfg,
-                &m,
-                &profiles,
-                &format!("library {spec}"),
-                &no_progress,
-            )
-        }),
         (None, spec) => {
-            return Err(value_error(format!(
-                "library={:?}: a library maps manifests with colour captures only; give \
-                 model for {}",
-                spec.as_deref().unwrap_or(""),
-                mpath.display()
-            )));
+            let spec = spec.clone().unwrap_or_default();
+            py.detach(|| {
+                map::map_manifest_from(&cfg, &m, map::MapPrototypes::Library(&spec), &no_progress)
+            })
         }
     }
     .py_err()?;

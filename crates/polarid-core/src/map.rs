@@ -767,10 +767,42 @@ pub fn fit_and_classify(
     noise: Option<MapNoise<'_>>,
     flags: &[u8],
     tile: usize,
+    out: MapOutputs<'_>,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<MapCounts> {
+    fit_and_classify_corr(
+        betas,
+        classifier,
+        dolp,
+        noise,
+        flags,
+        tile,
+        out,
+        &mut [],
+        progress,
+    )
+}
+
+/// [`fit_and_classify`], writing also every pixel's fit correlation of `n` and `k`
+/// (`NkFit::nk_corr`; NaN where not fitted) into `nk_corr` when it is not empty (then of
+/// the map's size): the covariance `classify` reads from a fit row, for decisions made
+/// after the fit (`polarid_pipeline::map`).
+#[allow(clippy::too_many_arguments)]
+pub fn fit_and_classify_corr(
+    betas: Betas<'_>,
+    classifier: &PixelClassifier,
+    dolp: &[&[f32]],
+    noise: Option<MapNoise<'_>>,
+    flags: &[u8],
+    tile: usize,
     mut out: MapOutputs<'_>,
+    nk_corr: &mut [f32],
     progress: &(dyn Fn(usize) + Sync),
 ) -> Result<MapCounts> {
     let npix = flags.len();
+    if !nk_corr.is_empty() {
+        check_len("nk_corr", nk_corr.len(), npix)?;
+    }
     let (t_len, k_min) = match betas {
         Betas::Shared(plan) => (plan.len(), plan.options().bounds.k_min),
         Betas::PerPixel { beta, plan } => {
@@ -883,6 +915,9 @@ pub fn fit_and_classify(
                 }
             } else {
                 write_skip(&mut out, &mut counts, p, r);
+                if let Some(v) = nk_corr.get_mut(p) {
+                    *v = f32::NAN;
+                }
             }
         }
         let m = idx.len();
@@ -908,6 +943,9 @@ pub fn fit_and_classify(
         );
         for ((&p, f), &(c, r)) in idx.iter().zip(&fits[..m]).zip(&decisions) {
             write_fit(&mut out, &mut counts, p, f, c, r);
+            if let Some(v) = nk_corr.get_mut(p) {
+                *v = f.nk_corr as f32;
+            }
         }
         if let Betas::PerPixel { plan, beta } = betas {
             partial.sort_unstable();
@@ -919,6 +957,9 @@ pub fn fit_and_classify(
                     // captures; counted as dark if it ever is.
                     for &(_, p) in group {
                         write_skip(&mut out, &mut counts, p, reason::DARK);
+                        if let Some(v) = nk_corr.get_mut(p) {
+                            *v = f32::NAN;
+                        }
                     }
                     continue;
                 }
@@ -953,6 +994,9 @@ pub fn fit_and_classify(
                 );
                 for ((&p, f), &(c, r)) in gidx.iter().zip(&fits[..g]).zip(&decisions) {
                     write_fit(&mut out, &mut counts, p, f, c, r);
+                    if let Some(v) = nk_corr.get_mut(p) {
+                        *v = f.nk_corr as f32;
+                    }
                 }
             }
         }

@@ -47,10 +47,16 @@ pub struct Args {
     /// Trained model (JSON) written by `polarid train`.
     #[arg(long, value_name = "MODEL.json")]
     pub model: Option<PathBuf>,
-    /// Material library (`builtin-rgb`, a multi-band library CSV): manifests with colour
-    /// captures only (docs/BANDS.md).
+    /// Material library (`builtin`, `builtin-rgb`, a library CSV): each material, as it is
+    /// found, tested against every pixel's rows (docs/CLASSIFY.md); single-band captures
+    /// are taken at their `wavelength_nm` (else 650 nm, with a warning).
     #[arg(long, value_name = "LIBRARY")]
     pub library: Option<String>,
+    /// Where the model was trained: `same` (the default) — on this bench: each pixel's
+    /// noise against the prototypes' sample covariance — or `other`: both sides' total
+    /// covariance (docs/CLASSIFY.md "Trained models"). No effect with a library.
+    #[arg(long, value_enum, default_value_t = super::classify::BenchArg::Same)]
+    pub bench: super::classify::BenchArg,
     /// Output directory.
     #[arg(short = 'o', long, value_name = "DIR")]
     pub output: PathBuf,
@@ -134,28 +140,30 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         .and_then(|c| c.with_rule(rule, args.confidence))
         .and_then(|c| c.with_errors(errors))
         .and_then(|c| Ok(c.with_weights(map::parse_weights(&args.weights)?)))
-        .cli()?;
+        .cli()?
+        .with_bench(match args.bench {
+            super::classify::BenchArg::Same => polarid_core::classify::Bench::Same,
+            super::classify::BenchArg::Other => polarid_core::classify::Bench::Other,
+        });
     let m = manifest::load(&args.manifest)?;
     for w in &m.warnings {
         ctx.info(format!("polarid: warning: {w}"));
     }
-    let colour = map::is_colour(&m);
-    let (model, label) = match (&args.model, &args.library) {
-        (Some(p), _) => (Some(Model::read(p)?), p.display().to_string()),
-        (None, Some(spec)) if colour => (None, format!("library {spec}")),
-        (None, spec) => anyhow::bail!(crate::BadInput(format!(
-            "--library {}: a library maps manifests with colour captures only; give \
-             --model for {}",
-            spec.as_deref().unwrap_or(""),
-            args.manifest.display()
-        ))),
+    let model = args.model.as_ref().map(|p| Model::read(p)).transpose()?;
+    let spec = args.library.as_deref().unwrap_or("builtin");
+    let src = match (&model, &args.model) {
+        (Some(model), Some(p)) => map::MapPrototypes::Model { model, path: p },
+        _ => map::MapPrototypes::Library(spec),
     };
-    let profiles = match (&model, &args.library) {
-        (Some(model), _) => model.multi_prototypes(),
-        (None, spec) => Library::load(spec.as_deref().unwrap_or("builtin-rgb"))?.multi_prototypes(),
+    let label = src.label();
+    let profiles = match &model {
+        Some(model) => model.multi_prototypes(),
+        None => Library::load(spec)?.multi_prototypes(),
     };
     // Checked before the work, as the map itself does.
-    if let (Some(model), Some(p), false) = (&model, &args.model, colour) {
+    if let (Some(model), Some(p), map::Rule::Nearest, false) =
+        (&model, &args.model, rule, map::is_colour(&m))
+    {
         map::pixel_classifier(&cfg, model, p).cli()?;
     }
 
@@ -171,11 +179,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
 
     let bars = Bars::new(ctx);
     let progress = |s: &str, d, t| bars.report(s, d, t);
-    let r = match (&model, &args.model, colour) {
-        (Some(model), Some(p), false) => map::map_manifest(&cfg, &m, model, p, &progress),
-        _ => map::map_manifest_bands(&cfg, &m, &profiles, &label, &progress),
-    }
-    .cli()?;
+    let r = map::map_manifest_from(&cfg, &m, src, &progress).cli()?;
     drop(bars);
     // The manifest's warnings were printed above; the others follow.
     for w in r.warnings.iter().skip(m.warnings.len()) {

@@ -283,6 +283,10 @@ fn colour_plates_measure_fit_classify_and_map_per_band() {
             manifest.to_str().unwrap(),
             "--model",
             &p("model.json"),
+            // The systematic error model on both sides (the same-bench default:
+            // `map_decide`).
+            "--bench",
+            "other",
             "--bin",
             "4",
             "-o",

@@ -29,6 +29,7 @@ mod library_cmd;
 mod library_names;
 mod map_calibrated;
 mod map_cmd;
+mod map_decide;
 mod measure_calibrated_cli;
 mod measure_cli;
 mod model_cmd;

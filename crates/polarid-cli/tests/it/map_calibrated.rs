@@ -241,6 +241,10 @@ fn map_with(manifest: &Path, model: &Path, out: &Path, bin: usize, extra: &[&str
         &bin,
         "--min-s0",
         "200",
+        // The set rule with the systematic error model on both sides (these tests check
+        // the map against it; the same-bench default is tested in `map_decide`).
+        "--bench",
+        "other",
     ];
     args.extend_from_slice(extra);
     ok(&args);

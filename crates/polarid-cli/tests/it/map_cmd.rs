@@ -237,6 +237,9 @@ fn synthetic_plates_are_mapped_and_background_left_unclassified() {
         "4",
         "--metric",
         "mahalanobis",
+        // The systematic error model on both sides (the same-bench default: `map_decide`).
+        "--bench",
+        "other",
     ]);
     for f in [
         "n.tif",

@@ -92,6 +92,7 @@ mod cov;
 mod decision;
 mod evaluate;
 pub mod hypothesis;
+pub mod pixel_decision;
 mod points;
 mod wolff;
 

@@ -18,12 +18,11 @@ use std::path::Path;
 use std::time::Instant;
 
 use polarid_core::classify::{
-    AMBIGUOUS, Classifier, ClassifierConfig, Estimate, EstimateBand, MultiEstimate, MultiPrototype,
-    Prototype, Reject, Status, same_band,
+    AMBIGUOUS, Classifier, ClassifierConfig, MultiPrototype, Prototype, Reject, same_band,
 };
-use polarid_core::fit::{FitOptions, FitPlan, FitStatus, PixelBetaPlan};
+use polarid_core::fit::{FitOptions, FitPlan, PixelBetaPlan};
 use polarid_core::map::noise::{NoiseAnalyzer, NoiseEstimate, estimate_noise};
-use polarid_core::map::sets::{CovScratch, MapErrorModel, PixelRow, total_covariance};
+use polarid_core::map::sets::MapErrorModel;
 use polarid_core::map::{
     self, Betas, MapCounts, MapNoise, MapOutputs, NoiseOut, PixelClassifier, flag, reason,
 };
@@ -33,12 +32,12 @@ use polarid_io::bands::colour_stokes;
 use polarid_io::image;
 use polarid_io::manifest::{CaptureSource, Manifest};
 use polarid_io::measure::rules_for;
-use rayon::prelude::*;
 
 use super::capture::{self, Dims, check_dims};
 use super::rules::min_s0_for;
 use super::{
-    MapConfig, MapResult, Rule, Weights, beta_degrees, error_model, geometry, mean_deg, summary,
+    MapConfig, MapPrototypes, MapResult, Rule, beta_degrees, decide, error_model, geometry,
+    mean_deg, summary,
 };
 use crate::error::{PipelineError, Result};
 use crate::progress::{Progress, Warning};
@@ -291,15 +290,24 @@ pub fn map_manifest_bands(
     label: &str,
     progress: Progress<'_>,
 ) -> Result<MapResult> {
-    // The prototypes are checked before any work.
-    bands_classifier(cfg, profiles, label)?;
+    map_manifest_bands_from(cfg, m, MapPrototypes::Given { profiles, label }, progress)
+}
+
+/// [`map_manifest_bands`] against a model, a library or prototypes as given
+/// ([`MapPrototypes`]; the decision of every pixel as `polarid classify` makes it,
+/// module `decide`).
+pub(super) fn map_manifest_bands_from(
+    cfg: &MapConfig,
+    m: &Manifest,
+    src: MapPrototypes<'_>,
+    progress: Progress<'_>,
+) -> Result<MapResult> {
     let mut accs = band_list(m)?;
+    // The prototypes are checked before any work.
+    let wavelengths: Vec<Option<f64>> = accs.iter().map(|a| Some(a.wavelength_nm)).collect();
+    let decision = decide::decision(cfg, src, &wavelengths)?;
     let calibrated = m.camera.is_some();
-    let weighted = match cfg.weights {
-        Weights::Auto => calibrated,
-        Weights::Noise => true,
-        Weights::None => false,
-    };
+    let weighted = decide::weighted(cfg, calibrated, src.tests_rows(cfg));
 
     // Stage 1: DoLP per capture and band; a colour mosaic is reconstructed once.
     let t0 = Instant::now();
@@ -414,7 +422,7 @@ pub fn map_manifest_bands(
         .collect();
     let t_dolp = t0.elapsed().as_secs_f64();
 
-    let fit = fit_bands(
+    let fit = fit_bands_with(
         cfg,
         accs,
         FitGeometry {
@@ -423,8 +431,7 @@ pub fn map_manifest_bands(
             beta: &beta_maps.beta,
             errors: &error_model(m, &cfg.errors),
         },
-        profiles,
-        label,
+        &decision,
         &m.path,
         progress,
     )?;
@@ -568,28 +575,39 @@ pub fn fit_bands(
     path: &Path,
     progress: Progress<'_>,
 ) -> Result<BandsFit> {
+    let wavelengths: Vec<Option<f64>> = accs.iter().map(|a| Some(a.wavelength_nm)).collect();
+    let decision = decide::decision(cfg, MapPrototypes::Given { profiles, label }, &wavelengths)?;
+    fit_bands_with(cfg, accs, geo, &decision, path, progress)
+}
+
+/// [`fit_bands`] with the map's decision.
+fn fit_bands_with(
+    cfg: &MapConfig,
+    accs: Vec<BandDolp>,
+    geo: FitGeometry<'_>,
+    decision: &decide::Decision,
+    path: &Path,
+    progress: Progress<'_>,
+) -> Result<BandsFit> {
     // Stage 2: every band fitted per pixel as a single-band map.
     let npix = geo.npix;
     let calibrated = !geo.beta.is_empty();
-    let weighted = match cfg.weights {
-        Weights::Auto => calibrated,
-        Weights::Noise => true,
-        Weights::None => false,
-    };
+    let tests_rows = matches!(decision.decider, decide::Decider::Hypothesis { .. });
+    let weighted = decide::weighted(cfg, calibrated, tests_rows);
     let proto_err = |e| IoError::Core {
-        path: label.into(),
+        path: path.to_path_buf(),
         source: e,
     };
     let core_err = |e| IoError::Core {
         path: path.to_path_buf(),
         source: e,
     };
-    let (classifier, names, class_names) = bands_classifier(cfg, profiles, label)?;
-    let ambiguous = (names.len() + 1) as u16;
+    let profiles = &decision.profiles;
     let options = FitOptions::default();
     let k_can_be_zero = options.bounds.k_min == 0.0;
-    let mut warnings: Vec<Warning> = Vec::new();
+    let mut warnings: Vec<Warning> = decision.warnings.clone();
     let mut bands: Vec<BandMap> = Vec::with_capacity(accs.len());
+    let mut corrs: Vec<Vec<f32>> = Vec::with_capacity(accs.len());
     let mut plans: Vec<Option<FitPlan>> = Vec::with_capacity(accs.len());
     let pixel_plan = PixelBetaPlan::new(options).map_err(core_err)?;
     let all_first: Vec<Prototype> = profiles
@@ -660,7 +678,8 @@ pub fn fit_bands(
         });
         let stage = format!("pixels (fit, {} nm)", band_tag(a.wavelength_nm));
         let report = |done: usize| progress(&stage, done as u64, npix as u64);
-        let counts: MapCounts = map::fit_and_classify(
+        let mut corr = vec![f32::NAN; npix];
+        let counts: MapCounts = map::fit_and_classify_corr(
             betas,
             &pc,
             &views,
@@ -676,9 +695,11 @@ pub fn fit_bands(
                 class: &mut class,
                 reason: &mut why,
             },
+            &mut corr,
             &report,
         )
         .map_err(core_err)?;
+        corrs.push(corr);
         bands.push(BandMap {
             wavelength_nm: a.wavelength_nm,
             captures: a.captures.clone(),
@@ -694,117 +715,59 @@ pub fn fit_bands(
         plans.push(plan);
     }
 
-    // Stage 3: every pixel classified on all its bands.
+    // Stage 3: every pixel decided once on all its bands (module `decide`).
     progress("pixels (classify)", 0, npix as u64);
-    let full = geo.errors;
-    let models: Vec<MapErrorModel> = accs
+    let views: Vec<Vec<&[f32]>> = accs
         .iter()
-        .map(|a| match cfg.rule {
-            Rule::Set => MapErrorModel {
-                polarimetric: full.polarimetric,
-                angle_sd: a.captures.iter().map(|&i| full.angle_sd[i]).collect(),
-            },
-            Rule::Nearest => MapErrorModel::none(a.captures.len()),
+        .map(|a| a.dolp.iter().map(Vec::as_slice).collect())
+        .collect();
+    let reads: Vec<Vec<&[f32]>> = accs
+        .iter()
+        .map(|a| a.read.iter().map(Vec::as_slice).collect())
+        .collect();
+    let shots: Vec<Vec<&[f32]>> = accs
+        .iter()
+        .map(|a| a.shot.iter().map(Vec::as_slice).collect())
+        .collect();
+    let beta_views: Vec<Vec<&[f32]>> = accs
+        .iter()
+        .map(|a| {
+            a.captures
+                .iter()
+                .filter_map(|&i| geo.beta.get(i).map(Vec::as_slice))
+                .collect()
         })
         .collect();
-    let set_rule = cfg.rule == Rule::Set;
-    let decide = |scratch: &mut CovScratch, rows: &mut Vec<PixelRow>, p: usize| -> (u16, u8) {
-        let mut est = MultiEstimate { bands: Vec::new() };
-        let mut first_reason: Option<u8> = None;
-        let mut valley = false;
-        for (bi, (b, a)) in bands.iter().zip(&accs).enumerate() {
-            if b.reason[p] != reason::CLASSIFIED {
-                first_reason.get_or_insert(b.reason[p]);
-                continue;
-            }
-            let (n, k) = (b.n[p] as f64, b.k[p] as f64);
-            rows.clear();
-            for (j, &ci) in a.captures.iter().enumerate() {
-                let y = a.dolp[j][p];
-                if y.is_nan() {
-                    continue;
-                }
-                let beta = match &plans[bi] {
-                    Some(plan) => plan.betas()[j],
-                    None => geo.beta[ci][p] as f64,
-                };
-                let se = match &b.noise {
-                    Some(e) => e.model.dolp_se(a.read[j][p], a.shot[j][p]),
-                    None => 1.0,
-                };
-                rows.push(PixelRow {
-                    capture: j,
-                    beta,
-                    y: y as f64,
-                    se,
-                });
-            }
-            let w = b.noise.is_some();
-            let Some(cov) = total_covariance(n, k, rows, w, &models[bi], k_can_be_zero, scratch)
-            else {
-                first_reason.get_or_insert(reason::FIT_ILL_CONDITIONED);
-                continue;
-            };
-            // As in single-band maps: an estimate whose one-sigma interval on n reaches
-            // 0 is not placed by the data; that band says nothing.
-            if set_rule && cov.nn.sqrt() >= n {
-                valley = true;
-                continue;
-            }
-            est.bands.push(EstimateBand {
-                wavelength_nm: Some(b.wavelength_nm),
-                estimate: Estimate {
-                    n,
-                    k,
-                    cov: Some(cov),
-                    fit_status: FitStatus::Ok,
-                },
-                film: None,
-            });
-        }
-        if est.bands.is_empty() {
-            return if valley {
-                (ambiguous, reason::AMBIGUOUS)
-            } else {
-                (0, first_reason.unwrap_or(reason::FIT_INVALID_INPUT))
-            };
-        }
-        let dec = classifier.classify_multi(&est);
-        match dec.status {
-            Status::Ok => match names.iter().position(|c| *c == dec.predicted) {
-                Some(i) => (i as u16 + 1, reason::CLASSIFIED),
-                None => (0, reason::REJECTED),
+    let inputs: Vec<decide::BandInput<'_>> = bands
+        .iter()
+        .enumerate()
+        .map(|(bi, b)| decide::BandInput {
+            wavelength_nm: Some(b.wavelength_nm),
+            reason: &b.reason,
+            n: &b.n,
+            k: &b.k,
+            n_se: &b.n_se,
+            k_se: &b.k_se,
+            nk_corr: &corrs[bi],
+            rms: &b.rms_residual,
+            dolp: &views[bi],
+            captures: &accs[bi].captures,
+            betas: match &plans[bi] {
+                Some(plan) => decide::BandBetas::Shared(plan.betas()),
+                None => decide::BandBetas::PerPixel(&beta_views[bi]),
             },
-            Status::Ambiguous => (ambiguous, reason::AMBIGUOUS),
-            Status::Rejected | Status::NoCommonBand => (0, reason::REJECTED),
-            Status::NoCovariance => (0, reason::FIT_ILL_CONDITIONED),
-            _ => (0, reason::FIT_INVALID_INPUT),
-        }
-    };
-    let decided: Vec<(u16, u8)> = (0..npix)
-        .into_par_iter()
-        .map_init(
-            || (CovScratch::default(), Vec::<PixelRow>::new()),
-            |(s, rows), p| decide(s, rows, p),
-        )
+            noise: b.noise.map(|e| (e.model, &reads[bi][..], &shots[bi][..])),
+        })
         .collect();
+    let (class, why, counts) =
+        decide::decide_pixels(decision, &inputs, geo.errors, k_can_be_zero, npix);
     progress("pixels (classify)", npix as u64, npix as u64);
-    let mut counts = MapCounts {
-        reasons: [0; reason::COUNT],
-        classes: vec![0; class_names.len() + 1],
-    };
-    let (class, why): (Vec<u16>, Vec<u8>) = decided.into_iter().unzip();
-    for (&c, &r) in class.iter().zip(&why) {
-        counts.reasons[r as usize] += 1;
-        if let Some(n) = counts.classes.get_mut(c as usize) {
-            *n += 1;
-        }
-    }
+    drop(inputs);
     Ok(BandsFit {
         bands,
         class,
         reason: why,
-        class_names,
+        class_names: decision.class_names.clone(),
         counts,
         warnings,
     })

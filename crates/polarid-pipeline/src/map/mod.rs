@@ -37,6 +37,7 @@
 
 mod bands;
 mod capture;
+mod decide;
 mod geometry;
 pub mod rules;
 mod summary;
@@ -44,7 +45,7 @@ mod summary;
 use std::path::Path;
 use std::time::Instant;
 
-use polarid_core::classify::{AMBIGUOUS, Classifier, ClassifierConfig, UNKNOWN};
+use polarid_core::classify::{Bench, Classifier, ClassifierConfig, UNKNOWN};
 use polarid_core::fit::{FitOptions, FitPlan, PixelBetaPlan};
 use polarid_core::map::noise::{NoiseEstimate, estimate_noise};
 use polarid_core::map::sets::MapErrorModel;
@@ -58,6 +59,7 @@ pub use bands::{
     BAND_IMAGES, BandDolp, BandMap, BandsFit, FitGeometry, band_class_names, band_tag, fit_bands,
     is_colour, map_manifest_bands, output_files,
 };
+pub use decide::MapPrototypes;
 pub use polarid_core::map::reason::NAMES as REASON_NAMES;
 pub use summary::RegionSummary;
 
@@ -178,6 +180,7 @@ pub struct MapConfig {
     confidence: f64,
     errors: MapErrors,
     weights: Weights,
+    bench: Bench,
 }
 
 impl MapConfig {
@@ -226,6 +229,7 @@ impl MapConfig {
             confidence: polarid_core::classify::DEFAULT_CONFIDENCE,
             errors: MapErrors::default(),
             weights: Weights::Auto,
+            bench: Bench::Same,
         })
     }
 
@@ -269,6 +273,19 @@ impl MapConfig {
     pub fn with_weights(mut self, w: Weights) -> Self {
         self.weights = w;
         self
+    }
+
+    /// Where a model's prototypes were measured (docs/CLASSIFY.md "Trained models: the
+    /// same bench"): `Same` (the default) compares a pixel's noise covariance with the
+    /// prototypes' sample covariance, `Other` both totals. Libraries have no bench.
+    pub fn with_bench(mut self, bench: Bench) -> Self {
+        self.bench = bench;
+        self
+    }
+
+    /// The bench of a model's prototypes.
+    pub fn bench(&self) -> Bench {
+        self.bench
     }
 
     /// The decision rule.
@@ -425,8 +442,9 @@ fn error_model(m: &Manifest, errors: &MapErrors) -> MapErrorModel {
 
 /// Map a loaded manifest with a model (`model_path` names it in errors): DoLP per capture, then fit and classify every
 /// pixel (see the module documentation). Progress stages: `"captures (DoLP)"` (one
-/// step per capture), `"pixels (fit)"` (pixels done). A manifest with colour captures
-/// is mapped per band with the model's multi-band prototypes ([`map_manifest_bands`]).
+/// step per capture), `"pixels (fit)"` (pixels done), `"pixels (classify)"`. A manifest
+/// with colour captures is mapped per band with the model's multi-band prototypes
+/// ([`map_manifest_bands`]).
 pub fn map_manifest(
     cfg: &MapConfig,
     m: &Manifest,
@@ -434,23 +452,75 @@ pub fn map_manifest(
     model_path: &Path,
     progress: Progress<'_>,
 ) -> Result<MapResult> {
+    map_manifest_from(
+        cfg,
+        m,
+        MapPrototypes::Model {
+            model,
+            path: model_path,
+        },
+        progress,
+    )
+}
+
+/// The wavelength of a single-band map: the captures' `wavelength_nm` when they all
+/// have the same one.
+fn mono_wavelength(m: &Manifest) -> Option<f64> {
+    let first = m.captures.first()?.wavelength_nm?;
+    m.captures
+        .iter()
+        .all(|c| polarid_core::classify::same_band(c.wavelength_nm, Some(first)))
+        .then_some(first)
+}
+
+/// [`map_manifest`] against a model, a library or prototypes as given ([`MapPrototypes`]):
+/// under the set rule every pixel is decided as `polarid classify` decides a target
+/// (module `decide`: a model on the same bench or another, a library by the hypothesis
+/// tests against the pixel's rows — single-band captures then need their
+/// `wavelength_nm`, else the built-in library's 650 nm is used with a warning).
+pub fn map_manifest_from(
+    cfg: &MapConfig,
+    m: &Manifest,
+    src: MapPrototypes<'_>,
+    progress: Progress<'_>,
+) -> Result<MapResult> {
     if is_colour(m) {
-        let label = model_path.display().to_string();
-        return map_manifest_bands(cfg, m, &model.multi_prototypes(), &label, progress);
+        return bands::map_manifest_bands_from(cfg, m, src, progress);
     }
-    let mut pc = pixel_classifier(cfg, model, model_path)?;
-    if cfg.rule == Rule::Set {
-        pc = pc
-            .with_set_rule(cfg.confidence, error_model(m, &cfg.errors))
-            .map_err(|e| IoError::Core {
-                path: m.path.clone(),
-                source: e,
-            })?;
-    }
-    let mut names: Vec<String> = pc.names().to_vec();
-    if pc.ambiguous().is_some() {
-        names.push(AMBIGUOUS.to_string());
-    }
+    let wavelength = mono_wavelength(m);
+    let decision = decide::decision(cfg, src, &[wavelength])?;
+    let label = src.label();
+    let proto_err = |e| IoError::Core {
+        path: label.clone().into(),
+        source: e,
+    };
+    // The fit's own answer: the paper's nearest prototype (kept under `--rule nearest`;
+    // under the set rule every pixel is decided after the fit).
+    let pc = match (src, cfg.rule) {
+        (MapPrototypes::Model { model, path }, Rule::Nearest) => {
+            pixel_classifier(cfg, model, path)?
+        }
+        (_, rule) => {
+            let first: Vec<_> = decision
+                .profiles
+                .iter()
+                .filter_map(|p| p.band_prototype(0))
+                .collect();
+            let max = if rule == Rule::Nearest {
+                cfg.max_distance
+            } else {
+                None
+            };
+            Classifier::new(first, ClassifierConfig::default())
+                .and_then(|c| PixelClassifier::new(c, max))
+                .map_err(proto_err)?
+                .with_mahalanobis(rule == Rule::Nearest && cfg.metric == Metric::Mahalanobis)
+        }
+    };
+    let names: Vec<String> = match cfg.rule {
+        Rule::Nearest => pc.names().to_vec(),
+        Rule::Set => decision.class_names.clone(),
+    };
 
     // Far field: one β per capture (eq. 5), the fit plan shared by every pixel.
     let core_err = |e| IoError::Core {
@@ -458,11 +528,7 @@ pub fn map_manifest(
         source: e,
     };
     let calibrated = m.camera.is_some();
-    let weighted = match cfg.weights {
-        Weights::Auto => calibrated,
-        Weights::Noise => true,
-        Weights::None => false,
-    };
+    let weighted = decide::weighted(cfg, calibrated, src.tests_rows(cfg));
     let plan = if calibrated {
         // Checked before any work, as the far-field plan checks it.
         if m.captures.len() < 3 {
@@ -590,8 +656,15 @@ pub fn map_manifest(
     let (mut n, mut k, mut n_se, mut k_se, mut rms) = (img(), img(), img(), img(), img());
     let mut class = vec![0u16; npix];
     let mut why = vec![0u8; npix];
+    let set_rule = cfg.rule == Rule::Set;
+    let mut corr = if set_rule {
+        vec![f32::NAN; npix]
+    } else {
+        Vec::new()
+    };
     let mut noise: Option<NoiseEstimate> = None;
     let mut warnings: Vec<Warning> = m.warnings.iter().map(|w| Warning(w.clone())).collect();
+    warnings.extend(decision.warnings.iter().cloned());
     let counts = {
         let views: Vec<&[f32]> = dolp.iter().map(|v| v.as_slice()).collect();
         let beta_views: Vec<&[f32]> = beta_maps.beta.iter().map(|v| v.as_slice()).collect();
@@ -634,10 +707,48 @@ pub fn map_manifest(
             read: &rv,
             shot: &sv,
         });
-        map::fit_and_classify(
-            betas, &pc, &views, map_noise, &flags, cfg.tile, outputs, &report,
+        let counts = map::fit_and_classify_corr(
+            betas, &pc, &views, map_noise, &flags, cfg.tile, outputs, &mut corr, &report,
         )
-        .map_err(core_err)?
+        .map_err(core_err)?;
+        if set_rule {
+            // Every pixel decided on its fit (and rows), as `classify` decides.
+            progress("pixels (classify)", 0, npix as u64);
+            let captures: Vec<usize> = (0..m.captures.len()).collect();
+            let shared: Vec<f64> = plan.as_ref().map_or(Vec::new(), |p| p.betas().to_vec());
+            let input = decide::BandInput {
+                wavelength_nm: wavelength,
+                reason: &why,
+                n: &n,
+                k: &k,
+                n_se: &n_se,
+                k_se: &k_se,
+                nk_corr: &corr,
+                rms: &rms,
+                dolp: &views,
+                captures: &captures,
+                betas: if plan.is_some() {
+                    decide::BandBetas::Shared(&shared)
+                } else {
+                    decide::BandBetas::PerPixel(&beta_views)
+                },
+                noise: noise.map(|e| (e.model, &rv[..], &sv[..])),
+            };
+            let options = FitOptions::default();
+            let (c, r, counts) = decide::decide_pixels(
+                &decision,
+                &[input],
+                &error_model(m, &cfg.errors),
+                options.bounds.k_min == 0.0,
+                npix,
+            );
+            progress("pixels (classify)", npix as u64, npix as u64);
+            class = c;
+            why = r;
+            counts
+        } else {
+            counts
+        }
     };
     drop(dolp);
     drop(flags);
