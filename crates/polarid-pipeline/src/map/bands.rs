@@ -70,11 +70,7 @@ pub struct BandMap {
 
 /// The file-name tag of a band: its wavelength in nm, `450` or `632.8` (`n_450.tif`).
 pub fn band_tag(wavelength_nm: f64) -> String {
-    if wavelength_nm.fract() == 0.0 && wavelength_nm.abs() < 1e9 {
-        format!("{wavelength_nm:.0}")
-    } else {
-        format!("{wavelength_nm}")
-    }
+    polarid_io::manifest::colour::wavelength_label(wavelength_nm)
 }
 
 /// The per-band fit images of a colour map, written as `{name}_{tag}.tif`
@@ -138,11 +134,7 @@ impl MapResult {
 }
 
 /// Whether `m` has a colour capture (its map is then per band).
-pub fn is_colour(m: &Manifest) -> bool {
-    m.captures
-        .iter()
-        .any(|c| matches!(c.source, CaptureSource::ColourDofp { .. }))
-}
+pub use polarid_io::measure::has_colour as is_colour;
 
 /// One band's binned DoLP images over its captures (stage 1 of a colour map), the input
 /// of [`fit_bands`]: built by [`map_manifest_bands`] from the manifest's files, or from

@@ -71,18 +71,7 @@ use crate::progress::{Progress, Warning};
 /// `max_distance` then being in standard deviations).
 pub use polarid_core::classify::Metric;
 
-/// Parse `euclidean` or `mahalanobis` (error naming `--metric`).
-pub fn parse_metric(s: &str) -> Result<Metric> {
-    match s {
-        "euclidean" => Ok(Metric::Euclidean),
-        "mahalanobis" => Ok(Metric::Mahalanobis),
-        _ => Err(PipelineError::config(
-            "--metric",
-            format!("{s:?}"),
-            "must be \"euclidean\" or \"mahalanobis\"",
-        )),
-    }
-}
+pub use crate::options::{parse_metric, parse_rule};
 
 /// Default pixels per fitting tile.
 pub const DEFAULT_TILE: usize = 65536;
@@ -127,19 +116,6 @@ pub fn parse_weights(s: &str) -> Result<Weights> {
             "--weights",
             format!("{s:?}"),
             "must be \"auto\", \"noise\" or \"none\"",
-        )),
-    }
-}
-
-/// Parse `set` or `nearest` (error naming `--rule`).
-pub fn parse_rule(s: &str) -> Result<Rule> {
-    match s {
-        "set" => Ok(Rule::Set),
-        "nearest" => Ok(Rule::Nearest),
-        _ => Err(PipelineError::config(
-            "--rule",
-            format!("{s:?}"),
-            "must be \"set\" or \"nearest\"",
         )),
     }
 }
