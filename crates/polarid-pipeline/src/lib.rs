@@ -36,6 +36,7 @@ pub mod measure;
 pub mod options;
 pub mod progress;
 pub mod simulate;
+pub mod stokes;
 pub mod train;
 
 pub use error::{PipelineError, Result};

@@ -1,33 +1,27 @@
 //! `polarid stokes`: Stokes, DoLP and AoLP images from rotating-polarizer frames or a
 //! division-of-focal-plane (DoFP) mosaic.
 //!
-//! Writes `s0.tif`, `s1.tif`, `s2.tif`, `dolp.tif`, `aolp.tif` (float32; DoLP and AoLP are
-//! NaN where a pixel is rejected) and the views `s0.png`, `dolp.png`, `aolp.png`
-//! ([`crate::render::views`]) into the output directory, all or nothing. The files are
-//! rendered, encoded and written in parallel ([`write_files`]). The Stokes images of frames come from
-//! [`polarid_io::measure`]; those of a DoFP mosaic, with DoLP and AoLP, from the fused
-//! kernel [`polarid_core::mosaic::dofp_polar`] in one pass over the mosaic (the same
-//! numbers as [`polarid_io::measure::dofp_stokes`] followed by
-//! [`polarid_core::stokes::dolp_aolp`]). A colour polarization mosaic (`--color`) gives
-//! these per band (`stokes_colour.rs`).
+//! The command translates its options into a [`StokesConfig`]; the pipeline
+//! ([`polarid_pipeline::stokes`]) checks them and computes the images of every band. This
+//! module writes `s0.tif`, `s1.tif`, `s2.tif`, `dolp.tif`, `aolp.tif` (float32; DoLP and
+//! AoLP are NaN where a pixel is rejected) and the views `s0.png`, `dolp.png`, `aolp.png`
+//! ([`crate::render::views`]) into the output directory, all or nothing, rendered,
+//! encoded and written in parallel ([`write_files`]). A colour polarization mosaic
+//! (`--color`) gives these per band (`stokes_colour.rs`).
 
 use std::path::{Path, PathBuf};
 
-use polarid_core::mosaic::{self, DofpMethod, DofpOutputs, Pattern};
-use polarid_core::region::Sampling;
-use polarid_core::stokes::{self, PixelRules, StokesSolver};
 use polarid_io::IoError;
 use polarid_io::atomic::{StagedDir, check_output};
-use polarid_io::image::{self, Frame};
-use polarid_io::measure::{self, StokesImages, frames_stokes, rules_for};
+use polarid_io::image;
+use polarid_io::measure;
+use polarid_pipeline::stokes::{StokesConfig, StokesSource};
 use rayon::prelude::*;
-
-use polarid_pipeline::map::rules::check_levels;
 
 #[path = "stokes_colour.rs"]
 mod colour;
 
-use super::common::PipeResult;
+use super::common::{PipeResult, warn_all};
 use crate::render::views::{self, AolpView, DolpScale};
 use crate::{BadInput, Ctx};
 
@@ -108,39 +102,6 @@ pub struct Args {
     pub output: PathBuf,
 }
 
-/// Stokes images with mask and counts, DoLP and AoLP of a DoFP mosaic in one pass
-/// ([`mosaic::dofp_polar`]); errors name the raw file, as [`measure::dofp_stokes`]'s.
-fn dofp_images(
-    raw: &Frame,
-    pattern: &Pattern,
-    rules: &PixelRules,
-    demosaic: Demosaic,
-    round: bool,
-) -> Result<(StokesImages, Vec<f32>, Vec<f32>), IoError> {
-    let (method, sampling) = match demosaic {
-        Demosaic::Bilinear => (DofpMethod::Bilinear { round }, Sampling::BilinearDofp),
-        Demosaic::Superpixel => (DofpMethod::Superpixel, Sampling::Independent),
-    };
-    let (w, h) = method.output_size(raw.width, raw.height);
-    let mut img = StokesImages::alloc(w, h, sampling);
-    let (mut dolp, mut aolp) = (vec![0f32; w * h], vec![0f32; w * h]);
-    let out = DofpOutputs {
-        s0: Some(&mut img.s0),
-        s1: Some(&mut img.s1),
-        s2: Some(&mut img.s2),
-        mask: Some(&mut img.mask),
-        dolp: Some(&mut dolp),
-        aolp: Some(&mut aolp),
-    };
-    img.counts = mosaic::dofp_polar(&raw.data, raw.width, pattern, method, rules, out).map_err(
-        |source| IoError::Core {
-            path: raw.path.clone(),
-            source,
-        },
-    )?;
-    Ok((img, dolp, aolp))
-}
-
 /// Renders an RGB view: (width, height, bytes).
 type Render<'a> = Box<dyn Fn() -> (usize, usize, Vec<u8>) + Send + Sync + 'a>;
 
@@ -182,56 +143,37 @@ fn write_files(
         })
 }
 
-/// Run `polarid stokes`.
-pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
-    check_levels(args.dark_level, args.saturation).cli()?;
-    if let (Some(raw_path), Some(color), true) = (&args.dofp, &args.color, args.frames.is_empty()) {
-        let rules_of = |raw: &Frame| rules_for(raw, args.dark_level, args.saturation);
-        return colour::run(&args, raw_path, color, rules_of, ctx);
-    }
-    let (img, dolp, aolp, inputs) = match (&args.dofp, args.frames.is_empty()) {
-        (Some(raw_path), true) => {
-            let pattern = Pattern::new(&args.pattern)?;
-            let raw = image::read_frame(raw_path)?;
-            let rules = rules_for(&raw, args.dark_level, args.saturation);
-            let round = raw.kind.is_integer() && args.demosaic == Demosaic::Bilinear;
-            let (img, dolp, aolp) = dofp_images(&raw, &pattern, &rules, args.demosaic, round)?;
-            (img, dolp, aolp, vec![raw_path.clone()])
-        }
-        (None, false) => {
-            if args.angles.len() != args.frames.len() {
-                return Err(BadInput(format!(
-                    "--angles gives {} angle(s) for {} frame(s); give one angle per frame",
-                    args.angles.len(),
-                    args.frames.len()
+/// `--bands L=NM,...` as (letter, nm) entries (the pipeline checks them).
+fn band_entries(spec: &[String]) -> anyhow::Result<Vec<(String, f64)>> {
+    spec.iter()
+        .map(|item| {
+            let bad = || {
+                BadInput(format!(
+                    "--bands: expected LETTER=NM (e.g. R=650), got {item:?}"
                 ))
-                .into());
-            }
-            if let Some(a) = args.angles.iter().find(|a| !(a.abs() <= 3600.0)) {
-                return Err(BadInput(format!(
-                    "--angles: a polarizer angle must be in [-3600, 3600] degrees, got {a:?}"
-                ))
-                .into());
-            }
-            let solver = StokesSolver::from_degrees(&args.angles)?;
-            if solver.ill_conditioned() && !ctx.quiet {
-                eprintln!(
-                    "polarid: warning: polarizer angles {:?} are poorly spread (condition number {:.1}, best {:.2}): S1 and S2 will be noisy",
-                    args.angles,
-                    solver.condition_number(),
-                    std::f64::consts::SQRT_2
-                );
-            }
-            let frames = image::read_frames(&args.frames)?;
-            // ok: one frame per angle, and the solver accepted at least three angles.
-            let rules = rules_for(&frames[0], args.dark_level, args.saturation);
-            let img = frames_stokes(&frames, &solver, &rules)?;
-            let n = img.width * img.height;
-            let (mut dolp, mut aolp) = (vec![0f32; n], vec![0f32; n]);
-            let (s0, s1, s2, m) = (&img.s0, &img.s1, &img.s2, Some(&img.mask[..]));
-            stokes::dolp_aolp(img.width, s0, s1, s2, m, &mut dolp, &mut aolp)?;
-            (img, dolp, aolp, args.frames.clone())
-        }
+            };
+            let (k, v) = item.split_once('=').ok_or_else(bad)?;
+            Ok((k.to_string(), v.trim().parse().map_err(|_| bad())?))
+        })
+        .collect()
+}
+
+/// The pipeline's configuration from the command line (names translated only).
+fn config(args: &Args) -> anyhow::Result<StokesConfig> {
+    let source = match (&args.dofp, args.frames.is_empty()) {
+        (Some(file), true) => StokesSource::Dofp {
+            file: file.clone(),
+            pattern_deg: args.pattern.clone(),
+            demosaic: args.demosaic.into(),
+            colour: match &args.color {
+                Some(c) => Some((c.clone(), band_entries(&args.bands)?)),
+                None => None,
+            },
+        },
+        (None, false) => StokesSource::Frames {
+            files: args.frames.clone(),
+            angles_deg: args.angles.clone(),
+        },
         (Some(_), false) => {
             return Err(BadInput("give either --frames or --dofp, not both".into()).into());
         }
@@ -241,8 +183,27 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
             );
         }
     };
-    let (w, h) = (img.width, img.height);
-    let dolp_max = args.dolp_max.resolve(&dolp);
+    Ok(StokesConfig {
+        source,
+        dark_level: args.dark_level,
+        saturation: args.saturation,
+    })
+}
+
+/// Run `polarid stokes`.
+pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
+    let cfg = config(&args)?;
+    cfg.validate().cli()?;
+    let r = polarid_pipeline::stokes::stokes(&cfg).cli()?;
+    warn_all(ctx, &r.warnings);
+    // ok: the pipeline returns at least one band.
+    if r.bands[0].letter.is_some() {
+        return colour::write(&args, &r, ctx);
+    }
+    let (w, h) = (r.width, r.height);
+    let b = &r.bands[0];
+    let (img, dolp, aolp) = (&b.images, &b.dolp, &b.aolp);
+    let dolp_max = args.dolp_max.resolve(dolp);
     let (mode, m) = (args.aolp_view, Some(&img.mask[..]));
     let files: Vec<(String, OutFile)> = vec![
         (
@@ -251,19 +212,19 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         ),
         (
             "dolp.png".into(),
-            OutFile::png(|| views::dolp_view(w, h, &dolp, m, dolp_max)),
+            OutFile::png(|| views::dolp_view(w, h, dolp, m, dolp_max)),
         ),
         (
             "aolp.png".into(),
-            OutFile::png(|| views::aolp_view(w, h, &aolp, &dolp, m, dolp_max, mode)),
+            OutFile::png(|| views::aolp_view(w, h, aolp, dolp, m, dolp_max, mode)),
         ),
         ("s0.tif".into(), OutFile::Tiff(&img.s0)),
         ("s1.tif".into(), OutFile::Tiff(&img.s1)),
         ("s2.tif".into(), OutFile::Tiff(&img.s2)),
-        ("dolp.tif".into(), OutFile::Tiff(&dolp)),
-        ("aolp.tif".into(), OutFile::Tiff(&aolp)),
+        ("dolp.tif".into(), OutFile::Tiff(dolp)),
+        ("aolp.tif".into(), OutFile::Tiff(aolp)),
     ];
-    let input_refs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+    let input_refs: Vec<&Path> = r.inputs.iter().map(PathBuf::as_path).collect();
     let staged = StagedDir::new(&args.output, ctx.force)?;
     for (name, _) in &files {
         check_output(&staged.final_path(name), ctx.force, &input_refs)?;

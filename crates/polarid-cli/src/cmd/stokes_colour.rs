@@ -10,51 +10,24 @@
 
 use std::path::Path;
 
-use polarid_core::mosaic::{ColourMethod, ColourPattern, DofpOutputs, Pattern, colour_polar};
-use polarid_core::stokes::PixelRules;
-use polarid_io::IoError;
 use polarid_io::atomic::{StagedDir, check_output};
-use polarid_io::image::{self, Frame};
-use polarid_io::manifest::colour::{band_table, pattern_wavelengths, wavelength_label};
+use polarid_io::manifest::colour::wavelength_label;
+use polarid_pipeline::stokes::{StokesBand, StokesResult};
 
-use super::{Args, Demosaic, OutFile, write_files};
+use super::{Args, OutFile, write_files};
+use crate::Ctx;
 use crate::render::views::{self, DolpScale};
-use crate::{BadInput, Ctx};
-
-/// The wavelength of each band of `pattern` from `--bands` (`L=NM,...`; default R 650,
-/// G 550, B 450).
-fn band_wavelengths(pattern: &ColourPattern, spec: &[String]) -> anyhow::Result<Vec<f64>> {
-    let mut entries: Vec<(&str, f64)> = Vec::new();
-    for item in spec {
-        let bad = || {
-            BadInput(format!(
-                "--bands: expected LETTER=NM (e.g. R=650), got {item:?}"
-            ))
-        };
-        let (k, v) = item.split_once('=').ok_or_else(bad)?;
-        entries.push((k, v.trim().parse().map_err(|_| bad())?));
-    }
-    let table = band_table(entries).map_err(|e| BadInput(format!("--bands: {e}")))?;
-    pattern_wavelengths(pattern, &table)
-        .map_err(|e| BadInput(format!("--color {}: {e} in --bands", pattern.color())).into())
-}
-
-/// The images of one band.
-struct Band {
-    nm: f64,
-    letter: char,
-    s: [Vec<f32>; 3],
-    mask: Vec<u8>,
-    dolp: Vec<f32>,
-    aolp: Vec<f32>,
-}
 
 /// An RGB preview from the bands lettered R, G, B (a missing colour is black):
 /// `f(value)` in `[0, 1]` per channel.
-fn rgb_preview(bands: &[Band], n: usize, pick: impl Fn(&Band, usize) -> f32) -> Vec<u8> {
+fn rgb_preview(
+    bands: &[StokesBand],
+    n: usize,
+    pick: impl Fn(&StokesBand, usize) -> f32,
+) -> Vec<u8> {
     let mut px = vec![0u8; 3 * n];
     for (ch, letter) in ['R', 'G', 'B'].into_iter().enumerate() {
-        if let Some(b) = bands.iter().find(|b| b.letter == letter) {
+        if let Some(b) = bands.iter().find(|b| b.letter == Some(letter)) {
             for i in 0..n {
                 let v = pick(b, i);
                 px[3 * i + ch] = if v.is_finite() {
@@ -68,60 +41,10 @@ fn rgb_preview(bands: &[Band], n: usize, pick: impl Fn(&Band, usize) -> f32) -> 
     px
 }
 
-/// Run `polarid stokes` for a colour mosaic (`--dofp` with `--color`).
-pub fn run(
-    args: &Args,
-    raw_path: &Path,
-    color: &str,
-    rules_of: impl Fn(&Frame) -> PixelRules,
-    ctx: &Ctx,
-) -> anyhow::Result<()> {
-    let pattern = ColourPattern::new(Pattern::new(&args.pattern)?, color)
-        .map_err(|e| BadInput(format!("--color: {e}")))?;
-    let wavelengths = band_wavelengths(&pattern, &args.bands)?;
-    let raw = image::read_frame(raw_path)?;
-    let rules = rules_of(&raw);
-    let method = match args.demosaic {
-        Demosaic::Bilinear => ColourMethod::Bilinear,
-        Demosaic::Superpixel => ColourMethod::Superpixel,
-    };
-    let (w, h) = method.output_size(raw.width, raw.height);
+/// Write the per-band images and previews of a colour mosaic's Stokes result.
+pub fn write(args: &Args, r: &StokesResult, ctx: &Ctx) -> anyhow::Result<()> {
+    let (w, h, bands) = (r.width, r.height, &r.bands);
     let n = w * h;
-    let mut bands: Vec<Band> = pattern
-        .bands()
-        .iter()
-        .zip(&wavelengths)
-        .map(|(&letter, &nm)| Band {
-            nm,
-            letter,
-            s: [vec![0f32; n], vec![0f32; n], vec![0f32; n]],
-            mask: vec![0u8; n],
-            dolp: vec![0f32; n],
-            aolp: vec![0f32; n],
-        })
-        .collect();
-    let outs = bands
-        .iter_mut()
-        .map(|b| {
-            let [s0, s1, s2] = &mut b.s;
-            DofpOutputs {
-                s0: Some(s0),
-                s1: Some(s1),
-                s2: Some(s2),
-                mask: Some(&mut b.mask),
-                dolp: Some(&mut b.dolp),
-                aolp: Some(&mut b.aolp),
-            }
-        })
-        .collect();
-    let counts =
-        colour_polar(&raw.data, raw.width, &pattern, method, &rules, outs).map_err(|source| {
-            IoError::Core {
-                path: raw.path.clone(),
-                source,
-            }
-        })?;
-    drop(raw);
     let all_dolp: Vec<f32> = bands
         .iter()
         .flat_map(|b| b.dolp.iter().step_by(7).copied())
@@ -133,7 +56,7 @@ pub fn run(
     // S0 scale: the 99.5th percentile of every band's finite S0
     let s0s: Vec<f32> = bands
         .iter()
-        .flat_map(|b| b.s[0].iter().step_by(7).copied())
+        .flat_map(|b| b.images.s0.iter().step_by(7).copied())
         .collect();
     let scale = match views::sample_quantile(&s0s, 0.995) {
         Some(p) if p > 0.0 => p,
@@ -142,18 +65,18 @@ pub fn run(
     drop(s0s);
     let mode = args.aolp_view;
     let mut files: Vec<(String, OutFile)> = Vec::new();
-    for b in &bands {
-        let l = wavelength_label(b.nm);
+    for b in bands {
+        let l = wavelength_label(b.wavelength_nm.unwrap_or(f64::NAN));
         for (q, data) in [
-            ("s0", &b.s[0]),
-            ("s1", &b.s[1]),
-            ("s2", &b.s[2]),
+            ("s0", &b.images.s0),
+            ("s1", &b.images.s1),
+            ("s2", &b.images.s2),
             ("dolp", &b.dolp),
             ("aolp", &b.aolp),
         ] {
             files.push((format!("{q}_{l}.tif"), OutFile::Tiff(data)));
         }
-        let m = Some(&b.mask[..]);
+        let m = Some(&b.images.mask[..]);
         files.push((
             format!("dolp_{l}.png"),
             OutFile::png(move || views::dolp_view(w, h, &b.dolp, m, dolp_max)),
@@ -163,12 +86,12 @@ pub fn run(
             OutFile::png(move || views::aolp_view(w, h, &b.aolp, &b.dolp, m, dolp_max, mode)),
         ));
     }
-    let bands_ref = &bands;
+    let bands_ref = &bands[..];
     files.push((
         "s0_rgb.png".into(),
         OutFile::png(move || {
             let px = rgb_preview(bands_ref, n, |b, i| {
-                (b.s[0][i] / scale).max(0.0).powf(1.0 / 2.2)
+                (b.images.s0[i] / scale).max(0.0).powf(1.0 / 2.2)
             });
             (w, h, px)
         }),
@@ -177,21 +100,22 @@ pub fn run(
         "dolp_rgb.png".into(),
         OutFile::png(move || (w, h, rgb_preview(bands_ref, n, |b, i| b.dolp[i] / dolp_max))),
     ));
+    let inputs: Vec<&Path> = r.inputs.iter().map(|p| p.as_path()).collect();
     let staged = StagedDir::new(&args.output, ctx.force)?;
     for (name, _) in &files {
-        check_output(&staged.final_path(name), ctx.force, &[raw_path])?;
+        check_output(&staged.final_path(name), ctx.force, &inputs)?;
     }
     let n_files = files.len();
     write_files(&staged, w, h, files)?;
     staged.commit()?;
     let per_band: Vec<String> = bands
         .iter()
-        .zip(&counts)
-        .map(|(b, c)| {
+        .map(|b| {
+            let c = b.images.counts;
             format!(
                 "{} {} nm: valid {}, saturated {}, dark {}, invalid {}",
-                b.letter,
-                wavelength_label(b.nm),
+                b.letter.unwrap_or('?'),
+                wavelength_label(b.wavelength_nm.unwrap_or(f64::NAN)),
                 c.valid,
                 c.saturated,
                 c.dark,
