@@ -175,6 +175,27 @@ impl Grid {
 /// First index of the quadratically spaced `nodes` (see `warp`) holding a value `≥ x`,
 /// at most the last: `nodes.partition_point(|&v| v < x).min(len − 1)`, from the
 /// inverse of the spacing and at most a few corrections.
+/// `[h00, h01, h11, n, k]` of every grid node: `JᵀJ` of its stored Jacobian (the sums
+/// of [`Grid::node_step`] in the same order, so bit for bit the same values; `jac` as
+/// `FitPlan` stores it, `2T` values per node) and its `(n, k)`.
+pub(super) fn start_nodes(grid: &Grid, jac: &[f32], t_len: usize) -> Vec<[f64; 5]> {
+    jac.chunks_exact(2 * t_len)
+        .enumerate()
+        .map(|(g, row)| {
+            let (jn, jk) = row.split_at(t_len);
+            let (_, _, n, k) = grid.node(g);
+            let mut h = [0.0, 0.0, 0.0, n, k];
+            for (&a, &b) in jn.iter().zip(jk) {
+                let (a, b) = (a as f64, b as f64);
+                h[0] += a * a;
+                h[1] += a * b;
+                h[2] += b * b;
+            }
+            h
+        })
+        .collect()
+}
+
 #[cfg(test)]
 fn axis_cell(nodes: &[f64], lo: f64, hi: f64, x: f64) -> usize {
     axis_cell_inv(nodes, lo, 1.0 / (hi - lo), x)

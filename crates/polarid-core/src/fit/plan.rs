@@ -167,7 +167,7 @@ impl FitPlan {
             })
             .flatten();
         let issue = beta_issue(betas, &mut Vec::with_capacity(t_len));
-        let start_nodes = super::starts::start_nodes(&grid, &jac, t_len);
+        let start_nodes = super::grid::start_nodes(&grid, &jac, t_len);
         Ok(Self {
             betas: betas.to_vec(),
             terms,

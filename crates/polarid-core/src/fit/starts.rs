@@ -308,27 +308,6 @@ fn gn_step(ev: &Eval, n: f64, k: f64, b: &FitBounds) -> (f64, f64, f64) {
     (n1, k1, pred)
 }
 
-/// `[h00, h01, h11, n, k]` of every grid node: `JᵀJ` of its stored Jacobian (the sums
-/// of [`Grid::node_step`] in the same order, so bit for bit the same values; `jac` as
-/// [`FitPlan`] stores it, `2T` values per node) and its `(n, k)`.
-pub(super) fn start_nodes(grid: &Grid, jac: &[f32], t_len: usize) -> Vec<[f64; 5]> {
-    jac.chunks_exact(2 * t_len)
-        .enumerate()
-        .map(|(g, row)| {
-            let (jn, jk) = row.split_at(t_len);
-            let (_, _, n, k) = grid.node(g);
-            let mut h = [0.0, 0.0, 0.0, n, k];
-            for (&a, &b) in jn.iter().zip(jk) {
-                let (a, b) = (a as f64, b as f64);
-                h[0] += a * a;
-                h[1] += a * b;
-                h[2] += b * b;
-            }
-            h
-        })
-        .collect()
-}
-
 /// What the lane starts ([`FitPlan::push_starts`]) need of one pixel: its best node,
 /// the node's f32 grid cost and the gradient `Σ_t J_t (curve_t − y_t)` there.
 #[derive(Debug, Clone, Copy, Default)]

@@ -657,7 +657,7 @@ impl Parser<'_> {
         captures: &[Capture],
         cap_vals: &[Val<'_>],
     ) -> Result<()> {
-        self.check_opencv_image_size(cam, captures)?;
+        self.check_opencv_image_size(cam.opencv.as_ref(), cam.line, captures)?;
         let views = planes
             .iter()
             .map(|p| {

@@ -37,7 +37,6 @@ use std::path::{Path, PathBuf};
 
 use toml::de::DeValue;
 
-use super::calibration::CameraSpec;
 use super::{Capture, Parser, Table, Val};
 use crate::error::{IoError, Result};
 
@@ -315,10 +314,11 @@ impl Parser<'_> {
     /// the first capture must have that size (the intrinsics are in its pixels).
     pub(super) fn check_opencv_image_size(
         &self,
-        cam: &CameraSpec,
+        calibration: Option<&OpenCvCalibration>,
+        camera_line: usize,
         captures: &[Capture],
     ) -> Result<()> {
-        let Some(cal) = &cam.opencv else {
+        let Some(cal) = calibration else {
             return Ok(());
         };
         let Some([cw, ch]) = cal.image_size else {
@@ -349,7 +349,7 @@ impl Parser<'_> {
         };
         Err(IoError::Manifest {
             path: self.path.to_path_buf(),
-            line: cam.line,
+            line: camera_line,
             field: "camera.opencv".into(),
             value: cal.path.display().to_string(),
             reason: format!(

@@ -73,9 +73,7 @@ pub fn band_tag(wavelength_nm: f64) -> String {
     polarid_io::manifest::colour::wavelength_label(wavelength_nm)
 }
 
-/// The per-band fit images of a colour map, written as `{name}_{tag}.tif`
-/// ([`band_tag`]): `n_450.tif`, `k_450.tif`, ...
-pub const BAND_IMAGES: [&str; 5] = ["n", "k", "n_se", "k_se", "rms_residual"];
+pub use super::summary::BAND_IMAGES;
 
 /// The files a map of `m` writes: `single` (the single-band map's files, of which the
 /// first five are its fit images `n.tif` ... `rms_residual.tif`) as they are, or for a

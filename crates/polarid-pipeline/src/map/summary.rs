@@ -8,6 +8,10 @@ use serde_json::{Value, json};
 use super::MapResult;
 use super::capture::Dims;
 
+/// The per-band fit images of a colour map, written as `{name}_{tag}.tif`
+/// ([`super::band_tag`]): `n_450.tif`, `k_450.tif`, ...
+pub const BAND_IMAGES: [&str; 5] = ["n", "k", "n_se", "k_se", "rms_residual"];
+
 /// What a labelled region of the manifest became in the map.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RegionSummary {
@@ -187,8 +191,8 @@ impl MapResult {
                 self.bands
                     .iter()
                     .map(|b| {
-                        let tag = super::band_tag(b.wavelength_nm);
-                        let files: Vec<String> = super::BAND_IMAGES
+                        let tag = polarid_io::manifest::colour::wavelength_label(b.wavelength_nm);
+                        let files: Vec<String> = BAND_IMAGES
                             .iter()
                             .map(|f| format!("{f}_{tag}.tif"))
                             .collect();
