@@ -15,6 +15,7 @@ pub mod limits;
 pub mod manifest;
 pub mod measure;
 pub mod model;
+pub mod rii;
 pub mod scene;
 pub mod suggest;
 pub mod surfaces;

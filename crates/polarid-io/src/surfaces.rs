@@ -18,7 +18,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::error::{IoError, Result};
-use crate::library::RiiData;
+use crate::rii::RiiData;
 
 /// Where a layer's optical constants come from.
 #[derive(Debug, Clone, Copy, PartialEq)]
