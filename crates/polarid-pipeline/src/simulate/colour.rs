@@ -23,26 +23,11 @@ use polarid_io::atomic::StagedDir;
 use polarid_io::scene::{Geometry, Scene, SceneBand};
 use rayon::prelude::*;
 
-use super::{Simulated, TruthBand, TruthRow, frame_file, manifest_text, write_text_files};
+use super::{
+    ColourFrames, Simulated, TruthBand, TruthRow, frame_file, manifest_text, write_text_files,
+};
 use crate::error::Result;
 use crate::progress::{Progress, Warning};
-
-/// The raw colour frames of a colour scene, in memory ([`render_colour_set`]).
-#[derive(Debug, Clone)]
-pub struct ColourFrames {
-    /// Frame width, pixels.
-    pub width: usize,
-    /// Frame height, pixels.
-    pub height: usize,
-    /// One raw mosaic per capture (`width × height`, row-major, DN).
-    pub frames: Vec<Vec<u16>>,
-    /// Relative exposure of every capture.
-    pub exposures: Vec<f64>,
-    /// Noise-free values per capture, plate and band (as `truth.csv`).
-    pub truth: Vec<TruthRow>,
-    /// Dim or saturated plates.
-    pub warnings: Vec<Warning>,
-}
 
 /// The radiance, exposure and truth of every capture of a colour scene.
 struct Plan<'a> {

@@ -54,7 +54,7 @@ use polarid_io::table::fmt_f64;
 use rayon::prelude::*;
 
 pub use calibrated::beta_map;
-pub use colour::{ColourFrames, render_colour_set};
+pub use colour::render_colour_set;
 pub use files::{manifest_text, write_truth};
 
 use crate::error::Result;
@@ -514,6 +514,23 @@ fn write_frame(
         image::write_gray16(&path, false, w, h, buf)?;
     }
     Ok(())
+}
+
+/// The raw colour frames of a colour scene, in memory ([`render_colour_set`]).
+#[derive(Debug, Clone)]
+pub struct ColourFrames {
+    /// Frame width, pixels.
+    pub width: usize,
+    /// Frame height, pixels.
+    pub height: usize,
+    /// One raw mosaic per capture (`width × height`, row-major, DN).
+    pub frames: Vec<Vec<u16>>,
+    /// Relative exposure of every capture.
+    pub exposures: Vec<f64>,
+    /// Noise-free values per capture, plate and band (as `truth.csv`).
+    pub truth: Vec<TruthRow>,
+    /// Dim or saturated plates.
+    pub warnings: Vec<Warning>,
 }
 
 #[cfg(test)]
