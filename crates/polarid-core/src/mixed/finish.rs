@@ -12,11 +12,20 @@ use super::linalg::spd_inverse;
 use super::lm::Polished;
 use super::model::point;
 use super::problem::Problem;
-use super::select::set_criteria;
 use super::{
     FitStatus, K_FLOOR, K_U, MixedCapture, MixedFit, MixedModel, NPAR, P_K, P_LN_E, P_N, P_RHO,
     P_SIGMA, P_THETA_R,
 };
+
+/// `AIC = χ²/s² + 2p`, `BIC = χ²/s² + p ln m` (Gaussian likelihood with the error
+/// scale `s²`; `m = 2T` residuals).
+pub(super) fn set_criteria(fit: &mut MixedFit, s2: f64) {
+    let m = (fit.dof + fit.params) as f64;
+    let s2 = if s2 > 0.0 && s2.is_finite() { s2 } else { 1.0 };
+    let c = fit.chi2 / s2;
+    fit.aic = c + 2.0 * fit.params as f64;
+    fit.bic = c + fit.params as f64 * m.ln();
+}
 
 pub(super) fn finish(
     pb: &Problem,

@@ -9,7 +9,7 @@
 //! on the error scale `s²` of the larger (mixed) model; the mixed model is selected when
 //! its BIC is lower.
 
-use super::finish::finish;
+use super::finish::{finish, set_criteria};
 use super::lm::polish;
 use super::model::prepare_one;
 use super::problem::{Problem, param_box};
@@ -30,16 +30,6 @@ fn error_scale(fit: &MixedFit, caps: &[MixedCapture]) -> f64 {
     } else {
         fit.chi2 / fit.dof as f64
     }
-}
-
-/// `AIC = χ²/s² + 2p`, `BIC = χ²/s² + p ln m` (Gaussian likelihood with the error
-/// scale `s²`; `m = 2T` residuals).
-pub(super) fn set_criteria(fit: &mut MixedFit, s2: f64) {
-    let m = (fit.dof + fit.params) as f64;
-    let s2 = if s2 > 0.0 && s2.is_finite() { s2 } else { 1.0 };
-    let c = fit.chi2 / s2;
-    fit.aic = c + 2.0 * fit.params as f64;
-    fit.bic = c + fit.params as f64 * m.ln();
 }
 
 /// Fit both the pure-specular and the mixed radiometric model to a target's captures
