@@ -17,6 +17,7 @@ pub mod measure;
 pub mod model;
 pub mod rii;
 pub mod scene;
+pub mod stokes_images;
 pub mod suggest;
 pub mod surfaces;
 pub mod table;
