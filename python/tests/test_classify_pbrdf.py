@@ -63,7 +63,7 @@ def test_classify_files(tmp_path):
     lib.write_text("name,n,k,category\nsteel,2.9,3.1,metal\nwater,1.33,0,dielectric\n")
     assert polarid.classify(1.4, 0.1, lib)["predicted"] == "water"
     assert polarid.classify(1.4, 0.1, str(lib))["predicted"] == "water"
-    with pytest.raises(ValueError, match="missing.csv: No such file"):
+    with pytest.raises(FileNotFoundError, match="missing.csv: No such file"):
         polarid.classify(1.4, 0.1, tmp_path / "missing.csv")
     with pytest.raises(ValueError, match="prototype 2 must be a tuple"):
         polarid.classify(1.0, 1.0, [("a", 1.0, 1.0), "b"])

@@ -1164,20 +1164,17 @@ mod tests {
             matches!(&e, IoError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound),
             "{e:?}"
         );
-        let e = e.to_string();
+        let e = crate::error::chain_message(&e);
         assert!(
             e.contains("bultin")
                 && e.contains("No such file")
                 && e.contains("did you mean `builtin`?"),
             "{e}"
         );
-        let e = Library::load("/some/scene/dir/builtin_rgb")
-            .unwrap_err()
-            .to_string();
+        let e =
+            crate::error::chain_message(&Library::load("/some/scene/dir/builtin_rgb").unwrap_err());
         assert!(e.contains("did you mean `builtin-rgb`"), "{e}");
-        let e = Library::load("no_such_library.csv")
-            .unwrap_err()
-            .to_string();
+        let e = crate::error::chain_message(&Library::load("no_such_library.csv").unwrap_err());
         assert!(
             e.contains("No such file") && !e.contains("did you mean"),
             "{e}"
