@@ -100,9 +100,6 @@
 use std::f64::consts::PI;
 
 use num_complex::Complex64;
-use rand::rngs::StdRng;
-use rand::{RngExt, SeedableRng};
-use rand_distr::{Distribution, StandardNormal};
 
 use super::decision::{Candidate, Decision, Neighbour, Status};
 use super::{AMBIGUOUS, MultiPrototype, UNKNOWN, same_band};
@@ -692,7 +689,8 @@ fn check_candidate(cand: &CandidateModel, wavelengths: &[f64]) -> Result<()> {
 /// unconstrained estimate `θ̂ = θ + N(0, F⁻¹)`, `D = min_{box} (θ' − θ̂)ᵀ F (θ' − θ̂)` (0 when
 /// `θ̂` is inside). A nuisance the rows pin well inside its box removes one degree of
 /// freedom; one its box pins better than the rows removes almost none. Returns `T − m`
-/// and [`NULL_DRAWS`] draws of `D` (fixed seed: the test is deterministic).
+/// and [`NULL_DRAWS`] draws of `D` (a fixed low-discrepancy design: the test is
+/// deterministic).
 fn nuisance_null(
     rows: &[HypRow],
     wavelengths: &[f64],
@@ -753,15 +751,15 @@ fn nuisance_null(
             }
         }
     }
-    let mut rng = StdRng::seed_from_u64(0x5eed);
-    let normal = StandardNormal;
     let mut draws = Vec::with_capacity(NULL_DRAWS);
-    for _ in 0..NULL_DRAWS {
+    for i in 1..=NULL_DRAWS {
+        // Point i of the Halton sequence in 2m dimensions: θ uniform in the box, z standard
+        // normal (by the inverse CDF), so the draws fill the null evenly.
         let mut th = [0.0f64; 3];
         let mut z = [0.0f64; 3];
         for x in 0..m {
-            th[x] = rng.random::<f64>();
-            z[x] = normal.sample(&mut rng);
+            th[x] = halton(i, HALTON_BASES[x]);
+            z[x] = normal_quantile(halton(i, HALTON_BASES[3 + x]));
         }
         // e = L⁻ᵀ z (back substitution): θ̂ = θ + e has covariance F⁻¹.
         let mut e = [0.0f64; 3];
@@ -801,8 +799,76 @@ fn nuisance_null(
     (resid, draws)
 }
 
-/// Draws of the box's part of the null distribution ([`nuisance_null`]).
-const NULL_DRAWS: usize = 64;
+/// Draws of the box's part of the null distribution ([`nuisance_null`]): the first
+/// points of a Halton sequence (low discrepancy), not pseudo-random draws, so that the
+/// null's tail does not depend on the luck of one fixed sample (64 pseudo-random draws
+/// moved the true material's coverage at 95% between 93.9% and 95.4% with the seed).
+const NULL_DRAWS: usize = 256;
+
+/// The Halton bases of `(θ_1, θ_2, θ_3, z_1, z_2, z_3)`.
+const HALTON_BASES: [usize; 6] = [2, 3, 5, 7, 11, 13];
+
+/// Point `i` (≥ 1) of the van der Corput sequence in base `b`, in `(0, 1)`.
+fn halton(mut i: usize, b: usize) -> f64 {
+    let (mut f, mut r) = (1.0, 0.0);
+    while i > 0 {
+        f /= b as f64;
+        r += f * (i % b) as f64;
+        i /= b;
+    }
+    r
+}
+
+/// The standard normal quantile `Φ⁻¹(p)` for `p ∈ (0, 1)` (Acklam's rational
+/// approximation, relative error < 1.2e-9, P. J. Acklam 2003, "An algorithm for computing
+/// the inverse normal cumulative distribution function").
+#[allow(clippy::excessive_precision)] // the published coefficients, as published
+fn normal_quantile(p: f64) -> f64 {
+    const A: [f64; 6] = [
+        -3.969_683_028_665_376e1,
+        2.209_460_984_245_205e2,
+        -2.759_285_104_469_687e2,
+        1.383_577_518_672_69e2,
+        -3.066_479_806_614_716e1,
+        2.506_628_277_459_239,
+    ];
+    const B: [f64; 5] = [
+        -5.447_609_879_822_406e1,
+        1.615_858_368_580_409e2,
+        -1.556_989_798_598_866e2,
+        6.680_131_188_771_972e1,
+        -1.328_068_155_288_572e1,
+    ];
+    const C: [f64; 6] = [
+        -7.784_894_002_430_293e-3,
+        -3.223_964_580_411_365e-1,
+        -2.400_758_277_161_838,
+        -2.549_732_539_343_734,
+        4.374_664_141_464_968,
+        2.938_163_982_698_783,
+    ];
+    const D: [f64; 4] = [
+        7.784_695_709_041_462e-3,
+        3.224_671_290_700_398e-1,
+        2.445_134_137_142_996,
+        3.754_408_661_907_416,
+    ];
+    let p_low = 0.02425;
+    let tail = |q: f64| {
+        (((((C[0] * q + C[1]) * q + C[2]) * q + C[3]) * q + C[4]) * q + C[5])
+            / ((((D[0] * q + D[1]) * q + D[2]) * q + D[3]) * q + 1.0)
+    };
+    if p < p_low {
+        tail((-2.0 * p.ln()).sqrt())
+    } else if p > 1.0 - p_low {
+        -tail((-2.0 * (1.0 - p).ln()).sqrt())
+    } else {
+        let q = p - 0.5;
+        let r = q * q;
+        (((((A[0] * r + A[1]) * r + A[2]) * r + A[3]) * r + A[4]) * r + A[5]) * q
+            / (((((B[0] * r + B[1]) * r + B[2]) * r + B[3]) * r + B[4]) * r + 1.0)
+    }
+}
 
 /// `P(R + D ≥ x)` with `R ~ χ²_resid` and `D` the draws (module documentation).
 fn mixture_sf(x: f64, resid: usize, draws: &[f64]) -> f64 {

@@ -8,19 +8,15 @@
 //! Cheap by default (20 targets per material); `POLARID_FULL=1` runs 300 per material and
 //! prints the tables of docs/CLASSIFY.md.
 //!
-//! The native layers are a test-local table (approximate literature values: Al₂O₃ on
-//! aluminium 2–5 nm, n ≈ 1.65, Evangelisti et al. and the field literature on native
-//! oxides; Cu₂O on copper 0.5–3 nm, 2.9 + 0.1i; NiO 1–2 nm, 2.25; Cr₂O₃ 1–3 nm, 2.3; TiO₂ on
-//! titanium 2–6 nm, 2.3; SiO₂ on silicon 1–2 nm, 1.46; adsorbed hydrocarbons, n ≈ 1.5,
-//! on gold and silver 0.5–1.5 nm and on glasses and plastics 0–2 nm; iron oxide on iron
-//! 1–3 nm, 2.9 + 0.3i), and every other library material is given 0–2 nm of
-//! contamination (n = 1.5).
+//! The library is `builtin` exactly as `classify --library builtin` loads it, every
+//! material with its built-in native surface (`polarid_io::surfaces`, docs/MATERIALS.md);
+//! each target is simulated under that same layer, its thickness uniform in the declared
+//! range (the prior the probabilities assume).
 
 #![allow(clippy::type_complexity)] // the study's case tables read as tuples
 
 use polarid_core::classify::{
-    HypRow, HypothesisConfig, MultiPrototype, NativeLayer, Nuisances, Status, classify_rows,
-    layered_dolp,
+    HypRow, HypothesisConfig, MultiPrototype, Nuisances, Status, classify_rows, layered_dolp,
 };
 use polarid_io::library::Library;
 
@@ -53,45 +49,47 @@ impl StdRng {
     }
 }
 
-/// `(material, layer name, layer index, min nm, max nm)`.
-const LAYERS: [(&str, &str, (f64, f64), f64, f64); 12] = [
-    ("aluminum", "Al2O3", (1.65, 0.0), 2.0, 5.0),
-    ("copper", "Cu2O", (2.9, 0.1), 0.5, 3.0),
-    ("silver", "contamination", (1.5, 0.0), 0.5, 1.5),
-    ("gold", "contamination", (1.5, 0.0), 0.5, 1.5),
-    ("nickel", "NiO", (2.25, 0.0), 1.0, 2.0),
-    ("chromium", "Cr2O3", (2.3, 0.0), 1.0, 3.0),
-    ("stainless_steel_austenitic", "Cr2O3", (2.3, 0.0), 1.0, 3.0),
-    ("iron", "iron oxide", (2.9, 0.3), 1.0, 3.0),
-    ("titanium", "TiO2", (2.3, 0.0), 2.0, 6.0),
-    ("silicon", "SiO2", (1.46, 0.0), 1.0, 2.0),
-    ("N-BK7", "contamination", (1.5, 0.0), 0.0, 2.0),
-    ("PMMA", "contamination", (1.5, 0.0), 0.0, 2.0),
+/// The study's materials: metals, semiconductors, a glass and a plastic of `builtin`.
+const MATERIALS: [&str; 12] = [
+    "aluminum",
+    "copper",
+    "silver",
+    "gold",
+    "nickel",
+    "chromium",
+    "stainless_steel_austenitic",
+    "iron",
+    "titanium",
+    "silicon",
+    "N-BK7",
+    "PMMA",
 ];
 
 const WL: f64 = 650.0;
 const ANGLE_SD_DEG: f64 = 0.2;
 const FLOOR: f64 = 0.002;
 
+/// The built-in library as `classify --library builtin` loads it: every material with
+/// its built-in native surface (polarid_io::surfaces).
 fn library() -> Vec<MultiPrototype> {
-    let mut protos = Library::builtin().unwrap().multi_prototypes();
-    for p in &mut protos {
-        let (name, index, lo, hi) = LAYERS
-            .iter()
-            .find(|l| l.0 == p.class)
-            .map_or(("contamination", (1.5, 0.0), 0.0, 2.0), |l| {
-                (l.1, l.2, l.3, l.4)
-            });
-        for b in &mut p.bands {
-            b.layer = Some(index);
-        }
-        p.surface = Some(NativeLayer {
-            name: name.into(),
-            min_nm: lo,
-            max_nm: hi,
-        });
-    }
-    protos
+    Library::builtin().unwrap().multi_prototypes()
+}
+
+/// A material's bulk, native layer index and thickness range in `protos` (650 nm).
+fn as_found(protos: &[MultiPrototype], name: &str) -> ((f64, f64), (f64, f64), f64, f64) {
+    let p = protos.iter().find(|p| p.class == name).unwrap();
+    let b = p
+        .bands
+        .iter()
+        .find(|b| b.wavelength_nm.is_none_or(|w| (w - WL).abs() < 1.0))
+        .unwrap();
+    let s = p.surface.as_ref().expect("builtin surface");
+    (
+        (b.n, b.k),
+        b.layer.expect("layer index"),
+        s.min_nm,
+        s.max_nm,
+    )
 }
 
 fn config(p: f64) -> HypothesisConfig {
@@ -104,6 +102,16 @@ fn config(p: f64) -> HypothesisConfig {
 
 /// One simulated target of `bulk` under `layer` (index, thickness nm).
 fn target(rng: &mut StdRng, bulk: (f64, f64), layer: (f64, f64), d: f64) -> Vec<HypRow> {
+    target_truth(rng, bulk, layer, d).0
+}
+
+/// [`target`] and its true scale and offset.
+fn target_truth(
+    rng: &mut StdRng,
+    bulk: (f64, f64),
+    layer: (f64, f64),
+    d: f64,
+) -> (Vec<HypRow>, f64, f64) {
     let t = 6 + (rng.next() % 5) as usize;
     let se = rng.range(0.002, 0.005);
     let er = rng.range(100.0, 500.0);
@@ -111,7 +119,7 @@ fn target(rng: &mut StdRng, bulk: (f64, f64), layer: (f64, f64), d: f64) -> Vec<
     let off = rng.range(-0.3, 0.3).to_radians();
     let angle_sd = ANGLE_SD_DEG.to_radians();
     let sd = (se * se + FLOOR * FLOOR).sqrt();
-    (0..t)
+    let rows = (0..t)
         .map(|i| {
             let beta = (47.5 + 22.5 * i as f64 / (t - 1) as f64).to_radians();
             let b = beta + off + rng.normal(angle_sd / 2.0);
@@ -123,7 +131,28 @@ fn target(rng: &mut StdRng, bulk: (f64, f64), layer: (f64, f64), d: f64) -> Vec<
                 band: 0,
             }
         })
-        .collect()
+        .collect();
+    (rows, s, off)
+}
+
+/// `χ²` of `rows` at the true nuisances (the row variance of the module's model).
+fn chi2_true(
+    rows: &[HypRow],
+    bulk: (f64, f64),
+    layer: (f64, f64),
+    d: f64,
+    s: f64,
+    off: f64,
+) -> f64 {
+    rows.iter()
+        .map(|r| {
+            let m = s * layered_dolp(bulk, layer, d / WL, r.beta + off);
+            let a = 0.5
+                * polarid_core::dop::dop_beta_derivs(bulk.0, bulk.1, r.beta).dp_dbeta
+                * r.angle_sd;
+            (r.dolp - m).powi(2) / (r.dolp_sd.powi(2) + a * a)
+        })
+        .sum()
 }
 
 #[derive(Default, Debug)]
@@ -164,19 +193,40 @@ fn library_materials_as_found() {
     let mut all = Tally::default();
     // Reliability: (stated probability, truth?) of every tested material.
     let mut rel: Vec<(f64, bool)> = Vec::new();
+    // The truth's test: (p-value, χ²_min, rows, thickness at a bound, scale at a bound,
+    // offset at a bound).
+    let mut truth_tests: Vec<(f64, f64, usize, [bool; 3])> = Vec::new();
+    // (χ² at the truth, χ²_min, the test's dof, rows).
+    let mut diag: Vec<(f64, f64, f64, usize)> = Vec::new();
     let mut lines = Vec::new();
-    for &(name, _, layer, lo, hi) in LAYERS.iter() {
-        let p = protos.iter().find(|p| p.class == name).unwrap();
-        let bulk = (p.bands[0].n, p.bands[0].k);
+    for &name in MATERIALS.iter() {
+        let (bulk, layer, lo, hi) = as_found(&protos, name);
         let mut t = Tally::default();
         for _ in 0..per {
             let d = rng.range(lo, hi);
-            let rows = target(&mut rng, bulk, layer, d);
+            let (rows, s_true, off_true) = target_truth(&mut rng, bulk, layer, d);
+            let c2t = chi2_true(&rows, bulk, layer, d, s_true, off_true);
             let out = classify_rows(&rows, &[WL], &protos, None, &cfg).unwrap();
             t.add(Some(name), &out.decision);
             all.add(Some(name), &out.decision);
             for c in &out.tested {
                 rel.push((c.probability.unwrap(), c.class == name));
+                if c.class == name {
+                    let f = c.fit.unwrap();
+                    diag.push((c2t, f.chi2, f.dof, rows.len()));
+                    let near = |x: f64, a: f64| (x - a).abs() < 1e-6 * (1.0 + a.abs());
+                    let off = cfg.nuisances.offset_max;
+                    truth_tests.push((
+                        f.p_value,
+                        f.chi2,
+                        rows.len(),
+                        [
+                            near(f.thickness_nm, lo) || near(f.thickness_nm, hi),
+                            near(f.scale, cfg.nuisances.scale_min) || near(f.scale, 1.0),
+                            near(f.offset, -off) || near(f.offset, off),
+                        ],
+                    ));
+                }
             }
         }
         lines.push(format!(
@@ -220,11 +270,64 @@ fn library_materials_as_found() {
             sel.len()
         );
     }
+    // Calibration of the truth's test in both directions: the fraction of targets whose
+    // own material passes at each stated confidence.
+    eprintln!("| stated confidence | truth passes | truth passes, chi2_T bound |");
+    let mut passes = Vec::new();
+    for p in [0.9, 0.95, 0.99] {
+        let n = truth_tests.len() as f64;
+        let pass = truth_tests.iter().filter(|t| t.0 >= 1.0 - p).count() as f64 / n;
+        let naive = truth_tests
+            .iter()
+            .filter(|t| t.1 <= polarid_core::classify::hypothesis::chi2_quantile_any(p, t.2 as f64))
+            .count() as f64
+            / n;
+        eprintln!("| {p} | {pass:.3} | {naive:.3} |");
+        passes.push(pass);
+    }
+    for t in 6..=10 {
+        let sel: Vec<_> = diag.iter().filter(|x| x.3 == t).collect();
+        let n = sel.len() as f64;
+        let m =
+            |f: &dyn Fn(&(f64, f64, f64, usize)) -> f64| sel.iter().map(|x| f(x)).sum::<f64>() / n;
+        let q = polarid_core::classify::hypothesis::chi2_quantile_any(0.95, t as f64);
+        eprintln!(
+            "T={t}: n {n}, mean chi2_true {:.2}, P(chi2_true > q95_T) {:.3}, mean chi2_min {:.2}, mean dof {:.2}",
+            m(&|x| x.0),
+            sel.iter().filter(|x| x.0 > q).count() as f64 / n,
+            m(&|x| x.1),
+            m(&|x| x.2)
+        );
+    }
+    for (i, what) in ["thickness", "scale", "offset"].iter().enumerate() {
+        let at: Vec<_> = truth_tests.iter().filter(|t| t.3[i]).collect();
+        let fail = at.iter().filter(|t| t.0 < 0.05).count();
+        eprintln!(
+            "{what} at a bound: {} of {} (fail at 95%: {fail})",
+            at.len(),
+            truth_tests.len()
+        );
+    }
     let cov = all.frac(all.covered);
     // 95% confidence: the truth among the answers near 95% (binomial margin of the
-    // cheap run), named alone often, another material named alone almost never.
+    // cheap run), named alone often, another material named alone almost never. The
+    // truth's test at 90% and 99% neither under- nor over-covers beyond the margin.
+    // Measured (full): 0.887 / 0.943 / 0.987 at 90 / 95 / 99%.
     let margin = if full { 0.02 } else { 0.06 };
-    assert!((0.95 - margin..=0.99).contains(&cov), "coverage {cov}");
+    assert!(
+        (0.95 - margin..=0.95 + margin).contains(&cov),
+        "coverage {cov}"
+    );
+    assert!(
+        (0.90 - margin..=0.90 + margin).contains(&passes[0]),
+        "coverage at 90%: {}",
+        passes[0]
+    );
+    assert!(
+        (0.99 - margin / 2.0..=0.999).contains(&passes[2]),
+        "coverage at 99%: {}",
+        passes[2]
+    );
     assert!(
         all.frac(all.alone) >= 0.4,
         "right alone {}",
@@ -239,9 +342,9 @@ fn library_materials_as_found() {
 
 /// Surfaces the hypotheses do not describe: layers thicker than the material's range, and
 /// materials missing from the library. They may be `unknown` or a set, never another
-/// material alone (beyond 1%). Measured (full run, 300 per case): 1.1% overall —
-/// aluminium under 8–15 nm of Al₂O₃ is named as another metal alone for 5.3%, so the full
-/// run's 1% bound is not met yet (docs/CLASSIFY.md).
+/// material alone (beyond 1%). Measured (full run, 300 per case): 1.0% overall (18 of
+/// 1800) — aluminium under 8–15 nm of Al₂O₃ is named brass (under its ZnO) alone for
+/// 3.3%: at one band the two DoLP curves agree within the noise (docs/CLASSIFY.md).
 #[test]
 fn surfaces_outside_the_hypotheses() {
     let full = polarid_testkit::full();
@@ -249,51 +352,49 @@ fn surfaces_outside_the_hypotheses() {
     let protos = library();
     let cfg = config(0.95);
     let mut rng = StdRng::seed_from_u64(99);
-    let bulk = |name: &str| {
-        let p = protos.iter().find(|p| p.class == name).unwrap();
-        (p.bands[0].n, p.bands[0].k)
-    };
+    let bulk = |name: &str| as_found(&protos, name).0;
+    let layer = |name: &str| as_found(&protos, name).1;
     // (label, bulk, layer, thickness range, library without the truth?)
     let cases: Vec<(&str, (f64, f64), (f64, f64), (f64, f64), Option<&str>)> = vec![
         (
             "aluminum under 8-15 nm Al2O3",
             bulk("aluminum"),
-            (1.65, 0.0),
+            layer("aluminum"),
             (8.0, 15.0),
             None,
         ),
         (
             "copper under 6-12 nm Cu2O",
             bulk("copper"),
-            (2.9, 0.1),
+            layer("copper"),
             (6.0, 12.0),
             None,
         ),
         (
             "silicon under 5-10 nm SiO2",
             bulk("silicon"),
-            (1.46, 0.0),
+            layer("silicon"),
             (5.0, 10.0),
             None,
         ),
         (
             "nickel, missing",
             bulk("nickel"),
-            (2.25, 0.0),
+            layer("nickel"),
             (1.0, 2.0),
             Some("nickel"),
         ),
         (
             "copper, missing",
             bulk("copper"),
-            (2.9, 0.1),
+            layer("copper"),
             (0.5, 3.0),
             Some("copper"),
         ),
         (
             "titanium, missing",
             bulk("titanium"),
-            (2.3, 0.0),
+            layer("titanium"),
             (2.0, 6.0),
             Some("titanium"),
         ),
@@ -313,6 +414,7 @@ fn surfaces_outside_the_hypotheses() {
             .cloned()
             .collect();
         let mut t = Tally::default();
+        let mut wrong_as = std::collections::BTreeMap::new();
         // The truth of the thick-layer cases is the material itself: naming it alone is
         // right; anything else alone is wrong.
         let truth = if label.contains("under") {
@@ -325,6 +427,11 @@ fn surfaces_outside_the_hypotheses() {
             let rows = target(&mut rng, b, layer, d);
             let out = classify_rows(&rows, &[WL], &lib, None, &cfg).unwrap();
             t.add(truth, &out.decision);
+            if out.decision.status == Status::Ok && Some(out.decision.predicted.as_str()) != truth {
+                *wrong_as
+                    .entry(out.decision.predicted.clone())
+                    .or_insert(0usize) += 1;
+            }
             // LSAT's index is within 0.02 of ZnO's (in the library): DoLP at these errors
             // cannot tell them apart, so it is reported, not counted.
             if !label.starts_with("LSAT") {
@@ -339,6 +446,9 @@ fn surfaces_outside_the_hypotheses() {
             t.size as f64 / t.n as f64
         );
         // (columns: unknown, another material alone, the material itself alone, mean set)
+        if !wrong_as.is_empty() {
+            eprintln!("  named alone instead: {wrong_as:?}");
+        }
     }
     let wrong = total.frac(total.wrong_alone);
     eprintln!("wrong alone overall {wrong:.3} of {}", total.n);
