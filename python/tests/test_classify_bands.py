@@ -282,5 +282,9 @@ def test_map_manifest_bands_options(colour, polarid_cli):
     with pytest.raises(FileNotFoundError, match="builtin-tv: No such file, and not a built-in library"):
         polarid.map_manifest(manifest, library="builtin-tv")
     run(polarid_cli, "simulate", REPO_SCENES / "aluminum_test_60.toml", "-o", colour["dir"] / "mono_sim")
-    with pytest.raises(ValueError, match="colour captures only"):
-        polarid.map_manifest(colour["dir"] / "mono_sim" / "manifest.toml", library="builtin-rgb")
+    # A library maps single-band manifests too (each material tested against every
+    # block's rows at the captures' wavelength).
+    mono = polarid.map_manifest(
+        colour["dir"] / "mono_sim" / "manifest.toml", library="builtin-rgb", bin=16
+    )
+    assert mono["class_names"][0] == "unknown" and mono["class_names"][-1] == "ambiguous"

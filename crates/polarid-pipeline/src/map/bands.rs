@@ -7,11 +7,9 @@
 //! `wavelength_nm`. Every band is then fitted per pixel as a single-band map is (the
 //! same dark and saturation flags, calibrated geometry, noise weights), giving its own
 //! `n`, `k`, standard errors and RMS residual ([`BandMap`]). Last, every pixel is
-//! classified once on all its bands together ([`Classifier::classify_multi`], the
-//! multi-band model or library): its feature is `(n, k)` in every band whose fit is
-//! `ok`, each with its covariance (the fit's noise plus, under the set rule, the
-//! systematic error model, as `sets::total_covariance` gives it for single-band maps);
-//! a pixel is compared with the prototypes on the bands they have in common.
+//! decided once on all its bands whose fit is `ok` (module `decide`, the decision of
+//! single-band maps too): against a model on the bands it shares with the prototypes,
+//! against a library by the hypothesis tests on the pixel's rows of every band.
 
 use std::collections::BTreeSet;
 use std::path::Path;

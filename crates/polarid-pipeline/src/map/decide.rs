@@ -4,8 +4,9 @@
 //!
 //! - **a trained model** (`--model`), set rule: on the same bench (the default,
 //!   `--bench same`) the pixel's noise covariance (its fit's `n_se`, `k_se`, `nk_corr`)
-//!   against each prototype's sample covariance
-//!   ([`prototypes_for`](crate::classify::prototypes_for)); on another bench
+//!   against each prototype's sample covariance (the prototypes `classify` takes,
+//!   [`prototypes_for`](crate::classify::prototypes_for), from the model in memory); on
+//!   another bench
 //!   (`--bench other`, or a model without sample covariances) the pixel's total
 //!   covariance (noise plus the systematic error model, `polarid_core::map::sets`)
 //!   against the prototypes' total ([`SetDecider`]);
@@ -26,7 +27,7 @@ use polarid_core::classify::pixel_decision::{
     HypothesisDecider, PixelAnswer, PixelBand, SetDecider, fit_covariance,
 };
 use polarid_core::classify::{
-    AMBIGUOUS, Classifier, ClassifierConfig, Estimate, EstimateBand, HypRow, MultiEstimate,
+    AMBIGUOUS, Bench, Classifier, ClassifierConfig, Estimate, EstimateBand, HypRow, MultiEstimate,
     MultiPrototype, Nuisances, Reject, Status,
 };
 use polarid_core::fit::FitStatus;
@@ -38,7 +39,7 @@ use polarid_io::model::Model;
 use rayon::prelude::*;
 
 use super::{MapConfig, Rule};
-use crate::classify::{PrototypeSource, prototypes_for};
+use crate::classify::PrototypeSource;
 use crate::error::{PipelineError, Result};
 use crate::progress::Warning;
 
@@ -135,18 +136,22 @@ pub(crate) fn decision(
     let mut warnings = Vec::new();
     let (profiles, same) = match src {
         MapPrototypes::Model { model, path } => {
-            let protos = model.multi_prototypes();
-            if cfg.rule == Rule::Set {
-                let (p, cmp) = prototypes_for(
-                    &PrototypeSource::Model(path.to_path_buf()),
-                    protos,
-                    cfg.bench,
-                    &[],
-                    &mut warnings,
-                )?;
-                (p, cmp.same)
+            // `classify`'s choice (`prototypes_for`), on the model in memory.
+            if cfg.rule == Rule::Set && cfg.bench == Bench::Same {
+                if model.has_sample_covariances() {
+                    (model.multi_prototypes_on(Bench::Same), true)
+                } else {
+                    warnings.push(Warning(format!(
+                        "model {} has no sample covariances (trained on fits without \
+                         n_se_sample, k_se_sample, nk_corr_sample): compared as a model from \
+                         another bench, with the systematic errors on both sides; retrain it \
+                         on fits from this polarid for the same-bench comparison",
+                        path.display()
+                    )));
+                    (model.multi_prototypes(), false)
+                }
             } else {
-                (protos, false)
+                (model.multi_prototypes(), false)
             }
         }
         MapPrototypes::Library(spec) => {

@@ -4,11 +4,14 @@
 //! per-pixel (or per `b × b` block) Stokes vector and DoLP computed, and only the DoLP
 //! (f32) kept, with the signal flags (saturated, dark, invalid) ORed over the captures
 //! (progress stage `"captures (DoLP)"`). Then every unflagged pixel's DoLP values over
-//! the captures are fitted for (n, k) (eq. 9, in tiles of pixels) and answered by the
-//! set rule (the model's materials consistent with the pixel's estimate, noise plus
-//! the systematic error model: one material, `ambiguous` or unknown) or the paper's
-//! nearest prototype (`Rule::Nearest`) (stage `"pixels (fit)"`). With calibrated
-//! geometry the fits are weighted by the per-pixel noise model estimated on the map
+//! the captures are fitted for (n, k) (eq. 9, in tiles of pixels; stage
+//! `"pixels (fit)"`) and then decided as `polarid classify` decides a target (stage
+//! `"pixels (classify)"`, module `decide`, the same for colour maps): against a model
+//! the set rule on the same bench (the pixel's noise covariance against the prototypes'
+//! sample covariance) or another (`MapConfig::with_bench`: both totals), against a
+//! library the hypothesis tests on the pixel's rows; or the paper's nearest prototype
+//! (`Rule::Nearest`, answered in the fit). With calibrated geometry (and for a library)
+//! the fits are weighted by the per-pixel noise model estimated on the map
 //! (`polarid_core::map::noise`; [`Weights`]). Peak memory is about `T`
 //! DoLP images plus one capture's frames (and `T` β images with calibrated geometry).
 //!
