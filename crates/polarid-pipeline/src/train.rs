@@ -9,12 +9,13 @@
 
 use std::path::Path;
 
-use polarid_core::classify::{Cov2, check_class_name};
+use polarid_core::classify::check_class_name;
 use polarid_io::IoError;
 use polarid_io::model::{Model, ModelPrototype, PrototypeSource, cov_matrix};
 use polarid_io::table::fits::FitRow;
 
 use crate::classify::estimate_of;
+pub use crate::classify::{noise_cov, sample_cov};
 use crate::{PipelineError, Result, Warning};
 
 /// What [`train`] returns.
@@ -127,20 +128,6 @@ pub fn refuse_not_ok(fits: &[(u64, FitRow)], fits_path: &Path) -> Result<()> {
             bad.join(", ")
         ),
     })
-}
-
-/// The sample covariance of a fit row (`n_se_sample`, `k_se_sample`, `nk_corr_sample`:
-/// the noise and the surface layer's variation between plates), when it has a usable one.
-pub fn sample_cov(f: &FitRow) -> Option<Cov2> {
-    let corr = f.nk_corr_sample.filter(|c| !c.is_nan()).unwrap_or(0.0);
-    Cov2::from_se(f.n_se_sample?, f.k_se_sample?, corr)
-}
-
-/// The noise covariance of a fit row (`n_se_noise`, `k_se_noise`, `nk_corr_noise`), when
-/// it has a usable one.
-pub fn noise_cov(f: &FitRow) -> Option<Cov2> {
-    let corr = f.nk_corr_noise.filter(|c| !c.is_nan()).unwrap_or(0.0);
-    Cov2::from_se(f.n_se_noise?, f.k_se_noise?, corr)
 }
 
 /// The distinct classes of a model, sorted.

@@ -72,7 +72,31 @@ pub struct Candidate {
     pub probability: Option<f64>,
     /// What the hypothesis test found (`χ²`, p-value, the nuisances it needed); `None`
     /// for the `(n, k)` set rule. [`Candidate::distance`] is then its `χ²`.
-    pub fit: Option<super::hypothesis::NuisanceFit>,
+    pub fit: Option<NuisanceFit>,
+}
+
+/// What one hypothesis test found: the statistic and the nuisances it needed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NuisanceFit {
+    /// `χ²_min` over the nuisance box.
+    pub chi2: f64,
+    /// The effective degrees of freedom: the mean of `χ²_min` under the hypothesis,
+    /// `T − m + E[D]` (the [`hypothesis`](super::hypothesis) module documentation; `T − m` when every
+    /// nuisance is interior).
+    pub dof: f64,
+    /// `P(χ²_min ≥ observed)` under the hypothesis (the [`hypothesis`](super::hypothesis) module documentation).
+    pub p_value: f64,
+    /// Whether `p_value ≥ 1 − p`.
+    pub consistent: bool,
+    /// The layer thickness at the minimum, nm (0 without a layer).
+    pub thickness_nm: f64,
+    /// The polarimeter scale at the minimum.
+    pub scale: f64,
+    /// The common angle offset at the minimum, radians.
+    pub offset: f64,
+    /// `ln Z`: the log of the likelihood averaged over the nuisance box (up to a
+    /// constant common to every hypothesis of the same rows).
+    pub log_evidence: f64,
 }
 
 /// The outcome of classifying one estimate.

@@ -236,7 +236,7 @@ pub const LOO_RANKED_KEPT: usize = 64;
 /// against all of them (same distances, votes, runner-up, candidates and tie-breaking:
 /// ties go to the earlier item). Indices in a decision refer to the others in input
 /// order, as if item `i` were removed; its `ranked` holds at most the `k` nearest
-/// (capped at [`LOO_RANKED_KEPT`]).
+/// (capped at `LOO_RANKED_KEPT`).
 ///
 /// Fails when a class name is empty or [`UNKNOWN`], fewer than two items are usable, or
 /// the settings are invalid.

@@ -15,8 +15,22 @@ use polarid_io::model::Model;
 use polarid_io::table::fits::FitRow;
 
 use super::{PrototypeSource, estimate_of};
-use crate::train::noise_cov;
 use crate::{Result, Warning};
+use polarid_core::classify::Cov2;
+
+/// The sample covariance of a fit row (`n_se_sample`, `k_se_sample`, `nk_corr_sample`:
+/// the noise and the surface layer's variation between plates), when it has a usable one.
+pub fn sample_cov(f: &FitRow) -> Option<Cov2> {
+    let corr = f.nk_corr_sample.filter(|c| !c.is_nan()).unwrap_or(0.0);
+    Cov2::from_se(f.n_se_sample?, f.k_se_sample?, corr)
+}
+
+/// The noise covariance of a fit row (`n_se_noise`, `k_se_noise`, `nk_corr_noise`), when
+/// it has a usable one.
+pub fn noise_cov(f: &FitRow) -> Option<Cov2> {
+    let corr = f.nk_corr_noise.filter(|c| !c.is_nan()).unwrap_or(0.0);
+    Cov2::from_se(f.n_se_noise?, f.k_se_noise?, corr)
+}
 
 /// How the estimates are compared with the prototypes: `same` when a model's prototypes
 /// carry their sample covariance and the estimates are taken on their noise.

@@ -24,7 +24,9 @@ use polarid_io::table::CsvTable;
 use polarid_io::table::classification::ClassificationRow;
 use polarid_io::table::fits::{self, FitRow};
 
-pub use bench::{Comparison, estimate_for, multi_estimate_for, prototypes_for};
+pub use bench::{
+    Comparison, estimate_for, multi_estimate_for, noise_cov, prototypes_for, sample_cov,
+};
 pub use explain::{
     ConfidenceRegion, DecisionRegion, RegionPlane, confidence_region, decision_regions, explain,
     regions_text,

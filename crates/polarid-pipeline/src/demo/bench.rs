@@ -32,15 +32,11 @@ use crate::{PipelineError, Result};
 /// The bench scene (the training set): `examples/scenes/bench_lamp_lens.toml`.
 pub const BENCH_SCENE: &str = include_str!("../../../../examples/scenes/bench_lamp_lens.toml");
 
-/// Prefix of the test set's target names.
-pub const TEST_PREFIX: &str = "test_";
+pub use super::bench_tables::{MAP_BIN, TEST_PREFIX};
 
 /// The training captures whose β maps the report shows: the lamp in the plane of
 /// incidence (capture 1) and out of it (capture 6).
 pub const BETA_MAP_CAPTURES: [usize; 2] = [0, 5];
-
-/// Binning of the demo's map (`polarid map --bin 4`).
-pub const MAP_BIN: usize = 4;
 
 /// The test set's scene: [`BENCH_SCENE`] with seed + 1, the lamp positions mirrored
 /// across the camera's plane of incidence (`y → −y`) and the plates' names prefixed

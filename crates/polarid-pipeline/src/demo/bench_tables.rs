@@ -4,10 +4,15 @@
 use polarid_io::table::classification::ClassificationRow;
 use polarid_io::table::fits::FitRow;
 
-use super::bench::{MAP_BIN, TEST_PREFIX};
 use super::tables::{pm, text_table};
 use crate::map::MapResult;
 use crate::simulate::TruthRow;
+
+/// Prefix of the test set's target names.
+pub const TEST_PREFIX: &str = "test_";
+
+/// Binning of the demo's map (`polarid map --bin 4`).
+pub const MAP_BIN: usize = 4;
 
 /// The plate's true `(n, k)` from the truth rows.
 fn true_index(truth: &[TruthRow], target: &str) -> Option<(f64, f64)> {
