@@ -21,6 +21,7 @@
 //! | refractiveindex.info YAML → a material library for a band | [`library`] |
 //! | scene → simulated captures | [`simulate`] |
 //! | manifest → per-pixel `(n, k)` and class maps | [`map`] |
+//! | a bench and candidate materials → where to put the lamp | [`plan`] |
 //! | the paper's experiment end to end | [`demo`] |
 #![warn(missing_docs)]
 
@@ -33,6 +34,7 @@ pub mod init;
 pub mod library;
 pub mod map;
 pub mod measure;
+pub mod plan;
 pub mod progress;
 pub mod simulate;
 pub mod train;

@@ -93,6 +93,7 @@ mod decision;
 mod evaluate;
 pub mod hypothesis;
 mod points;
+pub mod separability;
 mod wolff;
 
 pub use bands::{
