@@ -238,10 +238,29 @@ pub struct FitCheck {
     pub status: FitStatus,
     /// The fit's reason when not `ok`.
     pub reason: String,
+    /// The material's `n` (its bulk index at the band).
+    pub n: f64,
+    /// The material's `k`.
+    pub k: f64,
+    /// The fit's search box's upper ends `(n_max, k_max)`.
+    pub box_max: (f64, f64),
     /// Standard errors of `n` and `k` (total).
     pub n_se: f64,
     /// See `n_se`.
     pub k_se: f64,
+}
+
+impl FitCheck {
+    /// Whether the fit locates the material: status `ok`, and its two-sigma interval at
+    /// the truth stays inside the fit's search box on the far side (`n + 2 n_se ≤ n_max`,
+    /// `k + 2 k_se ≤ k_max`). Otherwise a noisy estimate can wander along the valley of
+    /// the fit's χ² to where its standard error exceeds `fit`'s ill-conditioning bound
+    /// (3 box widths), and `classify` then tests nothing (docs/PLAN.md).
+    pub fn locates(&self) -> bool {
+        self.status == FitStatus::Ok
+            && self.n + 2.0 * self.n_se <= self.box_max.0
+            && self.k + 2.0 * self.k_se <= self.box_max.1
+    }
 }
 
 impl Evaluation {
@@ -258,7 +277,7 @@ impl Evaluation {
     /// Whether target `t` is identifiable: its fit is `ok` and every alternative is
     /// rejected with at least `power`.
     pub fn identifiable(&self, t: usize, power: f64) -> bool {
-        self.fits.get(t).is_some_and(|f| f.status == FitStatus::Ok)
+        self.fits.get(t).is_some_and(|f| f.locates())
             && self
                 .pairs
                 .iter()
@@ -597,12 +616,18 @@ impl Models {
         let f = out.rows().into_iter().next();
         Ok(match f {
             Some(f) => FitCheck {
+                n: truth.bulk[0].0,
+                k: truth.bulk[0].1,
+                box_max: (self.fit.n_range.1, self.fit.k_range.1),
                 status: f.status,
                 reason: f.reason.clone(),
                 n_se: f.n_se,
                 k_se: f.k_se,
             },
             None => FitCheck {
+                n: truth.bulk[0].0,
+                k: truth.bulk[0].1,
+                box_max: (self.fit.n_range.1, self.fit.k_range.1),
                 status: FitStatus::IllConditioned,
                 reason: "no fit".into(),
                 n_se: f64::NAN,
@@ -993,7 +1018,7 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
         }
     }
     let mut progress = Vec::new();
-    for _round in 0..2 {
+    for _round in 0..3 {
         let mut best = objective(&models, &cands, &idx, &active);
         progress.push(best);
         for _pass in 0..3 {
@@ -1029,17 +1054,26 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
         for t in 0..targets.len() {
             let grid = truth_grid(&models.models[models.truth[t]], &models.cfg);
             for alt in 0..models.models.len() {
-                if alt == models.truth[t] || active.iter().any(|a| a.target == t && a.alt == alt) {
+                if alt == models.truth[t] {
                     continue;
                 }
                 let s = models.pair(&chosen, t, alt, &grid)?;
-                if s.margin < best {
-                    active.push(Active {
-                        target: t,
-                        alt,
-                        grid: vec![s.worst],
-                    });
-                    added = true;
+                match active.iter_mut().find(|a| a.target == t && a.alt == alt) {
+                    Some(a) => {
+                        if !a.grid.contains(&s.worst) {
+                            a.grid.push(s.worst);
+                            added = true;
+                        }
+                    }
+                    None if s.margin < best => {
+                        active.push(Active {
+                            target: t,
+                            alt,
+                            grid: vec![s.worst],
+                        });
+                        added = true;
+                    }
+                    None => {}
                 }
             }
         }

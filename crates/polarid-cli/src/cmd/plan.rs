@@ -148,6 +148,16 @@ fn design_text(out: &PlanOutput, ev: &Evaluation, title: &str) -> String {
                 "  {}: {} NOT identifiable: its fit would be {} ({}), and classify tests only fits that are ok",
                 tg.name, tg.material, f.status, f.reason
             );
+        } else if let Some(f) = ev.fits.get(t)
+            && !f.locates()
+        {
+            let _ = writeln!(
+                s,
+                "  {}: {} NOT identifiable: the fit cannot locate it (n {:.3} +- 2 x {:.2}, k {:.3} +- 2 x {:.2} \
+                 reaches the search box's edge n {} / k {}): a noisy fit strays along the (n, k) valley \
+                 to ill_conditioned, and classify then tests nothing",
+                tg.name, tg.material, f.n, f.n_se, f.k, f.k_se, f.box_max.0, f.box_max.1
+            );
         } else if confused.is_empty() {
             let w = ev.worst(t).map_or(f64::NAN, |w| w.sep.power);
             let _ = writeln!(
@@ -357,9 +367,12 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         &out,
         &out.recommended,
         &format!(
-            "Recommended (worst pair's margin {:.2}, after {} exchange passes)",
+            "Recommended (worst pair's margin {:.2}; search {:?})",
             out.recommended.worst_margin(),
-            out.progress.len()
+            out.progress
+                .iter()
+                .map(|p| (p * 100.0).round() / 100.0)
+                .collect::<Vec<_>>()
         ),
     ));
     let m = out.recommended.worst_margin();
