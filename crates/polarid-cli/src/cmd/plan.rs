@@ -232,8 +232,8 @@ fn positions_csv(out: &PlanOutput) -> String {
             for (t, r) in q.rows.iter().enumerate() {
                 let _ = writeln!(
                     s,
-                    "{name},\"{}\",{},{},{},{},{},{},{},{}",
-                    q.label,
+                    "{name},{},{},{},{},{},{},{},{},{}",
+                    q.label.replace(',', ""),
                     v[0],
                     v[1],
                     v[2],
