@@ -804,7 +804,7 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
         angle_sd,
         floor: fit.dolp_floor,
         power: cfg.power,
-        fit: fit.clone(),
+        fit: *fit,
     };
     // The scene's own sources.
     let (own, intensity): (Vec<(String, SourceSpec)>, f64) = match &scene.geometry {
@@ -1059,12 +1059,11 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
                 }
                 let s = models.pair(&chosen, t, alt, &grid)?;
                 match active.iter_mut().find(|a| a.target == t && a.alt == alt) {
-                    Some(a) => {
-                        if !a.grid.contains(&s.worst) {
-                            a.grid.push(s.worst);
-                            added = true;
-                        }
+                    Some(a) if !a.grid.contains(&s.worst) => {
+                        a.grid.push(s.worst);
+                        added = true;
                     }
+                    Some(_) => {}
                     None if s.margin < best => {
                         active.push(Active {
                             target: t,

@@ -110,12 +110,10 @@ fn design_text(out: &PlanOutput, ev: &Evaluation, title: &str) -> String {
         "plate", "material", "hardest alternative", "lambda", "dof", "power", "margin"
     );
     for (t, tg) in out.targets.iter().enumerate() {
-        let mut shown = 0;
-        for pr in ev.pairs.iter().filter(|x| x.target == t) {
+        for (shown, pr) in ev.pairs.iter().filter(|x| x.target == t).enumerate() {
             if shown >= 3 && pr.sep.power >= p {
                 break;
             }
-            shown += 1;
             let _ = writeln!(
                 s,
                 "  {:<14} {:<14} {:<20} {:>9.2} {:>6.2} {:>7.3} {:>7.2}",
