@@ -57,6 +57,9 @@ enum Command {
     Map(cmd::map::Args),
     /// Simulate captures of plates from the pBRDF and a sensor model.
     Simulate(cmd::simulate::Args),
+    /// Plan the captures: which materials the bench's source positions can tell apart,
+    /// and where to put the lamp.
+    Plan(cmd::plan::Args),
     /// Reproduce the paper's experiment in simulation, end to end, with a report.
     Demo(cmd::demo::Args),
 }
@@ -140,6 +143,7 @@ fn main() -> ExitCode {
         Command::Library(a) => cmd::library::run(a, &ctx),
         Command::Map(a) => cmd::map::run(a, &ctx),
         Command::Simulate(a) => cmd::simulate::run(a, &ctx),
+        Command::Plan(a) => cmd::plan::run(a, &ctx),
         Command::Demo(a) => cmd::demo::run(a, &ctx),
     };
     if polarid_io::atomic::terminating() {

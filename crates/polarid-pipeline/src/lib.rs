@@ -21,6 +21,9 @@
 //! | refractiveindex.info YAML → a material library for a band | [`library`] |
 //! | scene → simulated captures | [`simulate`] |
 //! | manifest → per-pixel `(n, k)` and class maps | [`map`] |
+//! | a bench and candidate materials → where to put the lamp | [`plan`] |
+//! | frames or a DoFP mosaic → Stokes, DoLP, AoLP images per band | [`stokes`] |
+//! | the classifier's options, checked once | [`options`] |
 //! | the paper's experiment end to end | [`demo`] |
 #![warn(missing_docs)]
 
@@ -34,6 +37,7 @@ pub mod library;
 pub mod map;
 pub mod measure;
 pub mod options;
+pub mod plan;
 pub mod progress;
 pub mod simulate;
 pub mod stokes;

@@ -10,6 +10,7 @@ pub mod library;
 pub mod map;
 pub mod measure;
 pub mod model;
+pub mod plan;
 pub mod simulate;
 pub mod stokes;
 pub mod train;

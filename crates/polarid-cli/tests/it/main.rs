@@ -35,6 +35,7 @@ mod measure_cli;
 mod model_cmd;
 mod newcomer_traps;
 mod partial_failure;
+mod plan_cli;
 mod reliability;
 mod renders_bench;
 mod renders_colour;

@@ -94,6 +94,7 @@ mod evaluate;
 pub mod hypothesis;
 pub mod pixel_decision;
 mod points;
+pub mod separability;
 mod wolff;
 
 pub use bands::{

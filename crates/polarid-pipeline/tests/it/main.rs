@@ -11,4 +11,5 @@ mod hypothesis_study;
 mod imperfect_acceptance;
 mod measure_fit_calibrated;
 mod paper_acceptance;
+mod plan;
 mod systematic_errors;

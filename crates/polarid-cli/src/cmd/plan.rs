@@ -1,0 +1,409 @@
+//! `polarid plan SCENE.toml`: which materials the bench's source positions can tell apart,
+//! and where to put the lamp (docs/PLAN.md).
+//!
+//! The workflow is [`polarid_pipeline::plan`]. Standard output: the current plan (the
+//! scene's own sources) and the recommended one, per plate its hardest alternatives with
+//! `λ`, degrees of freedom and rejection power, and the verdict. `-o DIR` also writes
+//! `pairs.csv` (every pair of both plans), `positions.csv` (each position's β, DoLP
+//! standard error and electrons per plate), `plan.png`/`plan.svg` (DoLP against β: each
+//! plate's material and its hardest alternative, the recommended and current rows) and
+//! `scene.toml` (the scene with the recommended sources, ready for `polarid simulate`).
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use polarid_io::atomic::StagedDir;
+use polarid_pipeline::fit::FitConfig;
+use polarid_pipeline::plan::{Evaluation, PlanConfig, PlanOutput, Region, dolp_curve, plan_file};
+
+use super::common::{PipeResult, warn_all};
+use crate::Ctx;
+use crate::render::plots::{DolpPoint, DolpSeries, PlotSize, dolp_vs_beta};
+
+/// Arguments of `polarid plan`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The bench: a scene (TOML, docs/SCENE.md) with the camera, plane, plates (their
+    /// `class` is their material) and the current `[[source]]` positions.
+    pub scene: PathBuf,
+    /// Number of source positions to recommend.
+    #[arg(short = 'n', long, default_value_t = 6)]
+    pub positions: usize,
+    /// Candidate materials: `builtin`, `builtin-rgb` or a library CSV.
+    #[arg(long, default_value = "builtin")]
+    pub library: String,
+    /// Only these materials of the library (comma-separated; default: all).
+    #[arg(long, value_delimiter = ',')]
+    pub materials: Vec<String>,
+    /// Confidence of `classify`'s test.
+    #[arg(long, default_value_t = 0.95)]
+    pub confidence: f64,
+    /// Rejection power that makes two materials separable.
+    #[arg(long, default_value_t = 0.95)]
+    pub power: f64,
+    /// Lamp distance from the plates' centre (default: the median of the scene's lamps).
+    #[arg(long, value_name = "D")]
+    pub distance: Option<f64>,
+    /// Lamp zeniths to consider, degrees.
+    #[arg(long, value_name = "LO:HI", default_value = "10:85", value_parser = parse_range)]
+    pub zenith_deg: (f64, f64),
+    /// Lamp azimuths to consider, degrees from the direction opposite the camera.
+    #[arg(long, value_name = "LO:HI", default_value = "-40:40", value_parser = parse_range)]
+    pub azimuth_deg: (f64, f64),
+    /// Grid step of the region, degrees.
+    #[arg(long, default_value_t = 5.0)]
+    pub step_deg: f64,
+    /// A row's DoLP standard error (default: from the scene's sensor, exposure and regions).
+    #[arg(long)]
+    pub dolp_se: Option<f64>,
+    /// Standard uncertainty of the source and camera directions, degrees (as `fit`).
+    #[arg(long, default_value_t = polarid_pipeline::fit::DEFAULT_ANGLE_SD_DEG)]
+    pub angle_sd_deg: f64,
+    /// DoLP floor (as `fit`).
+    #[arg(long, default_value_t = polarid_pipeline::fit::DEFAULT_DOLP_FLOOR)]
+    pub dolp_floor: f64,
+    /// Lowest extinction ratio of the polarimeter (as `fit`).
+    #[arg(long, default_value_t = polarid_pipeline::fit::DEFAULT_EXTINCTION_RATIO)]
+    pub extinction_ratio: f64,
+    /// Output directory (pairs.csv, positions.csv, plan.png/svg, scene.toml).
+    #[arg(short, long, value_name = "DIR")]
+    pub output: Option<PathBuf>,
+}
+
+fn parse_range(s: &str) -> Result<(f64, f64), String> {
+    let (a, b) = s
+        .split_once(':')
+        .ok_or_else(|| format!("{s:?}: expected LO:HI, e.g. 10:85"))?;
+    let p = |x: &str| {
+        x.trim()
+            .parse::<f64>()
+            .map_err(|_| format!("{s:?}: {x:?} is not a number"))
+    };
+    Ok((p(a)?, p(b)?))
+}
+
+/// The verdict lines and pair tables of one design.
+fn design_text(out: &PlanOutput, ev: &Evaluation, title: &str) -> String {
+    let p = out.config.power;
+    let mut s = String::new();
+    let _ = writeln!(s, "{title}: {} positions", ev.positions.len());
+    let betas: Vec<String> = (0..out.targets.len())
+        .map(|t| {
+            let b: Vec<f64> = ev.positions.iter().map(|q| q.rows[t].beta_deg).collect();
+            let lo = b.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = b.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            format!("{} {lo:.1}-{hi:.1}", out.targets[t].name)
+        })
+        .collect();
+    let _ = writeln!(s, "  beta span (deg): {}", betas.join(", "));
+    for q in &ev.positions {
+        let b: Vec<String> = q
+            .rows
+            .iter()
+            .map(|r| format!("{:.1}", r.beta_deg))
+            .collect();
+        let _ = writeln!(s, "  {:<24} beta {}", q.label, b.join(" / "));
+    }
+    let _ = writeln!(
+        s,
+        "  {:<14} {:<14} {:<20} {:>9} {:>6} {:>7} {:>7}",
+        "plate", "material", "hardest alternative", "lambda", "dof", "power", "margin"
+    );
+    for (t, tg) in out.targets.iter().enumerate() {
+        for (shown, pr) in ev.pairs.iter().filter(|x| x.target == t).enumerate() {
+            if shown >= 3 && pr.sep.power >= p {
+                break;
+            }
+            let _ = writeln!(
+                s,
+                "  {:<14} {:<14} {:<20} {:>9.2} {:>6.2} {:>7.3} {:>7.2}",
+                tg.name,
+                tg.material,
+                pr.alternative,
+                pr.sep.lambda,
+                pr.sep.dof,
+                pr.sep.power,
+                pr.sep.margin
+            );
+        }
+    }
+    for (t, tg) in out.targets.iter().enumerate() {
+        if let Some(f) = ev.fits.get(t) {
+            let _ = writeln!(
+                s,
+                "  {}: fit of the noise-free rows {}, n_se {:.3}, k_se {:.3} (total)",
+                tg.name, f.status, f.n_se, f.k_se
+            );
+        }
+    }
+    for (t, tg) in out.targets.iter().enumerate() {
+        let confused = ev.confused(t, p);
+        if let Some(f) = ev.fits.get(t)
+            && f.status != polarid_core::FitStatus::Ok
+        {
+            let _ = writeln!(
+                s,
+                "  {}: {} NOT identifiable: its fit would be {} ({}), and classify tests only fits that are ok",
+                tg.name, tg.material, f.status, f.reason
+            );
+        } else if let Some(f) = ev.fits.get(t)
+            && !f.locates()
+        {
+            let _ = writeln!(
+                s,
+                "  {}: {} NOT identifiable: the fit cannot locate it (n {:.3} +- 2 x {:.2}, k {:.3} +- 2 x {:.2} \
+                 reaches the search box's edge n {} / k {}): a noisy fit strays along the (n, k) valley \
+                 to ill_conditioned, and classify then tests nothing",
+                tg.name, tg.material, f.n, f.n_se, f.k, f.k_se, f.box_max.0, f.box_max.1
+            );
+        } else if confused.is_empty() {
+            let w = ev.worst(t).map_or(f64::NAN, |w| w.sep.power);
+            let _ = writeln!(
+                s,
+                "  {}: {} identifiable (every other material rejected with power >= {:.3})",
+                tg.name, tg.material, w
+            );
+        } else {
+            let names: Vec<String> = confused
+                .iter()
+                .map(|c| format!("{} ({:.2})", c.alternative, c.sep.power))
+                .collect();
+            let _ = writeln!(
+                s,
+                "  {}: {} NOT identifiable: not rejected with power {p}: {}",
+                tg.name,
+                tg.material,
+                names.join(", ")
+            );
+        }
+    }
+    s
+}
+
+fn pairs_csv(out: &PlanOutput) -> String {
+    let mut s = String::from(
+        "design,plate,material,alternative,lambda,dof,critical,power,margin,worst_thickness_nm,worst_scale,worst_offset_deg\n",
+    );
+    let designs = out
+        .current
+        .iter()
+        .map(|e| ("current", e))
+        .chain(std::iter::once(("recommended", &out.recommended)));
+    for (name, ev) in designs {
+        for pr in &ev.pairs {
+            let t = &out.targets[pr.target];
+            let _ = writeln!(
+                s,
+                "{name},{},{},{},{},{},{},{},{},{},{},{}",
+                t.name,
+                t.material,
+                pr.alternative,
+                pr.sep.lambda,
+                pr.sep.dof,
+                pr.sep.critical,
+                pr.sep.power,
+                pr.sep.margin,
+                pr.sep.worst.thickness_nm,
+                pr.sep.worst.scale,
+                pr.sep.worst.offset.to_degrees()
+            );
+        }
+    }
+    s
+}
+
+fn positions_csv(out: &PlanOutput) -> String {
+    let mut s =
+        String::from("design,position,x,y,z,plate,beta_deg,theta_i_deg,dolp_se,electrons\n");
+    let designs = out
+        .current
+        .iter()
+        .map(|e| ("current", e))
+        .chain(std::iter::once(("recommended", &out.recommended)));
+    for (name, ev) in designs {
+        for q in &ev.positions {
+            let v = match &q.spec {
+                polarid_io::manifest::SourceSpec::Position(v)
+                | polarid_io::manifest::SourceSpec::Direction(v) => *v,
+                polarid_io::manifest::SourceSpec::Sun { direction, .. } => *direction,
+            };
+            for (t, r) in q.rows.iter().enumerate() {
+                let _ = writeln!(
+                    s,
+                    "{name},{},{},{},{},{},{},{},{},{}",
+                    q.label.replace(',', ""),
+                    v[0],
+                    v[1],
+                    v[2],
+                    out.targets[t].name,
+                    r.beta_deg,
+                    r.theta_i_deg,
+                    r.dolp_se,
+                    r.electrons
+                );
+            }
+        }
+    }
+    s
+}
+
+/// DoLP against β: per plate its material's curve with the recommended rows (±1 σ of
+/// the row), its hardest alternative's curve, and the current rows.
+fn plot(out: &PlanOutput) -> anyhow::Result<crate::render::Rendered> {
+    let floor = out.config.fit.dolp_floor;
+    let mut series = Vec::new();
+    for (t, tg) in out.targets.iter().enumerate() {
+        let curve = dolp_curve(out, &tg.material).cli()?;
+        let at = |b: f64| {
+            curve
+                .iter()
+                .min_by(|x, y| (x.0 - b).abs().total_cmp(&(y.0 - b).abs()))
+                .map_or(0.0, |c| c.1)
+        };
+        let points = |ev: &Evaluation| -> Vec<DolpPoint> {
+            ev.positions
+                .iter()
+                .map(|q| {
+                    let r = q.rows[t];
+                    DolpPoint {
+                        beta_deg: r.beta_deg,
+                        dolp: at(r.beta_deg),
+                        dolp_se: Some((r.dolp_se * r.dolp_se + floor * floor).sqrt()),
+                    }
+                })
+                .collect()
+        };
+        series.push(DolpSeries {
+            label: format!("{}: recommended", tg.name),
+            points: points(&out.recommended),
+            curve: curve.clone(),
+            curve_label: Some(tg.material.clone()),
+        });
+        if let Some(cur) = &out.current {
+            series.push(DolpSeries {
+                label: format!("{}: current", tg.name),
+                points: points(cur),
+                curve: Vec::new(),
+                curve_label: None,
+            });
+        }
+        if let Some(w) = out.recommended.worst(t) {
+            series.push(DolpSeries {
+                label: format!("{}: hardest alternative", tg.name),
+                points: Vec::new(),
+                curve: dolp_curve(out, &w.alternative).cli()?,
+                curve_label: Some(format!("{} (power {:.2})", w.alternative, w.sep.power)),
+            });
+        }
+    }
+    dolp_vs_beta(
+        "Planned captures: DoLP against beta (layer at mid-range)",
+        &series,
+        PlotSize::REPORT,
+    )
+}
+
+/// Run `polarid plan`.
+pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
+    let fit = FitConfig {
+        angle_sd_deg: args.angle_sd_deg,
+        dolp_floor: args.dolp_floor,
+        extinction_ratio: args.extinction_ratio,
+        ..FitConfig::default()
+    };
+    let cfg = PlanConfig {
+        positions: args.positions,
+        library: args.library.clone(),
+        materials: args.materials.clone(),
+        confidence: args.confidence,
+        power: args.power,
+        region: Region {
+            distance: args.distance,
+            zenith_deg: args.zenith_deg,
+            azimuth_deg: args.azimuth_deg,
+            step_deg: args.step_deg,
+        },
+        dolp_se: args.dolp_se,
+        fit,
+    };
+    let staged = match &args.output {
+        Some(dir) if dir.is_file() => {
+            return Err(crate::BadInput(format!(
+                "{}: the output must be a directory, and this is a file",
+                dir.display()
+            ))
+            .into());
+        }
+        Some(dir) => Some(StagedDir::new(dir, ctx.force)?),
+        None => None,
+    };
+    let out = plan_file(&args.scene, &cfg).cli()?;
+    warn_all(ctx, &out.warnings);
+    let mut text = format!(
+        "polarid plan: {} plate(s) of {} against {} material(s) of {} at {} nm; \
+         classify's test at {}%, separable when rejected with power >= {}; {} candidate \
+         positions\n",
+        out.targets.len(),
+        args.scene.display(),
+        out.materials.len(),
+        out.library,
+        out.wavelength_nm,
+        out.config.confidence * 100.0,
+        out.config.power,
+        out.candidates
+    );
+    if let Some(cur) = &out.current {
+        text.push('\n');
+        text.push_str(&design_text(
+            &out,
+            cur,
+            "Current plan (the scene's sources)",
+        ));
+    }
+    text.push('\n');
+    text.push_str(&design_text(
+        &out,
+        &out.recommended,
+        &format!(
+            "Recommended (worst pair's margin {:.2}; search {:?})",
+            out.recommended.worst_margin(),
+            out.progress
+                .iter()
+                .map(|p| (p * 100.0).round() / 100.0)
+                .collect::<Vec<_>>()
+        ),
+    ));
+    let m = out.recommended.worst_margin();
+    if m < 1.0 && m > 0.0 {
+        let _ = writeln!(
+            text,
+            "\nThe worst pair's margin is {m:.2} < 1: lambda grows in proportion to the rows, so \
+             about {} positions (or each position captured {} times) would reach power {}: \
+             polarid plan {} --positions {}",
+            (args.positions as f64 / m).ceil(),
+            (1.0 / m).ceil(),
+            out.config.power,
+            args.scene.display(),
+            (args.positions as f64 / m).ceil()
+        );
+    }
+    print!("{text}");
+    if let (Some(staged), Some(dir)) = (staged, &args.output) {
+        std::fs::write(staged.path("pairs.csv")?, pairs_csv(&out))?;
+        std::fs::write(staged.path("positions.csv")?, positions_csv(&out))?;
+        let scene_text = std::fs::read_to_string(&args.scene)?;
+        std::fs::write(
+            staged.path("scene.toml")?,
+            out.recommended_scene(&scene_text),
+        )?;
+        let fig = plot(&out)?;
+        std::fs::write(staged.path("plan.png")?, &fig.png)?;
+        std::fs::write(staged.path("plan.svg")?, fig.svg.as_bytes())?;
+        staged.commit()?;
+        ctx.info(format!(
+            "polarid plan: pairs.csv, positions.csv, plan.png, plan.svg, scene.toml -> {}",
+            dir.display()
+        ));
+    }
+    Ok(())
+}

@@ -1,0 +1,1142 @@
+//! Planning the captures (`polarid plan`): which materials a bench's source positions can
+//! tell apart under the hypothesis test of `polarid classify MEASUREMENTS.csv`, and which
+//! `N` positions of a region of possible lamp positions tell them apart best
+//! (docs/PLAN.md).
+//!
+//! Input: a scene (docs/SCENE.md): its camera, plane and plates (each plate's `class` is
+//! the material it is, its region and optics set the noise), its sensor and exposure, and
+//! its `[[source]]`s (the current plan, evaluated too). Candidates: a library (and
+//! optionally a list of its materials). Per plate `A` and candidate `B ≠ A` the worst-case
+//! non-centrality `λ_AB` and rejection power of `B`
+//! (`polarid_core::classify::separability`); a plate is **identifiable** when every other
+//! candidate is rejected with at least the target power.
+//!
+//! The recommended positions maximise the smallest margin `λ_AB / λ*` over the plates and
+//! their hardest alternatives: Fedorov's exchange algorithm (start from positions spread
+//! evenly in β, replace one position at a time by the candidate that raises the worst
+//! margin most, until no exchange helps).
+
+use std::path::{Path, PathBuf};
+
+use polarid_core::FitStatus;
+use polarid_core::classify::separability::{
+    PlanRow, Separation, TruthPoint, separation, truth_grid,
+};
+use polarid_core::classify::{CandidateModel, HypothesisConfig, MultiPrototype, Nuisances};
+use polarid_core::pbrdf::pbrdf;
+use polarid_core::simulate::{Exposure, Sensor};
+use polarid_io::manifest::SourceSpec;
+use polarid_io::scene::{CaptureKind, Geometry, Scene};
+use polarid_io::table::measurements::Measurement;
+
+use crate::classify::PrototypeSource;
+use crate::fit::FitConfig;
+use crate::{PipelineError, Result, Warning};
+
+/// Lowest expected electrons per pixel (S0, the plate's centre) for a position to count
+/// as lighting a plate; darker positions are left out of the candidates.
+pub const MIN_ELECTRONS: f64 = 100.0;
+
+/// How many of each plate's hardest alternatives the exchange search optimises (all
+/// alternatives are evaluated at the end; a pair found harder is added and the search
+/// repeated).
+pub const ACTIVE_PER_TARGET: usize = 4;
+
+/// The region of possible lamp positions: a grid on a sphere about the plates' centre,
+/// zenith from the plane's normal, azimuth from the direction opposite the camera (0: in
+/// the camera's plane of incidence). Far-field scenes use the zeniths only (their `phi`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Region {
+    /// Lamp distance from the plates' centre (scene units); `None`: the median distance
+    /// of the scene's lamps (a distant source when the scene has none).
+    pub distance: Option<f64>,
+    /// Zenith range, degrees.
+    pub zenith_deg: (f64, f64),
+    /// Azimuth range, degrees.
+    pub azimuth_deg: (f64, f64),
+    /// Grid step in zenith, degrees (in azimuth twice as coarse).
+    pub step_deg: f64,
+}
+
+impl Default for Region {
+    fn default() -> Self {
+        Self {
+            distance: None,
+            zenith_deg: (10.0, 85.0),
+            azimuth_deg: (-40.0, 40.0),
+            step_deg: 5.0,
+        }
+    }
+}
+
+/// The validated settings of a plan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanConfig {
+    /// Number of positions to recommend (2 … 64).
+    pub positions: usize,
+    /// The library of candidate materials (`builtin`, `builtin-rgb`, a CSV).
+    pub library: String,
+    /// Only these materials of the library (empty: all).
+    pub materials: Vec<String>,
+    /// Confidence of the test, as `classify --confidence`.
+    pub confidence: f64,
+    /// The rejection power that makes a pair separable.
+    pub power: f64,
+    /// The region of possible positions.
+    pub region: Region,
+    /// A row's DoLP standard error, instead of the one from the sensor and exposure.
+    pub dolp_se: Option<f64>,
+    /// The error model (as `fit`/`classify`: angle, DoLP floor, extinction, retardance).
+    pub fit: FitConfig,
+}
+
+impl Default for PlanConfig {
+    fn default() -> Self {
+        Self {
+            positions: 6,
+            library: "builtin".into(),
+            materials: Vec::new(),
+            confidence: polarid_core::classify::DEFAULT_CONFIDENCE,
+            power: 0.95,
+            region: Region::default(),
+            dolp_se: None,
+            fit: FitConfig::default(),
+        }
+    }
+}
+
+impl PlanConfig {
+    /// Check every value (errors name the option and the value).
+    #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN-safe on purpose
+    pub fn validate(&self) -> Result<()> {
+        if !(2..=64).contains(&self.positions) {
+            return Err(PipelineError::config(
+                "positions",
+                self.positions,
+                "must be 2 to 64",
+            ));
+        }
+        if !(self.confidence > 0.0 && self.confidence < 1.0) {
+            return Err(PipelineError::config(
+                "confidence",
+                self.confidence,
+                "must be in (0, 1)",
+            ));
+        }
+        if !(self.power > 0.0 && self.power < 1.0) {
+            return Err(PipelineError::config(
+                "power",
+                self.power,
+                "must be in (0, 1)",
+            ));
+        }
+        let r = &self.region;
+        if let Some(d) = r.distance
+            && !(d > 0.0 && d.is_finite())
+        {
+            return Err(PipelineError::config("distance", d, "must be > 0"));
+        }
+        let (z0, z1) = r.zenith_deg;
+        if !(z0 >= 0.0 && z1 < 90.0 && z0 <= z1) {
+            return Err(PipelineError::config(
+                "zenith-deg",
+                format!("{z0}:{z1}"),
+                "must be LO:HI with 0 <= LO <= HI < 90",
+            ));
+        }
+        let (a0, a1) = r.azimuth_deg;
+        if !(a0 >= -180.0 && a1 <= 180.0 && a0 <= a1) {
+            return Err(PipelineError::config(
+                "azimuth-deg",
+                format!("{a0}:{a1}"),
+                "must be LO:HI with -180 <= LO <= HI <= 180",
+            ));
+        }
+        if !(r.step_deg >= 0.5 && r.step_deg <= 45.0) {
+            return Err(PipelineError::config(
+                "step-deg",
+                r.step_deg,
+                "must be 0.5 to 45",
+            ));
+        }
+        if let Some(s) = self.dolp_se
+            && !(s >= 0.0 && s < 1.0)
+        {
+            return Err(PipelineError::config("dolp-se", s, "must be in [0, 1)"));
+        }
+        self.fit.validate()?;
+        Ok(())
+    }
+}
+
+/// One source position: where it is and what each target plate sees from it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Position {
+    /// Label: `d 0.70, t 35, a -20` (lamp), `t 35` (far field), the source's name or
+    /// `source N` for the scene's own.
+    pub label: String,
+    /// The source as a scene writes it.
+    pub spec: SourceSpec,
+    /// Per target: `β` (degrees), the row's DoLP standard error, expected S0 electrons
+    /// per pixel.
+    pub rows: Vec<RowGeometry>,
+    /// Whether the source lies in the camera's plane of incidence (azimuth 0; far-field
+    /// and the scene's own sources: true).
+    pub in_plane: bool,
+}
+
+/// What one target sees from one position.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RowGeometry {
+    /// Local incidence angle, degrees.
+    pub beta_deg: f64,
+    /// Source zenith at the plate, degrees.
+    pub theta_i_deg: f64,
+    /// The row's DoLP standard error (noise only).
+    pub dolp_se: f64,
+    /// Expected S0 electrons per pixel at the plate's centre.
+    pub electrons: f64,
+}
+
+/// A target plate: its material as a hypothesis test's truth.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Target {
+    /// The plate's name.
+    pub name: String,
+    /// Its material (the plate's class).
+    pub material: String,
+}
+
+/// One (target, alternative) pair.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PairResult {
+    /// Index into [`PlanOutput::targets`].
+    pub target: usize,
+    /// The alternative material.
+    pub alternative: String,
+    /// The separation (worst case over the target's nuisances).
+    pub sep: Separation,
+}
+
+/// A design evaluated: its positions and every pair.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Evaluation {
+    /// The positions.
+    pub positions: Vec<Position>,
+    /// Every (target, alternative) pair, per target hardest (smallest margin) first.
+    pub pairs: Vec<PairResult>,
+    /// Per target: the fit of its noise-free rows (`fit`'s status gate: `classify` tests
+    /// only targets whose fit is `ok`).
+    pub fits: Vec<FitCheck>,
+}
+
+/// `fit` on a target's noise-free rows (its material at mid-layer, full scale, no
+/// offset), with the plan's noise: whether `classify` would test the target at all.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitCheck {
+    /// The fit's status.
+    pub status: FitStatus,
+    /// The fit's reason when not `ok`.
+    pub reason: String,
+    /// The material's `n` (its bulk index at the band).
+    pub n: f64,
+    /// The material's `k`.
+    pub k: f64,
+    /// The fit's search box's upper ends `(n_max, k_max)`.
+    pub box_max: (f64, f64),
+    /// Standard errors of `n` and `k` (total).
+    pub n_se: f64,
+    /// See `n_se`.
+    pub k_se: f64,
+}
+
+impl FitCheck {
+    /// Whether the fit locates the material: status `ok`, and its two-sigma interval at
+    /// the truth stays inside the fit's search box on the far side (`n + 2 n_se ≤ n_max`,
+    /// `k + 2 k_se ≤ k_max`). Otherwise a noisy estimate can wander along the valley of
+    /// the fit's χ² to where its standard error exceeds `fit`'s ill-conditioning bound
+    /// (3 box widths), and `classify` then tests nothing (docs/PLAN.md).
+    pub fn locates(&self) -> bool {
+        self.status == FitStatus::Ok
+            && self.n + 2.0 * self.n_se <= self.box_max.0
+            && self.k + 2.0 * self.k_se <= self.box_max.1
+    }
+}
+
+impl Evaluation {
+    /// The hardest pair of target `t` (smallest margin).
+    pub fn worst(&self, t: usize) -> Option<&PairResult> {
+        self.pairs.iter().filter(|p| p.target == t).min_by(|a, b| {
+            a.sep
+                .margin
+                .total_cmp(&b.sep.margin)
+                .then(a.sep.power.total_cmp(&b.sep.power))
+        })
+    }
+
+    /// Whether target `t` is identifiable: its fit is `ok` and every alternative is
+    /// rejected with at least `power`.
+    pub fn identifiable(&self, t: usize, power: f64) -> bool {
+        self.fits.get(t).is_some_and(|f| f.locates())
+            && self
+                .pairs
+                .iter()
+                .filter(|p| p.target == t)
+                .all(|p| p.sep.power >= power)
+    }
+
+    /// The alternatives of target `t` rejected with less than `power`.
+    pub fn confused(&self, t: usize, power: f64) -> Vec<&PairResult> {
+        self.pairs
+            .iter()
+            .filter(|p| p.target == t && p.sep.power < power)
+            .collect()
+    }
+
+    /// The smallest margin over every pair.
+    pub fn worst_margin(&self) -> f64 {
+        self.pairs
+            .iter()
+            .map(|p| p.sep.margin)
+            .fold(f64::INFINITY, f64::min)
+    }
+}
+
+/// What `plan` found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanOutput {
+    /// The scene file.
+    pub scene: PathBuf,
+    /// The plates planned for.
+    pub targets: Vec<Target>,
+    /// The candidate materials (library order).
+    pub materials: Vec<String>,
+    /// The library's label.
+    pub library: String,
+    /// The wavelength, nm.
+    pub wavelength_nm: f64,
+    /// The scene's own sources, evaluated (`None` when it has fewer than 2).
+    pub current: Option<Evaluation>,
+    /// The recommended positions, evaluated.
+    pub recommended: Evaluation,
+    /// The worst margin after each exchange pass (the search's progress).
+    pub progress: Vec<f64>,
+    /// How many candidate positions the region gave (lit, above the horizon).
+    pub candidates: usize,
+    /// The settings.
+    pub config: PlanConfig,
+    /// Warnings.
+    pub warnings: Vec<Warning>,
+}
+
+impl PlanOutput {
+    /// The recommended scene: the input scene's text with its `[[source]]` tables
+    /// replaced by the recommended positions.
+    pub fn recommended_scene(&self, scene_text: &str) -> String {
+        let mut out = String::new();
+        let mut skipping = false;
+        for line in scene_text.lines() {
+            let t = line.trim_start();
+            if t.starts_with("[[source]]") {
+                skipping = true;
+                continue;
+            }
+            if skipping && t.starts_with('[') {
+                skipping = false;
+            }
+            if !skipping {
+                out.push_str(line);
+                out.push('\n');
+            }
+        }
+        out.push_str("\n# The positions recommended by `polarid plan` (docs/PLAN.md).\n");
+        for p in &self.recommended.positions {
+            out.push_str("[[source]]\n");
+            match &p.spec {
+                SourceSpec::Position(v) => out.push_str(&format!(
+                    "position = [{:.4}, {:.4}, {:.4}]   # {}\n",
+                    v[0], v[1], v[2], p.label
+                )),
+                SourceSpec::Direction(v) => out.push_str(&format!(
+                    "direction = [{:.6}, {:.6}, {:.6}]   # {}\n",
+                    v[0], v[1], v[2], p.label
+                )),
+                SourceSpec::Sun { time, .. } => out.push_str(&format!("sun = \"{time}\"\n")),
+            }
+        }
+        out
+    }
+}
+
+fn norm(v: [f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+fn unit(v: [f64; 3]) -> [f64; 3] {
+    let n = norm(v);
+    [v[0] / n, v[1] / n, v[2] / n]
+}
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// A plate as the planner sees it.
+struct PlateView {
+    center: [f64; 3],
+    normal: [f64; 3],
+    n: f64,
+    k: f64,
+    sigma: f64,
+    /// Independent DoLP estimates in the region: super-pixels (DoFP) or pixels.
+    sets: f64,
+}
+
+/// The scene's geometry for the planner.
+enum Bench {
+    Calibrated { camera: [f64; 3] },
+    FarField { theta_r: f64, phi: f64 },
+}
+
+/// The angles `(θi, θr, φ)` (radians) and the irradiance factor at a plate for a source.
+fn angles(bench: &Bench, p: &PlateView, src: &SourceSpec) -> Option<(f64, f64, f64, f64)> {
+    match bench {
+        Bench::Calibrated { camera } => {
+            let v = unit(sub(*camera, p.center));
+            let (l, e) = match src {
+                SourceSpec::Position(s) => {
+                    let d = sub(*s, p.center);
+                    let r2 = dot(d, d);
+                    (unit(d), 1.0 / r2)
+                }
+                SourceSpec::Direction(d) => (unit(*d), 1.0),
+                SourceSpec::Sun { direction, .. } => (unit(*direction), 1.0),
+            };
+            let ci = dot(l, p.normal);
+            let cr = dot(v, p.normal);
+            if ci <= 1e-6 || cr <= 1e-6 {
+                return None;
+            }
+            let lp = sub(l, [ci * p.normal[0], ci * p.normal[1], ci * p.normal[2]]);
+            let vp = sub(v, [cr * p.normal[0], cr * p.normal[1], cr * p.normal[2]]);
+            let phi = if norm(lp) < 1e-9 || norm(vp) < 1e-9 {
+                std::f64::consts::PI
+            } else {
+                (dot(lp, vp) / (norm(lp) * norm(vp)))
+                    .clamp(-1.0, 1.0)
+                    .acos()
+            };
+            Some((ci.acos(), cr.acos(), phi, e))
+        }
+        Bench::FarField { theta_r, phi } => match src {
+            SourceSpec::Direction(d) => {
+                let ti = d[2].clamp(-1.0, 1.0).acos();
+                (ti < std::f64::consts::FRAC_PI_2).then_some((ti, *theta_r, *phi, 1.0))
+            }
+            _ => None,
+        },
+    }
+}
+
+/// What every plate sees from a source: `None` when a plate is unlit (below its
+/// horizon) or too dark ([`MIN_ELECTRONS`]), or `β` is under 2°.
+fn position_rows(
+    bench: &Bench,
+    plates: &[PlateView],
+    sensor: &Sensor,
+    exposure: &Exposure,
+    src: &SourceSpec,
+    intensity: f64,
+    dolp_se: Option<f64>,
+) -> Option<Vec<RowGeometry>> {
+    let mut s0 = Vec::with_capacity(plates.len());
+    let mut peak: f64 = 0.0;
+    let mut geo = Vec::with_capacity(plates.len());
+    for p in plates {
+        let (ti, tr, phi, e) = angles(bench, p, src)?;
+        let f = pbrdf(p.n, p.k, p.sigma, ti, tr, phi).ok()?;
+        // L = E cos θi (f00, …): S0 and the brightest polarizer angle S0 (1 + P) / 2.
+        let l0 = intensity * e * ti.cos() * f.local[0][0];
+        s0.push(l0);
+        peak = peak.max(0.5 * l0 * (1.0 + f.dolp));
+        geo.push((f.beta, ti));
+    }
+    let x = exposure.resolve(peak).ok()?;
+    let mut rows = Vec::with_capacity(plates.len());
+    for ((p, l0), (beta, ti)) in plates.iter().zip(s0).zip(geo) {
+        // Expected S0 electrons of one pixel (the sum of two orthogonal polarizer
+        // frames: x · S0 · full well).
+        let el = sensor.electrons_per_unit(x) * l0;
+        if !(el >= MIN_ELECTRONS) || beta.to_degrees() < 2.0 {
+            return None;
+        }
+        // Shot and read noise of a small DoLP from K independent sets of four
+        // samples (S1 = I0 − I90 has variance S0 + 2 r² electrons²):
+        // var P ≈ (S0 + 2 r²) / (K S0²).
+        let r2 = sensor.read_noise_e * sensor.read_noise_e;
+        let se = dolp_se.unwrap_or_else(|| ((el + 2.0 * r2) / (p.sets * el * el)).sqrt());
+        rows.push(RowGeometry {
+            beta_deg: beta.to_degrees(),
+            theta_i_deg: ti.to_degrees(),
+            dolp_se: se,
+            electrons: el,
+        });
+    }
+    Some(rows)
+}
+
+/// The hypotheses of the plan and its error model.
+struct Models {
+    names: Vec<String>,
+    models: Vec<CandidateModel>,
+    /// Per target: index of its material in `names`.
+    truth: Vec<usize>,
+    cfg: HypothesisConfig,
+    wavelengths: Vec<f64>,
+    angle_sd: f64,
+    floor: f64,
+    power: f64,
+    fit: FitConfig,
+}
+
+impl Models {
+    fn rows(&self, positions: &[&Position], t: usize) -> Vec<PlanRow> {
+        positions
+            .iter()
+            .map(|p| {
+                let r = p.rows[t];
+                PlanRow {
+                    beta: r.beta_deg.to_radians(),
+                    dolp_sd: (r.dolp_se * r.dolp_se + self.floor * self.floor).sqrt(),
+                    angle_sd: self.angle_sd,
+                    band: 0,
+                }
+            })
+            .collect()
+    }
+
+    fn pair(
+        &self,
+        positions: &[&Position],
+        t: usize,
+        alt: usize,
+        grid: &[TruthPoint],
+    ) -> Result<Separation> {
+        let rows = self.rows(positions, t);
+        let truth = &self.models[self.truth[t]];
+        Ok(separation(
+            &rows,
+            &self.wavelengths,
+            truth,
+            &self.models[alt],
+            &self.cfg,
+            grid,
+            self.power,
+        )?)
+    }
+
+    /// Every pair of every target, the full grid.
+    fn evaluate(&self, positions: Vec<Position>) -> Result<Evaluation> {
+        let refs: Vec<&Position> = positions.iter().collect();
+        let mut pairs = Vec::new();
+        for t in 0..self.truth.len() {
+            let grid = truth_grid(&self.models[self.truth[t]], &self.cfg);
+            let mut mine = Vec::new();
+            for alt in 0..self.models.len() {
+                if alt == self.truth[t] {
+                    continue;
+                }
+                let sep = self.pair(&refs, t, alt, &grid)?;
+                mine.push(PairResult {
+                    target: t,
+                    alternative: self.names[alt].clone(),
+                    sep,
+                });
+            }
+            mine.sort_by(|a, b| a.sep.margin.total_cmp(&b.sep.margin));
+            pairs.extend(mine);
+        }
+        let mut fits = Vec::new();
+        for t in 0..self.truth.len() {
+            fits.push(self.fit_check(&refs, t)?);
+        }
+        Ok(Evaluation {
+            positions,
+            pairs,
+            fits,
+        })
+    }
+
+    /// `fit` on target `t`'s noise-free rows ([`FitCheck`]).
+    fn fit_check(&self, positions: &[&Position], t: usize) -> Result<FitCheck> {
+        let truth = &self.models[self.truth[t]];
+        let mid = TruthPoint {
+            thickness_nm: truth
+                .layer
+                .as_ref()
+                .map_or(0.0, |l| 0.5 * (l.min_nm + l.max_nm)),
+            scale: 1.0,
+            offset: 0.0,
+        };
+        let plan_rows = self.rows(positions, t);
+        let clean = polarid_core::classify::separability::truth_rows(
+            &plan_rows,
+            &self.wavelengths,
+            truth,
+            mid,
+        );
+        let rows: Vec<(u64, Measurement)> = positions
+            .iter()
+            .zip(&clean)
+            .enumerate()
+            .map(|(i, (p, h))| {
+                (
+                    i as u64 + 2,
+                    Measurement {
+                        target: "T".into(),
+                        beta_deg: p.rows[t].beta_deg,
+                        phi_deg: 180.0,
+                        dolp: h.dolp,
+                        dolp_se: Some(p.rows[t].dolp_se),
+                        wavelength_nm: Some(self.wavelengths[0]),
+                        ..Default::default()
+                    },
+                )
+            })
+            .collect();
+        let out = crate::fit::fit(Path::new("plan"), &rows, &self.fit, &|_, _, _| {})?;
+        let f = out.rows().into_iter().next();
+        Ok(match f {
+            Some(f) => FitCheck {
+                n: truth.bulk[0].0,
+                k: truth.bulk[0].1,
+                box_max: (self.fit.n_range.1, self.fit.k_range.1),
+                status: f.status,
+                reason: f.reason.clone(),
+                n_se: f.n_se,
+                k_se: f.k_se,
+            },
+            None => FitCheck {
+                n: truth.bulk[0].0,
+                k: truth.bulk[0].1,
+                box_max: (self.fit.n_range.1, self.fit.k_range.1),
+                status: FitStatus::IllConditioned,
+                reason: "no fit".into(),
+                n_se: f64::NAN,
+                k_se: f64::NAN,
+            },
+        })
+    }
+}
+
+/// An active pair of the search: target, alternative, and the truth points to try.
+struct Active {
+    target: usize,
+    alt: usize,
+    grid: Vec<TruthPoint>,
+}
+
+/// The smallest margin over the active pairs for the positions `idx` of `cands`.
+fn objective(models: &Models, cands: &[Position], idx: &[usize], active: &[Active]) -> f64 {
+    let pos: Vec<&Position> = idx.iter().map(|&i| &cands[i]).collect();
+    let mut worst = f64::INFINITY;
+    for a in active {
+        let m = models
+            .pair(&pos, a.target, a.alt, &a.grid)
+            .map_or(f64::NEG_INFINITY, |s| s.margin);
+        worst = worst.min(m);
+        if worst == f64::NEG_INFINITY {
+            break;
+        }
+    }
+    worst
+}
+
+/// Plan the captures of `scene` (module documentation).
+///
+/// Errors: a configuration error naming the option, a scene without plates of a
+/// candidate material (naming the plates and the library), an unusable library, a region
+/// with fewer lit positions than asked for.
+pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
+    cfg.validate()?;
+    let mut warnings = Vec::new();
+    let scene_path = scene.path.display().to_string();
+    if matches!(scene.capture, CaptureKind::ColourDofp { .. }) {
+        return Err(PipelineError::config(
+            "scene",
+            &scene_path,
+            "colour scenes are not planned yet: plan one band (a monochrome copy of the scene)",
+        ));
+    }
+    let wl = match scene.wavelength_nm {
+        Some(w) => w,
+        None => {
+            warnings.push(Warning(format!(
+                "{scene_path} gives no wavelength_nm: planned at {} nm, the built-in library's band",
+                polarid_io::library::BUILTIN_WAVELENGTH_NM
+            )));
+            polarid_io::library::BUILTIN_WAVELENGTH_NM
+        }
+    };
+    // The candidates.
+    let source = PrototypeSource::Library(cfg.library.clone());
+    let (protos, label, w) = source.load_multi_for(&[wl], 0)?;
+    warnings.extend(w);
+    let protos: Vec<MultiPrototype> = if cfg.materials.is_empty() {
+        protos
+    } else {
+        for m in &cfg.materials {
+            if !protos.iter().any(|p| &p.class == m) {
+                return Err(PipelineError::config(
+                    "materials",
+                    m,
+                    format!("no material of that name in {label} (see `polarid library --list`)"),
+                ));
+            }
+        }
+        protos
+            .into_iter()
+            .filter(|p| cfg.materials.contains(&p.class))
+            .collect()
+    };
+    let mut names = Vec::new();
+    let mut models = Vec::new();
+    for p in &protos {
+        if names.contains(&p.class) {
+            continue;
+        }
+        if let Some(m) = CandidateModel::from_prototype(p, &[wl]) {
+            names.push(p.class.clone());
+            models.push(m);
+        }
+    }
+    // The targets: plates whose class is a candidate.
+    let bench = match &scene.geometry {
+        Geometry::Calibrated(c) => Bench::Calibrated {
+            camera: c.camera.position,
+        },
+        Geometry::FarField {
+            theta_r_deg,
+            phi_deg,
+            ..
+        } => Bench::FarField {
+            theta_r: theta_r_deg.to_radians(),
+            phi: phi_deg.to_radians(),
+        },
+    };
+    let per_set = match scene.capture {
+        CaptureKind::Dofp { .. } => 4.0,
+        _ => 1.0,
+    };
+    let mut targets = Vec::new();
+    let mut truth = Vec::new();
+    let mut plates = Vec::new();
+    for p in &scene.plates {
+        let Some(class) = &p.class else {
+            warnings.push(Warning(format!(
+                "plate {:?} has no class: not planned for",
+                p.name
+            )));
+            continue;
+        };
+        let Some(i) = names.iter().position(|n| n == class) else {
+            warnings.push(Warning(format!(
+                "plate {:?} is {class:?}, not a material of {label}: not planned for",
+                p.name
+            )));
+            continue;
+        };
+        let (center, normal) = match (&scene.geometry, &p.placement) {
+            (Geometry::Calibrated(c), Some(pl)) => {
+                let plane = &c.planes[pl.plane];
+                (pl.center, unit(plane.normal))
+            }
+            _ => ([0.0; 3], [0.0, 0.0, 1.0]),
+        };
+        targets.push(Target {
+            name: p.name.clone(),
+            material: class.clone(),
+        });
+        truth.push(i);
+        plates.push(PlateView {
+            center,
+            normal,
+            n: p.optics.n,
+            k: p.optics.k,
+            sigma: p.optics.sigma,
+            sets: (p.region.width * p.region.height) as f64 / per_set,
+        });
+    }
+    if targets.is_empty() {
+        return Err(PipelineError::config(
+            "scene",
+            &scene_path,
+            format!(
+                "no plate has a class that is a material of {label}: give each plate the \
+                 `class` of its material"
+            ),
+        ));
+    }
+    let fit = &cfg.fit;
+    let angle_sd = fit.angle_sd_deg.to_radians();
+    let hcfg = HypothesisConfig {
+        confidence: cfg.confidence,
+        nuisances: Nuisances::from_error_model(
+            fit.extinction_ratio,
+            fit.retardance_deg.to_radians(),
+            angle_sd,
+        ),
+    };
+    let models = Models {
+        names: names.clone(),
+        models,
+        truth,
+        cfg: hcfg,
+        wavelengths: vec![wl],
+        angle_sd,
+        floor: fit.dolp_floor,
+        power: cfg.power,
+        fit: *fit,
+    };
+    // The scene's own sources.
+    let (own, intensity): (Vec<(String, SourceSpec)>, f64) = match &scene.geometry {
+        Geometry::Calibrated(c) => (
+            c.sources
+                .iter()
+                .enumerate()
+                .map(|(i, s)| {
+                    (
+                        s.name.clone().unwrap_or(format!("source {}", i + 1)),
+                        s.spec.clone(),
+                    )
+                })
+                .collect(),
+            if c.sources.is_empty() {
+                1.0
+            } else {
+                c.sources.iter().map(|s| s.intensity).sum::<f64>() / c.sources.len() as f64
+            },
+        ),
+        Geometry::FarField { theta_i_deg, .. } => (
+            theta_i_deg
+                .iter()
+                .map(|t| {
+                    let r = t.to_radians();
+                    (
+                        format!("t {t}"),
+                        SourceSpec::Direction([r.sin(), 0.0, r.cos()]),
+                    )
+                })
+                .collect(),
+            1.0,
+        ),
+    };
+    let make = |label: String, spec: SourceSpec| -> Option<Position> {
+        position_rows(
+            &bench,
+            &plates,
+            &scene.sensor,
+            &scene.exposure,
+            &spec,
+            intensity,
+            cfg.dolp_se,
+        )
+        .map(|rows| Position {
+            label,
+            spec,
+            rows,
+            in_plane: true,
+        })
+    };
+    let mut current_positions = Vec::new();
+    for (label, spec) in &own {
+        match make(label.clone(), spec.clone()) {
+            Some(p) => current_positions.push(p),
+            None => warnings.push(Warning(format!(
+                "the scene's {label} leaves a plate dark or unlit: left out of the current plan"
+            ))),
+        }
+    }
+    // The region's candidates.
+    let r = &cfg.region;
+    let steps_of = |(lo, hi): (f64, f64), step: f64| -> Vec<f64> {
+        let n = ((hi - lo) / step + 1e-9).floor() as usize;
+        (0..=n).map(|i| lo + i as f64 * step).collect()
+    };
+    let steps = |range: (f64, f64)| steps_of(range, r.step_deg);
+    let mut cands = Vec::new();
+    match (&bench, &scene.geometry) {
+        (Bench::Calibrated { camera }, Geometry::Calibrated(_)) => {
+            let n_p = plates.len() as f64;
+            let o = plates.iter().fold([0.0; 3], |a, p| {
+                [
+                    a[0] + p.center[0] / n_p,
+                    a[1] + p.center[1] / n_p,
+                    a[2] + p.center[2] / n_p,
+                ]
+            });
+            let nrm = plates[0].normal;
+            let away = sub(o, *camera);
+            let e1 = unit(sub(away, {
+                let c = dot(away, nrm);
+                [c * nrm[0], c * nrm[1], c * nrm[2]]
+            }));
+            let e2 = cross(nrm, e1);
+            let mut lamps: Vec<f64> = own
+                .iter()
+                .filter_map(|(_, s)| match s {
+                    SourceSpec::Position(p) => Some(norm(sub(*p, o))),
+                    _ => None,
+                })
+                .collect();
+            lamps.sort_by(f64::total_cmp);
+            let distance = r.distance.or(lamps.get(lamps.len() / 2).copied());
+            for &t in &steps(r.zenith_deg) {
+                let azis = if t == 0.0 {
+                    vec![0.0]
+                } else {
+                    let mut a = steps_of(r.azimuth_deg, 2.0 * r.step_deg);
+                    if r.azimuth_deg.0 <= 0.0 && r.azimuth_deg.1 >= 0.0 && !a.contains(&0.0) {
+                        a.push(0.0);
+                    }
+                    a
+                };
+                for &a in &azis {
+                    let (tr, ar) = (t.to_radians(), a.to_radians());
+                    let dir = [
+                        tr.sin() * ar.cos() * e1[0]
+                            + tr.sin() * ar.sin() * e2[0]
+                            + tr.cos() * nrm[0],
+                        tr.sin() * ar.cos() * e1[1]
+                            + tr.sin() * ar.sin() * e2[1]
+                            + tr.cos() * nrm[1],
+                        tr.sin() * ar.cos() * e1[2]
+                            + tr.sin() * ar.sin() * e2[2]
+                            + tr.cos() * nrm[2],
+                    ];
+                    let (label, spec) = match distance {
+                        Some(d) => (
+                            format!("d {d:.2}, t {t}, a {a}"),
+                            SourceSpec::Position([
+                                o[0] + d * dir[0],
+                                o[1] + d * dir[1],
+                                o[2] + d * dir[2],
+                            ]),
+                        ),
+                        None => (format!("t {t}, a {a}"), SourceSpec::Direction(dir)),
+                    };
+                    if let Some(mut p) = make(label, spec) {
+                        p.in_plane = a == 0.0;
+                        cands.push(p);
+                    }
+                }
+            }
+        }
+        _ => {
+            for &t in &steps(r.zenith_deg) {
+                let tr = t.to_radians();
+                if let Some(p) = make(
+                    format!("t {t}"),
+                    SourceSpec::Direction([tr.sin(), 0.0, tr.cos()]),
+                ) {
+                    cands.push(p);
+                }
+            }
+        }
+    }
+    if cands.len() < cfg.positions {
+        return Err(PipelineError::config(
+            "positions",
+            cfg.positions,
+            format!(
+                "the region gives only {} lit positions (zenith {:?}, azimuth {:?}, step {}): \
+                 widen it or ask for fewer",
+                cands.len(),
+                r.zenith_deg,
+                r.azimuth_deg,
+                r.step_deg
+            ),
+        ));
+    }
+    // Active pairs: each target's hardest alternatives, screened on the candidates in
+    // the camera's plane of incidence (all of them when none is), each with the three
+    // points of its truth grid that were hardest there.
+    let in_plane: Vec<&Position> = cands.iter().filter(|p| p.in_plane).collect();
+    let screen: Vec<&Position> = if in_plane.len() >= 3 {
+        in_plane
+    } else {
+        cands.iter().collect()
+    };
+    let mut active: Vec<Active> = Vec::new();
+    for t in 0..targets.len() {
+        let grid = truth_grid(&models.models[models.truth[t]], &models.cfg);
+        let mut m: Vec<(f64, usize, Vec<TruthPoint>)> = Vec::new();
+        for alt in 0..models.models.len() {
+            if alt == models.truth[t] {
+                continue;
+            }
+            let mut pts: Vec<(f64, TruthPoint)> = Vec::with_capacity(grid.len());
+            for &at in &grid {
+                let s = models.pair(&screen, t, alt, &[at])?;
+                pts.push((s.margin, at));
+            }
+            pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+            m.push((pts[0].0, alt, pts.iter().take(3).map(|p| p.1).collect()));
+        }
+        m.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for (_, alt, pts) in m.into_iter().take(ACTIVE_PER_TARGET) {
+            active.push(Active {
+                target: t,
+                alt,
+                grid: pts,
+            });
+        }
+    }
+    // Start: positions spread evenly in the first target's β.
+    let mut order: Vec<usize> = (0..cands.len()).collect();
+    order.sort_by(|&a, &b| {
+        cands[a].rows[0]
+            .beta_deg
+            .total_cmp(&cands[b].rows[0].beta_deg)
+    });
+    let n = cfg.positions;
+    let mut idx: Vec<usize> = (0..n)
+        .map(|i| order[(i * (order.len() - 1)) / (n - 1)])
+        .collect();
+    idx.dedup();
+    while idx.len() < n {
+        if let Some(&c) = order.iter().find(|c| !idx.contains(c)) {
+            idx.push(c);
+        }
+    }
+    let mut progress = Vec::new();
+    for _round in 0..3 {
+        let mut best = objective(&models, &cands, &idx, &active);
+        progress.push(best);
+        for _pass in 0..3 {
+            let mut improved = false;
+            for slot in 0..n {
+                let mut choice = idx[slot];
+                for c in 0..cands.len() {
+                    if idx.contains(&c) {
+                        continue;
+                    }
+                    let mut trial = idx.clone();
+                    trial[slot] = c;
+                    let v = objective(&models, &cands, &trial, &active);
+                    if v > best * (1.0 + 1e-9) + 1e-12 {
+                        best = v;
+                        choice = c;
+                    }
+                }
+                if choice != idx[slot] {
+                    idx[slot] = choice;
+                    improved = true;
+                }
+            }
+            progress.push(best);
+            if !improved {
+                break;
+            }
+        }
+        // Check every pair at the chosen positions; add a pair found harder than the
+        // active ones and search again.
+        let chosen: Vec<&Position> = idx.iter().map(|&i| &cands[i]).collect();
+        let mut added = false;
+        for t in 0..targets.len() {
+            let grid = truth_grid(&models.models[models.truth[t]], &models.cfg);
+            for alt in 0..models.models.len() {
+                if alt == models.truth[t] {
+                    continue;
+                }
+                let s = models.pair(&chosen, t, alt, &grid)?;
+                match active.iter_mut().find(|a| a.target == t && a.alt == alt) {
+                    Some(a) if !a.grid.contains(&s.worst) => {
+                        a.grid.push(s.worst);
+                        added = true;
+                    }
+                    Some(_) => {}
+                    None if s.margin < best => {
+                        active.push(Active {
+                            target: t,
+                            alt,
+                            grid: vec![s.worst],
+                        });
+                        added = true;
+                    }
+                    None => {}
+                }
+            }
+        }
+        if !added {
+            break;
+        }
+    }
+    idx.sort_by(|&a, &b| {
+        cands[a].rows[0]
+            .beta_deg
+            .total_cmp(&cands[b].rows[0].beta_deg)
+    });
+    let recommended = models.evaluate(idx.iter().map(|&i| cands[i].clone()).collect())?;
+    let current = if current_positions.len() >= 2 {
+        Some(models.evaluate(current_positions)?)
+    } else {
+        None
+    };
+    Ok(PlanOutput {
+        scene: scene.path.clone(),
+        targets,
+        materials: names,
+        library: label,
+        wavelength_nm: wl,
+        current,
+        recommended,
+        progress,
+        candidates: cands.len(),
+        config: cfg.clone(),
+        warnings,
+    })
+}
+
+/// Load the scene at `path` and plan it ([`plan`]).
+///
+/// Errors: the scene's (naming the file, line and field), then [`plan`]'s.
+pub fn plan_file(path: &Path, cfg: &PlanConfig) -> Result<PlanOutput> {
+    cfg.validate()?;
+    let scene = polarid_io::scene::load(path)?;
+    plan(&scene, cfg)
+}
+
+/// The DoLP curve of material `name` (bare, at the layer range's middle) for plots:
+/// `(β degrees, DoLP)` from 0 to 89°.
+pub fn dolp_curve(out: &PlanOutput, name: &str) -> Result<Vec<(f64, f64)>> {
+    let source = PrototypeSource::Library(out.config.library.clone());
+    let (protos, _, _) = source.load_multi_for(&[out.wavelength_nm], 0)?;
+    let Some(p) = protos.iter().find(|p| p.class == name) else {
+        return Ok(Vec::new());
+    };
+    let Some(m) = CandidateModel::from_prototype(p, &[out.wavelength_nm]) else {
+        return Ok(Vec::new());
+    };
+    let (layer, d) = match &m.layer {
+        Some(l) => (l.index[0], 0.5 * (l.min_nm + l.max_nm) / out.wavelength_nm),
+        None => ((1.0, 0.0), 0.0),
+    };
+    Ok((0..=178)
+        .map(|i| {
+            let b = i as f64 * 0.5;
+            (
+                b,
+                polarid_core::classify::layered_dolp(m.bulk[0], layer, d, b.to_radians()),
+            )
+        })
+        .collect())
+}
