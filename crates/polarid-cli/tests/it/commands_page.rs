@@ -22,15 +22,29 @@ fn help(args: &[&str]) -> String {
     common::text(&out.stdout).trim_end().to_string()
 }
 
-/// The subcommands listed under "Commands:" in the top-level help (without `help`).
-fn subcommands(top: &str) -> Vec<String> {
-    top.lines()
+/// The subcommands listed under "Commands:" in the top-level help (without `help`), each
+/// with its description (a wrapped description's continuation lines joined).
+fn subcommands(top: &str) -> Vec<(String, String)> {
+    let mut out: Vec<(String, String)> = Vec::new();
+    let listed = top
+        .lines()
         .skip_while(|l| !l.starts_with("Commands:"))
         .skip(1)
-        .take_while(|l| l.starts_with("  "))
-        .filter_map(|l| l.split_whitespace().next().map(str::to_string))
-        .filter(|c| c != "help")
-        .collect()
+        .take_while(|l| l.starts_with("  "));
+    for l in listed {
+        if l.starts_with("   ") {
+            if let Some((_, what)) = out.last_mut() {
+                what.push(' ');
+                what.push_str(l.trim());
+            }
+            continue;
+        }
+        let mut it = l.trim_start().splitn(2, ' ');
+        let c = it.next().unwrap_or_default().to_string();
+        out.push((c, it.next().unwrap_or_default().trim().to_string()));
+    }
+    out.retain(|(c, _)| c != "help");
+    out
 }
 
 fn page() -> String {
@@ -46,24 +60,13 @@ fn page() -> String {
          [FORMATS.md](FORMATS.md#exit-statuses).\n\n",
     );
     s.push_str("| command | what |\n| --- | --- |\n");
-    for l in top
-        .lines()
-        .skip_while(|l| !l.starts_with("Commands:"))
-        .skip(1)
-        .take_while(|l| l.starts_with("  "))
-    {
-        let mut it = l.trim_start().splitn(2, ' ');
-        let (Some(c), Some(what)) = (it.next(), it.next()) else {
-            continue;
-        };
-        if c != "help" {
-            s.push_str(&format!("| [`{c}`](#polarid-{c}) | {} |\n", what.trim()));
-        }
+    for (c, what) in &cmds {
+        s.push_str(&format!("| [`{c}`](#polarid-{c}) | {what} |\n"));
     }
     s.push_str("\n## polarid\n\n```text\n");
     s.push_str(&top);
     s.push_str("\n```\n");
-    for c in &cmds {
+    for (c, _) in &cmds {
         s.push_str(&format!("\n## polarid {c}\n\n```text\n"));
         s.push_str(&help(&[c, "--help"]));
         s.push_str("\n```\n");
