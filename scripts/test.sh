@@ -10,9 +10,10 @@
 #      in the release profile, so that the build scripts and procedural macros it
 #      compiles are the test build's;
 #   3. cargo test (release: the Monte-Carlo acceptance tests run 10^5 fits) of the
-#      workspace's libraries, binaries, integration tests (one test binary per crate,
-#      crates/*/tests/it/) and doc tests (examples and benches: checked by clippy, not
-#      built);
+#      workspace's binaries and integration tests (one test binary per crate,
+#      crates/*/tests/it/), the libraries' unit tests (polarid-core's built at
+#      opt-level 1, see below) and doc tests (examples and benches: checked by clippy,
+#      not built);
 #   4. Python (scripts/test_python.sh): builds the package into the venv .venv-test and
 #      runs pytest; its package downloads run in the background while Rust compiles, the
 #      extension's build reuses the crates compiled in step 3 (same profile, target
@@ -42,8 +43,14 @@ trap 'kill $prep 2>/dev/null || true; rm -f "$prep_log"' EXIT
 step "cargo clippy (all targets, warnings are errors)"
 cargo clippy --release --workspace --exclude polarid-python --all-targets --locked -- -D warnings
 
-step "cargo test (release): libraries, binaries, integration tests"
-cargo test --release --locked --lib --bins --tests
+step "cargo test (release): binaries and integration tests"
+cargo test --release --locked --bins --test '*'
+# The libraries' unit tests, with polarid-core at opt-level 1: its unit-test binary costs
+# about 110 CPU-s to build there against about 660 at opt-level 3, and its tests run in
+# 3 s; polarid-core's library is then built a second time (60 CPU-s, and polarid-io
+# against it, 50), the libraries that the other steps use stay at opt-level 3.
+step "cargo test (release, polarid-core at opt-level 1): the libraries' unit tests"
+cargo test --release --locked --lib --config 'profile.release.package.polarid-core.opt-level=1'
 step "cargo test (release): doc tests"
 cargo test --release --locked --doc
 
