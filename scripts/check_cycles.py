@@ -18,8 +18,8 @@ Test code (`#[cfg(test)]` items and modules) is left out: it may use any module;
 Usage: scripts/check_cycles.py [--tests] [--known FILE] [CRATE_SRC_DIR ...]
 
 --known FILE: the cycles listed in FILE (the first line of each report, one a line) are
-printed but do not fail the check; a new cycle does (scripts/test.sh passes
-scripts/known_cycles.txt).
+printed but do not fail the check; a new cycle does (scripts/test.sh checks with no
+known cycle: the workspace has none).
 """
 
 from __future__ import annotations

@@ -2,8 +2,7 @@
 # The one command that runs every test of polarid (README, CI). It must finish within 8
 # minutes on 2 cores from a clean clone, build included:
 #   1. the repository reads nothing beside it (scripts/check_self_contained.sh), and no
-#      crate has a module import cycle (scripts/check_cycles.py; the cycles of
-#      scripts/known_cycles.txt are reported but do not fail);
+#      crate has a module import cycle (scripts/check_cycles.py);
 #   2. cargo fmt --check, then cargo clippy on every target (examples and the benchmarks
 #      of benches/ included) with warnings as errors (the lints: [workspace.lints] of
 #      Cargo.toml);
@@ -30,7 +29,7 @@ step() { echo "== $1 [$((SECONDS - start)) s]"; }
 step "self-contained (no reads outside the repository)"
 ./scripts/check_self_contained.sh
 step "no module import cycles"
-python3 scripts/check_cycles.py --known scripts/known_cycles.txt
+python3 scripts/check_cycles.py
 step "cargo fmt --check"
 cargo fmt --all -- --check
 
