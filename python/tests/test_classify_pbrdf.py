@@ -69,7 +69,7 @@ def test_classify_files(tmp_path):
         polarid.classify(1.0, 1.0, [("a", 1.0, 1.0), "b"])
     with pytest.raises(ValueError, match="metric must be"):
         polarid.classify(1.0, 1.0, PROTOS, metric="cosine")
-    with pytest.raises(ValueError, match="invalid classifier option"):
+    with pytest.raises(ValueError, match="classifier option is invalid"):
         polarid.classify(1.0, 1.0, PROTOS, neighbours=0)
 
 
