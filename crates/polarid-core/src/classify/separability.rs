@@ -290,6 +290,7 @@ pub fn separation(
             best = Some((fit, at));
         }
     }
+    // ok: the grid was checked non-empty above, so the loop set `best`.
     let (fit, worst) = best.expect("grid is not empty");
     let lambda = fit.chi2.max(0.0);
     let dof = fit.dof.max(1e-3);
