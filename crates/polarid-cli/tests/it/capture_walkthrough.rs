@@ -77,8 +77,34 @@ fn copy_dir(from: &Path, to: &Path) {
 fn walkthrough_from_a_folder_of_frames_to_a_map() {
     let tmp = tempfile::tempdir().unwrap();
     let root = tmp.path();
-    // The "camera": simulated captures, stripped to a folder of frames.
     let scene = scene();
+    // Step 0: plan the lamp positions on the bench's scene before any capture. The
+    // scene's nine positions tell aluminum and polycarbonate from the other candidates;
+    // silicon and gallium arsenide agree within the noise in one band.
+    let o = polarid_in(
+        root,
+        &[
+            "plan",
+            scene.to_str().unwrap(),
+            "--materials",
+            "aluminum,silicon,polycarbonate,copper,gallium_arsenide",
+            "--step-deg",
+            "10",
+            "-o",
+            "plan",
+        ],
+    );
+    assert!(o.status.success(), "plan: {}", text(&o.stderr));
+    let table = text(&o.stdout);
+    for line in [
+        "aluminum: aluminum identifiable",
+        "polycarbonate: polycarbonate identifiable",
+        "silicon: silicon NOT identifiable",
+    ] {
+        assert!(table.contains(line), "{line:?} not in:\n{table}");
+    }
+    assert!(root.join("plan/scene.toml").is_file());
+    // The "camera": simulated captures, stripped to a folder of frames.
     ok_in(
         root,
         &["simulate", scene.to_str().unwrap(), "-o", "sim", "-q"],
