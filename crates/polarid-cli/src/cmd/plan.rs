@@ -10,9 +10,12 @@
 //! `scene.toml` (the scene with the recommended sources, ready for `polarid simulate`).
 
 use std::fmt::Write as _;
-use std::path::PathBuf;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
 
 use polarid_io::atomic::StagedDir;
+use polarid_io::manifest::SourceSpec;
+use polarid_io::table::{fmt_f64, write_rows};
 use polarid_pipeline::fit::FitConfig;
 use polarid_pipeline::plan::{Evaluation, PlanConfig, PlanOutput, Region, dolp_curve, plan_file};
 
@@ -180,71 +183,97 @@ fn design_text(out: &PlanOutput, ev: &Evaluation, title: &str) -> String {
     s
 }
 
-fn pairs_csv(out: &PlanOutput) -> String {
-    let mut s = String::from(
-        "design,plate,material,alternative,lambda,dof,critical,power,margin,worst_thickness_nm,worst_scale,worst_offset_deg\n",
-    );
-    let designs = out
-        .current
+/// The evaluated designs, named as in the CSV files: the scene's own positions, then the
+/// recommended ones.
+fn designs(out: &PlanOutput) -> impl Iterator<Item = (&'static str, &Evaluation)> {
+    out.current
         .iter()
         .map(|e| ("current", e))
-        .chain(std::iter::once(("recommended", &out.recommended)));
-    for (name, ev) in designs {
-        for pr in &ev.pairs {
-            let t = &out.targets[pr.target];
-            let _ = writeln!(
-                s,
-                "{name},{},{},{},{},{},{},{},{},{},{},{}",
-                t.name,
-                t.material,
-                pr.alternative,
-                pr.sep.lambda,
-                pr.sep.dof,
-                pr.sep.critical,
-                pr.sep.power,
-                pr.sep.margin,
-                pr.sep.worst.thickness_nm,
-                pr.sep.worst.scale,
-                pr.sep.worst.offset.to_degrees()
-            );
-        }
-    }
-    s
+        .chain(std::iter::once(("recommended", &out.recommended)))
 }
 
-fn positions_csv(out: &PlanOutput) -> String {
-    let mut s =
-        String::from("design,position,x,y,z,plate,beta_deg,theta_i_deg,dolp_se,electrons\n");
-    let designs = out
-        .current
-        .iter()
-        .map(|e| ("current", e))
-        .chain(std::iter::once(("recommended", &out.recommended)));
-    for (name, ev) in designs {
-        for q in &ev.positions {
+/// `pairs.csv`: one row per design, plate and alternative (the project's CSV writer:
+/// quoted names, formula-like names neutralised).
+fn write_pairs_csv(path: &Path, out: &PlanOutput) -> anyhow::Result<()> {
+    const HEADERS: [&str; 12] = [
+        "design",
+        "plate",
+        "material",
+        "alternative",
+        "lambda",
+        "dof",
+        "critical",
+        "power",
+        "margin",
+        "worst_thickness_nm",
+        "worst_scale",
+        "worst_offset_deg",
+    ];
+    let rows = designs(out).flat_map(|(name, ev)| {
+        ev.pairs.iter().map(move |pr| {
+            let t = &out.targets[pr.target];
+            vec![
+                name.to_string(),
+                t.name.clone(),
+                t.material.clone(),
+                pr.alternative.clone(),
+                fmt_f64(pr.sep.lambda),
+                fmt_f64(pr.sep.dof),
+                fmt_f64(pr.sep.critical),
+                fmt_f64(pr.sep.power),
+                fmt_f64(pr.sep.margin),
+                fmt_f64(pr.sep.worst.thickness_nm),
+                fmt_f64(pr.sep.worst.scale),
+                fmt_f64(pr.sep.worst.offset.to_degrees()),
+            ]
+        })
+    });
+    let mut f = std::io::BufWriter::new(std::fs::File::create(path)?);
+    write_rows(&mut f, path, &HEADERS, rows)?;
+    f.flush()?;
+    Ok(())
+}
+
+/// `positions.csv`: one row per design, position and plate.
+fn write_positions_csv(path: &Path, out: &PlanOutput) -> anyhow::Result<()> {
+    const HEADERS: [&str; 10] = [
+        "design",
+        "position",
+        "x",
+        "y",
+        "z",
+        "plate",
+        "beta_deg",
+        "theta_i_deg",
+        "dolp_se",
+        "electrons",
+    ];
+    let rows = designs(out).flat_map(|(name, ev)| {
+        ev.positions.iter().flat_map(move |q| {
             let v = match &q.spec {
-                polarid_io::manifest::SourceSpec::Position(v)
-                | polarid_io::manifest::SourceSpec::Direction(v) => *v,
-                polarid_io::manifest::SourceSpec::Sun { direction, .. } => *direction,
+                SourceSpec::Position(v) | SourceSpec::Direction(v) => *v,
+                SourceSpec::Sun { direction, .. } => *direction,
             };
-            for (t, r) in q.rows.iter().enumerate() {
-                let _ = writeln!(
-                    s,
-                    "{name},{},{},{},{},{},{},{},{},{}",
+            q.rows.iter().enumerate().map(move |(t, r)| {
+                vec![
+                    name.to_string(),
                     q.label.replace(',', ""),
-                    v[0],
-                    v[1],
-                    v[2],
-                    out.targets[t].name,
-                    r.beta_deg,
-                    r.theta_i_deg,
-                    r.dolp_se,
-                    r.electrons
-                );
-            }
-        }
-    }
-    s
+                    fmt_f64(v[0]),
+                    fmt_f64(v[1]),
+                    fmt_f64(v[2]),
+                    out.targets[t].name.clone(),
+                    fmt_f64(r.beta_deg),
+                    fmt_f64(r.theta_i_deg),
+                    fmt_f64(r.dolp_se),
+                    fmt_f64(r.electrons),
+                ]
+            })
+        })
+    });
+    let mut f = std::io::BufWriter::new(std::fs::File::create(path)?);
+    write_rows(&mut f, path, &HEADERS, rows)?;
+    f.flush()?;
+    Ok(())
 }
 
 /// DoLP against β: per plate its material's curve with the recommended rows (±1 σ of
@@ -389,8 +418,8 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     }
     print!("{text}");
     if let (Some(staged), Some(dir)) = (staged, &args.output) {
-        std::fs::write(staged.path("pairs.csv")?, pairs_csv(&out))?;
-        std::fs::write(staged.path("positions.csv")?, positions_csv(&out))?;
+        write_pairs_csv(&staged.path("pairs.csv")?, &out)?;
+        write_positions_csv(&staged.path("positions.csv")?, &out)?;
         let scene_text = std::fs::read_to_string(&args.scene)?;
         std::fs::write(
             staged.path("scene.toml")?,
