@@ -10,7 +10,7 @@
 #      compiles are the test build's;
 #   3. cargo test (release: the Monte-Carlo acceptance tests run 10^5 fits) of the
 #      workspace's binaries and integration tests (one test binary per crate,
-#      crates/*/tests/it/), the libraries' unit tests (polarid-core's built at
+#      crates/*/tests/it/), the libraries' unit tests (polarid-core's built alone at
 #      opt-level 1, see below) and doc tests (examples and benches: checked by clippy,
 #      not built);
 #   4. Python (scripts/test_python.sh): builds the package into the venv .venv-test and
@@ -44,12 +44,16 @@ cargo clippy --release --workspace --exclude polarid-python --all-targets --lock
 
 step "cargo test (release): binaries and integration tests"
 cargo test --release --locked --bins --test '*'
-# The libraries' unit tests, with polarid-core at opt-level 1: its unit-test binary costs
-# about 110 CPU-s to build there against about 660 at opt-level 3, and its tests run in
-# 3 s; polarid-core's library is then built a second time (60 CPU-s, and polarid-io
-# against it, 50), the libraries that the other steps use stay at opt-level 3.
-step "cargo test (release, polarid-core at opt-level 1): the libraries' unit tests"
-cargo test --release --locked --lib --config 'profile.release.package.polarid-core.opt-level=1'
+# The libraries' unit tests: those of polarid-io and -pipeline (and the test kit's) against the
+# libraries built above; polarid-core's alone, at opt-level 1 (its unit-test binary costs
+# about 110 CPU-s to build there against about 660 at opt-level 3, and its tests run in a
+# few seconds). polarid-core has no dependency on the other crates, even among its test
+# dependencies, so that selecting it alone builds only its test binary at opt-level 1
+# and leaves the libraries of the other steps as they are.
+step "cargo test (release): the libraries' unit tests"
+cargo test --release --locked --lib -p polarid-io -p polarid-pipeline -p polarid-testkit
+step "cargo test (release, polarid-core at opt-level 1): polarid-core's unit tests"
+cargo test --release --locked --lib -p polarid-core --config 'profile.release.package.polarid-core.opt-level=1'
 step "cargo test (release): doc tests"
 cargo test --release --locked --doc
 

@@ -429,6 +429,7 @@ def _map_block(
 ) -> NDArray[np.float32]: ...
 
 _NOISE_SAMPLE: int
+_MAP_DEFAULTS: dict[str, float | int]
 
 def _map_names_colour(
     *,

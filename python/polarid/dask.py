@@ -63,6 +63,7 @@ from typing import Any
 import numpy as np
 
 from ._polarid import (
+    _MAP_DEFAULTS,
     _NOISE_SAMPLE,
     _estimate_noise,
     _map_block,
@@ -81,8 +82,14 @@ PLANES = ("n", "k", "n_se", "k_se", "rms_residual", "class", "reason")
 #: neighbourhood, rounded up to keep the 2×2 pattern's phase).
 DOFP_HALO = 2
 
-#: The defaults of ``polarid map``'s systematic error model (``polarid fit``'s).
-DEFAULT_ERRORS = dict(angle_sd_deg=0.2, dolp_floor=0.002, extinction_ratio=100.0, retardance_deg=0.0)
+#: The defaults of ``polarid map``'s systematic error model (``polarid fit``'s), read from
+#: the Rust pipeline.
+DEFAULT_ERRORS = {
+    key: _MAP_DEFAULTS[key] for key in ("angle_sd_deg", "dolp_floor", "extinction_ratio", "retardance_deg")
+}
+
+#: Pixels per fitting tile within a block (``polarid map --tile``'s default).
+DEFAULT_TILE: int = _MAP_DEFAULTS["tile"]
 
 
 def _dask_array():
@@ -283,7 +290,7 @@ def material_map(
     retardance_deg: float = DEFAULT_ERRORS["retardance_deg"],
     max_distance: float | None = None,
     metric: str = "euclidean",
-    tile: int = 65536,
+    tile: int = DEFAULT_TILE,
     rechunk: bool = True,
     scheduler: Any = None,
 ) -> dict[str, Any]:

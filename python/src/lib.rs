@@ -45,5 +45,20 @@ fn _polarid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     map::register(m)?;
     block::register(m)?;
     block_colour::register(m)?;
+    m.add("_MAP_DEFAULTS", map_defaults(m.py())?)?;
     Ok(())
+}
+
+/// The defaults of `polarid map`'s options that `polarid.dask` repeats in its
+/// signature (the pipeline's [`polarid_pipeline::map::MapErrors::default`] and
+/// [`polarid_pipeline::map::DEFAULT_TILE`]), so that Python reads them from Rust.
+fn map_defaults(py: Python<'_>) -> PyResult<Bound<'_, pyo3::types::PyDict>> {
+    let e = polarid_pipeline::map::MapErrors::default();
+    let d = pyo3::types::PyDict::new(py);
+    d.set_item("angle_sd_deg", e.angle_sd_deg)?;
+    d.set_item("dolp_floor", e.dolp_floor)?;
+    d.set_item("extinction_ratio", e.extinction_ratio)?;
+    d.set_item("retardance_deg", e.retardance_deg)?;
+    d.set_item("tile", polarid_pipeline::map::DEFAULT_TILE)?;
+    Ok(d)
 }
