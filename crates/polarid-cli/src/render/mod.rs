@@ -25,6 +25,7 @@ pub mod colour_demo;
 pub mod demo;
 pub mod map_figures;
 pub mod plots;
+pub mod png;
 pub mod report;
 pub mod table_report;
 pub mod views;

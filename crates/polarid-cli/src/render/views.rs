@@ -26,8 +26,6 @@
 use std::io::Write;
 use std::path::Path;
 
-use ::image::ImageEncoder;
-use ::image::codecs::png::{CompressionType, FilterType, PngEncoder};
 use polarid_core::stokes::mask;
 use polarid_io::IoError;
 use rayon::prelude::*;
@@ -386,9 +384,7 @@ pub fn write_png_fast(path: &Path, w: usize, h: usize, px: &[u8]) -> Result<(), 
         u32::try_from(w).map_err(|e| bad(e.to_string()))?,
         u32::try_from(h).map_err(|e| bad(e.to_string()))?,
     );
-    let mut buf = Vec::with_capacity(px.len() / 2);
-    PngEncoder::new_with_quality(&mut buf, CompressionType::Fast, FilterType::Adaptive)
-        .write_image(px, wu, hu, ::image::ExtendedColorType::Rgb8)
+    let buf = crate::render::png::encode_rgb8(px, wu, hu)
         .map_err(|e| bad(format!("cannot encode PNG: {e}")))?;
     polarid_io::atomic::write_atomic(path, true, |out: &mut dyn Write| {
         out.write_all(&buf).map_err(|e| IoError::io(path, e))

@@ -35,12 +35,7 @@ pub(super) trait Figure {
 }
 
 pub(super) fn encode_png(rgb: &[u8], w: u32, h: u32) -> Result<Vec<u8>> {
-    use image::ImageEncoder;
-    let mut out = Vec::new();
-    image::codecs::png::PngEncoder::new(&mut out)
-        .write_image(rgb, w, h, image::ExtendedColorType::Rgb8)
-        .context("PNG encoding failed")?;
-    Ok(out)
+    crate::render::png::encode_rgb8(rgb, w, h).context("PNG encoding failed")
 }
 
 /// Render `fig` to PNG and SVG.
