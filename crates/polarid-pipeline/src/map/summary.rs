@@ -191,11 +191,9 @@ impl MapResult {
                 self.bands
                     .iter()
                     .map(|b| {
-                        let tag = polarid_io::manifest::colour::wavelength_label(b.wavelength_nm);
-                        let files: Vec<String> = BAND_IMAGES
-                            .iter()
-                            .map(|f| format!("{f}_{tag}.tif"))
-                            .collect();
+                        let files: Vec<String> =
+                            super::bands::image_files(Some(super::band_tag(b.wavelength_nm)))
+                                .collect();
                         let reasons: serde_json::Map<String, Value> = names
                             .iter()
                             .zip(b.reasons)
