@@ -31,9 +31,11 @@ use crate::progress::{Progress, Warning};
 /// The fit of one band of a map: images of the map's size, row-major.
 #[derive(Debug, Clone)]
 pub struct BandMap {
-    /// The band's wavelength, nm (NaN for the unnamed band of a single-band map, which
-    /// [`MapResult::bands`] never holds).
+    /// The band's wavelength, nm (NaN for a single-band map whose captures give none).
     pub wavelength_nm: f64,
+    /// The band's file-name tag (`450`: `n_450.tif` ...); `None` for the one band of a
+    /// single-band map (`n.tif` ...).
+    pub tag: Option<String>,
     /// The captures measured in this band (indices into `Manifest::captures`).
     pub captures: Vec<usize>,
     /// Fitted `n` (NaN where not fitted).
@@ -60,7 +62,9 @@ pub fn band_tag(wavelength_nm: f64) -> String {
     polarid_io::manifest::colour::wavelength_label(wavelength_nm)
 }
 
-pub use super::summary::BAND_IMAGES;
+/// The fit images of every band, written as `{name}.tif` for a single-band map and
+/// `{name}_{tag}.tif` ([`band_tag`]) per band of a colour map: `n_450.tif`, ...
+pub const BAND_IMAGES: [&str; 5] = ["n", "k", "n_se", "k_se", "rms_residual"];
 
 /// The files a map of `m` writes: `single` (the single-band map's files, of which the
 /// first five are its fit images `n.tif` ... `rms_residual.tif`) as they are, or for a
@@ -108,19 +112,18 @@ impl MapResult {
     /// `rms_residual.tif` of a single-band map, or those of every band
     /// (`n_450.tif`, ..., [`BAND_IMAGES`]) of a colour map.
     pub fn fit_images(&self) -> Vec<(String, &[f32])> {
-        let single = self.bands.is_empty().then_some((
-            None,
-            [&self.n, &self.k, &self.n_se, &self.k_se, &self.rms_residual],
-        ));
-        let bands = self.bands.iter().map(|b| {
-            let tag = Some(band_tag(b.wavelength_nm));
-            (tag, [&b.n, &b.k, &b.n_se, &b.k_se, &b.rms_residual])
-        });
-        single
-            .into_iter()
-            .chain(bands)
-            .flat_map(|(tag, all)| image_files(tag).zip(all.map(Vec::as_slice)))
+        self.bands
+            .iter()
+            .flat_map(|b| {
+                let all = [&b.n, &b.k, &b.n_se, &b.k_se, &b.rms_residual];
+                image_files(b.tag.clone()).zip(all.map(Vec::as_slice))
+            })
             .collect()
+    }
+
+    /// Whether the map is per band of colour captures (its bands named by wavelength).
+    pub fn is_colour(&self) -> bool {
+        self.bands.iter().any(|b| b.tag.is_some())
     }
 }
 
@@ -537,7 +540,8 @@ pub(crate) fn fit_bands_with(
         .map_err(core_err)?;
         corrs.push(corr);
         bands.push(BandMap {
-            wavelength_nm: a.wavelength_nm.filter(|_| a.named).unwrap_or(f64::NAN),
+            wavelength_nm: a.wavelength_nm.unwrap_or(f64::NAN),
+            tag: a.tag(),
             captures: a.captures.clone(),
             n,
             k,

@@ -127,6 +127,29 @@ fn read_mosaic(
     Ok((raw, d, rules, min_s0))
 }
 
+/// One band's binned DoLP from its Stokes images `s` (`mask`: the mosaic's per-pixel
+/// flags; `scale` converts the signal to DN for the noise model), the dark test on the
+/// block mean at `min_s0`.
+#[allow(clippy::too_many_arguments)]
+fn stokes_band(
+    wavelength_nm: Option<f64>,
+    d: Dims,
+    s: [&[f32]; 3],
+    mask: Option<&[u8]>,
+    min_s0: f32,
+    scale: f64,
+    bin: usize,
+    weighted: bool,
+) -> std::result::Result<CaptureBand, polarid_core::CoreError> {
+    let quad = NoiseAnalyzer::quad();
+    let mut b = CaptureBand::new(wavelength_nm, d, weighted);
+    let (dolp, flags, nz) = b.outputs(&quad, scale);
+    map::stokes_dolp_noise(
+        d.width, s[0], s[1], s[2], mask, min_s0, bin, dolp, flags, nz,
+    )?;
+    Ok(b)
+}
+
 /// The binned DoLP of one capture per band (one band for a single-band capture; a
 /// colour mosaic reconstructed once into its bands, bilinear per lattice, in the order
 /// of its pattern), with `weighted` the noise terms; returns the dark threshold used
@@ -138,7 +161,6 @@ pub(crate) fn capture_bands(
     weighted: bool,
 ) -> Result<(f32, Vec<CaptureBand>)> {
     let bin = cfg.bin;
-    let quad = NoiseAnalyzer::quad();
     match &c.source {
         CaptureSource::Frames(frames) => {
             let angles: Vec<f64> = frames.iter().map(|f| f.angle_deg).collect();
@@ -180,22 +202,9 @@ pub(crate) fn capture_bands(
             )
             .map_err(core_err(file))?;
             drop(raw);
-            let mut b = CaptureBand::new(c.wavelength_nm, d, weighted);
-            let (dolp, flags, nz) = b.outputs(&quad, 1.0);
-            map::stokes_dolp_noise(
-                d.width,
-                &s0,
-                &s1,
-                &s2,
-                Some(&m),
-                min_s0,
-                bin,
-                dolp,
-                flags,
-                nz,
-            )
-            .map_err(core_err(file))?;
-            Ok((min_s0, vec![b]))
+            let s = [&s0[..], &s1, &s2];
+            let b = stokes_band(c.wavelength_nm, d, s, Some(&m), min_s0, 1.0, bin, weighted);
+            Ok((min_s0, vec![b.map_err(core_err(file))?]))
         }
         CaptureSource::ColourDofp {
             file,
@@ -205,26 +214,15 @@ pub(crate) fn capture_bands(
             let (raw, d, rules, min_s0) = read_mosaic(c, file, cfg, dims)?;
             let imgs = colour_stokes(&raw, pattern, &rules, ColourMethod::Bilinear)?;
             drop(raw);
-            let mut out = Vec::with_capacity(imgs.len());
-            for (img, &w) in imgs.iter().zip(wavelengths_nm) {
-                let mut b = CaptureBand::new(Some(w), d, weighted);
-                let (dolp, flags, nz) = b.outputs(&quad, 1.0);
-                map::stokes_dolp_noise(
-                    d.width,
-                    &img.s0,
-                    &img.s1,
-                    &img.s2,
-                    Some(&img.mask),
-                    min_s0,
-                    bin,
-                    dolp,
-                    flags,
-                    nz,
-                )
-                .map_err(core_err(file))?;
-                out.push(b);
-            }
-            Ok((min_s0, out))
+            let out = imgs.iter().zip(wavelengths_nm).map(|(img, &w)| {
+                let s = [&img.s0[..], &img.s1, &img.s2];
+                stokes_band(Some(w), d, s, Some(&img.mask), min_s0, 1.0, bin, weighted)
+            });
+            Ok((
+                min_s0,
+                out.collect::<std::result::Result<_, _>>()
+                    .map_err(core_err(file))?,
+            ))
         }
         CaptureSource::Stokes { s0, s1, s2 } => {
             let imgs = image::read_frames(&[s0, s1, s2])?;
@@ -235,24 +233,20 @@ pub(crate) fn capture_bands(
                 });
             };
             let d = check_dims(dims, i0, bin)?;
-            let min_s0 = cfg.min_s0.unwrap_or(0.0) / c.exposure;
-            let mut b = CaptureBand::new(c.wavelength_nm, d, weighted);
+            let min_s0 = (cfg.min_s0.unwrap_or(0.0) / c.exposure) as f32;
+            let s = [&i0.data[..], &i1.data, &i2.data];
             // S in DN / exposure: back to DN for the noise model.
-            let (dolp, flags, nz) = b.outputs(&quad, c.exposure);
-            map::stokes_dolp_noise(
-                d.width,
-                &i0.data,
-                &i1.data,
-                &i2.data,
+            let b = stokes_band(
+                c.wavelength_nm,
+                d,
+                s,
                 None,
-                min_s0 as f32,
+                min_s0,
+                c.exposure,
                 bin,
-                dolp,
-                flags,
-                nz,
-            )
-            .map_err(core_err(s0))?;
-            Ok((min_s0 as f32, vec![b]))
+                weighted,
+            );
+            Ok((min_s0, vec![b.map_err(core_err(s0))?]))
         }
     }
 }

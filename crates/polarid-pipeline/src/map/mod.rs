@@ -297,16 +297,6 @@ pub struct MapResult {
     pub width: usize,
     /// Map height.
     pub height: usize,
-    /// Fitted `n` (NaN where not fitted).
-    pub n: Vec<f32>,
-    /// Fitted `k` (NaN where not fitted).
-    pub k: Vec<f32>,
-    /// Standard error of `n`.
-    pub n_se: Vec<f32>,
-    /// Standard error of `k`.
-    pub k_se: Vec<f32>,
-    /// RMS DoLP residual of the fit.
-    pub rms_residual: Vec<f32>,
     /// Class index: 0 not classified, `i >= 1` is `class_names[i - 1]`.
     pub class: Vec<u16>,
     /// Why a pixel is (not) classified: index into [`REASON_NAMES`].
@@ -352,10 +342,9 @@ pub struct MapResult {
     pub seconds_fit: f64,
     /// The manifest's warnings (unknown keys ...).
     pub warnings: Vec<Warning>,
-    /// Colour captures: the fit of every band, in increasing wavelength (module
-    /// `bands`); `n`, `k`, `n_se`, `k_se` and `rms_residual` are then
-    /// empty and `class`, `reason` are those of the classification on all bands. Empty
-    /// for a single-band map.
+    /// The fit of every band (module `bands`): the one unnamed band of a single-band map
+    /// (`n.tif` ...), or one per wavelength, increasing, of a map of colour captures
+    /// (`n_450.tif` ...). `class` and `reason` are those of the decision on all bands.
     pub bands: Vec<BandMap>,
 }
 
@@ -446,10 +435,9 @@ pub fn map_manifest(
 /// under the set rule every pixel is decided as `polarid classify` decides a target
 /// (module `decide`: a model on the same bench or another, a library by the hypothesis
 /// tests against the pixel's rows — single-band captures then need their
-/// `wavelength_nm`, else the built-in library's 650 nm is used with a warning). A
-/// manifest with colour captures is mapped per band (module `bands`): the
-/// [`MapResult`] then has one [`BandMap`] per band and empty `n`, `k`, `n_se`, `k_se`,
-/// `rms_residual`.
+/// `wavelength_nm`, else the built-in library's 650 nm is used with a warning). The
+/// [`MapResult`] has one [`BandMap`] per band (module `bands`): one for a single-band
+/// map, one per wavelength for a manifest with colour captures.
 ///
 /// Errors: a band in fewer than 3 captures, a single-band capture without a wavelength
 /// among colour captures ([`IoError::Manifest`] naming `capture[i].wavelength_nm`), the
@@ -560,26 +548,12 @@ pub fn map_manifest_from(
     };
     let (beta_range_deg, beta_maps_deg) = beta_degrees(beta_maps);
     let noise = fit.bands.iter().find_map(|b| b.noise);
-    let mut bands = fit.bands;
-    // A single-band map's fit images are the map's own (`n.tif` ...).
-    let single = match colour {
-        false => bands.pop(),
-        true => None,
-    };
-    let (n, k, n_se, k_se, rms_residual) = single.map_or_else(Default::default, |b| {
-        (b.n, b.k, b.n_se, b.k_se, b.rms_residual)
-    });
     Ok(MapResult {
         frame_width: d.width,
         frame_height: d.height,
         bin: cfg.bin,
         width: d.out_w,
         height: d.out_h,
-        n,
-        k,
-        n_se,
-        k_se,
-        rms_residual,
         class: fit.class,
         reason: fit.reason,
         class_names: fit.class_names,
@@ -600,7 +574,7 @@ pub fn map_manifest_from(
         seconds_dolp: t_dolp,
         seconds_fit: t_fit,
         warnings,
-        bands,
+        bands: fit.bands,
     })
 }
 

@@ -8,10 +8,6 @@ use serde_json::{Value, json};
 use super::MapResult;
 use super::capture::Dims;
 
-/// The per-band fit images of a colour map, written as `{name}_{tag}.tif`
-/// ([`super::band_tag`]): `n_450.tif`, `k_450.tif`, ...
-pub const BAND_IMAGES: [&str; 5] = ["n", "k", "n_se", "k_se", "rms_residual"];
-
 /// What a labelled region of the manifest became in the map.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RegionSummary {
@@ -186,7 +182,7 @@ impl MapResult {
             }),
             None => Value::Null,
         };
-        if !self.bands.is_empty() {
+        if self.is_colour() {
             v["bands"] = json!(
                 self.bands
                     .iter()
