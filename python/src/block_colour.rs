@@ -2,7 +2,7 @@
 //! kernel of `polarid.dask.material_map` on colour polarization mosaics (a 2×2 polarizer
 //! block under each colour of a 2×2 colour pattern, docs/BANDS.md).
 //!
-//! The steps are those of `polarid_pipeline::map::map_manifest_bands` (`polarid map` on
+//! The steps are those of `polarid_pipeline::map::map_manifest_from` (`polarid map` on
 //! a colour manifest), on the block's pixels: per capture the bilinear per-band Stokes
 //! images of the mosaic (`polarid_core::mosaic::colour_polar`, as
 //! `polarid_io::bands::colour_stokes` with the same pixel rules and dark threshold),

@@ -188,7 +188,7 @@ pub fn map_manifest<'py>(
         .detach(|| manifest::load(&mpath))
         .map_err(IntoPyErr::into_py_err)?;
     warn_all(py, &m)?;
-    let r = match (&model_path, &library) {
+    let mut r = match (&model_path, &library) {
         (Some(p), _) => {
             let mdl = py
                 .detach(|| Model::read(p))
@@ -211,6 +211,7 @@ pub fn map_manifest<'py>(
             .map(|w| w.0.as_str()),
     )?;
     let summary = r.summary_json().to_string();
+    let colour = r.is_colour();
     let (h, w) = (r.height, r.width);
     let d = PyDict::new(py);
     let mut names = vec![r.class_name(0).to_string()];
@@ -239,12 +240,12 @@ pub fn map_manifest<'py>(
         d.set_item("class", image(py, h, w, r.class)?)?;
     }
     d.set_item("reason", image(py, h, w, r.reason)?)?;
-    if r.bands.is_empty() {
-        d.set_item("n", image(py, h, w, r.n)?)?;
-        d.set_item("k", image(py, h, w, r.k)?)?;
-        d.set_item("n_se", image(py, h, w, r.n_se)?)?;
-        d.set_item("k_se", image(py, h, w, r.k_se)?)?;
-        d.set_item("rms_residual", image(py, h, w, r.rms_residual)?)?;
+    if !colour && let Some(b) = r.bands.pop() {
+        d.set_item("n", image(py, h, w, b.n)?)?;
+        d.set_item("k", image(py, h, w, b.k)?)?;
+        d.set_item("n_se", image(py, h, w, b.n_se)?)?;
+        d.set_item("k_se", image(py, h, w, b.k_se)?)?;
+        d.set_item("rms_residual", image(py, h, w, b.rms_residual)?)?;
     } else {
         let bands = PyDict::new(py);
         for b in r.bands {

@@ -96,47 +96,12 @@ pub fn colour_stokes(
 /// the file, [`IoError::Core`] naming the raw file whose size is not whole periods).
 pub fn capture_band_images(m: &Manifest, c: &Capture) -> Result<Vec<BandImages>> {
     match &c.source {
-        CaptureSource::ColourDofp {
-            file,
-            pattern,
-            wavelengths_nm,
-        } => {
-            let (mut imgs, dark_signal_dn, notes) = if c.brackets.is_empty() {
-                let raw = image::read_frame(file)?;
-                let rules = rules_for(&raw, c.dark_level, c.saturation);
-                let mut notes = saturation_notes(c, [&raw], rules.saturation);
-                let raw = whole_periods(c, raw, &mut notes)?;
-                let imgs = colour_stokes(&raw, pattern, &rules, ColourMethod::Bilinear)?;
-                (
-                    imgs,
-                    dark_threshold_dn(c, &rules, raw.kind.is_integer()),
-                    notes,
-                )
-            } else {
-                hdr_colour_images(m, c, pattern)?
-            };
-            for i in &mut imgs {
-                i.warnings = notes.clone();
-            }
-            let mut bands: Vec<BandImages> = imgs
-                .into_iter()
-                .zip(pattern.bands())
-                .zip(wavelengths_nm)
-                .map(|((mut images, &band), &w)| {
-                    images.dark_signal_dn = dark_signal_dn;
-                    BandImages {
-                        wavelength_nm: Some(w),
-                        band: Some(band),
-                        images,
-                    }
-                })
-                .collect();
-            bands.sort_by(|a, b| {
-                a.wavelength_nm
-                    .partial_cmp(&b.wavelength_nm)
-                    .unwrap_or(std::cmp::Ordering::Equal)
-            });
-            Ok(bands)
+        CaptureSource::ColourDofp { file, .. } if c.brackets.is_empty() => {
+            colour_frame_images(c, image::read_frame(file)?)
+        }
+        CaptureSource::ColourDofp { pattern, .. } => {
+            let (imgs, dark_signal_dn, notes) = hdr_colour_images(m, c, pattern)?;
+            Ok(colour_bands(c, imgs, dark_signal_dn, notes))
         }
         _ => Ok(vec![BandImages {
             wavelength_nm: c.wavelength_nm,
@@ -144,6 +109,65 @@ pub fn capture_band_images(m: &Manifest, c: &Capture) -> Result<Vec<BandImages>>
             images: capture_images(m, c)?,
         }]),
     }
+}
+
+/// [`capture_band_images`] of a colour capture `c` (one exposure) whose raw mosaic is
+/// `raw`, read or made in memory.
+///
+/// Errors: those of [`colour_stokes`]; [`IoError::Image`] naming the raw file when `c` is
+/// not a colour capture.
+pub fn colour_frame_images(c: &Capture, raw: Frame) -> Result<Vec<BandImages>> {
+    let CaptureSource::ColourDofp { pattern, .. } = &c.source else {
+        return Err(IoError::Image {
+            path: raw.path.clone(),
+            reason: format!("capture {} is not a colour capture", c.index),
+        });
+    };
+    let rules = rules_for(&raw, c.dark_level, c.saturation);
+    let mut notes = saturation_notes(c, [&raw], rules.saturation);
+    let raw = whole_periods(c, raw, &mut notes)?;
+    let imgs = colour_stokes(&raw, pattern, &rules, ColourMethod::Bilinear)?;
+    let dark_signal_dn = dark_threshold_dn(c, &rules, raw.kind.is_integer());
+    Ok(colour_bands(c, imgs, dark_signal_dn, notes))
+}
+
+/// The Stokes images `imgs` of colour capture `c` (one per band of its pattern) as
+/// [`BandImages`] in increasing wavelength, each with the capture's dark threshold and
+/// warnings.
+fn colour_bands(
+    c: &Capture,
+    imgs: Vec<StokesImages>,
+    dark_signal_dn: f64,
+    notes: Vec<String>,
+) -> Vec<BandImages> {
+    let CaptureSource::ColourDofp {
+        pattern,
+        wavelengths_nm,
+        ..
+    } = &c.source
+    else {
+        return Vec::new();
+    };
+    let mut bands: Vec<BandImages> = imgs
+        .into_iter()
+        .zip(pattern.bands())
+        .zip(wavelengths_nm)
+        .map(|((mut images, &band), &w)| {
+            images.dark_signal_dn = dark_signal_dn;
+            images.warnings = notes.clone();
+            BandImages {
+                wavelength_nm: Some(w),
+                band: Some(band),
+                images,
+            }
+        })
+        .collect();
+    bands.sort_by(|a, b| {
+        a.wavelength_nm
+            .partial_cmp(&b.wavelength_nm)
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    bands
 }
 
 /// `raw` cut to its whole 4×4 periods when its width or height is not a multiple of 4

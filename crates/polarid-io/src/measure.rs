@@ -632,6 +632,18 @@ pub fn measure_capture_bands(m: &Manifest, c: &Capture, strict: bool) -> Result<
     band_rows(m, c, &bands, strict)
 }
 
+/// [`measure_capture_bands`] of colour capture `c` (one exposure) from its raw mosaic
+/// `raw` in memory ([`crate::bands::colour_frame_images`]).
+///
+/// Errors: those of [`measure_capture_bands`].
+pub fn measure_colour_frame(
+    m: &Manifest,
+    c: &Capture,
+    raw: crate::image::Frame,
+) -> Result<Vec<Measurement>> {
+    band_rows(m, c, &crate::bands::colour_frame_images(c, raw)?, false)
+}
+
 /// Error unless capture `c` of a manifest with colour captures can be measured per band:
 /// a single-band capture needs a wavelength.
 fn check_band_wavelength(m: &Manifest, c: &Capture) -> Result<()> {

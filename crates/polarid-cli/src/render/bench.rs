@@ -130,8 +130,9 @@ pub fn figures(out: &BenchOutput) -> anyhow::Result<Vec<BenchFigure>> {
 /// `class.tif`, `classes.json`, `map_summary.json`.
 pub fn write_map(dir: &Path, m: &MapResult) -> anyhow::Result<()> {
     let (w, h) = (m.width, m.height);
-    image::write_tiff_f32(&dir.join("n.tif"), true, w, h, &m.n)?;
-    image::write_tiff_f32(&dir.join("k.tif"), true, w, h, &m.k)?;
+    for (name, data) in m.fit_images().into_iter().take(2) {
+        image::write_tiff_f32(&dir.join(name), true, w, h, data)?;
+    }
     let c8: Vec<u8> = m.class.iter().map(|&c| c.min(255) as u8).collect();
     image::write_gray8(&dir.join("class.tif"), true, w, h, &c8)?;
     for (name, v) in [

@@ -191,7 +191,7 @@ fn region_rows(r: &MapResult) -> (Vec<FitRow>, Vec<ClassificationRow>) {
 /// single-band map.
 pub fn band_figures(r: &MapResult, refs: &References) -> Result<Vec<(String, Rendered)>> {
     let mut out = Vec::new();
-    if r.bands.is_empty() {
+    if !r.is_colour() {
         return Ok(out);
     }
     let bin = if r.bin > 1 {

@@ -302,7 +302,18 @@ pub fn load(path: &Path) -> Result<Manifest> {
 
 /// Validate manifest `text`; `path` labels errors and anchors relative file paths.
 pub fn parse(path: &Path, text: &str) -> Result<Manifest> {
+    parse_with(path, text, true)
+}
+
+/// [`parse`] without looking for the files it names: a manifest of captures whose
+/// frames are in memory (`polarid demo --color` measures its simulated mosaics so).
+pub fn parse_in_memory(path: &Path, text: &str) -> Result<Manifest> {
+    parse_with(path, text, false)
+}
+
+fn parse_with(path: &Path, text: &str, files: bool) -> Result<Manifest> {
     let p = Parser {
+        files,
         path,
         text,
         dir: path
@@ -329,6 +340,8 @@ type Table<'i> = DeTable<'i>;
 type Val<'i> = Spanned<DeValue<'i>>;
 
 struct Parser<'a> {
+    /// Whether the files named must exist.
+    files: bool,
     path: &'a Path,
     text: &'a str,
     dir: PathBuf,
@@ -424,7 +437,7 @@ impl<'a> Parser<'a> {
             return Err(self.err(&v.span(), field, "empty file name"));
         }
         let p = self.dir.join(&s);
-        if !p.is_file() {
+        if self.files && !p.is_file() {
             let why = if p.exists() {
                 format!("{} is not a regular file", p.display())
             } else {

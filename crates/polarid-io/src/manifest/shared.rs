@@ -34,6 +34,7 @@ pub struct SourceEntry {
 
 fn parser<'a>(path: &'a Path, text: &'a str) -> Parser<'a> {
     Parser {
+        files: true,
         path,
         text,
         dir: path

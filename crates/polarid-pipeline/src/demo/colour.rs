@@ -1,7 +1,7 @@
 //! `polarid demo --color`: a colour polarization camera (Sony IMX250MYR-type, RGGB blocks
 //! of 90/45/135/0° polarizers) tells aluminum, copper, gold, brass, a green paint and a
 //! clear plastic (PET) apart with three bands, where the 650 nm band alone cannot tell
-//! copper from gold (issue 17; docs/BANDS.md, "Acceptance from images").
+//! copper from gold (docs/BANDS.md, "Acceptance from images").
 //!
 //! **From images.** For every seed, each material has two training plates and one test
 //! plate; each plate is its own far-field scene (`polarid simulate`'s colour scenes:
@@ -11,13 +11,15 @@
 //! N(0, 0.2°) per plate and the true source zenith by N(0, 0.2°) per capture — the same
 //! in the three bands of a capture, which share one frame. Each capture is one raw 12-bit
 //! colour mosaic (32 × 32 pixels, auto exposure, shot and read noise, the blue band's
-//! response half the others'). Then, per capture: the mosaic is demosaiced per band
-//! (bilinear per lattice, `polarid_io::bands::colour_stokes`, as `measure` does), the
-//! DoLP of the plate's 24 × 24 region and its standard error are taken from the region's
-//! mean Stokes vector (`polarid_core::region::region_stats`), and a measurement row per
-//! band is written with the nominal angles; `fit` fits each band (eq. 9), `train` makes
-//! three-band prototypes from the training plates, and every test plate is classified on
-//! its three bands at once, and again on its 650 nm rows alone.
+//! response half the others'). Then every capture is measured as `polarid measure`
+//! measures it (`polarid_io::measure`: the mosaic demosaiced per band, bilinear per
+//! lattice; the DoLP of the plate's 24 × 24 region and its standard error from the
+//! region's mean Stokes vector), one measurement row per band with the nominal angles;
+//! `fit` fits each band (eq. 9), `train` makes three-band prototypes from the training
+//! plates, and every test plate is classified on its three bands at once, and again on
+//! its 650 nm rows alone, as `polarid classify` classifies by default: the set rule and
+//! the Mahalanobis rule compare each test plate's noise covariance with the prototypes'
+//! sample covariance (the same bench, docs/CLASSIFY.md).
 //!
 //! Seed 0's captures are written to files (scene, manifest with `bands` and
 //! `dofp.color`, raw mosaics, truth per band), measured from those files, and its
@@ -37,23 +39,23 @@
 
 use std::path::Path;
 
-use polarid_core::classify::{ClassifierConfig, Metric, MultiPrototype};
-use polarid_core::mosaic::ColourMethod;
-use polarid_core::region::region_stats;
+use polarid_core::classify::{Bench, ClassifierConfig, Metric, MultiPrototype};
 use polarid_core::systematic::FILM_INDICES;
 use polarid_io::atomic::StagedDir;
 use polarid_io::image::{Frame, SampleKind};
 use polarid_io::library::Library;
+use polarid_io::manifest;
 use polarid_io::model::Model;
-use polarid_io::scene::{CaptureKind, Scene};
+use polarid_io::scene::Scene;
 use polarid_io::table::classification::{self, ClassificationRow};
 use polarid_io::table::fits::{self, FitRow};
-use polarid_io::table::measurements::{self, Measurement, RowStatus};
-use polarid_io::{manifest, measure::rules_for};
+use polarid_io::table::measurements::{self, Measurement};
 use rayon::prelude::*;
 
 use super::stage;
-use crate::classify::{classification_row, group_fits, multi_classifier, multi_estimate_of};
+use crate::classify::{
+    Comparison, classification_row, group_fits, multi_classifier, multi_estimate_for,
+};
 use crate::fit::{FitConfig, fit};
 use crate::progress::{Progress, Warning};
 use crate::{PipelineError, Result};
@@ -323,94 +325,37 @@ fn parse_scene(path: &Path, text: &str) -> Result<Scene> {
     })
 }
 
-/// The measurement rows of one capture of a colour scene's plates from its raw mosaic
-/// `raw` (`scene.width` wide): per band (increasing wavelength) and plate, the DoLP of
-/// the plate's region (bilinear per-band demosaic, region mean Stokes vector), with the
-/// nominal angles `theta_i_deg`, `theta_r_deg` and the capture's `exposure`.
-pub fn colour_capture_rows(
-    scene: &Scene,
-    raw: &Frame,
-    theta_i_deg: f64,
-    theta_r_deg: f64,
-    exposure: f64,
-) -> Result<Vec<Measurement>> {
-    let CaptureKind::ColourDofp { pattern, bands } = &scene.capture else {
-        return Err(PipelineError::Data {
-            path: scene.path.display().to_string(),
-            reason: "not a colour scene".into(),
-        });
-    };
-    let rules = rules_for(raw, scene.sensor.dark_level_dn, Some(scene.sensor.max_dn()));
-    let imgs = polarid_io::bands::colour_stokes(raw, pattern, &rules, ColourMethod::Bilinear)?;
-    let mut order: Vec<usize> = (0..bands.len()).collect();
-    order.sort_by(|&a, &b| bands[a].wavelength_nm.total_cmp(&bands[b].wavelength_nm));
-    let mut rows = Vec::new();
-    for b in order {
-        let img = &imgs[b];
-        for p in &scene.plates {
-            let st = region_stats(
-                img.width,
-                &img.s0,
-                &img.s1,
-                &img.s2,
-                &img.mask,
-                p.region,
-                img.sampling,
-            )
-            .map_err(|e| polarid_io::IoError::Core {
-                path: raw.path.clone(),
-                source: e,
-            })?;
-            rows.push(Measurement {
-                target: p.name.clone(),
-                class: p.class.clone(),
-                theta_i_deg: Some(theta_i_deg),
-                theta_r_deg: Some(theta_r_deg),
-                phi_deg: 180.0,
-                beta_deg: 0.5 * (theta_i_deg + theta_r_deg),
-                dolp: st.dolp,
-                dolp_se: st.dolp_se,
-                s0: Some(st.s0() / exposure),
-                pixels: Some(st.pixels),
-                rejected: Some(st.rejected),
-                exposure: Some(exposure),
-                saturated: Some(st.saturated),
-                status: RowStatus::Ok,
-                wavelength_nm: Some(bands[b].wavelength_nm),
-                ..Default::default()
-            });
-        }
-    }
-    Ok(rows)
-}
-
-/// A raw mosaic in memory as a [`Frame`] (16-bit samples) labelled `path`.
-fn frame(path: &Path, width: usize, data: &[u16]) -> Frame {
-    Frame {
-        path: path.to_path_buf(),
-        width,
-        height: data.len() / width.max(1),
-        kind: SampleKind::U16,
-        data: data.iter().map(|&v| f32::from(v)).collect(),
-        recorded_max: None,
+/// Give the captures of a plate's manifest (as `polarid simulate` writes it, with the
+/// scene's true angles) the nominal angles the demo measures with: θr =
+/// [`COLOUR_THETA_R`], θi = [`COLOUR_THETA_I`].
+fn nominal_manifest(m: &mut manifest::Manifest) {
+    for (c, ti) in m.captures.iter_mut().zip(COLOUR_THETA_I) {
+        c.theta_i_deg = ti;
+        c.theta_r_deg = COLOUR_THETA_R;
     }
 }
 
-/// Every row of one plate's scene, rendered in memory: per capture, per band.
+/// Every row of one plate's scene, rendered and measured in memory as `polarid measure`
+/// measures the files (per capture, per band in increasing wavelength), with the
+/// nominal angles.
 fn plate_rows(plate: &ColourPlate) -> Result<Vec<Measurement>> {
     let path = Path::new("scene.toml");
     let scene = parse_scene(path, &plate.scene)?;
     let set = crate::simulate::render_colour_set(&scene)?;
+    let text = crate::simulate::manifest_text(&scene, &set.exposures);
+    let mut man = manifest::parse_in_memory(Path::new("manifest.toml"), &text)?;
+    nominal_manifest(&mut man);
     let mut rows = Vec::new();
-    for (ci, raw) in set.frames.iter().enumerate() {
-        let f = frame(path, set.width, raw);
-        rows.extend(colour_capture_rows(
-            &scene,
-            &f,
-            COLOUR_THETA_I[ci],
-            COLOUR_THETA_R,
-            set.exposures[ci],
-        )?);
+    for (c, raw) in man.captures.iter().zip(&set.frames) {
+        let f = Frame {
+            path: path.to_path_buf(),
+            width: set.width,
+            height: raw.len() / set.width.max(1),
+            kind: SampleKind::U16,
+            data: raw.iter().map(|&v| f32::from(v)).collect(),
+            recorded_max: None,
+        };
+        rows.extend(polarid_io::measure::measure_colour_frame(&man, c, f)?);
     }
     Ok(rows)
 }
@@ -483,10 +428,30 @@ fn fits_of(rows: &[Measurement], keep: &[f64], cfg: &FitConfig) -> Result<Vec<(u
 }
 
 /// The multi-band prototypes trained on `train` (three-band or one-band fits).
-fn prototypes(train: &[(u64, FitRow)]) -> Result<(Model, Vec<MultiPrototype>)> {
+fn prototypes(train: &[(u64, FitRow)]) -> Result<(Model, Vec<MultiPrototype>, Comparison)> {
     let t = crate::train::train(train, Path::new("fits.csv"), "fits.csv")?;
-    let protos = t.model.multi_prototypes();
-    Ok((t.model, protos))
+    let (protos, cmp) = same_bench(&t.model);
+    Ok((t.model, protos, cmp))
+}
+
+/// A model's prototypes and the comparison `polarid classify --model` makes by default
+/// (`--bench same`, [`crate::classify::bench`]): the prototypes on their sample
+/// covariances and the estimates on their noise when the model has sample covariances,
+/// else both on their totals.
+fn same_bench(model: &Model) -> (Vec<MultiPrototype>, Comparison) {
+    let same = model.has_sample_covariances();
+    let protos = if same {
+        model.multi_prototypes_on(Bench::Same)
+    } else {
+        model.multi_prototypes()
+    };
+    (
+        protos,
+        Comparison {
+            bench: Bench::Same,
+            same,
+        },
+    )
 }
 
 /// Per (bands, fit, rule), per test plate: `(class, predicted)`.
@@ -519,13 +484,14 @@ fn seed_outcomes(train: &[Measurement], test: &[Measurement]) -> Result<Outcomes
         for (fi, (_, cfg)) in fit_configs().iter().enumerate() {
             let tr = fits_of(train, keep, cfg)?;
             let te = fits_of(test, keep, cfg)?;
-            let (_, protos) = prototypes(&tr)?;
+            let (_, protos, cmp) = prototypes(&tr)?;
             for (ri, (_, rcfg)) in rules().iter().enumerate() {
                 let clf = multi_classifier(protos.clone(), "the trained prototypes", *rcfg)?;
                 let mut v = Vec::new();
                 for g in group_fits(&te) {
                     let f = &te[g[0]].1;
-                    let d = clf.classify_multi(&multi_estimate_of(g.iter().map(|&i| &te[i].1)));
+                    let d =
+                        clf.classify_multi(&multi_estimate_for(g.iter().map(|&i| &te[i].1), cmp));
                     v.push((f.class.clone().unwrap_or_default(), d.predicted));
                 }
                 out.push(((bi, fi, ri), v));
@@ -699,29 +665,13 @@ pub fn run_colour(staged: &StagedDir, seeds: u64, progress: Progress) -> Result<
         let scene = parse_scene(&scene_path, &p.scene)?;
         let sim = crate::simulate::simulate_into(&scene, staged, &dir, progress)?;
         warnings.extend(sim.warnings);
-        // Measure from the files: the manifest the simulator wrote, the per-band images
-        // of each capture, the region means (nominal angles).
-        let man = manifest::load(&staged.path(&sim.manifest)?)?;
-        for (ci, c) in man.captures.iter().enumerate() {
-            let raw = match &c.source {
-                manifest::CaptureSource::ColourDofp { file, .. } => {
-                    polarid_io::image::read_frame(file)?
-                }
-                _ => {
-                    return Err(PipelineError::Data {
-                        path: man.path.display().to_string(),
-                        reason: "internal error: not a colour capture".into(),
-                    });
-                }
-            };
-            rows.extend(colour_capture_rows(
-                &scene,
-                &raw,
-                COLOUR_THETA_I[ci],
-                COLOUR_THETA_R,
-                c.exposure,
-            )?);
-        }
+        // Measure from the files as `polarid measure` does: the manifest the simulator
+        // wrote, with the nominal angles.
+        let mut man = manifest::load(&staged.path(&sim.manifest)?)?;
+        nominal_manifest(&mut man);
+        let measured = crate::measure::measure(&man, &crate::progress::no_progress)?;
+        warnings.extend(measured.warnings);
+        rows.extend(measured.rows);
         scenes.push(format!("{dir}scene.toml"));
         manifests.push(sim.manifest);
     }
@@ -749,18 +699,19 @@ pub fn run_colour(staged: &StagedDir, seeds: u64, progress: Progress) -> Result<
     stage(staged, "model.json", |w| {
         model.write(w, Path::new("model.json"))
     })?;
-    let classify_rows =
-        |fits: &[(u64, FitRow)], protos: Vec<MultiPrototype>| -> Result<Vec<ClassificationRow>> {
-            let clf = multi_classifier(protos, "model.json", ClassifierConfig::set(0.95))?;
-            Ok(group_fits(fits)
-                .iter()
-                .map(|g| {
-                    let d = clf.classify_multi(&multi_estimate_of(g.iter().map(|&i| &fits[i].1)));
-                    classification_row(&fits[g[0]].1, &d, &clf)
-                })
-                .collect())
-        };
-    let classification = classify_rows(&test, model.multi_prototypes())?;
+    let classify_rows = |fits: &[(u64, FitRow)],
+                         (protos, cmp): (Vec<MultiPrototype>, Comparison)|
+     -> Result<Vec<ClassificationRow>> {
+        let clf = multi_classifier(protos, "model.json", ClassifierConfig::set(0.95))?;
+        Ok(group_fits(fits)
+            .iter()
+            .map(|g| {
+                let d = clf.classify_multi(&multi_estimate_for(g.iter().map(|&i| &fits[i].1), cmp));
+                classification_row(&fits[g[0]].1, &d, &clf)
+            })
+            .collect())
+    };
+    let classification = classify_rows(&test, same_bench(&model))?;
     stage(staged, "classification.csv", |w| {
         classification::write(w, Path::new("classification.csv"), &classification)
     })?;
@@ -770,8 +721,8 @@ pub fn run_colour(staged: &StagedDir, seeds: u64, progress: Progress) -> Result<
             .cloned()
             .collect()
     };
-    let (_, protos650) = prototypes(&only(&train))?;
-    let classification_650 = classify_rows(&only(&test), protos650)?;
+    let (_, protos650, cmp650) = prototypes(&only(&train))?;
+    let classification_650 = classify_rows(&only(&test), (protos650, cmp650))?;
     stage(staged, "classification_650nm.csv", |w| {
         classification::write(
             w,
@@ -808,13 +759,14 @@ pub fn run_colour(staged: &StagedDir, seeds: u64, progress: Progress) -> Result<
 mod tests {
     use super::*;
 
-    /// Issue 17's acceptance from images: over many seeds, the three-band classifier
+    /// The acceptance from images: over many seeds, the three-band classifier
     /// (Mahalanobis nearest neighbour ≥ 99%, the set rule with the fit's default error
-    /// model ≥ 98% and the rest ambiguous) gets the copper and gold test plates right; on
-    /// the 650 nm rows alone no rule reaches 99% (about 150-190 s for 100 seeds on 2
-    /// loaded cores). `COLOUR_LAYER_NM=0` runs plates without native layers.
-    /// `COLOUR_TABLE=1 cargo test --release -p polarid-pipeline --lib demo::colour --
-    /// --nocapture` prints docs/BANDS.md's table (`COLOUR_SEEDS` seeds, default 100).
+    /// model ≥ 98% and never another material) gets the copper and gold test plates
+    /// right; on the 650 nm rows alone of plates under native layers no rule reaches 99%
+    /// (about 150-210 s for 100 seeds on 2 loaded cores). `COLOUR_LAYER_NM=0` runs plates
+    /// without native layers. `COLOUR_TABLE=1 cargo test --release -p polarid-pipeline
+    /// --lib demo::colour -- --nocapture` prints docs/BANDS.md's table (`COLOUR_SEEDS`
+    /// seeds, default 100).
     #[test]
     fn three_bands_from_images_tell_copper_from_gold_where_650nm_cannot() {
         let seeds = std::env::var("COLOUR_SEEDS")
@@ -835,51 +787,51 @@ mod tests {
                 .unwrap()
                 .clone()
         };
+        // No copper or gold plate given the other material (or another): each is right,
+        // `ambiguous` or `unknown`.
+        let never_wrong = |r: &AccuracyRow| {
+            r.copper.0 + r.gold.0 + r.ambiguous + r.unknown == r.copper.1 + r.gold.1
+        };
         // Three bands, the fit's default error model (its surface-layer allowance is ONE
         // layer over a plate's bands): the Mahalanobis nearest neighbour gets ≥ 99% of
-        // copper and gold right, the set rule (the default) ≥ 98% with the rest
-        // `ambiguous`, never wrong (docs/BANDS.md: 98.5% over 100 seeds, 1.5% ambiguous;
-        // per-band allowances made every gold plate ambiguous).
+        // copper and gold right, the set rule (the default, on the same bench as
+        // `classify`) ≥ 98%, never another material (docs/BANDS.md: 99.7% over 300
+        // seeds, two gold plates `unknown`).
         let r = get("three", "default", "nearest, Mahalanobis");
         assert!(r.copper_gold() >= 0.99, "{r:?}");
         let r = get("three", "default", "set, 95%");
         let cg = (r.copper.1 + r.gold.1) as f64;
         assert!(r.copper_gold() >= 0.98, "three bands, default, set: {r:?}");
-        assert!(
-            r.copper_gold() + r.ambiguous as f64 / cg >= 0.999,
-            "three bands, default, set: {r:?}"
-        );
+        assert!(never_wrong(&r), "three bands, default, set: {r:?}");
+        let r = get("three", "--film", "set, 95%");
         if layer > 0.0 {
             // The metal plates carry native layers (0-3 nm): without the allowance
             // (`--film-sd-nm 0`) the set rule rejects many of them, the reason for it.
-            let r = get("three", "--film", "set, 95%");
             assert!(
                 r.unknown as f64 >= 0.2 * cg,
                 "three bands, --film 0, set: {r:?}"
             );
         } else {
-            let r = get("three", "--film", "set, 95%");
+            // Clean plates: the 95% set on the same bench holds the plate's material
+            // about 95% of the time, else it is `unknown` (docs/BANDS.md: 94.5%).
             assert!(
-                r.copper_gold() >= 0.99,
+                r.copper_gold() >= 0.9 && never_wrong(&r),
                 "clean plates, --film 0, set: {r:?}"
             );
         }
-        // 650 nm alone: the set rule (the default) cannot decide (with the fit's default
-        // error model it calls most of them `ambiguous`, the honest answer: copper and
-        // gold are 0.09 apart in n there), and the paper's Euclidean rule is near chance.
-        // (The Mahalanobis nearest neighbour does better here, on plates whose layers
-        // are thin: docs/BANDS.md reports it.)
+        // 650 nm alone: the set rule (the default) cannot decide every plate (with the
+        // fit's default error model it calls many of them `ambiguous`, the honest
+        // answer: copper and gold are 0.09 apart in n there) and is never wrong, and the
+        // paper's Euclidean rule is near chance. (The Mahalanobis nearest neighbour does
+        // better here, on plates whose layers are thin, and on clean plates so does the
+        // set rule without the allowance: docs/BANDS.md reports them.)
         let r = get("one", "default", "set, 95%");
-        let cg = (r.copper.1 + r.gold.1) as f64;
-        assert!(
-            r.ambiguous as f64 >= 0.5 * cg,
-            "650 nm, default, set: {r:?}"
-        );
+        assert!(never_wrong(&r), "650 nm, default, set: {r:?}");
         for fit in ["default", "--film"] {
-            let rules: &[&str] = if layer > 0.0 {
-                &["nearest, Euclidean", "nearest, Mahalanobis", "set, 95%"]
-            } else {
-                &["nearest, Euclidean", "set, 95%"]
+            let rules: &[&str] = match (layer > 0.0, fit) {
+                (true, _) => &["nearest, Euclidean", "nearest, Mahalanobis", "set, 95%"],
+                (false, "default") => &["nearest, Euclidean", "set, 95%"],
+                (false, _) => &["nearest, Euclidean"],
             };
             for rule in rules {
                 let r = get("one", fit, rule);

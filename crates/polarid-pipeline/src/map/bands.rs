@@ -1,50 +1,41 @@
-//! Per-band maps of colour captures (docs/BANDS.md, "Maps per band").
-//!
-//! A manifest with colour captures (a `dofp` with `color`) is mapped per band: each
-//! colour mosaic is read and reconstructed once per capture into per-band Stokes images
-//! (bilinear per lattice, `polarid_core::mosaic::colour`, raw pixel coordinates), whose
-//! binned DoLP goes to that band's images; a single-band capture goes to the band of its
-//! `wavelength_nm`. Every band is then fitted per pixel as a single-band map is (the
+//! The bands of a map (docs/BANDS.md, "Maps per band"): a single-band map is one band
+//! (its wavelength the captures' `wavelength_nm` when they share one, and unnamed: its
+//! images are `n.tif` ...), a manifest with colour captures one band per wavelength
+//! (named by it: `n_450.tif` ...). Stage 1 puts every capture's DoLP per band into its
+//! band ([`BandDolp`]; a colour mosaic is reconstructed once per capture, bilinear per
+//! lattice, `polarid_core::mosaic::colour`, raw pixel coordinates; a single-band capture
+//! goes to the band of its `wavelength_nm`). Every band is then fitted per pixel (the
 //! same dark and saturation flags, calibrated geometry, noise weights), giving its own
 //! `n`, `k`, standard errors and RMS residual ([`BandMap`]). Last, every pixel is
-//! decided once on all its bands whose fit is `ok` (module `decide`, the decision of
-//! single-band maps too): against a model on the bands it shares with the prototypes,
-//! against a library by the hypothesis tests on the pixel's rows of every band.
+//! decided once on all its bands whose fit is `ok` (module `decide`): against a model on
+//! the bands it shares with the prototypes, against a library by the hypothesis tests
+//! on the pixel's rows of every band. A single-band map under `--rule nearest` answers
+//! in the fit instead (the paper's nearest prototype, `polarid_core::map`).
 
-use std::collections::BTreeSet;
 use std::path::Path;
-use std::time::Instant;
 
-use polarid_core::classify::{
-    AMBIGUOUS, Classifier, ClassifierConfig, MultiPrototype, Prototype, Reject, same_band,
-};
+use polarid_core::classify::{Classifier, ClassifierConfig, MultiPrototype, Prototype, same_band};
 use polarid_core::fit::{FitOptions, FitPlan, PixelBetaPlan};
-use polarid_core::map::noise::{NoiseAnalyzer, NoiseEstimate, estimate_noise};
+use polarid_core::map::noise::{NoiseEstimate, estimate_noise};
 use polarid_core::map::sets::MapErrorModel;
 use polarid_core::map::{
-    self, Betas, MapCounts, MapNoise, MapOutputs, NoiseOut, PixelClassifier, flag, reason,
+    self, Betas, MapCounts, MapNoise, MapOutputs, PixelClassifier, flag, reason,
 };
-use polarid_core::mosaic::ColourMethod;
 use polarid_io::IoError;
-use polarid_io::bands::colour_stokes;
-use polarid_io::image;
-use polarid_io::manifest::{CaptureSource, Manifest};
-use polarid_io::measure::rules_for;
+use polarid_io::manifest::{Capture, CaptureSource, Manifest};
 
-use super::capture::{self, Dims, check_dims};
-use super::rules::min_s0_for;
-use super::{
-    MapConfig, MapPrototypes, MapResult, Rule, beta_degrees, decide, error_model, geometry,
-    mean_deg, summary,
-};
+use super::{MapConfig, MapPrototypes, MapResult, decide};
 use crate::error::{PipelineError, Result};
 use crate::progress::{Progress, Warning};
 
-/// The fit of one band of a colour map: images of the map's size, row-major.
+/// The fit of one band of a map: images of the map's size, row-major.
 #[derive(Debug, Clone)]
 pub struct BandMap {
-    /// The band's wavelength, nm.
+    /// The band's wavelength, nm (NaN for a single-band map whose captures give none).
     pub wavelength_nm: f64,
+    /// The band's file-name tag (`450`: `n_450.tif` ...); `None` for the one band of a
+    /// single-band map (`n.tif` ...).
+    pub tag: Option<String>,
     /// The captures measured in this band (indices into `Manifest::captures`).
     pub captures: Vec<usize>,
     /// Fitted `n` (NaN where not fitted).
@@ -71,7 +62,9 @@ pub fn band_tag(wavelength_nm: f64) -> String {
     polarid_io::manifest::colour::wavelength_label(wavelength_nm)
 }
 
-pub use super::summary::BAND_IMAGES;
+/// The fit images of every band, written as `{name}.tif` for a single-band map and
+/// `{name}_{tag}.tif` ([`band_tag`]) per band of a colour map: `n_450.tif`, ...
+pub const BAND_IMAGES: [&str; 5] = ["n", "k", "n_se", "k_se", "rms_residual"];
 
 /// The files a map of `m` writes: `single` (the single-band map's files, of which the
 /// first five are its fit images `n.tif` ... `rms_residual.tif`) as they are, or for a
@@ -81,24 +74,37 @@ pub fn output_files(m: &Manifest, single: &[&str]) -> Vec<String> {
     if !is_colour(m) {
         return single.iter().map(|f| f.to_string()).collect();
     }
-    let mut bands: Vec<f64> = m
-        .captures
-        .iter()
-        .flat_map(|c| match &c.source {
-            CaptureSource::ColourDofp { wavelengths_nm, .. } => wavelengths_nm.clone(),
-            _ => c.wavelength_nm.into_iter().collect(),
-        })
-        .collect();
-    bands.sort_by(f64::total_cmp);
-    bands.dedup_by(|a, b| same_band(Some(*a), Some(*b)));
-    let per_band = bands.iter().flat_map(|&w| {
-        BAND_IMAGES
-            .iter()
-            .map(move |f| format!("{f}_{}.tif", band_tag(w)))
-    });
-    per_band
+    let per_capture: Vec<Vec<f64>> = m.captures.iter().map(capture_wavelengths).collect();
+    wavelengths(&per_capture)
+        .into_iter()
+        .flat_map(|w| image_files(Some(band_tag(w))))
         .chain(single.iter().skip(BAND_IMAGES.len()).map(|f| f.to_string()))
         .collect()
+}
+
+/// The fit images' file names of a band: `n.tif` ... ([`BAND_IMAGES`]) for the unnamed
+/// band of a single-band map, `n_450.tif` ... for a band tagged `450`.
+pub(super) fn image_files(tag: Option<String>) -> impl Iterator<Item = String> {
+    let tag = tag.map_or(String::new(), |t| format!("_{t}"));
+    BAND_IMAGES.iter().map(move |f| format!("{f}{tag}.tif"))
+}
+
+/// The wavelengths capture `c` is measured in: a colour capture's bands, else its own
+/// `wavelength_nm` if any.
+fn capture_wavelengths(c: &Capture) -> Vec<f64> {
+    match &c.source {
+        CaptureSource::ColourDofp { wavelengths_nm, .. } => wavelengths_nm.clone(),
+        _ => c.wavelength_nm.into_iter().collect(),
+    }
+}
+
+/// The bands of captures measured in `per_capture`: their wavelengths, increasing, one
+/// per band.
+fn wavelengths(per_capture: &[Vec<f64>]) -> Vec<f64> {
+    let mut all: Vec<f64> = per_capture.iter().flatten().copied().collect();
+    all.sort_by(f64::total_cmp);
+    all.dedup_by(|a, b| same_band(Some(*a), Some(*b)));
+    all
 }
 
 impl MapResult {
@@ -106,38 +112,33 @@ impl MapResult {
     /// `rms_residual.tif` of a single-band map, or those of every band
     /// (`n_450.tif`, ..., [`BAND_IMAGES`]) of a colour map.
     pub fn fit_images(&self) -> Vec<(String, &[f32])> {
-        if self.bands.is_empty() {
-            let all = [&self.n, &self.k, &self.n_se, &self.k_se, &self.rms_residual];
-            return BAND_IMAGES
-                .iter()
-                .zip(all)
-                .map(|(f, d)| (format!("{f}.tif"), d.as_slice()))
-                .collect();
-        }
-        let mut out = Vec::with_capacity(self.bands.len() * BAND_IMAGES.len());
-        for b in &self.bands {
-            let all = [&b.n, &b.k, &b.n_se, &b.k_se, &b.rms_residual];
-            let tag = band_tag(b.wavelength_nm);
-            out.extend(
-                BAND_IMAGES
-                    .iter()
-                    .zip(all)
-                    .map(|(f, d)| (format!("{f}_{tag}.tif"), d.as_slice())),
-            );
-        }
-        out
+        self.bands
+            .iter()
+            .flat_map(|b| {
+                let all = [&b.n, &b.k, &b.n_se, &b.k_se, &b.rms_residual];
+                image_files(b.tag.clone()).zip(all.map(Vec::as_slice))
+            })
+            .collect()
+    }
+
+    /// Whether the map is per band of colour captures (its bands named by wavelength).
+    pub fn is_colour(&self) -> bool {
+        self.bands.iter().any(|b| b.tag.is_some())
     }
 }
 
 /// Whether `m` has a colour capture (its map is then per band).
 pub use polarid_io::measure::has_colour as is_colour;
 
-/// One band's binned DoLP images over its captures (stage 1 of a colour map), the input
-/// of [`fit_bands`]: built by [`map_manifest_bands`] from the manifest's files, or from
-/// frames in memory by the blocks of `polarid.dask.material_map`.
+/// One band's binned DoLP images over its captures (stage 1 of a map), the input of
+/// [`fit_bands`]: built by [`super::map_manifest_from`] from the manifest's files, or
+/// from frames in memory by the blocks of `polarid.dask.material_map`.
 #[derive(Debug, Clone)]
 pub struct BandDolp {
-    wavelength_nm: f64,
+    wavelength_nm: Option<f64>,
+    /// Named by its wavelength in file names, progress and messages (a colour map's
+    /// bands; not the one band of a single-band map).
+    named: bool,
     captures: Vec<usize>,
     dolp: Vec<Vec<f32>>,
     flags: Vec<u8>,
@@ -151,7 +152,21 @@ impl BandDolp {
     /// in the order their DoLP images will be pushed).
     pub fn new(wavelength_nm: f64, captures: Vec<usize>) -> Self {
         Self {
+            named: true,
+            ..Self::unnamed(Some(wavelength_nm), captures)
+        }
+    }
+
+    /// The band's wavelength, nm (`None`: a single-band map's captures give none).
+    pub fn wavelength(&self) -> Option<f64> {
+        self.wavelength_nm
+    }
+
+    /// The one band of a single-band map (its wavelength, if the captures give one).
+    pub(crate) fn unnamed(wavelength_nm: Option<f64>, captures: Vec<usize>) -> Self {
+        Self {
             wavelength_nm,
+            named: false,
             captures,
             dolp: Vec::new(),
             flags: Vec::new(),
@@ -202,15 +217,51 @@ impl BandDolp {
             self.shot.push(b);
         }
     }
+
+    /// After the last capture (calibrated geometry): a pixel left with fewer than 3
+    /// usable captures is not fitted, with the reason (dark, saturated) of its drops.
+    pub(crate) fn finish(&mut self, calibrated: bool) {
+        if !calibrated {
+            return;
+        }
+        for (p, (f, g)) in self.flags.iter_mut().zip(&self.dropped).enumerate() {
+            if self.dolp.iter().filter(|d| !d[p].is_nan()).count() < 3 {
+                *f |= g;
+            }
+        }
+    }
+
+    /// The band's tag in file names and messages (`450`; `None` for an unnamed band).
+    fn tag(&self) -> Option<String> {
+        self.wavelength_nm.filter(|_| self.named).map(band_tag)
+    }
 }
 
-/// The bands of `m`, in increasing wavelength, each with its captures.
-fn band_list(m: &Manifest) -> Result<Vec<BandDolp>> {
+/// The bands of `m`: one unnamed band of all captures for a single-band manifest (its
+/// wavelength their common `wavelength_nm`, if any), else one per wavelength in
+/// increasing order, each with its captures. Errors: a band in fewer than 3 captures
+/// (a per-pixel fit needs 3), a single-band capture without a wavelength among colour
+/// captures.
+pub(crate) fn band_list(m: &Manifest) -> Result<Vec<BandDolp>> {
+    if !is_colour(m) {
+        if m.captures.len() < 3 {
+            return Err(IoError::Core {
+                path: m.path.clone(),
+                source: polarid_core::CoreError::TooFew {
+                    what: "DoLP measurements (source positions)",
+                    needed: 3,
+                    got: m.captures.len(),
+                },
+            }
+            .into());
+        }
+        let captures = (0..m.captures.len()).collect();
+        return Ok(vec![BandDolp::unnamed(mono_wavelength(m), captures)]);
+    }
     let mut per_capture: Vec<Vec<f64>> = Vec::with_capacity(m.captures.len());
     for c in &m.captures {
         per_capture.push(match (&c.source, c.wavelength_nm) {
-            (CaptureSource::ColourDofp { wavelengths_nm, .. }, _) => wavelengths_nm.clone(),
-            (_, Some(w)) => vec![w],
+            (CaptureSource::ColourDofp { .. }, _) | (_, Some(_)) => capture_wavelengths(c),
             (_, None) => {
                 return Err(IoError::Manifest {
                     path: m.path.clone(),
@@ -225,9 +276,7 @@ fn band_list(m: &Manifest) -> Result<Vec<BandDolp>> {
             }
         });
     }
-    let mut all: Vec<f64> = per_capture.iter().flatten().copied().collect();
-    all.sort_by(f64::total_cmp);
-    all.dedup_by(|a, b| same_band(Some(*a), Some(*b)));
+    let all = wavelengths(&per_capture);
     let mut out = Vec::with_capacity(all.len());
     for w in all {
         let captures: Vec<usize> = (0..m.captures.len())
@@ -248,263 +297,53 @@ fn band_list(m: &Manifest) -> Result<Vec<BandDolp>> {
     Ok(out)
 }
 
-fn capture_err(c: &polarid_io::manifest::Capture) -> impl Fn(PipelineError) -> PipelineError + '_ {
-    move |e| match e {
-        e @ PipelineError::Config { .. } => e,
-        e => PipelineError::Data {
-            path: format!("capture {} (line {})", c.index, c.line),
-            reason: e.to_string(),
-        },
+/// The wavelength of a single-band map: the captures' `wavelength_nm` when they all
+/// have the same one.
+fn mono_wavelength(m: &Manifest) -> Option<f64> {
+    let first = m.captures.first()?.wavelength_nm?;
+    m.captures
+        .iter()
+        .all(|c| same_band(c.wavelength_nm, Some(first)))
+        .then_some(first)
+}
+
+/// The index of the band of a capture's band image at `wavelength_nm` (always the one
+/// band of a single-band map; `None`: a band the map does not have).
+pub(crate) fn band_of(bands: &[BandDolp], wavelength_nm: Option<f64>) -> Option<usize> {
+    match bands {
+        [b] if !b.named => Some(0),
+        _ => bands
+            .iter()
+            .position(|b| same_band(b.wavelength_nm, wavelength_nm)),
     }
 }
 
-/// Map a manifest with colour captures per band and classify every pixel on all its
-/// bands against `profiles` (a multi-band model's or library's prototypes; `label`
-/// names them in errors). Progress stages: `"captures (DoLP)"`, `"captures
-/// (geometry)"` (calibrated geometry), `"pixels (fit)"` (per band), `"pixels
-/// (classify)"`.
-///
-/// The [`MapResult`] has the class and reason images of the multi-band classification,
-/// empty single-band `n`, `k`, `n_se`, `k_se`, `rms_residual`, and one [`BandMap`] per
-/// band in `bands`.
-///
-/// Errors: a single-band capture without a wavelength ([`IoError::Manifest`] naming
-/// `capture[i].wavelength_nm`), a band in fewer than 3 captures, the errors of the
-/// single-band map (files, sizes, `--bin`), bad prototypes (naming `label`).
-pub fn map_manifest_bands(
-    cfg: &MapConfig,
-    m: &Manifest,
-    profiles: &[MultiPrototype],
-    label: &str,
-    progress: Progress<'_>,
-) -> Result<MapResult> {
-    map_manifest_bands_from(cfg, m, MapPrototypes::Given { profiles, label }, progress)
-}
-
-/// [`map_manifest_bands`] against a model, a library or prototypes as given
-/// ([`MapPrototypes`]; the decision of every pixel as `polarid classify` makes it,
-/// module `decide`).
-pub(super) fn map_manifest_bands_from(
-    cfg: &MapConfig,
-    m: &Manifest,
-    src: MapPrototypes<'_>,
-    progress: Progress<'_>,
-) -> Result<MapResult> {
-    let mut accs = band_list(m)?;
-    // The prototypes are checked before any work.
-    let wavelengths: Vec<Option<f64>> = accs.iter().map(|a| Some(a.wavelength_nm)).collect();
-    let decision = decide::decision(cfg, src, &wavelengths)?;
-    let calibrated = m.camera.is_some();
-    let weighted = decide::weighted(cfg, calibrated, src.tests_rows(cfg));
-
-    // Stage 1: DoLP per capture and band; a colour mosaic is reconstructed once.
-    let t0 = Instant::now();
-    let ncap = m.captures.len() as u64;
-    progress("captures (DoLP)", 0, ncap);
-    let mut dims: Option<Dims> = None;
-    let mut thresholds = Vec::with_capacity(m.captures.len());
-    let quad = NoiseAnalyzer::quad();
-    let band_wl: Vec<f64> = accs.iter().map(|a| a.wavelength_nm).collect();
-    let band_of = |w: f64| band_wl.iter().position(|&a| same_band(Some(a), Some(w)));
-    for (i, c) in m.captures.iter().enumerate() {
-        match &c.source {
-            CaptureSource::ColourDofp {
-                file,
-                pattern,
-                wavelengths_nm,
-            } => {
-                let raw = image::read_frame(file).map_err(|e| capture_err(c)(e.into()))?;
-                let d = check_dims(&mut dims, &raw, cfg.bin).map_err(capture_err(c))?;
-                let mut rules = rules_for(&raw, c.dark_level, c.saturation);
-                let min_s0 = min_s0_for(&rules, raw.kind.is_integer(), cfg.min_s0);
-                // The dark test is made on the block mean by stokes_dolp.
-                rules.min_s0 = f32::MIN;
-                let imgs = colour_stokes(&raw, pattern, &rules, ColourMethod::Bilinear)
-                    .map_err(|e| capture_err(c)(e.into()))?;
-                drop(raw);
-                let npix = d.out_w * d.out_h;
-                for (img, &w) in imgs.iter().zip(wavelengths_nm) {
-                    let mut dl = vec![0f32; npix];
-                    let mut cf = vec![0u8; npix];
-                    let mut terms = weighted.then(|| (vec![0f32; npix], vec![0f32; npix]));
-                    let nz = terms.as_mut().map(|(a, b)| NoiseOut {
-                        analyzer: &quad,
-                        scale: 1.0,
-                        read: a.as_mut_slice(),
-                        shot: b.as_mut_slice(),
-                    });
-                    map::stokes_dolp_noise(
-                        d.width,
-                        &img.s0,
-                        &img.s1,
-                        &img.s2,
-                        Some(&img.mask),
-                        min_s0,
-                        cfg.bin,
-                        &mut dl,
-                        &mut cf,
-                        nz,
-                    )
-                    .map_err(|e| {
-                        capture_err(c)(
-                            IoError::Core {
-                                path: file.clone(),
-                                source: e,
-                            }
-                            .into(),
-                        )
-                    })?;
-                    if let Some(b) = band_of(w) {
-                        accs[b].push(calibrated, dl, &cf, terms);
+/// The far-field fit plan of every band (one β per capture, `far_betas`, radians); none
+/// with calibrated geometry (a β per pixel). Errors name `path`.
+pub(crate) fn fit_plans(
+    bands: &[BandDolp],
+    far_betas: &[f64],
+    calibrated: bool,
+    path: &Path,
+) -> Result<Vec<Option<FitPlan>>> {
+    bands
+        .iter()
+        .map(|a| {
+            if calibrated {
+                return Ok(None);
+            }
+            let b: Vec<f64> = a.captures.iter().map(|&i| far_betas[i]).collect();
+            FitPlan::new(&b, FitOptions::default())
+                .map(Some)
+                .map_err(|e| {
+                    IoError::Core {
+                        path: path.to_path_buf(),
+                        source: e,
                     }
-                }
-                thresholds.push(min_s0);
-            }
-            _ => {
-                let (mut dl, mut cf) = (Vec::new(), Vec::new());
-                let (mut ra, mut rb) = (Vec::new(), Vec::new());
-                let nz = weighted.then_some((&mut ra, &mut rb));
-                let th = capture::capture_dolp(c, cfg, &mut dims, &mut dl, &mut cf, nz)
-                    .map_err(capture_err(c))?;
-                if let Some(b) = c.wavelength_nm.and_then(band_of) {
-                    accs[b].push(calibrated, dl, &cf, weighted.then_some((ra, rb)));
-                }
-                thresholds.push(th);
-            }
-        }
-        progress("captures (DoLP)", i as u64 + 1, ncap);
-    }
-    let Some(d) = dims else {
-        return Err(PipelineError::Data {
-            path: m.path.display().to_string(),
-            reason: "the manifest has no capture".into(),
-        });
-    };
-    if calibrated {
-        for a in &mut accs {
-            for (p, (f, g)) in a.flags.iter_mut().zip(&a.dropped).enumerate() {
-                if a.dolp.iter().filter(|d| !d[p].is_nan()).count() < 3 {
-                    *f |= g;
-                }
-            }
-        }
-    }
-    let beta_maps = if calibrated {
-        progress("captures (geometry)", 0, ncap);
-        geometry::beta_maps(m, d, cfg.bin, &|i| {
-            progress("captures (geometry)", i as u64, ncap)
-        })?
-    } else {
-        geometry::BetaMaps::default()
-    };
-    let far_betas: Vec<f64> = m
-        .captures
-        .iter()
-        .map(|c| {
-            polarid_core::geometry::beta(
-                c.theta_i_deg.to_radians(),
-                c.theta_r_deg.to_radians(),
-                c.phi_deg.to_radians(),
-            )
+                    .into()
+                })
         })
-        .collect();
-    let t_dolp = t0.elapsed().as_secs_f64();
-
-    let fit = fit_bands_with(
-        cfg,
-        accs,
-        FitGeometry {
-            npix: d.out_w * d.out_h,
-            far_betas: &far_betas,
-            beta: &beta_maps.beta,
-            errors: &error_model(m, &cfg.errors),
-        },
-        &decision,
-        &m.path,
-        progress,
-    )?;
-    let mut warnings: Vec<Warning> = m.warnings.iter().map(|w| Warning(w.clone())).collect();
-    warnings.extend(fit.warnings);
-    let (bands, class, why, class_names, counts) = (
-        fit.bands,
-        fit.class,
-        fit.reason,
-        fit.class_names,
-        fit.counts,
-    );
-    let t_fit = t0.elapsed().as_secs_f64() - t_dolp;
-    let regions = summary::region_summary(m, d, cfg.bin, &class, &class_names);
-    let beta_deg: Vec<f64> = if calibrated {
-        beta_maps.beta.iter().map(|b| mean_deg(b)).collect()
-    } else {
-        far_betas.iter().map(|b| b.to_degrees()).collect()
-    };
-    let (beta_range_deg, beta_maps_deg) = beta_degrees(beta_maps);
-    Ok(MapResult {
-        frame_width: d.width,
-        frame_height: d.height,
-        bin: cfg.bin,
-        width: d.out_w,
-        height: d.out_h,
-        n: Vec::new(),
-        k: Vec::new(),
-        n_se: Vec::new(),
-        k_se: Vec::new(),
-        rms_residual: Vec::new(),
-        class,
-        reason: why,
-        class_names,
-        counts,
-        calibrated,
-        beta_deg,
-        beta_range_deg,
-        beta_maps_deg,
-        min_s0_dn: thresholds,
-        max_distance: cfg.max_distance,
-        metric: cfg.metric,
-        rule: cfg.rule,
-        confidence: cfg.confidence,
-        errors: cfg.errors,
-        weighted: bands.iter().any(|b| b.noise.is_some()),
-        noise: bands.iter().find_map(|b| b.noise),
-        regions,
-        seconds_dolp: t_dolp,
-        seconds_fit: t_fit,
-        warnings,
-        bands,
-    })
-}
-
-/// The multi-band classifier of a colour map, the class names (sorted) and the map's
-/// class names (those, then `ambiguous` under the set rule).
-fn bands_classifier(
-    cfg: &MapConfig,
-    profiles: &[MultiPrototype],
-    label: &str,
-) -> Result<(Classifier, Vec<String>, Vec<String>)> {
-    let ccfg = match cfg.rule {
-        Rule::Set => ClassifierConfig::set(cfg.confidence),
-        Rule::Nearest => ClassifierConfig {
-            metric: cfg.metric,
-            reject: cfg.max_distance.map_or(Reject::Never, Reject::MaxDistance),
-            ..ClassifierConfig::default()
-        },
-    };
-    let classifier = Classifier::multi(profiles.to_vec(), ccfg).map_err(|e| IoError::Core {
-        path: label.into(),
-        source: e,
-    })?;
-    let names: Vec<String> = profiles
-        .iter()
-        .map(|p| p.class.clone())
-        .collect::<BTreeSet<_>>()
-        .into_iter()
-        .collect();
-    let mut class_names = names.clone();
-    if cfg.rule == Rule::Set {
-        class_names.push(AMBIGUOUS.to_string());
-    }
-    Ok((classifier, names, class_names))
+        .collect()
 }
 
 /// The class names of a colour map against `profiles` (`label` names them in errors):
@@ -515,7 +354,8 @@ pub fn band_class_names(
     profiles: &[MultiPrototype],
     label: &str,
 ) -> Result<Vec<String>> {
-    Ok(bands_classifier(cfg, profiles, label)?.2)
+    let src = MapPrototypes::Given { profiles, label };
+    Ok(decide::decision(cfg, src, &[])?.class_names)
 }
 
 /// The angles and error model of [`fit_bands`].
@@ -563,29 +403,31 @@ pub fn fit_bands(
     path: &Path,
     progress: Progress<'_>,
 ) -> Result<BandsFit> {
-    let wavelengths: Vec<Option<f64>> = accs.iter().map(|a| Some(a.wavelength_nm)).collect();
+    let wavelengths: Vec<Option<f64>> = accs.iter().map(|a| a.wavelength_nm).collect();
     let decision = decide::decision(cfg, MapPrototypes::Given { profiles, label }, &wavelengths)?;
-    fit_bands_with(cfg, accs, geo, &decision, path, progress)
+    let plans = fit_plans(&accs, geo.far_betas, !geo.beta.is_empty(), path)?;
+    fit_bands_with(cfg, accs, &plans, geo, &decision, None, path, progress)
 }
 
-/// [`fit_bands`] with the map's decision.
-fn fit_bands_with(
+/// [`fit_bands`] with the map's decision and the bands' far-field plans ([`fit_plans`]).
+/// With `answer` (a single-band map under `--rule nearest`) the band's fit answers with
+/// that classifier and no pixel is decided after the fit.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn fit_bands_with(
     cfg: &MapConfig,
     accs: Vec<BandDolp>,
+    plans: &[Option<FitPlan>],
     geo: FitGeometry<'_>,
     decision: &decide::Decision,
+    answer: Option<&PixelClassifier>,
     path: &Path,
     progress: Progress<'_>,
 ) -> Result<BandsFit> {
-    // Stage 2: every band fitted per pixel as a single-band map.
+    // Stage 2: every band fitted per pixel.
     let npix = geo.npix;
     let calibrated = !geo.beta.is_empty();
     let tests_rows = matches!(decision.decider, decide::Decider::Hypothesis { .. });
     let weighted = decide::weighted(cfg, calibrated, tests_rows);
-    let proto_err = |e| IoError::Core {
-        path: path.to_path_buf(),
-        source: e,
-    };
     let core_err = |e| IoError::Core {
         path: path.to_path_buf(),
         source: e,
@@ -596,48 +438,50 @@ fn fit_bands_with(
     let mut warnings: Vec<Warning> = decision.warnings.clone();
     let mut bands: Vec<BandMap> = Vec::with_capacity(accs.len());
     let mut corrs: Vec<Vec<f32>> = Vec::with_capacity(accs.len());
-    let mut plans: Vec<Option<FitPlan>> = Vec::with_capacity(accs.len());
+    let mut answered = None;
     let pixel_plan = PixelBetaPlan::new(options).map_err(core_err)?;
     let all_first: Vec<Prototype> = profiles
         .iter()
         .filter_map(|p| p.band_prototype(0))
         .collect();
-    for a in &accs {
-        let plan = if calibrated {
-            None
-        } else {
-            let b: Vec<f64> = a.captures.iter().map(|&i| geo.far_betas[i]).collect();
-            Some(FitPlan::new(&b, options).map_err(core_err)?)
-        };
+    for (a, plan) in accs.iter().zip(plans) {
         let beta_views: Vec<&[f32]> = a
             .captures
             .iter()
             .filter_map(|&i| geo.beta.get(i).map(Vec::as_slice))
             .collect();
-        let betas = match &plan {
+        let betas = match plan {
             Some(p) => Betas::Shared(p),
             None => Betas::PerPixel {
                 plan: &pixel_plan,
                 beta: &beta_views,
             },
         };
-        // The fit of a band needs a classifier; its per-band answer is not used.
-        let mut protos: Vec<Prototype> = profiles
-            .iter()
-            .flat_map(|p| {
-                p.bands
+        // The fit of a band needs a classifier; its per-band answer is used only as
+        // `answer`.
+        let own;
+        let pc = match answer {
+            Some(pc) => pc,
+            None => {
+                let mut protos: Vec<Prototype> = profiles
                     .iter()
-                    .enumerate()
-                    .filter(|(_, b)| same_band(b.wavelength_nm, Some(a.wavelength_nm)))
-                    .filter_map(|(i, _)| p.band_prototype(i))
-            })
-            .collect();
-        if protos.is_empty() {
-            protos = all_first.clone();
-        }
-        let pc = Classifier::new(protos, ClassifierConfig::default())
-            .and_then(|c| PixelClassifier::new(c, None))
-            .map_err(proto_err)?;
+                    .flat_map(|p| {
+                        p.bands
+                            .iter()
+                            .enumerate()
+                            .filter(|(_, b)| same_band(b.wavelength_nm, a.wavelength_nm))
+                            .filter_map(|(i, _)| p.band_prototype(i))
+                    })
+                    .collect();
+                if protos.is_empty() {
+                    protos = all_first.clone();
+                }
+                own = Classifier::new(protos, ClassifierConfig::default())
+                    .and_then(|c| PixelClassifier::new(c, None))
+                    .map_err(core_err)?;
+                &own
+            }
+        };
         let img = || vec![0f32; npix];
         let (mut n, mut k, mut n_se, mut k_se, mut rms) = (img(), img(), img(), img(), img());
         let mut class = vec![0u16; npix];
@@ -649,10 +493,10 @@ fn fit_bands_with(
             let e = estimate_noise(betas, &views, &rv, &sv, &a.flags).map_err(core_err)?;
             if e.is_none() {
                 warnings.push(Warning(format!(
-                    "{}: band {} nm: too few usable pixels to estimate the noise model; the \
-                     per-pixel fits are unweighted",
+                    "{}: {}too few usable pixels to estimate the noise model; the per-pixel \
+                     fits are unweighted",
                     path.display(),
-                    band_tag(a.wavelength_nm)
+                    a.tag().map_or(String::new(), |t| format!("band {t} nm: "))
                 )));
             }
             e
@@ -664,12 +508,19 @@ fn fit_bands_with(
             read: &rv,
             shot: &sv,
         });
-        let stage = format!("pixels (fit, {} nm)", band_tag(a.wavelength_nm));
+        let stage = a.tag().map_or("pixels (fit)".to_string(), |t| {
+            format!("pixels (fit, {t} nm)")
+        });
         let report = |done: usize| progress(&stage, done as u64, npix as u64);
-        let mut corr = vec![f32::NAN; npix];
+        // The fit's correlation of n and k, for the decision after the fit.
+        let mut corr = if answer.is_none() {
+            vec![f32::NAN; npix]
+        } else {
+            Vec::new()
+        };
         let counts: MapCounts = map::fit_and_classify_corr(
             betas,
-            &pc,
+            pc,
             &views,
             map_noise,
             &a.flags,
@@ -689,7 +540,8 @@ fn fit_bands_with(
         .map_err(core_err)?;
         corrs.push(corr);
         bands.push(BandMap {
-            wavelength_nm: a.wavelength_nm,
+            wavelength_nm: a.wavelength_nm.unwrap_or(f64::NAN),
+            tag: a.tag(),
             captures: a.captures.clone(),
             n,
             k,
@@ -700,7 +552,19 @@ fn fit_bands_with(
             reasons: counts.reasons,
             noise,
         });
-        plans.push(plan);
+        if answer.is_some() {
+            answered = Some((class, counts));
+        }
+    }
+    if let (Some(pc), Some((class, counts))) = (answer, answered) {
+        return Ok(BandsFit {
+            reason: bands[0].reason.clone(),
+            bands,
+            class,
+            class_names: pc.names().to_vec(),
+            counts,
+            warnings,
+        });
     }
 
     // Stage 3: every pixel decided once on all its bands (module `decide`).
@@ -730,7 +594,7 @@ fn fit_bands_with(
         .iter()
         .enumerate()
         .map(|(bi, b)| decide::BandInput {
-            wavelength_nm: Some(b.wavelength_nm),
+            wavelength_nm: accs[bi].wavelength_nm,
             reason: &b.reason,
             n: &b.n,
             k: &b.k,

@@ -1,12 +1,14 @@
-//! Stage 1 of the map: the (binned) DoLP image of one capture and its signal flags.
+//! Stage 1 of the map: the (binned) DoLP image of one capture per band and its signal
+//! flags.
 
 use std::path::Path;
 
 use polarid_core::map::noise::NoiseAnalyzer;
 use polarid_core::map::{self, NoiseOut};
-use polarid_core::mosaic;
-use polarid_core::stokes::StokesSolver;
+use polarid_core::mosaic::{self, ColourMethod};
+use polarid_core::stokes::{PixelRules, StokesSolver};
 use polarid_io::IoError;
+use polarid_io::bands::colour_stokes;
 use polarid_io::image::{self, Frame};
 use polarid_io::manifest::{Capture, CaptureSource};
 use polarid_io::measure::rules_for;
@@ -72,33 +74,93 @@ pub(crate) fn check_dims(dims: &mut Option<Dims>, f: &Frame, bin: usize) -> Resu
     }
 }
 
-/// DoLP (binned) of one capture into `dolp`, ORing its signal flags into `flags`, and
-/// with `noise` the noise terms `(A, B)` of every block (`polarid_core::map::noise`);
-/// returns the dark threshold used (DN).
-pub(crate) fn capture_dolp(
+/// One band's binned DoLP image of a capture, its signal flags and, for weighted fits,
+/// the noise terms `(A, B)` of every block (`polarid_core::map::noise`).
+pub(crate) struct CaptureBand {
+    /// The band's wavelength: a colour band's, or the single-band capture's own.
+    pub wavelength_nm: Option<f64>,
+    pub dolp: Vec<f32>,
+    pub flags: Vec<u8>,
+    pub noise: Option<(Vec<f32>, Vec<f32>)>,
+}
+
+impl CaptureBand {
+    fn new(wavelength_nm: Option<f64>, d: Dims, weighted: bool) -> Self {
+        let n = d.out_w * d.out_h;
+        Self {
+            wavelength_nm,
+            dolp: vec![0.0; n],
+            flags: vec![0; n],
+            noise: weighted.then(|| (vec![0.0; n], vec![0.0; n])),
+        }
+    }
+
+    /// The outputs of a DoLP kernel; `scale` converts the capture's signal to DN.
+    fn outputs<'a>(
+        &'a mut self,
+        analyzer: &'a NoiseAnalyzer,
+        scale: f64,
+    ) -> (&'a mut [f32], &'a mut [u8], Option<NoiseOut<'a>>) {
+        let nz = self.noise.as_mut().map(|(a, b)| NoiseOut {
+            analyzer,
+            scale,
+            read: a.as_mut_slice(),
+            shot: b.as_mut_slice(),
+        });
+        (&mut self.dolp, &mut self.flags, nz)
+    }
+}
+
+/// A capture's mosaic `file`, the map's size, the pixel rules of its reconstruction and
+/// the dark threshold (DN), tested on the block mean by `stokes_dolp`.
+fn read_mosaic(
+    c: &Capture,
+    file: &Path,
+    cfg: &MapConfig,
+    dims: &mut Option<Dims>,
+) -> Result<(Frame, Dims, PixelRules, f32)> {
+    let raw = image::read_frame(file)?;
+    let d = check_dims(dims, &raw, cfg.bin)?;
+    let mut rules = rules_for(&raw, c.dark_level, c.saturation);
+    let min_s0 = min_s0_for(&rules, raw.kind.is_integer(), cfg.min_s0);
+    rules.min_s0 = f32::MIN;
+    Ok((raw, d, rules, min_s0))
+}
+
+/// One band's binned DoLP from its Stokes images `s` (`mask`: the mosaic's per-pixel
+/// flags; `scale` converts the signal to DN for the noise model), the dark test on the
+/// block mean at `min_s0`.
+#[allow(clippy::too_many_arguments)]
+fn stokes_band(
+    wavelength_nm: Option<f64>,
+    d: Dims,
+    s: [&[f32]; 3],
+    mask: Option<&[u8]>,
+    min_s0: f32,
+    scale: f64,
+    bin: usize,
+    weighted: bool,
+) -> std::result::Result<CaptureBand, polarid_core::CoreError> {
+    let quad = NoiseAnalyzer::quad();
+    let mut b = CaptureBand::new(wavelength_nm, d, weighted);
+    let (dolp, flags, nz) = b.outputs(&quad, scale);
+    map::stokes_dolp_noise(
+        d.width, s[0], s[1], s[2], mask, min_s0, bin, dolp, flags, nz,
+    )?;
+    Ok(b)
+}
+
+/// The binned DoLP of one capture per band (one band for a single-band capture; a
+/// colour mosaic reconstructed once into its bands, bilinear per lattice, in the order
+/// of its pattern), with `weighted` the noise terms; returns the dark threshold used
+/// (DN) and the bands.
+pub(crate) fn capture_bands(
     c: &Capture,
     cfg: &MapConfig,
     dims: &mut Option<Dims>,
-    dolp: &mut Vec<f32>,
-    flags: &mut Vec<u8>,
-    mut noise: Option<(&mut Vec<f32>, &mut Vec<f32>)>,
-) -> Result<f32> {
+    weighted: bool,
+) -> Result<(f32, Vec<CaptureBand>)> {
     let bin = cfg.bin;
-    let alloc = |d: Dims,
-                 dolp: &mut Vec<f32>,
-                 flags: &mut Vec<u8>,
-                 noise: &mut Option<(&mut Vec<f32>, &mut Vec<f32>)>| {
-        let n = d.out_w * d.out_h;
-        dolp.resize(n, 0.0);
-        if flags.is_empty() {
-            flags.resize(n, 0);
-        }
-        if let Some((a, b)) = noise {
-            a.resize(n, 0.0);
-            b.resize(n, 0.0);
-        }
-    };
-    let quad = NoiseAnalyzer::quad();
     match &c.source {
         CaptureSource::Frames(frames) => {
             let angles: Vec<f64> = frames.iter().map(|f| f.angle_deg).collect();
@@ -120,24 +182,18 @@ pub(crate) fn capture_dolp(
                 .into());
             };
             let d = check_dims(dims, first, bin)?;
-            alloc(d, dolp, flags, &mut noise);
+            let mut b = CaptureBand::new(c.wavelength_nm, d, weighted);
             let an = NoiseAnalyzer::of_solver(&solver);
             let mut rules = rules_for(first, c.dark_level, c.saturation);
             rules.min_s0 = min_s0_for(&rules, first.kind.is_integer(), cfg.min_s0);
             let views: Vec<&[f32]> = imgs.iter().map(|f| f.data.as_slice()).collect();
-            let nz = noise_out(&an, 1.0, &mut noise);
+            let (dolp, flags, nz) = b.outputs(&an, 1.0);
             map::frames_dolp_noise(&solver, &views, d.width, &rules, bin, dolp, flags, nz)
                 .map_err(core_err(&first.path))?;
-            Ok(rules.min_s0)
+            Ok((rules.min_s0, vec![b]))
         }
         CaptureSource::Dofp { file, pattern } => {
-            let raw = image::read_frame(file)?;
-            let d = check_dims(dims, &raw, bin)?;
-            alloc(d, dolp, flags, &mut noise);
-            let mut rules = rules_for(&raw, c.dark_level, c.saturation);
-            let min_s0 = min_s0_for(&rules, raw.kind.is_integer(), cfg.min_s0);
-            // The dark test is made on the block mean by stokes_dolp.
-            rules.min_s0 = f32::MIN;
+            let (raw, d, rules, min_s0) = read_mosaic(c, file, cfg, dims)?;
             let n = raw.width * raw.height;
             let (mut s0, mut s1, mut s2, mut m) =
                 (vec![0f32; n], vec![0f32; n], vec![0f32; n], vec![0u8; n]);
@@ -146,28 +202,28 @@ pub(crate) fn capture_dolp(
             )
             .map_err(core_err(file))?;
             drop(raw);
-            let nz = noise_out(&quad, 1.0, &mut noise);
-            map::stokes_dolp_noise(
-                d.width,
-                &s0,
-                &s1,
-                &s2,
-                Some(&m),
-                min_s0,
-                bin,
-                dolp,
-                flags,
-                nz,
-            )
-            .map_err(core_err(file))?;
-            Ok(min_s0)
+            let s = [&s0[..], &s1, &s2];
+            let b = stokes_band(c.wavelength_nm, d, s, Some(&m), min_s0, 1.0, bin, weighted);
+            Ok((min_s0, vec![b.map_err(core_err(file))?]))
         }
-        CaptureSource::ColourDofp { file, .. } => Err(PipelineError::Data {
-            path: file.display().to_string(),
-            reason: "internal error: a colour capture is mapped per band (map::bands), not as \
-                     one DoLP image"
-                .into(),
-        }),
+        CaptureSource::ColourDofp {
+            file,
+            pattern,
+            wavelengths_nm,
+        } => {
+            let (raw, d, rules, min_s0) = read_mosaic(c, file, cfg, dims)?;
+            let imgs = colour_stokes(&raw, pattern, &rules, ColourMethod::Bilinear)?;
+            drop(raw);
+            let out = imgs.iter().zip(wavelengths_nm).map(|(img, &w)| {
+                let s = [&img.s0[..], &img.s1, &img.s2];
+                stokes_band(Some(w), d, s, Some(&img.mask), min_s0, 1.0, bin, weighted)
+            });
+            Ok((
+                min_s0,
+                out.collect::<std::result::Result<_, _>>()
+                    .map_err(core_err(file))?,
+            ))
+        }
         CaptureSource::Stokes { s0, s1, s2 } => {
             let imgs = image::read_frames(&[s0, s1, s2])?;
             let [i0, i1, i2] = &imgs[..] else {
@@ -177,38 +233,20 @@ pub(crate) fn capture_dolp(
                 });
             };
             let d = check_dims(dims, i0, bin)?;
-            alloc(d, dolp, flags, &mut noise);
-            let min_s0 = cfg.min_s0.unwrap_or(0.0) / c.exposure;
+            let min_s0 = (cfg.min_s0.unwrap_or(0.0) / c.exposure) as f32;
+            let s = [&i0.data[..], &i1.data, &i2.data];
             // S in DN / exposure: back to DN for the noise model.
-            let nz = noise_out(&quad, c.exposure, &mut noise);
-            map::stokes_dolp_noise(
-                d.width,
-                &i0.data,
-                &i1.data,
-                &i2.data,
+            let b = stokes_band(
+                c.wavelength_nm,
+                d,
+                s,
                 None,
-                min_s0 as f32,
+                min_s0,
+                c.exposure,
                 bin,
-                dolp,
-                flags,
-                nz,
-            )
-            .map_err(core_err(s0))?;
-            Ok(min_s0 as f32)
+                weighted,
+            );
+            Ok((min_s0, vec![b.map_err(core_err(s0))?]))
         }
     }
-}
-
-/// The noise output of a capture's DoLP kernel, when the map wants one.
-fn noise_out<'a>(
-    analyzer: &'a NoiseAnalyzer,
-    scale: f64,
-    noise: &'a mut Option<(&mut Vec<f32>, &mut Vec<f32>)>,
-) -> Option<NoiseOut<'a>> {
-    noise.as_mut().map(|(a, b)| NoiseOut {
-        analyzer,
-        scale,
-        read: a.as_mut_slice(),
-        shot: b.as_mut_slice(),
-    })
 }

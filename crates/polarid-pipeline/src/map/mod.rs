@@ -1,16 +1,18 @@
 //! Manifest → per-pixel `(n, k)` and material maps (`polarid map`, `polarid.map_manifest`).
 //!
-//! Pipeline (`polarid_core::map`): for each capture in turn, the frames are read, the
-//! per-pixel (or per `b × b` block) Stokes vector and DoLP computed, and only the DoLP
-//! (f32) kept, with the signal flags (saturated, dark, invalid) ORed over the captures
-//! (progress stage `"captures (DoLP)"`). Then every unflagged pixel's DoLP values over
-//! the captures are fitted for (n, k) (eq. 9, in tiles of pixels; stage
-//! `"pixels (fit)"`) and then decided as `polarid classify` decides a target (stage
-//! `"pixels (classify)"`, module `decide`, the same for colour maps): against a model
-//! the set rule on the same bench (the pixel's noise covariance against the prototypes'
+//! Pipeline (`polarid_core::map`), one path for every map: a map has one or more bands
+//! (module `bands`: a single-band map is one band, a colour map one per wavelength).
+//! For each capture in turn, the frames are read, the per-pixel (or per `b × b` block)
+//! Stokes vector and DoLP of each of its bands computed, and only the DoLP (f32) kept,
+//! with the signal flags (saturated, dark, invalid) ORed over the band's captures
+//! (progress stage `"captures (DoLP)"`). Then every band's unflagged pixels are fitted
+//! for (n, k) over the band's captures (eq. 9, in tiles of pixels; stage `"pixels
+//! (fit)"`, `"pixels (fit, 450 nm)"` per band of a colour map) and every pixel decided
+//! once on its bands as `polarid classify` decides a target (stage `"pixels
+//! (classify)"`, module `decide`): against a model the set rule on the same bench (the pixel's noise covariance against the prototypes'
 //! sample covariance) or another (`MapConfig::with_bench`: both totals), against a
 //! library the hypothesis tests on the pixel's rows; or the paper's nearest prototype
-//! (`Rule::Nearest`, answered in the fit). With calibrated geometry (and for a library)
+//! (`Rule::Nearest`; a single-band map answers it in the fit). With calibrated geometry (and for a library)
 //! the fits are weighted by the per-pixel noise model estimated on the map
 //! (`polarid_core::map::noise`; [`Weights`]). Peak memory is about `T`
 //! DoLP images plus one capture's frames (and `T` β images with calibrated geometry).
@@ -49,10 +51,9 @@ use std::path::Path;
 use std::time::Instant;
 
 use polarid_core::classify::{Bench, Classifier, ClassifierConfig, UNKNOWN};
-use polarid_core::fit::{FitOptions, FitPlan, PixelBetaPlan};
-use polarid_core::map::noise::{NoiseEstimate, estimate_noise};
+use polarid_core::map::noise::NoiseEstimate;
 use polarid_core::map::sets::MapErrorModel;
-use polarid_core::map::{self, Betas, MapCounts, MapNoise, MapOutputs, PixelClassifier, reason};
+use polarid_core::map::{MapCounts, PixelClassifier, reason};
 use polarid_core::systematic::Polarimetric;
 use polarid_io::IoError;
 use polarid_io::manifest::Manifest;
@@ -60,7 +61,7 @@ use polarid_io::model::Model;
 
 pub use bands::{
     BAND_IMAGES, BandDolp, BandMap, BandsFit, FitGeometry, band_class_names, band_tag, fit_bands,
-    is_colour, map_manifest_bands, output_files,
+    is_colour, output_files,
 };
 pub use decide::MapPrototypes;
 pub use polarid_core::map::reason::NAMES as REASON_NAMES;
@@ -296,16 +297,6 @@ pub struct MapResult {
     pub width: usize,
     /// Map height.
     pub height: usize,
-    /// Fitted `n` (NaN where not fitted).
-    pub n: Vec<f32>,
-    /// Fitted `k` (NaN where not fitted).
-    pub k: Vec<f32>,
-    /// Standard error of `n`.
-    pub n_se: Vec<f32>,
-    /// Standard error of `k`.
-    pub k_se: Vec<f32>,
-    /// RMS DoLP residual of the fit.
-    pub rms_residual: Vec<f32>,
     /// Class index: 0 not classified, `i >= 1` is `class_names[i - 1]`.
     pub class: Vec<u16>,
     /// Why a pixel is (not) classified: index into [`REASON_NAMES`].
@@ -351,10 +342,9 @@ pub struct MapResult {
     pub seconds_fit: f64,
     /// The manifest's warnings (unknown keys ...).
     pub warnings: Vec<Warning>,
-    /// Colour captures: the fit of every band, in increasing wavelength
-    /// ([`map_manifest_bands`]); `n`, `k`, `n_se`, `k_se` and `rms_residual` are then
-    /// empty and `class`, `reason` are those of the classification on all bands. Empty
-    /// for a single-band map.
+    /// The fit of every band (module `bands`): the one unnamed band of a single-band map
+    /// (`n.tif` ...), or one per wavelength, increasing, of a map of colour captures
+    /// (`n_450.tif` ...). `class` and `reason` are those of the decision on all bands.
     pub bands: Vec<BandMap>,
 }
 
@@ -419,11 +409,10 @@ fn error_model(m: &Manifest, errors: &MapErrors) -> MapErrorModel {
     }
 }
 
-/// Map a loaded manifest with a model (`model_path` names it in errors): DoLP per capture, then fit and classify every
-/// pixel (see the module documentation). Progress stages: `"captures (DoLP)"` (one
-/// step per capture), `"pixels (fit)"` (pixels done), `"pixels (classify)"`. A manifest
-/// with colour captures is mapped per band with the model's multi-band prototypes
-/// ([`map_manifest_bands`]).
+/// Map a loaded manifest with a model (`model_path` names it in errors): DoLP per capture
+/// and band, then fit and classify every pixel (see the module documentation). Progress
+/// stages: `"captures (DoLP)"` (one step per capture), `"pixels (fit)"` (pixels done;
+/// `"pixels (fit, 450 nm)"` per band of a colour map), `"pixels (classify)"`.
 pub fn map_manifest(
     cfg: &MapConfig,
     m: &Manifest,
@@ -442,161 +431,76 @@ pub fn map_manifest(
     )
 }
 
-/// The wavelength of a single-band map: the captures' `wavelength_nm` when they all
-/// have the same one.
-fn mono_wavelength(m: &Manifest) -> Option<f64> {
-    let first = m.captures.first()?.wavelength_nm?;
-    m.captures
-        .iter()
-        .all(|c| polarid_core::classify::same_band(c.wavelength_nm, Some(first)))
-        .then_some(first)
-}
-
 /// [`map_manifest`] against a model, a library or prototypes as given ([`MapPrototypes`]):
 /// under the set rule every pixel is decided as `polarid classify` decides a target
 /// (module `decide`: a model on the same bench or another, a library by the hypothesis
 /// tests against the pixel's rows — single-band captures then need their
-/// `wavelength_nm`, else the built-in library's 650 nm is used with a warning).
+/// `wavelength_nm`, else the built-in library's 650 nm is used with a warning). The
+/// [`MapResult`] has one [`BandMap`] per band (module `bands`): one for a single-band
+/// map, one per wavelength for a manifest with colour captures.
+///
+/// Errors: a band in fewer than 3 captures, a single-band capture without a wavelength
+/// among colour captures ([`IoError::Manifest`] naming `capture[i].wavelength_nm`), the
+/// files (sizes, `--bin`), bad prototypes (naming them).
 pub fn map_manifest_from(
     cfg: &MapConfig,
     m: &Manifest,
     src: MapPrototypes<'_>,
     progress: Progress<'_>,
 ) -> Result<MapResult> {
-    if is_colour(m) {
-        return bands::map_manifest_bands_from(cfg, m, src, progress);
-    }
-    let wavelength = mono_wavelength(m);
-    let decision = decide::decision(cfg, src, &[wavelength])?;
-    let label = src.label();
-    let proto_err = |e| IoError::Core {
-        path: label.clone().into(),
-        source: e,
-    };
-    // The fit's own answer: the paper's nearest prototype (kept under `--rule nearest`;
-    // under the set rule every pixel is decided after the fit).
-    let pc = match (src, cfg.rule) {
-        (MapPrototypes::Model { model, path }, Rule::Nearest) => {
-            pixel_classifier(cfg, model, path)?
+    let mut bands = bands::band_list(m)?;
+    // The prototypes and angles are checked before any work.
+    let wavelengths: Vec<Option<f64>> = bands.iter().map(|b| b.wavelength()).collect();
+    let decision = decide::decision(cfg, src, &wavelengths)?;
+    let colour = is_colour(m);
+    let answer = match (colour, cfg.rule, src) {
+        (false, Rule::Nearest, MapPrototypes::Model { model, path }) => {
+            Some(pixel_classifier(cfg, model, path)?)
         }
-        (_, rule) => {
-            let first: Vec<_> = decision
-                .profiles
-                .iter()
-                .filter_map(|p| p.band_prototype(0))
-                .collect();
-            let max = if rule == Rule::Nearest {
-                cfg.max_distance
-            } else {
-                None
-            };
-            Classifier::new(first, ClassifierConfig::default())
-                .and_then(|c| PixelClassifier::new(c, max))
-                .map_err(proto_err)?
-                .with_mahalanobis(rule == Rule::Nearest && cfg.metric == Metric::Mahalanobis)
-        }
-    };
-    let names: Vec<String> = match cfg.rule {
-        Rule::Nearest => pc.names().to_vec(),
-        Rule::Set => decision.class_names.clone(),
-    };
-
-    // Far field: one β per capture (eq. 5), the fit plan shared by every pixel.
-    let core_err = |e| IoError::Core {
-        path: m.path.clone(),
-        source: e,
+        (false, Rule::Nearest, _) => Some(nearest_classifier(cfg, &decision, &src.label())?),
+        _ => None,
     };
     let calibrated = m.camera.is_some();
     let weighted = decide::weighted(cfg, calibrated, src.tests_rows(cfg));
-    let plan = if calibrated {
-        // Checked before any work, as the far-field plan checks it.
-        if m.captures.len() < 3 {
-            return Err(core_err(polarid_core::CoreError::TooFew {
-                what: "DoLP measurements (source positions)",
-                needed: 3,
-                got: m.captures.len(),
-            })
-            .into());
-        }
-        None
-    } else {
-        let betas: Vec<f64> = m
-            .captures
-            .iter()
-            .map(|c| {
-                polarid_core::geometry::beta(
-                    c.theta_i_deg.to_radians(),
-                    c.theta_r_deg.to_radians(),
-                    c.phi_deg.to_radians(),
-                )
-            })
-            .collect();
-        Some(FitPlan::new(&betas, FitOptions::default()).map_err(core_err)?)
-    };
+    let far_betas: Vec<f64> = m
+        .captures
+        .iter()
+        .map(|c| {
+            polarid_core::geometry::beta(
+                c.theta_i_deg.to_radians(),
+                c.theta_r_deg.to_radians(),
+                c.phi_deg.to_radians(),
+            )
+        })
+        .collect();
+    let plans = bands::fit_plans(&bands, &far_betas, calibrated, &m.path)?;
 
-    // Stage 1: DoLP per capture (one capture's frames in memory at a time).
+    // Stage 1: DoLP per capture and band (one capture's frames in memory at a time; a
+    // colour mosaic reconstructed once). Calibrated geometry: a lamp at a finite
+    // distance moves the specular lobe across the scene, so a pixel is typically lit in
+    // some captures and dark in others. Its dark (or saturated) captures are left out
+    // of its own fit (DoLP NaN) instead of excluding the pixel ([`BandDolp::push`]); the
+    // far-field rule (flagged in any capture: not fitted) is unchanged.
     let t0 = Instant::now();
     let ncap = m.captures.len() as u64;
     progress("captures (DoLP)", 0, ncap);
     let mut dims = None;
-    let mut flags: Vec<u8> = Vec::new();
-    let mut dolp: Vec<Vec<f32>> = Vec::with_capacity(m.captures.len());
-    // Weighted fits: the noise terms (A, B) of every capture.
-    let mut read_terms: Vec<Vec<f32>> = Vec::new();
-    let mut shot_terms: Vec<Vec<f32>> = Vec::new();
     let mut thresholds = Vec::with_capacity(m.captures.len());
-    // Calibrated geometry: a lamp at a finite distance moves the specular lobe across
-    // the scene, so a pixel is typically lit in some captures and dark in others. Its
-    // dark captures are left out of its own fit (DoLP NaN) instead of excluding the
-    // pixel; the far-field rule (dark in any capture: not fitted) is unchanged.
-    // Likewise a capture in which the pixel saturates. A pixel left with fewer than 3
-    // usable captures is not fitted, with the reason (dark, saturated) of its drops.
-    let mut capture_flags: Vec<u8> = Vec::new();
-    let mut dropped: Vec<u8> = Vec::new();
     for (i, c) in m.captures.iter().enumerate() {
-        let mut d = Vec::new();
-        let (mut ra, mut rb) = (Vec::new(), Vec::new());
-        let f = if calibrated {
-            capture_flags.iter_mut().for_each(|f| *f = 0);
-            &mut capture_flags
-        } else {
-            &mut flags
-        };
-        let nz = weighted.then_some((&mut ra, &mut rb));
-        let th = capture::capture_dolp(c, cfg, &mut dims, &mut d, f, nz).map_err(|e| match e {
-            e @ PipelineError::Config { .. } => e,
-            e => PipelineError::Data {
-                path: format!("capture {} (line {})", c.index, c.line),
-                reason: e.to_string(),
-            },
-        })?;
-        if calibrated {
-            if flags.is_empty() {
-                flags.resize(capture_flags.len(), 0);
-            }
-            if dropped.is_empty() {
-                dropped.resize(capture_flags.len(), 0);
-            }
-            let drop = map::flag::DARK | map::flag::SATURATED;
-            for (((f, g), cf), v) in flags
-                .iter_mut()
-                .zip(dropped.iter_mut())
-                .zip(&capture_flags)
-                .zip(d.iter_mut())
-            {
-                if cf & drop != 0 {
-                    *v = f32::NAN;
-                }
-                *g |= cf & drop;
-                *f |= cf & !drop;
+        let (th, images) =
+            capture::capture_bands(c, cfg, &mut dims, weighted).map_err(|e| match e {
+                e @ PipelineError::Config { .. } => e,
+                e => PipelineError::Data {
+                    path: format!("capture {} (line {})", c.index, c.line),
+                    reason: e.to_string(),
+                },
+            })?;
+        for b in images {
+            if let Some(j) = bands::band_of(&bands, b.wavelength_nm) {
+                bands[j].push(calibrated, b.dolp, &b.flags, b.noise);
             }
         }
         thresholds.push(th);
-        dolp.push(d);
-        if weighted {
-            read_terms.push(ra);
-            shot_terms.push(rb);
-        }
         progress("captures (DoLP)", i as u64 + 1, ncap);
     }
     let Some(d) = dims else {
@@ -605,14 +509,7 @@ pub fn map_manifest_from(
             reason: "the manifest has no capture".into(),
         });
     };
-    if calibrated {
-        for (p, (f, g)) in flags.iter_mut().zip(&dropped).enumerate() {
-            if dolp.iter().filter(|d| !d[p].is_nan()).count() < 3 {
-                *f |= g;
-            }
-        }
-    }
-
+    bands.iter_mut().for_each(|b| b.finish(calibrated));
     // Calibrated geometry: β per pixel and capture.
     let beta_maps = if calibrated {
         progress("captures (geometry)", 0, ncap);
@@ -622,137 +519,45 @@ pub fn map_manifest_from(
     } else {
         geometry::BetaMaps::default()
     };
-    let pixel_plan = if calibrated {
-        Some(PixelBetaPlan::new(FitOptions::default()).map_err(core_err)?)
-    } else {
-        None
-    };
     let t_dolp = t0.elapsed().as_secs_f64();
 
-    // Stage 2: fit and classify, in tiles.
-    let npix = d.out_w * d.out_h;
-    let img = || vec![0f32; npix];
-    let (mut n, mut k, mut n_se, mut k_se, mut rms) = (img(), img(), img(), img(), img());
-    let mut class = vec![0u16; npix];
-    let mut why = vec![0u8; npix];
-    let set_rule = cfg.rule == Rule::Set;
-    let mut corr = if set_rule {
-        vec![f32::NAN; npix]
-    } else {
-        Vec::new()
-    };
-    let mut noise: Option<NoiseEstimate> = None;
-    let mut warnings: Vec<Warning> = m.warnings.iter().map(|w| Warning(w.clone())).collect();
-    warnings.extend(decision.warnings.iter().cloned());
-    let counts = {
-        let views: Vec<&[f32]> = dolp.iter().map(|v| v.as_slice()).collect();
-        let beta_views: Vec<&[f32]> = beta_maps.beta.iter().map(|v| v.as_slice()).collect();
-        let betas = match (&plan, &pixel_plan) {
-            (Some(plan), _) => Betas::Shared(plan),
-            (None, Some(pp)) => Betas::PerPixel {
-                plan: pp,
-                beta: &beta_views,
-            },
-            (None, None) => {
-                return Err(PipelineError::Data {
-                    path: m.path.display().to_string(),
-                    reason: "internal error: no angles for the fit".into(),
-                });
-            }
-        };
-        let outputs = MapOutputs {
-            n: &mut n,
-            k: &mut k,
-            n_se: &mut n_se,
-            k_se: &mut k_se,
-            rms_residual: &mut rms,
-            class: &mut class,
-            reason: &mut why,
-        };
-        let report = |done: usize| progress("pixels (fit)", done as u64, npix as u64);
-        let rv: Vec<&[f32]> = read_terms.iter().map(|v| v.as_slice()).collect();
-        let sv: Vec<&[f32]> = shot_terms.iter().map(|v| v.as_slice()).collect();
-        if weighted {
-            noise = estimate_noise(betas, &views, &rv, &sv, &flags).map_err(core_err)?;
-            if noise.is_none() {
-                warnings.push(Warning(format!(
-                    "{}: too few usable pixels to estimate the noise model; the per-pixel fits are unweighted",
-                    m.path.display()
-                )));
-            }
-        }
-        let map_noise = noise.map(|e| MapNoise {
-            model: e.model,
-            read: &rv,
-            shot: &sv,
-        });
-        let counts = map::fit_and_classify_corr(
-            betas, &pc, &views, map_noise, &flags, cfg.tile, outputs, &mut corr, &report,
-        )
-        .map_err(core_err)?;
-        if set_rule {
-            // Every pixel decided on its fit (and rows), as `classify` decides.
-            progress("pixels (classify)", 0, npix as u64);
-            let captures: Vec<usize> = (0..m.captures.len()).collect();
-            let shared: Vec<f64> = plan.as_ref().map_or(Vec::new(), |p| p.betas().to_vec());
-            let input = decide::BandInput {
-                wavelength_nm: wavelength,
-                reason: &why,
-                n: &n,
-                k: &k,
-                n_se: &n_se,
-                k_se: &k_se,
-                nk_corr: &corr,
-                rms: &rms,
-                dolp: &views,
-                captures: &captures,
-                betas: if plan.is_some() {
-                    decide::BandBetas::Shared(&shared)
-                } else {
-                    decide::BandBetas::PerPixel(&beta_views)
-                },
-                noise: noise.map(|e| (e.model, &rv[..], &sv[..])),
-            };
-            let options = FitOptions::default();
-            let (c, r, counts) = decide::decide_pixels(
-                &decision,
-                &[input],
-                &error_model(m, &cfg.errors),
-                options.bounds.k_min == 0.0,
-                npix,
-            );
-            progress("pixels (classify)", npix as u64, npix as u64);
-            class = c;
-            why = r;
-            counts
-        } else {
-            counts
-        }
-    };
-    drop(dolp);
-    drop(flags);
+    // Stages 2 and 3: every band fitted, every pixel decided.
+    let fit = bands::fit_bands_with(
+        cfg,
+        bands,
+        &plans,
+        FitGeometry {
+            npix: d.out_w * d.out_h,
+            far_betas: &far_betas,
+            beta: &beta_maps.beta,
+            errors: &error_model(m, &cfg.errors),
+        },
+        &decision,
+        answer.as_ref(),
+        &m.path,
+        progress,
+    )?;
     let t_fit = t0.elapsed().as_secs_f64() - t_dolp;
-    let regions = summary::region_summary(m, d, cfg.bin, &class, &names);
-    let beta_deg: Vec<f64> = match &plan {
-        Some(p) => p.betas().iter().map(|b| b.to_degrees()).collect(),
-        None => beta_maps.beta.iter().map(|b| mean_deg(b)).collect(),
+    let mut warnings: Vec<Warning> = m.warnings.iter().map(|w| Warning(w.clone())).collect();
+    warnings.extend(fit.warnings);
+    let regions = summary::region_summary(m, d, cfg.bin, &fit.class, &fit.class_names);
+    let beta_deg: Vec<f64> = if calibrated {
+        beta_maps.beta.iter().map(|b| mean_deg(b)).collect()
+    } else {
+        far_betas.iter().map(|b| b.to_degrees()).collect()
     };
     let (beta_range_deg, beta_maps_deg) = beta_degrees(beta_maps);
+    let noise = fit.bands.iter().find_map(|b| b.noise);
     Ok(MapResult {
         frame_width: d.width,
         frame_height: d.height,
         bin: cfg.bin,
         width: d.out_w,
         height: d.out_h,
-        n,
-        k,
-        n_se,
-        k_se,
-        rms_residual: rms,
-        class,
-        reason: why,
-        class_names: names,
-        counts,
+        class: fit.class,
+        reason: fit.reason,
+        class_names: fit.class_names,
+        counts: fit.counts,
         calibrated,
         beta_deg,
         beta_range_deg,
@@ -769,8 +574,33 @@ pub fn map_manifest_from(
         seconds_dolp: t_dolp,
         seconds_fit: t_fit,
         warnings,
-        bands: Vec::new(),
+        bands: fit.bands,
     })
+}
+
+/// The paper's nearest prototype among the first band of `decision`'s prototypes (a
+/// single-band map under `--rule nearest` against a library or given prototypes), with
+/// the configuration's maximum distance and metric; errors name `label`.
+fn nearest_classifier(
+    cfg: &MapConfig,
+    decision: &decide::Decision,
+    label: &str,
+) -> Result<PixelClassifier> {
+    let first: Vec<_> = decision
+        .profiles
+        .iter()
+        .filter_map(|p| p.band_prototype(0))
+        .collect();
+    Classifier::new(first, ClassifierConfig::default())
+        .and_then(|c| PixelClassifier::new(c, cfg.max_distance))
+        .map(|pc| pc.with_mahalanobis(cfg.metric == Metric::Mahalanobis))
+        .map_err(|e| {
+            IoError::Core {
+                path: label.into(),
+                source: e,
+            }
+            .into()
+        })
 }
 
 /// `MapResult::beta_range_deg` and `MapResult::beta_maps_deg` of the β maps (radians):

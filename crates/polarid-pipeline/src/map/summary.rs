@@ -8,10 +8,6 @@ use serde_json::{Value, json};
 use super::MapResult;
 use super::capture::Dims;
 
-/// The per-band fit images of a colour map, written as `{name}_{tag}.tif`
-/// ([`super::band_tag`]): `n_450.tif`, `k_450.tif`, ...
-pub const BAND_IMAGES: [&str; 5] = ["n", "k", "n_se", "k_se", "rms_residual"];
-
 /// What a labelled region of the manifest became in the map.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RegionSummary {
@@ -186,16 +182,14 @@ impl MapResult {
             }),
             None => Value::Null,
         };
-        if !self.bands.is_empty() {
+        if self.is_colour() {
             v["bands"] = json!(
                 self.bands
                     .iter()
                     .map(|b| {
-                        let tag = polarid_io::manifest::colour::wavelength_label(b.wavelength_nm);
-                        let files: Vec<String> = BAND_IMAGES
-                            .iter()
-                            .map(|f| format!("{f}_{tag}.tif"))
-                            .collect();
+                        let files: Vec<String> =
+                            super::bands::image_files(Some(super::band_tag(b.wavelength_nm)))
+                                .collect();
                         let reasons: serde_json::Map<String, Value> = names
                             .iter()
                             .zip(b.reasons)
