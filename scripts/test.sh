@@ -45,13 +45,15 @@ cargo clippy --release --workspace --exclude polarid-python --all-targets --lock
 step "cargo test (release): binaries and integration tests"
 cargo test --release --locked --bins --test '*'
 # The libraries' unit tests: those of polarid-io and -pipeline (and the test kit's) against the
-# libraries built above; polarid-core's alone, at opt-level 1 (its unit-test binary costs
+# libraries built above (polarid-cli, which has no library, is selected so that the
+# dependencies keep the features of the step above and are not compiled again);
+# polarid-core's alone, at opt-level 1 (its unit-test binary costs
 # about 110 CPU-s to build there against about 660 at opt-level 3, and its tests run in a
 # few seconds). polarid-core has no dependency on the other crates, even among its test
 # dependencies, so that selecting it alone builds only its test binary at opt-level 1
 # and leaves the libraries of the other steps as they are.
 step "cargo test (release): the libraries' unit tests"
-cargo test --release --locked --lib -p polarid-io -p polarid-pipeline -p polarid-testkit
+cargo test --release --locked --lib -p polarid-io -p polarid-pipeline -p polarid-testkit -p polarid-cli
 step "cargo test (release, polarid-core at opt-level 1): polarid-core's unit tests"
 cargo test --release --locked --lib -p polarid-core --config 'profile.release.package.polarid-core.opt-level=1'
 step "cargo test (release): doc tests"
