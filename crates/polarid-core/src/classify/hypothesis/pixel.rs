@@ -270,10 +270,10 @@ impl PixelTests {
                     .zip(wavelengths)
                     .all(|(a, b)| *a == b.to_bits())
         };
-        if let Ok(c) = self.cache.read() {
-            if let Some(s) = c.sets.iter().find(|s| same(s)) {
-                return s.clone();
-            }
+        if let Ok(c) = self.cache.read()
+            && let Some(s) = c.sets.iter().find(|s| same(s))
+        {
+            return s.clone();
         }
         let mut c = match self.cache.write() {
             Ok(c) => c,
