@@ -849,6 +849,24 @@ fn normal_quantile(p: f64) -> f64 {
     }
 }
 
+/// An upper bound of the `χ²_min` that can pass at `confidence` with `rows` rows,
+/// whatever the nuisances' Fisher information: `P(R + D ≥ x) ≤ P(χ²_rows ≥ x − D_max)`
+/// ([`mixture_sf`]: `R ~ χ²_{rows−m}` is stochastically below `χ²_rows`, and each draw
+/// `D` of [`nuisance_null`] is at most its `zᵀz`, the box's value at the drawn `θ`), so
+/// the bound is `χ²_rows(p) + max zᵀz` over the design. Keep it an upper bound when the
+/// null changes: the per-pixel decisions ([`pixel`]) reject a material whose lower bound
+/// of `χ²_min` exceeds it without testing it.
+fn chi2_pass_bound(rows: usize, confidence: f64) -> f64 {
+    let d_max = (1..=NULL_DRAWS)
+        .map(|i| {
+            (0..3)
+                .map(|x| normal_quantile(halton(i, HALTON_BASES[3 + x])).powi(2))
+                .sum::<f64>()
+        })
+        .fold(0.0, f64::max);
+    chi2_quantile_any(confidence, rows as f64) + d_max
+}
+
 /// `P(R + D ≥ x)` with `R ~ χ²_resid` and `D` the draws (module documentation).
 fn mixture_sf(x: f64, resid: usize, draws: &[f64]) -> f64 {
     let n = draws.len() as f64;
@@ -903,6 +921,18 @@ fn test_checked(
     wavelengths: &[f64],
     cand: &CandidateModel,
     cfg: &HypothesisConfig,
+) -> NuisanceFit {
+    fit_checked(rows, wavelengths, cand, cfg, true)
+}
+
+/// [`test_checked`]; without `with_evidence` the log evidence is left NaN (a pixel's
+/// decision needs only the verdicts, [`pixel`]).
+fn fit_checked(
+    rows: &[HypRow],
+    wavelengths: &[f64],
+    cand: &CandidateModel,
+    cfg: &HypothesisConfig,
+    with_evidence: bool,
 ) -> NuisanceFit {
     let nu = cfg.nuisances;
     let (d_lo, d_hi) = cand
@@ -1039,7 +1069,11 @@ fn test_checked(
     let dof = resid as f64 + draws.iter().sum::<f64>() / draws.len() as f64;
     let p_value = mixture_sf(chi2, resid, &draws);
     let consistent = p_value >= 1.0 - cfg.confidence;
-    let log_evidence = evidence(&mut prof, (d_lo, d_hi), off) - ln_sigma;
+    let log_evidence = if with_evidence {
+        evidence(&mut prof, (d_lo, d_hi), off) - ln_sigma
+    } else {
+        f64::NAN
+    };
     NuisanceFit {
         chi2,
         dof,
@@ -1351,6 +1385,8 @@ pub fn classify_rows(
     };
     Ok(HypothesisOutcome { decision, tested })
 }
+
+pub(crate) mod pixel;
 
 #[cfg(test)]
 mod tests;

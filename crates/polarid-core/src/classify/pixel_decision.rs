@@ -13,16 +13,17 @@
 //!   Prototypes whose surface-layer shifts correlate several bands are decided by
 //!   [`Classifier::classify_multi`] itself.
 //! - [`HypothesisDecider`]: each material as it is found tested against the pixel's
-//!   own rows ([`classify_rows`], docs/CLASSIFY.md "Testing each material against the
+//!   own rows ([`classify_rows`](super::classify_rows), docs/CLASSIFY.md "Testing each material against the
 //!   rows").
 //!
 //! The answer of a pixel is a [`PixelAnswer`]: one material, `ambiguous`, or none.
 
 use std::collections::BTreeSet;
 
+use super::hypothesis::pixel::{PixelTests, Verdict};
 use super::{
     Classifier, ClassifierConfig, Cov2, Estimate, EstimateBand, HypRow, HypothesisConfig,
-    MultiEstimate, MultiPrototype, Prototype, Status, chi2_quantile, classify_rows, same_band,
+    MultiEstimate, MultiPrototype, Prototype, Status, chi2_quantile, same_band,
 };
 use crate::error::{CoreError, Result};
 use crate::status::FitStatus;
@@ -282,9 +283,9 @@ fn answer_of(classes: &[String], d: &super::Decision) -> PixelAnswer {
 #[derive(Debug, Clone)]
 pub struct HypothesisDecider {
     classes: Vec<String>,
-    protos: Vec<MultiPrototype>,
     confidence: f64,
     scale_min: f64,
+    tests: PixelTests,
 }
 
 impl HypothesisDecider {
@@ -300,9 +301,10 @@ impl HypothesisDecider {
                 got: 0,
             });
         }
+        let classes = class_names(protos)?;
         let d = Self {
-            classes: class_names(protos)?,
-            protos: protos.to_vec(),
+            tests: PixelTests::new(protos, &classes),
+            classes,
             confidence,
             scale_min,
         };
@@ -325,12 +327,18 @@ impl HypothesisDecider {
     }
 
     /// The answer for a pixel's rows (bands indexing `wavelengths`, nm): the materials
-    /// that pass ([`classify_rows`], uniform priors). Errors: bad rows (as
-    /// [`classify_rows`]).
+    /// that pass ([`classify_rows`](super::classify_rows), uniform priors), without testing those that cannot
+    /// pass (`hypothesis::pixel`). Errors: bad rows (as [`classify_rows`](super::classify_rows)).
     pub fn decide(&self, rows: &[HypRow], wavelengths: &[f64]) -> Result<PixelAnswer> {
         let angle = rows.iter().map(|r| r.angle_sd).fold(0.0, f64::max);
-        let out = classify_rows(rows, wavelengths, &self.protos, None, &self.config(angle))?;
-        Ok(answer_of(&self.classes, &out.decision))
+        Ok(
+            match self.tests.decide(rows, wavelengths, &self.config(angle))? {
+                Verdict::NoBand => PixelAnswer::NoBand,
+                Verdict::None => PixelAnswer::Unknown,
+                Verdict::One(c) => PixelAnswer::One(c),
+                Verdict::Several => PixelAnswer::Ambiguous,
+            },
+        )
     }
 }
 

@@ -11,5 +11,6 @@ mod hypothesis_study;
 mod imperfect_acceptance;
 mod measure_fit_calibrated;
 mod paper_acceptance;
+mod pixel_hypothesis;
 mod plan;
 mod systematic_errors;
