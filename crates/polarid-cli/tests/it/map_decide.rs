@@ -239,7 +239,8 @@ fn bench_plates_are_decided_per_block_against_a_library_and_a_same_bench_model()
     // DoLP curve within the noise, and platinum under a layer widened beyond its range
     // copper's: ambiguous), and another material alone is at most 1% of all decided
     // blocks. Measured: aluminum 15 of 15 alone, copper 11 of 32 alone and 21 ambiguous,
-    // gold 28 of 28 ambiguous, 1 of 192 blocks another material alone (a PMMA block).
+    // gold ambiguous on every block, one block another material alone (PMMA named fused
+    // silica).
     let lib = map(&test, &dir, "lib", &["--library", "builtin", "--bin", "4"]);
     let rows = common::csv_rows(&c);
     assert_eq!(lib.len(), 6, "{lib:?}");
