@@ -837,8 +837,10 @@ impl Library {
     /// A built-in library (`builtin`, `builtin-rgb`) at the wavelengths of the data:
     /// a multi-band library with one row per material per wavelength. At a wavelength
     /// within [`BAND_TOLERANCE_NM`](polarid_core::classify::BAND_TOLERANCE_NM) of one of
-    /// the library's own bands the library's row is kept (its band mean, e.g. 650 nm:
-    /// 610–690 nm); at any other wavelength `λ` the material's `n(λ)`, `k(λ)` from its
+    /// the built-in bands (450, 550, 650 nm: `builtin-rgb`'s rows, of which `builtin` is
+    /// the 650 nm band) the built-in row is kept (its band mean, e.g. 550 nm: 510–590 nm,
+    /// the row `polarid simulate` gives a plate of that material at that wavelength);
+    /// at any other wavelength `λ` the material's `n(λ)`, `k(λ)` from its
     /// refractiveindex.info file ([`BUILTIN_SOURCES`], [`RiiData::nk`]: tabulated data
     /// linearly interpolated, formulas evaluated, never extrapolated), and its surface
     /// layer's index at the same `λ` (no index there when the layer's data do not cover
@@ -870,6 +872,14 @@ impl Library {
                 names: Vec::new(),
             })
             .collect();
+        // `builtin` is `builtin-rgb`'s 650 nm band: at 450 and 550 nm the same library's
+        // band means (gold's n is 0.458 over 510–590 nm but 0.424 at 550 nm, 8% of its
+        // DoLP: a plate of the library's gold would not be the library's gold).
+        let rgb = if self.source == "builtin" {
+            Some(Self::builtin_rgb()?)
+        } else {
+            None
+        };
         let mut materials = Vec::new();
         for name in names {
             let rows: Vec<&Material> = self.materials.iter().filter(|m| m.name == name).collect();
@@ -881,6 +891,17 @@ impl Library {
                     materials.push(Material {
                         wavelength_nm: self.band_of(m),
                         ..(*m).clone()
+                    });
+                    continue;
+                }
+                if let Some(m) = rgb.as_ref().and_then(|r| {
+                    r.materials
+                        .iter()
+                        .find(|m| m.name == name && same_band(m.wavelength_nm, Some(w)))
+                }) {
+                    materials.push(Material {
+                        line: first.line,
+                        ..m.clone()
                     });
                     continue;
                 }
@@ -1083,6 +1104,31 @@ mod tests {
         let ti = p.iter().find(|p| p.class == "titanium").unwrap();
         assert_eq!(ti.surface.as_ref().unwrap().name, "TiO2");
         assert_eq!(ti.bands.iter().filter(|b| b.layer.is_none()).count(), 1);
+    }
+
+    #[test]
+    fn at_wavelengths_keeps_the_builtin_bands_band_means() {
+        // `builtin` at 550 nm is `builtin-rgb`'s 550 nm row (510–590 nm), the index
+        // `polarid simulate` gives a plate of the material at 550 nm; at 540 nm n(540).
+        let lib = Library::builtin().unwrap();
+        let rgb = Library::builtin_rgb().unwrap();
+        let (at, _) = lib.at_wavelengths(&[550.2, 540.0]).unwrap();
+        for name in ["gold", "copper", "silicon", "aluminum"] {
+            let want = rgb
+                .materials
+                .iter()
+                .find(|m| m.name == name && m.wavelength_nm == Some(550.0))
+                .unwrap();
+            let got: Vec<&Material> = at.materials.iter().filter(|m| m.name == name).collect();
+            assert_eq!(
+                (got[0].n, got[0].k, &got[0].layer, got[0].wavelength_nm),
+                (want.n, want.k, &want.layer, Some(550.0)),
+                "{name}"
+            );
+            assert_eq!(got[1].wavelength_nm, Some(540.0));
+        }
+        let gold = at.materials.iter().find(|m| m.name == "gold").unwrap();
+        assert!((gold.n - 0.458).abs() < 1e-3, "{}", gold.n);
     }
 
     #[test]

@@ -232,16 +232,37 @@ fn bench_plates_are_decided_per_block_against_a_library_and_a_same_bench_model()
 
     // Against the built-in library at the captures' 550 nm (single-band captures: the
     // hypothesis tests on every block's rows): each plate's blocks mostly answer what
-    // `classify` answers from the plate's region rows.
+    // `classify` answers from the plate's region rows. The plates are the library's own
+    // materials (the built-in 550 nm band means), so each is consistent with its own
+    // hypothesis: aluminum is named alone on at least 80% of its blocks, copper and gold
+    // are never named as another material (at one band brass under its ZnO has gold's
+    // DoLP curve within the noise, and platinum under a layer widened beyond its range
+    // copper's: ambiguous), and another material alone is at most 1% of all decided
+    // blocks. Measured: aluminum 15 of 15 alone, copper 11 of 32 alone and 21 ambiguous,
+    // gold ambiguous on every block, one block another material alone (PMMA named fused
+    // silica).
     let lib = map(&test, &dir, "lib", &["--library", "builtin", "--bin", "4"]);
     let rows = common::csv_rows(&c);
     assert_eq!(lib.len(), 6, "{lib:?}");
+    let (mut decided, mut wrong) = (0, 0);
     for s in &lib {
         let row = rows.iter().find(|r| r["target"] == s.name).unwrap();
         eprintln!("library {s:?}; classify: {}", row["predicted"]);
         assert!(s.decided >= 10, "{s:?}");
         assert_eq!(s.plurality(), row["predicted"], "{s:?}");
+        if s.name == "aluminum" {
+            assert!(s.right() * 10 >= s.decided * 8, "{s:?}");
+        }
+        if ["copper", "gold"].contains(&s.name.as_str()) {
+            assert_eq!(s.one(), s.right(), "{s:?}");
+        }
+        decided += s.decided;
+        wrong += s.one() - s.right();
     }
+    assert!(
+        wrong * 100 <= decided,
+        "{wrong} of {decided} blocks another material alone"
+    );
 
     // Against a model trained on the same bench (another noise seed): the same-bench
     // test. No block is given a wrong material; copper, gold and silicon are named

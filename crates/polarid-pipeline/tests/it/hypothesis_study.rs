@@ -155,6 +155,109 @@ fn chi2_true(
         .sum()
 }
 
+/// The study's seed: `default`, or `POLARID_STUDY_SEED` added to it (to see how much of
+/// a figure is the luck of one sample).
+fn study_seed(default: u64) -> u64 {
+    default
+        + std::env::var("POLARID_STUDY_SEED")
+            .ok()
+            .and_then(|v| v.parse::<u64>().ok())
+            .unwrap_or(0)
+}
+
+/// Draw the reliability diagram of `rel` ((stated probability, truth?) pairs) binned at
+/// `edges` into the PNG `path`: observed frequency against mean stated probability, with
+/// 95% Wilson intervals, and the number of materials per bin.
+fn reliability_png(path: &std::path::Path, rel: &[(f64, bool)], edges: &[f64], caption: &str) {
+    use plotters::prelude::*;
+    static FONT: &[u8] = include_bytes!("../../../polarid-cli/assets/fonts/DejaVuSans.ttf");
+    plotters::style::register_font("sans-serif", FontStyle::Normal, FONT)
+        .map_err(|_| "font")
+        .unwrap();
+    let root = BitMapBackend::new(path, (900, 820)).into_drawing_area();
+    root.fill(&WHITE).unwrap();
+    let mut chart = ChartBuilder::on(&root)
+        .caption(caption, ("sans-serif", 24))
+        .margin(20)
+        .x_label_area_size(60)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0f64..1.0, 0.0f64..1.0)
+        .unwrap();
+    chart
+        .configure_mesh()
+        .x_desc("stated probability (bin mean)")
+        .y_desc("observed frequency of the truth")
+        .label_style(("sans-serif", 18))
+        .axis_desc_style(("sans-serif", 20))
+        .draw()
+        .unwrap();
+    chart
+        .draw_series(LineSeries::new(
+            [(0.0, 0.0), (1.0, 1.0)],
+            BLACK.mix(0.4).stroke_width(2),
+        ))
+        .unwrap()
+        .label("perfectly reliable")
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLACK.mix(0.4)));
+    let blue = RGBColor(31, 119, 180);
+    let mut pts = Vec::new();
+    for w in edges.windows(2) {
+        let sel: Vec<&(f64, bool)> = rel.iter().filter(|r| r.0 >= w[0] && r.0 < w[1]).collect();
+        if sel.is_empty() {
+            continue;
+        }
+        let n = sel.len() as f64;
+        let mean = sel.iter().map(|r| r.0).sum::<f64>() / n;
+        let obs = sel.iter().filter(|r| r.1).count() as f64 / n;
+        // Wilson score interval, z = 1.96.
+        let z = 1.96f64;
+        let c = (obs + z * z / (2.0 * n)) / (1.0 + z * z / n);
+        let h = z * (obs * (1.0 - obs) / n + z * z / (4.0 * n * n)).sqrt() / (1.0 + z * z / n);
+        pts.push((mean, obs, c - h, c + h, sel.len()));
+    }
+    chart
+        .draw_series(
+            pts.iter().map(|&(x, _, lo, hi, _)| {
+                PathElement::new([(x, lo), (x, hi)], blue.stroke_width(2))
+            }),
+        )
+        .unwrap();
+    chart
+        .draw_series(LineSeries::new(
+            pts.iter().map(|p| (p.0, p.1)),
+            blue.stroke_width(2),
+        ))
+        .unwrap()
+        .label("observed (95% interval), materials per bin")
+        .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], blue.stroke_width(2)));
+    chart
+        .draw_series(
+            pts.iter()
+                .map(|&(x, y, _, _, _)| Circle::new((x, y), 6, blue.filled())),
+        )
+        .unwrap();
+    chart
+        .draw_series(pts.iter().map(|&(x, y, _, _, n)| {
+            let (dx, dy) = if y > 0.9 { (-80, 12) } else { (10, -22) };
+            EmptyElement::at((x, y))
+                + Text::new(
+                    format!("{n}"),
+                    (dx, dy),
+                    ("sans-serif", 17).into_font().color(&BLACK),
+                )
+        }))
+        .ok();
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .label_font(("sans-serif", 18))
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK.mix(0.3))
+        .draw()
+        .unwrap();
+    root.present().unwrap();
+}
+
 #[derive(Default, Debug)]
 struct Tally {
     n: usize,
@@ -189,7 +292,7 @@ fn library_materials_as_found() {
     let per = polarid_testkit::seeds(20, 300) as usize;
     let protos = library();
     let cfg = config(0.95);
-    let mut rng = StdRng::seed_from_u64(2027);
+    let mut rng = StdRng::seed_from_u64(study_seed(2027));
     let mut all = Tally::default();
     // Reliability: (stated probability, truth?) of every tested material.
     let mut rel: Vec<(f64, bool)> = Vec::new();
@@ -270,9 +373,25 @@ fn library_materials_as_found() {
             sel.len()
         );
     }
+    if let Some(path) = std::env::var_os("POLARID_RELIABILITY_PNG") {
+        reliability_png(
+            std::path::Path::new(&path),
+            &rel,
+            &edges,
+            &format!(
+                "Hypothesis probabilities: {} targets x {} materials",
+                all.n,
+                rel.len() / all.n.max(1)
+            ),
+        );
+    }
     // Calibration of the truth's test in both directions: the fraction of targets whose
     // own material passes at each stated confidence.
-    eprintln!("| stated confidence | truth passes | truth passes, chi2_T bound |");
+    // The oracle: χ² at the true nuisances against χ²_T, what the noise of this sample
+    // alone gives.
+    eprintln!(
+        "| stated confidence | truth passes | truth passes, chi2_T bound | chi2 at the truth <= chi2_T quantile |"
+    );
     let mut passes = Vec::new();
     for p in [0.9, 0.95, 0.99] {
         let n = truth_tests.len() as f64;
@@ -282,7 +401,12 @@ fn library_materials_as_found() {
             .filter(|t| t.1 <= polarid_core::classify::hypothesis::chi2_quantile_any(p, t.2 as f64))
             .count() as f64
             / n;
-        eprintln!("| {p} | {pass:.3} | {naive:.3} |");
+        let oracle = diag
+            .iter()
+            .filter(|x| x.0 <= polarid_core::classify::hypothesis::chi2_quantile_any(p, x.3 as f64))
+            .count() as f64
+            / n;
+        eprintln!("| {p} | {pass:.3} | {naive:.3} | {oracle:.3} |");
         passes.push(pass);
     }
     for t in 6..=10 {
@@ -299,6 +423,12 @@ fn library_materials_as_found() {
             m(&|x| x.2)
         );
     }
+    // The search's misses: a minimum above the χ² at the truth (inside the box).
+    let missed = diag.iter().filter(|x| x.1 > x.0 + 1e-6).count();
+    eprintln!(
+        "chi2_min above chi2 at the truth: {missed} of {}",
+        diag.len()
+    );
     for (i, what) in ["thickness", "scale", "offset"].iter().enumerate() {
         let at: Vec<_> = truth_tests.iter().filter(|t| t.3[i]).collect();
         let fail = at.iter().filter(|t| t.0 < 0.05).count();
@@ -312,7 +442,8 @@ fn library_materials_as_found() {
     // 95% confidence: the truth among the answers near 95% (binomial margin of the
     // cheap run), named alone often, another material named alone almost never. The
     // truth's test at 90% and 99% neither under- nor over-covers beyond the margin.
-    // Measured (full): 0.887 / 0.943 / 0.987 at 90 / 95 / 99%.
+    // Measured (full): 0.886 / 0.942 / 0.986 at 90 / 95 / 99% (the sample's oracle, χ² at
+    // the true nuisances against χ²_T: 0.888 / 0.944 / 0.988).
     let margin = if full { 0.02 } else { 0.06 };
     assert!(
         (0.95 - margin..=0.95 + margin).contains(&cov),
@@ -342,16 +473,17 @@ fn library_materials_as_found() {
 
 /// Surfaces the hypotheses do not describe: layers thicker than the material's range, and
 /// materials missing from the library. They may be `unknown` or a set, never another
-/// material alone (beyond 1%). Measured (full run, 300 per case): 1.0% overall (18 of
+/// material alone (beyond 1%). Measured (full run, 300 per case): 0.2% overall (4 of
 /// 1800) — aluminium under 8–15 nm of Al₂O₃ is named brass (under its ZnO) alone for
-/// 3.3%: at one band the two DoLP curves agree within the noise (docs/CLASSIFY.md).
+/// 1.3% (3.3% before the widened-layer test): at one band the two DoLP curves agree
+/// within the noise (docs/CLASSIFY.md); silicon under 5–10 nm SiO₂: GaAs alone 0%.
 #[test]
 fn surfaces_outside_the_hypotheses() {
     let full = polarid_testkit::full();
     let per = polarid_testkit::seeds(20, 300) as usize;
     let protos = library();
     let cfg = config(0.95);
-    let mut rng = StdRng::seed_from_u64(99);
+    let mut rng = StdRng::seed_from_u64(study_seed(99));
     let bulk = |name: &str| as_found(&protos, name).0;
     let layer = |name: &str| as_found(&protos, name).1;
     // (label, bulk, layer, thickness range, library without the truth?)
@@ -428,6 +560,16 @@ fn surfaces_outside_the_hypotheses() {
             let out = classify_rows(&rows, &[WL], &lib, None, &cfg).unwrap();
             t.add(truth, &out.decision);
             if out.decision.status == Status::Ok && Some(out.decision.predicted.as_str()) != truth {
+                if std::env::var_os("POLARID_STUDY_VERBOSE").is_some() {
+                    let c = &out.decision.candidates[0];
+                    let own = out.tested.iter().find(|c| Some(c.class.as_str()) == truth);
+                    eprintln!(
+                        "  {label} d={d:.1}: {} {:?}; truth {:?}",
+                        c.class,
+                        c.fit,
+                        own.and_then(|c| c.fit)
+                    );
+                }
                 *wrong_as
                     .entry(out.decision.predicted.clone())
                     .or_insert(0usize) += 1;
