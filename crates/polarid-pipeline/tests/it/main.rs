@@ -12,4 +12,5 @@ mod imperfect_acceptance;
 mod measure_fit_calibrated;
 mod paper_acceptance;
 mod plan;
+mod reference_region;
 mod systematic_errors;
