@@ -45,6 +45,9 @@ const ANGLE_SD_DEG: f64 = 0.5;
 const ER_MIN: f64 = 10.0;
 const TARGETS_PER_SCENE: usize = 4;
 const CAPTURES: usize = 8;
+/// The independent DoLP error of every row besides its standard error (the error
+/// model's floor, `polarid_pipeline::fit::DEFAULT_DOLP_FLOOR`).
+const FLOOR: f64 = polarid_pipeline::fit::DEFAULT_DOLP_FLOOR;
 
 /// A material's bulk, native layer index and thickness range at 650 nm.
 fn as_found(protos: &[MultiPrototype], name: &str) -> ((f64, f64), (f64, f64), f64, f64) {
@@ -86,7 +89,10 @@ fn scene(rng: &mut Rng, protos: &[MultiPrototype], first: usize) -> Vec<Measurem
         for (c, e) in per_capture.iter().enumerate() {
             let beta = 47.5 + 22.5 * c as f64 / (CAPTURES - 1) as f64;
             let b = beta.to_radians() + off + e;
-            let y = s * layered_dolp(bulk, layer, d / WL, b) + rng.normal() * se;
+            // The row's DoLP error: its standard error and the bench's DoLP floor
+            // (FitConfig's default, independent per row).
+            let sd = (se * se + FLOOR * FLOOR).sqrt();
+            let y = s * layered_dolp(bulk, layer, d / WL, b) + rng.normal() * sd;
             out.push(Measurement {
                 target: target.clone(),
                 class: Some(material.into()),
@@ -111,6 +117,8 @@ struct Tally {
     wrong_alone: usize,
     /// The truth passes at 90, 95, 99%.
     covered: [usize; 3],
+    /// Targets not tested (their fit is not `ok`).
+    not_tested: usize,
 }
 
 impl Tally {
@@ -156,17 +164,19 @@ fn run(rows: &[Measurement], t: &mut Tally, with_reference: bool) {
             continue;
         }
         let truth = r.class.as_deref().unwrap();
+        let Some(h) = out.hypotheses.iter().find(|h| h.target == r.target) else {
+            // Not tested: its (n, k) fit is not `ok` (the workflow classifies only
+            // targets whose fit is); counted apart.
+            t.not_tested += 1;
+            eprintln!("not tested: {} ({truth}): {}", r.target, r.reason);
+            continue;
+        };
         t.n += 1;
         match r.status.as_str() {
             "ok" if r.predicted == truth => t.alone += 1,
             "ok" => t.wrong_alone += 1,
             _ => {}
         }
-        let h = out
-            .hypotheses
-            .iter()
-            .find(|h| h.target == r.target)
-            .unwrap();
         assert_eq!(h.calibrated, with_reference);
         let p = h
             .tested
@@ -198,8 +208,9 @@ fn an_n_bk7_slide_calibrates_a_poor_bench() {
     }
     let line = |label: &str, t: &Tally| {
         format!(
-            "| {label} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} |",
+            "| {label} | {} ({} not tested) | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} |",
             t.n,
+            t.not_tested,
             t.frac(t.alone),
             t.frac(t.wrong_alone),
             t.frac(t.covered[0]),
@@ -220,17 +231,16 @@ fn an_n_bk7_slide_calibrates_a_poor_bench() {
     );
     // Coverage stays at the stated confidence, in both directions (binomial margin of
     // the run's size).
+    // Measured (full, 150 scenes, 547 tested targets): right alone 0.199 -> 0.596,
+    // wrong alone 0.013 -> 0.002, the truth passes at 90/95/99%: 0.903/0.952/0.996.
     for (k, level) in LEVELS.iter().enumerate() {
         let c = after.frac(after.covered[k]);
         let sd = (level * (1.0 - level) / after.n as f64).sqrt();
         let margin = 3.0 * sd + 0.01;
         assert!(
-            (level - margin..=(level + margin).min(1.0)).contains(&c) && c < 1.0 || *level > 0.98,
+            (c - level).abs() <= margin,
             "coverage at {level}: {c} (margin {margin})"
         );
-        if *level > 0.98 {
-            assert!(c >= level - margin, "coverage at {level}: {c}");
-        }
     }
     assert!(
         after.frac(after.wrong_alone) <= if full { 0.01 } else { 0.03 },
