@@ -579,4 +579,41 @@ mod tests {
         let e = from_table(&t).unwrap_err().to_string();
         assert!(e.contains("wavelength_nm") && e.contains("\"-450\""), "{e}");
     }
+
+    #[test]
+    fn the_reference_column_round_trips_and_is_one_per_target() {
+        let row = |t: &str, r: Option<Reference>| Measurement {
+            target: t.into(),
+            phi_deg: 180.0,
+            beta_deg: 50.0,
+            dolp: 0.5,
+            reference: r,
+            ..Default::default()
+        };
+        let rows = vec![
+            row("slide", Some(Reference::Material("N-BK7".into()))),
+            row("plate", None),
+            row("glass", Some(Reference::Index { n: 1.5, k: 0.0 })),
+        ];
+        let mut buf = Vec::new();
+        write(&mut buf, Path::new("m.csv"), &rows).unwrap();
+        let text = String::from_utf8(buf).unwrap();
+        assert!(
+            text.lines().next().unwrap().ends_with(",reference"),
+            "{text}"
+        );
+        assert!(text.contains("1.5+0i"), "{text}");
+        let t = CsvTable::from_reader(Path::new("m.csv"), text.as_bytes()).unwrap();
+        assert_eq!(from_table(&t).unwrap(), rows);
+        // Without references the column is not written (old files keep their columns).
+        assert!(!header(&[row("plate", None)]).contains("reference"));
+        // A target whose rows disagree is refused, naming the column and the values.
+        let text = "target,dolp,beta_deg,reference\nS,0.5,45,N-BK7\nS,0.6,50,N-SF11\n";
+        let t = CsvTable::from_reader(Path::new("m.csv"), text.as_bytes()).unwrap();
+        let e = from_table(&t).unwrap_err().to_string();
+        assert!(
+            e.contains("reference") && e.contains("N-SF11") && e.contains("N-BK7"),
+            "{e}"
+        );
+    }
 }
