@@ -108,8 +108,8 @@ mod tests {
     }
 
     fn parse(extra: &str) -> crate::error::Result<Option<Reference>> {
-        let dir = std::env::temp_dir().join(format!("polarid-ref-manifest-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
         for f in ["s0.tif", "s1.tif", "s2.tif"] {
             std::fs::write(dir.join(f), b"x").unwrap();
         }
@@ -157,7 +157,6 @@ mod tests {
         }
         let e = parse("reference = \"N-BK8\"").unwrap_err().to_string();
         assert!(e.contains("N-BK7"), "suggests the near name: {e}");
-        let _ = Path::new("");
     }
 
     #[test]
@@ -174,5 +173,32 @@ mod tests {
             Reference::parse("a+b"),
             Some(Reference::Material("a+b".into()))
         );
+    }
+
+    #[test]
+    fn measure_carries_the_reference_into_the_rows() {
+        let dir = tempfile::tempdir().unwrap();
+        let (w, h) = (8, 6);
+        for (k, v) in [(0, 1000.0f32), (1, 300.0), (2, 0.0)] {
+            let data = vec![v; w * h];
+            crate::image::write_tiff_f32(&dir.path().join(format!("s{k}.tif")), false, w, h, &data)
+                .unwrap();
+        }
+        let text = "theta_r_deg = 50.0\n\
+             [[region]]\nname = \"slide\"\nrect = [0, 0, 4, 4]\nreference = \"N-BK7\"\n\
+             [[region]]\nname = \"A\"\nrect = [4, 0, 4, 4]\n\
+             [[capture]]\ntheta_i_deg = 50.0\n\
+             stokes = { s0 = \"s0.tif\", s1 = \"s1.tif\", s2 = \"s2.tif\" }\n";
+        let path = dir.path().join("m.toml");
+        std::fs::write(&path, text).unwrap();
+        let m = crate::manifest::load(&path).unwrap();
+        let rows = crate::measure::measure_manifest(&m, &mut |_| {}).unwrap();
+        assert_eq!(rows[0].reference, Some(Reference::Material("N-BK7".into())));
+        assert_eq!(rows[1].reference, None);
+        let mut buf = Vec::new();
+        crate::table::measurements::write(&mut buf, Path::new("m.csv"), &rows).unwrap();
+        let csv = String::from_utf8(buf).unwrap();
+        assert!(csv.lines().next().unwrap().ends_with(",reference"), "{csv}");
+        assert!(csv.lines().nth(1).unwrap().ends_with(",N-BK7"), "{csv}");
     }
 }
