@@ -233,6 +233,7 @@ fn empty_row(
         status: status.0,
         reason: status.1,
         wavelength_nm: c.wavelength_nm,
+        reference: r.reference.clone(),
     }
 }
 
@@ -289,6 +290,7 @@ fn far_field_rows(
             status,
             reason,
             wavelength_nm: c.wavelength_nm,
+            reference: r.reference.clone(),
         });
     }
     Ok(rows)
@@ -495,6 +497,7 @@ fn calibrated_rows(
             status,
             reason,
             wavelength_nm: c.wavelength_nm,
+            reference: r.reference.clone(),
         });
     }
     Ok(rows)

@@ -575,7 +575,132 @@ pub fn write_fit_report(
     Ok(())
 }
 
-/// Write the report of `classify`: `refs` are the classifier's prototypes.
+/// The hypothesis tests' tables of `classify MEASUREMENTS.csv`: the in-scene
+/// references' calibration (when the table has references) and, per target, every
+/// tested material with its probability, `χ²` (p-value) and the layer thickness, scale
+/// and offset it needed, most probable first. Empty without hypothesis tests.
+pub fn hypothesis_tables(
+    hyps: &[polarid_pipeline::classify::TargetHypotheses],
+    cal: Option<&polarid_pipeline::classify::reference::SceneCalibration>,
+) -> Vec<report::Table> {
+    let mut out = Vec::new();
+    if let Some(c) = cal {
+        let bounds = match c.bounds {
+            Some(b) => format!(
+                "The other targets were tested with the scale in [{:.4}, {:.4}] and the common \
+                 angle offset in [{:+.3}°, {:+.3}°] (the error model alone: scale in [{:.4}, 1], \
+                 offset within ±{:.3}°).",
+                b.scale.0,
+                b.scale.1,
+                b.offset.0.to_degrees(),
+                b.offset.1.to_degrees(),
+                c.prior.scale_min,
+                c.prior.offset_max.to_degrees()
+            ),
+            None => "No reference was usable: the targets were tested with the error model's \
+                     scale and offset."
+                .into(),
+        };
+        out.push(report::Table {
+            caption: format!(
+                "In-scene references: the polarimeter scale and the common angle offset their \
+                 rows measure (± 1 SE), with their own native layer. {bounds}"
+            ),
+            headers: [
+                "Target",
+                "Material",
+                "Scale",
+                "Offset (°)",
+                "Layer (nm)",
+                "χ² (dof)",
+                "p-value",
+                "Used",
+            ]
+            .iter()
+            .map(|h| h.to_string())
+            .collect(),
+            rows: c
+                .references
+                .iter()
+                .map(|r| {
+                    let mut row = vec![r.target.clone(), r.reference.to_string()];
+                    match &r.calibration {
+                        Some(k) => row.extend([
+                            format!("{:.4} ± {:.4}", k.scale, k.scale_se),
+                            format!(
+                                "{:+.3} ± {:.3}",
+                                k.offset.to_degrees(),
+                                k.offset_se.to_degrees()
+                            ),
+                            format!("{:.2}", k.thickness_nm),
+                            format!("{:.2} ({:.0})", k.chi2, k.dof),
+                            format!("{:.3}", k.p_value),
+                        ]),
+                        None => row.extend(std::iter::repeat_n("—".to_string(), 5)),
+                    }
+                    row.push(if r.used { "yes" } else { "no" }.into());
+                    row
+                })
+                .collect(),
+        });
+    }
+    if !hyps.is_empty() {
+        let mut rows = Vec::new();
+        for h in hyps {
+            for c in &h.tested {
+                let Some(f) = c.fit else { continue };
+                rows.push(vec![
+                    h.target.clone(),
+                    c.class.clone(),
+                    format!("{:.3}", c.probability.unwrap_or(f64::NAN)),
+                    if f.consistent { "yes" } else { "no" }.into(),
+                    format!("{:.2} ({:.1})", f.chi2, f.dof),
+                    format!("{:.3}", f.p_value),
+                    format!("{:.2}", f.thickness_nm),
+                    format!("{:.4}", f.scale),
+                    format!("{:+.3}", f.offset.to_degrees()),
+                    if h.calibrated {
+                        "reference"
+                    } else {
+                        "error model"
+                    }
+                    .into(),
+                ]);
+            }
+        }
+        out.push(report::Table {
+            caption: "Each material tested against each target's measured rows, most probable \
+                      first: its probability, whether it passes at the confidence, χ² \
+                      (effective dof) and p-value, and the native-layer thickness, polarimeter \
+                      scale and common angle offset it needed (bounded by the in-scene \
+                      reference when there is one, else by the error model)."
+                .into(),
+            headers: [
+                "Target",
+                "Material",
+                "Probability",
+                "Passes",
+                "χ² (dof)",
+                "p-value",
+                "Layer (nm)",
+                "Scale",
+                "Offset (°)",
+                "Bounds",
+            ]
+            .iter()
+            .map(|h| h.to_string())
+            .collect(),
+            rows,
+        });
+    }
+    out
+}
+
+/// Write the report of `classify`: `refs` are the classifier's prototypes; `hyps` and
+/// `cal` the hypothesis tests and in-scene references of `classify MEASUREMENTS.csv`
+/// (empty and `None` for fits), as tables after the classification
+/// ([`hypothesis_tables`]).
+#[allow(clippy::too_many_arguments)] // the command's inputs, each once
 pub fn write_classify_report(
     args: &ReportArgs,
     ctx: &crate::Ctx,
@@ -583,6 +708,8 @@ pub fn write_classify_report(
     fits: &[FitRow],
     rows: &[ClassificationRow],
     refs: &References,
+    hyps: &[polarid_pipeline::classify::TargetHypotheses],
+    cal: Option<&polarid_pipeline::classify::reference::SceneCalibration>,
 ) -> Result<()> {
     let Some(dir) = &args.report else {
         return Ok(());
@@ -605,7 +732,7 @@ pub fn write_classify_report(
             detail: format!("{} prototype(s)", refs.profiles.len()),
         },
     ];
-    let rep = report(
+    let mut rep = report(
         format!("polarid classify: {}", input.display()),
         vec![describe(fits)],
         inputs,
@@ -613,6 +740,7 @@ pub fn write_classify_report(
         &figs,
         format!("polarid {} classify", env!("CARGO_PKG_VERSION")),
     );
+    rep.tables.extend(hypothesis_tables(hyps, cal));
     write(dir, ctx.force, &rep, &figs)?;
     ctx.info(format!(
         "polarid classify: report written to {}",

@@ -36,6 +36,7 @@ mod model_cmd;
 mod newcomer_traps;
 mod partial_failure;
 mod plan_cli;
+mod reference_region;
 mod reliability;
 mod renders_bench;
 mod renders_colour;

@@ -94,6 +94,7 @@ mod evaluate;
 pub mod hypothesis;
 pub mod pixel_decision;
 mod points;
+pub mod reference;
 pub mod separability;
 mod wolff;
 

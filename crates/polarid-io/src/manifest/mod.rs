@@ -13,6 +13,8 @@
 //! name = "A"
 //! rect = [12, 44, 40, 40]   # x (column), y (row), width, height; origin top-left
 //! class = "aluminum"        # optional
+//! reference = "N-BK7"       # optional: an in-scene reference of known material
+//!                           #   (or reference_n, reference_k; docs/FORMATS.md)
 //!
 //! [[capture]]
 //! theta_i_deg = 35.0
@@ -39,6 +41,7 @@
 pub mod calibration;
 pub mod colour;
 pub mod opencv;
+mod reference;
 pub mod shared;
 
 pub use calibration::{CameraOrientation, CameraSpec, PlaneSpec, SiteSpec, SourceSpec};
@@ -114,6 +117,9 @@ pub struct Region {
     /// Index into [`Manifest::planes`] of the plane the region lies on (its `plane`
     /// name; default the first plane).
     pub plane: usize,
+    /// The region's known material when it is an in-scene reference (its `reference`, or
+    /// `reference_n` and `reference_k`; docs/FORMATS.md "In-scene reference").
+    pub reference: Option<crate::table::measurements::Reference>,
 }
 
 /// One capture (source position).
@@ -583,7 +589,19 @@ impl<'a> Parser<'a> {
         for (i, rv) in region_vals.iter().enumerate() {
             let pre = format!("region[{}].", i + 1);
             let t = self.table(rv, &format!("region[{}]", i + 1))?;
-            self.warn_unknown(t, &["name", "rect", "class", "plane"], &pre);
+            self.warn_unknown(
+                t,
+                &[
+                    "name",
+                    "rect",
+                    "class",
+                    "plane",
+                    "reference",
+                    "reference_n",
+                    "reference_k",
+                ],
+                &pre,
+            );
             let name_v = self.get(t, "name").ok_or_else(|| {
                 self.err(&rv.span(), &format!("{pre}name"), "missing region name")
             })?;
@@ -669,6 +687,7 @@ impl<'a> Parser<'a> {
                 line: self.line(rect_v.span().start),
                 index: i + 1,
                 plane: self.region_plane(t, &pre, &planes)?,
+                reference: self.region_reference(t, &pre)?,
             });
         }
         if regions.is_empty() {

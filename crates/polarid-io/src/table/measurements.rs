@@ -4,7 +4,10 @@
 //! (extra columns written by polarid: `exposure`, `saturated`), then the optional
 //! columns [`OPTIONAL_COLUMNS`] (`wavelength_nm`, the spectral band of the row; `beta_sd_deg`, `aolp_deg`, `aolp_poi_deg` of calibrated
 //! captures, `angle_sd_deg` when the manifest gives it), each written only when some row
-//! has a value for it, so a far-field file keeps exactly the columns above.
+//! has a value for it, so a far-field file keeps exactly the columns above. Then the
+//! text column `reference` ([`REFERENCE_COLUMN`]) when some region is an in-scene
+//! reference of known material ([`Reference`]): its rows carry the material's name or
+//! its index `n+ki`, the other rows are empty.
 //!
 //! Partial failure: a row that was measured but must not be fitted (a dark region, a
 //! region without a usable pixel in that capture) carries a [`RowStatus`] other than
@@ -46,6 +49,10 @@ pub const OPTIONAL_COLUMNS: [&str; 5] = [
     "aolp_poi_deg",
     "angle_sd_deg",
 ];
+
+/// The optional text column of in-scene reference regions ([`Reference`]), written after
+/// [`OPTIONAL_COLUMNS`] when some row has one.
+pub const REFERENCE_COLUMN: &str = "reference";
 
 /// The status columns, written last and only when some row is not
 /// [`RowStatus::Ok`].
@@ -154,6 +161,68 @@ pub struct Measurement {
     /// Centre wavelength of the row's spectral band, nm (`None`: single-band data).
     /// `fit` fits each (target, band) separately.
     pub wavelength_nm: Option<f64>,
+    /// The region is an in-scene reference of this known material (the manifest's
+    /// `reference`, or `reference_n` and `reference_k`; the optional column
+    /// `reference`): `classify` calibrates the polarimeter with it (docs/CLASSIFY.md).
+    pub reference: Option<Reference>,
+}
+
+/// The known material of an in-scene reference region: a material of the built-in
+/// library by name, or an index `N = n + ik`. In the `reference` column a name is
+/// written as it is and an index as `n+ki` (e.g. `1.5168+0i`).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Reference {
+    /// A material name (of the built-in library, or of the library `classify` uses).
+    Material(String),
+    /// A known index, the same at every band.
+    Index {
+        /// Real part, > 0.
+        n: f64,
+        /// Imaginary part, >= 0.
+        k: f64,
+    },
+}
+
+impl Reference {
+    /// The text of the `reference` column: the name, or `n+ki`.
+    pub fn text(&self) -> String {
+        match self {
+            Reference::Material(name) => name.clone(),
+            Reference::Index { n, k } => format!("{}+{}i", fmt_f64(*n), fmt_f64(*k)),
+        }
+    }
+
+    /// The reference of a `reference` cell: `n+ki` with finite `n > 0`, `k >= 0` is an
+    /// index, anything else a material name; `None` for an empty cell.
+    pub fn parse(text: &str) -> Option<Reference> {
+        let t = text.trim();
+        if t.is_empty() {
+            return None;
+        }
+        if let Some(body) = t.strip_suffix('i') {
+            for (i, _) in body.match_indices('+').filter(|(i, _)| *i > 0) {
+                let (a, b) = (&body[..i], &body[i + 1..]);
+                if let (Ok(n), Ok(k)) = (a.parse::<f64>(), b.parse::<f64>())
+                    && n.is_finite()
+                    && n > 0.0
+                    && k.is_finite()
+                    && k >= 0.0
+                {
+                    return Some(Reference::Index { n, k });
+                }
+            }
+        }
+        Some(Reference::Material(t.to_string()))
+    }
+}
+
+impl std::fmt::Display for Reference {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Reference::Material(name) => f.write_str(name),
+            Reference::Index { n, k } => write!(f, "N = {n} + {k}i"),
+        }
+    }
 }
 
 /// Read a measurements CSV. Needs `target`, `dolp` and either `beta_deg` or
@@ -200,11 +269,32 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
     let c_status = t.col("status");
     let c_reason = t.col("reason");
     let c_wl = t.col("wavelength_nm");
+    let c_ref = t.col(REFERENCE_COLUMN);
     let mut out = Vec::with_capacity(t.rows.len());
+    // One reference per target: every row of a target says the same.
+    let mut refs: Vec<(String, Option<Reference>, u64)> = Vec::new();
     for r in 0..t.rows.len() {
         let target = t.name(r, c_target)?;
         if target.is_empty() {
             return Err(t.err(r, c_target, "empty target name"));
+        }
+        let reference = c_ref.and_then(|c| Reference::parse(t.text(r, c)));
+        if let Some(c) = c_ref {
+            match refs.iter().find(|x| x.0 == target) {
+                Some((_, first, line)) if *first != reference => {
+                    return Err(t.err(
+                        r,
+                        c,
+                        format!(
+                            "target {target:?} has another reference on line {line} ({}): \
+                             a region is one material in every row",
+                            first.as_ref().map_or("none".into(), Reference::text)
+                        ),
+                    ));
+                }
+                Some(_) => {}
+                None => refs.push((target.clone(), reference.clone(), t.rows[r].0)),
+            }
         }
         let status = match c_status.map(|c| (c, t.text(r, c))) {
             None | Some((_, "")) => RowStatus::Ok,
@@ -217,7 +307,10 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
             })?,
         };
         if !status.is_ok() {
-            out.push(skipped_row(t, r, target, status, c_reason)?);
+            out.push(Measurement {
+                reference,
+                ..skipped_row(t, r, target, status, c_reason)?
+            });
             continue;
         }
         let angle = |c: Option<usize>| -> Result<Option<f64>> {
@@ -302,6 +395,7 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
             status,
             reason: t.opt_text(r, c_reason).unwrap_or_default(),
             wavelength_nm,
+            reference,
         });
     }
     Ok(out)
@@ -350,6 +444,7 @@ fn skipped_row(
         wavelength_nm: num("wavelength_nm")?,
         status,
         reason: t.opt_text(r, c_reason).unwrap_or_default(),
+        reference: None,
     })
 }
 
@@ -369,6 +464,10 @@ pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[Measurement]) ->
         .collect();
     let mut headers: Vec<&str> = COLUMNS.to_vec();
     headers.extend(present.iter().map(|&i| OPTIONAL_COLUMNS[i]));
+    let with_ref = rows.iter().any(|m| m.reference.is_some());
+    if with_ref {
+        headers.push(REFERENCE_COLUMN);
+    }
     let with_status = rows.iter().any(|m| !m.status.is_ok());
     if with_status {
         headers.extend(STATUS_COLUMNS);
@@ -394,6 +493,14 @@ pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[Measurement]) ->
                 m.saturated.map(|v| v.to_string()).unwrap_or_default(),
             ];
             cells.extend(present.iter().map(|&i| fmt_opt(optional[i](m))));
+            if with_ref {
+                cells.push(
+                    m.reference
+                        .as_ref()
+                        .map(Reference::text)
+                        .unwrap_or_default(),
+                );
+            }
             if with_status {
                 cells.push(m.status.as_str().to_string());
                 cells.push(m.reason.clone());
@@ -471,5 +578,42 @@ mod tests {
         let t = CsvTable::from_reader(Path::new("m.csv"), text.as_bytes()).unwrap();
         let e = from_table(&t).unwrap_err().to_string();
         assert!(e.contains("wavelength_nm") && e.contains("\"-450\""), "{e}");
+    }
+
+    #[test]
+    fn the_reference_column_round_trips_and_is_one_per_target() {
+        let row = |t: &str, r: Option<Reference>| Measurement {
+            target: t.into(),
+            phi_deg: 180.0,
+            beta_deg: 50.0,
+            dolp: 0.5,
+            reference: r,
+            ..Default::default()
+        };
+        let rows = vec![
+            row("slide", Some(Reference::Material("N-BK7".into()))),
+            row("plate", None),
+            row("glass", Some(Reference::Index { n: 1.5, k: 0.0 })),
+        ];
+        let mut buf = Vec::new();
+        write(&mut buf, Path::new("m.csv"), &rows).unwrap();
+        let text = String::from_utf8(buf).unwrap();
+        assert!(
+            text.lines().next().unwrap().ends_with(",reference"),
+            "{text}"
+        );
+        assert!(text.contains("1.5+0i"), "{text}");
+        let t = CsvTable::from_reader(Path::new("m.csv"), text.as_bytes()).unwrap();
+        assert_eq!(from_table(&t).unwrap(), rows);
+        // Without references the column is not written (old files keep their columns).
+        assert!(!header(&[row("plate", None)]).contains("reference"));
+        // A target whose rows disagree is refused, naming the column and the values.
+        let text = "target,dolp,beta_deg,reference\nS,0.5,45,N-BK7\nS,0.6,50,N-SF11\n";
+        let t = CsvTable::from_reader(Path::new("m.csv"), text.as_bytes()).unwrap();
+        let e = from_table(&t).unwrap_err().to_string();
+        assert!(
+            e.contains("reference") && e.contains("N-SF11") && e.contains("N-BK7"),
+            "{e}"
+        );
     }
 }

@@ -9,6 +9,7 @@
 
 mod bench;
 mod explain;
+pub mod reference;
 pub mod rows;
 mod wolff;
 
@@ -363,6 +364,26 @@ pub struct ClassifyOutput {
     /// How the prototypes were matched to the fits' wavelengths
     /// ([`PrototypeSource::load_multi_for`]).
     pub warnings: Vec<Warning>,
+    /// The hypothesis tests against measured rows (`classify MEASUREMENTS.csv`): every
+    /// tested material of each classified target, with the nuisances it needed (empty
+    /// for fits).
+    pub hypotheses: Vec<TargetHypotheses>,
+    /// The in-scene references' calibration (`classify MEASUREMENTS.csv` with a
+    /// `reference` column; [`reference`]).
+    pub calibration: Option<reference::SceneCalibration>,
+}
+
+/// One target's hypothesis tests: every tested material, most probable first, with its
+/// probability and the layer thickness, scale and offset it needed
+/// (`polarid_core::classify::HypothesisOutcome::tested`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TargetHypotheses {
+    /// The target.
+    pub target: String,
+    /// The tested materials.
+    pub tested: Vec<polarid_core::classify::Candidate>,
+    /// Whether the scale and offset were calibrated by an in-scene reference.
+    pub calibrated: bool,
 }
 
 /// The classification CSV row of fit `f` (a target's first band) classified as `d` by
@@ -535,5 +556,7 @@ pub fn classify(
         label,
         classifier: clf,
         warnings,
+        hypotheses: Vec::new(),
+        calibration: None,
     })
 }

@@ -23,7 +23,7 @@ use std::path::Path;
 use polarid_core::FitStatus;
 use polarid_core::classify::{
     Decision, HypRow, HypothesisConfig, HypothesisOutcome, MultiPrototype, Nuisances, Status,
-    UNKNOWN, classify_rows,
+    UNKNOWN, classify_rows, reference::classify_rows_within,
 };
 use polarid_io::table::CsvTable;
 use polarid_io::table::classification::ClassificationRow;
@@ -83,10 +83,12 @@ pub fn prior_weights(priors: &[(String, f64)], protos: &[MultiPrototype]) -> Res
     Ok(w)
 }
 
-/// One target's usable rows (status `ok`), with their band wavelengths.
+/// One target's usable rows (status `ok`), and its in-scene reference material if it is
+/// one.
 struct TargetRows<'a> {
     target: &'a str,
     rows: Vec<&'a Measurement>,
+    reference: Option<polarid_io::table::measurements::Reference>,
 }
 
 fn group<'a>(rows: &'a [(u64, Measurement)]) -> Vec<TargetRows<'a>> {
@@ -98,15 +100,51 @@ fn group<'a>(rows: &'a [(u64, Measurement)]) -> Vec<TargetRows<'a>> {
                 out.push(TargetRows {
                     target: &m.target,
                     rows: Vec::new(),
+                    reference: None,
                 });
                 out.len() - 1
             }
         };
+        if m.reference.is_some() {
+            out[i].reference.clone_from(&m.reference);
+        }
         if m.status.is_ok() {
             out[i].rows.push(m);
         }
     }
     out
+}
+
+/// A target's rows as the hypothesis tests take them, the rows' band wavelengths (nm;
+/// rows without one: the built-in library's band) and the largest direction uncertainty
+/// (radians), with the error model of `fit_cfg`.
+fn hyp_rows(rows: &[&Measurement], fit_cfg: &FitConfig) -> (Vec<HypRow>, Vec<f64>, f64) {
+    let mut bands: Vec<f64> = Vec::new();
+    let mut hrows = Vec::with_capacity(rows.len());
+    let mut angle_max: f64 = 0.0;
+    for m in rows {
+        let w = m
+            .wavelength_nm
+            .unwrap_or(polarid_io::library::BUILTIN_WAVELENGTH_NM);
+        let band = match bands.iter().position(|&b| b == w) {
+            Some(b) => b,
+            None => {
+                bands.push(w);
+                bands.len() - 1
+            }
+        };
+        let angle_sd = m.angle_sd_deg.unwrap_or(fit_cfg.angle_sd_deg).to_radians();
+        angle_max = angle_max.max(angle_sd);
+        let se = m.dolp_se.unwrap_or(0.0);
+        hrows.push(HypRow {
+            beta: m.beta_deg.to_radians(),
+            dolp: m.dolp,
+            dolp_sd: (se * se + fit_cfg.dolp_floor * fit_cfg.dolp_floor).sqrt(),
+            angle_sd,
+            band,
+        });
+    }
+    (hrows, bands, angle_max)
 }
 
 /// A decision that classifies nothing (the fit's status, no rows).
@@ -286,10 +324,54 @@ pub fn classify_measurements(
     }
     let mut out_rows = Vec::new();
     let mut notes = Vec::new();
-    for g in group(&assigned) {
+    let mut hypotheses = Vec::new();
+    let groups = group(&assigned);
+    // In-scene references calibrate the scale and the offset of every other target.
+    let mut refs = Vec::new();
+    let mut angle_all: f64 = 0.0;
+    for g in &groups {
+        let (hrows, bands, angle_max) = hyp_rows(&g.rows, fit_cfg);
+        angle_all = angle_all.max(angle_max);
+        if let Some(r) = g.reference.clone() {
+            refs.push(super::reference::ReferenceRows {
+                target: g.target,
+                reference: r,
+                rows: hrows,
+                bands,
+            });
+        }
+    }
+    let prior = Nuisances::from_error_model(
+        fit_cfg.extinction_ratio,
+        fit_cfg.retardance_deg.to_radians(),
+        angle_all,
+    );
+    let (scene, ref_warnings) = super::reference::calibrate_scene(
+        &path.display().to_string(),
+        &refs,
+        &protos,
+        prior,
+        cfg.classifier.confidence,
+    )?;
+    warnings.extend(ref_warnings);
+    for g in groups {
         let Some(f) = fits.iter().find(|f| f.target == g.target) else {
             continue;
         };
+        if let Some(rf) = scene
+            .as_ref()
+            .and_then(|c| c.references.iter().find(|r| r.target == g.target))
+        {
+            if let Some(c) = &scene {
+                notes.push(super::reference::explain_reference(rf, c));
+            }
+            out_rows.push(super::reference::reference_row(
+                f,
+                rf,
+                cfg.classifier.confidence,
+            ));
+            continue;
+        }
         let target_fits: Vec<&FitRow> = fits.iter().filter(|f| f.target == g.target).collect();
         let not_ok = target_fits.iter().find(|f| f.status != FitStatus::Ok);
         if let Some(bad) = not_ok {
@@ -307,31 +389,7 @@ pub fn classify_measurements(
             out_rows.push(hypothesis_row(f, None, &d, cfg.classifier.confidence));
             continue;
         }
-        let mut bands: Vec<f64> = Vec::new();
-        let mut hrows = Vec::with_capacity(g.rows.len());
-        let mut angle_max: f64 = 0.0;
-        for m in &g.rows {
-            let w = m
-                .wavelength_nm
-                .unwrap_or(polarid_io::library::BUILTIN_WAVELENGTH_NM);
-            let band = match bands.iter().position(|&b| b == w) {
-                Some(b) => b,
-                None => {
-                    bands.push(w);
-                    bands.len() - 1
-                }
-            };
-            let angle_sd = m.angle_sd_deg.unwrap_or(fit_cfg.angle_sd_deg).to_radians();
-            angle_max = angle_max.max(angle_sd);
-            let se = m.dolp_se.unwrap_or(0.0);
-            hrows.push(HypRow {
-                beta: m.beta_deg.to_radians(),
-                dolp: m.dolp,
-                dolp_sd: (se * se + fit_cfg.dolp_floor * fit_cfg.dolp_floor).sqrt(),
-                angle_sd,
-                band,
-            });
-        }
+        let (hrows, bands, angle_max) = hyp_rows(&g.rows, fit_cfg);
         let hcfg = HypothesisConfig {
             confidence: cfg.classifier.confidence,
             nuisances: Nuisances::from_error_model(
@@ -340,18 +398,25 @@ pub fn classify_measurements(
                 angle_max,
             ),
         };
-        let out = classify_rows(&hrows, &bands, &protos, Some(&priors), &hcfg).map_err(|e| {
-            PipelineError::Data {
-                path: path.display().to_string(),
-                reason: format!("target {:?}: {e}", g.target),
-            }
+        let bounds = scene.as_ref().and_then(|c| c.bounds);
+        let out = match &bounds {
+            Some(b) => classify_rows_within(&hrows, &bands, &protos, Some(&priors), &hcfg, b),
+            None => classify_rows(&hrows, &bands, &protos, Some(&priors), &hcfg),
+        }
+        .map_err(|e| PipelineError::Data {
+            path: path.display().to_string(),
+            reason: format!("target {:?}: {e}", g.target),
         })?;
-        notes.push(explain_hypotheses(
-            f,
-            &out,
-            cfg.explain,
-            cfg.classifier.confidence,
-        ));
+        let mut note = explain_hypotheses(f, &out, cfg.explain, cfg.classifier.confidence);
+        if bounds.is_some() {
+            note.push_str(" (scale and offset calibrated by the in-scene reference)");
+        }
+        notes.push(note);
+        hypotheses.push(super::TargetHypotheses {
+            target: g.target.to_string(),
+            tested: out.tested.clone(),
+            calibrated: bounds.is_some(),
+        });
         out_rows.push(hypothesis_row(
             f,
             Some(&out),
@@ -367,6 +432,8 @@ pub fn classify_measurements(
             label,
             classifier: clf,
             warnings,
+            hypotheses,
+            calibration: scene,
         },
         fits,
     ))

@@ -13,4 +13,5 @@ mod measure_fit_calibrated;
 mod paper_acceptance;
 mod pixel_hypothesis;
 mod plan;
+mod reference_region;
 mod systematic_errors;
