@@ -447,10 +447,10 @@ fn times_plot(out: &PlanOutput, all: &[Position]) -> anyhow::Result<crate::rende
             current: out.current.as_ref().map(points).unwrap_or_default(),
         });
     }
-    let times: Vec<String> = out
-        .recommended
-        .positions
-        .iter()
+    let mut chosen: Vec<&Position> = out.recommended.positions.iter().collect();
+    chosen.sort_by(|a, b| hour(a).unwrap_or(0.0).total_cmp(&hour(b).unwrap_or(0.0)));
+    let times: Vec<String> = chosen
+        .into_iter()
         .filter_map(|q| {
             hour(q).map(|h| {
                 let m = (h * 60.0).round() as i64;

@@ -192,10 +192,19 @@ impl Figure for PlanFigure<'_> {
         }
         let grey = RGBColor(90, 90, 90);
         legend.push(LegendItem::Heading("rows".into()));
+        let bars = self
+            .plates
+            .iter()
+            .flat_map(|p| &p.recommended)
+            .any(|q| se(q) > 0.0);
         legend.push(LegendItem::Marker(
             Marker::Circle,
             grey,
-            "recommended (bar ±1 σ)".into(),
+            if bars {
+                "recommended (bar ±1 σ)".into()
+            } else {
+                "recommended".into()
+            },
         ));
         if self.plates.iter().any(|p| !p.current.is_empty()) {
             legend.push(LegendItem::Marker(Marker::Diamond, grey, "current".into()));
