@@ -14,7 +14,13 @@
 //! The recommended positions maximise the smallest margin `λ_AB / λ*` over the plates and
 //! their hardest alternatives: Fedorov's exchange algorithm (start from positions spread
 //! evenly in β, replace one position at a time by the candidate that raises the worst
-//! margin most, until no exchange helps).
+//! margin most, until no exchange helps; a trial stops at the first active pair below
+//! the current worst margin, and the trials run in parallel).
+//!
+//! The candidates are a region of lamp positions, or, with the scene's `[plan.sun]`
+//! table ([`sun_window`]), the sun over a time window. A colour scene is planned in all
+//! its bands: one test per pair over the rows of every band (one layer for all), and
+//! each band's alone ([`PairResult::by_band`]).
 
 use std::path::{Path, PathBuf};
 
