@@ -211,6 +211,61 @@ impl SolarPosition {
     }
 }
 
+/// Most times [`sun_path`] evaluates.
+pub const MAX_SUN_PATH_STEPS: usize = 100_000;
+
+/// The sun over a time window: [`solar_position`] at `start`, `start + step`, … up to
+/// `end` (Unix seconds UTC, both included when `end − start` is a whole number of steps),
+/// `ΔT` estimated, keeping the times when the sun is up ([`SolarPosition::is_up`]).
+///
+/// # Errors
+/// [`CoreError::NonFinite`] or [`CoreError::OutOfRange`] for a bad site, a window with
+/// `end < start`, a step that is not positive or that gives more than
+/// [`MAX_SUN_PATH_STEPS`] times; those of [`solar_position`].
+#[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN-safe on purpose
+pub fn sun_path(
+    site: &Site,
+    start_unix_s: f64,
+    end_unix_s: f64,
+    step_s: f64,
+) -> Result<Vec<(f64, SolarPosition)>> {
+    site.validate()?;
+    ensure_finite("start", start_unix_s)?;
+    ensure_finite("end", end_unix_s)?;
+    ensure_finite("step", step_s)?;
+    if !(end_unix_s >= start_unix_s) {
+        return Err(CoreError::OutOfRange {
+            name: "end",
+            value: end_unix_s,
+            expected: "a time not before the start",
+        });
+    }
+    if !(step_s > 0.0) {
+        return Err(CoreError::OutOfRange {
+            name: "step",
+            value: step_s,
+            expected: "more than 0 seconds",
+        });
+    }
+    let steps = ((end_unix_s - start_unix_s) / step_s + 1e-9).floor();
+    if steps >= MAX_SUN_PATH_STEPS as f64 {
+        return Err(CoreError::OutOfRange {
+            name: "step",
+            value: step_s,
+            expected: "a step giving at most 100000 times over the window",
+        });
+    }
+    let mut out = Vec::new();
+    for i in 0..=(steps as usize) {
+        let t = start_unix_s + i as f64 * step_s;
+        let pos = solar_position(t, None, site)?;
+        if pos.is_up() {
+            out.push((t, pos));
+        }
+    }
+    Ok(out)
+}
+
 /// Julian day (UT) of a Unix time: `2440587.5 + unix_seconds / 86400`.
 #[inline]
 pub fn julian_day(unix_seconds_utc: f64) -> f64 {
@@ -422,4 +477,34 @@ pub fn rayleigh_sky_dolp(
     let cos_g = ((s[0] * v[0] + s[1] * v[1] + s[2] * v[2]) / len2.sqrt()).clamp(-1.0, 1.0);
     let cos2 = cos_g * cos_g;
     Ok(max_dolp * (1.0 - cos2) / (1.0 + cos2))
+}
+
+#[cfg(test)]
+mod sun_path_tests {
+    use super::*;
+
+    /// NREL's SPA example site (Golden, Colorado) on 2003-10-17: the path keeps the
+    /// daylight times only, each as `solar_position` gives it, and noon is highest.
+    #[test]
+    fn the_path_is_the_sun_at_each_step_while_it_is_up() {
+        let site = Site::new(39.742476, -105.1786, 1830.14);
+        // 2003-10-17 00:00 to 24:00 local (UTC-7), hourly.
+        let start = 1_066_374_000.0;
+        let path = sun_path(&site, start, start + 86_400.0, 3600.0).unwrap();
+        assert!(path.len() >= 10 && path.len() <= 13, "{}", path.len());
+        for (t, p) in &path {
+            assert!(p.is_up());
+            assert_eq!(*p, solar_position(*t, None, &site).unwrap());
+            assert_eq!((t - start) % 3600.0, 0.0);
+        }
+        let highest = path
+            .iter()
+            .max_by(|a, b| a.1.elevation_deg.total_cmp(&b.1.elevation_deg))
+            .unwrap();
+        let hour = (highest.0 - start) / 3600.0;
+        assert!((11.0..=13.0).contains(&hour), "{hour}");
+        assert!(sun_path(&site, start, start - 1.0, 60.0).is_err());
+        assert!(sun_path(&site, start, start + 60.0, 0.0).is_err());
+        assert!(sun_path(&site, start, start + 1e9, 1.0).is_err());
+    }
 }

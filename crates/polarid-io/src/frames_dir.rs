@@ -2,11 +2,15 @@
 //! are images, their size and sample type, and what their values say about the
 //! sensor's bit depth.
 //!
-//! A 16-bit file does not say how many bits the sensor has: a 12-bit camera stores
-//! 0…4095 (or, shifted to the top, multiples of 16 up to 65520). [`FrameStats`] records
-//! the evidence — the PNG `sBIT` chunk when the file has one, the largest value, and the
-//! low bits that are zero in every pixel — and [`SensorDepth::infer`] turns it into a
-//! bit depth and a saturation level, saying how it was found.
+//! A 16-bit file does not always say how many bits the sensor has: a 12-bit camera
+//! stores 0…4095 (or, shifted to the top, multiples of 16 up to 65520). [`FrameStats`]
+//! records the evidence — the largest value the file records for its samples
+//! ([`Frame::recorded_max`](crate::image::Frame::recorded_max): a PNG `sBIT` chunk or a
+//! TIFF `MaxSampleValue` tag, read by [`read_frame`] and nowhere else), the largest
+//! value, and the low bits that are zero in every pixel — and [`SensorDepth::infer`]
+//! turns it into a bit depth and a saturation level, saying how it was found. A recorded
+//! depth decides, with the same level `measure` uses (12 significant bits: 4095,
+//! [`recorded_max_of_bits`](crate::image::recorded_max_of_bits)).
 
 use std::fs::File;
 use std::io::{BufReader, Read};
@@ -114,8 +118,10 @@ pub struct FrameStats {
     pub height: usize,
     /// Sample type as stored.
     pub kind: SampleKind,
-    /// Significant bits from a PNG `sBIT` chunk, if the file has one.
-    pub significant_bits: Option<u8>,
+    /// The largest value the file records for its samples
+    /// ([`Frame::recorded_max`](crate::image::Frame::recorded_max): PNG `sBIT`, TIFF
+    /// `MaxSampleValue`), if it records one.
+    pub recorded_max: Option<f32>,
     /// Largest value (NaN-free; `-inf` for an all-NaN float frame).
     pub max: f32,
     /// Smallest value.
@@ -137,7 +143,6 @@ pub struct FrameStats {
 /// Errors: those of [`read_frame`] (not an image, colour, several pages, too large, ...).
 pub fn frame_stats(path: &Path) -> Result<FrameStats> {
     let frame = read_frame(path)?;
-    let significant_bits = png_sbit(path);
     let (mut max, mut min, mut sum, mut or_bits) = (f32::NEG_INFINITY, f32::INFINITY, 0.0f64, 0u32);
     let mut quad = [0.0f64; 4];
     let mut quad_n = [0usize; 4];
@@ -166,7 +171,7 @@ pub fn frame_stats(path: &Path) -> Result<FrameStats> {
         width: frame.width,
         height: frame.height,
         kind: frame.kind,
-        significant_bits,
+        recorded_max: frame.recorded_max,
         max,
         min,
         mean: sum / n as f64,
@@ -178,14 +183,6 @@ pub fn frame_stats(path: &Path) -> Result<FrameStats> {
         },
         quad_means: quad,
     })
-}
-
-/// The `sBIT` significant bits of a grayscale PNG, if it has the chunk.
-fn png_sbit(path: &Path) -> Option<u8> {
-    let f = File::open(path).ok()?;
-    let reader = png::Decoder::new(BufReader::new(f)).read_info().ok()?;
-    let sbit = reader.info().sbit.as_ref()?;
-    sbit.first().copied().filter(|&b| b > 0)
 }
 
 /// A sensor bit depth inferred from frames, and the saturation level it implies.
@@ -228,33 +225,34 @@ impl SensorDepth {
                 ),
             };
         }
-        if let Some(b) = stats.iter().find_map(|s| s.significant_bits)
-            && b < stored_bits
-        {
-            let shift = u32::from(stored_bits - b);
-            let aligned_low = stats.iter().all(|s| s.zero_low_bits >= shift);
-            let (shift, sat) = if aligned_low {
-                // PNG's sBIT means the values were scaled to the full range.
-                (shift, ((1u64 << b) - 1) << shift)
+        if let Some(rec) = stats.iter().find_map(|s| s.recorded_max) {
+            // The file's own record decides: the level `measure` takes by default.
+            let bits = (f64::from(rec) + 1.0).log2();
+            let whole = (bits.fract() == 0.0).then_some(bits as u8);
+            let over = if max > rec {
+                format!(
+                    "; but values reach {max}, above it (data shifted to the top bits? give                      the saturation level in the manifest)"
+                )
             } else {
-                (0, (1u64 << b) - 1)
+                String::new()
             };
             return SensorDepth {
-                bits: Some(b),
+                bits: whole.or_else(|| {
+                    [8u8, 10, 12, 14, 16]
+                        .into_iter()
+                        .find(|&b| f64::from(rec) < (1u64 << b) as f64)
+                }),
                 stored_bits,
-                shift,
-                saturation: Some(sat as f64),
-                evidence: format!(
-                    "the PNG sBIT chunk says {b} significant bits of {stored_bits}{}",
-                    if shift > 0 {
-                        format!(
-                            ", stored in the top bits (every value a multiple of {})",
-                            1u64 << shift
-                        )
-                    } else {
-                        String::new()
-                    }
-                ),
+                shift: 0,
+                saturation: Some(f64::from(rec)),
+                evidence: match whole {
+                    Some(b) => format!(
+                        "the file records {b} significant bits of {stored_bits} (largest value                          {rec}){over}"
+                    ),
+                    None => format!(
+                        "the file records a largest sample value of {rec} (of {stored_bits}                          bits){over}"
+                    ),
+                },
             };
         }
         if stored_bits == 8 {
@@ -308,12 +306,13 @@ mod tests {
     use super::*;
 
     fn stats(kind: SampleKind, max: f32, zero_low_bits: u32, sbit: Option<u8>) -> FrameStats {
+        let recorded_max = sbit.and_then(|b| crate::image::recorded_max_of_bits(kind, b));
         FrameStats {
             path: PathBuf::from("f.png"),
             width: 4,
             height: 4,
             kind,
-            significant_bits: sbit,
+            recorded_max,
             max,
             min: 0.0,
             mean: max as f64 / 2.0,
@@ -339,10 +338,14 @@ mod tests {
             (d.bits, d.shift, d.saturation),
             (Some(12), 4, Some(65520.0))
         );
-        // sBIT decides.
+        // A recorded depth decides.
         let d = SensorDepth::infer(&[stats(SampleKind::U16, 1000.0, 0, Some(12))]);
         assert_eq!((d.bits, d.saturation), (Some(12), Some(4095.0)));
-        assert!(d.evidence.contains("sBIT"), "{}", d.evidence);
+        assert!(
+            d.evidence.contains("records 12 significant bits"),
+            "{}",
+            d.evidence
+        );
         let d = SensorDepth::infer(&[stats(SampleKind::F32, 1.5, 0, None)]);
         assert_eq!(d.saturation, None);
     }

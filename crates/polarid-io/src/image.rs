@@ -312,9 +312,7 @@ fn read_png(path: &Path, bytes: &[u8], lim: Limits) -> Result<Frame> {
             ),
         ));
     }
-    let recorded_max = sbit
-        .filter(|&b| b < kind.bit_depth() && b > 0)
-        .map(|b| ((1u32 << b) - 1) as f32);
+    let recorded_max = sbit.and_then(|b| recorded_max_of_bits(kind, b));
     Ok(Frame {
         path: path.to_path_buf(),
         width: w,
@@ -675,6 +673,16 @@ pub fn write_gray16(
         )?
     };
     write_bytes(path, force, &bytes)
+}
+
+/// The largest value of samples of type `kind` whose file records `bits` significant
+/// bits (a PNG `sBIT` chunk): `2^bits − 1` (12 bits: 4095), the values counted from 0
+/// as [`write_gray16_bits`] writes them; `None` when `bits` is 0 or not below the type's
+/// (every stored bit significant: the type's maximum applies). The one rule for a
+/// recorded bit depth: [`Frame::recorded_max`] and `polarid init`'s saturation level
+/// ([`crate::frames_dir::SensorDepth`]) both come from it.
+pub fn recorded_max_of_bits(kind: SampleKind, bits: u8) -> Option<f32> {
+    (bits > 0 && bits < kind.bit_depth() && kind.is_integer()).then(|| ((1u32 << bits) - 1) as f32)
 }
 
 /// Write 16-bit grayscale samples holding `bits`-bit data (1..=16, e.g. 12 for a

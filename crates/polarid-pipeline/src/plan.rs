@@ -14,13 +14,19 @@
 //! The recommended positions maximise the smallest margin `λ_AB / λ*` over the plates and
 //! their hardest alternatives: Fedorov's exchange algorithm (start from positions spread
 //! evenly in β, replace one position at a time by the candidate that raises the worst
-//! margin most, until no exchange helps).
+//! margin most, until no exchange helps; a trial stops at the first active pair below
+//! the current worst margin, and the trials run in parallel).
+//!
+//! The candidates are a region of lamp positions, or, with the scene's `[plan.sun]`
+//! table ([`sun_window`]), the sun over a time window. A colour scene is planned in all
+//! its bands: one test per pair over the rows of every band (one layer for all), and
+//! each band's alone ([`PairResult::by_band`]).
 
 use std::path::{Path, PathBuf};
 
 use polarid_core::FitStatus;
 use polarid_core::classify::separability::{
-    PlanRow, Separation, TruthPoint, separation, truth_grid,
+    PlanRow, Separation, TruthPoint, margin_of, separation, truth_grid, worst_case,
 };
 use polarid_core::classify::{CandidateModel, HypothesisConfig, MultiPrototype, Nuisances};
 use polarid_core::pbrdf::pbrdf;
@@ -28,6 +34,7 @@ use polarid_core::simulate::{Exposure, Sensor};
 use polarid_io::manifest::SourceSpec;
 use polarid_io::scene::{CaptureKind, Geometry, Scene};
 use polarid_io::table::measurements::Measurement;
+use rayon::prelude::*;
 
 use crate::classify::PrototypeSource;
 use crate::fit::FitConfig;
@@ -169,6 +176,216 @@ impl PlanConfig {
     }
 }
 
+/// The sun over a time window as the bench's possible source positions (the scene's
+/// `[plan.sun]` table, docs/PLAN.md), instead of the lamp region.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SunWindow {
+    /// First time, as written (RFC 3339 with its offset).
+    pub start: String,
+    /// First time, Unix seconds (UTC).
+    pub start_unix_s: f64,
+    /// Last time, Unix seconds (UTC).
+    pub end_unix_s: f64,
+    /// Step, minutes.
+    pub step_minutes: f64,
+    /// The start's UTC offset, minutes (the times are written with it).
+    pub offset_minutes: i32,
+    /// The sun's irradiance (`intensity`; default: the mean of the scene's sources').
+    pub intensity: Option<f64>,
+}
+
+/// `[plan.sun]` as written.
+#[derive(Debug, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawSunWindow {
+    start: Option<toml::Spanned<toml::Value>>,
+    end: Option<toml::Spanned<toml::Value>>,
+    step_minutes: Option<toml::Spanned<toml::Value>>,
+    intensity: Option<toml::Spanned<toml::Value>>,
+}
+
+/// `[plan]` as written.
+#[derive(Debug, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPlanTable {
+    sun: Option<toml::Spanned<RawSunWindow>>,
+}
+
+/// The scene file's top level, `[plan]` only.
+#[derive(Debug, serde::Deserialize)]
+struct RawPlanKeys {
+    plan: Option<toml::Spanned<RawPlanTable>>,
+}
+
+/// Most times a sun window may give.
+pub const MAX_SUN_TIMES: f64 = 2000.0;
+
+/// Read the scene's `[plan.sun]` table (`None` without one). Errors name the file, the
+/// line, the key and the value (a configuration error: exit status 2).
+pub fn sun_window(scene: &Scene) -> Result<Option<SunWindow>> {
+    let file = scene.path.display().to_string();
+    let line_of = |span: &std::ops::Range<usize>| {
+        scene.text[..span.start.min(scene.text.len())]
+            .bytes()
+            .filter(|&b| b == b'\n')
+            .count()
+            + 1
+    };
+    let err =
+        |span: &std::ops::Range<usize>, key: &str, value: &dyn std::fmt::Display, why: &str| {
+            PipelineError::config(
+                format!("{file}, line {}: plan.sun.{key}", line_of(span)),
+                value,
+                why,
+            )
+        };
+    let keys: RawPlanKeys = toml::from_str(&scene.text).map_err(|e| {
+        PipelineError::config(
+            format!("{file}: [plan]"),
+            e.message(),
+            format!(
+                "is not a valid [plan] table (line {}; keys: [plan.sun] start, end, step_minutes, intensity)",
+                e.span().map_or(0, |s| line_of(&s))
+            ),
+        )
+    })?;
+    let Some(plan) = keys.plan else {
+        return Ok(None);
+    };
+    let plan_span = plan.span();
+    let Some(sun) = plan.into_inner().sun else {
+        return Err(PipelineError::config(
+            format!("{file}, line {}: [plan]", line_of(&plan_span)),
+            "(no sun)",
+            "must hold a [plan.sun] table (start, end, step_minutes)",
+        ));
+    };
+    let sun_span = sun.span();
+    let sun = sun.into_inner();
+    let geometry_ok = matches!(&scene.geometry, Geometry::Calibrated(c) if c.site.is_some());
+    if !geometry_ok {
+        return Err(PipelineError::config(
+            format!("{file}, line {}: [plan.sun]", line_of(&sun_span)),
+            "(no [site])",
+            "needs a calibrated scene ([camera]) with a [site] (latitude_deg, longitude_deg)",
+        ));
+    }
+    let time = |v: &Option<toml::Spanned<toml::Value>>, key: &str| -> Result<(String, f64, i32)> {
+        let Some(v) = v else {
+            return Err(PipelineError::config(
+                format!("{file}, line {}: plan.sun.{key}", line_of(&sun_span)),
+                "(missing)",
+                "is needed: an RFC 3339 time with its offset, e.g. \"2026-06-21T09:00:00-06:00\"",
+            ));
+        };
+        let Some(text) = v.get_ref().as_str() else {
+            return Err(err(
+                &v.span(),
+                key,
+                v.get_ref(),
+                "must be a quoted RFC 3339 time with its offset",
+            ));
+        };
+        let ts = polarid_io::time::parse_rfc3339_timestamp(text).map_err(|e| {
+            err(
+                &v.span(),
+                key,
+                &format!("{text:?}"),
+                &format!("is not a time: {e}"),
+            )
+        })?;
+        Ok((text.to_string(), ts.unix_seconds_f64(), ts.offset_minutes))
+    };
+    let (start, start_unix_s, offset_minutes) = time(&sun.start, "start")?;
+    let (_, end_unix_s, _) = time(&sun.end, "end")?;
+    let end_span = sun.end.as_ref().map_or(sun_span.clone(), |v| v.span());
+    if !(end_unix_s > start_unix_s) {
+        return Err(err(
+            &end_span,
+            "end",
+            &format!("{end_unix_s}"),
+            "must be after plan.sun.start",
+        ));
+    }
+    if end_unix_s - start_unix_s > 366.0 * 86400.0 {
+        return Err(err(
+            &end_span,
+            "end",
+            &format!("{end_unix_s}"),
+            "must be within a year of plan.sun.start",
+        ));
+    }
+    let number = |v: &Option<toml::Spanned<toml::Value>>,
+                  key: &str|
+     -> Result<Option<(f64, std::ops::Range<usize>)>> {
+        let Some(v) = v else { return Ok(None) };
+        let x = match v.get_ref() {
+            toml::Value::Float(f) => *f,
+            toml::Value::Integer(i) => *i as f64,
+            other => return Err(err(&v.span(), key, other, "must be a number")),
+        };
+        Ok(Some((x, v.span())))
+    };
+    let (step_minutes, step_span) =
+        number(&sun.step_minutes, "step_minutes")?.unwrap_or((15.0, sun_span.clone()));
+    if !(step_minutes >= 1.0 && step_minutes <= 1440.0) {
+        return Err(err(
+            &step_span,
+            "step_minutes",
+            &step_minutes,
+            "must be 1 to 1440 minutes",
+        ));
+    }
+    let times = (end_unix_s - start_unix_s) / (60.0 * step_minutes);
+    if times > MAX_SUN_TIMES {
+        return Err(err(
+            &step_span,
+            "step_minutes",
+            &step_minutes,
+            &format!(
+                "gives {} times over the window: at most {MAX_SUN_TIMES} (a longer step or a shorter window)",
+                times.floor() + 1.0
+            ),
+        ));
+    }
+    let intensity = match number(&sun.intensity, "intensity")? {
+        Some((x, span)) if !(x > 0.0 && x.is_finite()) => {
+            return Err(err(&span, "intensity", &x, "must be > 0"));
+        }
+        Some((x, _)) => Some(x),
+        None => None,
+    };
+    Ok(Some(SunWindow {
+        start,
+        start_unix_s,
+        end_unix_s,
+        step_minutes,
+        offset_minutes,
+        intensity,
+    }))
+}
+
+/// A Unix time written in RFC 3339 with the offset `offset_minutes`.
+fn local_time(unix_s: f64, offset_minutes: i32) -> String {
+    let shifted = unix_s.round() as i64 + i64::from(offset_minutes) * 60;
+    let utc = polarid_io::time::format_rfc3339_utc(shifted).unwrap_or_else(|| format!("{unix_s}"));
+    let off = if offset_minutes == 0 {
+        "Z".to_string()
+    } else {
+        let a = offset_minutes.abs();
+        format!(
+            "{}{:02}:{:02}",
+            if offset_minutes < 0 { '-' } else { '+' },
+            a / 60,
+            a % 60
+        )
+    };
+    match utc.strip_suffix('Z') {
+        Some(t) => format!("{t}{off}"),
+        None => utc,
+    }
+}
+
 /// One source position: where it is and what each target plate sees from it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Position {
@@ -186,15 +403,22 @@ pub struct Position {
 }
 
 /// What one target sees from one position.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct RowGeometry {
-    /// Local incidence angle, degrees.
+    /// Local incidence angle, degrees (the same in every band).
     pub beta_deg: f64,
     /// Source zenith at the plate, degrees.
     pub theta_i_deg: f64,
+    /// Per band (in the order of [`PlanOutput::wavelengths_nm`]): the row's noise.
+    pub bands: Vec<BandNoise>,
+}
+
+/// One band of a row: its DoLP standard error and brightness.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BandNoise {
     /// The row's DoLP standard error (noise only).
     pub dolp_se: f64,
-    /// Expected S0 electrons per pixel at the plate's centre.
+    /// Expected S0 electrons per pixel of the band at the plate's centre.
     pub electrons: f64,
 }
 
@@ -214,8 +438,12 @@ pub struct PairResult {
     pub target: usize,
     /// The alternative material.
     pub alternative: String,
-    /// The separation (worst case over the target's nuisances).
+    /// The separation (worst case over the target's nuisances), every band together:
+    /// one test over the rows of all bands, one layer thickness for all, as `classify`.
     pub sep: Separation,
+    /// A colour scene's separation by each band's rows alone (in the order of
+    /// [`PlanOutput::wavelengths_nm`]); empty for one band.
+    pub by_band: Vec<Separation>,
 }
 
 /// A design evaluated: its positions and every pair.
@@ -234,6 +462,9 @@ pub struct Evaluation {
 /// offset), with the plan's noise: whether `classify` would test the target at all.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FitCheck {
+    /// The band it is (a colour scene: the band whose fit fails, else the least
+    /// precise one), nm.
+    pub wavelength_nm: f64,
     /// The fit's status.
     pub status: FitStatus,
     /// The fit's reason when not `ok`.
@@ -313,8 +544,13 @@ pub struct PlanOutput {
     pub materials: Vec<String>,
     /// The library's label.
     pub library: String,
-    /// The wavelength, nm.
-    pub wavelength_nm: f64,
+    /// The library as loaded (`builtin`, `builtin-rgb`, a CSV path: a colour scene's
+    /// `builtin` is read as `builtin-rgb`).
+    pub library_source: String,
+    /// The bands' wavelengths, nm (one for a monochrome scene).
+    pub wavelengths_nm: Vec<f64>,
+    /// The bands' colour letters (colour scenes; empty for one band).
+    pub band_letters: Vec<char>,
     /// The scene's own sources, evaluated (`None` when it has fewer than 2).
     pub current: Option<Evaluation>,
     /// The recommended positions, evaluated.
@@ -323,6 +559,10 @@ pub struct PlanOutput {
     pub progress: Vec<f64>,
     /// How many candidate positions the region gave (lit, above the horizon).
     pub candidates: usize,
+    /// The sun window the candidates came from (`[plan.sun]`), if any.
+    pub sun: Option<SunWindow>,
+    /// With a sun window: every candidate time (the sun's path over the window).
+    pub sun_positions: Vec<Position>,
     /// The settings.
     pub config: PlanConfig,
     /// Warnings.
@@ -393,11 +633,11 @@ fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 struct PlateView {
     center: [f64; 3],
     normal: [f64; 3],
-    n: f64,
-    k: f64,
+    /// Per band: `(n, k, response, sets)`, `sets` the independent DoLP estimates of the
+    /// band in the region: super-pixels (DoFP; a colour DoFP: the band's blocks) or
+    /// pixels.
+    bands: Vec<(f64, f64, f64, f64)>,
     sigma: f64,
-    /// Independent DoLP estimates in the region: super-pixels (DoFP) or pixels.
-    sets: f64,
 }
 
 /// The scene's geometry for the planner.
@@ -462,32 +702,48 @@ fn position_rows(
     let mut geo = Vec::with_capacity(plates.len());
     for p in plates {
         let (ti, tr, phi, e) = angles(bench, p, src)?;
-        let f = pbrdf(p.n, p.k, p.sigma, ti, tr, phi).ok()?;
-        // L = E cos θi (f00, …): S0 and the brightest polarizer angle S0 (1 + P) / 2.
-        let l0 = intensity * e * ti.cos() * f.local[0][0];
-        s0.push(l0);
-        peak = peak.max(0.5 * l0 * (1.0 + f.dolp));
-        geo.push((f.beta, ti));
+        let mut per_band = Vec::with_capacity(p.bands.len());
+        let mut beta = 0.0;
+        for &(n, k, response, _) in &p.bands {
+            let f = pbrdf(n, k, p.sigma, ti, tr, phi).ok()?;
+            // L = E cos θi (f00, …) times the band's response: S0 and the brightest
+            // polarizer angle S0 (1 + P) / 2.
+            let l0 = intensity * e * ti.cos() * f.local[0][0] * response;
+            peak = peak.max(0.5 * l0 * (1.0 + f.dolp));
+            per_band.push(l0);
+            beta = f.beta;
+        }
+        s0.push(per_band);
+        geo.push((beta, ti));
     }
     let x = exposure.resolve(peak).ok()?;
     let mut rows = Vec::with_capacity(plates.len());
-    for ((p, l0), (beta, ti)) in plates.iter().zip(s0).zip(geo) {
-        // Expected S0 electrons of one pixel (the sum of two orthogonal polarizer
-        // frames: x · S0 · full well).
-        let el = sensor.electrons_per_unit(x) * l0;
-        if !(el >= MIN_ELECTRONS) || beta.to_degrees() < 2.0 {
+    for ((p, l0s), (beta, ti)) in plates.iter().zip(s0).zip(geo) {
+        if beta.to_degrees() < 2.0 {
             return None;
         }
-        // Shot and read noise of a small DoLP from K independent sets of four
-        // samples (S1 = I0 − I90 has variance S0 + 2 r² electrons²):
-        // var P ≈ (S0 + 2 r²) / (K S0²).
-        let r2 = sensor.read_noise_e * sensor.read_noise_e;
-        let se = dolp_se.unwrap_or_else(|| ((el + 2.0 * r2) / (p.sets * el * el)).sqrt());
+        let mut bands = Vec::with_capacity(l0s.len());
+        for (l0, &(_, _, _, sets)) in l0s.iter().zip(&p.bands) {
+            // Expected S0 electrons of one pixel (the sum of two orthogonal polarizer
+            // frames: x · S0 · full well).
+            let el = sensor.electrons_per_unit(x) * l0;
+            if !(el >= MIN_ELECTRONS) {
+                return None;
+            }
+            // Shot and read noise of a small DoLP from K independent sets of four
+            // samples (S1 = I0 − I90 has variance S0 + 2 r² electrons²):
+            // var P ≈ (S0 + 2 r²) / (K S0²).
+            let r2 = sensor.read_noise_e * sensor.read_noise_e;
+            let se = dolp_se.unwrap_or_else(|| ((el + 2.0 * r2) / (sets * el * el)).sqrt());
+            bands.push(BandNoise {
+                dolp_se: se,
+                electrons: el,
+            });
+        }
         rows.push(RowGeometry {
             beta_deg: beta.to_degrees(),
             theta_i_deg: ti.to_degrees(),
-            dolp_se: se,
-            electrons: el,
+            bands,
         });
     }
     Some(rows)
@@ -508,19 +764,30 @@ struct Models {
 }
 
 impl Models {
-    fn rows(&self, positions: &[&Position], t: usize) -> Vec<PlanRow> {
+    /// Target `t`'s rows at `positions`: one per position and band (only band `band`
+    /// when given).
+    fn rows_of(&self, positions: &[&Position], t: usize, band: Option<usize>) -> Vec<PlanRow> {
         positions
             .iter()
-            .map(|p| {
-                let r = p.rows[t];
-                PlanRow {
-                    beta: r.beta_deg.to_radians(),
-                    dolp_sd: (r.dolp_se * r.dolp_se + self.floor * self.floor).sqrt(),
-                    angle_sd: self.angle_sd,
-                    band: 0,
-                }
+            .flat_map(|p| {
+                let r = &p.rows[t];
+                r.bands
+                    .iter()
+                    .enumerate()
+                    .filter(move |(b, _)| band.is_none_or(|x| x == *b))
+                    .map(move |(b, n)| PlanRow {
+                        beta: r.beta_deg.to_radians(),
+                        dolp_sd: (n.dolp_se * n.dolp_se + self.floor * self.floor).sqrt(),
+                        angle_sd: self.angle_sd,
+                        band: b,
+                    })
             })
             .collect()
+    }
+
+    /// Target `t`'s rows at `positions`, every band.
+    fn rows(&self, positions: &[&Position], t: usize) -> Vec<PlanRow> {
+        self.rows_of(positions, t, None)
     }
 
     fn pair(
@@ -529,8 +796,9 @@ impl Models {
         t: usize,
         alt: usize,
         grid: &[TruthPoint],
+        band: Option<usize>,
     ) -> Result<Separation> {
-        let rows = self.rows(positions, t);
+        let rows = self.rows_of(positions, t, band);
         let truth = &self.models[self.truth[t]];
         Ok(separation(
             &rows,
@@ -543,31 +811,76 @@ impl Models {
         )?)
     }
 
+    /// The margin of pair `(t, alt)` at `positions`, the worst case over `grid` (the
+    /// margin of [`separation`] without its power and its full test), and the truth point
+    /// of the worst case.
+    fn margin(
+        &self,
+        positions: &[&Position],
+        t: usize,
+        alt: usize,
+        grid: &[TruthPoint],
+    ) -> Result<(f64, TruthPoint)> {
+        let rows = self.rows(positions, t);
+        let (lambda, dof, at) = worst_case(
+            &rows,
+            &self.wavelengths,
+            &self.models[self.truth[t]],
+            &self.models[alt],
+            &self.cfg,
+            grid,
+        )?;
+        Ok((margin_of(lambda, dof, self.cfg.confidence, self.power), at))
+    }
+
+    /// Every `(target, alternative)` pair.
+    fn all_pairs(&self) -> Vec<(usize, usize)> {
+        (0..self.truth.len())
+            .flat_map(|t| {
+                (0..self.models.len())
+                    .filter(move |&alt| alt != self.truth[t])
+                    .map(move |alt| (t, alt))
+            })
+            .collect()
+    }
+
     /// Every pair of every target, the full grid.
     fn evaluate(&self, positions: Vec<Position>) -> Result<Evaluation> {
         let refs: Vec<&Position> = positions.iter().collect();
-        let mut pairs = Vec::new();
-        for t in 0..self.truth.len() {
-            let grid = truth_grid(&self.models[self.truth[t]], &self.cfg);
-            let mut mine = Vec::new();
-            for alt in 0..self.models.len() {
-                if alt == self.truth[t] {
-                    continue;
-                }
-                let sep = self.pair(&refs, t, alt, &grid)?;
-                mine.push(PairResult {
+        let grids: Vec<Vec<TruthPoint>> = self
+            .truth
+            .iter()
+            .map(|&m| truth_grid(&self.models[m], &self.cfg))
+            .collect();
+        let mut pairs = self
+            .all_pairs()
+            .into_par_iter()
+            .map(|(t, alt)| {
+                let by_band = if self.wavelengths.len() > 1 {
+                    (0..self.wavelengths.len())
+                        .map(|b| self.pair(&refs, t, alt, &grids[t], Some(b)))
+                        .collect::<Result<Vec<_>>>()?
+                } else {
+                    Vec::new()
+                };
+                Ok(PairResult {
                     target: t,
                     alternative: self.names[alt].clone(),
-                    sep,
-                });
-            }
-            mine.sort_by(|a, b| a.sep.margin.total_cmp(&b.sep.margin));
-            pairs.extend(mine);
-        }
-        let mut fits = Vec::new();
-        for t in 0..self.truth.len() {
-            fits.push(self.fit_check(&refs, t)?);
-        }
+                    sep: self.pair(&refs, t, alt, &grids[t], None)?,
+                    by_band,
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        // Per target (in order), hardest first.
+        pairs.sort_by(|a, b| {
+            a.target
+                .cmp(&b.target)
+                .then(a.sep.margin.total_cmp(&b.sep.margin))
+        });
+        let fits = (0..self.truth.len())
+            .into_par_iter()
+            .map(|t| self.fit_check(&refs, t))
+            .collect::<Result<Vec<_>>>()?;
         Ok(Evaluation {
             positions,
             pairs,
@@ -577,6 +890,25 @@ impl Models {
 
     /// `fit` on target `t`'s noise-free rows ([`FitCheck`]).
     fn fit_check(&self, positions: &[&Position], t: usize) -> Result<FitCheck> {
+        let mut worst: Option<FitCheck> = None;
+        for b in 0..self.wavelengths.len() {
+            let f = self.fit_check_band(positions, t, b)?;
+            let bad = |f: &FitCheck| !f.locates();
+            let spread = |f: &FitCheck| f.n_se + f.k_se;
+            let replace = match &worst {
+                None => true,
+                Some(w) if bad(w) => false,
+                Some(w) => bad(&f) || spread(&f) > spread(w),
+            };
+            if replace {
+                worst = Some(f);
+            }
+        }
+        worst.ok_or_else(|| PipelineError::config("scene", "plan", "no band to fit"))
+    }
+
+    /// `fit` on band `b` of target `t`'s noise-free rows.
+    fn fit_check_band(&self, positions: &[&Position], t: usize, b: usize) -> Result<FitCheck> {
         let truth = &self.models[self.truth[t]];
         let mid = TruthPoint {
             thickness_nm: truth
@@ -586,7 +918,21 @@ impl Models {
             scale: 1.0,
             offset: 0.0,
         };
-        let plan_rows = self.rows(positions, t);
+        let (n, k) = truth.bulk[b];
+        if positions.len() < 3 {
+            // `fit` needs three rows of a target and band.
+            return Ok(FitCheck {
+                wavelength_nm: self.wavelengths[b],
+                n,
+                k,
+                box_max: (self.fit.n_range.1, self.fit.k_range.1),
+                status: FitStatus::IllConditioned,
+                reason: format!("{} rows: fit needs at least 3", positions.len()),
+                n_se: f64::NAN,
+                k_se: f64::NAN,
+            });
+        }
+        let plan_rows = self.rows_of(positions, t, Some(b));
         let clean = polarid_core::classify::separability::truth_rows(
             &plan_rows,
             &self.wavelengths,
@@ -605,8 +951,8 @@ impl Models {
                         beta_deg: p.rows[t].beta_deg,
                         phi_deg: 180.0,
                         dolp: h.dolp,
-                        dolp_se: Some(p.rows[t].dolp_se),
-                        wavelength_nm: Some(self.wavelengths[0]),
+                        dolp_se: Some(p.rows[t].bands[b].dolp_se),
+                        wavelength_nm: Some(self.wavelengths[b]),
                         ..Default::default()
                     },
                 )
@@ -616,8 +962,9 @@ impl Models {
         let f = out.rows().into_iter().next();
         Ok(match f {
             Some(f) => FitCheck {
-                n: truth.bulk[0].0,
-                k: truth.bulk[0].1,
+                wavelength_nm: self.wavelengths[b],
+                n,
+                k,
                 box_max: (self.fit.n_range.1, self.fit.k_range.1),
                 status: f.status,
                 reason: f.reason.clone(),
@@ -625,8 +972,9 @@ impl Models {
                 k_se: f.k_se,
             },
             None => FitCheck {
-                n: truth.bulk[0].0,
-                k: truth.bulk[0].1,
+                wavelength_nm: self.wavelengths[b],
+                n,
+                k,
                 box_max: (self.fit.n_range.1, self.fit.k_range.1),
                 status: FitStatus::IllConditioned,
                 reason: "no fit".into(),
@@ -638,26 +986,110 @@ impl Models {
 }
 
 /// An active pair of the search: target, alternative, and the truth points to try.
+#[derive(Debug, Clone)]
 struct Active {
     target: usize,
     alt: usize,
     grid: Vec<TruthPoint>,
 }
 
-/// The smallest margin over the active pairs for the positions `idx` of `cands`.
-fn objective(models: &Models, cands: &[Position], idx: &[usize], active: &[Active]) -> f64 {
+/// The smallest margin over the active pairs for the positions `idx` of `cands`, or, as
+/// soon as one pair's margin falls below `beat`, that pair's margin (a value below `beat`:
+/// such a design cannot win the exchange, and the pairs are taken hardest first so that
+/// most losing trials stop at the first). A design whose value is at least `beat` is
+/// always evaluated in full.
+fn objective(
+    models: &Models,
+    cands: &[Position],
+    idx: &[usize],
+    active: &[Active],
+    beat: f64,
+) -> f64 {
     let pos: Vec<&Position> = idx.iter().map(|&i| &cands[i]).collect();
     let mut worst = f64::INFINITY;
     for a in active {
         let m = models
-            .pair(&pos, a.target, a.alt, &a.grid)
-            .map_or(f64::NEG_INFINITY, |s| s.margin);
+            .margin(&pos, a.target, a.alt, &a.grid)
+            .map_or(f64::NEG_INFINITY, |s| s.0);
         worst = worst.min(m);
-        if worst == f64::NEG_INFINITY {
+        if worst < beat {
             break;
         }
     }
     worst
+}
+
+/// Sort the active pairs hardest first at the positions `idx` (stable); the smallest
+/// margin.
+fn order_active(
+    models: &Models,
+    cands: &[Position],
+    idx: &[usize],
+    active: &mut Vec<Active>,
+) -> f64 {
+    let pos: Vec<&Position> = idx.iter().map(|&i| &cands[i]).collect();
+    let mut keyed: Vec<(f64, Active)> = std::mem::take(active)
+        .into_par_iter()
+        .map(|a| {
+            let m = models
+                .margin(&pos, a.target, a.alt, &a.grid)
+                .map_or(f64::NEG_INFINITY, |s| s.0);
+            (m, a)
+        })
+        .collect();
+    keyed.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let worst = keyed.first().map_or(f64::INFINITY, |k| k.0);
+    *active = keyed.into_iter().map(|k| k.1).collect();
+    worst
+}
+
+/// Fedorov's exchange from the positions `idx`: for each slot in turn, the candidate
+/// that raises the smallest margin over the `active` pairs most replaces it (candidates
+/// tried in parallel); up to 3 passes, until no exchange helps. Appends the smallest
+/// margin before and after each pass to `progress`; returns it.
+fn exchange(
+    models: &Models,
+    cands: &[Position],
+    idx: &mut [usize],
+    active: &mut Vec<Active>,
+    progress: &mut Vec<f64>,
+) -> f64 {
+    let mut best = order_active(models, cands, idx, active);
+    progress.push(best);
+    for _pass in 0..3 {
+        let mut improved = false;
+        for slot in 0..idx.len() {
+            let beat = best * (1.0 + 1e-9) + 1e-12;
+            let current: &[usize] = idx;
+            let trials: Vec<(usize, f64)> = (0..cands.len())
+                .into_par_iter()
+                .filter(|c| !current.contains(c))
+                .map(|c| {
+                    let mut trial = current.to_vec();
+                    trial[slot] = c;
+                    (c, objective(models, cands, &trial, active, beat))
+                })
+                .collect();
+            // The best trial (the first of equal ones) when it beats the current design.
+            let pick = trials.iter().filter(|t| t.1 > beat).fold(
+                None::<(usize, f64)>,
+                |acc, &t| match acc {
+                    Some(a) if a.1 >= t.1 => Some(a),
+                    _ => Some(t),
+                },
+            );
+            if let Some((c, _)) = pick {
+                idx[slot] = c;
+                improved = true;
+                best = order_active(models, cands, idx, active);
+            }
+        }
+        progress.push(best);
+        if !improved {
+            break;
+        }
+    }
+    best
 }
 
 /// Plan the captures of `scene` (module documentation).
@@ -669,26 +1101,44 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
     cfg.validate()?;
     let mut warnings = Vec::new();
     let scene_path = scene.path.display().to_string();
-    if matches!(scene.capture, CaptureKind::ColourDofp { .. }) {
-        return Err(PipelineError::config(
-            "scene",
-            &scene_path,
-            "colour scenes are not planned yet: plan one band (a monochrome copy of the scene)",
-        ));
-    }
-    let wl = match scene.wavelength_nm {
-        Some(w) => w,
+    // The bands: a colour scene's (every band together, as `classify`), else one.
+    let (wavelengths, band_letters, library): (Vec<f64>, Vec<char>, String) = match scene
+        .capture
+        .bands()
+    {
+        Some(bands) => {
+            let library = if cfg.library == "builtin" {
+                warnings.push(Warning(format!(
+                    "{scene_path} is a colour scene and the library `builtin` has one band: \
+                         planned with `builtin-rgb`, its materials in the three bands"
+                )));
+                "builtin-rgb".to_string()
+            } else {
+                cfg.library.clone()
+            };
+            (
+                bands.iter().map(|b| b.wavelength_nm).collect(),
+                bands.iter().map(|b| b.letter).collect(),
+                library,
+            )
+        }
         None => {
-            warnings.push(Warning(format!(
-                "{scene_path} gives no wavelength_nm: planned at {} nm, the built-in library's band",
-                polarid_io::library::BUILTIN_WAVELENGTH_NM
-            )));
-            polarid_io::library::BUILTIN_WAVELENGTH_NM
+            let wl = match scene.wavelength_nm {
+                Some(w) => w,
+                None => {
+                    warnings.push(Warning(format!(
+                            "{scene_path} gives no wavelength_nm: planned at {} nm, the built-in library's band",
+                            polarid_io::library::BUILTIN_WAVELENGTH_NM
+                        )));
+                    polarid_io::library::BUILTIN_WAVELENGTH_NM
+                }
+            };
+            (vec![wl], Vec::new(), cfg.library.clone())
         }
     };
     // The candidates.
-    let source = PrototypeSource::Library(cfg.library.clone());
-    let (protos, label, w) = source.load_multi_for(&[wl], 0)?;
+    let source = PrototypeSource::Library(library.clone());
+    let (protos, label, w) = source.load_multi_for(&wavelengths, 0)?;
     warnings.extend(w);
     let protos: Vec<MultiPrototype> = if cfg.materials.is_empty() {
         protos
@@ -713,7 +1163,7 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
         if names.contains(&p.class) {
             continue;
         }
-        if let Some(m) = CandidateModel::from_prototype(p, &[wl]) {
+        if let Some(m) = CandidateModel::from_prototype(p, &wavelengths) {
             names.push(p.class.clone());
             models.push(m);
         }
@@ -732,9 +1182,18 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
             phi: phi_deg.to_radians(),
         },
     };
-    let per_set = match scene.capture {
-        CaptureKind::Dofp { .. } => 4.0,
-        _ => 1.0,
+    // Pixels per independent DoLP estimate of each band: a super-pixel of four (DoFP),
+    // one pixel (rotating polarizer); a colour DoFP's band has `blocks` of the four 2×2
+    // blocks of each 4×4 period.
+    let per_set: Vec<f64> = match &scene.capture {
+        CaptureKind::Dofp { .. } => vec![4.0],
+        CaptureKind::ColourDofp { pattern, bands } => (0..bands.len())
+            .map(|b| {
+                let blocks = (0..4).filter(|&k| pattern.block_band(k) == b).count();
+                16.0 / blocks.max(1) as f64
+            })
+            .collect(),
+        CaptureKind::Frames { .. } => vec![1.0],
     };
     let mut targets = Vec::new();
     let mut truth = Vec::new();
@@ -766,13 +1225,26 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
             material: class.clone(),
         });
         truth.push(i);
+        let pixels = (p.region.width * p.region.height) as f64;
+        let optics: Vec<(f64, f64)> = if p.bands.is_empty() {
+            vec![(p.optics.n, p.optics.k)]
+        } else {
+            p.bands.iter().map(|o| (o.n, o.k)).collect()
+        };
+        let responses: Vec<f64> = match scene.capture.bands() {
+            Some(bands) => bands.iter().map(|b| b.response).collect(),
+            None => vec![1.0],
+        };
         plates.push(PlateView {
             center,
             normal,
-            n: p.optics.n,
-            k: p.optics.k,
+            bands: optics
+                .iter()
+                .zip(&responses)
+                .zip(&per_set)
+                .map(|((&(n, k), &r), &per)| (n, k, r, pixels / per))
+                .collect(),
             sigma: p.optics.sigma,
-            sets: (p.region.width * p.region.height) as f64 / per_set,
         });
     }
     if targets.is_empty() {
@@ -800,7 +1272,7 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
         models,
         truth,
         cfg: hcfg,
-        wavelengths: vec![wl],
+        wavelengths: wavelengths.clone(),
         angle_sd,
         floor: fit.dolp_floor,
         power: cfg.power,
@@ -839,7 +1311,7 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
             1.0,
         ),
     };
-    let make = |label: String, spec: SourceSpec| -> Option<Position> {
+    let make_with = |label: String, spec: SourceSpec, intensity: f64| -> Option<Position> {
         position_rows(
             &bench,
             &plates,
@@ -856,6 +1328,7 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
             in_plane: true,
         })
     };
+    let make = |label: String, spec: SourceSpec| make_with(label, spec, intensity);
     let mut current_positions = Vec::new();
     for (label, spec) in &own {
         match make(label.clone(), spec.clone()) {
@@ -873,81 +1346,138 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
     };
     let steps = |range: (f64, f64)| steps_of(range, r.step_deg);
     let mut cands = Vec::new();
-    match (&bench, &scene.geometry) {
-        (Bench::Calibrated { camera }, Geometry::Calibrated(_)) => {
-            let n_p = plates.len() as f64;
-            let o = plates.iter().fold([0.0; 3], |a, p| {
-                [
-                    a[0] + p.center[0] / n_p,
-                    a[1] + p.center[1] / n_p,
-                    a[2] + p.center[2] / n_p,
-                ]
-            });
-            let nrm = plates[0].normal;
-            let away = sub(o, *camera);
-            let e1 = unit(sub(away, {
-                let c = dot(away, nrm);
-                [c * nrm[0], c * nrm[1], c * nrm[2]]
-            }));
-            let e2 = cross(nrm, e1);
-            let mut lamps: Vec<f64> = own
-                .iter()
-                .filter_map(|(_, s)| match s {
-                    SourceSpec::Position(p) => Some(norm(sub(*p, o))),
-                    _ => None,
-                })
-                .collect();
-            lamps.sort_by(f64::total_cmp);
-            let distance = r.distance.or(lamps.get(lamps.len() / 2).copied());
-            for &t in &steps(r.zenith_deg) {
-                let azis = if t == 0.0 {
-                    vec![0.0]
-                } else {
-                    let mut a = steps_of(r.azimuth_deg, 2.0 * r.step_deg);
-                    if r.azimuth_deg.0 <= 0.0 && r.azimuth_deg.1 >= 0.0 && !a.contains(&0.0) {
-                        a.push(0.0);
-                    }
-                    a
-                };
-                for &a in &azis {
-                    let (tr, ar) = (t.to_radians(), a.to_radians());
-                    let dir = [
-                        tr.sin() * ar.cos() * e1[0]
-                            + tr.sin() * ar.sin() * e2[0]
-                            + tr.cos() * nrm[0],
-                        tr.sin() * ar.cos() * e1[1]
-                            + tr.sin() * ar.sin() * e2[1]
-                            + tr.cos() * nrm[1],
-                        tr.sin() * ar.cos() * e1[2]
-                            + tr.sin() * ar.sin() * e2[2]
-                            + tr.cos() * nrm[2],
-                    ];
-                    let (label, spec) = match distance {
-                        Some(d) => (
-                            format!("d {d:.2}, t {t}, a {a}"),
-                            SourceSpec::Position([
-                                o[0] + d * dir[0],
-                                o[1] + d * dir[1],
-                                o[2] + d * dir[2],
-                            ]),
-                        ),
-                        None => (format!("t {t}, a {a}"), SourceSpec::Direction(dir)),
+    let sun = sun_window(scene)?;
+    if let (Some(w), Geometry::Calibrated(c)) = (&sun, &scene.geometry) {
+        // The sun over the window: one candidate per time the sun is up and lights
+        // every plate.
+        let Some(site) = &c.site else {
+            return Err(PipelineError::config(
+                "[plan.sun]",
+                &scene_path,
+                "needs a [site]",
+            ));
+        };
+        let core_site = polarid_core::sun::Site {
+            latitude_deg: site.latitude_deg,
+            longitude_deg: site.longitude_deg,
+            elevation_m: site.elevation_m,
+            pressure_mbar: site.pressure_mbar,
+            temperature_c: site.temperature_c,
+        };
+        let path = polarid_core::sun::sun_path(
+            &core_site,
+            w.start_unix_s,
+            w.end_unix_s,
+            60.0 * w.step_minutes,
+        )?;
+        for (t, pos) in path {
+            let time = local_time(t, w.offset_minutes);
+            let spec = SourceSpec::Sun {
+                time: time.clone(),
+                unix_seconds: t,
+                zenith_deg: pos.zenith_deg,
+                azimuth_deg: pos.azimuth_deg,
+                direction: polarid_core::sun::sun_direction(&pos),
+            };
+            if let Some(mut p) = make_with(time, spec, w.intensity.unwrap_or(intensity)) {
+                p.in_plane = false;
+                cands.push(p);
+            }
+        }
+        if cands.len() < cfg.positions {
+            return Err(PipelineError::config(
+                format!("{scene_path}: [plan.sun]"),
+                format!(
+                    "{} to {} every {} min",
+                    w.start,
+                    local_time(w.end_unix_s, w.offset_minutes),
+                    w.step_minutes
+                ),
+                format!(
+                    "gives only {} times when the sun is up and lights every plate, for {} \
+                     positions: widen the window, shorten the step or ask for fewer",
+                    cands.len(),
+                    cfg.positions
+                ),
+            ));
+        }
+    } else {
+        match (&bench, &scene.geometry) {
+            (Bench::Calibrated { camera }, Geometry::Calibrated(_)) => {
+                let n_p = plates.len() as f64;
+                let o = plates.iter().fold([0.0; 3], |a, p| {
+                    [
+                        a[0] + p.center[0] / n_p,
+                        a[1] + p.center[1] / n_p,
+                        a[2] + p.center[2] / n_p,
+                    ]
+                });
+                let nrm = plates[0].normal;
+                let away = sub(o, *camera);
+                let e1 = unit(sub(away, {
+                    let c = dot(away, nrm);
+                    [c * nrm[0], c * nrm[1], c * nrm[2]]
+                }));
+                let e2 = cross(nrm, e1);
+                let mut lamps: Vec<f64> = own
+                    .iter()
+                    .filter_map(|(_, s)| match s {
+                        SourceSpec::Position(p) => Some(norm(sub(*p, o))),
+                        _ => None,
+                    })
+                    .collect();
+                lamps.sort_by(f64::total_cmp);
+                let distance = r.distance.or(lamps.get(lamps.len() / 2).copied());
+                for &t in &steps(r.zenith_deg) {
+                    let azis = if t == 0.0 {
+                        vec![0.0]
+                    } else {
+                        let mut a = steps_of(r.azimuth_deg, 2.0 * r.step_deg);
+                        if r.azimuth_deg.0 <= 0.0 && r.azimuth_deg.1 >= 0.0 && !a.contains(&0.0) {
+                            a.push(0.0);
+                        }
+                        a
                     };
-                    if let Some(mut p) = make(label, spec) {
-                        p.in_plane = a == 0.0;
-                        cands.push(p);
+                    for &a in &azis {
+                        let (tr, ar) = (t.to_radians(), a.to_radians());
+                        let dir = [
+                            tr.sin() * ar.cos() * e1[0]
+                                + tr.sin() * ar.sin() * e2[0]
+                                + tr.cos() * nrm[0],
+                            tr.sin() * ar.cos() * e1[1]
+                                + tr.sin() * ar.sin() * e2[1]
+                                + tr.cos() * nrm[1],
+                            tr.sin() * ar.cos() * e1[2]
+                                + tr.sin() * ar.sin() * e2[2]
+                                + tr.cos() * nrm[2],
+                        ];
+                        let (label, spec) = match distance {
+                            Some(d) => (
+                                format!("d {d:.2}, t {t}, a {a}"),
+                                SourceSpec::Position([
+                                    o[0] + d * dir[0],
+                                    o[1] + d * dir[1],
+                                    o[2] + d * dir[2],
+                                ]),
+                            ),
+                            None => (format!("t {t}, a {a}"), SourceSpec::Direction(dir)),
+                        };
+                        if let Some(mut p) = make(label, spec) {
+                            p.in_plane = a == 0.0;
+                            cands.push(p);
+                        }
                     }
                 }
             }
-        }
-        _ => {
-            for &t in &steps(r.zenith_deg) {
-                let tr = t.to_radians();
-                if let Some(p) = make(
-                    format!("t {t}"),
-                    SourceSpec::Direction([tr.sin(), 0.0, tr.cos()]),
-                ) {
-                    cands.push(p);
+            _ => {
+                for &t in &steps(r.zenith_deg) {
+                    let tr = t.to_radians();
+                    if let Some(p) = make(
+                        format!("t {t}"),
+                        SourceSpec::Direction([tr.sin(), 0.0, tr.cos()]),
+                    ) {
+                        cands.push(p);
+                    }
                 }
             }
         }
@@ -978,20 +1508,21 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
     let mut active: Vec<Active> = Vec::new();
     for t in 0..targets.len() {
         let grid = truth_grid(&models.models[models.truth[t]], &models.cfg);
-        let mut m: Vec<(f64, usize, Vec<TruthPoint>)> = Vec::new();
-        for alt in 0..models.models.len() {
-            if alt == models.truth[t] {
-                continue;
-            }
-            let mut pts: Vec<(f64, TruthPoint)> = Vec::with_capacity(grid.len());
-            for &at in &grid {
-                let s = models.pair(&screen, t, alt, &[at])?;
-                pts.push((s.margin, at));
-            }
-            pts.sort_by(|a, b| a.0.total_cmp(&b.0));
-            m.push((pts[0].0, alt, pts.iter().take(3).map(|p| p.1).collect()));
-        }
-        m.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let alts: Vec<usize> = (0..models.models.len())
+            .filter(|&alt| alt != models.truth[t])
+            .collect();
+        let mut m = alts
+            .into_par_iter()
+            .map(|alt| {
+                let mut pts: Vec<(f64, TruthPoint)> = Vec::with_capacity(grid.len());
+                for &at in &grid {
+                    pts.push((models.margin(&screen, t, alt, &[at])?.0, at));
+                }
+                pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+                Ok((pts[0].0, alt, pts.iter().take(3).map(|p| p.1).collect()))
+            })
+            .collect::<Result<Vec<(f64, usize, Vec<TruthPoint>)>>>()?;
+        m.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         for (_, alt, pts) in m.into_iter().take(ACTIVE_PER_TARGET) {
             active.push(Active {
                 target: t,
@@ -1017,63 +1548,39 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
             idx.push(c);
         }
     }
+    let all_pairs = models.all_pairs();
+    let grids: Vec<Vec<TruthPoint>> = models
+        .truth
+        .iter()
+        .map(|&m| truth_grid(&models.models[m], &models.cfg))
+        .collect();
     let mut progress = Vec::new();
     for _round in 0..3 {
-        let mut best = objective(&models, &cands, &idx, &active);
-        progress.push(best);
-        for _pass in 0..3 {
-            let mut improved = false;
-            for slot in 0..n {
-                let mut choice = idx[slot];
-                for c in 0..cands.len() {
-                    if idx.contains(&c) {
-                        continue;
-                    }
-                    let mut trial = idx.clone();
-                    trial[slot] = c;
-                    let v = objective(&models, &cands, &trial, &active);
-                    if v > best * (1.0 + 1e-9) + 1e-12 {
-                        best = v;
-                        choice = c;
-                    }
-                }
-                if choice != idx[slot] {
-                    idx[slot] = choice;
-                    improved = true;
-                }
-            }
-            progress.push(best);
-            if !improved {
-                break;
-            }
-        }
+        let best = exchange(&models, &cands, &mut idx, &mut active, &mut progress);
         // Check every pair at the chosen positions; add a pair found harder than the
         // active ones and search again.
         let chosen: Vec<&Position> = idx.iter().map(|&i| &cands[i]).collect();
+        let checked = all_pairs
+            .par_iter()
+            .map(|&(t, alt)| Ok((t, alt, models.margin(&chosen, t, alt, &grids[t])?)))
+            .collect::<Result<Vec<_>>>()?;
         let mut added = false;
-        for t in 0..targets.len() {
-            let grid = truth_grid(&models.models[models.truth[t]], &models.cfg);
-            for alt in 0..models.models.len() {
-                if alt == models.truth[t] {
-                    continue;
+        for (t, alt, (margin, worst)) in checked {
+            match active.iter_mut().find(|a| a.target == t && a.alt == alt) {
+                Some(a) if !a.grid.contains(&worst) => {
+                    a.grid.push(worst);
+                    added = true;
                 }
-                let s = models.pair(&chosen, t, alt, &grid)?;
-                match active.iter_mut().find(|a| a.target == t && a.alt == alt) {
-                    Some(a) if !a.grid.contains(&s.worst) => {
-                        a.grid.push(s.worst);
-                        added = true;
-                    }
-                    Some(_) => {}
-                    None if s.margin < best => {
-                        active.push(Active {
-                            target: t,
-                            alt,
-                            grid: vec![s.worst],
-                        });
-                        added = true;
-                    }
-                    None => {}
+                Some(_) => {}
+                None if margin < best => {
+                    active.push(Active {
+                        target: t,
+                        alt,
+                        grid: vec![worst],
+                    });
+                    added = true;
                 }
+                None => {}
             }
         }
         if !added {
@@ -1096,11 +1603,19 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
         targets,
         materials: names,
         library: label,
-        wavelength_nm: wl,
+        library_source: library,
+        wavelengths_nm: wavelengths,
+        band_letters,
         current,
         recommended,
         progress,
         candidates: cands.len(),
+        sun_positions: if sun.is_some() {
+            cands.clone()
+        } else {
+            Vec::new()
+        },
+        sun,
         config: cfg.clone(),
         warnings,
     })
@@ -1115,19 +1630,20 @@ pub fn plan_file(path: &Path, cfg: &PlanConfig) -> Result<PlanOutput> {
     plan(&scene, cfg)
 }
 
-/// The DoLP curve of material `name` (bare, at the layer range's middle) for plots:
-/// `(β degrees, DoLP)` from 0 to 89°.
+/// The DoLP curve of material `name` (its layer at the range's middle) in the first band
+/// for plots: `(β degrees, DoLP)` from 0 to 89°.
 pub fn dolp_curve(out: &PlanOutput, name: &str) -> Result<Vec<(f64, f64)>> {
-    let source = PrototypeSource::Library(out.config.library.clone());
-    let (protos, _, _) = source.load_multi_for(&[out.wavelength_nm], 0)?;
+    let source = PrototypeSource::Library(out.library_source.clone());
+    let (protos, _, _) = source.load_multi_for(&out.wavelengths_nm, 0)?;
     let Some(p) = protos.iter().find(|p| p.class == name) else {
         return Ok(Vec::new());
     };
-    let Some(m) = CandidateModel::from_prototype(p, &[out.wavelength_nm]) else {
+    let Some(m) = CandidateModel::from_prototype(p, &out.wavelengths_nm) else {
         return Ok(Vec::new());
     };
+    let wl = out.wavelengths_nm[0];
     let (layer, d) = match &m.layer {
-        Some(l) => (l.index[0], 0.5 * (l.min_nm + l.max_nm) / out.wavelength_nm),
+        Some(l) => (l.index[0], 0.5 * (l.min_nm + l.max_nm) / wl),
         None => ((1.0, 0.0), 0.0),
     };
     Ok((0..=178)

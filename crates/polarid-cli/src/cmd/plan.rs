@@ -17,11 +17,13 @@ use polarid_io::atomic::StagedDir;
 use polarid_io::manifest::SourceSpec;
 use polarid_io::table::{fmt_f64, write_rows};
 use polarid_pipeline::fit::FitConfig;
-use polarid_pipeline::plan::{Evaluation, PlanConfig, PlanOutput, Region, dolp_curve, plan_file};
+use polarid_pipeline::plan::{
+    Evaluation, PlanConfig, PlanOutput, Position, Region, dolp_curve, plan_file,
+};
 
 use super::common::{PipeResult, warn_all};
 use crate::Ctx;
-use crate::render::plots::{DolpPoint, DolpSeries, PlotSize, dolp_vs_beta};
+use crate::render::plots::{DolpPoint, PlanAxes, PlanPlate, PlotSize, plan_dolp};
 
 /// Arguments of `polarid plan`.
 #[derive(Debug, clap::Args)]
@@ -107,9 +109,14 @@ fn design_text(out: &PlanOutput, ev: &Evaluation, title: &str) -> String {
             .collect();
         let _ = writeln!(s, "  {:<24} beta {}", q.label, b.join(" / "));
     }
+    // A colour scene: the power of each band's rows alone after the overall one.
+    let band_heads: String = band_names(out)
+        .iter()
+        .map(|b| format!(" {:>7}", format!("p_{b}")))
+        .collect();
     let _ = writeln!(
         s,
-        "  {:<14} {:<14} {:<20} {:>9} {:>6} {:>7} {:>7}",
+        "  {:<14} {:<14} {:<20} {:>9} {:>6} {:>7} {:>7}{band_heads}",
         "plate", "material", "hardest alternative", "lambda", "dof", "power", "margin"
     );
     for (t, tg) in out.targets.iter().enumerate() {
@@ -117,9 +124,14 @@ fn design_text(out: &PlanOutput, ev: &Evaluation, title: &str) -> String {
             if shown >= 3 && pr.sep.power >= p {
                 break;
             }
+            let bands: String = pr
+                .by_band
+                .iter()
+                .map(|b| format!(" {:>7.3}", b.power))
+                .collect();
             let _ = writeln!(
                 s,
-                "  {:<14} {:<14} {:<20} {:>9.2} {:>6.2} {:>7.3} {:>7.2}",
+                "  {:<14} {:<14} {:<20} {:>9.2} {:>6.2} {:>7.3} {:>7.2}{bands}",
                 tg.name,
                 tg.material,
                 pr.alternative,
@@ -132,9 +144,14 @@ fn design_text(out: &PlanOutput, ev: &Evaluation, title: &str) -> String {
     }
     for (t, tg) in out.targets.iter().enumerate() {
         if let Some(f) = ev.fits.get(t) {
+            let band = if out.wavelengths_nm.len() > 1 {
+                format!(" at {} nm", f.wavelength_nm)
+            } else {
+                String::new()
+            };
             let _ = writeln!(
                 s,
-                "  {}: fit of the noise-free rows {}, n_se {:.3}, k_se {:.3} (total)",
+                "  {}: fit of the noise-free rows{band} {}, n_se {:.3}, k_se {:.3} (total)",
                 tg.name, f.status, f.n_se, f.k_se
             );
         }
@@ -183,6 +200,22 @@ fn design_text(out: &PlanOutput, ev: &Evaluation, title: &str) -> String {
     s
 }
 
+/// The bands' names: a colour scene's letters (`R`, `G`, `B`), nothing for one band.
+fn band_names(out: &PlanOutput) -> Vec<String> {
+    if out.wavelengths_nm.len() < 2 {
+        return Vec::new();
+    }
+    out.wavelengths_nm
+        .iter()
+        .enumerate()
+        .map(|(b, w)| {
+            out.band_letters
+                .get(b)
+                .map_or_else(|| format!("{w}"), |c| c.to_string())
+        })
+        .collect()
+}
+
 /// The evaluated designs, named as in the CSV files: the scene's own positions, then the
 /// recommended ones.
 fn designs(out: &PlanOutput) -> impl Iterator<Item = (&'static str, &Evaluation)> {
@@ -195,11 +228,12 @@ fn designs(out: &PlanOutput) -> impl Iterator<Item = (&'static str, &Evaluation)
 /// `pairs.csv`: one row per design, plate and alternative (the project's CSV writer:
 /// quoted names, formula-like names neutralised).
 fn write_pairs_csv(path: &Path, out: &PlanOutput) -> anyhow::Result<()> {
-    const HEADERS: [&str; 12] = [
+    const HEADERS: [&str; 13] = [
         "design",
         "plate",
         "material",
         "alternative",
+        "band",
         "lambda",
         "dof",
         "critical",
@@ -209,23 +243,30 @@ fn write_pairs_csv(path: &Path, out: &PlanOutput) -> anyhow::Result<()> {
         "worst_scale",
         "worst_offset_deg",
     ];
+    let bands = band_names(out);
     let rows = designs(out).flat_map(|(name, ev)| {
-        ev.pairs.iter().map(move |pr| {
+        let bands = &bands;
+        ev.pairs.iter().flat_map(move |pr| {
             let t = &out.targets[pr.target];
-            vec![
-                name.to_string(),
-                t.name.clone(),
-                t.material.clone(),
-                pr.alternative.clone(),
-                fmt_f64(pr.sep.lambda),
-                fmt_f64(pr.sep.dof),
-                fmt_f64(pr.sep.critical),
-                fmt_f64(pr.sep.power),
-                fmt_f64(pr.sep.margin),
-                fmt_f64(pr.sep.worst.thickness_nm),
-                fmt_f64(pr.sep.worst.scale),
-                fmt_f64(pr.sep.worst.offset.to_degrees()),
-            ]
+            std::iter::once(("all".to_string(), &pr.sep))
+                .chain(bands.iter().cloned().zip(&pr.by_band))
+                .map(move |(band, sep)| {
+                    vec![
+                        name.to_string(),
+                        t.name.clone(),
+                        t.material.clone(),
+                        pr.alternative.clone(),
+                        band,
+                        fmt_f64(sep.lambda),
+                        fmt_f64(sep.dof),
+                        fmt_f64(sep.critical),
+                        fmt_f64(sep.power),
+                        fmt_f64(sep.margin),
+                        fmt_f64(sep.worst.thickness_nm),
+                        fmt_f64(sep.worst.scale),
+                        fmt_f64(sep.worst.offset.to_degrees()),
+                    ]
+                })
         })
     });
     let mut f = std::io::BufWriter::new(std::fs::File::create(path)?);
@@ -236,37 +277,43 @@ fn write_pairs_csv(path: &Path, out: &PlanOutput) -> anyhow::Result<()> {
 
 /// `positions.csv`: one row per design, position and plate.
 fn write_positions_csv(path: &Path, out: &PlanOutput) -> anyhow::Result<()> {
-    const HEADERS: [&str; 10] = [
+    const HEADERS: [&str; 11] = [
         "design",
         "position",
         "x",
         "y",
         "z",
         "plate",
+        "band",
         "beta_deg",
         "theta_i_deg",
         "dolp_se",
         "electrons",
     ];
+    let bands: Vec<String> = out.wavelengths_nm.iter().map(|w| fmt_f64(*w)).collect();
     let rows = designs(out).flat_map(|(name, ev)| {
+        let bands = &bands;
         ev.positions.iter().flat_map(move |q| {
             let v = match &q.spec {
                 SourceSpec::Position(v) | SourceSpec::Direction(v) => *v,
                 SourceSpec::Sun { direction, .. } => *direction,
             };
-            q.rows.iter().enumerate().map(move |(t, r)| {
-                vec![
-                    name.to_string(),
-                    q.label.replace(',', ""),
-                    fmt_f64(v[0]),
-                    fmt_f64(v[1]),
-                    fmt_f64(v[2]),
-                    out.targets[t].name.clone(),
-                    fmt_f64(r.beta_deg),
-                    fmt_f64(r.theta_i_deg),
-                    fmt_f64(r.dolp_se),
-                    fmt_f64(r.electrons),
-                ]
+            q.rows.iter().enumerate().flat_map(move |(t, r)| {
+                r.bands.iter().zip(bands).map(move |(n, band)| {
+                    vec![
+                        name.to_string(),
+                        q.label.replace(',', ""),
+                        fmt_f64(v[0]),
+                        fmt_f64(v[1]),
+                        fmt_f64(v[2]),
+                        out.targets[t].name.clone(),
+                        band.clone(),
+                        fmt_f64(r.beta_deg),
+                        fmt_f64(r.theta_i_deg),
+                        fmt_f64(n.dolp_se),
+                        fmt_f64(n.electrons),
+                    ]
+                })
             })
         })
     });
@@ -276,11 +323,14 @@ fn write_positions_csv(path: &Path, out: &PlanOutput) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// DoLP against β: per plate its material's curve with the recommended rows (±1 σ of
-/// the row), its hardest alternative's curve, and the current rows.
+/// DoLP against β, one colour per plate: its material's curve with the recommended rows
+/// (±1 σ of the row) and the current ones, its hardest alternative's curve dashed; the
+/// legend gives each plate's verdict and the hardest alternative's power.
 fn plot(out: &PlanOutput) -> anyhow::Result<crate::render::Rendered> {
     let floor = out.config.fit.dolp_floor;
-    let mut series = Vec::new();
+    let p = out.config.power;
+    let ev = &out.recommended;
+    let mut plates = Vec::new();
     for (t, tg) in out.targets.iter().enumerate() {
         let curve = dolp_curve(out, &tg.material).cli()?;
         let at = |b: f64| {
@@ -293,41 +343,134 @@ fn plot(out: &PlanOutput) -> anyhow::Result<crate::render::Rendered> {
             ev.positions
                 .iter()
                 .map(|q| {
-                    let r = q.rows[t];
+                    let r = &q.rows[t];
+                    let se = r.bands[0].dolp_se;
                     DolpPoint {
                         beta_deg: r.beta_deg,
                         dolp: at(r.beta_deg),
-                        dolp_se: Some((r.dolp_se * r.dolp_se + floor * floor).sqrt()),
+                        dolp_se: Some((se * se + floor * floor).sqrt()),
                     }
                 })
                 .collect()
         };
-        series.push(DolpSeries {
-            label: format!("{}: recommended", tg.name),
-            points: points(&out.recommended),
+        let verdict = if ev.identifiable(t, p) {
+            "identifiable"
+        } else {
+            "NOT identifiable"
+        };
+        let (alt_curve, alt_label) = match ev.worst(t) {
+            Some(w) => (
+                dolp_curve(out, &w.alternative).cli()?,
+                format!("{}: power {:.2}", w.alternative, w.sep.power),
+            ),
+            None => (Vec::new(), String::new()),
+        };
+        plates.push(PlanPlate {
+            heading: format!("{}: {verdict}", tg.name),
             curve: curve.clone(),
-            curve_label: Some(tg.material.clone()),
+            curve_label: tg.material.clone(),
+            alt_curve,
+            alt_label,
+            recommended: points(ev),
+            current: out.current.as_ref().map(points).unwrap_or_default(),
         });
-        if let Some(cur) = &out.current {
-            series.push(DolpSeries {
-                label: format!("{}: current", tg.name),
-                points: points(cur),
-                curve: Vec::new(),
-                curve_label: None,
-            });
-        }
-        if let Some(w) = out.recommended.worst(t) {
-            series.push(DolpSeries {
-                label: format!("{}: hardest alternative", tg.name),
-                points: Vec::new(),
-                curve: dolp_curve(out, &w.alternative).cli()?,
-                curve_label: Some(format!("{} (power {:.2})", w.alternative, w.sep.power)),
-            });
-        }
     }
-    dolp_vs_beta(
-        "Planned captures: DoLP against beta (layer at mid-range)",
-        &series,
+    let mut notes = vec![format!(
+        "dashed: the hardest alternative; worst margin {:.2}{}",
+        ev.worst_margin(),
+        out.current
+            .as_ref()
+            .map(|c| format!(" (current {:.2})", c.worst_margin()))
+            .unwrap_or_default()
+    )];
+    if out.wavelengths_nm.len() > 1 {
+        notes.push(format!(
+            "curves and bars at {} nm; the powers use every band",
+            out.wavelengths_nm[0]
+        ));
+    }
+    plan_dolp(
+        &format!(
+            "Planned captures: DoLP against β ({} positions)",
+            ev.positions.len()
+        ),
+        &plates,
+        &notes,
+        PlanAxes::DOLP,
+        PlotSize::REPORT,
+    )
+}
+
+/// The sun window's figure: each plate's β over the window's times (hours of the day at
+/// the window's offset), the recommended times (filled) and the current ones.
+fn times_plot(out: &PlanOutput, all: &[Position]) -> anyhow::Result<crate::render::Rendered> {
+    let Some(w) = &out.sun else {
+        anyhow::bail!("no sun window");
+    };
+    let day0 = ((w.start_unix_s + 60.0 * f64::from(w.offset_minutes)) / 86400.0).floor() * 86400.0
+        - 60.0 * f64::from(w.offset_minutes);
+    let hour = |q: &Position| match &q.spec {
+        SourceSpec::Sun { unix_seconds, .. } => Some((unix_seconds - day0) / 3600.0),
+        _ => None,
+    };
+    let p = out.config.power;
+    let mut plates = Vec::new();
+    for (t, tg) in out.targets.iter().enumerate() {
+        let curve: Vec<(f64, f64)> = all
+            .iter()
+            .filter_map(|q| hour(q).map(|h| (h, q.rows[t].beta_deg)))
+            .collect();
+        let points = |ev: &Evaluation| -> Vec<DolpPoint> {
+            ev.positions
+                .iter()
+                .filter_map(|q| {
+                    hour(q).map(|h| DolpPoint {
+                        beta_deg: h,
+                        dolp: q.rows[t].beta_deg,
+                        dolp_se: None,
+                    })
+                })
+                .collect()
+        };
+        let verdict = if out.recommended.identifiable(t, p) {
+            "identifiable"
+        } else {
+            "NOT identifiable"
+        };
+        plates.push(PlanPlate {
+            heading: format!("{}: {verdict}", tg.name),
+            curve,
+            curve_label: format!("β of {}", tg.name),
+            alt_curve: Vec::new(),
+            alt_label: String::new(),
+            recommended: points(&out.recommended),
+            current: out.current.as_ref().map(points).unwrap_or_default(),
+        });
+    }
+    let mut chosen: Vec<&Position> = out.recommended.positions.iter().collect();
+    chosen.sort_by(|a, b| hour(a).unwrap_or(0.0).total_cmp(&hour(b).unwrap_or(0.0)));
+    let times: Vec<String> = chosen
+        .into_iter()
+        .filter_map(|q| {
+            hour(q).map(|h| {
+                let m = (h * 60.0).round() as i64;
+                format!("{:02}:{:02}", m.div_euclid(60), m.rem_euclid(60))
+            })
+        })
+        .collect();
+    plan_dolp(
+        &format!(
+            "The sun's times: β over {}",
+            &w.start[..w.start.len().min(10)]
+        ),
+        &plates,
+        &[format!("capture at {}", times.join(", "))],
+        PlanAxes {
+            x_label: "time of day (hours)",
+            y_label: "β (degrees)",
+            x_limits: (-48.0, 24.0 * 400.0),
+            y_cap: 90.0,
+        },
         PlotSize::REPORT,
     )
 }
@@ -376,7 +519,11 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         args.scene.display(),
         out.materials.len(),
         out.library,
-        out.wavelength_nm,
+        out.wavelengths_nm
+            .iter()
+            .map(|w| w.to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
         out.config.confidence * 100.0,
         out.config.power,
         out.candidates
@@ -428,9 +575,19 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         let fig = plot(&out)?;
         std::fs::write(staged.path("plan.png")?, &fig.png)?;
         std::fs::write(staged.path("plan.svg")?, fig.svg.as_bytes())?;
+        if out.sun.is_some() {
+            let fig = times_plot(&out, &out.sun_positions)?;
+            std::fs::write(staged.path("times.png")?, &fig.png)?;
+            std::fs::write(staged.path("times.svg")?, fig.svg.as_bytes())?;
+        }
         staged.commit()?;
         ctx.info(format!(
-            "polarid plan: pairs.csv, positions.csv, plan.png, plan.svg, scene.toml -> {}",
+            "polarid plan: pairs.csv, positions.csv, plan.png, plan.svg, {}scene.toml -> {}",
+            if out.sun.is_some() {
+                "times.png, times.svg, "
+            } else {
+                ""
+            },
             dir.display()
         ));
     }

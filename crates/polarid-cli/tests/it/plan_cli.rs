@@ -136,3 +136,51 @@ fn plan_refuses_bad_input_naming_it() {
         assert!(o.stdout.is_empty(), "{args:?}: no partial output");
     }
 }
+
+/// The sun over a morning (`[plan.sun]` of examples/scenes/sun_plates.toml): capture
+/// times, the times figure, and a bad key refused naming the file, the key and the
+/// value, with exit status 2 and nothing written.
+#[test]
+fn plan_picks_the_sun_s_capture_times() {
+    let tmp = tempfile::tempdir().unwrap();
+    let s = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/scenes/sun_plates.toml");
+    let out = tmp.path().join("plan");
+    let (stdout, _) = ok(&[
+        "plan",
+        s.to_str().unwrap(),
+        "-n",
+        "4",
+        "--materials",
+        "aluminum,copper,gold,silver",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let (_, recommended) = stdout.split_once("Recommended").expect("recommended");
+    assert_eq!(recommended.matches("2026-06-21T").count(), 4, "{stdout}");
+    for f in ["times.png", "times.svg", "plan.png", "scene.toml"] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    let scene = std::fs::read_to_string(out.join("scene.toml")).unwrap();
+    assert_eq!(scene.matches("sun = \"2026-06-21T").count(), 4, "{scene}");
+    let bad = tmp.path().join("bad.toml");
+    let bad_text = std::fs::read_to_string(&s).unwrap().replacen(
+        "step_minutes = 15 ",
+        "step_minutes = -5 ",
+        1,
+    );
+    std::fs::write(&bad, bad_text).unwrap();
+    let o = polarid(&[
+        "plan",
+        bad.to_str().unwrap(),
+        "-o",
+        tmp.path().join("x").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o.stderr));
+    let e = text(&o.stderr);
+    assert!(
+        e.contains("bad.toml, line ") && e.contains("plan.sun.step_minutes") && e.contains("-5"),
+        "{e}"
+    );
+    assert!(o.stdout.is_empty());
+    assert!(!tmp.path().join("x").exists());
+}

@@ -939,14 +939,35 @@ pub fn test_hypothesis(
     cfg.validate()?;
     check_rows(rows, wavelengths)?;
     check_candidate(cand, wavelengths)?;
-    Ok(test_checked(rows, wavelengths, cand, cfg))
+    Ok(test_checked(rows, wavelengths, cand, cfg, true))
 }
 
+/// The statistic of [`test_hypothesis`] alone: `(χ²_min, ν)`, the minimum `χ²` over the
+/// nuisance box and the effective degrees of freedom (the null's mean), without the
+/// p-value and the evidence (for planning: `super::separability`).
+///
+/// Errors: as [`test_hypothesis`].
+pub fn test_statistic(
+    rows: &[HypRow],
+    wavelengths: &[f64],
+    cand: &CandidateModel,
+    cfg: &HypothesisConfig,
+) -> Result<(f64, f64)> {
+    cfg.validate()?;
+    check_rows(rows, wavelengths)?;
+    check_candidate(cand, wavelengths)?;
+    let f = test_checked(rows, wavelengths, cand, cfg, false);
+    Ok((f.chi2, f.dof))
+}
+
+/// The test; `full: false` leaves the p-value, the verdict and the evidence out (NaN,
+/// false, NaN).
 fn test_checked(
     rows: &[HypRow],
     wavelengths: &[f64],
     cand: &CandidateModel,
     cfg: &HypothesisConfig,
+    full: bool,
 ) -> NuisanceFit {
     fit_checked(rows, wavelengths, cand, cfg, true)
 }
@@ -1141,6 +1162,18 @@ fn fit_checked(
     );
     // The statistic's null mean: its effective degrees of freedom.
     let dof = resid as f64 + draws.iter().sum::<f64>() / draws.len() as f64;
+    if !full {
+        return NuisanceFit {
+            chi2,
+            dof,
+            p_value: f64::NAN,
+            consistent: false,
+            thickness_nm: d,
+            scale,
+            offset: o,
+            log_evidence: f64::NAN,
+        };
+    }
     let p_value = mixture_sf(chi2, resid, &draws);
     let consistent = p_value >= 1.0 - cfg.confidence;
     let log_evidence = if with_evidence {
@@ -1301,7 +1334,7 @@ pub fn classify_rows(
         };
         check_candidate(&cand, wavelengths)?;
         let prior = priors.map_or(1.0, |w| w[i]);
-        fits.push((i, test_checked(rows, wavelengths, &cand, cfg), prior));
+        fits.push((i, test_checked(rows, wavelengths, &cand, cfg, true), prior));
     }
     let bands_used: Vec<Option<f64>> = wavelengths.iter().map(|&w| Some(w)).collect();
     if fits.is_empty() {

@@ -47,6 +47,7 @@
 
 use super::hypothesis::{
     CandidateModel, HypRow, HypothesisConfig, NuisanceFit, layered_dolp, test_hypothesis,
+    test_statistic,
 };
 use crate::error::{CoreError, Result};
 use crate::systematic::chi2_sf;
@@ -195,8 +196,11 @@ pub fn rejection_power(lambda: f64, dof: f64, confidence: f64) -> f64 {
     noncentral_chi2_sf(c, dof, lambda.max(0.0))
 }
 
-/// The non-centrality at which the rejection power reaches `power` (bisection; NaN for
-/// arguments out of range).
+/// The non-centrality at which the rejection power reaches `power` (NaN for arguments
+/// out of range): the root of `P(χ'²_ν(λ) > c) = power` with `c = χ²_ν(p)`, by Newton's
+/// method kept inside a bracket (bisection when a step leaves it), with the derivative
+/// `∂/∂λ P(χ'²_ν(λ) > c) = ½ [P(χ'²_{ν+2}(λ) > c) − P(χ'²_ν(λ) > c)]` (from the Poisson
+/// mixture, Johnson, Kotz & Balakrishnan vol. 2, §29.4); relative tolerance 1e-10.
 #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN-safe on purpose
 pub fn lambda_for_power(dof: f64, confidence: f64, power: f64) -> f64 {
     if !(power > 0.0 && power < 1.0) || !(confidence > 0.0 && confidence < 1.0) {
@@ -205,25 +209,38 @@ pub fn lambda_for_power(dof: f64, confidence: f64, power: f64) -> f64 {
     if !(dof > 0.0 && dof.is_finite()) {
         return f64::NAN;
     }
-    if rejection_power(0.0, dof, confidence) >= power {
+    let c = chi2_quantile_any(confidence, dof);
+    let g = |l: f64| noncentral_chi2_sf(c, dof, l);
+    if g(0.0) >= power {
         return 0.0;
     }
     let (mut lo, mut hi) = (0.0f64, 10.0f64);
-    while rejection_power(hi, dof, confidence) < power {
+    while g(hi) < power {
+        lo = hi;
         hi *= 2.0;
     }
+    let mut x = 0.5 * (lo + hi);
     for _ in 0..100 {
-        let mid = 0.5 * (lo + hi);
-        if rejection_power(mid, dof, confidence) < power {
-            lo = mid;
+        let gx = g(x);
+        if gx < power {
+            lo = x;
         } else {
-            hi = mid;
+            hi = x;
         }
-        if hi - lo <= 1e-9 * hi {
+        let slope = 0.5 * (noncentral_chi2_sf(c, dof + 2.0, x) - gx);
+        let newton = x - (gx - power) / slope;
+        let next = if slope > 0.0 && newton > lo && newton < hi {
+            newton
+        } else {
+            0.5 * (lo + hi)
+        };
+        let done = (next - x).abs() <= 1e-10 * next.abs().max(1e-300) || hi - lo <= 1e-10 * hi;
+        x = next;
+        if done {
             break;
         }
     }
-    0.5 * (lo + hi)
+    x
 }
 
 /// How well the rows separate the truth `A` from the hypothesis `B` (module
@@ -244,6 +261,52 @@ pub struct Separation {
     pub worst: TruthPoint,
     /// `B`'s test on those noise-free rows (its nuisances at the minimum).
     pub fit: NuisanceFit,
+}
+
+/// The worst case of truth `truth` against hypothesis `alt` over `grid`: `(λ, ν, θ_A)`,
+/// the smallest noise-free `χ²_min` of `alt` ([`test_statistic`]), its effective degrees
+/// of freedom and the truth point where it is reached (the first of equal ones).
+///
+/// Errors: as [`separation`] (an empty grid: [`CoreError::LengthMismatch`]).
+pub fn worst_case(
+    rows: &[PlanRow],
+    wavelengths: &[f64],
+    truth: &CandidateModel,
+    alt: &CandidateModel,
+    cfg: &HypothesisConfig,
+    grid: &[TruthPoint],
+) -> Result<(f64, f64, TruthPoint)> {
+    if truth.bulk.len() != wavelengths.len() {
+        return Err(CoreError::LengthMismatch {
+            name: "truth bands",
+            expected: wavelengths.len(),
+            got: truth.bulk.len(),
+        });
+    }
+    let mut best: Option<(f64, f64, TruthPoint)> = None;
+    for &at in grid {
+        let hrows = truth_rows(rows, wavelengths, truth, at);
+        let (chi2, dof) = test_statistic(&hrows, wavelengths, alt, cfg)?;
+        if best.is_none_or(|(b, _, _)| chi2 < b) {
+            best = Some((chi2, dof, at));
+        }
+    }
+    best.ok_or(CoreError::LengthMismatch {
+        name: "truth grid",
+        expected: 1,
+        got: 0,
+    })
+}
+
+/// `λ / λ*(ν)`: the margin of a non-centrality `lambda` at `dof` degrees of freedom for
+/// the rejection power `target_power` at `confidence` (infinite when any `λ` reaches it).
+pub fn margin_of(lambda: f64, dof: f64, confidence: f64, target_power: f64) -> f64 {
+    let need = lambda_for_power(dof.max(1e-3), confidence, target_power);
+    if need > 0.0 {
+        lambda.max(0.0) / need
+    } else {
+        f64::INFINITY
+    }
 }
 
 /// [`Separation`] of truth `truth` from hypothesis `alt` on the planned `rows`, the worst
@@ -282,16 +345,13 @@ pub fn separation(
             got: truth.bulk.len(),
         });
     }
-    let mut best: Option<(NuisanceFit, TruthPoint)> = None;
-    for &at in grid {
-        let hrows = truth_rows(rows, wavelengths, truth, at);
-        let fit = test_hypothesis(&hrows, wavelengths, alt, cfg)?;
-        if best.is_none_or(|(b, _)| fit.chi2 < b.chi2) {
-            best = Some((fit, at));
-        }
-    }
-    // ok: the grid was checked non-empty above, so the loop set `best`.
-    let (fit, worst) = best.expect("grid is not empty");
+    let (_, _, worst) = worst_case(rows, wavelengths, truth, alt, cfg, grid)?;
+    let fit = test_hypothesis(
+        &truth_rows(rows, wavelengths, truth, worst),
+        wavelengths,
+        alt,
+        cfg,
+    )?;
     let lambda = fit.chi2.max(0.0);
     let dof = fit.dof.max(1e-3);
     let critical = chi2_quantile_any(cfg.confidence, dof);

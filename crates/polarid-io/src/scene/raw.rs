@@ -28,6 +28,9 @@ pub(super) struct RawScene {
     pub(super) plane: Option<Spanned<Vec<RawPlane>>>,
     pub(super) site: Option<Spanned<RawSite>>,
     pub(super) source: Option<Spanned<Vec<RawSource>>>,
+    /// `[plan]`: read by `polarid plan` alone (docs/PLAN.md), accepted here.
+    #[allow(dead_code)]
+    pub(super) plan: Option<toml::Value>,
 }
 
 /// `[camera]`: only the keys are checked here (the values by the manifest's parser,

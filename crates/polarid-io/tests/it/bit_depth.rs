@@ -104,3 +104,46 @@ fn data_that_contradict_the_saturation_level_are_reported() {
     fl.kind = SampleKind::F32;
     assert!(saturation_notes(&capture(None), [&fl], f32::INFINITY).is_empty());
 }
+
+/// `polarid init` (`frames_dir`) and `measure` (`Frame::recorded_max`) read one saturation
+/// level from a recorded bit depth: 12 significant bits in 16-bit samples are 4095, also
+/// when every value happens to be a multiple of 16 (which once read as 12 bits shifted to
+/// the top, 65520).
+#[test]
+fn init_and_measure_agree_on_a_recorded_bit_depth() {
+    use polarid_io::frames_dir::{SensorDepth, frame_stats};
+    let d = tempfile::tempdir().unwrap();
+    // Multiples of 16 below 4096: the low four bits are zero in every pixel.
+    let data: Vec<u16> = (0..64).map(|i| i * 64).collect();
+    for name in ["f.png", "f.tif"] {
+        let p = d.path().join(name);
+        image::write_gray16_bits(&p, false, 8, 8, &data, 12).unwrap();
+        let frame = image::read_frame(&p).unwrap();
+        let stats = frame_stats(&p).unwrap();
+        assert_eq!(stats.zero_low_bits, 6, "{name}");
+        assert_eq!(stats.recorded_max, frame.recorded_max, "{name}");
+        let depth = SensorDepth::infer(&[stats]);
+        let measured = rules_for(&frame, 0.0, None).saturation;
+        assert_eq!(measured, 4095.0, "{name}");
+        assert_eq!(
+            depth.saturation,
+            Some(f64::from(measured)),
+            "{name}: {depth:?}"
+        );
+        assert_eq!((depth.bits, depth.shift), (Some(12), 0), "{name}");
+        assert!(
+            depth.evidence.contains("12 significant bits"),
+            "{}",
+            depth.evidence
+        );
+    }
+    // The one rule, for each sample type.
+    assert_eq!(
+        image::recorded_max_of_bits(SampleKind::U16, 12),
+        Some(4095.0)
+    );
+    assert_eq!(image::recorded_max_of_bits(SampleKind::U16, 16), None);
+    assert_eq!(image::recorded_max_of_bits(SampleKind::U8, 8), None);
+    assert_eq!(image::recorded_max_of_bits(SampleKind::U8, 6), Some(63.0));
+    assert_eq!(image::recorded_max_of_bits(SampleKind::U16, 0), None);
+}

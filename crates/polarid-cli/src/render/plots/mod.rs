@@ -35,6 +35,7 @@ pub use maps::class_map;
 pub use maps::scalar_map;
 pub use maps::{ClassMap, MapRegion, answer_map};
 pub use nk::{NkEstimate, Prototype, nk_plane};
+pub use plan::{PlanAxes, PlanPlate, plan_dolp};
 
 // Multi-band figures (docs/BANDS.md): `demo --color`, `fit`/`classify --report`, `map`.
 pub mod bands;
@@ -43,6 +44,7 @@ mod dolp;
 mod maps;
 mod nk;
 pub mod panels;
+mod plan;
 mod style;
 #[cfg(test)]
 mod tests;
