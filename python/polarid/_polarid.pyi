@@ -387,10 +387,13 @@ def map_manifest(
 
 # --- one block of a map (private: polarid.dask.material_map) ----------------------------
 def _map_names(
-    model_json: str,
+    model_json: str | None = None,
     *,
+    library: str | None = None,
     label: str = "<model>",
-    per_pixel_beta: bool = False,
+    color: str | None = None,
+    pattern: Sequence[float] | None = None,
+    bands: Mapping[str, float] | None = None,
     bin: int = 1,
     min_s0: float | None = None,
     max_distance: float | None = None,
@@ -402,15 +405,19 @@ def _map_names(
     dolp_floor: float = 0.002,
     extinction_ratio: float = 100.0,
     retardance_deg: float = 0.0,
-) -> tuple[list[str], list[str]]: ...
+    bench: Literal["same", "other"] = "same",
+) -> tuple[list[str], list[str], list[float]]: ...
 def _map_block(
     frames: ArrayLike,
     angles_deg: Sequence[float] | None,
     beta_deg: ArrayLike,
-    model_json: str,
+    model_json: str | None = None,
     *,
+    library: str | None = None,
     label: str = "<model>",
     pattern: Sequence[float] | None = None,
+    color: str | None = None,
+    bands: Mapping[str, float] | None = None,
     halo: tuple[int, int, int, int] = (0, 0, 0, 0),
     bin: int = 1,
     dark_level: Sequence[float] | None = None,
@@ -426,52 +433,11 @@ def _map_block(
     extinction_ratio: float = 100.0,
     retardance_deg: float = 0.0,
     noise: tuple[float, float] | None = None,
+    bench: Literal["same", "other"] = "same",
 ) -> NDArray[np.float32]: ...
 
 _NOISE_SAMPLE: int
 _MAP_DEFAULTS: dict[str, float | int]
-
-def _map_names_colour(
-    *,
-    model_json: str | None = None,
-    library: str | None = None,
-    label: str = "<model>",
-    color: str = "RGGB",
-    pattern: Sequence[float] = (90.0, 45.0, 135.0, 0.0),
-    bands: Mapping[str, float] | None = None,
-    bin: int = 1,
-    min_s0: float | None = None,
-    max_distance: float | None = None,
-    metric: Literal["euclidean", "mahalanobis"] = "euclidean",
-    tile: int = 65536,
-    rule: Literal["set", "nearest"] = "set",
-    confidence: float = 0.95,
-) -> tuple[list[str], list[str], list[float]]: ...
-def _map_block_colour(
-    raw: ArrayLike,
-    beta_deg: Sequence[float],
-    *,
-    model_json: str | None = None,
-    library: str | None = None,
-    label: str = "<model>",
-    color: str = "RGGB",
-    pattern: Sequence[float] = (90.0, 45.0, 135.0, 0.0),
-    bands: Mapping[str, float] | None = None,
-    halo: tuple[int, int, int, int] = (0, 0, 0, 0),
-    bin: int = 1,
-    dark_level: Sequence[float] | None = None,
-    saturation: Sequence[float | None] | None = None,
-    min_s0: float | None = None,
-    max_distance: float | None = None,
-    metric: Literal["euclidean", "mahalanobis"] = "euclidean",
-    tile: int = 65536,
-    rule: Literal["set", "nearest"] = "set",
-    confidence: float = 0.95,
-    angle_sd_deg: Sequence[float] | None = None,
-    dolp_floor: float = 0.002,
-    extinction_ratio: float = 100.0,
-    retardance_deg: float = 0.0,
-) -> NDArray[np.float32]: ...
 
 def _noise_block(
     frames: ArrayLike,

@@ -33,8 +33,9 @@ worker.
 Colour polarization mosaics (a 2×2 polarizer block under each colour of a Bayer
 pattern, ``color="RGGB"``) are mapped per band as ``polarid map`` maps a colour
 manifest: every band fitted per pixel (``maps["bands"][450]["n"]`` ...), every pixel
-classified on all its bands against a multi-band model or library (far field, one β
-per capture, unweighted fits; each block reads 4 raw pixels around it).
+classified on all its bands against a multi-band model or library, with the same
+calibrated geometry (a β per pixel) and noise weights (one noise model per band) as
+single-band maps (each block reads 4 raw pixels around it).
 
 Dask is an optional dependency: ``pip install "./python[dask]"`` (dask[array]; add
 ``distributed`` for clusters).
@@ -67,9 +68,7 @@ from ._polarid import (
     _NOISE_SAMPLE,
     _estimate_noise,
     _map_block,
-    _map_block_colour,
     _map_names,
-    _map_names_colour,
     _noise_block,
 )
 
@@ -147,16 +146,17 @@ def _per_capture(name: str, value: Any, t: int) -> list:
     return [None if x is None else float(x) for x in v]
 
 
-def _block_inputs(x, beta, block_id, nblocks, pattern, per_capture_beta, t, a):
+def _block_inputs(x, beta, block_id, nblocks, kw, per_capture_beta, t, a):
     """The frames, β and halo of one block: ``x`` (L, h, w) frames (L = T·A) or DoFP
-    mosaics with their halo."""
+    mosaics with their halo (``kw["depth"]`` raw pixels on inner sides)."""
     i, j = block_id[1], block_id[2]
-    if pattern is not None:
+    depth = kw["depth"]
+    if depth:
         halo = (
-            DOFP_HALO if i > 0 else 0,
-            DOFP_HALO if i < nblocks[0] - 1 else 0,
-            DOFP_HALO if j > 0 else 0,
-            DOFP_HALO if j < nblocks[1] - 1 else 0,
+            depth if i > 0 else 0,
+            depth if i < nblocks[0] - 1 else 0,
+            depth if j > 0 else 0,
+            depth if j < nblocks[1] - 1 else 0,
         )
         frames = x
     else:
@@ -172,29 +172,31 @@ def _block_inputs(x, beta, block_id, nblocks, pattern, per_capture_beta, t, a):
 
 def _stage1_kw(kw):
     """The options of a block's DoLP stage (shared by the map and the noise passes)."""
-    return dict(pattern=kw["pattern"], bin=kw["bin"], dark_level=kw["dark_level"],
-                saturation=kw["saturation"], min_s0=kw["min_s0"])
+    return dict(pattern=kw["pattern"], color=kw["color"], bands=kw["bands"], bin=kw["bin"],
+                dark_level=kw["dark_level"], saturation=kw["saturation"], min_s0=kw["min_s0"])
 
 
 def _block(x, beta=None, *, block_id, nblocks, per_capture_beta, t, a, kw):
-    """One map block (float32 (7, h/bin, w/bin), see ``PLANES``)."""
-    frames, b, halo = _block_inputs(x, beta, block_id, nblocks, kw["pattern"], per_capture_beta, t, a)
-    return _map_block(frames, kw["angles_deg"], b, kw["model_json"], label=kw["label"], halo=halo,
-                      **_stage1_kw(kw), max_distance=kw["max_distance"], metric=kw["metric"],
-                      tile=kw["tile"], noise=kw["noise"], **kw["rule"])
+    """One map block: float32 (6 B + 2, h/bin, w/bin), every band's n, k, n_se, k_se,
+    rms_residual and reason, then the map's class and reason (``_map_block``)."""
+    frames, b, halo = _block_inputs(x, beta, block_id, nblocks, kw, per_capture_beta, t, a)
+    return _map_block(frames, kw["angles_deg"], b, kw["model_json"], library=kw["library"],
+                      label=kw["label"], halo=halo, **_stage1_kw(kw),
+                      max_distance=kw["max_distance"], metric=kw["metric"], tile=kw["tile"],
+                      noise=kw["noise"], bench=kw["bench"], **kw["rule"])
 
 
 def _count_block(x, beta=None, *, block_id, nblocks, per_capture_beta, t, a, kw):
     """Noise pass 1: the usable pixels of every map row of a block, (1, h/bin, 1)."""
-    frames, b, halo = _block_inputs(x, beta, block_id, nblocks, kw["pattern"], per_capture_beta, t, a)
-    counts = _noise_block(frames, kw["angles_deg"], b, halo=halo, **_stage1_kw(kw))
+    frames, b, halo = _block_inputs(x, beta, block_id, nblocks, kw, per_capture_beta, t, a)
+    counts = _noise_block(frames, kw["angles_deg"], b, halo=halo, **_stage1_kw(kw), band=kw["band"])
     return np.asarray(counts, dtype=np.int64).reshape(1, -1, 1)
 
 
 def _sample_block(x, beta, offsets, stride, block_id, nblocks, per_capture_beta, t, a, kw):
     """Noise pass 2: the block's pixels of the map's noise sample (a dict of arrays)."""
-    frames, b, halo = _block_inputs(x, beta, block_id, nblocks, kw["pattern"], per_capture_beta, t, a)
-    return _noise_block(frames, kw["angles_deg"], b, halo=halo, **_stage1_kw(kw),
+    frames, b, halo = _block_inputs(x, beta, block_id, nblocks, kw, per_capture_beta, t, a)
+    return _noise_block(frames, kw["angles_deg"], b, halo=halo, **_stage1_kw(kw), band=kw["band"],
                         row_offsets=[int(v) for v in offsets], stride=int(stride))
 
 
@@ -291,6 +293,7 @@ def material_map(
     max_distance: float | None = None,
     metric: str = "euclidean",
     tile: int = DEFAULT_TILE,
+    bench: str = "same",
     rechunk: bool = True,
     scheduler: Any = None,
 ) -> dict[str, Any]:
@@ -334,7 +337,8 @@ def material_map(
         2×2 polarizer block of the 4×4 period, block-row by block-row (``"RGGB"`` for the
         IMX250MYR; a manifest's ``dofp.color``), with ``pattern`` the polarizer block
         (default ``(90, 45, 135, 0)``). Mapped per band as ``polarid map`` maps a colour
-        manifest (far field: ``beta_deg`` of shape (T,); unweighted fits).
+        manifest (weighted fits use one noise model per band, estimated as ``polarid
+        map`` does; ``noise=`` gives one model for every band).
     bands : dict, optional
         With ``color``: the wavelength (nm) of each colour letter (default R 650, G 550,
         B 450; a manifest's ``bands``).
@@ -383,6 +387,10 @@ def material_map(
         Nearest rule: distance to the prototypes.
     tile : int, default 65536
         Pixels per fitting tile within a block.
+    bench : {"same", "other"}, default "same"
+        Where the model was trained (``--bench``): ``same`` compares a pixel's noise
+        covariance with the prototypes' sample covariance, ``other`` both sides' total
+        covariances (as ``polarid map``).
     rechunk : bool, default True
         Chunks along rows and columns must have boundaries at multiples of ``bin`` (and
         of 2 for DoFP mosaics) so that no bin straddles two blocks. True: move the
@@ -412,7 +420,8 @@ def material_map(
         each band's wavelength (float, increasing) of dicts ``n``, ``k``, ``n_se``,
         ``k_se``, ``rms_residual`` (float32) and ``reason`` (uint8: why the band's fit of
         a pixel is not used; 0 ``classified``), as ``map_manifest``'s ``bands``; ``class``
-        and ``reason`` of the classification on all bands; ``weights`` ``"none"``.
+        and ``reason`` of the classification on all bands; ``noise`` the first band's
+        model.
 
     Raises
     ------
@@ -430,71 +439,94 @@ def material_map(
         the fits are unweighted (as ``polarid map`` warns).
     """
     da = _dask_array()
-    if color is not None:
-        return _colour_map(da, frames, angles_deg, beta_deg, model, library=library, color=color,
-                           pattern=(90.0, 45.0, 135.0, 0.0) if pattern is None else pattern, bands=bands,
-                           bin=bin, dark_level=dark_level, saturation=saturation, min_s0=min_s0,
-                           rule=rule, confidence=confidence, weights=weights, noise=noise,
-                           angle_sd_deg=angle_sd_deg, dolp_floor=dolp_floor,
-                           extinction_ratio=extinction_ratio, retardance_deg=retardance_deg,
-                           max_distance=max_distance, metric=metric, tile=tile, rechunk=rechunk)
-    if library is not None:
+    colour = color is not None
+    if colour and pattern is None:
+        pattern = (90.0, 45.0, 135.0, 0.0)
+    if library is not None and not colour:
         raise ValueError("library= maps colour mosaics only (give color=); give model for mono frames")
-    dofp = pattern is not None
+    mosaic = pattern is not None
     if not isinstance(frames, da.Array):
         frames = da.from_array(np.asarray(frames))
-    want = 3 if dofp else 4
+    want = 3 if mosaic else 4
     if frames.ndim != want:
-        layout = "(captures, rows, columns) with pattern" if dofp else "(captures, angles, rows, columns)"
+        layout = ("(captures, rows, columns) with color" if colour else
+                  "(captures, rows, columns) with pattern" if mosaic else "(captures, angles, rows, columns)")
         raise ValueError(f"frames must have shape {layout}, got shape {frames.shape}")
-    if dofp and angles_deg is not None:
-        raise ValueError("give angles_deg=None with a DoFP pattern (the pattern gives the angles)")
-    if not dofp and angles_deg is None:
+    if mosaic and angles_deg is not None:
+        raise ValueError("give angles_deg=None with color or a DoFP pattern (the pattern gives the angles)")
+    if not mosaic and angles_deg is None:
         raise ValueError("angles_deg is needed for (T, A, H, W) frames (or give a DoFP pattern)")
+    if colour and (model is None) == (library is None):
+        raise ValueError("give model (a multi-band model JSON) or library (builtin-rgb or a "
+                         "multi-band library CSV), not both or neither")
     t = int(frames.shape[0])
-    a = 1 if dofp else int(frames.shape[1])
+    a = 1 if mosaic else int(frames.shape[1])
     height, width = int(frames.shape[-2]), int(frames.shape[-1])
     if not isinstance(bin, (int, np.integer)) or isinstance(bin, bool):
         raise TypeError(f"bin must be an int, got {bin!r}")
     bin = int(bin)
     if weights not in ("auto", "noise", "none"):
         raise ValueError(f'weights must be "auto", "noise" or "none", got {weights!r}')
+    if colour and (height % 4 or width % 4):
+        raise ValueError(f"colour mosaics need whole 4x4 periods, got {width}x{height}")
 
     # β: per capture (a small vector, shipped with every task) or per map pixel.
     if isinstance(beta_deg, da.Array) and beta_deg.ndim == 1:
         beta_deg = beta_deg.compute()
     per_pixel = (isinstance(beta_deg, da.Array) and beta_deg.ndim == 3) or np.ndim(beta_deg) == 3
-    weighted = weights == "noise" or (weights == "auto" and per_pixel)
+    # As polarid map's --weights auto: calibrated geometry, and a library's hypothesis
+    # tests (the set rule) weigh the fits.
+    tests_rows = library is not None and rule == "set"
+    weighted = weights == "noise" or (weights == "auto" and (per_pixel or tests_rows))
     if noise is not None and weights == "none":
         raise ValueError('noise= gives a noise model for weighted fits; it cannot go with weights="none"')
     given_noise = None if noise is None else _noise_arg(noise)
     if given_noise is not None:
         weighted = True
-    model_json, label = _model_json(model)
+    if model is not None:
+        model_json, label = _model_json(model)
+    else:
+        model_json, label = None, f"library {library}"
     rule_kw = dict(rule=rule, confidence=float(confidence),
                    angle_sd_deg=[float(v) for v in _per_capture("angle_sd_deg", angle_sd_deg, t)],
                    dolp_floor=float(dolp_floor), extinction_ratio=float(extinction_ratio),
                    retardance_deg=float(retardance_deg))
-    class_names, reason_names = _map_names(
-        model_json, label=label, per_pixel_beta=per_pixel, bin=bin, min_s0=min_s0,
-        max_distance=max_distance, metric=metric, tile=tile, **rule_kw)
+    kw = dict(
+        angles_deg=None if mosaic else [float(v) for v in angles_deg],
+        pattern=None if pattern is None else [float(v) for v in pattern],
+        color=None if color is None else str(color),
+        bands=None if bands is None else {str(k): float(v) for k, v in bands.items()},
+        model_json=model_json, library=None if library is None else str(library), label=label,
+        bin=bin, min_s0=min_s0, max_distance=max_distance, metric=metric, tile=int(tile),
+        rule=rule_kw, noise=None, bench=bench, band=0,
+        depth=COLOUR_HALO if colour else DOFP_HALO if mosaic else 0,
+    )
+    class_names, reason_names, wavelengths = _map_names(
+        model_json, library=kw["library"], label=label, color=kw["color"], pattern=kw["pattern"],
+        bands=kw["bands"], bin=bin, min_s0=min_s0, max_distance=max_distance, metric=metric,
+        tile=kw["tile"], bench=bench, **rule_kw)
+    nb = max(len(wavelengths), 1)
     if bin > height or bin > width:
         raise ValueError(f"bin {bin} does not fit the {width}x{height} frames")
     oh, ow = height // bin, width // bin
+    kw.update(dark_level=[0.0 if v is None else v for v in _per_capture("dark_level", dark_level, t)],
+              saturation=_per_capture("saturation", saturation, t))
 
-    # Chunks: whole captures and angles; rows and columns at multiples of the bin.
-    unit = math.lcm(bin, 2) if dofp else bin
-    minimum = DOFP_HALO * 2 if dofp else 1
-    lead = {0: -1} if dofp else {0: -1, 1: -1}
+    # Chunks: whole captures and angles; rows and columns at multiples of the bin (and of
+    # the mosaic's period).
+    period = 4 if colour else 2 if mosaic else 1
+    unit = math.lcm(bin, period)
+    minimum = 2 * kw["depth"] if mosaic else 1
+    lead = {0: -1} if mosaic else {0: -1, 1: -1}
     frames = frames.rechunk(lead)
     new = [aligned_chunks(frames.chunks[ax], unit, minimum) for ax in (-2, -1)]
     if tuple(new) != (frames.chunks[-2], frames.chunks[-1]):
         if not rechunk:
+            what = ", and 4 for the 4x4 colour period" if colour else ", and 2 for the DoFP 2x2 cell" if mosaic else ""
             raise ValueError(
                 f"the chunks of frames along rows {frames.chunks[-2]} and columns "
-                f"{frames.chunks[-1]} must end at multiples of {unit} (bin={bin}"
-                f"{', and 2 for the DoFP 2x2 cell' if dofp else ''}), except the last; "
-                f"rechunk (e.g. to {new[0]} and {new[1]}) or pass rechunk=True")
+                f"{frames.chunks[-1]} must end at multiples of {unit} (bin={bin}{what}), "
+                f"except the last; rechunk (e.g. to {new[0]} and {new[1]}) or pass rechunk=True")
         frames = frames.rechunk({frames.ndim - 2: new[0], frames.ndim - 1: new[1]})
     rows, cols = frames.chunks[-2], frames.chunks[-1]
     out_rows = tuple(c // bin for c in rows)
@@ -503,62 +535,71 @@ def material_map(
     if sum(out_rows) != oh or sum(out_cols) != ow:  # pragma: no cover - by construction
         raise RuntimeError("internal error: block sizes do not add up to the map")
 
-    if not dofp:
+    if not mosaic:
         frames = frames.reshape(t * a, height, width)
     x = frames
-    if dofp and (len(rows) > 1 or len(cols) > 1):
-        x = da.overlap.overlap(frames, depth={0: 0, 1: DOFP_HALO, 2: DOFP_HALO}, boundary="none")
+    if mosaic and (len(rows) > 1 or len(cols) > 1):
+        d = kw["depth"]
+        x = da.overlap.overlap(frames, depth={0: 0, 1: d, 2: d}, boundary="none")
 
-    kw = dict(
-        angles_deg=None if dofp else [float(v) for v in angles_deg],
-        pattern=None if pattern is None else [float(v) for v in pattern],
-        model_json=model_json, label=label, bin=bin,
-        dark_level=[0.0 if v is None else v for v in _per_capture("dark_level", dark_level, t)],
-        saturation=_per_capture("saturation", saturation, t),
-        min_s0=min_s0, max_distance=max_distance, metric=metric, tile=int(tile),
-        rule=rule_kw, noise=None,
-    )
     common = dict(nblocks=(len(rows), len(cols)), t=t, a=a, kw=kw)
+    shape_msg = f"beta_deg must have shape ({t},) (one angle per capture) or ({t}, {oh}, {ow}) (one per map pixel at bin {bin})"
     if per_pixel:
         beta = beta_deg if isinstance(beta_deg, da.Array) else da.from_array(np.asarray(beta_deg, dtype=np.float64))
         if beta.shape != (t, oh, ow):
-            raise ValueError(f"beta_deg must have shape ({t},) or ({t}, {oh}, {ow}) (one per map pixel at bin {bin}), got {beta.shape}")
+            raise ValueError(f"{shape_msg}, got {beta.shape}")
         beta = beta.rechunk(((t,), out_rows, out_cols))
         per_capture_beta = None
     else:
         beta = None
         per_capture_beta = np.asarray(beta_deg, dtype=np.float64)
         if per_capture_beta.shape != (t,):
-            raise ValueError(f"beta_deg must have shape ({t},) or ({t}, {oh}, {ow}) (one per map pixel at bin {bin}), got {per_capture_beta.shape}")
+            raise ValueError(f"{shape_msg}, got {per_capture_beta.shape}")
 
-    # The map's noise model: given, or estimated globally as polarid map does.
+    # The map's noise model of every band: given, or estimated globally as polarid map
+    # does.
     noise_info = None
     if given_noise is not None:
-        kw["noise"] = given_noise
+        kw["noise"] = [given_noise] * nb
         noise_info = dict(read_var_dn2=given_noise[0], inv_gain=given_noise[1],
                           read_noise_dn=math.sqrt(given_noise[0]),
                           gain_e_per_dn=(1.0 / given_noise[1]) if given_noise[1] > 0 else None)
     elif weighted:
-        est = _estimate(da, x, beta, common, rows, cols, oh, ow, bin, per_capture_beta, scheduler)
-        if est is None:
-            warnings.warn("too few usable pixels to estimate the noise model; the per-pixel fits "
-                          "are unweighted", UserWarning, stacklevel=2)
-        else:
-            kw["noise"] = (est[0], est[1])
-            noise_info = _noise_dict(est)
+        models = []
+        for b in range(nb):
+            band_common = dict(common, kw=dict(kw, band=b))
+            est = _estimate(da, x, beta, band_common, rows, cols, oh, ow, bin, per_capture_beta, scheduler)
+            if est is None:
+                where = f"band {wavelengths[b]:g} nm: " if colour else ""
+                warnings.warn(f"{where}too few usable pixels to estimate the noise model; the "
+                              "per-pixel fits are unweighted", UserWarning, stacklevel=2)
+                models.append(None)
+            else:
+                models.append((est[0], est[1]))
+                if noise_info is None:
+                    noise_info = _noise_dict(est)
+        kw["noise"] = models
 
-    chunks = ((len(PLANES),), out_rows, out_cols)
+    planes = 6 * nb + 2
     meta = np.empty((0, 0, 0), dtype=np.float32)
     args = (x,) if beta is None else (x, beta)
-    stack = da.map_blocks(_block, *args, chunks=chunks, dtype=np.float32, meta=meta,
-                          per_capture_beta=per_capture_beta, **common, token="polarid-map")
+    stack = da.map_blocks(_block, *args, chunks=((planes,), out_rows, out_cols), dtype=np.float32,
+                          meta=meta, per_capture_beta=per_capture_beta, **common, token="polarid-map")
     class_dtype = np.uint8 if len(class_names) <= 256 else np.uint16
-    out: dict[str, Any] = {p: stack[i] for i, p in enumerate(PLANES[:5])}
-    out["class"] = stack[5].astype(class_dtype)
-    out["reason"] = stack[6].astype(np.uint8)
+    out: dict[str, Any] = {}
+    if colour:
+        out["bands"] = {}
+        for b, wl in enumerate(wavelengths):
+            band = {p: stack[6 * b + i] for i, p in enumerate(PLANES[:5])}
+            band["reason"] = stack[6 * b + 5].astype(np.uint8)
+            out["bands"][float(wl)] = band
+    else:
+        out.update({p: stack[i] for i, p in enumerate(PLANES[:5])})
+    out["class"] = stack[6 * nb].astype(class_dtype)
+    out["reason"] = stack[6 * nb + 1].astype(np.uint8)
     out["class_names"] = class_names
     out["reason_names"] = reason_names
-    out["weights"] = "noise" if kw["noise"] is not None else "none"
+    out["weights"] = "noise" if any(m is not None for m in kw["noise"] or []) else "none"
     out["noise"] = noise_info
     return out
 
@@ -566,102 +607,3 @@ def material_map(
 #: Raw pixels around a colour block read by the per-band bilinear interpolation (3,
 #: rounded up to the 4×4 period).
 COLOUR_HALO = 4
-
-
-def _colour_block(x, *, block_id, nblocks, kw):
-    """One colour map block (float32 (6 B + 2, h/bin, w/bin))."""
-    i, j = block_id[1], block_id[2]
-    halo = (
-        COLOUR_HALO if i > 0 else 0,
-        COLOUR_HALO if i < nblocks[0] - 1 else 0,
-        COLOUR_HALO if j > 0 else 0,
-        COLOUR_HALO if j < nblocks[1] - 1 else 0,
-    )
-    raw = np.require(x, requirements=("C", "A"))
-    return _map_block_colour(raw, kw["beta_deg"], halo=halo, **kw["opts"])
-
-
-def _colour_map(da, frames, angles_deg, beta_deg, model, *, library, color, pattern, bands, bin,
-                dark_level, saturation, min_s0, rule, confidence, weights, noise, angle_sd_deg,
-                dolp_floor, extinction_ratio, retardance_deg, max_distance, metric, tile, rechunk):
-    """``material_map`` of colour mosaics (see its documentation)."""
-    if not isinstance(frames, da.Array):
-        frames = da.from_array(np.asarray(frames))
-    if frames.ndim != 3:
-        raise ValueError(f"frames must have shape (captures, rows, columns) with color, got shape {frames.shape}")
-    if angles_deg is not None:
-        raise ValueError("give angles_deg=None with color (the pattern gives the angles)")
-    if weights == "noise" or noise is not None:
-        raise ValueError("colour maps use unweighted fits (polarid map's far-field default): "
-                         "weights='noise' and noise= are not available with color")
-    if weights not in ("auto", "none"):
-        raise ValueError(f'weights must be "auto", "noise" or "none", got {weights!r}')
-    if (model is None) == (library is None):
-        raise ValueError("give model (a multi-band model JSON) or library (builtin-rgb or a "
-                         "multi-band library CSV), not both or neither")
-    if not isinstance(bin, (int, np.integer)) or isinstance(bin, bool):
-        raise TypeError(f"bin must be an int, got {bin!r}")
-    bin = int(bin)
-    t = int(frames.shape[0])
-    height, width = int(frames.shape[-2]), int(frames.shape[-1])
-    per_capture_beta = np.asarray(beta_deg.compute() if isinstance(beta_deg, da.Array) else beta_deg,
-                                  dtype=np.float64)
-    if per_capture_beta.shape != (t,):
-        raise ValueError(f"beta_deg must have shape ({t},) with color (one angle per capture, far "
-                         f"field), got shape {per_capture_beta.shape}")
-    if height % 4 or width % 4:
-        raise ValueError(f"colour mosaics need whole 4x4 periods, got {width}x{height}")
-    if model is not None:
-        model_json, label = _model_json(model)
-        src = dict(model_json=model_json, label=label)
-    else:
-        src = dict(library=str(library), label=f"library {library}")
-    opts = dict(src, color=str(color), pattern=[float(v) for v in pattern],
-                bands=None if bands is None else {str(k): float(v) for k, v in bands.items()},
-                bin=bin, min_s0=min_s0, max_distance=max_distance, metric=metric, tile=int(tile),
-                rule=rule, confidence=float(confidence))
-    class_names, reason_names, wavelengths = _map_names_colour(**opts)
-    if bin > height or bin > width:
-        raise ValueError(f"bin {bin} does not fit the {width}x{height} frames")
-    opts.update(dark_level=[0.0 if v is None else v for v in _per_capture("dark_level", dark_level, t)],
-                saturation=_per_capture("saturation", saturation, t),
-                angle_sd_deg=[float(v) for v in _per_capture("angle_sd_deg", angle_sd_deg, t)],
-                dolp_floor=float(dolp_floor), extinction_ratio=float(extinction_ratio),
-                retardance_deg=float(retardance_deg))
-
-    unit = math.lcm(bin, 4)
-    frames = frames.rechunk({0: -1})
-    new = [aligned_chunks(frames.chunks[ax], unit, 2 * COLOUR_HALO) for ax in (-2, -1)]
-    if tuple(new) != (frames.chunks[-2], frames.chunks[-1]):
-        if not rechunk:
-            raise ValueError(
-                f"the chunks of frames along rows {frames.chunks[-2]} and columns "
-                f"{frames.chunks[-1]} must end at multiples of {unit} (bin={bin} and the 4x4 "
-                f"colour period), except the last; rechunk (e.g. to {new[0]} and {new[1]}) or "
-                f"pass rechunk=True")
-        frames = frames.rechunk({1: new[0], 2: new[1]})
-    rows, cols = frames.chunks[-2], frames.chunks[-1]
-    out_rows = tuple(c // bin for c in rows)
-    out_cols = tuple(c // bin for c in cols)
-    x = frames
-    if len(rows) > 1 or len(cols) > 1:
-        x = da.overlap.overlap(frames, depth={0: 0, 1: COLOUR_HALO, 2: COLOUR_HALO}, boundary="none")
-    nb = len(wavelengths)
-    planes = 6 * nb + 2
-    kw = dict(beta_deg=[float(v) for v in per_capture_beta], opts=opts)
-    stack = da.map_blocks(_colour_block, x, chunks=((planes,), out_rows, out_cols), dtype=np.float32,
-                          meta=np.empty((0, 0, 0), dtype=np.float32), nblocks=(len(rows), len(cols)),
-                          kw=kw, token="polarid-map-colour")
-    class_dtype = np.uint8 if len(class_names) <= 256 else np.uint16
-    out: dict[str, Any] = {"bands": {}}
-    for b, wl in enumerate(wavelengths):
-        band = {p: stack[6 * b + i] for i, p in enumerate(PLANES[:5])}
-        band["reason"] = stack[6 * b + 5].astype(np.uint8)
-        out["bands"][float(wl)] = band
-    out["class"] = stack[6 * nb].astype(class_dtype)
-    out["reason"] = stack[6 * nb + 1].astype(np.uint8)
-    out["class_names"] = class_names
-    out["reason_names"] = reason_names
-    out["weights"] = "none"
-    out["noise"] = None
-    return out

@@ -2,22 +2,15 @@
 //! `polarid.dask.material_map`, and the global noise-model step of its weighted fits
 //! (`_noise_block`, `_estimate_noise`).
 //!
-//! A block is a rectangle of every capture's frames (rotating-polarizer frames, or a
-//! DoFP mosaic with a halo of raw pixels around it). The steps are those of
-//! `polarid_pipeline::map::map_manifest` (`polarid map`), with the same kernels, in
-//! the same order, on the block's pixels only: per capture the binned DoLP and signal
-//! flags (`polarid_core::map::frames_dolp_noise`, or `mosaic::bilinear_stokes` then
-//! `map::stokes_dolp_noise` for DoFP), with the same pixel rules and dark threshold
-//! (`polarid_pipeline::map::rules::min_s0_for`) and, for weighted fits, the noise terms
-//! `(A, B)` of every block (`polarid_core::map::noise`); with a β per pixel, the
-//! calibrated rules (a pixel's dark or saturated captures are left out of its own fit,
-//! at least 3 must remain); then `map::fit_and_classify` with the model's per-pixel
-//! classifier (`polarid_pipeline::map::pixel_classifier`), answering by the set rule
-//! (`PixelClassifier::with_set_rule`, the systematic error model of `polarid map`) or
-//! the nearest prototype. Every output pixel depends only on its own `bin × bin` block
-//! of frames (and, for DoFP, the raw pixels within 2 of it) and on the map's noise model
-//! (two numbers), so a map made of blocks whose edges are multiples of `bin` (and even,
-//! for DoFP) equals the map of the whole frame.
+//! A block is a rectangle of every capture's frames: rotating-polarizer frames, or DoFP
+//! mosaics (monochrome or colour) with a halo of raw pixels around it. Its map is
+//! `polarid_pipeline::map::map_frames`: the stages of `polarid map` on the block's
+//! pixels (one unnamed band, or one per wavelength of a colour pattern; calibrated
+//! geometry with a β per pixel; the fits weighted by the map's noise model when given;
+//! every pixel decided as `polarid map` decides it). Every output pixel depends only on
+//! its own `bin × bin` block of frames (and, for DoFP, the raw pixels of the halo) and
+//! on the map's noise model (two numbers), so a map made of blocks whose edges are
+//! multiples of `bin` (and of the mosaic's period) equals the map of the whole frame.
 //!
 //! The noise model of `polarid map` (`polarid_core::map::noise::estimate_noise`) is a
 //! global estimate: a sample of every `m`-th usable pixel of the whole map (row-major
@@ -29,28 +22,30 @@
 //! β); `_estimate_noise` runs `estimate_noise` on the gathered sample, in the map's
 //! pixel order, which gives the very numbers `polarid map` estimates.
 
-use std::path::PathBuf;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
 
 use ndarray::{ArrayD, IxDyn};
 use numpy::PyUntypedArrayMethods;
 use polarid_core::CoreError;
-use polarid_core::classify::AMBIGUOUS;
+use polarid_core::classify::Bench;
 use polarid_core::fit::{FitOptions, FitPlan, PixelBetaPlan};
-use polarid_core::map::noise::{NoiseAnalyzer, NoiseModel, estimate_noise};
+use polarid_core::map::noise::{NoiseModel, estimate_noise};
 use polarid_core::map::sets::MapErrorModel;
-use polarid_core::map::{
-    self as cmap, Betas, MapNoise, MapOutputs, NoiseOut, PixelClassifier, signal_reason,
-};
-use polarid_core::mosaic::{self, Pattern};
-use polarid_core::stokes::{PixelRules, Sample, StokesSolver};
+use polarid_core::map::{self as cmap, Betas, signal_reason};
+use polarid_core::mosaic::{ColourPattern, Pattern};
+use polarid_core::stokes::{PixelRules, StokesSolver};
 use polarid_core::systematic::Polarimetric;
 use polarid_io::model::Model;
-use polarid_pipeline::map::rules::min_s0_for;
-use polarid_pipeline::map::{self, MapConfig, MapErrors, REASON_NAMES, Rule};
+use polarid_pipeline::map::{
+    self, Frames, FramesSource, MapConfig, MapErrors, MapPrototypes, REASON_NAMES, band_order,
+    frames_bands, frames_class_names, map_frames,
+};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::arrays::{f64_contiguous, fmt_shape, raw_array, to_numpy};
+use crate::colour::wavelengths;
 use crate::errors::{IntoPyErr, PyResultExt, value_error};
 use crate::stokes::pixel_rules;
 use crate::with_raw;
@@ -66,17 +61,13 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     Ok(())
 }
 
-/// Number of float32 planes of a block's result: n, k, n_se, k_se, rms_residual, class,
-/// reason.
-const PLANES: usize = 7;
-
-fn parse_model(model_json: &str, label: &str) -> PyResult<Model> {
-    Model::parse(&PathBuf::from(label), model_json).map_err(IntoPyErr::into_py_err)
-}
+/// The float32 planes of a band in a block's result: n, k, n_se, k_se, rms_residual,
+/// the band's reason.
+const BAND_PLANES: usize = 6;
 
 /// The map's options, checked as `polarid map` checks them (errors name the option).
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn config(
+fn config(
     bin: usize,
     min_s0: Option<f64>,
     max_distance: Option<f64>,
@@ -85,8 +76,18 @@ pub(crate) fn config(
     rule: &str,
     confidence: f64,
     errors: &ErrorArgs,
+    bench: &str,
 ) -> PyResult<MapConfig> {
     let metric = map::parse_metric(metric).py_err()?;
+    let bench = match bench {
+        "same" => Bench::Same,
+        "other" => Bench::Other,
+        b => {
+            return Err(value_error(format!(
+                "bench must be \"same\" or \"other\", got {b:?}"
+            )));
+        }
+    };
     let first_sd = errors
         .angle_sd_deg
         .first()
@@ -102,32 +103,22 @@ pub(crate) fn config(
                 retardance_deg: errors.retardance_deg,
             })
         })
+        .map(|c| c.with_bench(bench))
         .py_err()
 }
 
 /// The set rule's systematic error model as the Python side passes it: one angle
 /// uncertainty per capture (degrees) and the analyzer's terms.
-pub(crate) struct ErrorArgs {
-    pub(crate) angle_sd_deg: Vec<f64>,
-    pub(crate) dolp_floor: f64,
-    pub(crate) extinction_ratio: f64,
-    pub(crate) retardance_deg: f64,
+struct ErrorArgs {
+    angle_sd_deg: Vec<f64>,
+    dolp_floor: f64,
+    extinction_ratio: f64,
+    retardance_deg: f64,
 }
 
 impl ErrorArgs {
-    /// `polarid map`'s defaults for `t` captures.
-    pub(crate) fn default_for(t: usize) -> Self {
-        let d = MapErrors::default();
-        Self {
-            angle_sd_deg: vec![d.angle_sd_deg; t],
-            dolp_floor: d.dolp_floor,
-            extinction_ratio: d.extinction_ratio,
-            retardance_deg: d.retardance_deg,
-        }
-    }
-
     /// Check every capture's angle uncertainty as `--angle-sd-deg` is checked.
-    pub(crate) fn check(&self) -> PyResult<()> {
+    fn check(&self) -> PyResult<()> {
         for &a in &self.angle_sd_deg {
             if !(a.is_finite() && (0.0..90.0).contains(&a)) {
                 return Err(value_error(format!(
@@ -140,7 +131,7 @@ impl ErrorArgs {
 
     /// The core error model (as `polarid_pipeline::map`'s `error_model`: radians, no
     /// surface-film term in maps).
-    pub(crate) fn model(&self) -> MapErrorModel {
+    fn model(&self) -> MapErrorModel {
         MapErrorModel {
             polarimetric: Polarimetric {
                 dolp_floor: self.dolp_floor,
@@ -153,36 +144,62 @@ impl ErrorArgs {
     }
 }
 
-/// The per-pixel classifier of a model under the options (set rule at `confidence`
-/// with the error model, or nearest prototype).
-fn classifier(
-    cfg: &MapConfig,
-    confidence: f64,
-    model_json: &str,
-    label: &str,
-    errors: &ErrorArgs,
-) -> PyResult<PixelClassifier> {
-    errors.check()?;
-    let model = parse_model(model_json, label)?;
-    let pc = map::pixel_classifier(cfg, &model, &PathBuf::from(label)).py_err()?;
-    if cfg.rule() == Rule::Set {
-        pc.with_set_rule(confidence, errors.model()).py_err()
-    } else {
-        Ok(pc)
+/// The prototypes of a map: a model JSON's text (`label` names it) or a library
+/// (`builtin`, `builtin-rgb`, a library CSV).
+enum Protos {
+    Model(Model, PathBuf),
+    Library(String),
+}
+
+impl Protos {
+    fn new(model_json: Option<&str>, library: Option<String>, label: &str) -> PyResult<Self> {
+        match (model_json, library) {
+            (Some(j), None) => {
+                let path = PathBuf::from(label);
+                let m = Model::parse(&path, j).map_err(IntoPyErr::into_py_err)?;
+                Ok(Protos::Model(m, path))
+            }
+            (None, Some(spec)) => Ok(Protos::Library(spec)),
+            _ => Err(value_error(
+                "give model_json or library, not both or neither",
+            )),
+        }
+    }
+
+    fn src(&self) -> MapPrototypes<'_> {
+        match self {
+            Protos::Model(model, path) => MapPrototypes::Model { model, path },
+            Protos::Library(spec) => MapPrototypes::Library(spec),
+        }
     }
 }
 
-/// The class names (``"unknown"`` first, then the model's classes sorted, then
-/// ``"ambiguous"`` with the set rule: index = class code of a map) and the reason names
-/// (index = reason code, every reason as ``map_summary.json`` lists them). Checks the
-/// options as ``_map_block`` does (errors name the option).
+/// A colour pattern and the wavelength of each of its bands (pattern order).
+fn colour_pattern(
+    color: &str,
+    pattern: &[f64],
+    bands: Option<HashMap<String, f64>>,
+) -> PyResult<(ColourPattern, Vec<f64>)> {
+    let cp = ColourPattern::new(Pattern::new(pattern).py_err()?, color).py_err()?;
+    let nms = wavelengths(&cp, bands)?;
+    Ok((cp, nms))
+}
+
+/// The class names (``"unknown"`` first, then the prototypes' classes sorted, then
+/// ``"ambiguous"`` with the set rule: index = class code of a map), the reason names
+/// (index = reason code, as ``map_summary.json`` lists them) and the bands' wavelengths
+/// (increasing; empty for single-band frames) of a map. Checks the options as
+/// ``_map_block`` does (errors name the option).
 #[pyfunction]
-#[pyo3(signature = (model_json, *, label = "<model>", per_pixel_beta = false, bin = 1, min_s0 = None, max_distance = None, metric = "euclidean", tile = map::DEFAULT_TILE, rule = "set", confidence = polarid_core::classify::DEFAULT_CONFIDENCE, angle_sd_deg = vec![MapErrors::default().angle_sd_deg], dolp_floor = MapErrors::default().dolp_floor, extinction_ratio = MapErrors::default().extinction_ratio, retardance_deg = MapErrors::default().retardance_deg))]
+#[pyo3(signature = (model_json = None, *, library = None, label = "<model>", color = None, pattern = None, bands = None, bin = 1, min_s0 = None, max_distance = None, metric = "euclidean", tile = map::DEFAULT_TILE, rule = "set", confidence = polarid_core::classify::DEFAULT_CONFIDENCE, angle_sd_deg = vec![MapErrors::default().angle_sd_deg], dolp_floor = MapErrors::default().dolp_floor, extinction_ratio = MapErrors::default().extinction_ratio, retardance_deg = MapErrors::default().retardance_deg, bench = "same"))]
 #[allow(clippy::too_many_arguments)]
 fn _map_names(
-    model_json: &str,
+    model_json: Option<&str>,
+    library: Option<String>,
     label: &str,
-    per_pixel_beta: bool,
+    color: Option<&str>,
+    pattern: Option<Vec<f64>>,
+    bands: Option<HashMap<String, f64>>,
     bin: usize,
     min_s0: Option<f64>,
     max_distance: Option<f64>,
@@ -194,13 +211,15 @@ fn _map_names(
     dolp_floor: f64,
     extinction_ratio: f64,
     retardance_deg: f64,
-) -> PyResult<(Vec<String>, Vec<String>)> {
+    bench: &str,
+) -> PyResult<(Vec<String>, Vec<String>, Vec<f64>)> {
     let errors = ErrorArgs {
         angle_sd_deg,
         dolp_floor,
         extinction_ratio,
         retardance_deg,
     };
+    errors.check()?;
     let cfg = config(
         bin,
         min_s0,
@@ -210,35 +229,33 @@ fn _map_names(
         rule,
         confidence,
         &errors,
+        bench,
     )?;
-    let pc = classifier(&cfg, confidence, model_json, label, &errors)?;
+    let protos = Protos::new(model_json, library, label)?;
+    let wls = match color {
+        Some(c) => {
+            let p = pattern.unwrap_or_else(|| vec![90.0, 45.0, 135.0, 0.0]);
+            band_order(&colour_pattern(c, &p, bands)?.1).0
+        }
+        None => Vec::new(),
+    };
+    let bands_of: Vec<Option<f64>> = if wls.is_empty() {
+        vec![None]
+    } else {
+        wls.iter().map(|&w| Some(w)).collect()
+    };
+    let names = frames_class_names(&cfg, protos.src(), &bands_of, color.is_some()).py_err()?;
     let mut classes = vec![polarid_core::classify::UNKNOWN.to_string()];
-    classes.extend(pc.names().iter().cloned());
-    if pc.ambiguous().is_some() {
-        classes.push(AMBIGUOUS.to_string());
-    }
-    // Every reason, as `map_summary.json`'s `reason_codes` lists them (far field too).
-    let _ = per_pixel_beta;
+    classes.extend(names);
     let reasons = REASON_NAMES.iter().map(|s| s.to_string()).collect();
-    Ok((classes, reasons))
+    Ok((classes, reasons, wls))
 }
 
-/// Crop rows `top..h-bottom` and columns `left..w-right` of a `w`-wide image.
-pub(crate) fn crop<T: Copy>(v: &[T], w: usize, h: usize, c: [usize; 4]) -> Vec<T> {
-    let [top, bottom, left, right] = c;
-    let mut out = Vec::with_capacity((h - top - bottom) * (w - left - right));
-    for y in top..h - bottom {
-        out.extend_from_slice(&v[y * w + left..(y + 1) * w - right]);
-    }
-    out
-}
-
-/// The checked inputs of a block (frames, angles or pattern, β, pixel rules), shared by
+/// The checked inputs of a block (frames, their kind, β, pixel rules), shared by
 /// `_map_block` and `_noise_block`.
 struct Inputs<'py> {
     raw: crate::arrays::RawArray<'py>,
     t_len: usize,
-    a_len: usize,
     hh: usize,
     ww: usize,
     halo: [usize; 4],
@@ -246,9 +263,15 @@ struct Inputs<'py> {
     oh: usize,
     per_pixel: bool,
     beta: Vec<f64>,
-    solver: Option<StokesSolver>,
-    pattern: Option<Pattern>,
+    kind: Kind,
     rules: Vec<PixelRules>,
+}
+
+/// How a block's captures were taken (owning what `FramesSource` borrows).
+enum Kind {
+    Polarizer(StokesSolver),
+    Dofp(Pattern),
+    Colour(ColourPattern, Vec<f64>),
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -257,6 +280,7 @@ fn inputs<'py>(
     angles_deg: Option<Vec<f64>>,
     beta_deg: &Bound<'py, PyAny>,
     pattern: Option<Vec<f64>>,
+    colour: Option<(&str, Option<HashMap<String, f64>>)>,
     halo: (usize, usize, usize, usize),
     bin: usize,
     dark_level: Option<Vec<f64>>,
@@ -264,14 +288,14 @@ fn inputs<'py>(
 ) -> PyResult<Inputs<'py>> {
     let raw = raw_array("frames", frames)?;
     let shape = raw.shape();
-    let dofp = pattern.is_some();
-    let (t_len, a_len, hh, ww) = match (&shape[..], dofp) {
+    let mosaic = pattern.is_some() || colour.is_some();
+    let (t_len, a_len, hh, ww) = match (&shape[..], mosaic) {
         (&[t, h, w], true) => (t, 1, h, w),
         (&[t, a, h, w], false) => (t, a, h, w),
         _ => {
             return Err(value_error(format!(
                 "frames must have shape {}, got shape {}",
-                if dofp {
+                if mosaic {
                     "(captures, rows, columns) (DoFP mosaics)"
                 } else {
                     "(captures, angles, rows, columns)"
@@ -281,7 +305,7 @@ fn inputs<'py>(
         }
     };
     let halo = [halo.0, halo.1, halo.2, halo.3];
-    if !dofp && halo != [0; 4] {
+    if !mosaic && halo != [0; 4] {
         return Err(value_error("a halo is for DoFP mosaics only".to_string()));
     }
     if halo[0] + halo[1] >= hh || halo[2] + halo[3] >= ww {
@@ -314,17 +338,23 @@ fn inputs<'py>(
             )));
         }
     };
-    let solver = match (&angles_deg, dofp) {
-        (_, true) => None,
-        (Some(a), false) if a.len() == a_len => Some(StokesSolver::from_degrees(a).py_err()?),
-        (a, false) => {
+    let kind = match (colour, pattern, &angles_deg) {
+        (Some((c, bands)), p, _) => {
+            let p = p.unwrap_or_else(|| vec![90.0, 45.0, 135.0, 0.0]);
+            let (cp, nms) = colour_pattern(c, &p, bands)?;
+            Kind::Colour(cp, nms)
+        }
+        (None, Some(p), _) => Kind::Dofp(Pattern::new(&p).py_err()?),
+        (None, None, Some(a)) if a.len() == a_len => {
+            Kind::Polarizer(StokesSolver::from_degrees(a).py_err()?)
+        }
+        (None, None, a) => {
             return Err(value_error(format!(
                 "angles_deg must give one angle per frame of a capture ({a_len}), got {}",
                 a.as_ref().map_or(0, Vec::len)
             )));
         }
     };
-    let pattern = pattern.map(|p| Pattern::new(&p)).transpose().py_err()?;
     let mut rules = Vec::with_capacity(t_len);
     for (d, s) in dark.iter().zip(&sat) {
         rules.push(pixel_rules(*d, *s, raw.type_max(), 0.0)?);
@@ -340,7 +370,6 @@ fn inputs<'py>(
     Ok(Inputs {
         raw,
         t_len,
-        a_len,
         hh,
         ww,
         halo,
@@ -348,30 +377,41 @@ fn inputs<'py>(
         oh,
         per_pixel,
         beta,
-        solver,
-        pattern,
+        kind,
         rules,
     })
 }
 
 impl Inputs<'_> {
-    /// The block's job (borrowing the checked inputs).
-    fn job<'a>(&'a self, bin: usize, min_s0: Option<f64>, tile: usize) -> Job<'a> {
-        Job {
-            t_len: self.t_len,
-            a_len: self.a_len,
-            hh: self.hh,
-            ww: self.ww,
+    /// The block's frames for the pipeline.
+    fn frames<'a, T>(&'a self, data: &'a [T]) -> Frames<'a, T> {
+        Frames {
+            data,
+            captures: self.t_len,
+            rows: self.hh,
+            columns: self.ww,
             halo: self.halo,
-            bin,
-            per_pixel: self.per_pixel,
-            solver: self.solver.as_ref(),
-            pattern: self.pattern.as_ref(),
+            source: match &self.kind {
+                Kind::Polarizer(s) => FramesSource::Polarizer(s, None),
+                Kind::Dofp(p) => FramesSource::Dofp(p, None),
+                Kind::Colour(cp, nms) => FramesSource::Colour(cp, nms),
+            },
             rules: &self.rules,
-            is_int: self.raw.is_integer(),
-            min_s0,
-            tile,
-            beta: &self.beta,
+            is_integer: self.raw.is_integer(),
+        }
+    }
+
+    /// β in radians, as the fit takes it (see [`BetaRad`]).
+    fn beta_rad(&self) -> BetaRad {
+        if self.per_pixel {
+            BetaRad::PerPixel(
+                self.beta
+                    .chunks_exact((self.ow * self.oh).max(1))
+                    .map(|b| b.iter().map(|d| d.to_radians() as f32).collect())
+                    .collect(),
+            )
+        } else {
+            BetaRad::Shared(self.beta.iter().map(|d| d.to_radians()).collect())
         }
     }
 }
@@ -379,26 +419,34 @@ impl Inputs<'_> {
 /// One block of a material map (private: called by ``polarid.dask.material_map``).
 ///
 /// ``frames``: (T, A, h, w) polarizer frames (``angles_deg`` the A angles), or with
-/// ``pattern`` a (T, h, w) DoFP mosaic stack whose first ``halo = (top, bottom, left,
-/// right)`` rows/columns are neighbours of the block (read by the bilinear
-/// interpolation, not mapped). ``beta_deg``: (T,) one β per capture, or (T, h/bin,
-/// w/bin) per pixel (NaN: no geometry). ``dark_level`` (T,), ``saturation`` (T,) or
-/// None. ``rule``, ``confidence``, ``angle_sd_deg`` (one per capture), ``dolp_floor``,
-/// ``extinction_ratio``, ``retardance_deg``: the answer rule and its error model, as
-/// ``polarid map``. ``noise``: ``(read_var_dn2, inv_gain)`` of the map's noise model
-/// (weighted fits) or None (unweighted). Returns float32 (7, h/bin, w/bin): n, k, n_se,
-/// k_se, rms_residual, class code, reason code (the map's values; see ``_map_names``).
+/// ``pattern`` (and, for colour mosaics, ``color`` and ``bands``) a (T, h, w) DoFP
+/// mosaic stack whose first ``halo = (top, bottom, left, right)`` rows/columns are
+/// neighbours of the block (read by the bilinear interpolation, not mapped).
+/// ``beta_deg``: (T,) one β per capture, or (T, h/bin, w/bin) per pixel (NaN: no
+/// geometry). The prototypes: ``model_json`` (a model's text) or ``library``.
+/// ``dark_level`` (T,), ``saturation`` (T,) or None. ``rule``, ``confidence``,
+/// ``angle_sd_deg`` (one per capture), ``dolp_floor``, ``extinction_ratio``,
+/// ``retardance_deg``, ``bench``: the answer rule and its error model, as ``polarid
+/// map``. ``noise``: weighted fits with the map's noise model of every band (a list,
+/// increasing wavelength, of ``(read_var_dn2, inv_gain)`` or None: that band unweighted),
+/// or None (unweighted). Returns float32 (6 B + 2, h/bin, w/bin): for each band
+/// (one for single-band frames, else in increasing wavelength) n, k, n_se, k_se,
+/// rms_residual and the band's reason code, then the map's class and reason codes
+/// (see ``_map_names``).
 #[pyfunction]
-#[pyo3(signature = (frames, angles_deg, beta_deg, model_json, *, label = "<model>", pattern = None, halo = (0, 0, 0, 0), bin = 1, dark_level = None, saturation = None, min_s0 = None, max_distance = None, metric = "euclidean", tile = map::DEFAULT_TILE, rule = "set", confidence = polarid_core::classify::DEFAULT_CONFIDENCE, angle_sd_deg = None, dolp_floor = MapErrors::default().dolp_floor, extinction_ratio = MapErrors::default().extinction_ratio, retardance_deg = MapErrors::default().retardance_deg, noise = None))]
+#[pyo3(signature = (frames, angles_deg, beta_deg, model_json = None, *, library = None, label = "<model>", pattern = None, color = None, bands = None, halo = (0, 0, 0, 0), bin = 1, dark_level = None, saturation = None, min_s0 = None, max_distance = None, metric = "euclidean", tile = map::DEFAULT_TILE, rule = "set", confidence = polarid_core::classify::DEFAULT_CONFIDENCE, angle_sd_deg = None, dolp_floor = MapErrors::default().dolp_floor, extinction_ratio = MapErrors::default().extinction_ratio, retardance_deg = MapErrors::default().retardance_deg, noise = None, bench = "same"))]
 #[allow(clippy::too_many_arguments)]
 fn _map_block<'py>(
     py: Python<'py>,
     frames: &Bound<'py, PyAny>,
     angles_deg: Option<Vec<f64>>,
     beta_deg: &Bound<'py, PyAny>,
-    model_json: &str,
+    model_json: Option<&str>,
+    library: Option<String>,
     label: &str,
     pattern: Option<Vec<f64>>,
+    color: Option<&str>,
+    bands: Option<HashMap<String, f64>>,
     halo: (usize, usize, usize, usize),
     bin: usize,
     dark_level: Option<Vec<f64>>,
@@ -413,10 +461,12 @@ fn _map_block<'py>(
     dolp_floor: f64,
     extinction_ratio: f64,
     retardance_deg: f64,
-    noise: Option<(f64, f64)>,
+    noise: Option<Vec<Option<(f64, f64)>>>,
+    bench: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
+    let colour = color.map(|c| (c, bands));
     let inp = inputs(
-        frames, angles_deg, beta_deg, pattern, halo, bin, dark_level, saturation,
+        frames, angles_deg, beta_deg, pattern, colour, halo, bin, dark_level, saturation,
     )?;
     let errors = ErrorArgs {
         angle_sd_deg: angle_sd_deg
@@ -432,6 +482,7 @@ fn _map_block<'py>(
             errors.angle_sd_deg.len()
         )));
     }
+    errors.check()?;
     let cfg = config(
         bin,
         min_s0,
@@ -441,27 +492,52 @@ fn _map_block<'py>(
         rule,
         confidence,
         &errors,
+        bench,
     )?;
-    let pc = classifier(&cfg, confidence, model_json, label, &errors)?;
-    let noise = match noise {
-        Some((r2, ig)) => {
-            if !(r2.is_finite() && ig.is_finite() && r2 >= 0.0 && ig >= 0.0 && r2 + ig > 0.0) {
-                return Err(value_error(format!(
-                    "noise must be (read_var_dn2, inv_gain), finite, >= 0 and not both 0, got ({r2}, {ig})"
-                )));
+    let protos = Protos::new(model_json, library, label)?;
+    let mut models = Vec::new();
+    for &m in noise.iter().flatten() {
+        models.push(match m {
+            Some((r2, ig)) => {
+                if !(r2.is_finite() && ig.is_finite() && r2 >= 0.0 && ig >= 0.0 && r2 + ig > 0.0)
+                {
+                    return Err(value_error(format!(
+                        "noise must be (read_var_dn2, inv_gain), finite, >= 0 and not both 0, got ({r2}, {ig})"
+                    )));
+                }
+                Some(NoiseModel {
+                    read_var_dn2: r2,
+                    inv_gain: ig,
+                })
             }
-            Some(NoiseModel {
-                read_var_dn2: r2,
-                inv_gain: ig,
-            })
-        }
-        None => None,
+            None => None,
+        });
+    }
+    let noise = noise.is_some().then_some(models.as_slice());
+    let model = errors.model();
+    let (far, beta): (Vec<f64>, Vec<Vec<f32>>) = match inp.beta_rad() {
+        BetaRad::Shared(b) => (b, Vec::new()),
+        BetaRad::PerPixel(m) => (vec![f64::NAN; inp.t_len], m),
     };
-    let job = inp.job(bin, min_s0, tile);
+    let src = protos.src();
+    let fit = with_raw!(&inp.raw, |data| {
+        let f = inp.frames(data);
+        py.detach(|| map_frames(&cfg, src, &f, &far, &beta, &model, noise, Path::new(label)))
+    });
+    let fit = fit.py_err()?;
     let (ow, oh) = (inp.ow, inp.oh);
-    let out = with_raw!(&inp.raw, |data| py.detach(|| job.run(data, &pc, noise)));
-    let out = out.py_err()?;
-    let a = ArrayD::from_shape_vec(IxDyn(&[PLANES, oh, ow]), out)
+    let npix = ow * oh;
+    let nb = fit.bands.len();
+    let mut out: Vec<f32> = Vec::with_capacity((BAND_PLANES * nb + 2) * npix);
+    for b in &fit.bands {
+        for plane in [&b.n, &b.k, &b.n_se, &b.k_se, &b.rms_residual] {
+            out.extend_from_slice(plane);
+        }
+        out.extend(b.reason.iter().map(|&r| r as f32));
+    }
+    out.extend(fit.class.iter().map(|&c| c as f32));
+    out.extend(fit.reason.iter().map(|&r| r as f32));
+    let a = ArrayD::from_shape_vec(IxDyn(&[BAND_PLANES * nb + 2, oh, ow]), out)
         .map_err(|e| value_error(e.to_string()))?;
     Ok(to_numpy(py, a))
 }
@@ -469,16 +545,18 @@ fn _map_block<'py>(
 /// The noise-model sample of a block (private: the global step of
 /// ``polarid.dask.material_map``'s weighted fits; see the module documentation).
 ///
-/// Inputs as ``_map_block``. Without ``row_offsets``: int64 (h/bin,), the number of
-/// usable pixels of every map row of the block (pixels without a flag whose captures'
-/// DoLP, noise terms and β are finite: all captures, or at least 3 with a β per pixel).
-/// With ``row_offsets`` (int64 (h/bin,): the usable pixels of the whole map before each
-/// row of the block, row-major) and ``stride``: a dict of the block's usable pixels
-/// whose map rank is a multiple of ``stride``: ``index`` int64 (S,) (row-major within
-/// the block's map pixels), ``dolp``, ``read``, ``shot`` float32 (S, T) and, with a β
-/// per pixel, ``beta_rad`` float32 (S, T) (the radians the fit uses).
+/// Inputs as ``_map_block``; ``band``: the band sampled (index in increasing
+/// wavelength; 0 for single-band frames). Without ``row_offsets``: int64
+/// (h/bin,), the number of usable pixels of every map row of the block (pixels without a
+/// flag whose captures' DoLP, noise terms and β are finite: all captures, or at least 3
+/// with a β per pixel). With ``row_offsets`` (int64 (h/bin,): the usable pixels of the
+/// whole map before each row of the block, row-major) and ``stride``: a dict of the
+/// block's usable pixels whose map rank is a multiple of ``stride``: ``index`` int64
+/// (S,) (row-major within the block's map pixels), ``dolp``, ``read``, ``shot`` float32
+/// (S, T) and, with a β per pixel, ``beta_rad`` float32 (S, T) (the radians the fit
+/// uses).
 #[pyfunction]
-#[pyo3(signature = (frames, angles_deg, beta_deg, *, pattern = None, halo = (0, 0, 0, 0), bin = 1, dark_level = None, saturation = None, min_s0 = None, row_offsets = None, stride = 1))]
+#[pyo3(signature = (frames, angles_deg, beta_deg, *, pattern = None, color = None, bands = None, band = 0, halo = (0, 0, 0, 0), bin = 1, dark_level = None, saturation = None, min_s0 = None, row_offsets = None, stride = 1))]
 #[allow(clippy::too_many_arguments)]
 fn _noise_block<'py>(
     py: Python<'py>,
@@ -486,6 +564,9 @@ fn _noise_block<'py>(
     angles_deg: Option<Vec<f64>>,
     beta_deg: &Bound<'py, PyAny>,
     pattern: Option<Vec<f64>>,
+    color: Option<&str>,
+    bands: Option<HashMap<String, f64>>,
+    band: usize,
     halo: (usize, usize, usize, usize),
     bin: usize,
     dark_level: Option<Vec<f64>>,
@@ -494,14 +575,12 @@ fn _noise_block<'py>(
     row_offsets: Option<Vec<i64>>,
     stride: usize,
 ) -> PyResult<Bound<'py, PyAny>> {
-    // The options as the map checks them (nearest rule: no model needed here).
-    if bin == 0 || bin > 64 {
-        return Err(value_error(format!("bin must be in 1..=64, got {bin}")));
-    }
+    // The options as the map checks them.
+    let cfg = MapConfig::new(bin, min_s0, None, map::Metric::Euclidean, 1).py_err()?;
+    let colour = color.map(|c| (c, bands));
     let inp = inputs(
-        frames, angles_deg, beta_deg, pattern, halo, bin, dark_level, saturation,
+        frames, angles_deg, beta_deg, pattern, colour, halo, bin, dark_level, saturation,
     )?;
-    let job = inp.job(bin, min_s0, 1);
     let (ow, oh, t_len) = (inp.ow, inp.oh, inp.t_len);
     if let Some(o) = &row_offsets
         && o.len() != oh
@@ -512,11 +591,22 @@ fn _noise_block<'py>(
         )));
     }
     let stride = stride.max(1) as i64;
-    let st = with_raw!(&inp.raw, |data| py.detach(|| job.stage1(data, true)));
-    let st = st.py_err()?;
-    let beta_rad = job.beta_rad(ow * oh);
+    let per_pixel = inp.per_pixel;
+    let bands = with_raw!(&inp.raw, |data| {
+        let f = inp.frames(data);
+        py.detach(|| frames_bands(&cfg, &f, per_pixel, true))
+    });
+    let bands = bands.py_err()?;
+    let Some(b) = bands.get(band) else {
+        return Err(value_error(format!(
+            "band {band} of a map of {} band(s)",
+            bands.len()
+        )));
+    };
+    let (dolp, flags, read, shot) = b.images();
+    let beta_rad = inp.beta_rad();
     let masks: Vec<u64> = (0..ow * oh)
-        .map(|p| usable_mask(&st, &beta_rad, t_len, p))
+        .map(|p| usable_mask((dolp, flags, read, shot), &beta_rad, t_len, p))
         .collect();
     let Some(offsets) = row_offsets else {
         let counts: Vec<i64> = masks
@@ -551,9 +641,9 @@ fn _noise_block<'py>(
         Ok(to_numpy(py, a))
     };
     let d = PyDict::new(py);
-    d.set_item("dolp", gather(&st.dolp)?)?;
-    d.set_item("read", gather(&st.read)?)?;
-    d.set_item("shot", gather(&st.shot)?)?;
+    d.set_item("dolp", gather(dolp)?)?;
+    d.set_item("read", gather(read)?)?;
+    d.set_item("shot", gather(shot)?)?;
     if let BetaRad::PerPixel(maps) = &beta_rad {
         d.set_item("beta_rad", gather(maps)?)?;
     }
@@ -658,12 +748,13 @@ enum BetaRad {
 /// usable): the rule of `polarid_core::map::noise::estimate_noise` (no signal flag;
 /// DoLP, noise terms and β finite, a term positive; every capture, or with a β per
 /// pixel and fewer than 64 captures at least 3 of them).
-fn usable_mask(st: &Stage1, beta: &BetaRad, t_len: usize, p: usize) -> u64 {
-    if signal_reason(st.flags[p]) != 0 {
+fn usable_mask(st: BandImages<'_>, beta: &BetaRad, t_len: usize, p: usize) -> u64 {
+    let (dolp, flags, read, shot) = st;
+    if signal_reason(flags[p]) != 0 {
         return 0;
     }
     let ok = |t: usize| {
-        let (d, a, b) = (st.dolp[t][p], st.read[t][p], st.shot[t][p]);
+        let (d, a, b) = (dolp[t][p], read[t][p], shot[t][p]);
         let bt = match beta {
             BetaRad::Shared(v) => v[t],
             BetaRad::PerPixel(m) => m[t][p] as f64,
@@ -683,235 +774,5 @@ fn usable_mask(st: &Stage1, beta: &BetaRad, t_len: usize, p: usize) -> u64 {
     }
 }
 
-/// Stage 1 of a block: the DoLP of every capture, the signal flags (calibrated rules
-/// applied) and, when asked, the noise terms `(A, B)` of every capture.
-struct Stage1 {
-    dolp: Vec<Vec<f32>>,
-    flags: Vec<u8>,
-    read: Vec<Vec<f32>>,
-    shot: Vec<Vec<f32>>,
-}
-
-/// Everything a block's computation needs, checked (built with the GIL held).
-struct Job<'a> {
-    t_len: usize,
-    a_len: usize,
-    hh: usize,
-    ww: usize,
-    halo: [usize; 4],
-    bin: usize,
-    per_pixel: bool,
-    solver: Option<&'a StokesSolver>,
-    pattern: Option<&'a Pattern>,
-    rules: &'a [PixelRules],
-    is_int: bool,
-    min_s0: Option<f64>,
-    tile: usize,
-    beta: &'a [f64],
-}
-
-impl Job<'_> {
-    /// β in radians, as the fit takes it (see [`BetaRad`]).
-    fn beta_rad(&self, npix: usize) -> BetaRad {
-        if self.per_pixel {
-            BetaRad::PerPixel(
-                self.beta
-                    .chunks_exact(npix.max(1))
-                    .map(|b| b.iter().map(|d| d.to_radians() as f32).collect())
-                    .collect(),
-            )
-        } else {
-            BetaRad::Shared(self.beta.iter().map(|d| d.to_radians()).collect())
-        }
-    }
-
-    /// Stage 1: the pipeline's `capture_dolp` per capture (with the noise terms when
-    /// `noise`), then its calibrated rules.
-    fn stage1<T: Sample>(&self, data: &[T], noise: bool) -> Result<Stage1, CoreError> {
-        let (hh, ww, halo, bin) = (self.hh, self.ww, self.halo, self.bin);
-        let (h, w) = (hh - halo[0] - halo[1], ww - halo[2] - halo[3]);
-        let (ow, oh) = cmap::binned_size(w, h, bin)?;
-        let npix = ow * oh;
-        let plane = hh * ww;
-        let mut flags = vec![0u8; npix];
-        let mut capture_flags = vec![0u8; npix];
-        let mut dropped = vec![0u8; npix];
-        let mut dolp: Vec<Vec<f32>> = Vec::with_capacity(self.t_len);
-        let (mut read, mut shot) = (Vec::new(), Vec::new());
-        let quad = NoiseAnalyzer::quad();
-        for (t, r) in self.rules.iter().enumerate() {
-            let mut d = vec![0f32; npix];
-            let (mut ra, mut rb) = if noise {
-                (vec![0f32; npix], vec![0f32; npix])
-            } else {
-                (Vec::new(), Vec::new())
-            };
-            let f = if self.per_pixel {
-                capture_flags.fill(0);
-                &mut capture_flags
-            } else {
-                &mut flags
-            };
-            let mut r = *r;
-            let th = min_s0_for(&r, self.is_int, self.min_s0);
-            let cap = &data[t * self.a_len * plane..(t + 1) * self.a_len * plane];
-            match (self.solver, self.pattern) {
-                (Some(solver), _) => {
-                    r.min_s0 = th;
-                    let an = NoiseAnalyzer::of_solver(solver);
-                    let nz = noise.then(|| NoiseOut {
-                        analyzer: &an,
-                        scale: 1.0,
-                        read: &mut ra,
-                        shot: &mut rb,
-                    });
-                    let views: Vec<&[T]> = cap.chunks_exact(plane).collect();
-                    cmap::frames_dolp_noise(solver, &views, ww, &r, bin, &mut d, f, nz)?;
-                }
-                (None, Some(p)) => {
-                    // The dark test is made on the block mean by stokes_dolp.
-                    r.min_s0 = f32::MIN;
-                    let z = || vec![0f32; plane];
-                    let (mut s0, mut s1, mut s2, mut m) = (z(), z(), z(), vec![0u8; plane]);
-                    mosaic::bilinear_stokes(
-                        cap, ww, p, &r, false, &mut s0, &mut s1, &mut s2, &mut m,
-                    )?;
-                    if halo != [0; 4] {
-                        s0 = crop(&s0, ww, hh, halo);
-                        s1 = crop(&s1, ww, hh, halo);
-                        s2 = crop(&s2, ww, hh, halo);
-                        m = crop(&m, ww, hh, halo);
-                    }
-                    let nz = noise.then(|| NoiseOut {
-                        analyzer: &quad,
-                        scale: 1.0,
-                        read: &mut ra,
-                        shot: &mut rb,
-                    });
-                    cmap::stokes_dolp_noise(w, &s0, &s1, &s2, Some(&m), th, bin, &mut d, f, nz)?;
-                }
-                (None, None) => {
-                    return Err(CoreError::TooFew {
-                        what: "polarizer angles or a DoFP pattern",
-                        needed: 1,
-                        got: 0,
-                    });
-                }
-            }
-            if self.per_pixel {
-                // Calibrated rules: a capture in which the pixel is dark or saturated
-                // is left out of its own fit.
-                let drop = cmap::flag::DARK | cmap::flag::SATURATED;
-                for (((f, g), cf), v) in flags
-                    .iter_mut()
-                    .zip(dropped.iter_mut())
-                    .zip(&capture_flags)
-                    .zip(d.iter_mut())
-                {
-                    if cf & drop != 0 {
-                        *v = f32::NAN;
-                    }
-                    *g |= cf & drop;
-                    *f |= cf & !drop;
-                }
-            }
-            dolp.push(d);
-            if noise {
-                read.push(ra);
-                shot.push(rb);
-            }
-        }
-        if self.per_pixel {
-            for (p, (f, g)) in flags.iter_mut().zip(&dropped).enumerate() {
-                if dolp.iter().filter(|d| !d[p].is_nan()).count() < 3 {
-                    *f |= g;
-                }
-            }
-        }
-        Ok(Stage1 {
-            dolp,
-            flags,
-            read,
-            shot,
-        })
-    }
-
-    /// Stage 1 and stage 2 (`fit_and_classify`, weighted by `noise` when given); the
-    /// planes of the result.
-    fn run<T: Sample>(
-        &self,
-        data: &[T],
-        pc: &PixelClassifier,
-        noise: Option<NoiseModel>,
-    ) -> Result<Vec<f32>, CoreError> {
-        let st = self.stage1(data, noise.is_some())?;
-        let npix = st.flags.len();
-        let mut res = vec![0f32; PLANES * npix];
-        let (n, rest) = res.split_at_mut(npix);
-        let (k, rest) = rest.split_at_mut(npix);
-        let (n_se, rest) = rest.split_at_mut(npix);
-        let (k_se, rest) = rest.split_at_mut(npix);
-        let (rms, rest) = rest.split_at_mut(npix);
-        let (class_f, reason_f) = rest.split_at_mut(npix);
-        let mut class = vec![0u16; npix];
-        let mut why = vec![0u8; npix];
-        let views: Vec<&[f32]> = st.dolp.iter().map(Vec::as_slice).collect();
-        let rv: Vec<&[f32]> = st.read.iter().map(Vec::as_slice).collect();
-        let sv: Vec<&[f32]> = st.shot.iter().map(Vec::as_slice).collect();
-        let map_noise = noise.map(|model| MapNoise {
-            model,
-            read: &rv,
-            shot: &sv,
-        });
-        let outputs = MapOutputs {
-            n,
-            k,
-            n_se,
-            k_se,
-            rms_residual: rms,
-            class: &mut class,
-            reason: &mut why,
-        };
-        match self.beta_rad(npix) {
-            BetaRad::PerPixel(maps) => {
-                let bviews: Vec<&[f32]> = maps.iter().map(Vec::as_slice).collect();
-                let plan = PixelBetaPlan::new(FitOptions::default())?;
-                let betas = Betas::PerPixel {
-                    plan: &plan,
-                    beta: &bviews,
-                };
-                cmap::fit_and_classify(
-                    betas,
-                    pc,
-                    &views,
-                    map_noise,
-                    &st.flags,
-                    self.tile,
-                    outputs,
-                    &|_| {},
-                )?;
-            }
-            BetaRad::Shared(b) => {
-                let plan = FitPlan::new(&b, FitOptions::default())?;
-                let betas = Betas::Shared(&plan);
-                cmap::fit_and_classify(
-                    betas,
-                    pc,
-                    &views,
-                    map_noise,
-                    &st.flags,
-                    self.tile,
-                    outputs,
-                    &|_| {},
-                )?;
-            }
-        }
-        for (o, &c) in class_f.iter_mut().zip(&class) {
-            *o = c as f32;
-        }
-        for (o, &r) in reason_f.iter_mut().zip(&why) {
-            *o = r as f32;
-        }
-        Ok(res)
-    }
-}
+/// A band's images ([`polarid_pipeline::map::BandDolp::images`]).
+type BandImages<'a> = (&'a [Vec<f32>], &'a [u8], &'a [Vec<f32>], &'a [Vec<f32>]);

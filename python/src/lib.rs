@@ -3,8 +3,8 @@
 //! Layout: one Rust module per topic, each with a `register(m)` function that adds its
 //! `#[pyfunction]`s to the extension module (`model.rs`: the eq. (9) forward model;
 //! `stokes.rs`: Stokes/DoFP/DoLP/AoLP images; `colour.rs`: colour DoFP mosaics per band; `pbrdf.rs`: eq. (3); `fit.rs`: the
-//! `(n, k)` fit; `classify.rs`; `files.rs`: manifests and `measure`; `simulate.rs`; `block.rs`: one block of a map, for
-//! `polarid.dask`; `block_colour.rs`: one block of a colour map). Shared pieces: `errors.rs` (the
+//! `(n, k)` fit; `classify.rs`; `files.rs`: manifests and `measure`; `simulate.rs`; `block.rs`: one block of a map
+//! (single-band or colour), for `polarid.dask`). Shared pieces: `errors.rs` (the
 //! one mapping of `CoreError`/`IoError` to Python exceptions) and `arrays.rs` (array-like
 //! arguments, broadcasting, zero-copy output). The pure-Python package `polarid`
 //! (`python/polarid/`) re-exports the functions and carries the type stubs.
@@ -15,7 +15,6 @@ use pyo3::prelude::*;
 
 pub mod arrays;
 pub mod block;
-pub mod block_colour;
 pub mod classify;
 pub mod colour;
 pub mod errors;
@@ -44,7 +43,6 @@ fn _polarid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     simulate::register(m)?;
     map::register(m)?;
     block::register(m)?;
-    block_colour::register(m)?;
     m.add("_MAP_DEFAULTS", map_defaults(m.py())?)?;
     Ok(())
 }

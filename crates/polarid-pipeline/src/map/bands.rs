@@ -16,7 +16,7 @@ use std::path::Path;
 
 use polarid_core::classify::{Classifier, ClassifierConfig, MultiPrototype, Prototype, same_band};
 use polarid_core::fit::{FitOptions, FitPlan, PixelBetaPlan};
-use polarid_core::map::noise::{NoiseEstimate, estimate_noise};
+use polarid_core::map::noise::{NoiseEstimate, NoiseModel, estimate_noise};
 use polarid_core::map::sets::MapErrorModel;
 use polarid_core::map::{
     self, Betas, MapCounts, MapNoise, MapOutputs, PixelClassifier, flag, reason,
@@ -145,6 +145,9 @@ pub struct BandDolp {
     dropped: Vec<u8>,
     read: Vec<Vec<f32>>,
     shot: Vec<Vec<f32>>,
+    /// The map's noise model of the band, given (a block of a map, `frames`) instead of
+    /// estimated (`Some(None)`: none, unweighted fits).
+    noise_model: Option<Option<NoiseModel>>,
 }
 
 impl BandDolp {
@@ -173,7 +176,20 @@ impl BandDolp {
             dropped: Vec::new(),
             read: Vec::new(),
             shot: Vec::new(),
+            noise_model: None,
         }
+    }
+
+    /// Weight the band's fits by `m` (the map's noise model of the band; `None`:
+    /// unweighted) instead of estimating one.
+    pub(crate) fn set_noise_model(&mut self, m: Option<NoiseModel>) {
+        self.noise_model = Some(m);
+    }
+
+    /// The band's images: every capture's DoLP (NaN: left out of the pixel's fit), the
+    /// flags of every pixel, and (weighted fits) every capture's noise terms `(A, B)`.
+    pub fn images(&self) -> (&[Vec<f32>], &[u8], &[Vec<f32>], &[Vec<f32>]) {
+        (&self.dolp, &self.flags, &self.read, &self.shot)
     }
 
     /// Add one capture's DoLP `d` with its flags `cf` and, for weighted fits, its noise
@@ -489,7 +505,14 @@ pub(crate) fn fit_bands_with(
         let views: Vec<&[f32]> = a.dolp.iter().map(Vec::as_slice).collect();
         let rv: Vec<&[f32]> = a.read.iter().map(Vec::as_slice).collect();
         let sv: Vec<&[f32]> = a.shot.iter().map(Vec::as_slice).collect();
-        let noise = if weighted {
+        let noise = if let Some(given) = a.noise_model {
+            given.map(|model| NoiseEstimate {
+                model,
+                pixels: 0,
+                outliers: 0,
+                reduced_chi2: f64::NAN,
+            })
+        } else if weighted {
             let e = estimate_noise(betas, &views, &rv, &sv, &a.flags).map_err(core_err)?;
             if e.is_none() {
                 warnings.push(Warning(format!(

@@ -43,6 +43,7 @@
 mod bands;
 mod capture;
 mod decide;
+mod frames;
 mod geometry;
 pub mod rules;
 mod summary;
@@ -64,6 +65,7 @@ pub use bands::{
     is_colour, output_files,
 };
 pub use decide::MapPrototypes;
+pub use frames::{Frames, FramesSource, band_order, frames_bands, frames_class_names, map_frames};
 pub use polarid_core::map::reason::NAMES as REASON_NAMES;
 pub use summary::RegionSummary;
 
