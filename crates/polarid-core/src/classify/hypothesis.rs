@@ -939,7 +939,7 @@ pub fn test_hypothesis(
     cfg.validate()?;
     check_rows(rows, wavelengths)?;
     check_candidate(cand, wavelengths)?;
-    Ok(test_checked(rows, wavelengths, cand, cfg, true))
+    Ok(test_checked(rows, wavelengths, cand, cfg))
 }
 
 /// The statistic of [`test_hypothesis`] alone: `(χ²_min, ν)`, the minimum `χ²` over the
@@ -956,30 +956,39 @@ pub fn test_statistic(
     cfg.validate()?;
     check_rows(rows, wavelengths)?;
     check_candidate(cand, wavelengths)?;
-    let f = test_checked(rows, wavelengths, cand, cfg, false);
+    let f = fit_checked(rows, wavelengths, cand, cfg, Detail::Statistic);
     Ok((f.chi2, f.dof))
 }
 
-/// The test; `full: false` leaves the p-value, the verdict and the evidence out (NaN,
-/// false, NaN).
+/// The full test: statistic, verdict and evidence.
 fn test_checked(
     rows: &[HypRow],
     wavelengths: &[f64],
     cand: &CandidateModel,
     cfg: &HypothesisConfig,
-    full: bool,
 ) -> NuisanceFit {
-    fit_checked(rows, wavelengths, cand, cfg, true)
+    fit_checked(rows, wavelengths, cand, cfg, Detail::Evidence)
 }
 
-/// [`test_checked`]; without `with_evidence` the log evidence is left NaN (a pixel's
-/// decision needs only the verdicts, [`pixel`]).
+/// How much of a test [`fit_checked`] computes.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Detail {
+    /// `χ²_min` and `ν` only: the p-value, verdict and evidence are NaN, false, NaN
+    /// (planning, [`test_statistic`]).
+    Statistic,
+    /// Also the p-value and verdict; the evidence is NaN (a pixel's decision, [`pixel`]).
+    Verdict,
+    /// Everything, the log evidence included.
+    Evidence,
+}
+
+/// [`test_checked`] computing only what `detail` asks for.
 fn fit_checked(
     rows: &[HypRow],
     wavelengths: &[f64],
     cand: &CandidateModel,
     cfg: &HypothesisConfig,
-    with_evidence: bool,
+    detail: Detail,
 ) -> NuisanceFit {
     let nu = cfg.nuisances;
     let (d_lo, d_hi) = cand
@@ -1162,7 +1171,7 @@ fn fit_checked(
     );
     // The statistic's null mean: its effective degrees of freedom.
     let dof = resid as f64 + draws.iter().sum::<f64>() / draws.len() as f64;
-    if !full {
+    if detail == Detail::Statistic {
         return NuisanceFit {
             chi2,
             dof,
@@ -1176,7 +1185,7 @@ fn fit_checked(
     }
     let p_value = mixture_sf(chi2, resid, &draws);
     let consistent = p_value >= 1.0 - cfg.confidence;
-    let log_evidence = if with_evidence {
+    let log_evidence = if detail == Detail::Evidence {
         evidence(&mut prof, (d_lo, d_hi), off) - ln_sigma
     } else {
         f64::NAN
@@ -1334,7 +1343,7 @@ pub fn classify_rows(
         };
         check_candidate(&cand, wavelengths)?;
         let prior = priors.map_or(1.0, |w| w[i]);
-        fits.push((i, test_checked(rows, wavelengths, &cand, cfg, true), prior));
+        fits.push((i, test_checked(rows, wavelengths, &cand, cfg), prior));
     }
     let bands_used: Vec<Option<f64>> = wavelengths.iter().map(|&w| Some(w)).collect();
     if fits.is_empty() {

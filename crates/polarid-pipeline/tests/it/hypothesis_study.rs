@@ -174,88 +174,91 @@ fn reliability_png(path: &std::path::Path, rel: &[(f64, bool)], edges: &[f64], c
     plotters::style::register_font("sans-serif", FontStyle::Normal, FONT)
         .map_err(|_| "font")
         .unwrap();
-    let root = BitMapBackend::new(path, (900, 820)).into_drawing_area();
-    root.fill(&WHITE).unwrap();
-    let mut chart = ChartBuilder::on(&root)
-        .caption(caption, ("sans-serif", 24))
-        .margin(20)
-        .x_label_area_size(60)
-        .y_label_area_size(70)
-        .build_cartesian_2d(0.0f64..1.0, 0.0f64..1.0)
-        .unwrap();
-    chart
-        .configure_mesh()
-        .x_desc("stated probability (bin mean)")
-        .y_desc("observed frequency of the truth")
-        .label_style(("sans-serif", 18))
-        .axis_desc_style(("sans-serif", 20))
-        .draw()
-        .unwrap();
-    chart
-        .draw_series(LineSeries::new(
-            [(0.0, 0.0), (1.0, 1.0)],
-            BLACK.mix(0.4).stroke_width(2),
-        ))
-        .unwrap()
-        .label("perfectly reliable")
-        .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLACK.mix(0.4)));
-    let blue = RGBColor(31, 119, 180);
-    let mut pts = Vec::new();
-    for w in edges.windows(2) {
-        let sel: Vec<&(f64, bool)> = rel.iter().filter(|r| r.0 >= w[0] && r.0 < w[1]).collect();
-        if sel.is_empty() {
-            continue;
+    let (w, h) = (900usize, 820usize);
+    let mut buf = vec![0u8; w * h * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w as u32, h as u32)).into_drawing_area();
+        root.fill(&WHITE).unwrap();
+        let mut chart = ChartBuilder::on(&root)
+            .caption(caption, ("sans-serif", 24))
+            .margin(20)
+            .x_label_area_size(60)
+            .y_label_area_size(70)
+            .build_cartesian_2d(0.0f64..1.0, 0.0f64..1.0)
+            .unwrap();
+        chart
+            .configure_mesh()
+            .x_desc("stated probability (bin mean)")
+            .y_desc("observed frequency of the truth")
+            .label_style(("sans-serif", 18))
+            .axis_desc_style(("sans-serif", 20))
+            .draw()
+            .unwrap();
+        chart
+            .draw_series(LineSeries::new(
+                [(0.0, 0.0), (1.0, 1.0)],
+                BLACK.mix(0.4).stroke_width(2),
+            ))
+            .unwrap()
+            .label("perfectly reliable")
+            .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLACK.mix(0.4)));
+        let blue = RGBColor(31, 119, 180);
+        let mut pts = Vec::new();
+        for w in edges.windows(2) {
+            let sel: Vec<&(f64, bool)> = rel.iter().filter(|r| r.0 >= w[0] && r.0 < w[1]).collect();
+            if sel.is_empty() {
+                continue;
+            }
+            let n = sel.len() as f64;
+            let mean = sel.iter().map(|r| r.0).sum::<f64>() / n;
+            let obs = sel.iter().filter(|r| r.1).count() as f64 / n;
+            // Wilson score interval, z = 1.96.
+            let z = 1.96f64;
+            let c = (obs + z * z / (2.0 * n)) / (1.0 + z * z / n);
+            let h = z * (obs * (1.0 - obs) / n + z * z / (4.0 * n * n)).sqrt() / (1.0 + z * z / n);
+            pts.push((mean, obs, c - h, c + h, sel.len()));
         }
-        let n = sel.len() as f64;
-        let mean = sel.iter().map(|r| r.0).sum::<f64>() / n;
-        let obs = sel.iter().filter(|r| r.1).count() as f64 / n;
-        // Wilson score interval, z = 1.96.
-        let z = 1.96f64;
-        let c = (obs + z * z / (2.0 * n)) / (1.0 + z * z / n);
-        let h = z * (obs * (1.0 - obs) / n + z * z / (4.0 * n * n)).sqrt() / (1.0 + z * z / n);
-        pts.push((mean, obs, c - h, c + h, sel.len()));
-    }
-    chart
-        .draw_series(
-            pts.iter().map(|&(x, _, lo, hi, _)| {
+        chart
+            .draw_series(pts.iter().map(|&(x, _, lo, hi, _)| {
                 PathElement::new([(x, lo), (x, hi)], blue.stroke_width(2))
-            }),
-        )
-        .unwrap();
-    chart
-        .draw_series(LineSeries::new(
-            pts.iter().map(|p| (p.0, p.1)),
-            blue.stroke_width(2),
-        ))
-        .unwrap()
-        .label("observed (95% interval), materials per bin")
-        .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], blue.stroke_width(2)));
-    chart
-        .draw_series(
-            pts.iter()
-                .map(|&(x, y, _, _, _)| Circle::new((x, y), 6, blue.filled())),
-        )
-        .unwrap();
-    chart
-        .draw_series(pts.iter().map(|&(x, y, _, _, n)| {
-            let (dx, dy) = if y > 0.9 { (-80, 12) } else { (10, -22) };
-            EmptyElement::at((x, y))
-                + Text::new(
-                    format!("{n}"),
-                    (dx, dy),
-                    ("sans-serif", 17).into_font().color(&BLACK),
-                )
-        }))
-        .ok();
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .label_font(("sans-serif", 18))
-        .background_style(WHITE.mix(0.9))
-        .border_style(BLACK.mix(0.3))
-        .draw()
-        .unwrap();
-    root.present().unwrap();
+            }))
+            .unwrap();
+        chart
+            .draw_series(LineSeries::new(
+                pts.iter().map(|p| (p.0, p.1)),
+                blue.stroke_width(2),
+            ))
+            .unwrap()
+            .label("observed (95% interval), materials per bin")
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], blue.stroke_width(2)));
+        chart
+            .draw_series(
+                pts.iter()
+                    .map(|&(x, y, _, _, _)| Circle::new((x, y), 6, blue.filled())),
+            )
+            .unwrap();
+        chart
+            .draw_series(pts.iter().map(|&(x, y, _, _, n)| {
+                let (dx, dy) = if y > 0.9 { (-80, 12) } else { (10, -22) };
+                EmptyElement::at((x, y))
+                    + Text::new(
+                        format!("{n}"),
+                        (dx, dy),
+                        ("sans-serif", 17).into_font().color(&BLACK),
+                    )
+            }))
+            .ok();
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .label_font(("sans-serif", 18))
+            .background_style(WHITE.mix(0.9))
+            .border_style(BLACK.mix(0.3))
+            .draw()
+            .unwrap();
+        root.present().unwrap();
+    }
+    polarid_io::image::write_rgb8_png(path, true, w, h, &buf).unwrap();
 }
 
 #[derive(Default, Debug)]

@@ -41,7 +41,7 @@ use std::f64::consts::FRAC_PI_2;
 use std::sync::{Arc, OnceLock, RwLock};
 
 use super::{
-    CandidateModel, HypRow, HypothesisConfig, check_candidate, check_rows, chi2_pass_bound,
+    CandidateModel, Detail, HypRow, HypothesisConfig, check_candidate, check_rows, chi2_pass_bound,
     fit_checked, layered_dolp,
 };
 use crate::classify::MultiPrototype;
@@ -390,7 +390,7 @@ impl PixelTests {
             if found == Some(mat.class) {
                 continue;
             }
-            if fit_checked(rows, wavelengths, &mat.cand, cfg, false).consistent {
+            if fit_checked(rows, wavelengths, &mat.cand, cfg, Detail::Verdict).consistent {
                 if found.is_some() {
                     return Ok(Verdict::Several);
                 }
