@@ -26,7 +26,7 @@ pub(super) fn fit_target(
     cfg: &FitConfig,
 ) -> Result<TargetFit> {
     let caps = captures(path, g, opts)?;
-    let rep = mixed::fit_mixed(&caps, opts).map_err(|e| {
+    let rep = fit_and_select(g, &caps, opts, cfg).map_err(|e| {
         data(
             path,
             format!("target {:?} (lines {}): {e}", g.target, g.lines()),
@@ -69,7 +69,7 @@ fn lambert(caps: &[MixedCapture], eps: f64) -> (f64, usize, f64) {
 ///
 /// 1. `s0` follows Lambert's cosine law (p ≥ [`LAMBERT_P`] at the relative error
 ///    `s0_rel_sd`): no specular lobe, status `depolarized`;
-/// 2. else both radiometric models are fitted and compared (BIC, [`mixed::fit_mixed`]):
+/// 2. else both radiometric models are fitted and compared (BIC, [`fit_and_select`]):
 ///    the pure specular model selected, the DoLP-only fit `spec` stands unchanged; the
 ///    mixed model selected, its fit is the row (`model = mixed`, total errors, the AoLP
 ///    check), `depolarized` when its specular share stays below 0.1 everywhere.
@@ -96,7 +96,7 @@ pub(super) fn brightness_check(
         );
         return TargetFit { row, report: None };
     }
-    let Ok(rep) = mixed::fit_mixed(&caps, opts) else {
+    let Ok(rep) = fit_and_select(g, &caps, opts, cfg) else {
         return spec;
     };
     if rep.selected == MixedModel::Specular {
@@ -113,6 +113,64 @@ pub(super) fn brightness_check(
         row,
         report: Some(rep),
     }
+}
+
+/// Both radiometric models fitted to a target's captures ([`mixed::fit_mixed`], the
+/// DoLP weighted by its noise), the model selected with the DoLP errors of noise **and**
+/// the independent per-capture part of the bench's systematic error (docs/MIXED.md
+/// "Model selection"; docs/ERRORS.md, error model):
+///
+/// ```text
+/// se_sel,t² = dolp_se_t² + f² + P'(β_t)² σ_t²/4
+/// ```
+///
+/// (`f` the DoLP floor, `σ_t` the row's angle uncertainty, `P'` at the specular
+/// radiometric fit's `(n, k)`). The noise alone would let the DoLP residuals that the
+/// bench's angle errors leave (a 0.2° error of a source position moves a paint's DoLP by
+/// about 0.001, ten times the noise of a 96² region) outweigh a misfit of the brightness:
+/// the mixed model, trading a 4σ misfit of `S0` at every capture for a better DoLP
+/// curve, would be selected with its roughness at a bound. The selection's criteria
+/// (`selected`, `delta_bic`, `delta_aic`, each fit's `aic`, `bic`) are those of the fits
+/// under these errors; the fits themselves (and their covariances) stay noise-weighted.
+/// Captures without `dolp_se` keep the assumed `dolp_sd` (their error scale is estimated
+/// from the residuals).
+pub(super) fn fit_and_select(
+    g: &Group,
+    caps: &[MixedCapture],
+    opts: &MixedOptions,
+    cfg: &FitConfig,
+) -> polarid_core::Result<mixed::MixedReport> {
+    let mut rep = mixed::fit_mixed(caps, opts)?;
+    let (n, k) = (rep.specular.n, rep.specular.k);
+    if !(n.is_finite() && k.is_finite()) {
+        return Ok(rep);
+    }
+    let f2 = cfg.dolp_floor * cfg.dolp_floor;
+    let sel_caps: Vec<MixedCapture> = caps
+        .iter()
+        .zip(&g.rows)
+        .map(|(c, (_, m))| {
+            let s = m.angle_sd_deg.unwrap_or(cfg.angle_sd_deg).to_radians();
+            let a = 0.5 * polarid_core::dop::dop_beta_derivs(n, k, c.beta).dp_dbeta * s;
+            let sys2 = f2 + a * a;
+            MixedCapture {
+                dolp_se: c.dolp_se.map(|se| (se * se + sys2).sqrt()),
+                ..*c
+            }
+        })
+        .collect();
+    if sel_caps.as_slice() == caps {
+        return Ok(rep);
+    }
+    let sel = mixed::fit_mixed(&sel_caps, opts)?;
+    rep.selected = sel.selected;
+    rep.delta_bic = sel.delta_bic;
+    rep.delta_aic = sel.delta_aic;
+    rep.specular.aic = sel.specular.aic;
+    rep.specular.bic = sel.specular.bic;
+    rep.mixed.aic = sel.mixed.aic;
+    rep.mixed.bic = sel.mixed.bic;
+    Ok(rep)
 }
 
 /// The row of a radiometric fit with its total (noise + systematic) errors and the AoLP
