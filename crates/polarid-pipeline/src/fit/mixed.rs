@@ -126,8 +126,8 @@ pub(super) fn brightness_check(
 ///
 /// (`f` the DoLP floor, `σ_t` the row's angle uncertainty, `P'` at the specular
 /// radiometric fit's `(n, k)`). The noise alone would let the DoLP residuals that the
-/// bench's angle errors leave (a 0.2° error of a source position moves a paint's DoLP by
-/// about 0.001, ten times the noise of a 96² region) outweigh a misfit of the brightness:
+/// bench's angle errors leave (source positions off by 0.2° left a paint's DoLP residuals
+/// at 0.002 rms, twenty times the noise of a 96² region) outweigh a misfit of the brightness:
 /// the mixed model, trading a 4σ misfit of `S0` at every capture for a better DoLP
 /// curve, would be selected with its roughness at a bound. The selection's criteria
 /// (`selected`, `delta_bic`, `delta_aic`, each fit's `aic`, `bic`) are those of the fits
