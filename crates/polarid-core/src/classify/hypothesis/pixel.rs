@@ -8,7 +8,11 @@
 //! the largest `χ²_min` that can pass ([`chi2_pass_bound`](super::chi2_pass_bound)) fails
 //! without its test. The others are tested exactly as `classify_rows` tests them
 //! ([`fit_checked`](super::fit_checked), without the evidence), most promising first,
-//! until a second class passes (ambiguous).
+//! until a second class passes (ambiguous). A single passing class is then questioned as
+//! `classify_rows` questions it: the other materials under their layers widened to
+//! [`EXTENDED_LAYER_NM`](super::EXTENDED_LAYER_NM), bounded the same way (their own tables)
+//! with the answer's `χ²_min` as a second limit, tested exactly when the bound leaves them
+//! open; one that passes and fits better makes the pixel ambiguous.
 //!
 //! # The lower bound
 //!
@@ -41,8 +45,8 @@ use std::f64::consts::FRAC_PI_2;
 use std::sync::{Arc, OnceLock, RwLock};
 
 use super::{
-    CandidateModel, Detail, HypRow, HypothesisConfig, check_candidate, check_rows, chi2_pass_bound,
-    fit_checked, layered_dolp,
+    CandidateModel, Detail, EXTENDED_LAYER_NM, HypRow, HypothesisConfig, check_candidate,
+    check_rows, chi2_pass_bound, fit_checked, layered_dolp,
 };
 use crate::classify::MultiPrototype;
 use crate::dop::{dop, dop_beta_derivs};
@@ -217,6 +221,10 @@ struct Material {
     cand: CandidateModel,
     /// Per band of the set.
     tables: Vec<Arc<Table>>,
+    /// The material under its layer widened to `[d_min, EXTENDED_LAYER_NM]`, with its
+    /// tables (a layer whose range already reaches that has none): the test that questions
+    /// a single answer (`classify_rows`, "Layers beyond their range").
+    widened: Option<(CandidateModel, Vec<Arc<Table>>)>,
 }
 
 /// The materials at one set of bands.
@@ -232,7 +240,8 @@ struct BandSet {
 #[derive(Debug, Default)]
 struct Cache {
     sets: Vec<Arc<BandSet>>,
-    tables: Vec<((usize, u64, bool), Arc<Table>)>,
+    /// Keyed by prototype, wavelength and layer (0 none, 1 its own, 2 widened).
+    tables: Vec<((usize, u64, u8), Arc<Table>)>,
 }
 
 /// The per-pixel hypothesis tests of a [`super::super::HypothesisDecider`].
@@ -294,30 +303,28 @@ impl PixelTests {
                     class: self.class_of[i],
                     cand,
                     tables: Vec::new(),
+                    widened: None,
                 });
                 continue;
             }
-            let tables = wavelengths
-                .iter()
-                .enumerate()
-                .map(|(b, &w)| {
-                    // A prototype's band at a wavelength, with or without its layer.
-                    let key = (i, w.to_bits(), cand.layer.is_some());
-                    let found = c.tables.iter().find(|(k, _)| *k == key);
-                    match found {
-                        Some((_, t)) => t.clone(),
-                        None => {
-                            let t = Arc::new(Table::new(&cand, b, w));
-                            c.tables.push((key, t.clone()));
-                            t
-                        }
+            let layer_key = u8::from(cand.layer.is_some());
+            let tables = band_tables(&mut c.tables, i, layer_key, &cand, wavelengths);
+            let widened = match &cand.layer {
+                Some(l) if l.max_nm < EXTENDED_LAYER_NM => {
+                    let mut w = cand.clone();
+                    if let Some(l) = w.layer.as_mut() {
+                        l.max_nm = EXTENDED_LAYER_NM;
                     }
-                })
-                .collect();
+                    let t = band_tables(&mut c.tables, i, 2, &w, wavelengths);
+                    Some((w, t))
+                }
+                _ => None,
+            };
             materials.push(Material {
                 class: self.class_of[i],
                 cand,
                 tables,
+                widened,
             });
         }
         let set = Arc::new(BandSet {
@@ -397,8 +404,98 @@ impl PixelTests {
                 found = Some(mat.class);
             }
         }
-        Ok(found.map_or(Verdict::None, Verdict::One))
+        let Some(class) = found else {
+            return Ok(Verdict::None);
+        };
+        // A single answer is questioned by every other material under its widened layer
+        // (`classify_rows`): one that passes and fits better than the answer's most
+        // probable prototype joins it. Bounded as above, with the answer's `χ²_min` as a
+        // second limit.
+        let Some(bar) = self.answer_chi2(rows, wavelengths, cfg, set, class) else {
+            return Ok(Verdict::One(class));
+        };
+        let limit = limit.min(bar + 1e-6 * (1.0 + bar));
+        open.clear();
+        for (m, mat) in set.materials.iter().enumerate() {
+            if mat.class == class {
+                continue;
+            }
+            if let Some((_, tables)) = &mat.widened {
+                fill_terms(tables, rows, off, terms);
+                if !exceeds(terms, s_min, limit) {
+                    open.push((lower_hint(terms, s_min), m));
+                }
+            }
+        }
+        open.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        for &(_, m) in open.iter() {
+            if let Some((cand, _)) = &set.materials[m].widened {
+                let fit = fit_checked(rows, wavelengths, cand, cfg, Detail::Verdict);
+                if fit.consistent && fit.chi2 < bar {
+                    return Ok(Verdict::Several);
+                }
+            }
+        }
+        Ok(Verdict::One(class))
     }
+
+    /// The `χ²_min` of `class`'s most probable prototype, the bar of the widened test: its
+    /// only prototype's, or with several, the one of highest evidence as `classify_rows`
+    /// ranks them (`None` if none is found).
+    fn answer_chi2(
+        &self,
+        rows: &[HypRow],
+        wavelengths: &[f64],
+        cfg: &HypothesisConfig,
+        set: &BandSet,
+        class: u16,
+    ) -> Option<f64> {
+        let mut best: Option<(f64, f64)> = None;
+        let several = set.materials.iter().filter(|m| m.class == class).count() > 1;
+        let detail = if several {
+            Detail::Evidence
+        } else {
+            Detail::Verdict
+        };
+        for mat in set.materials.iter().filter(|m| m.class == class) {
+            let f = fit_checked(rows, wavelengths, &mat.cand, cfg, detail);
+            let key = if several { f.log_evidence } else { 0.0 };
+            let better = match best {
+                None => true,
+                Some((k, chi2)) => key > k || (key == k && f.chi2 < chi2),
+            };
+            if better {
+                best = Some((key, f.chi2));
+            }
+        }
+        best.map(|b| b.1)
+    }
+}
+
+/// The tables of prototype `proto` as `cand` (layer key `layer`: 0 none, 1 its own, 2
+/// widened) at each of `wavelengths`, made once and kept in `cache`.
+fn band_tables(
+    cache: &mut Vec<((usize, u64, u8), Arc<Table>)>,
+    proto: usize,
+    layer: u8,
+    cand: &CandidateModel,
+    wavelengths: &[f64],
+) -> Vec<Arc<Table>> {
+    wavelengths
+        .iter()
+        .enumerate()
+        .map(|(b, &w)| {
+            let key = (proto, w.to_bits(), layer);
+            match cache.iter().find(|(k, _)| *k == key) {
+                Some((_, t)) => t.clone(),
+                None => {
+                    let t = Arc::new(Table::new(cand, b, w));
+                    cache.push((key, t.clone()));
+                    t
+                }
+            }
+        })
+        .collect()
 }
 
 /// The terms `(w_t, y_t, L_t, H_t)` of `rows` against a material's `tables` for the
