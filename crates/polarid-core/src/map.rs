@@ -795,10 +795,51 @@ pub fn fit_and_classify_corr(
     noise: Option<MapNoise<'_>>,
     flags: &[u8],
     tile: usize,
-    mut out: MapOutputs<'_>,
+    out: MapOutputs<'_>,
     nk_corr: &mut [f32],
     progress: &(dyn Fn(usize) + Sync),
 ) -> Result<MapCounts> {
+    let npix = flags.len();
+    let (t_len, k_min) = check_map_inputs(betas, dolp, noise.as_ref(), flags, &out, nk_corr)?;
+    let inp = MapInput {
+        betas,
+        classifier,
+        dolp,
+        noise,
+        flags,
+        t_len,
+        k_can_be_zero: k_min == 0.0,
+    };
+    let tile = tile.max(1);
+    let mut sink = MapSink {
+        out,
+        counts: MapCounts {
+            reasons: [0; reason::COUNT],
+            classes: vec![0; classifier.class_count()],
+        },
+        nk_corr,
+    };
+    let mut sc = TileScratch::new(tile.min(npix), t_len);
+    let mut start = 0usize;
+    while start < npix {
+        let end = (start + tile).min(npix);
+        inp.run_tile(start..end, &mut sc, &mut sink)?;
+        progress(end);
+        start = end;
+    }
+    Ok(sink.counts)
+}
+
+/// The size checks of [`fit_and_classify_corr`]; the number of captures and the fit's
+/// `k_min`.
+fn check_map_inputs(
+    betas: Betas<'_>,
+    dolp: &[&[f32]],
+    noise: Option<&MapNoise<'_>>,
+    flags: &[u8],
+    out: &MapOutputs<'_>,
+    nk_corr: &[f32],
+) -> Result<(usize, f64)> {
     let npix = flags.len();
     if !nk_corr.is_empty() {
         check_len("nk_corr", nk_corr.len(), npix)?;
@@ -812,7 +853,6 @@ pub fn fit_and_classify_corr(
             (beta.len(), plan.options().bounds.k_min)
         }
     };
-    let k_can_be_zero = k_min == 0.0;
     if dolp.len() != t_len {
         return Err(CoreError::LengthMismatch {
             name: "DoLP images (captures)",
@@ -823,7 +863,7 @@ pub fn fit_and_classify_corr(
     for d in dolp {
         check_len("dolp", d.len(), npix)?;
     }
-    if let Some(nz) = &noise {
+    if let Some(nz) = noise {
         for (name, imgs) in [("noise read terms", nz.read), ("noise shot terms", nz.shot)] {
             if imgs.len() != t_len {
                 return Err(CoreError::LengthMismatch {
@@ -848,50 +888,130 @@ pub fn fit_and_classify_corr(
     }
     check_len("class", out.class.len(), npix)?;
     check_len("reason", out.reason.len(), npix)?;
-    let tile = tile.max(1);
-    let mut counts = MapCounts {
-        reasons: [0; reason::COUNT],
-        classes: vec![0; classifier.class_count()],
-    };
-    let weighted = noise.is_some();
-    let se_of = |t: usize, p: usize| -> f64 {
-        match &noise {
+    Ok((t_len, k_min))
+}
+
+/// What a map run reads (checked by [`check_map_inputs`]).
+struct MapInput<'a> {
+    betas: Betas<'a>,
+    classifier: &'a PixelClassifier,
+    dolp: &'a [&'a [f32]],
+    noise: Option<MapNoise<'a>>,
+    flags: &'a [u8],
+    /// Number of captures.
+    t_len: usize,
+    /// The fit's box reaches `k = 0`.
+    k_can_be_zero: bool,
+}
+
+/// Where a map run writes: the output images, the counts and the optional `n`–`k`
+/// correlation image.
+struct MapSink<'a, 'c> {
+    out: MapOutputs<'a>,
+    counts: MapCounts,
+    nk_corr: &'c mut [f32],
+}
+
+impl MapSink<'_, '_> {
+    /// Record pixel `p` as not fitted, for reason `r`.
+    fn skip(&mut self, p: usize, r: u8) {
+        write_skip(&mut self.out, &mut self.counts, p, r);
+        if let Some(v) = self.nk_corr.get_mut(p) {
+            *v = f32::NAN;
+        }
+    }
+
+    /// Record pixel `p`'s fit `f`, class `c` and reason `r`.
+    fn fit(&mut self, p: usize, f: &NkFit, c: u16, r: u8) {
+        write_fit(&mut self.out, &mut self.counts, p, f, c, r);
+        if let Some(v) = self.nk_corr.get_mut(p) {
+            *v = f.nk_corr as f32;
+        }
+    }
+}
+
+/// The buffers of one tile, reused from tile to tile.
+struct TileScratch {
+    /// Pixels fitted on every capture: measurements (pixel by pixel), angles (per-pixel
+    /// angles only), standard errors (weighted fits only), pixel indices.
+    y: Vec<f64>,
+    b: Vec<f64>,
+    se: Vec<f64>,
+    idx: Vec<usize>,
+    /// Fits and decisions of a batch.
+    fits: Vec<NkFit>,
+    decisions: Vec<(u16, u8)>,
+    /// Per-pixel angles: pixels with some captures left out (DoLP NaN: dark or
+    /// saturated there), fitted on the others, grouped by the set of captures used
+    /// (bits, pixel).
+    partial: Vec<(u64, usize)>,
+    /// Measurements, angles and standard errors of one such group.
+    py: Vec<f64>,
+    pb: Vec<f64>,
+    ps: Vec<f64>,
+}
+
+impl TileScratch {
+    /// Buffers for tiles of up to `cap` pixels and `t_len` captures.
+    fn new(cap: usize, t_len: usize) -> Self {
+        Self {
+            y: Vec::with_capacity(cap * t_len),
+            b: Vec::new(),
+            se: Vec::new(),
+            idx: Vec::with_capacity(cap),
+            fits: vec![NkFit::default(); cap],
+            decisions: Vec::with_capacity(cap),
+            partial: Vec::new(),
+            py: Vec::new(),
+            pb: Vec::new(),
+            ps: Vec::new(),
+        }
+    }
+}
+
+impl MapInput<'_> {
+    /// Weighted fits (with a noise model).
+    fn weighted(&self) -> bool {
+        self.noise.is_some()
+    }
+
+    /// DoLP standard error of pixel `p` in capture `t` (1 without a noise model).
+    #[inline]
+    fn se_of(&self, t: usize, p: usize) -> f64 {
+        match &self.noise {
             Some(nz) => nz.model.dolp_se(nz.read[t][p], nz.shot[t][p]),
             None => 1.0,
         }
-    };
-    let beta_of = |t: usize, p: usize| -> f64 {
-        match betas {
+    }
+
+    /// β of pixel `p` in capture `t`.
+    #[inline]
+    fn beta_of(&self, t: usize, p: usize) -> f64 {
+        match self.betas {
             Betas::Shared(plan) => plan.betas()[t],
             Betas::PerPixel { beta, .. } => beta[t][p] as f64,
         }
-    };
-    let cap = tile.min(npix);
-    let mut y: Vec<f64> = Vec::with_capacity(cap * t_len);
-    let mut b: Vec<f64> = Vec::new();
-    let mut se: Vec<f64> = Vec::new();
-    let mut idx: Vec<usize> = Vec::with_capacity(cap);
-    let mut fits: Vec<NkFit> = vec![NkFit::default(); cap];
-    let mut decisions: Vec<(u16, u8)> = Vec::with_capacity(cap);
-    // Per-pixel angles: pixels with some captures left out (DoLP NaN: dark or
-    // saturated there) are fitted on the others, grouped by the set of captures used.
-    let mut partial: Vec<(u64, usize)> = Vec::new();
-    let (mut py, mut pb, mut ps): (Vec<f64>, Vec<f64>, Vec<f64>) =
-        (Vec::new(), Vec::new(), Vec::new());
-    let mut start = 0usize;
-    while start < npix {
-        let end = (start + tile).min(npix);
-        y.clear();
-        b.clear();
-        se.clear();
-        idx.clear();
-        partial.clear();
-        for p in start..end {
+    }
+
+    /// Fit, classify and record the pixels `range`.
+    fn run_tile(
+        &self,
+        range: std::ops::Range<usize>,
+        sc: &mut TileScratch,
+        sink: &mut MapSink<'_, '_>,
+    ) -> Result<()> {
+        let (betas, dolp, t_len, weighted) = (self.betas, self.dolp, self.t_len, self.weighted());
+        sc.y.clear();
+        sc.b.clear();
+        sc.se.clear();
+        sc.idx.clear();
+        sc.partial.clear();
+        for p in range {
             let r = match betas {
                 Betas::PerPixel { beta, .. } if beta.iter().any(|b| !b[p].is_finite()) => {
                     reason::NO_GEOMETRY
                 }
-                _ => signal_reason(flags[p]),
+                _ => signal_reason(self.flags[p]),
             };
             let used = match betas {
                 Betas::PerPixel { .. } if t_len < 64 => dolp
@@ -903,125 +1023,119 @@ pub fn fit_and_classify_corr(
             };
             let all = used == u64::MAX || used == (1u64 << t_len) - 1;
             if r == reason::CLASSIFIED && !all {
-                partial.push((used, p));
+                sc.partial.push((used, p));
             } else if r == reason::CLASSIFIED {
-                idx.push(p);
-                y.extend(dolp.iter().map(|d| d[p] as f64));
+                sc.idx.push(p);
+                sc.y.extend(dolp.iter().map(|d| d[p] as f64));
                 if let Betas::PerPixel { beta, .. } = betas {
-                    b.extend(beta.iter().map(|b| b[p] as f64));
+                    sc.b.extend(beta.iter().map(|b| b[p] as f64));
                 }
                 if weighted {
-                    se.extend((0..t_len).map(|t| se_of(t, p)));
+                    sc.se.extend((0..t_len).map(|t| self.se_of(t, p)));
                 }
             } else {
-                write_skip(&mut out, &mut counts, p, r);
-                if let Some(v) = nk_corr.get_mut(p) {
-                    *v = f32::NAN;
-                }
+                sink.skip(p, r);
             }
         }
-        let m = idx.len();
-        let se_arg = weighted.then_some(&se[..]);
+        let m = sc.idx.len();
+        let se_arg = weighted.then_some(&sc.se[..]);
         match betas {
-            Betas::Shared(plan) => fit_batch(plan, &y, se_arg, &mut fits[..m])?,
+            Betas::Shared(plan) => fit_batch(plan, &sc.y, se_arg, &mut sc.fits[..m])?,
             Betas::PerPixel { plan, .. } => {
-                fit_batch_pixel_beta(plan, &b, &y, se_arg, &mut fits[..m])?
+                fit_batch_pixel_beta(plan, &sc.b, &sc.y, se_arg, &mut sc.fits[..m])?
             }
         }
         let all_captures: Vec<usize> = (0..t_len).collect();
         decide_all(
-            classifier,
-            &fits[..m],
-            &idx,
+            self,
+            &sc.fits[..m],
+            &sc.idx,
             &all_captures,
-            &y,
-            weighted.then_some(&se[..]),
-            &beta_of,
-            weighted,
-            k_can_be_zero,
-            &mut decisions,
+            &sc.y,
+            se_arg,
+            &mut sc.decisions,
         );
-        for ((&p, f), &(c, r)) in idx.iter().zip(&fits[..m]).zip(&decisions) {
-            write_fit(&mut out, &mut counts, p, f, c, r);
-            if let Some(v) = nk_corr.get_mut(p) {
-                *v = f.nk_corr as f32;
-            }
+        for ((&p, f), &(c, r)) in sc.idx.iter().zip(&sc.fits[..m]).zip(&sc.decisions) {
+            sink.fit(p, f, c, r);
         }
         if let Betas::PerPixel { plan, beta } = betas {
+            let mut partial = std::mem::take(&mut sc.partial);
             partial.sort_unstable();
             for group in partial.chunk_by(|a, b| a.0 == b.0) {
-                let used = group[0].0;
-                let ts: Vec<usize> = (0..t_len).filter(|t| used & (1 << t) != 0).collect();
-                if ts.len() < 3 {
-                    // Not reached: the caller flags pixels with fewer than 3 usable
-                    // captures; counted as dark if it ever is.
-                    for &(_, p) in group {
-                        write_skip(&mut out, &mut counts, p, reason::DARK);
-                        if let Some(v) = nk_corr.get_mut(p) {
-                            *v = f32::NAN;
-                        }
-                    }
-                    continue;
-                }
-                py.clear();
-                pb.clear();
-                ps.clear();
-                for &(_, p) in group {
-                    py.extend(ts.iter().map(|&t| dolp[t][p] as f64));
-                    pb.extend(ts.iter().map(|&t| beta[t][p] as f64));
-                    if weighted {
-                        ps.extend(ts.iter().map(|&t| se_of(t, p)));
-                    }
-                }
-                let g = group.len();
-                if fits.len() < g {
-                    fits.resize(g, NkFit::default());
-                }
-                let ps_arg = weighted.then_some(&ps[..]);
-                fit_batch_pixel_beta(plan, &pb, &py, ps_arg, &mut fits[..g])?;
-                let gidx: Vec<usize> = group.iter().map(|&(_, p)| p).collect();
-                decide_all(
-                    classifier,
-                    &fits[..g],
-                    &gidx,
-                    &ts,
-                    &py,
-                    ps_arg,
-                    &beta_of,
-                    weighted,
-                    k_can_be_zero,
-                    &mut decisions,
-                );
-                for ((&p, f), &(c, r)) in gidx.iter().zip(&fits[..g]).zip(&decisions) {
-                    write_fit(&mut out, &mut counts, p, f, c, r);
-                    if let Some(v) = nk_corr.get_mut(p) {
-                        *v = f.nk_corr as f32;
-                    }
-                }
+                self.fit_group(plan, beta, group, sc, sink)?;
+            }
+            sc.partial = partial;
+        }
+        Ok(())
+    }
+
+    /// Fit, classify and record a `group` of pixels with per-pixel angles `beta` that
+    /// use the same captures (bits, pixel), on those captures.
+    fn fit_group(
+        &self,
+        plan: &PixelBetaPlan,
+        beta: &[&[f32]],
+        group: &[(u64, usize)],
+        sc: &mut TileScratch,
+        sink: &mut MapSink<'_, '_>,
+    ) -> Result<()> {
+        let (dolp, weighted) = (self.dolp, self.weighted());
+        let used = group[0].0;
+        let ts: Vec<usize> = (0..self.t_len).filter(|t| used & (1 << t) != 0).collect();
+        if ts.len() < 3 {
+            // Not reached: the caller flags pixels with fewer than 3 usable
+            // captures; counted as dark if it ever is.
+            for &(_, p) in group {
+                sink.skip(p, reason::DARK);
+            }
+            return Ok(());
+        }
+        sc.py.clear();
+        sc.pb.clear();
+        sc.ps.clear();
+        for &(_, p) in group {
+            sc.py.extend(ts.iter().map(|&t| dolp[t][p] as f64));
+            sc.pb.extend(ts.iter().map(|&t| beta[t][p] as f64));
+            if weighted {
+                sc.ps.extend(ts.iter().map(|&t| self.se_of(t, p)));
             }
         }
-        progress(end);
-        start = end;
+        let g = group.len();
+        if sc.fits.len() < g {
+            sc.fits.resize(g, NkFit::default());
+        }
+        let ps_arg = weighted.then_some(&sc.ps[..]);
+        fit_batch_pixel_beta(plan, &sc.pb, &sc.py, ps_arg, &mut sc.fits[..g])?;
+        let gidx: Vec<usize> = group.iter().map(|&(_, p)| p).collect();
+        decide_all(
+            self,
+            &sc.fits[..g],
+            &gidx,
+            &ts,
+            &sc.py,
+            ps_arg,
+            &mut sc.decisions,
+        );
+        for ((&p, f), &(c, r)) in gidx.iter().zip(&sc.fits[..g]).zip(&sc.decisions) {
+            sink.fit(p, f, c, r);
+        }
+        Ok(())
     }
-    Ok(counts)
 }
 
 /// The class and reason of every fit of a batch (in parallel): pixel `idx[i]`'s fit
 /// `fits[i]` used the captures `ts`, with measurements `y[i·|ts| ..]` (and `se`).
-#[allow(clippy::too_many_arguments)]
 fn decide_all(
-    classifier: &PixelClassifier,
+    inp: &MapInput<'_>,
     fits: &[NkFit],
     idx: &[usize],
     ts: &[usize],
     y: &[f64],
     se: Option<&[f64]>,
-    beta_of: &(dyn Fn(usize, usize) -> f64 + Sync),
-    weighted: bool,
-    k_can_be_zero: bool,
     out: &mut Vec<(u16, u8)>,
 ) {
     let t_len = ts.len();
+    let (classifier, weighted, k_can_be_zero) = (inp.classifier, inp.weighted(), inp.k_can_be_zero);
     fits.par_iter()
         .zip(idx.par_iter())
         .enumerate()
@@ -1033,7 +1147,7 @@ fn decide_all(
                     for (j, &t) in ts.iter().enumerate() {
                         rows.push(PixelRow {
                             capture: t,
-                            beta: beta_of(t, p),
+                            beta: inp.beta_of(t, p),
                             y: y[i * t_len + j],
                             se: se.map_or(1.0, |s| s[i * t_len + j]),
                         });

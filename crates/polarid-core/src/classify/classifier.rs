@@ -630,9 +630,24 @@ impl Classifier {
         };
 
         // Reject option.
-        let Some(near) = nearest else {
-            return decision;
-        };
+        if let Some(near) = nearest {
+            self.reject(est, near, &r.bands, &mut decision);
+        }
+        decision
+    }
+
+    /// The reject option of [`Self::classify_nearest`] on `decision`, whose nearest
+    /// member of the winning class is `near` (`bands[i]`: bands compared with prototype
+    /// `i`).
+    fn reject(
+        &self,
+        est: &[&EstimateBand],
+        near: Neighbour,
+        bands: &[usize],
+        decision: &mut Decision,
+    ) {
+        let distance = near.distance;
+        let class = &self.profiles[near.index].class;
         match self.config.reject {
             Reject::Never => {}
             Reject::MaxDistance(dmax) => {
@@ -665,7 +680,7 @@ impl Classifier {
                     }
                     Some(dm) => {
                         decision.gate = Some(dm);
-                        let dof = 2 * r.bands[near.index].max(1);
+                        let dof = 2 * bands[near.index].max(1);
                         let q = chi2_quantile(p, dof);
                         if dm * dm > q {
                             decision.predicted = UNKNOWN.into();
@@ -680,7 +695,6 @@ impl Classifier {
                 }
             }
         }
-        decision
     }
 }
 

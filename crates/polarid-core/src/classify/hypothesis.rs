@@ -532,6 +532,195 @@ impl Profile<'_> {
     }
 }
 
+/// Interpolation node counts `(thickness, offset)` from the nonlinearity of the model
+/// of `cand` over the box `[d_lo, d_hi] × [−off, off]`.
+fn node_counts(
+    cand: &CandidateModel,
+    wavelengths: &[f64],
+    (d_lo, d_hi): (f64, f64),
+    off: f64,
+) -> (usize, usize) {
+    let nd = if d_hi > d_lo {
+        let phase = cand.layer.as_ref().map_or(0.0, |l| {
+            l.index
+                .iter()
+                .zip(wavelengths)
+                .map(|(&(n, k), &w)| 4.0 * PI * d_hi * n.hypot(k) / w)
+                .fold(0.0, f64::max)
+        });
+        match phase {
+            p if p <= 0.3 => 3,
+            p if p <= 1.0 => 5,
+            p if p <= 3.0 => 9,
+            _ => 17,
+        }
+    } else {
+        1
+    };
+    let no = match off {
+        o if o <= 0.0 => 1,
+        o if o <= 0.01 => 3,
+        o if o <= 0.03 => 5,
+        _ => 9,
+    };
+    (nd, no)
+}
+
+impl<'a> Profile<'a> {
+    /// The profile of `cand` on `rows` over the box `[d_lo, d_hi] × [−off, off]` with
+    /// scales from `scale_min`, and `Σ ln σ_t` of its row weights.
+    fn new(
+        rows: &'a [HypRow],
+        wavelengths: &[f64],
+        cand: &CandidateModel,
+        (d_lo, d_hi): (f64, f64),
+        off: f64,
+        scale_min: f64,
+    ) -> (Self, f64) {
+        // Node counts from the nonlinearity over the box.
+        let (nd, no) = node_counts(cand, wavelengths, (d_lo, d_hi), off);
+        let d_nodes = nodes(d_lo, d_hi, nd);
+        let o_nodes = nodes(-off, off, no);
+        let w: Vec<f64> = rows
+            .iter()
+            .map(|r| {
+                let (n, k) = cand.bulk[r.band];
+                let a = 0.5 * dop_beta_derivs(n, k, r.beta).dp_dbeta * r.angle_sd;
+                1.0 / (r.dolp_sd * r.dolp_sd + a * a)
+            })
+            .collect();
+        let ln_sigma: f64 = w.iter().map(|w| -0.5 * w.ln()).sum();
+        let c: f64 = rows.iter().zip(&w).map(|(r, w)| w * r.dolp * r.dolp).sum();
+        let vals: Vec<Vec<f64>> = rows
+            .iter()
+            .map(|r| {
+                let mut v = Vec::with_capacity(nd * no);
+                for &d in &d_nodes.0 {
+                    for &o in &o_nodes.0 {
+                        v.push(exact(cand, wavelengths, r, d, o));
+                    }
+                }
+                v
+            })
+            .collect();
+        let prof = Profile {
+            rows,
+            w,
+            c,
+            d_nodes,
+            o_nodes,
+            vals,
+            scale_min,
+            ld: vec![0.0; nd],
+            lo: vec![0.0; no],
+        };
+        (prof, ln_sigma)
+    }
+}
+
+impl Profile<'_> {
+    /// `χ²` on the interpolant at `(d, δ)` with the best scale.
+    fn chi2_at(&mut self, d: f64, o: f64) -> f64 {
+        let (a, b) = self.ab(d, o);
+        self.chi2_of(a, b).0
+    }
+
+    /// The `(d, δ)` of least `χ²` in the box `[d_lo, d_hi] × [−off, off]`: a coarse grid,
+    /// then [`Self::refine`].
+    fn minimum(&mut self, (d_lo, d_hi): (f64, f64), off: f64) -> (f64, f64) {
+        let (nd, no) = (self.ld.len(), self.lo.len());
+        // Coarse grid: minimum of χ² and the log integrand.
+        let gd = if nd > 1 { 17 } else { 1 };
+        let go = if no > 1 { 17 } else { 1 };
+        let at = |lo: f64, hi: f64, n: usize, i: usize| {
+            if n == 1 {
+                lo
+            } else {
+                lo + (hi - lo) * i as f64 / (n - 1) as f64
+            }
+        };
+        let gds: Vec<f64> = (0..gd).map(|i| at(d_lo, d_hi, gd, i)).collect();
+        let gos: Vec<f64> = (0..go).map(|j| at(-off, off, go, j)).collect();
+        let mut best = (f64::INFINITY, 0usize, 0usize);
+        for (k, &(a, b)) in self.grid_ab(&gds, &gos).iter().enumerate() {
+            let (chi2, _) = self.chi2_of(a, b);
+            if chi2 < best.0 {
+                best = (chi2, k / go, k % go);
+            }
+        }
+        // Refine by alternating golden sections within one grid step of the best point.
+        let start = (at(d_lo, d_hi, gd, best.1), at(-off, off, go, best.2));
+        let step_d = if gd > 1 {
+            (d_hi - d_lo) / (gd - 1) as f64
+        } else {
+            0.0
+        };
+        let step_o = if go > 1 {
+            2.0 * off / (go - 1) as f64
+        } else {
+            0.0
+        };
+        self.refine(start, (step_d, step_o), (d_lo, d_hi), off)
+    }
+
+    /// Alternating golden sections from `(d, o)` within one grid step `(step_d, step_o)`,
+    /// until converged (at most 12 rounds): a thin layer and an offset can move the DoLP
+    /// curve alike, and coordinate steps alone crawl along such a diagonal valley; each
+    /// round ends with a line search along its own displacement (Hooke–Jeeves' pattern
+    /// move). (Measured on the library study: the same mean χ²_min as three plain rounds,
+    /// so the search is not what keeps the true material's coverage below its level.)
+    fn refine(
+        &mut self,
+        (mut d, mut o): (f64, f64),
+        (step_d, step_o): (f64, f64),
+        (d_lo, d_hi): (f64, f64),
+        off: f64,
+    ) -> (f64, f64) {
+        let mut last = self.chi2_at(d, o);
+        for _ in 0..12 {
+            let (d0, o0) = (d, o);
+            if step_d > 0.0 {
+                let (lo, hi) = ((d - step_d).max(d_lo), (d + step_d).min(d_hi));
+                d = golden(lo, hi, |x| self.chi2_at(x, o)).0;
+            }
+            if step_o > 0.0 {
+                let (lo, hi) = ((o - step_o).max(-off), (o + step_o).min(off));
+                o = golden(lo, hi, |x| self.chi2_at(d, x)).0;
+            }
+            let (dd, dm) = (d - d0, o - o0);
+            if step_d > 0.0 && step_o > 0.0 && (dd != 0.0 || dm != 0.0) {
+                // Largest t with (d0, o0) + t (dd, dm) inside the box, at most 4.
+                let reach = |x0: f64, dx: f64, lo: f64, hi: f64| {
+                    if dx > 0.0 {
+                        (hi - x0) / dx
+                    } else if dx < 0.0 {
+                        (lo - x0) / dx
+                    } else {
+                        f64::INFINITY
+                    }
+                };
+                let tmax = reach(d0, dd, d_lo, d_hi)
+                    .min(reach(o0, dm, -off, off))
+                    .min(4.0);
+                if tmax > 1.0 {
+                    let (t, c) = golden(0.0, tmax, |t| self.chi2_at(d0 + t * dd, o0 + t * dm));
+                    let here = self.chi2_at(d, o);
+                    if c < here {
+                        d = (d0 + t * dd).clamp(d_lo, d_hi);
+                        o = (o0 + t * dm).clamp(-off, off);
+                    }
+                }
+            }
+            let now = self.chi2_at(d, o);
+            if !(last - now > 1e-6) {
+                break;
+            }
+            last = now;
+        }
+        (d, o)
+    }
+}
+
 /// Evaluate the exact model of row `t` at `(d, δ)` (nm, radians).
 fn exact(cand: &CandidateModel, wavelengths: &[f64], r: &HypRow, d: f64, o: f64) -> f64 {
     let beta = (r.beta + o).clamp(0.0, PI / 2.0 - 1e-9);
@@ -996,162 +1185,9 @@ fn fit_checked(
         .as_ref()
         .map_or((0.0, 0.0), |l| (l.min_nm, l.max_nm));
     let off = nu.offset_max;
-    // Node counts from the nonlinearity over the box.
-    let nd = if d_hi > d_lo {
-        let phase = cand.layer.as_ref().map_or(0.0, |l| {
-            l.index
-                .iter()
-                .zip(wavelengths)
-                .map(|(&(n, k), &w)| 4.0 * PI * d_hi * n.hypot(k) / w)
-                .fold(0.0, f64::max)
-        });
-        match phase {
-            p if p <= 0.3 => 3,
-            p if p <= 1.0 => 5,
-            p if p <= 3.0 => 9,
-            _ => 17,
-        }
-    } else {
-        1
-    };
-    let no = match off {
-        o if o <= 0.0 => 1,
-        o if o <= 0.01 => 3,
-        o if o <= 0.03 => 5,
-        _ => 9,
-    };
-    let d_nodes = nodes(d_lo, d_hi, nd);
-    let o_nodes = nodes(-off, off, no);
-    let w: Vec<f64> = rows
-        .iter()
-        .map(|r| {
-            let (n, k) = cand.bulk[r.band];
-            let a = 0.5 * dop_beta_derivs(n, k, r.beta).dp_dbeta * r.angle_sd;
-            1.0 / (r.dolp_sd * r.dolp_sd + a * a)
-        })
-        .collect();
-    let ln_sigma: f64 = w.iter().map(|w| -0.5 * w.ln()).sum();
-    let c: f64 = rows.iter().zip(&w).map(|(r, w)| w * r.dolp * r.dolp).sum();
-    let vals: Vec<Vec<f64>> = rows
-        .iter()
-        .map(|r| {
-            let mut v = Vec::with_capacity(nd * no);
-            for &d in &d_nodes.0 {
-                for &o in &o_nodes.0 {
-                    v.push(exact(cand, wavelengths, r, d, o));
-                }
-            }
-            v
-        })
-        .collect();
-    let mut prof = Profile {
-        rows,
-        w,
-        c,
-        d_nodes,
-        o_nodes,
-        vals,
-        scale_min: nu.scale_min,
-        ld: vec![0.0; nd],
-        lo: vec![0.0; no],
-    };
-    // Coarse grid: minimum of χ² and the log integrand.
-    let gd = if nd > 1 { 17 } else { 1 };
-    let go = if no > 1 { 17 } else { 1 };
-    let at = |lo: f64, hi: f64, n: usize, i: usize| {
-        if n == 1 {
-            lo
-        } else {
-            lo + (hi - lo) * i as f64 / (n - 1) as f64
-        }
-    };
-    let gds: Vec<f64> = (0..gd).map(|i| at(d_lo, d_hi, gd, i)).collect();
-    let gos: Vec<f64> = (0..go).map(|j| at(-off, off, go, j)).collect();
-    let mut best = (f64::INFINITY, 0usize, 0usize);
-    for (k, &(a, b)) in prof.grid_ab(&gds, &gos).iter().enumerate() {
-        let (chi2, _) = prof.chi2_of(a, b);
-        if chi2 < best.0 {
-            best = (chi2, k / go, k % go);
-        }
-    }
-    // Refine by alternating golden sections within one grid step of the best point.
-    let (mut d, mut o) = (at(d_lo, d_hi, gd, best.1), at(-off, off, go, best.2));
-    let step_d = if gd > 1 {
-        (d_hi - d_lo) / (gd - 1) as f64
-    } else {
-        0.0
-    };
-    let step_o = if go > 1 {
-        2.0 * off / (go - 1) as f64
-    } else {
-        0.0
-    };
-    // Until converged (at most 12 rounds): a thin layer and an offset can move the DoLP
-    // curve alike, and coordinate steps alone crawl along such a diagonal valley; each
-    // round ends with a line search along its own displacement (Hooke–Jeeves' pattern
-    // move). (Measured on the library study: the same mean χ²_min as three plain rounds,
-    // so the search is not what keeps the true material's coverage below its level.)
-    let mut last = {
-        let (a, b) = prof.ab(d, o);
-        prof.chi2_of(a, b).0
-    };
-    for _ in 0..12 {
-        let (d0, o0) = (d, o);
-        if step_d > 0.0 {
-            let (lo, hi) = ((d - step_d).max(d_lo), (d + step_d).min(d_hi));
-            d = golden(lo, hi, |x| {
-                let (a, b) = prof.ab(x, o);
-                prof.chi2_of(a, b).0
-            })
-            .0;
-        }
-        if step_o > 0.0 {
-            let (lo, hi) = ((o - step_o).max(-off), (o + step_o).min(off));
-            o = golden(lo, hi, |x| {
-                let (a, b) = prof.ab(d, x);
-                prof.chi2_of(a, b).0
-            })
-            .0;
-        }
-        let (dd, dm) = (d - d0, o - o0);
-        if step_d > 0.0 && step_o > 0.0 && (dd != 0.0 || dm != 0.0) {
-            // Largest t with (d0, o0) + t (dd, dm) inside the box, at most 4.
-            let reach = |x0: f64, dx: f64, lo: f64, hi: f64| {
-                if dx > 0.0 {
-                    (hi - x0) / dx
-                } else if dx < 0.0 {
-                    (lo - x0) / dx
-                } else {
-                    f64::INFINITY
-                }
-            };
-            let tmax = reach(d0, dd, d_lo, d_hi)
-                .min(reach(o0, dm, -off, off))
-                .min(4.0);
-            if tmax > 1.0 {
-                let (t, c) = golden(0.0, tmax, |t| {
-                    let (a, b) = prof.ab(d0 + t * dd, o0 + t * dm);
-                    prof.chi2_of(a, b).0
-                });
-                let here = {
-                    let (a, b) = prof.ab(d, o);
-                    prof.chi2_of(a, b).0
-                };
-                if c < here {
-                    d = (d0 + t * dd).clamp(d_lo, d_hi);
-                    o = (o0 + t * dm).clamp(-off, off);
-                }
-            }
-        }
-        let now = {
-            let (a, b) = prof.ab(d, o);
-            prof.chi2_of(a, b).0
-        };
-        if !(last - now > 1e-6) {
-            break;
-        }
-        last = now;
-    }
+    let (mut prof, ln_sigma) =
+        Profile::new(rows, wavelengths, cand, (d_lo, d_hi), off, nu.scale_min);
+    let (d, o) = prof.minimum((d_lo, d_hi), off);
     // Exact χ² at the optimum.
     let (mut a, mut b) = (0.0, 0.0);
     for (r, wt) in rows.iter().zip(&prof.w) {
@@ -1320,22 +1356,14 @@ pub fn classify_rows(
 ) -> Result<HypothesisOutcome> {
     cfg.validate()?;
     check_rows(rows, wavelengths)?;
-    if let Some(p) = priors {
-        if p.len() != protos.len() {
-            return Err(CoreError::LengthMismatch {
-                name: "priors",
-                expected: protos.len(),
-                got: p.len(),
-            });
-        }
-        if let Some(&bad) = p.iter().find(|w| !(w.is_finite() && **w >= 0.0)) {
-            return Err(CoreError::OutOfRange {
-                name: "prior",
-                value: bad,
-                expected: "finite and >= 0",
-            });
-        }
-    }
+    check_priors(priors, protos.len())?;
+    let inp = RowsTest {
+        rows,
+        wavelengths,
+        protos,
+        priors,
+        cfg,
+    };
     let mut fits: Vec<(usize, NuisanceFit, f64)> = Vec::new();
     for (i, p) in protos.iter().enumerate() {
         let Some(cand) = CandidateModel::from_prototype(p, wavelengths) else {
@@ -1364,7 +1392,88 @@ pub fn classify_rows(
             tested: Vec::new(),
         });
     }
-    // Probabilities relative to the best evidence (priors of 0 give 0).
+    let prob = probabilities(&fits);
+    let mut order: Vec<usize> = (0..fits.len()).collect();
+    order.sort_by(|&a, &b| {
+        prob[b]
+            .total_cmp(&prob[a])
+            .then(fits[a].1.chi2.total_cmp(&fits[b].1.chi2))
+            .then(a.cmp(&b))
+    });
+    let tested = inp.per_class(&fits, &prob, &order);
+    let ranked: Vec<Neighbour> = order
+        .iter()
+        .map(|&k| Neighbour {
+            index: fits[k].0,
+            distance: fits[k].1.chi2,
+        })
+        .collect();
+    let mut candidates: Vec<Candidate> = tested
+        .iter()
+        .filter(|c| c.fit.is_some_and(|f| f.consistent))
+        .cloned()
+        .collect();
+    let widened = if candidates.len() == 1 {
+        inp.widen(&mut candidates, &tested)
+    } else {
+        Vec::new()
+    };
+    let set_category = match candidates.first().and_then(|c| c.category.clone()) {
+        Some(cat) if candidates.iter().all(|c| c.category.as_ref() == Some(&cat)) => Some(cat),
+        _ => None,
+    };
+    let (predicted, status, reason) = verdict(&candidates, &tested, &widened, cfg.confidence);
+    let best = &tested[0];
+    let runner = tested.get(1);
+    let runner_up_distance = runner.map_or(f64::NAN, |r| r.distance);
+    let decision = Decision {
+        predicted,
+        nearest_class: Some(best.class.clone()),
+        nearest: Some(Neighbour {
+            index: best.index,
+            distance: best.distance,
+        }),
+        distance: best.distance,
+        runner_up: runner.map(|r| r.class.clone()),
+        runner_up_distance,
+        margin: runner_up_distance - best.distance,
+        gate: Some(best.distance),
+        votes: 1,
+        status,
+        reason,
+        ranked,
+        candidates,
+        set_tested: true,
+        set_category,
+        bands_used,
+    };
+    Ok(HypothesisOutcome { decision, tested })
+}
+
+/// `priors` (if any) hold one finite weight ≥ 0 per each of `n` prototypes.
+fn check_priors(priors: Option<&[f64]>, n: usize) -> Result<()> {
+    if let Some(p) = priors {
+        if p.len() != n {
+            return Err(CoreError::LengthMismatch {
+                name: "priors",
+                expected: n,
+                got: p.len(),
+            });
+        }
+        if let Some(&bad) = p.iter().find(|w| !(w.is_finite() && **w >= 0.0)) {
+            return Err(CoreError::OutOfRange {
+                name: "prior",
+                value: bad,
+                expected: "finite and >= 0",
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The probability of every fit `(prototype, fit, prior)` from its evidence and prior,
+/// relative to the best (priors of 0 give 0).
+fn probabilities(fits: &[(usize, NuisanceFit, f64)]) -> Vec<f64> {
     let top = fits
         .iter()
         .filter(|f| f.2 > 0.0)
@@ -1381,73 +1490,81 @@ pub fn classify_rows(
         })
         .collect();
     let total: f64 = weights.iter().sum();
-    let prob: Vec<f64> = weights
+    weights
         .iter()
         .map(|w| if total > 0.0 { w / total } else { 0.0 })
-        .collect();
-    // Per class: the most probable prototype, the class's summed probability.
-    let mut order: Vec<usize> = (0..fits.len()).collect();
-    order.sort_by(|&a, &b| {
-        prob[b]
-            .total_cmp(&prob[a])
-            .then(fits[a].1.chi2.total_cmp(&fits[b].1.chi2))
-            .then(a.cmp(&b))
-    });
-    let category_of = |class: &str| {
-        protos
+        .collect()
+}
+
+/// The inputs of [`classify_rows`].
+struct RowsTest<'a> {
+    rows: &'a [HypRow],
+    wavelengths: &'a [f64],
+    protos: &'a [MultiPrototype],
+    priors: Option<&'a [f64]>,
+    cfg: &'a HypothesisConfig,
+}
+
+impl RowsTest<'_> {
+    /// The category of the first prototype of `class` that has one.
+    fn category_of(&self, class: &str) -> Option<String> {
+        self.protos
             .iter()
             .filter(|p| p.class == class)
             .find_map(|p| p.category.clone())
-    };
-    let mut tested: Vec<Candidate> = Vec::new();
-    for &k in &order {
-        let (i, fit, _) = fits[k];
-        let class = &protos[i].class;
-        if tested.iter().any(|c| &c.class == class) {
-            continue;
-        }
-        let class_prob: f64 = fits
-            .iter()
-            .zip(&prob)
-            .filter(|(f, _)| &protos[f.0].class == class)
-            .map(|(_, p)| p)
-            .sum();
-        let consistent = fits
-            .iter()
-            .filter(|f| &protos[f.0].class == class)
-            .any(|f| f.1.consistent);
-        let mut fit = fit;
-        fit.consistent = consistent;
-        tested.push(Candidate {
-            class: class.clone(),
-            index: i,
-            distance: fit.chi2,
-            category: category_of(class),
-            probability: Some(class_prob),
-            fit: Some(fit),
-        });
     }
-    let ranked: Vec<Neighbour> = order
-        .iter()
-        .map(|&k| Neighbour {
-            index: fits[k].0,
-            distance: fits[k].1.chi2,
-        })
-        .collect();
-    let mut candidates: Vec<Candidate> = tested
-        .iter()
-        .filter(|c| c.fit.is_some_and(|f| f.consistent))
-        .cloned()
-        .collect();
-    // A single passing material stands only if no other material, under its own layer
-    // grown up to EXTENDED_LAYER_NM, both passes and explains the rows better: such a
-    // material joins the set, which becomes ambiguous (module documentation, "Layers
-    // beyond their range").
-    let mut widened: Vec<String> = Vec::new();
-    if candidates.len() == 1 {
+
+    /// Per class: the most probable prototype, the class's summed probability and
+    /// whether any of its prototypes passes; classes in the order of their best fit
+    /// (`order`: the fits by probability).
+    fn per_class(
+        &self,
+        fits: &[(usize, NuisanceFit, f64)],
+        prob: &[f64],
+        order: &[usize],
+    ) -> Vec<Candidate> {
+        let protos = self.protos;
+        let mut tested: Vec<Candidate> = Vec::new();
+        for &k in order {
+            let (i, fit, _) = fits[k];
+            let class = &protos[i].class;
+            if tested.iter().any(|c| &c.class == class) {
+                continue;
+            }
+            let class_prob: f64 = fits
+                .iter()
+                .zip(prob)
+                .filter(|(f, _)| &protos[f.0].class == class)
+                .map(|(_, p)| p)
+                .sum();
+            let consistent = fits
+                .iter()
+                .filter(|f| &protos[f.0].class == class)
+                .any(|f| f.1.consistent);
+            let mut fit = fit;
+            fit.consistent = consistent;
+            tested.push(Candidate {
+                class: class.clone(),
+                index: i,
+                distance: fit.chi2,
+                category: self.category_of(class),
+                probability: Some(class_prob),
+                fit: Some(fit),
+            });
+        }
+        tested
+    }
+
+    /// A single passing material (`candidates[0]`) stands only if no other material,
+    /// under its own layer grown up to EXTENDED_LAYER_NM, both passes and explains the
+    /// rows better: such a material joins the set, which becomes ambiguous (module
+    /// documentation, "Layers beyond their range"). Returns the classes that joined.
+    fn widen(&self, candidates: &mut Vec<Candidate>, tested: &[Candidate]) -> Vec<String> {
+        let (rows, wavelengths, cfg) = (self.rows, self.wavelengths, self.cfg);
+        let mut widened: Vec<String> = Vec::new();
         let bar = candidates[0].distance;
-        for (i, p) in protos.iter().enumerate() {
-            if p.class == candidates[0].class || priors.is_some_and(|w| !(w[i] > 0.0)) {
+        for (i, p) in self.protos.iter().enumerate() {
+            if p.class == candidates[0].class || self.priors.is_some_and(|w| !(w[i] > 0.0)) {
                 continue;
             }
             let Some(mut cand) = CandidateModel::from_prototype(p, wavelengths) else {
@@ -1475,7 +1592,7 @@ pub fn classify_rows(
                         class: p.class.clone(),
                         index: i,
                         distance: fit.chi2,
-                        category: category_of(&p.class),
+                        category: self.category_of(&p.class),
                         probability: tested
                             .iter()
                             .find(|c| c.class == p.class)
@@ -1486,13 +1603,21 @@ pub fn classify_rows(
                 }
             }
         }
+        widened
     }
-    let set_category = match candidates.first().and_then(|c| c.category.clone()) {
-        Some(cat) if candidates.iter().all(|c| c.category.as_ref() == Some(&cat)) => Some(cat),
-        _ => None,
-    };
-    let pct = cfg.confidence * 100.0;
-    let (predicted, status, reason) = match candidates.len() {
+}
+
+/// `(predicted, status, reason)` of [`classify_rows`] from the passing `candidates`,
+/// every `tested` class (most probable first) and the `widened` classes, at
+/// `confidence`.
+fn verdict(
+    candidates: &[Candidate],
+    tested: &[Candidate],
+    widened: &[String],
+    confidence: f64,
+) -> (String, Status, String) {
+    let pct = confidence * 100.0;
+    match candidates.len() {
         0 => (
             UNKNOWN.to_string(),
             Status::Rejected,
@@ -1533,32 +1658,7 @@ pub fn classify_rows(
                 }
             ),
         ),
-    };
-    let best = &tested[0];
-    let runner = tested.get(1);
-    let runner_up_distance = runner.map_or(f64::NAN, |r| r.distance);
-    let decision = Decision {
-        predicted,
-        nearest_class: Some(best.class.clone()),
-        nearest: Some(Neighbour {
-            index: best.index,
-            distance: best.distance,
-        }),
-        distance: best.distance,
-        runner_up: runner.map(|r| r.class.clone()),
-        runner_up_distance,
-        margin: runner_up_distance - best.distance,
-        gate: Some(best.distance),
-        votes: 1,
-        status,
-        reason,
-        ranked,
-        candidates,
-        set_tested: true,
-        set_category,
-        bands_used,
-    };
-    Ok(HypothesisOutcome { decision, tested })
+    }
 }
 
 pub(crate) mod pixel;

@@ -257,94 +257,19 @@ pub fn calibrate(
         })
         .collect();
     let c: f64 = rows.iter().zip(&w).map(|(r, w)| w * r.dolp * r.dolp).sum();
-    // χ² profiled over s (closed form, s > 0), and that s.
-    let profile = |d: f64, o: f64| -> (f64, f64) {
-        let (mut a, mut b) = (0.0, 0.0);
-        for (r, wt) in rows.iter().zip(&w) {
-            let p = model(reference, wavelengths, r, d, o);
-            a += wt * p * p;
-            b += wt * r.dolp * p;
-        }
-        if a > 0.0 && b > 0.0 {
-            ((c - b * b / a).max(0.0), b / a)
-        } else {
-            (c, 0.0)
-        }
+    let fit = RefFit {
+        rows,
+        wavelengths,
+        reference,
+        w,
+        c,
+        d_lo,
+        d_hi,
     };
     let win = SEARCH_OFFSET_DEG.to_radians();
-    let (gd, go) = (if with_d { 9 } else { 1 }, 81usize);
-    let at = |lo: f64, hi: f64, n: usize, i: usize| {
-        if n == 1 {
-            lo
-        } else {
-            lo + (hi - lo) * i as f64 / (n - 1) as f64
-        }
-    };
-    let mut best = (f64::INFINITY, d_lo, 0.0);
-    for i in 0..gd {
-        let d = at(d_lo, d_hi, gd, i);
-        for j in 0..go {
-            let o = at(-win, win, go, j);
-            let chi2 = profile(d, o).0;
-            if chi2 < best.0 {
-                best = (chi2, d, o);
-            }
-        }
-    }
-    let (mut d, mut o) = (best.1, best.2);
-    let step_d = if gd > 1 {
-        (d_hi - d_lo) / (gd - 1) as f64
-    } else {
-        0.0
-    };
-    let step_o = 2.0 * win / (go - 1) as f64;
-    for _ in 0..4 {
-        let (lo, hi) = ((o - step_o).max(-win), (o + step_o).min(win));
-        o = golden(lo, hi, |x| profile(d, x).0);
-        if step_d > 0.0 {
-            let (lo, hi) = ((d - step_d).max(d_lo), (d + step_d).min(d_hi));
-            d = golden(lo, hi, |x| profile(x, o).0);
-        }
-    }
-    let (chi2, s) = profile(d, o);
-    // Covariance of (s, δ, d) from JᵀWJ plus the thickness box's precision.
-    let ho = 1e-6;
-    let hd = 1e-3 * (d_hi - d_lo).max(1e-3);
-    let mut f = [[0.0f64; 3]; 3];
-    for (r, wt) in rows.iter().zip(&w) {
-        let p = model(reference, wavelengths, r, d, o);
-        let mut j = [p, 0.0, 0.0];
-        j[1] = s
-            * (model(reference, wavelengths, r, d, o + ho)
-                - model(reference, wavelengths, r, d, o - ho))
-            / (2.0 * ho);
-        if with_d {
-            let (lo, hi) = ((d - hd).max(0.0), d + hd);
-            j[2] = s
-                * (model(reference, wavelengths, r, hi, o)
-                    - model(reference, wavelengths, r, lo, o))
-                / (hi - lo);
-        }
-        for a in 0..3 {
-            for b in 0..3 {
-                f[a][b] += wt * j[a] * j[b];
-            }
-        }
-    }
-    let cov = if with_d {
-        f[2][2] += 12.0 / ((d_hi - d_lo) * (d_hi - d_lo));
-        inverse3(&f)
-    } else {
-        let det = f[0][0] * f[1][1] - f[0][1] * f[1][0];
-        (det > 0.0).then(|| {
-            let mut m = [[0.0; 3]; 3];
-            m[0][0] = f[1][1] / det;
-            m[1][1] = f[0][0] / det;
-            m[0][1] = -f[0][1] / det;
-            m[1][0] = m[0][1];
-            m
-        })
-    };
+    let (d, o, step_o) = fit.search(win);
+    let (chi2, s) = fit.profile(d, o);
+    let cov = fit.covariance(d, o, s);
     let (scale_se, offset_se, corr) = match cov {
         Some(m) if m[0][0] > 0.0 && m[1][1] > 0.0 => {
             let (a, b) = (m[0][0].sqrt(), m[1][1].sqrt());
@@ -366,6 +291,127 @@ pub fn calibrate(
         rows: rows.len(),
         offset_at_edge: (o.abs() - win).abs() < 0.5 * step_o,
     })
+}
+
+/// The reference's rows with their weights, and the thickness range, for [`calibrate`].
+struct RefFit<'a> {
+    rows: &'a [HypRow],
+    wavelengths: &'a [f64],
+    reference: &'a CandidateModel,
+    /// Row weights `1/(σ_P² + (½ ∂P/∂β σ_angle)²)`.
+    w: Vec<f64>,
+    /// `Σ w P_meas²`.
+    c: f64,
+    /// Thickness range, nm (equal ends without a layer range).
+    d_lo: f64,
+    d_hi: f64,
+}
+
+impl RefFit<'_> {
+    /// Whether the thickness is fitted.
+    fn with_d(&self) -> bool {
+        self.d_hi > self.d_lo
+    }
+
+    /// χ² profiled over s (closed form, s > 0), and that s, at thickness `d`, offset `o`.
+    fn profile(&self, d: f64, o: f64) -> (f64, f64) {
+        let (mut a, mut b) = (0.0, 0.0);
+        for (r, wt) in self.rows.iter().zip(&self.w) {
+            let p = model(self.reference, self.wavelengths, r, d, o);
+            a += wt * p * p;
+            b += wt * r.dolp * p;
+        }
+        if a > 0.0 && b > 0.0 {
+            ((self.c - b * b / a).max(0.0), b / a)
+        } else {
+            (self.c, 0.0)
+        }
+    }
+
+    /// The profiled minimum `(d, o)` over offsets within `±win`: a grid, then alternating
+    /// golden-section refinements; also the offset grid step.
+    fn search(&self, win: f64) -> (f64, f64, f64) {
+        let (d_lo, d_hi) = (self.d_lo, self.d_hi);
+        let (gd, go) = (if self.with_d() { 9 } else { 1 }, 81usize);
+        let at = |lo: f64, hi: f64, n: usize, i: usize| {
+            if n == 1 {
+                lo
+            } else {
+                lo + (hi - lo) * i as f64 / (n - 1) as f64
+            }
+        };
+        let mut best = (f64::INFINITY, d_lo, 0.0);
+        for i in 0..gd {
+            let d = at(d_lo, d_hi, gd, i);
+            for j in 0..go {
+                let o = at(-win, win, go, j);
+                let chi2 = self.profile(d, o).0;
+                if chi2 < best.0 {
+                    best = (chi2, d, o);
+                }
+            }
+        }
+        let (mut d, mut o) = (best.1, best.2);
+        let step_d = if gd > 1 {
+            (d_hi - d_lo) / (gd - 1) as f64
+        } else {
+            0.0
+        };
+        let step_o = 2.0 * win / (go - 1) as f64;
+        for _ in 0..4 {
+            let (lo, hi) = ((o - step_o).max(-win), (o + step_o).min(win));
+            o = golden(lo, hi, |x| self.profile(d, x).0);
+            if step_d > 0.0 {
+                let (lo, hi) = ((d - step_d).max(d_lo), (d + step_d).min(d_hi));
+                d = golden(lo, hi, |x| self.profile(x, o).0);
+            }
+        }
+        (d, o, step_o)
+    }
+
+    /// Covariance of (s, δ, d) from JᵀWJ plus the thickness box's precision, at
+    /// thickness `d`, offset `o`, scale `s`; `None` when singular.
+    fn covariance(&self, d: f64, o: f64, s: f64) -> Option<[[f64; 3]; 3]> {
+        let (reference, wavelengths) = (self.reference, self.wavelengths);
+        let (d_lo, d_hi, with_d) = (self.d_lo, self.d_hi, self.with_d());
+        let ho = 1e-6;
+        let hd = 1e-3 * (d_hi - d_lo).max(1e-3);
+        let mut f = [[0.0f64; 3]; 3];
+        for (r, wt) in self.rows.iter().zip(&self.w) {
+            let p = model(reference, wavelengths, r, d, o);
+            let mut j = [p, 0.0, 0.0];
+            j[1] = s
+                * (model(reference, wavelengths, r, d, o + ho)
+                    - model(reference, wavelengths, r, d, o - ho))
+                / (2.0 * ho);
+            if with_d {
+                let (lo, hi) = ((d - hd).max(0.0), d + hd);
+                j[2] = s
+                    * (model(reference, wavelengths, r, hi, o)
+                        - model(reference, wavelengths, r, lo, o))
+                    / (hi - lo);
+            }
+            for a in 0..3 {
+                for b in 0..3 {
+                    f[a][b] += wt * j[a] * j[b];
+                }
+            }
+        }
+        if with_d {
+            f[2][2] += 12.0 / ((d_hi - d_lo) * (d_hi - d_lo));
+            inverse3(&f)
+        } else {
+            let det = f[0][0] * f[1][1] - f[0][1] * f[1][0];
+            (det > 0.0).then(|| {
+                let mut m = [[0.0; 3]; 3];
+                m[0][0] = f[1][1] / det;
+                m[1][1] = f[0][0] / det;
+                m[0][1] = -f[0][1] / det;
+                m[1][0] = m[0][1];
+                m
+            })
+        }
+    }
 }
 
 /// The inverse of a symmetric positive definite 3×3 matrix (cofactors); `None` when

@@ -46,6 +46,26 @@ fn best_index(polished: &[engine::JobOut]) -> (usize, u32, u32) {
     (best, iters, evals)
 }
 
+/// Validate every pixel of a chunk (`out.len()` rows of `t_len` values of `y` and
+/// `se`): an invalid pixel gets its invalid fit, a valid one a place in `valid`.
+#[inline(always)]
+fn check_chunk(
+    t_len: usize,
+    y: &[f64],
+    se: Option<&[f64]>,
+    out: &mut [NkFit],
+    valid: &mut Vec<usize>,
+) {
+    valid.clear();
+    for (p, o) in out.iter_mut().enumerate() {
+        let rows = p * t_len..(p + 1) * t_len;
+        match check_pixel(&y[rows.clone()], se.map(|s| &s[rows])) {
+            Ok(()) => valid.push(p),
+            Err(e) => *o = NkFit::invalid(invalid_reason(&e)),
+        }
+    }
+}
+
 /// Per-thread scratch memory of a fit (no allocation per fit).
 #[derive(Debug, Clone)]
 pub struct FitWorkspace {
@@ -208,14 +228,7 @@ impl FitPlan {
         let in_lanes = wall.is_none() && self.lane_starts();
         spans.clear();
         spans.resize(out.len(), (0, 0));
-        valid.clear();
-        for (p, o) in out.iter_mut().enumerate() {
-            let rows = p * t_len..(p + 1) * t_len;
-            match check_pixel(&y[rows.clone()], se.map(|s| &s[rows])) {
-                Ok(()) => valid.push(p),
-                Err(e) => *o = NkFit::invalid(invalid_reason(&e)),
-            }
-        }
+        check_chunk(t_len, y, se, out, valid);
         // Unweighted pixels four at a time (one read of the grid curves per four).
         let quads = if wall.is_none() && K::FOUR {
             valid.len() / 4
@@ -229,24 +242,8 @@ impl FitPlan {
                 valid[4 * q + 2],
                 valid[4 * q + 3],
             ];
-            for (dst, &p) in yf4.chunks_exact_mut(t_len).zip(&ps) {
-                for (d, &v) in dst.iter_mut().zip(&y[p * t_len..(p + 1) * t_len]) {
-                    *d = -(v as f32);
-                }
-            }
-            let y4 = [
-                &yf4[..t_len],
-                &yf4[t_len..2 * t_len],
-                &yf4[2 * t_len..3 * t_len],
-                &yf4[3 * t_len..4 * t_len],
-            ];
-            let curves = &self.coarse_curves[..];
-            let base = &self.coarse_half_norm[..];
             let nbands = bands.len();
-            let mut parts = bands4.chunks_exact_mut(nbands);
-            let b4 = [(); 4].map(|_| parts.next().unwrap_or_default());
-            let groups = self.groups.as_ref();
-            scan::scan4_grid(k, groups, curves, base, y4, self.grid.band, b4);
+            self.scan_quad(k, ps, y, yf4, bands4, nbands);
             if in_lanes {
                 for (i, &p) in ps.iter().enumerate() {
                     sums.push(self.start_sums::<true>(
@@ -292,12 +289,7 @@ impl FitPlan {
         }
         outs.clear();
         outs.resize(jobs.len(), engine::JobOut::default());
-        let settings = engine::Settings {
-            bounds: self.grid.opts.bounds,
-            max_iter: self.grid.opts.max_iter,
-            xtol: self.grid.opts.xtol,
-            ftol: self.grid.opts.ftol,
-        };
+        let settings = engine::Settings::new(&self.grid.opts);
         engine::run::<K, false>(
             k,
             &self.lanes,
@@ -310,6 +302,54 @@ impl FitPlan {
             outs,
             lane,
         );
+        self.finish_chunk(k, spans, outs, y, wall, out);
+    }
+
+    /// The grid scans of the four unweighted pixels `ps` (one read of the grid curves
+    /// per four): their negated f32 measurements into `yf4`, their band minima into
+    /// `bands4` (`nbands` each).
+    #[inline(always)]
+    fn scan_quad<K: Simd + Scan>(
+        &self,
+        k: K,
+        ps: [usize; 4],
+        y: &[f64],
+        yf4: &mut [f32],
+        bands4: &mut [scan::BandMin],
+        nbands: usize,
+    ) {
+        let t_len = self.len();
+        for (dst, &p) in yf4.chunks_exact_mut(t_len).zip(&ps) {
+            for (d, &v) in dst.iter_mut().zip(&y[p * t_len..(p + 1) * t_len]) {
+                *d = -(v as f32);
+            }
+        }
+        let y4 = [
+            &yf4[..t_len],
+            &yf4[t_len..2 * t_len],
+            &yf4[2 * t_len..3 * t_len],
+            &yf4[3 * t_len..4 * t_len],
+        ];
+        let curves = &self.coarse_curves[..];
+        let base = &self.coarse_half_norm[..];
+        let mut parts = bands4.chunks_exact_mut(nbands);
+        let b4 = [(); 4].map(|_| parts.next().unwrap_or_default());
+        let groups = self.groups.as_ref();
+        scan::scan4_grid(k, groups, curves, base, y4, self.grid.band, b4);
+    }
+
+    /// The best of the polishes `outs` of every fitted pixel (`spans`: its first job
+    /// and number of jobs), its uncertainties and status, into `out`.
+    #[inline(always)]
+    fn finish_chunk<K: Simd>(
+        &self,
+        k: K,
+        spans: &[(usize, usize)],
+        outs: &[engine::JobOut],
+        y: &[f64],
+        wall: Option<&[f64]>,
+        out: &mut [NkFit],
+    ) {
         // The best polish of every fitted pixel, its uncertainties and status W
         // pixels at a time in the vector lanes (`covariance.rs`).
         let mut fin = FinishLanes::default();

@@ -78,6 +78,19 @@ pub(crate) struct Settings {
     pub ftol: f64,
 }
 
+impl Settings {
+    /// The settings of the fit options `o`.
+    #[inline]
+    pub fn new(o: &super::FitOptions) -> Self {
+        Self {
+            bounds: o.bounds,
+            max_iter: o.max_iter,
+            xtol: o.xtol,
+            ftol: o.ftol,
+        }
+    }
+}
+
 /// The β terms of eq. (9) at one source position of one pixel, as the lane evaluation
 /// reads them (a fit with a β per pixel, see [`run`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -165,23 +178,20 @@ fn lane<S: Simd>(s: S, v: S::V, l: usize) -> f64 {
 /// `hypot` fallback dropped, exact for bounds below `1e100`, checked by the plan),
 /// except that the quotients by `ρ`, `q`, `r` and `r (v + r)` share one reciprocal
 /// (see [`R_LO`]): equal up to rounding.
-/// `y`, `w`: lane-major, `y[t * W + l]`. The β terms: `PIX = false`, those of `lanes`,
-/// shared by every lane; `PIX = true`, each lane's own from `pb` (lane-major, see
-/// [`LaneScratch`]; `lanes` is then not read).
+/// The measurements and weights: those of `sc`, lane-major, `y[t * W + l]`. The β
+/// terms: `PIX = false`, those of `lanes`, shared by every lane; `PIX = true`, each
+/// lane's own from `sc` (lane-major, see [`LaneScratch`]; `lanes` is then not read).
 ///
 /// When every lane has `nk ≥ 2 R_LO` and `n² + k² ≤ 1e49`, every source position has
 /// `r, q ∈ [R_LO, R_HI]` (`r ≥ 2nk`, `r ≤ 2(n² + k²) + 1`; `q ≥ c²r ≥ nk` where
 /// `cos²β ≥ ½`, else `q ≥ sin⁴β ≥ ¼`), so the per-position range test and the `r = 0`
 /// guards are skipped: the same values bit for bit.
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 fn eval_lanes<S: Simd, const WEIGHTED: bool, const PIX: bool>(
     s: S,
     lanes: &Lanes,
     t_len: usize,
-    y: &[f64],
-    w: &[f64],
-    pb: &[Vec<f64>; 5],
+    sc: &LaneScratch,
     vn: S::V,
     vk: S::V,
 ) -> EvalV<S> {
@@ -189,70 +199,69 @@ fn eval_lanes<S: Simd, const WEIGHTED: bool, const PIX: bool>(
     let nn_kk = s.add(s.mul(vn, vn), s.mul(vk, vk));
     let safe = s.and(s.le(s.splat(2.0 * R_LO), nk), s.le(nn_kk, s.splat(1e49)));
     if s.bits(safe) == (1u32 << W) - 1 {
-        eval_terms::<S, WEIGHTED, PIX, false>(s, lanes, t_len, y, w, pb, vn, vk)
+        eval_terms::<S, WEIGHTED, PIX, false>(s, lanes, t_len, sc, vn, vk)
     } else {
-        eval_terms::<S, WEIGHTED, PIX, true>(s, lanes, t_len, y, w, pb, vn, vk)
+        eval_terms::<S, WEIGHTED, PIX, true>(s, lanes, t_len, sc, vn, vk)
     }
 }
 
-/// [`eval_lanes`]; `CHECK`: test every position's `r, q` range (else every lane is
-/// known to be in range).
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn eval_terms<S: Simd, const WEIGHTED: bool, const PIX: bool, const CHECK: bool>(
-    s: S,
-    lanes: &Lanes,
-    t_len: usize,
-    y: &[f64],
-    w: &[f64],
-    pb: &[Vec<f64>; 5],
+/// The terms of eq. (9) that depend on `(n, k)` only, for every lane.
+#[derive(Clone, Copy)]
+struct LanePoint<S: Simd> {
     vn: S::V,
     vk: S::V,
-) -> EvalV<S> {
-    let (y, w) = (&y[..t_len * W], &w[..t_len * W]);
-    let (s2v, cv, c2v, s4v, numv) = if PIX {
-        (&[][..], &[][..], &[][..], &[][..], &[][..])
-    } else {
-        lanes.terms(t_len)
-    };
-    let nn = s.mul(vn, vn);
-    let kk = s.mul(vk, vk);
-    let nk = s.mul(vn, vk);
-    let nn_kk = s.add(nn, kk);
-    let d0 = s.sub(nn, kk);
-    let q4 = s.mul(s.mul(s.splat(4.0), nk), nk);
-    let two_n = s.add(vn, vn);
-    let two_k = s.add(vk, vk);
-    let (zero, half, one, tiny) = (
-        s.splat(0.0),
-        s.splat(0.5),
-        s.splat(1.0),
-        s.splat(f64::MIN_POSITIVE),
-    );
-    let mut a_cost = zero;
-    let mut a_h00 = zero;
-    let mut a_h01 = zero;
-    let mut a_h11 = zero;
-    let mut a_g0 = zero;
-    let mut a_g1 = zero;
-    for (t, (yt, wt)) in y.chunks_exact(W).zip(w.chunks_exact(W)).enumerate() {
-        let (s2, c, c2, s4, num) = if PIX {
-            (
-                s.load(&pb[0][t * W..]),
-                s.load(&pb[1][t * W..]),
-                s.load(&pb[2][t * W..]),
-                s.load(&pb[3][t * W..]),
-                s.load(&pb[4][t * W..]),
-            )
-        } else {
-            (
-                s.splat(s2v[t]),
-                s.splat(cv[t]),
-                s.splat(c2v[t]),
-                s.splat(s4v[t]),
-                s.splat(numv[t]),
-            )
-        };
+    nk: S::V,
+    nn_kk: S::V,
+    /// `n² − k²`.
+    d0: S::V,
+    /// `4 n² k²`.
+    q4: S::V,
+    two_n: S::V,
+    two_k: S::V,
+}
+
+impl<S: Simd> LanePoint<S> {
+    #[inline(always)]
+    fn new(s: S, vn: S::V, vk: S::V) -> Self {
+        let nn = s.mul(vn, vn);
+        let kk = s.mul(vk, vk);
+        let nk = s.mul(vn, vk);
+        Self {
+            vn,
+            vk,
+            nk,
+            nn_kk: s.add(nn, kk),
+            d0: s.sub(nn, kk),
+            q4: s.mul(s.mul(s.splat(4.0), nk), nk),
+            two_n: s.add(vn, vn),
+            two_k: s.add(vk, vk),
+        }
+    }
+
+    /// `P` of eq. (9) and its gradient `(∂P/∂n, ∂P/∂k)` at one source position, with
+    /// its β terms `[sin²β, cos β, cos²β, sin⁴β, 2 sin²β cos β]` (see [`eval_terms`]).
+    #[inline(always)]
+    fn p_grad<const CHECK: bool>(
+        &self,
+        s: S,
+        [s2, c, c2, s4, num]: [S::V; 5],
+    ) -> (S::V, S::V, S::V) {
+        let Self {
+            vn,
+            vk,
+            nk,
+            nn_kk,
+            d0,
+            q4,
+            two_n,
+            two_k,
+        } = *self;
+        let (zero, half, one, tiny) = (
+            s.splat(0.0),
+            s.splat(0.5),
+            s.splat(1.0),
+            s.splat(f64::MIN_POSITIVE),
+        );
         let d = s.sub(d0, s2); // eq. (15)
         let r = s.sqrt(s.fma(d, d, q4)); // √C, eq. (14)
         let rho = s.sqrt(s.mul(s.add(r, s.abs(d)), half));
@@ -314,6 +323,54 @@ fn eval_terms<S: Simd, const WEIGHTED: bool, const PIX: bool, const CHECK: bool>
         } else {
             (jn, jk, p)
         };
+        (p, jn, jk)
+    }
+}
+
+/// [`eval_lanes`]; `CHECK`: test every position's `r, q` range (else every lane is
+/// known to be in range).
+#[inline(always)]
+fn eval_terms<S: Simd, const WEIGHTED: bool, const PIX: bool, const CHECK: bool>(
+    s: S,
+    lanes: &Lanes,
+    t_len: usize,
+    sc: &LaneScratch,
+    vn: S::V,
+    vk: S::V,
+) -> EvalV<S> {
+    let (y, w, pb) = (&sc.y[..t_len * W], &sc.w[..t_len * W], &sc.b);
+    let (s2v, cv, c2v, s4v, numv) = if PIX {
+        (&[][..], &[][..], &[][..], &[][..], &[][..])
+    } else {
+        lanes.terms(t_len)
+    };
+    let pt = LanePoint::new(s, vn, vk);
+    let zero = s.splat(0.0);
+    let mut a_cost = zero;
+    let mut a_h00 = zero;
+    let mut a_h01 = zero;
+    let mut a_h11 = zero;
+    let mut a_g0 = zero;
+    let mut a_g1 = zero;
+    for (t, (yt, wt)) in y.chunks_exact(W).zip(w.chunks_exact(W)).enumerate() {
+        let bt = if PIX {
+            [
+                s.load(&pb[0][t * W..]),
+                s.load(&pb[1][t * W..]),
+                s.load(&pb[2][t * W..]),
+                s.load(&pb[3][t * W..]),
+                s.load(&pb[4][t * W..]),
+            ]
+        } else {
+            [
+                s.splat(s2v[t]),
+                s.splat(cv[t]),
+                s.splat(c2v[t]),
+                s.splat(s4v[t]),
+                s.splat(numv[t]),
+            ]
+        };
+        let (p, jn, jk) = pt.p_grad::<CHECK>(s, bt);
         let res = s.sub(p, s.load(yt));
         // Unweighted: the same sums without the multiplications by w = 1 (bitwise
         // equal: 1·x = x).
@@ -357,7 +414,7 @@ fn step_lanes<S: Simd>(
     b: &FitBounds,
 ) -> (S::V, S::V, S::V) {
     let k_lo = if b.k_min > 0.0 { b.k_min } else { K_FLOOR };
-    let (zero, one, two, neg) = (s.splat(0.0), s.splat(1.0), s.splat(2.0), s.splat(-1.0));
+    let (zero, one, neg) = (s.splat(0.0), s.splat(1.0), s.splat(-1.0));
     let in_u = s.and(s.lt(vk, s.splat(K_U)), s.lt(zero, vk));
     // The divisions and square root below run only when some live lane reads them
     // (the divider bounds the engine's speed); other lanes' values are never selected.
@@ -428,6 +485,40 @@ fn step_lanes<S: Simd>(
     let n1 = s.min(s.max(n_p, n_min), n_max);
     let k1 = s.min(s.max(k_p, k_lo_v), k_max);
     // The step along the line through 1/N (lm::arc_step), where it applies.
+    let both_free = s.and(s.not(in_u), s.and(n_free, k_free));
+    let (n1, k1) = arc_step(
+        s,
+        [n_min, n_max, k_lo_v, k_max],
+        (vn, vk),
+        (dn, dk),
+        both_free,
+        (n1, k1),
+    );
+    let en = s.sub(n1, vn);
+    let ek = s.select(in_u, s.sub(s.mul(k1, k1), s.mul(vk, vk)), s.sub(k1, vk));
+    let p = predicted(s, [h00, h01, h11, g0, g1], en, ek);
+    (
+        s.select(finite, n1, vn),
+        s.select(finite, k1, vk),
+        s.select(finite, p, zero),
+    )
+}
+
+/// The step along the line through `1/N` of `lm::arc_step` from `(vn, vk)` for the
+/// Gauss–Newton step `(dn, dk)`, in the lanes of `eligible` (both parameters free, in
+/// `k`) where it applies: strictly inside the box `[n_min, n_max, k_lo, k_max]`, the
+/// step shorter than `ARC_MAX |N|` and the arc point inside the box; other lanes keep
+/// `(n1, k1)`.
+#[inline(always)]
+fn arc_step<S: Simd>(
+    s: S,
+    [n_min, n_max, k_lo_v, k_max]: [S::V; 4],
+    (vn, vk): (S::V, S::V),
+    (dn, dk): (S::V, S::V),
+    eligible: S::M,
+    (n1, k1): (S::V, S::V),
+) -> (S::V, S::V) {
+    let (one, two) = (s.splat(1.0), s.splat(2.0));
     let ar = s.sub(s.mul(vn, vn), s.mul(vk, vk));
     let ai = s.mul(two, s.mul(vn, vk));
     let br = s.sub(vn, dn);
@@ -437,7 +528,7 @@ fn step_lanes<S: Simd>(
     let ka = s.mul(s.sub(s.mul(ai, br), s.mul(ar, bi)), inv);
     let arc = s.and(
         s.and(
-            s.and(s.not(in_u), s.and(n_free, k_free)),
+            eligible,
             s.and(s.and(s.lt(n_min, vn), s.lt(vn, n_max)), s.lt(vk, k_max)),
         ),
         s.and(
@@ -454,11 +545,14 @@ fn step_lanes<S: Simd>(
             ),
         ),
     );
-    let n1 = s.select(arc, na, n1);
-    let k1 = s.select(arc, ka, k1);
-    let en = s.sub(n1, vn);
-    let ek = s.select(in_u, s.sub(s.mul(k1, k1), s.mul(vk, vk)), s.sub(k1, vk));
-    // −(2 gᵀδ + δᵀ H δ)
+    (s.select(arc, na, n1), s.select(arc, ka, k1))
+}
+
+/// The decrease `−(2 gᵀδ + δᵀ H δ)` the Gauss–Newton model `[h00, h01, h11, g0, g1]`
+/// predicts for the step `δ = (en, ek)`.
+#[inline(always)]
+fn predicted<S: Simd>(s: S, [h00, h01, h11, g0, g1]: [S::V; 5], en: S::V, ek: S::V) -> S::V {
+    let two = s.splat(2.0);
     let lin = s.mul(two, s.add(s.mul(g0, en), s.mul(g1, ek)));
     let quad = s.add(
         s.mul(s.mul(h00, en), en),
@@ -467,12 +561,7 @@ fn step_lanes<S: Simd>(
             s.mul(s.mul(h11, ek), ek),
         ),
     );
-    let p = s.sub(zero, s.add(lin, quad));
-    (
-        s.select(finite, n1, vn),
-        s.select(finite, k1, vk),
-        s.select(finite, p, zero),
-    )
+    s.sub(s.splat(0.0), s.add(lin, quad))
 }
 
 /// Run every job of `jobs`, writing `out[j]` for job `j`. `y` holds the measurements
@@ -502,69 +591,333 @@ pub(crate) fn run<S: Simd, const PIX: bool>(
     out: &mut [JobOut],
     sc: &mut LaneScratch,
 ) {
-    if sc.y.len() != t_len * W {
-        sc.y = vec![0.0; t_len * W];
-    }
-    if PIX {
-        for v in sc.b.iter_mut() {
-            // Lanes without a job keep harmless terms (β = 45°).
-            v.clear();
-            v.resize(t_len * W, 0.5);
-        }
-    }
-    // Unweighted: every lane's weights stay 1.
-    sc.w.clear();
-    sc.w.resize(t_len * W, 1.0);
+    sc.reset::<PIX>(t_len);
     let b = &set.bounds;
-    let k_floor = if b.k_min == 0.0 { K_FLOOR } else { b.k_min };
     let (zero, one) = (s.splat(0.0), s.splat(1.0));
-    // Per-lane job data (written when a lane takes a job).
-    let mut job = [usize::MAX; W];
-    let mut start_n = [1.0; W];
-    let mut start_k = [1.0; W];
-    let mut node_n = [1.0; W];
-    let mut node_k = [1.0; W];
-    let mut grid_cost = [0.0; W];
+    let mut q = Queue::<PIX> {
+        jobs,
+        y,
+        w,
+        pix,
+        t_len,
+        k_floor: if b.k_min == 0.0 { K_FLOOR } else { b.k_min },
+        next: 0,
+        job: [usize::MAX; W],
+        start_n: [1.0; W],
+        start_k: [1.0; W],
+        node_n: [1.0; W],
+        node_k: [1.0; W],
+        grid_cost: [0.0; W],
+        free_b: (1u32 << W) - 1,
+    };
     // Phases as lane bits: evaluating the start, evaluating the node, iterating.
     let (mut start_b, mut node_b, mut lm_b) = (0u32, 0u32, 0u32);
-    // Lanes without a job.
-    let mut free_b: u32 = (1u32 << W) - 1;
     // Vector state.
-    let mut n = one;
-    let mut k = one;
-    let mut lam = s.splat(LAM_0);
-    let mut iters = zero;
-    let mut evals = zero;
-    let mut cur = EvalV::<S> {
-        cost: zero,
-        h00: zero,
-        h01: zero,
-        h11: zero,
-        g0: zero,
-        g1: zero,
-    };
-    let mut next = 0usize;
+    let mut st = LaneState::new(s);
+    start_b |= q.refill(sc);
+    let (xtol, ftol) = (s.splat(set.xtol), s.splat(set.ftol));
+    let max_iter = s.splat(f64::from(set.max_iter));
+    loop {
+        // 1. Levenberg–Marquardt lanes: the next trial point, or the end of the
+        //    polish (before an evaluation).
+        let lm_m = s.mask(lm_b);
+        let (nt, kt, pred) = step_lanes(s, lm_m, &st.cur, st.lam, st.n, st.k, b);
+        let maxed = s.and(lm_m, s.le(max_iter, st.iters));
+        let going = s.and(lm_m, s.not(maxed));
+        st.iters = s.add(st.iters, s.select(going, one, zero));
+        let (n, k, lam) = (st.n, st.k, st.lam);
+        let still = s.and(
+            s.le(s.abs(s.sub(nt, n)), s.mul(xtol, s.add(s.abs(n), xtol))),
+            s.le(
+                s.abs(s.sub(kt, k)),
+                s.mul(xtol, s.add(s.abs(k), s.splat(1e-12))),
+            ),
+        );
+        let flat = s.and(
+            s.and(s.le(lam, s.splat(1e-5)), s.le(zero, pred)),
+            s.le(pred, s.mul(ftol, st.cur.cost)),
+        );
+        let stop = s.and(going, s.or(s.or(s.eq(st.cur.cost, zero), still), flat));
+        let done = s.bits(s.or(maxed, stop));
+        if done != 0 {
+            st.retire(s, done, s.bits(stop), &mut q.job, out);
+            lm_b &= !done;
+            q.free_b |= done;
+            start_b |= q.refill(sc);
+        }
+        let active = start_b | node_b | lm_b;
+        if active == 0 {
+            break;
+        }
+        // 2. Trial points of every lane, and their evaluation.
+        let (start_m, node_m, lm_m) = (s.mask(start_b), s.mask(node_b), s.mask(lm_b));
+        let (tn, tk) = q.trial_points(s, [start_m, node_m, lm_m], nt, kt);
+        let ev = if w.is_some() {
+            eval_lanes::<S, true, PIX>(s, lanes, t_len, sc, tn, tk)
+        } else {
+            eval_lanes::<S, false, PIX>(s, lanes, t_len, sc, tn, tk)
+        };
+        st.evals = s.add(st.evals, s.select(s.mask(active), one, zero));
+        // 3. Accept or reject. Start and node evaluations are always taken; a start
+        //    worse than its node's grid cost is followed by the node.
+        let first = s.or(start_m, node_m);
+        let bad = s.and(
+            start_m,
+            s.not(s.le(
+                ev.cost,
+                s.add(
+                    s.mul(s.load(&q.grid_cost), s.splat(1.0 + 1e-4)),
+                    s.splat(1e-12),
+                ),
+            )),
+        );
+        let (conv_b, over_b) = st.take(s, &ev, (tn, tk), first, lm_m, ftol);
+        let bad_b = s.bits(bad);
+        lm_b |= (start_b & !bad_b) | node_b;
+        node_b = bad_b;
+        start_b = 0;
+        if conv_b | over_b != 0 {
+            let ok_b = conv_b | st.minima(s, over_b, b);
+            let done = conv_b | over_b;
+            st.retire(s, done, ok_b, &mut q.job, out);
+            lm_b &= !done;
+            q.free_b |= done;
+            start_b |= q.refill(sc);
+        }
+    }
+}
 
-    // End the polishes of the lanes in `done` (converged: bits of `conv`) and give
-    // their lanes the next jobs.
-    #[allow(clippy::too_many_arguments)]
+impl LaneScratch {
+    /// Size the scratch for rows of `t_len` values: every weight 1 (unweighted lanes
+    /// keep them), with a β per pixel (`PIX`) harmless terms (β = 45°) for lanes
+    /// without a job.
     #[inline(always)]
-    fn retire<S: Simd>(
+    fn reset<const PIX: bool>(&mut self, t_len: usize) {
+        if self.y.len() != t_len * W {
+            self.y = vec![0.0; t_len * W];
+        }
+        if PIX {
+            for v in self.b.iter_mut() {
+                // Lanes without a job keep harmless terms (β = 45°).
+                v.clear();
+                v.resize(t_len * W, 0.5);
+            }
+        }
+        // Unweighted: every lane's weights stay 1.
+        self.w.clear();
+        self.w.resize(t_len * W, 1.0);
+    }
+}
+
+/// The job queue of [`run`] and the job data of every lane (written when a lane takes
+/// a job).
+struct Queue<'a, const PIX: bool> {
+    jobs: &'a [Job],
+    /// Measurements, weights and β terms of the jobs' pixels (see [`run`]).
+    y: &'a [f64],
+    w: Option<&'a [f64]>,
+    pix: &'a [LaneTerms],
+    t_len: usize,
+    /// Smallest `k` of a start or node.
+    k_floor: f64,
+    /// Next job of the queue.
+    next: usize,
+    /// Job of every lane (`usize::MAX`: none).
+    job: [usize; W],
+    start_n: L,
+    start_k: L,
+    node_n: L,
+    node_k: L,
+    grid_cost: L,
+    /// Lanes without a job.
+    free_b: u32,
+}
+
+impl<const PIX: bool> Queue<'_, PIX> {
+    /// Give every lane without a job the next job of the queue, its measurements into
+    /// the lane's slots of `sc`; the lanes started, as bits.
+    #[inline(always)]
+    fn refill(&mut self, sc: &mut LaneScratch) -> u32 {
+        let t_len = self.t_len;
+        let mut started = 0u32;
+        let mut free = self.free_b;
+        while free != 0 && self.next < self.jobs.len() {
+            let l = free.trailing_zeros() as usize;
+            free &= free - 1;
+            let j = &self.jobs[self.next];
+            self.job[l] = self.next;
+            self.next += 1;
+            started |= 1 << l;
+            self.start_n[l] = j.start.0;
+            self.start_k[l] = j.start.1.max(self.k_floor);
+            self.node_n[l] = j.node.0;
+            self.node_k[l] = j.node.1.max(self.k_floor);
+            self.grid_cost[l] = j.grid_cost;
+            let row = &self.y[j.pixel * t_len..(j.pixel + 1) * t_len];
+            for (t, &v) in row.iter().enumerate() {
+                sc.y[t * W + l] = v;
+            }
+            if let Some(w) = self.w {
+                let row = &w[j.pixel * t_len..(j.pixel + 1) * t_len];
+                for (t, &v) in row.iter().enumerate() {
+                    sc.w[t * W + l] = v;
+                }
+            }
+            if PIX {
+                let row = &self.pix[j.pixel * t_len..(j.pixel + 1) * t_len];
+                for (t, b) in row.iter().enumerate() {
+                    sc.b[0][t * W + l] = b.s2;
+                    sc.b[1][t * W + l] = b.c;
+                    sc.b[2][t * W + l] = b.c2;
+                    sc.b[3][t * W + l] = b.s4;
+                    sc.b[4][t * W + l] = b.num;
+                }
+            }
+        }
+        self.free_b &= !started;
+        started
+    }
+
+    /// The trial point of every lane: the start, the node or the
+    /// Levenberg–Marquardt step `(nt, kt)` by the phase masks `[start, node, lm]`
+    /// (`(1, 1)` for idle lanes).
+    #[inline(always)]
+    fn trial_points<S: Simd>(
+        &self,
         s: S,
-        done: u32,
-        conv: u32,
-        n: S::V,
-        k: S::V,
-        cur: &EvalV<S>,
-        iters: &mut S::V,
-        evals: &mut S::V,
-        lam: &mut S::V,
-        job: &mut [usize; W],
-        out: &mut [JobOut],
-    ) {
+        [start_m, node_m, lm_m]: [S::M; 3],
+        nt: S::V,
+        kt: S::V,
+    ) -> (S::V, S::V) {
+        let one = s.splat(1.0);
+        let tn = s.select(
+            lm_m,
+            nt,
+            s.select(
+                start_m,
+                s.load(&self.start_n),
+                s.select(node_m, s.load(&self.node_n), one),
+            ),
+        );
+        let tk = s.select(
+            lm_m,
+            kt,
+            s.select(
+                start_m,
+                s.load(&self.start_k),
+                s.select(node_m, s.load(&self.node_k), one),
+            ),
+        );
+        (tn, tk)
+    }
+}
+
+/// The vector state of the polishes in the lanes.
+struct LaneState<S: Simd> {
+    n: S::V,
+    k: S::V,
+    lam: S::V,
+    iters: S::V,
+    evals: S::V,
+    /// Cost and normal equations at `(n, k)`.
+    cur: EvalV<S>,
+}
+
+impl<S: Simd> LaneState<S> {
+    /// Every lane at `(1, 1)` with the initial damping, no iteration or evaluation.
+    #[inline(always)]
+    fn new(s: S) -> Self {
+        let (zero, one) = (s.splat(0.0), s.splat(1.0));
+        Self {
+            n: one,
+            k: one,
+            lam: s.splat(LAM_0),
+            iters: zero,
+            evals: zero,
+            cur: EvalV::<S> {
+                cost: zero,
+                h00: zero,
+                h01: zero,
+                h11: zero,
+                g0: zero,
+                g1: zero,
+            },
+        }
+    }
+
+    /// Take the evaluation `ev` at the trial points `(tn, tk)` where it is a first
+    /// evaluation (`first`) or an accepted step of a Levenberg–Marquardt lane (`lm_m`),
+    /// and update the damping; the lanes that converged (an accepted step with a small
+    /// decrease at small damping) and those whose damping overflowed, as bits.
+    #[inline(always)]
+    fn take(
+        &mut self,
+        s: S,
+        ev: &EvalV<S>,
+        (tn, tk): (S::V, S::V),
+        first: S::M,
+        lm_m: S::M,
+        ftol: S::V,
+    ) -> (u32, u32) {
+        let accept = s.and(lm_m, s.le(ev.cost, self.cur.cost));
+        let reject = s.and(lm_m, s.not(s.le(ev.cost, self.cur.cost)));
+        let small_dec = s.le(s.sub(self.cur.cost, ev.cost), s.mul(ftol, ev.cost));
+        let take = s.or(first, accept);
+        self.cur = EvalV::select(s, take, ev, &self.cur);
+        self.n = s.select(take, tn, self.n);
+        self.k = s.select(take, tk, self.k);
+        let lam = self.lam;
+        self.lam = s.select(
+            accept,
+            s.max(s.mul(lam, s.splat(LAM_DOWN)), s.splat(1e-12)),
+            s.select(
+                reject,
+                s.max(s.mul(lam, s.splat(LAM_UP)), s.splat(LAM_REJECT)),
+                lam,
+            ),
+        );
+        let conv = s.and(accept, s.and(small_dec, s.le(self.lam, s.splat(1e-3))));
+        let over = s.and(reject, s.lt(s.splat(1e10), self.lam));
+        (s.bits(conv), s.bits(over))
+    }
+
+    /// Of the lanes `over_b` (no further decrease at this precision), those at a
+    /// minimum: the undamped Gauss–Newton model predicts nothing to gain.
+    #[inline(always)]
+    fn minima(&self, s: S, over_b: u32, b: &FitBounds) -> u32 {
+        let cur = &self.cur;
+        let mut ok_b = 0;
+        for l in 0..W {
+            if over_b >> l & 1 == 1 {
+                let e = Eval {
+                    cost: lane(s, cur.cost, l),
+                    ss: 0.0,
+                    h00: lane(s, cur.h00, l),
+                    h01: lane(s, cur.h01, l),
+                    h11: lane(s, cur.h11, l),
+                    g0: lane(s, cur.g0, l),
+                    g1: lane(s, cur.g1, l),
+                };
+                let (_, _, p0) =
+                    super::lm::step(&e, 0.0, lane(s, self.n, l), lane(s, self.k, l), b);
+                if p0 <= 1e-9 * e.cost + 1e-28 {
+                    ok_b |= 1 << l;
+                }
+            }
+        }
+        ok_b
+    }
+
+    /// End the polishes of the lanes in `done` (converged: bits of `conv`), writing
+    /// `out[job[l]]` and freeing their lanes (`job[l] = usize::MAX`, counters and
+    /// damping reset).
+    #[inline(always)]
+    fn retire(&mut self, s: S, done: u32, conv: u32, job: &mut [usize; W], out: &mut [JobOut]) {
+        let cur = &self.cur;
         let mut a = [[0.0; W]; 10];
         for (dst, v) in a.iter_mut().zip([
-            n, k, cur.cost, cur.h00, cur.h01, cur.h11, cur.g0, cur.g1, *iters, *evals,
+            self.n, self.k, cur.cost, cur.h00, cur.h01, cur.h11, cur.g0, cur.g1, self.iters,
+            self.evals,
         ]) {
             s.store(v, dst);
         }
@@ -593,225 +946,9 @@ pub(crate) fn run<S: Simd, const PIX: bool>(
             }
         }
         let m = s.mask(done);
-        *iters = s.select(m, s.splat(0.0), *iters);
-        *evals = s.select(m, s.splat(0.0), *evals);
-        *lam = s.select(m, s.splat(LAM_0), *lam);
-    }
-
-    // Give every lane without a job the next job of the queue.
-    let mut refill = |job: &mut [usize; W],
-                      start_n: &mut L,
-                      start_k: &mut L,
-                      node_n: &mut L,
-                      node_k: &mut L,
-                      grid_cost: &mut L,
-                      sc: &mut LaneScratch,
-                      free_b: &mut u32|
-     -> u32 {
-        let mut started = 0u32;
-        let mut free = *free_b;
-        while free != 0 && next < jobs.len() {
-            let l = free.trailing_zeros() as usize;
-            free &= free - 1;
-            let j = &jobs[next];
-            job[l] = next;
-            next += 1;
-            started |= 1 << l;
-            start_n[l] = j.start.0;
-            start_k[l] = j.start.1.max(k_floor);
-            node_n[l] = j.node.0;
-            node_k[l] = j.node.1.max(k_floor);
-            grid_cost[l] = j.grid_cost;
-            let row = &y[j.pixel * t_len..(j.pixel + 1) * t_len];
-            for (t, &v) in row.iter().enumerate() {
-                sc.y[t * W + l] = v;
-            }
-            if let Some(w) = w {
-                let row = &w[j.pixel * t_len..(j.pixel + 1) * t_len];
-                for (t, &v) in row.iter().enumerate() {
-                    sc.w[t * W + l] = v;
-                }
-            }
-            if PIX {
-                let row = &pix[j.pixel * t_len..(j.pixel + 1) * t_len];
-                for (t, b) in row.iter().enumerate() {
-                    sc.b[0][t * W + l] = b.s2;
-                    sc.b[1][t * W + l] = b.c;
-                    sc.b[2][t * W + l] = b.c2;
-                    sc.b[3][t * W + l] = b.s4;
-                    sc.b[4][t * W + l] = b.num;
-                }
-            }
-        }
-        *free_b &= !started;
-        started
-    };
-
-    start_b |= refill(
-        &mut job,
-        &mut start_n,
-        &mut start_k,
-        &mut node_n,
-        &mut node_k,
-        &mut grid_cost,
-        sc,
-        &mut free_b,
-    );
-    let (xtol, ftol) = (s.splat(set.xtol), s.splat(set.ftol));
-    let max_iter = s.splat(f64::from(set.max_iter));
-    loop {
-        // 1. Levenberg–Marquardt lanes: the next trial point, or the end of the
-        //    polish (before an evaluation).
-        let lm_m = s.mask(lm_b);
-        let (nt, kt, pred) = step_lanes(s, lm_m, &cur, lam, n, k, b);
-        let maxed = s.and(lm_m, s.le(max_iter, iters));
-        let going = s.and(lm_m, s.not(maxed));
-        iters = s.add(iters, s.select(going, one, zero));
-        let still = s.and(
-            s.le(s.abs(s.sub(nt, n)), s.mul(xtol, s.add(s.abs(n), xtol))),
-            s.le(
-                s.abs(s.sub(kt, k)),
-                s.mul(xtol, s.add(s.abs(k), s.splat(1e-12))),
-            ),
-        );
-        let flat = s.and(
-            s.and(s.le(lam, s.splat(1e-5)), s.le(zero, pred)),
-            s.le(pred, s.mul(ftol, cur.cost)),
-        );
-        let stop = s.and(going, s.or(s.or(s.eq(cur.cost, zero), still), flat));
-        let done = s.bits(s.or(maxed, stop));
-        if done != 0 {
-            retire(
-                s,
-                done,
-                s.bits(stop),
-                n,
-                k,
-                &cur,
-                &mut iters,
-                &mut evals,
-                &mut lam,
-                &mut job,
-                out,
-            );
-            lm_b &= !done;
-            free_b |= done;
-            start_b |= refill(
-                &mut job,
-                &mut start_n,
-                &mut start_k,
-                &mut node_n,
-                &mut node_k,
-                &mut grid_cost,
-                sc,
-                &mut free_b,
-            );
-        }
-        let active = start_b | node_b | lm_b;
-        if active == 0 {
-            break;
-        }
-        // 2. Trial points of every lane, and their evaluation.
-        let (start_m, node_m, lm_m) = (s.mask(start_b), s.mask(node_b), s.mask(lm_b));
-        let tn = s.select(
-            lm_m,
-            nt,
-            s.select(
-                start_m,
-                s.load(&start_n),
-                s.select(node_m, s.load(&node_n), one),
-            ),
-        );
-        let tk = s.select(
-            lm_m,
-            kt,
-            s.select(
-                start_m,
-                s.load(&start_k),
-                s.select(node_m, s.load(&node_k), one),
-            ),
-        );
-        let ev = if w.is_some() {
-            eval_lanes::<S, true, PIX>(s, lanes, t_len, &sc.y, &sc.w, &sc.b, tn, tk)
-        } else {
-            eval_lanes::<S, false, PIX>(s, lanes, t_len, &sc.y, &sc.w, &sc.b, tn, tk)
-        };
-        evals = s.add(evals, s.select(s.mask(active), one, zero));
-        // 3. Accept or reject. Start and node evaluations are always taken; a start
-        //    worse than its node's grid cost is followed by the node.
-        let first = s.or(start_m, node_m);
-        let bad = s.and(
-            start_m,
-            s.not(s.le(
-                ev.cost,
-                s.add(
-                    s.mul(s.load(&grid_cost), s.splat(1.0 + 1e-4)),
-                    s.splat(1e-12),
-                ),
-            )),
-        );
-        let accept = s.and(lm_m, s.le(ev.cost, cur.cost));
-        let reject = s.and(lm_m, s.not(s.le(ev.cost, cur.cost)));
-        let small_dec = s.le(s.sub(cur.cost, ev.cost), s.mul(ftol, ev.cost));
-        let take = s.or(first, accept);
-        cur = EvalV::select(s, take, &ev, &cur);
-        n = s.select(take, tn, n);
-        k = s.select(take, tk, k);
-        lam = s.select(
-            accept,
-            s.max(s.mul(lam, s.splat(LAM_DOWN)), s.splat(1e-12)),
-            s.select(
-                reject,
-                s.max(s.mul(lam, s.splat(LAM_UP)), s.splat(LAM_REJECT)),
-                lam,
-            ),
-        );
-        let conv = s.and(accept, s.and(small_dec, s.le(lam, s.splat(1e-3))));
-        let over = s.and(reject, s.lt(s.splat(1e10), lam));
-        let bad_b = s.bits(bad);
-        lm_b |= (start_b & !bad_b) | node_b;
-        node_b = bad_b;
-        start_b = 0;
-        let conv_b = s.bits(conv);
-        let over_b = s.bits(over);
-        if conv_b | over_b != 0 {
-            // No further decrease at this precision: a minimum if the undamped
-            // Gauss–Newton model predicts nothing to gain.
-            let mut ok_b = conv_b;
-            for l in 0..W {
-                if over_b >> l & 1 == 1 {
-                    let e = Eval {
-                        cost: lane(s, cur.cost, l),
-                        ss: 0.0,
-                        h00: lane(s, cur.h00, l),
-                        h01: lane(s, cur.h01, l),
-                        h11: lane(s, cur.h11, l),
-                        g0: lane(s, cur.g0, l),
-                        g1: lane(s, cur.g1, l),
-                    };
-                    let (_, _, p0) = super::lm::step(&e, 0.0, lane(s, n, l), lane(s, k, l), b);
-                    if p0 <= 1e-9 * e.cost + 1e-28 {
-                        ok_b |= 1 << l;
-                    }
-                }
-            }
-            let done = conv_b | over_b;
-            retire(
-                s, done, ok_b, n, k, &cur, &mut iters, &mut evals, &mut lam, &mut job, out,
-            );
-            lm_b &= !done;
-            free_b |= done;
-            start_b |= refill(
-                &mut job,
-                &mut start_n,
-                &mut start_k,
-                &mut node_n,
-                &mut node_k,
-                &mut grid_cost,
-                sc,
-                &mut free_b,
-            );
-        }
+        self.iters = s.select(m, s.splat(0.0), self.iters);
+        self.evals = s.select(m, s.splat(0.0), self.evals);
+        self.lam = s.select(m, s.splat(LAM_0), self.lam);
     }
 }
 
@@ -854,6 +991,11 @@ mod tests {
                 wl[t * W + l] = w[t];
             }
         }
+        let sc = LaneScratch {
+            y: yl,
+            w: wl,
+            b: Default::default(),
+        };
         let mut out = vec![];
         for c in pts.chunks(W) {
             let mut n = [1.0; W];
@@ -862,16 +1004,7 @@ mod tests {
                 n[l] = a;
                 k[l] = b;
             }
-            let e = eval_lanes::<S, true, false>(
-                s,
-                lanes,
-                t_len,
-                &yl,
-                &wl,
-                &Default::default(),
-                s.load(&n),
-                s.load(&k),
-            );
+            let e = eval_lanes::<S, true, false>(s, lanes, t_len, &sc, s.load(&n), s.load(&k));
             out.extend((0..c.len()).map(|l| lane_eval(s, &e, l)));
         }
         out

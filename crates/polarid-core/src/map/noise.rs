@@ -210,65 +210,145 @@ pub fn estimate_noise(
     shot: &[&[f32]],
     flags: &[u8],
 ) -> Result<Option<NoiseEstimate>> {
+    let inp = NoiseInputs {
+        betas,
+        dolp,
+        read,
+        shot,
+        flags,
+    };
+    inp.check()?;
     let npix = flags.len();
     let t_len = dolp.len();
-    for (name, imgs) in [("dolp", dolp), ("read", read), ("shot", shot)] {
-        if imgs.len() != t_len {
-            return Err(CoreError::LengthMismatch {
-                name,
-                expected: t_len,
-                got: imgs.len(),
-            });
-        }
-        for d in imgs {
-            crate::stokes::check_len(name, d.len(), npix)?;
-        }
-    }
-    let beta_of = |p: usize, t: usize| -> f64 {
-        match betas {
-            Betas::Shared(plan) => plan.betas()[t],
-            Betas::PerPixel { beta, .. } => beta.get(t).map_or(f64::NAN, |b| b[p] as f64),
-        }
-    };
-    match betas {
-        Betas::Shared(plan) if plan.len() != t_len => {
-            return Err(CoreError::LengthMismatch {
-                name: "DoLP images (captures)",
-                expected: plan.len(),
-                got: t_len,
-            });
-        }
-        Betas::PerPixel { beta, .. } if beta.len() != t_len => {
-            return Err(CoreError::LengthMismatch {
-                name: "beta images (captures)",
-                expected: t_len,
-                got: beta.len(),
-            });
-        }
-        _ => {}
-    }
     if t_len < 3 {
         return Ok(None);
     }
-    // The captures a pixel can use: DoLP, terms and angle finite (a calibrated map
-    // leaves a pixel's dark or saturated captures out, DoLP NaN); at least 3, and all
-    // of them with shared angles.
-    let full: u64 = if t_len >= 64 {
-        u64::MAX
-    } else {
-        (1u64 << t_len) - 1
+    let count = (0..npix).filter(|&p| inp.mask_of(p) != 0).count();
+    if count < NOISE_MIN_PIXELS {
+        return Ok(None);
+    }
+    let stride = count.div_ceil(NOISE_SAMPLE);
+    let mut sample: Vec<(u64, usize)> = (0..npix)
+        .map(|p| (inp.mask_of(p), p))
+        .filter(|&(m, _)| m != 0)
+        .step_by(stride)
+        .collect();
+    sample.sort_unstable();
+    // Residuals and leverages of the ok fits; first guess: read and shot terms of equal
+    // weight at 1 DN² and 1 DN/e⁻.
+    let mut rows: Vec<Row> = Vec::with_capacity(sample.len() * t_len);
+    let mut spans: Vec<(usize, usize)> = Vec::with_capacity(sample.len());
+    let mut blk = Block::default();
+    let mut fits: Vec<NkFit> = Vec::new();
+    for group in sample.chunk_by(|a, b| a.0 == b.0) {
+        let mask = group[0].0;
+        let ts: Vec<usize> = (0..t_len)
+            .filter(|&t| mask == u64::MAX || mask & (1 << t) != 0)
+            .collect();
+        let tp = ts.len();
+        blk.fill(&inp, group, &ts);
+        fits.clear();
+        fits.resize(group.len(), NkFit::default());
+        match betas {
+            Betas::Shared(plan) => fit_batch(plan, &blk.y, Some(&blk.se), &mut fits)?,
+            Betas::PerPixel { plan, .. } => {
+                fit_batch_pixel_beta(plan, &blk.b, &blk.y, Some(&blk.se), &mut fits)?
+            }
+        }
+        for (i, f) in fits.iter().enumerate() {
+            if f.status != FitStatus::Ok {
+                continue;
+            }
+            let start = rows.len();
+            if blk.push_rows(f, i * tp..(i + 1) * tp, &mut rows) {
+                spans.push((start, rows.len() - start));
+            }
+        }
+    }
+    if spans.len() < NOISE_MIN_PIXELS {
+        return Ok(None);
+    }
+    let Some(theta) = irls(&rows, spans.iter().copied()) else {
+        return Ok(None);
     };
-    let per_pixel = matches!(betas, Betas::PerPixel { .. }) && t_len < 64;
-    let mask_of = |p: usize| -> u64 {
-        if signal_reason(flags[p]) != 0 {
+    Ok(Some(refit_without_outliers(&rows, &spans, theta)))
+}
+
+/// The inputs of [`estimate_noise`].
+struct NoiseInputs<'a> {
+    betas: Betas<'a>,
+    dolp: &'a [&'a [f32]],
+    read: &'a [&'a [f32]],
+    shot: &'a [&'a [f32]],
+    flags: &'a [u8],
+}
+
+impl NoiseInputs<'_> {
+    /// The numbers and sizes of the images agree.
+    fn check(&self) -> Result<()> {
+        let npix = self.flags.len();
+        let t_len = self.dolp.len();
+        for (name, imgs) in [
+            ("dolp", self.dolp),
+            ("read", self.read),
+            ("shot", self.shot),
+        ] {
+            if imgs.len() != t_len {
+                return Err(CoreError::LengthMismatch {
+                    name,
+                    expected: t_len,
+                    got: imgs.len(),
+                });
+            }
+            for d in imgs {
+                crate::stokes::check_len(name, d.len(), npix)?;
+            }
+        }
+        match self.betas {
+            Betas::Shared(plan) if plan.len() != t_len => Err(CoreError::LengthMismatch {
+                name: "DoLP images (captures)",
+                expected: plan.len(),
+                got: t_len,
+            }),
+            Betas::PerPixel { beta, .. } if beta.len() != t_len => Err(CoreError::LengthMismatch {
+                name: "beta images (captures)",
+                expected: t_len,
+                got: beta.len(),
+            }),
+            _ => Ok(()),
+        }
+    }
+
+    /// β of pixel `p` in capture `t`.
+    fn beta_of(&self, p: usize, t: usize) -> f64 {
+        match self.betas {
+            Betas::Shared(plan) => plan.betas()[t],
+            Betas::PerPixel { beta, .. } => beta.get(t).map_or(f64::NAN, |b| b[p] as f64),
+        }
+    }
+
+    /// The captures pixel `p` can use, as bits (`u64::MAX`: all, from 64 captures on):
+    /// DoLP, terms and angle finite (a calibrated map leaves a pixel's dark or saturated
+    /// captures out, DoLP NaN); at least 3, and all of them with shared angles; 0 for a
+    /// flagged pixel.
+    fn mask_of(&self, p: usize) -> u64 {
+        let t_len = self.dolp.len();
+        let full: u64 = if t_len >= 64 {
+            u64::MAX
+        } else {
+            (1u64 << t_len) - 1
+        };
+        let per_pixel = matches!(self.betas, Betas::PerPixel { .. }) && t_len < 64;
+        if signal_reason(self.flags[p]) != 0 {
             return 0;
         }
+        let (dolp, read, shot) = (self.dolp, self.read, self.shot);
         let ok = |t: usize| {
             dolp[t][p].is_finite()
                 && read[t][p].is_finite()
                 && shot[t][p].is_finite()
                 && (read[t][p] > 0.0 || shot[t][p] > 0.0)
-                && beta_of(p, t).is_finite()
+                && self.beta_of(p, t).is_finite()
         };
         if per_pixel {
             let m = (0..t_len)
@@ -280,99 +360,88 @@ pub fn estimate_noise(
         } else {
             0
         }
-    };
-    let count = (0..npix).filter(|&p| mask_of(p) != 0).count();
-    if count < NOISE_MIN_PIXELS {
-        return Ok(None);
     }
-    let stride = count.div_ceil(NOISE_SAMPLE);
-    let mut sample: Vec<(u64, usize)> = (0..npix)
-        .map(|p| (mask_of(p), p))
-        .filter(|&(m, _)| m != 0)
-        .step_by(stride)
-        .collect();
-    sample.sort_unstable();
-    // Residuals and leverages of the ok fits; first guess: read and shot terms of equal
-    // weight at 1 DN² and 1 DN/e⁻.
-    let mut rows: Vec<Row> = Vec::with_capacity(sample.len() * t_len);
-    let mut spans: Vec<(usize, usize)> = Vec::with_capacity(sample.len());
-    let (mut y, mut b, mut se, mut ra, mut rb) = (vec![], vec![], vec![], vec![], vec![]);
-    let mut fits: Vec<NkFit> = Vec::new();
-    for group in sample.chunk_by(|a, b| a.0 == b.0) {
-        let mask = group[0].0;
-        let ts: Vec<usize> = (0..t_len)
-            .filter(|&t| mask == u64::MAX || mask & (1 << t) != 0)
-            .collect();
-        let tp = ts.len();
-        y.clear();
-        b.clear();
-        se.clear();
-        ra.clear();
-        rb.clear();
+}
+
+/// The measurements of one group of sample pixels that use the same captures, pixel by
+/// pixel: DoLP `y`, β `b`, standard error `se = √(A + B)` (first guess), read and shot
+/// terms `ra`, `rb`.
+#[derive(Default)]
+struct Block {
+    y: Vec<f64>,
+    b: Vec<f64>,
+    se: Vec<f64>,
+    ra: Vec<f64>,
+    rb: Vec<f64>,
+}
+
+impl Block {
+    /// Fill with the captures `ts` of the pixels of `group`.
+    fn fill(&mut self, inp: &NoiseInputs<'_>, group: &[(u64, usize)], ts: &[usize]) {
+        self.y.clear();
+        self.b.clear();
+        self.se.clear();
+        self.ra.clear();
+        self.rb.clear();
         for &(_, p) in group {
-            for &t in &ts {
-                y.push(dolp[t][p] as f64);
-                b.push(beta_of(p, t));
-                let (a, s) = (read[t][p] as f64, shot[t][p] as f64);
-                ra.push(a);
-                rb.push(s);
-                se.push((a + s).sqrt());
+            for &t in ts {
+                self.y.push(inp.dolp[t][p] as f64);
+                self.b.push(inp.beta_of(p, t));
+                let (a, s) = (inp.read[t][p] as f64, inp.shot[t][p] as f64);
+                self.ra.push(a);
+                self.rb.push(s);
+                self.se.push((a + s).sqrt());
             }
-        }
-        fits.clear();
-        fits.resize(group.len(), NkFit::default());
-        match betas {
-            Betas::Shared(plan) => fit_batch(plan, &y, Some(&se), &mut fits)?,
-            Betas::PerPixel { plan, .. } => {
-                fit_batch_pixel_beta(plan, &b, &y, Some(&se), &mut fits)?
-            }
-        }
-        for (i, f) in fits.iter().enumerate() {
-            if f.status != FitStatus::Ok {
-                continue;
-            }
-            let r = i * tp..(i + 1) * tp;
-            let grads: Vec<_> = b[r.clone()]
-                .iter()
-                .map(|&bt| dop_grad(f.n, f.k, bt))
-                .collect();
-            let (mut h00, mut h01, mut h11) = (0.0, 0.0, 0.0);
-            for (g, s) in grads.iter().zip(&se[r.clone()]) {
-                let w = 1.0 / (s * s);
-                h00 += w * g.dp_dn * g.dp_dn;
-                h01 += w * g.dp_dn * g.dp_dk;
-                h11 += w * g.dp_dk * g.dp_dk;
-            }
-            let det = h00 * h11 - h01 * h01;
-            if !(det > 0.0 && det.is_finite()) {
-                continue;
-            }
-            let start = rows.len();
-            for (t, g) in grads.iter().enumerate() {
-                let j = r.start + t;
-                let w = 1.0 / (se[j] * se[j]);
-                let q = (h11 * g.dp_dn * g.dp_dn - 2.0 * h01 * g.dp_dn * g.dp_dk
-                    + h00 * g.dp_dk * g.dp_dk)
-                    / det;
-                let one_h = (1.0 - w * q).clamp(0.0, 1.0);
-                let e = y[j] - g.p;
-                rows.push(Row {
-                    xa: one_h * ra[j],
-                    xb: one_h * rb[j],
-                    e2: e * e,
-                    one_h,
-                });
-            }
-            spans.push((start, rows.len() - start));
         }
     }
-    if spans.len() < NOISE_MIN_PIXELS {
-        return Ok(None);
+
+    /// Push the residual rows (regressors and leverages) of the fit `f` of the pixel
+    /// whose measurements are `r`; `false` (nothing pushed) when its normal matrix is
+    /// singular.
+    fn push_rows(&self, f: &NkFit, r: std::ops::Range<usize>, rows: &mut Vec<Row>) -> bool {
+        let (y, se) = (&self.y, &self.se);
+        let grads: Vec<_> = self.b[r.clone()]
+            .iter()
+            .map(|&bt| dop_grad(f.n, f.k, bt))
+            .collect();
+        let (mut h00, mut h01, mut h11) = (0.0, 0.0, 0.0);
+        for (g, s) in grads.iter().zip(&se[r.clone()]) {
+            let w = 1.0 / (s * s);
+            h00 += w * g.dp_dn * g.dp_dn;
+            h01 += w * g.dp_dn * g.dp_dk;
+            h11 += w * g.dp_dk * g.dp_dk;
+        }
+        let det = h00 * h11 - h01 * h01;
+        if !(det > 0.0 && det.is_finite()) {
+            return false;
+        }
+        for (t, g) in grads.iter().enumerate() {
+            let j = r.start + t;
+            let w = 1.0 / (se[j] * se[j]);
+            let q = (h11 * g.dp_dn * g.dp_dn - 2.0 * h01 * g.dp_dn * g.dp_dk
+                + h00 * g.dp_dk * g.dp_dk)
+                / det;
+            let one_h = (1.0 - w * q).clamp(0.0, 1.0);
+            let e = y[j] - g.p;
+            rows.push(Row {
+                xa: one_h * self.ra[j],
+                xb: one_h * self.rb[j],
+                e2: e * e,
+                one_h,
+            });
+        }
+        true
     }
-    let Some(mut theta) = irls(&rows, spans.iter().copied()) else {
-        return Ok(None);
-    };
-    // Leave out the improbable pixels and estimate once more.
+}
+
+/// The final estimate from the first, `theta`: leave out the improbable pixels and
+/// estimate once more.
+fn refit_without_outliers(
+    rows: &[Row],
+    spans: &[(usize, usize)],
+    theta: [f64; 2],
+) -> NoiseEstimate {
+    let mut theta = theta;
     // χ² = Σ e²/σ², σ² = v/(1 − h): T_p − 2 degrees of freedom.
     let chi2 = |th: [f64; 2], (s, c): (usize, usize)| -> f64 {
         rows[s..s + c]
@@ -391,7 +460,7 @@ pub fn estimate_noise(
         .collect();
     let outliers = spans.len() - kept.len();
     if kept.len() >= NOISE_MIN_PIXELS
-        && let Some(t2) = irls(&rows, kept.iter().copied())
+        && let Some(t2) = irls(rows, kept.iter().copied())
     {
         theta = t2;
     }
@@ -400,7 +469,7 @@ pub fn estimate_noise(
         .map(|&sp| chi2(theta, sp) / dof(sp))
         .sum::<f64>()
         / kept.len().max(1) as f64;
-    Ok(Some(NoiseEstimate {
+    NoiseEstimate {
         model: NoiseModel {
             read_var_dn2: theta[0],
             inv_gain: theta[1],
@@ -408,7 +477,7 @@ pub fn estimate_noise(
         pixels: kept.len(),
         outliers,
         reduced_chi2,
-    }))
+    }
 }
 
 /// Iteratively reweighted least squares of `e² ≈ θ_A xa + θ_B xb` over the rows of

@@ -56,27 +56,6 @@ pub(super) fn finish(
     } else {
         chi2 / dof as f64
     };
-    let idx: Vec<usize> = (0..NPAR).filter(|&a| pb.free[a]).collect();
-    let cov_of = |use_u: bool| -> Option<[[f64; NPAR]; NPAR]> {
-        let d = idx.len();
-        let mut h = [[0.0; NPAR]; NPAR];
-        for row in &j {
-            let mut row = *row;
-            if use_u {
-                row[P_K] /= 2.0 * xe[P_K];
-            }
-            for p in 0..d {
-                for q in 0..d {
-                    h[p][q] += row[idx[p]] * row[idx[q]];
-                }
-            }
-        }
-        spd_inverse(&h, d)
-    };
-    let pos = |a: usize| idx.iter().position(|&b| b == a);
-    let se_of = |c: &[[f64; NPAR]; NPAR], a: usize| {
-        pos(a).map_or(f64::NAN, |p| (c[p][p] * s2).max(0.0).sqrt())
-    };
     let mut fit = MixedFit {
         model,
         n: x[P_N],
@@ -106,59 +85,133 @@ pub(super) fn finish(
         status: FitStatus::Ok,
         reason: String::new(),
     };
-    let mut singular = false;
-    match cov_of(false) {
-        Some(c) => {
-            fit.n_se = se_of(&c, P_N);
-            fit.k_se = se_of(&c, P_K);
-            fit.sigma_se = se_of(&c, P_SIGMA);
-            fit.rho_d_se = se_of(&c, P_RHO);
-            fit.scale_rel_se = se_of(&c, P_LN_E);
-            fit.theta_r_se = se_of(&c, P_THETA_R);
-            if let (Some(pn), Some(pk)) = (pos(P_N), pos(P_K)) {
-                fit.nk_corr = c[pn][pk] / (c[pn][pn] * c[pk][pk]).sqrt();
+    let cov = Covariance {
+        idx: (0..NPAR).filter(|&a| pb.free[a]).collect(),
+        j: &j,
+        k: xe[P_K],
+        s2,
+    };
+    let singular = !cov.set_errors(&mut fit, o.bounds.k_min == 0.0);
+    set_residuals(&mut fit, pb, caps, &xe);
+    set_criteria(&mut fit, s2);
+    let (status, reason) = status(pb, &fit, best, m, singular);
+    fit.status = status;
+    fit.reason = reason;
+    fit
+}
+
+/// The Jacobian at the solution and what the standard errors read of it.
+struct Covariance<'a> {
+    /// The free parameters (indices into the parameter vector).
+    idx: Vec<usize>,
+    /// Jacobian rows at the solution.
+    j: &'a [[f64; NPAR]],
+    /// `k` at which `j` was evaluated (at least the floor).
+    k: f64,
+    /// The error scale `s²`.
+    s2: f64,
+}
+
+impl Covariance<'_> {
+    /// `(JᵀJ)⁻¹` over the free parameters, in `u = k²` when `use_u`; `None` when
+    /// singular.
+    fn inverse(&self, use_u: bool) -> Option<[[f64; NPAR]; NPAR]> {
+        let idx = &self.idx;
+        let d = idx.len();
+        let mut h = [[0.0; NPAR]; NPAR];
+        for row in self.j {
+            let mut row = *row;
+            if use_u {
+                row[P_K] /= 2.0 * self.k;
             }
-            if o.bounds.k_min == 0.0 && fit.k < fit.k_se && xe[P_K] < K_U {
-                // Near k = 0 the model depends on u = k²: one-sigma upper deviation.
-                if let Some(cu) = cov_of(true) {
-                    let se_u = se_of(&cu, P_K);
-                    fit.k_se = (fit.k * fit.k + se_u).sqrt() - fit.k;
+            for p in 0..d {
+                for q in 0..d {
+                    h[p][q] += row[idx[p]] * row[idx[q]];
                 }
             }
         }
-        None => {
-            // k = 0 exactly: the k column vanishes; try u = k².
-            match cov_of(true) {
-                Some(c) => {
-                    fit.n_se = se_of(&c, P_N);
-                    let se_u = se_of(&c, P_K);
-                    fit.k_se = (fit.k * fit.k + se_u).sqrt() - fit.k;
-                    fit.sigma_se = se_of(&c, P_SIGMA);
-                    fit.rho_d_se = se_of(&c, P_RHO);
-                    fit.scale_rel_se = se_of(&c, P_LN_E);
-                    fit.theta_r_se = se_of(&c, P_THETA_R);
-                    if let (Some(pn), Some(pk)) = (pos(P_N), pos(P_K)) {
-                        fit.nk_corr = c[pn][pk] / (c[pn][pn] * c[pk][pk]).sqrt();
-                    }
-                }
-                None => singular = true,
-            }
+        spd_inverse(&h, d)
+    }
+
+    /// Position of parameter `a` among the free ones.
+    fn pos(&self, a: usize) -> Option<usize> {
+        self.idx.iter().position(|&b| b == a)
+    }
+
+    /// Standard error of parameter `a` from the inverse `c` (NaN when `a` is fixed).
+    fn se(&self, c: &[[f64; NPAR]; NPAR], a: usize) -> f64 {
+        self.pos(a)
+            .map_or(f64::NAN, |p| (c[p][p] * self.s2).max(0.0).sqrt())
+    }
+
+    /// Every standard error and the n–k correlation of `fit` from the inverse `c`
+    /// (`k_se` from its `u = k²` entry when `in_u`).
+    fn set_from(&self, fit: &mut MixedFit, c: &[[f64; NPAR]; NPAR], in_u: bool) {
+        fit.n_se = self.se(c, P_N);
+        if in_u {
+            let se_u = self.se(c, P_K);
+            fit.k_se = (fit.k * fit.k + se_u).sqrt() - fit.k;
+        } else {
+            fit.k_se = self.se(c, P_K);
+        }
+        fit.sigma_se = self.se(c, P_SIGMA);
+        fit.rho_d_se = self.se(c, P_RHO);
+        fit.scale_rel_se = self.se(c, P_LN_E);
+        fit.theta_r_se = self.se(c, P_THETA_R);
+        if let (Some(pn), Some(pk)) = (self.pos(P_N), self.pos(P_K)) {
+            fit.nk_corr = c[pn][pk] / (c[pn][pn] * c[pk][pk]).sqrt();
         }
     }
+
+    /// Set the standard errors of `fit` (`k_free_to_zero`: the box reaches `k = 0`);
+    /// `false` when `JᵀJ` is singular in both `k` and `u = k²`.
+    fn set_errors(&self, fit: &mut MixedFit, k_free_to_zero: bool) -> bool {
+        match self.inverse(false) {
+            Some(c) => {
+                self.set_from(fit, &c, false);
+                if k_free_to_zero && fit.k < fit.k_se && self.k < K_U {
+                    // Near k = 0 the model depends on u = k²: one-sigma upper deviation.
+                    if let Some(cu) = self.inverse(true) {
+                        let se_u = self.se(&cu, P_K);
+                        fit.k_se = (fit.k * fit.k + se_u).sqrt() - fit.k;
+                    }
+                }
+                true
+            }
+            // k = 0 exactly: the k column vanishes; try u = k².
+            None => match self.inverse(true) {
+                Some(c) => {
+                    self.set_from(fit, &c, true);
+                    true
+                }
+                None => false,
+            },
+        }
+    }
+}
+
+/// The RMS residuals and the specular share range of `fit` at `xe`.
+fn set_residuals(fit: &mut MixedFit, pb: &Problem, caps: &[MixedCapture], xe: &[f64; NPAR]) {
+    let o = pb.opts;
     let (mut sd, mut ss) = (0.0, 0.0);
     for (c, p) in caps.iter().zip(&pb.caps) {
-        let mp = point(p, &xe, est, o.shadowing);
+        let mp = point(p, xe, o.estimate_theta_r, o.shadowing);
         sd += (mp.dolp - c.dolp).powi(2);
         ss += (mp.ln_s0 - p.ln_s0).powi(2);
         fit.specular_share_min = fit.specular_share_min.min(mp.specular_share);
         fit.specular_share_max = fit.specular_share_max.max(mp.specular_share);
     }
+    let t_len = caps.len();
     fit.rms_dolp = (sd / t_len as f64).sqrt();
     fit.rms_s0_rel = (ss / t_len as f64).sqrt();
-    set_criteria(&mut fit, s2);
+}
+
+/// The reason the solution `best` sits at a bound of the box, if it does.
+fn at_bound(pb: &Problem, best: &Polished) -> Option<&'static str> {
+    let x = best.x;
     let at = |a: usize| pb.free[a] && (x[a] <= pb.lo[a] || x[a] >= pb.hi[a]);
-    let b = &o.bounds;
-    let at_bound = [
+    let b = &pb.opts.bounds;
+    [
         (
             x[P_N] <= pb.lo[P_N] || x[P_N] >= pb.hi[P_N],
             "n at a bound of the box",
@@ -176,8 +229,20 @@ pub(super) fn finish(
     ]
     .into_iter()
     .find(|(c, _)| *c)
-    .map(|(_, r)| r);
-    let (status, reason) = if fit.specular_share_max < o.min_specular_share {
+    .map(|(_, r)| r)
+}
+
+/// The status of `fit` and its reason (see the module documentation for the order);
+/// `m`: the number of residuals.
+fn status(
+    pb: &Problem,
+    fit: &MixedFit,
+    best: &Polished,
+    m: usize,
+    singular: bool,
+) -> (FitStatus, String) {
+    let o = pb.opts;
+    if fit.specular_share_max < o.min_specular_share {
         (
             FitStatus::Depolarized,
             format!(
@@ -185,17 +250,20 @@ pub(super) fn finish(
                 fit.specular_share_max, o.min_specular_share
             ),
         )
-    } else if dof == 0 {
+    } else if fit.dof == 0 {
         (
             FitStatus::IllConditioned,
-            format!("{m} residuals for {p_count} parameters: no degree of freedom"),
+            format!(
+                "{m} residuals for {} parameters: no degree of freedom",
+                fit.params
+            ),
         )
     } else if singular {
         (
             FitStatus::IllConditioned,
             "singular J^T J: the DoLP and S0 curves do not determine the parameters".into(),
         )
-    } else if est && !(fit.theta_r_se <= o.theta_r_se_max) {
+    } else if o.estimate_theta_r && !(fit.theta_r_se <= o.theta_r_se_max) {
         (
             FitStatus::IllConditioned,
             format!(
@@ -209,12 +277,9 @@ pub(super) fn finish(
             FitStatus::NotConverged,
             "Levenberg-Marquardt did not converge within the iteration limit".into(),
         )
-    } else if let Some(r) = at_bound {
+    } else if let Some(r) = at_bound(pb, best) {
         (FitStatus::AtBound, r.into())
     } else {
         (FitStatus::Ok, String::new())
-    };
-    fit.status = status;
-    fit.reason = reason;
-    fit
+    }
 }

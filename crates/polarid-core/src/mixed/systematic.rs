@@ -61,7 +61,59 @@ pub fn total_nk_cov(
     let (mut r, mut j) = (Vec::new(), Vec::new());
     pb.eval(&x, &mut r, &mut j);
     let inv_se: Vec<f64> = pb.caps.iter().map(|p| p.inv_se).collect();
-    // Σ: the specular part's, diluted by the shares, plus the floor.
+    let sys = diluted_sigma(caps, fit, &r, &inv_se, angle_sd, pol)?;
+    let s2 = if fit.dof == 0 {
+        return None;
+    } else if caps.iter().all(|c| c.dolp_se.is_some()) {
+        (fit.chi2 / fit.dof as f64).max(1.0)
+    } else {
+        fit.chi2 / fit.dof as f64
+    };
+    let idx: Vec<usize> = (0..NPAR).filter(|&a| free[a]).collect();
+    let (pn, pk) = (
+        idx.iter().position(|&a| a == P_N)?,
+        idx.iter().position(|&a| a == P_K)?,
+    );
+    let in_u = opts.bounds.k_min == 0.0 && fit.k < fit.k_se;
+    let sw = Sandwich {
+        j: &j,
+        idx: &idx,
+        pn,
+        pk,
+        k: x[P_K],
+        inv_se: &inv_se,
+        sys: &sys,
+        s2,
+    };
+    let c = sw.nk(in_u)?;
+    let n_se = c[0].max(0.0).sqrt();
+    let se2 = c[2].max(0.0).sqrt();
+    let k_se = if in_u {
+        (fit.k * fit.k + se2).sqrt() - fit.k
+    } else {
+        se2
+    };
+    let den = (c[0] * c[2]).sqrt();
+    Some(NkCov {
+        n_se,
+        k_se,
+        nk_corr: if den > 0.0 { c[1] / den } else { f64::NAN },
+        in_u,
+    })
+}
+
+/// `Σ` of the module documentation (`T × T`, row-major): the specular part's systematic
+/// DoLP covariance, diluted by the specular shares, plus the floor `f²` on the diagonal.
+/// `r`: the weighted residuals at the fit; `inv_se`: the captures' `1/se_t`.
+fn diluted_sigma(
+    caps: &[MixedCapture],
+    fit: &MixedFit,
+    r: &[f64],
+    inv_se: &[f64],
+    angle_sd: &[f64],
+    pol: &Polarimetric,
+) -> Option<Vec<f64>> {
+    let t_len = caps.len();
     let betas: Vec<f64> = caps.iter().map(|c| c.beta).collect();
     let bare = Polarimetric {
         dolp_floor: 0.0,
@@ -86,27 +138,43 @@ pub fn total_nk_cov(
         }
         sys[t * t_len + t] += pol.dolp_floor * pol.dolp_floor;
     }
-    let s2 = if fit.dof == 0 {
-        return None;
-    } else if caps.iter().all(|c| c.dolp_se.is_some()) {
-        (fit.chi2 / fit.dof as f64).max(1.0)
-    } else {
-        fit.chi2 / fit.dof as f64
-    };
-    let idx: Vec<usize> = (0..NPAR).filter(|&a| free[a]).collect();
-    let d = idx.len();
-    let (pn, pk) = (
-        idx.iter().position(|&a| a == P_N)?,
-        idx.iter().position(|&a| a == P_K)?,
-    );
-    let in_u = opts.bounds.k_min == 0.0 && fit.k < fit.k_se;
-    let cov = |use_u: bool| -> Option<[f64; 3]> {
-        let rows: Vec<[f64; NPAR]> = j
+    Some(sys)
+}
+
+/// The terms of the sandwich `s² (JᵀJ)⁻¹ + A W Aᵀ` of the module documentation.
+struct Sandwich<'a> {
+    /// Jacobian rows of the weighted residuals (DoLP rows first).
+    j: &'a [[f64; NPAR]],
+    /// The free parameters.
+    idx: &'a [usize],
+    /// Positions of `n` and `k` among the free parameters.
+    pn: usize,
+    pk: usize,
+    /// `k` at which `j` was evaluated.
+    k: f64,
+    /// `1/se_t` of the DoLP rows.
+    inv_se: &'a [f64],
+    /// `Σ`, `T × T` row-major.
+    sys: &'a [f64],
+    /// The error scale `s²`.
+    s2: f64,
+}
+
+impl Sandwich<'_> {
+    /// `[Cov_nn, Cov_nk, Cov_kk]` (in `u = k²` for `k` when `use_u`); `None` when `JᵀJ`
+    /// is singular.
+    fn nk(&self, use_u: bool) -> Option<[f64; 3]> {
+        let (idx, pn, pk, s2) = (self.idx, self.pn, self.pk, self.s2);
+        let (inv_se, sys) = (self.inv_se, self.sys);
+        let d = idx.len();
+        let t_len = inv_se.len();
+        let rows: Vec<[f64; NPAR]> = self
+            .j
             .iter()
             .map(|row| {
                 let mut row = *row;
                 if use_u {
-                    row[P_K] /= 2.0 * x[P_K];
+                    row[P_K] /= 2.0 * self.k;
                 }
                 row
             })
@@ -138,20 +206,5 @@ pub fn total_nk_cov(
             s2 * hi[pn][pk] + c01,
             s2 * hi[pk][pk] + c11,
         ])
-    };
-    let c = cov(in_u)?;
-    let n_se = c[0].max(0.0).sqrt();
-    let se2 = c[2].max(0.0).sqrt();
-    let k_se = if in_u {
-        (fit.k * fit.k + se2).sqrt() - fit.k
-    } else {
-        se2
-    };
-    let den = (c[0] * c[2]).sqrt();
-    Some(NkCov {
-        n_se,
-        k_se,
-        nk_corr: if den > 0.0 { c[1] / den } else { f64::NAN },
-        in_u,
-    })
+    }
 }

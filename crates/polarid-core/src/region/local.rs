@@ -113,6 +113,150 @@ fn half_angle(y: f64, x: f64) -> f64 {
     if a >= std::f64::consts::PI { 0.0 } else { a }
 }
 
+/// [`CoreError::InvalidRegion`] for `rect` with `reason`.
+fn invalid(rect: Rect, reason: String) -> CoreError {
+    CoreError::InvalidRegion {
+        x: rect.x,
+        y: rect.y,
+        width: rect.width,
+        height: rect.height,
+        reason,
+    }
+}
+
+/// The length checks of [`region_stats_local`]: the images `s` and `mask` of one frame
+/// `width` pixels wide, `rect` inside it, and every geometry map of `rect`'s area.
+fn check_inputs(
+    width: usize,
+    s: [&[f32]; 3],
+    mask: &[u8],
+    rect: Rect,
+    geom: &RegionGeometry<'_>,
+) -> Result<()> {
+    crate::stokes::check_image(width, s[0].len())?;
+    let n_img = s[0].len();
+    crate::stokes::check_len("s1", s[1].len(), n_img)?;
+    crate::stokes::check_len("s2", s[2].len(), n_img)?;
+    crate::stokes::check_len("mask", mask.len(), n_img)?;
+    rect.check(width, n_img / width)?;
+    let area = rect.width * rect.height;
+    for (name, len) in [
+        ("beta map", geom.beta.len()),
+        ("theta_i map", geom.theta_i.len()),
+        ("theta_r map", geom.theta_r.len()),
+        ("phi map", geom.phi.len()),
+        ("poi_angle map", geom.poi_angle.len()),
+    ] {
+        crate::stokes::check_len(name, len, area)?;
+    }
+    Ok(())
+}
+
+/// Pass 1 of [`region_stats_local`]: counts, image and local sums, S0-weighted
+/// geometry sums; `(S', β)` of every valid pixel.
+struct Sums {
+    /// Pixels per mask class (valid, saturated, dark, invalid).
+    cnt: [u64; 4],
+    /// `(S', β)` per valid pixel.
+    px: Vec<([f64; 3], f64)>,
+    /// `Σ S` in the image frame.
+    sum_img: [f64; 3],
+    /// `Σ S'` in the plane-of-incidence frames.
+    sum_loc: [f64; 3],
+    /// `Σ w`, `Σ w β`, `Σ w θi`, `Σ w θr`, `Σ w cos φ`, `Σ w sin φ` (`w = max(S0, 0)`).
+    sw: f64,
+    swb: f64,
+    swi: f64,
+    swr: f64,
+    swc: f64,
+    sws: f64,
+}
+
+impl Sums {
+    /// Pass 1 over `rect` of the images `s` (see [`region_stats_local`] for the errors).
+    fn gather(
+        width: usize,
+        s: [&[f32]; 3],
+        mask: &[u8],
+        rect: Rect,
+        geom: &RegionGeometry<'_>,
+    ) -> Result<Self> {
+        let [s0, s1, s2] = s;
+        let mut cnt = [0u64; 4];
+        let mut px: Vec<([f64; 3], f64)> = Vec::with_capacity(rect.width * rect.height);
+        let mut sum_img = [0.0f64; 3];
+        let mut sum_loc = [0.0f64; 3];
+        let (mut sw, mut swb, mut swi, mut swr, mut swc, mut sws) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+        for row in 0..rect.height {
+            let o = (rect.y + row) * width + rect.x;
+            let go = row * rect.width;
+            for col in 0..rect.width {
+                let (i, g) = (o + col, go + col);
+                let m = mask[i];
+                cnt[(m & 3) as usize] += 1;
+                if m != mask::VALID {
+                    continue;
+                }
+                let (b, ti, tr, ph) = (geom.beta[g], geom.theta_i[g], geom.theta_r[g], geom.phi[g]);
+                if !(b.is_finite() && ti.is_finite() && tr.is_finite() && ph.is_finite()) {
+                    return Err(invalid(
+                        rect,
+                        format!(
+                            "pixel (column {}, row {}) has no geometry (beta {b}, theta_i {ti}, \
+                             theta_r {tr}, phi {ph} rad)",
+                            rect.x + col,
+                            rect.y + row
+                        ),
+                    ));
+                }
+                let s = [s0[i] as f64, s1[i] as f64, s2[i] as f64];
+                let l = to_poi_frame(s, geom.poi_angle[g]);
+                for c in 0..3 {
+                    sum_img[c] += s[c];
+                    sum_loc[c] += l[c];
+                }
+                let w = s[0].max(0.0);
+                sw += w;
+                swb += w * b;
+                swi += w * ti;
+                swr += w * tr;
+                swc += w * ph.cos();
+                sws += w * ph.sin();
+                px.push((l, b));
+            }
+        }
+        Ok(Self {
+            cnt,
+            px,
+            sum_img,
+            sum_loc,
+            sw,
+            swb,
+            swi,
+            swr,
+            swc,
+            sws,
+        })
+    }
+}
+
+/// Pass 2 of [`region_stats_local`]: `Σ w (β − β̄)²` and the upper triangle of
+/// `Σ (S' − S̄')(S' − S̄')ᵀ`.
+fn spread(px: &[([f64; 3], f64)], mean: [f64; 3], beta: f64) -> (f64, [[f64; 3]; 3]) {
+    let mut swdb2 = 0.0;
+    let mut c = [[0.0f64; 3]; 3];
+    for (l, b) in px {
+        swdb2 += l[0].max(0.0) * (b - beta) * (b - beta);
+        let d = [l[0] - mean[0], l[1] - mean[1], l[2] - mean[2]];
+        for a in 0..3 {
+            for e in a..3 {
+                c[a][e] += d[a] * d[e];
+            }
+        }
+    }
+    (swdb2, c)
+}
+
 /// Statistics of the region `rect` of Stokes images `s0, s1, s2` with validity `mask`
 /// (all `width` pixels wide) whose pixels have the geometry `geom` (module docs).
 ///
@@ -131,77 +275,29 @@ pub fn region_stats_local(
     sampling: Sampling,
     geom: &RegionGeometry<'_>,
 ) -> Result<LocalRegionStats> {
-    crate::stokes::check_image(width, s0.len())?;
-    let n_img = s0.len();
-    crate::stokes::check_len("s1", s1.len(), n_img)?;
-    crate::stokes::check_len("s2", s2.len(), n_img)?;
-    crate::stokes::check_len("mask", mask.len(), n_img)?;
-    rect.check(width, n_img / width)?;
-    let area = rect.width * rect.height;
-    for (name, len) in [
-        ("beta map", geom.beta.len()),
-        ("theta_i map", geom.theta_i.len()),
-        ("theta_r map", geom.theta_r.len()),
-        ("phi map", geom.phi.len()),
-        ("poi_angle map", geom.poi_angle.len()),
-    ] {
-        crate::stokes::check_len(name, len, area)?;
-    }
-    let invalid = |reason: String| CoreError::InvalidRegion {
-        x: rect.x,
-        y: rect.y,
-        width: rect.width,
-        height: rect.height,
-        reason,
-    };
-    // Pass 1: counts, image and local sums, weighted geometry; keep (S', β) per pixel.
-    let mut cnt = [0u64; 4];
-    let mut px: Vec<([f64; 3], f64)> = Vec::with_capacity(area);
-    let mut sum_img = [0.0f64; 3];
-    let mut sum_loc = [0.0f64; 3];
-    let (mut sw, mut swb, mut swi, mut swr, mut swc, mut sws) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-    for row in 0..rect.height {
-        let o = (rect.y + row) * width + rect.x;
-        let go = row * rect.width;
-        for col in 0..rect.width {
-            let (i, g) = (o + col, go + col);
-            let m = mask[i];
-            cnt[(m & 3) as usize] += 1;
-            if m != mask::VALID {
-                continue;
-            }
-            let (b, ti, tr, ph) = (geom.beta[g], geom.theta_i[g], geom.theta_r[g], geom.phi[g]);
-            if !(b.is_finite() && ti.is_finite() && tr.is_finite() && ph.is_finite()) {
-                return Err(invalid(format!(
-                    "pixel (column {}, row {}) has no geometry (beta {b}, theta_i {ti}, \
-                     theta_r {tr}, phi {ph} rad)",
-                    rect.x + col,
-                    rect.y + row
-                )));
-            }
-            let s = [s0[i] as f64, s1[i] as f64, s2[i] as f64];
-            let l = to_poi_frame(s, geom.poi_angle[g]);
-            for c in 0..3 {
-                sum_img[c] += s[c];
-                sum_loc[c] += l[c];
-            }
-            let w = s[0].max(0.0);
-            sw += w;
-            swb += w * b;
-            swi += w * ti;
-            swr += w * tr;
-            swc += w * ph.cos();
-            sws += w * ph.sin();
-            px.push((l, b));
-        }
-    }
+    check_inputs(width, [s0, s1, s2], mask, rect, geom)?;
+    let Sums {
+        cnt,
+        px,
+        sum_img,
+        sum_loc,
+        sw,
+        swb,
+        swi,
+        swr,
+        swc,
+        sws,
+    } = Sums::gather(width, [s0, s1, s2], mask, rect, geom)?;
     let pixels = cnt[0];
     let rejected = cnt[1] + cnt[2] + cnt[3];
     if px.is_empty() {
-        return Err(invalid(format!(
-            "has no usable pixel ({} saturated, {} dark, {} invalid)",
-            cnt[1], cnt[2], cnt[3]
-        )));
+        return Err(invalid(
+            rect,
+            format!(
+                "has no usable pixel ({} saturated, {} dark, {} invalid)",
+                cnt[1], cnt[2], cnt[3]
+            ),
+        ));
     }
     let nf = px.len() as f64;
     let mean = sum_loc.map(|v| v / nf);
@@ -213,18 +309,7 @@ pub fn region_stats_local(
     } else {
         sws.atan2(swc).rem_euclid(std::f64::consts::TAU)
     };
-    // Pass 2: weighted spread of β, sample covariance of S'.
-    let mut swdb2 = 0.0;
-    let mut c = [[0.0f64; 3]; 3];
-    for (l, b) in &px {
-        swdb2 += l[0].max(0.0) * (b - beta) * (b - beta);
-        let d = [l[0] - mean[0], l[1] - mean[1], l[2] - mean[2]];
-        for a in 0..3 {
-            for e in a..3 {
-                c[a][e] += d[a] * d[e];
-            }
-        }
-    }
+    let (swdb2, c) = spread(&px, mean, beta);
     let beta_sd = wmean(swdb2).max(0.0).sqrt();
     let inflation = sampling.variance_inflation();
     let mut cov_mean = [[0.0f64; 3]; 3];

@@ -211,19 +211,13 @@ fn check(name: &'static str, v: f64, ok: bool, expected: &'static str) -> Result
     }
 }
 
-/// Simulate one target seen from camera zenith `theta_r` with the source at each of
-/// `theta_i` (radians, in the plane), with the imperfections `imp`, reproducibly from
-/// `seed` (module documentation).
-///
-/// Errors: [`CoreError::OutOfRange`] for an angle outside `[0, π/2)`, a bad roughness,
-/// albedo, extinction ratio, noise or wavelength, or a bad index or thickness.
-pub fn simulate_target(
+/// The checks of [`simulate_target`] on its inputs.
+fn check_inputs(
     target: &ImperfectTarget,
     theta_i: &[f64],
     theta_r: f64,
     imp: &Imperfections,
-    seed: u64,
-) -> Result<Vec<ImperfectRow>> {
+) -> Result<()> {
     let ang_ok = |a: f64| a.is_finite() && (0.0..FRAC_PI_2).contains(&a);
     check("theta_r", theta_r, ang_ok(theta_r), "[0, pi/2) radians")?;
     for &t in theta_i {
@@ -281,7 +275,25 @@ pub fn simulate_target(
         imp.wavelength_nm.is_finite() && imp.wavelength_nm > 0.0,
         "> 0",
     )?;
+    Ok(())
+}
 
+/// Simulate one target seen from camera zenith `theta_r` with the source at each of
+/// `theta_i` (radians, in the plane), with the imperfections `imp`, reproducibly from
+/// `seed` (module documentation).
+///
+/// Errors: [`CoreError::OutOfRange`] for an angle outside `[0, π/2)`, a bad roughness,
+/// albedo, extinction ratio, noise or wavelength, or a bad index or thickness.
+pub fn simulate_target(
+    target: &ImperfectTarget,
+    theta_i: &[f64],
+    theta_r: f64,
+    imp: &Imperfections,
+    seed: u64,
+) -> Result<Vec<ImperfectRow>> {
+    check_inputs(target, theta_i, theta_r, imp)?;
+    let ang_ok = |a: f64| a.is_finite() && (0.0..FRAC_PI_2).contains(&a);
+    let off = imp.angle_offset_max;
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
     let unit = Uniform::new_inclusive(-1.0, 1.0).map_err(|_| CoreError::OutOfRange {
         name: "uniform",

@@ -44,6 +44,36 @@ pub(super) struct PixelWorkspace {
     lane: engine::LaneScratch,
 }
 
+impl PixelWorkspace {
+    /// Size the buffers for a chunk of `npix` pixels of `t_len` captures (`tp`: padded
+    /// to whole lanes; `bands` of the grid) and fill the weights `1/se²` when `se` is
+    /// given.
+    #[inline(always)]
+    fn reset(&mut self, bands: usize, tp: usize, npix: usize, t_len: usize, se: Option<&[f64]>) {
+        self.bands.clear();
+        self.bands.resize(bands, scan::BandMin::default());
+        self.yf.clear();
+        self.yf.resize(tp, 0.0);
+        self.wf.clear();
+        self.wf.resize(tp, 0.0);
+        if let Some(se) = se {
+            self.wall.clear();
+            self.wall.extend(se.iter().map(|&s| 1.0 / (s * s)));
+        }
+        self.terms.clear();
+        self.terms.resize(npix * t_len, BetaTerms::new(0.5));
+        self.lane_terms.clear();
+        self.lane_terms.resize(npix * t_len, LaneTerms::default());
+        self.qs.clear();
+        self.qs.resize(npix * t_len, 0);
+        self.issue.clear();
+        self.issue.resize(npix, None);
+        self.jobs.clear();
+        self.spans.clear();
+        self.spans.resize(npix, (0, 0));
+    }
+}
+
 /// The node curves of one pixel: row `t` from the column of its `β_t`.
 struct PixelNodes<'a> {
     cols: &'a [&'a Column],
@@ -177,69 +207,22 @@ impl PixelBetaPlan {
             y.len() / out.len()
         };
         let tp = t_len.div_ceil(LANES) * LANES;
+        ws.reset(grid.bands(), tp, out.len(), t_len, se);
+        self.check_pixels(betas, y, se, out, t_len, ws);
+        let wall: Option<&[f64]> = se.map(|_| &ws.wall[..]);
         let PixelWorkspace {
             bands,
             valid,
-            wall,
             yf,
             wf,
-            terms,
             lane_terms,
-            issue,
-            sorted,
             qs,
             jobs,
             spans,
             outs,
             lane,
+            ..
         } = ws;
-        bands.clear();
-        bands.resize(grid.bands(), scan::BandMin::default());
-        yf.clear();
-        yf.resize(tp, 0.0);
-        wf.clear();
-        wf.resize(tp, 0.0);
-        let wall: Option<&[f64]> = match se {
-            Some(se) => {
-                wall.clear();
-                wall.extend(se.iter().map(|&s| 1.0 / (s * s)));
-                Some(&wall[..])
-            }
-            None => None,
-        };
-        let npix = out.len();
-        terms.clear();
-        terms.resize(npix * t_len, BetaTerms::new(0.5));
-        lane_terms.clear();
-        lane_terms.resize(npix * t_len, LaneTerms::default());
-        qs.clear();
-        qs.resize(npix * t_len, 0);
-        issue.clear();
-        issue.resize(npix, None);
-        jobs.clear();
-        spans.clear();
-        spans.resize(npix, (0, 0));
-        valid.clear();
-        for (p, o) in out.iter_mut().enumerate() {
-            let rows = p * t_len..(p + 1) * t_len;
-            if let Err(e) = check_pixel(&y[rows.clone()], se.map(|s| &s[rows.clone()])) {
-                *o = NkFit::invalid(invalid_reason(&e));
-                continue;
-            }
-            let b = &betas[rows.clone()];
-            if b.iter().any(|&b| check_beta(b).is_err()) {
-                *o = NkFit::invalid(BAD_BETA);
-                continue;
-            }
-            for (t, &bv) in b.iter().enumerate() {
-                let bt = BetaTerms::new(bv);
-                terms[p * t_len + t] = bt;
-                lane_terms[p * t_len + t] = LaneTerms::new(&bt);
-                qs[p * t_len + t] = self.column_index(bv);
-            }
-            issue[p] = beta_issue(b, sorted);
-            valid.push(p);
-        }
         let mut pcols: Vec<&Column> = Vec::with_capacity(t_len);
         let mut rows: Vec<&[f32]> = Vec::with_capacity(t_len);
         for &p in valid.iter() {
@@ -276,12 +259,7 @@ impl PixelBetaPlan {
         }
         outs.clear();
         outs.resize(jobs.len(), engine::JobOut::default());
-        let settings = engine::Settings {
-            bounds: grid.opts.bounds,
-            max_iter: grid.opts.max_iter,
-            xtol: grid.opts.xtol,
-            ftol: grid.opts.ftol,
-        };
+        let settings = engine::Settings::new(&grid.opts);
         engine::run::<K, true>(
             k,
             &Lanes::default(),
@@ -294,6 +272,73 @@ impl PixelBetaPlan {
             outs,
             lane,
         );
+        self.finish_pixels(out, y, wall, t_len, ws);
+    }
+
+    /// Validate every pixel of the chunk (`out.len()` rows of `t_len` values of `betas`,
+    /// `y` and `se`): an invalid pixel gets its invalid fit; a valid one its β terms,
+    /// column indices and β-set issue in `ws`, and a place in `ws.valid`.
+    #[inline(always)]
+    fn check_pixels(
+        &self,
+        betas: &[f64],
+        y: &[f64],
+        se: Option<&[f64]>,
+        out: &mut [NkFit],
+        t_len: usize,
+        ws: &mut PixelWorkspace,
+    ) {
+        let PixelWorkspace {
+            valid,
+            terms,
+            lane_terms,
+            issue,
+            sorted,
+            qs,
+            ..
+        } = ws;
+        valid.clear();
+        for (p, o) in out.iter_mut().enumerate() {
+            let rows = p * t_len..(p + 1) * t_len;
+            if let Err(e) = check_pixel(&y[rows.clone()], se.map(|s| &s[rows.clone()])) {
+                *o = NkFit::invalid(invalid_reason(&e));
+                continue;
+            }
+            let b = &betas[rows.clone()];
+            if b.iter().any(|&b| check_beta(b).is_err()) {
+                *o = NkFit::invalid(BAD_BETA);
+                continue;
+            }
+            for (t, &bv) in b.iter().enumerate() {
+                let bt = BetaTerms::new(bv);
+                terms[p * t_len + t] = bt;
+                lane_terms[p * t_len + t] = LaneTerms::new(&bt);
+                qs[p * t_len + t] = self.column_index(bv);
+            }
+            issue[p] = beta_issue(b, sorted);
+            valid.push(p);
+        }
+    }
+
+    /// The best polish of every fitted pixel of the chunk and its uncertainties, into
+    /// `out` (`wall`: the weights, as the polishes had them).
+    #[inline(always)]
+    fn finish_pixels(
+        &self,
+        out: &mut [NkFit],
+        y: &[f64],
+        wall: Option<&[f64]>,
+        t_len: usize,
+        ws: &PixelWorkspace,
+    ) {
+        let grid: &Grid = &self.grid;
+        let PixelWorkspace {
+            terms,
+            issue,
+            spans,
+            outs,
+            ..
+        } = ws;
         for (p, o) in out.iter_mut().enumerate() {
             let (first, count) = spans[p];
             if count == 0 {
