@@ -91,22 +91,7 @@ fn band_figures(
         .filter(|f| is_test(out, &f.target))
         .filter_map(|f| {
             let ms = per_target.get(f.target.as_str())?;
-            let points: Vec<plots::DolpPoint> = ms
-                .iter()
-                .map(|m| plots::DolpPoint {
-                    beta_deg: m.beta_deg,
-                    dolp: m.dolp,
-                    dolp_se: m.dolp_se,
-                })
-                .collect();
-            let lo = points.iter().map(|q| q.beta_deg).fold(f64::MAX, f64::min);
-            let hi = points.iter().map(|q| q.beta_deg).fold(f64::MIN, f64::max);
-            Some(plots::DolpSeries {
-                label: f.target.clone(),
-                points,
-                curve: plots::eq9_curve(f.n, f.k, lo - 2.0, hi + 2.0, 60),
-                curve_label: Some(format!("fit n = {:.2}, k = {:.2}", f.n, f.k)),
-            })
+            Some(super::demo::common::dolp_series(f.target.clone(), f, ms))
         })
         .collect();
     let dolp = ColourFigure {

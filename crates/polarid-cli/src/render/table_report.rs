@@ -768,20 +768,17 @@ pub fn hypothesis_tables(
     out
 }
 
-/// Write the report of `classify`: `refs` are the classifier's prototypes; `hyps` and
-/// `cal` the hypothesis tests and in-scene references of `classify MEASUREMENTS.csv`
-/// (empty and `None` for fits), as tables after the classification
+/// Write the report of `classify` (its output `out`): `refs` are the classifier's
+/// prototypes; the hypothesis tests and in-scene references of `classify
+/// MEASUREMENTS.csv` (none for fits) are tables after the classification
 /// ([`hypothesis_tables`]).
-#[allow(clippy::too_many_arguments)] // the command's inputs, each once
 pub fn write_classify_report(
     args: &ReportArgs,
     ctx: &crate::Ctx,
     input: &Path,
     fits: &[FitRow],
-    rows: &[ClassificationRow],
+    out: &polarid_pipeline::classify::ClassifyOutput,
     refs: &References,
-    hyps: &[polarid_pipeline::classify::TargetHypotheses],
-    cal: Option<&polarid_pipeline::classify::reference::SceneCalibration>,
 ) -> Result<()> {
     let Some(dir) = &args.report else {
         return Ok(());
@@ -789,7 +786,7 @@ pub fn write_classify_report(
     let t = Tables {
         measurements: &[],
         fits,
-        classification: rows,
+        classification: &out.rows,
     };
     let figs = figures(&t, Some(refs), "classify")?;
     let inputs = vec![
@@ -812,7 +809,8 @@ pub fn write_classify_report(
         &figs,
         format!("polarid {} classify", env!("CARGO_PKG_VERSION")),
     );
-    rep.tables.extend(hypothesis_tables(hyps, cal));
+    rep.tables
+        .extend(hypothesis_tables(&out.hypotheses, out.calibration.as_ref()));
     write(dir, ctx.force, &rep, &figs)?;
     ctx.info(format!(
         "polarid classify: report written to {}",
