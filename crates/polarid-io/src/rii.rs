@@ -145,6 +145,135 @@ fn scalar_text(y: &Yaml) -> Option<String> {
     y.as_integer().map(|i| i.to_string())
 }
 
+/// Entry `i` of a file's `DATA` list, of type `ty` (for the messages).
+struct DataEntry<'a, 'y> {
+    path: &'a Path,
+    i: usize,
+    ty: &'a str,
+    yaml: &'a Yaml<'y>,
+}
+
+impl DataEntry<'_, '_> {
+    fn bad(&self, reason: String) -> IoError {
+        IoError::Model {
+            path: self.path.to_path_buf(),
+            reason,
+        }
+    }
+
+    fn field(&self, name: &str) -> Result<String> {
+        self.yaml
+            .as_mapping_get(name)
+            .and_then(scalar_text)
+            .ok_or_else(|| self.bad(format!("DATA[{}]: missing field `{name}`", self.i)))
+    }
+
+    fn numbers(&self, name: &str, s: &str) -> Result<Vec<f64>> {
+        let (i, ty) = (self.i, self.ty);
+        s.split_whitespace()
+            .map(|t| {
+                t.parse::<f64>()
+                    .ok()
+                    .filter(|v| v.is_finite())
+                    .ok_or_else(|| {
+                        self.bad(format!("DATA[{i}] ({ty}): `{name}` has a bad number {t:?}"))
+                    })
+            })
+            .collect()
+    }
+
+    /// Put `d` in `slot` (`what`: `n` or `k`), which must be empty.
+    fn set(&self, slot: &mut Option<Dispersion>, what: &str, d: Dispersion) -> Result<()> {
+        if slot.is_some() {
+            return Err(self.bad(format!(
+                "DATA[{}] ({}): {what} is given more than once",
+                self.i, self.ty
+            )));
+        }
+        *slot = Some(d);
+        Ok(())
+    }
+
+    /// A `formula N` entry (`num`: what follows `formula`).
+    fn formula(&self, num: &str) -> Result<Dispersion> {
+        let (i, ty) = (self.i, self.ty);
+        let kind: u8 = num
+            .trim()
+            .parse()
+            .ok()
+            .filter(|k| (1..=9).contains(k))
+            .ok_or_else(|| {
+                self.bad(format!(
+                    "DATA[{i}]: unsupported type {ty:?} (formula 1 to 9 are supported)"
+                ))
+            })?;
+        let coefficients = self.numbers("coefficients", &self.field("coefficients")?)?;
+        let range_um = match self
+            .yaml
+            .as_mapping_get("wavelength_range")
+            .and_then(scalar_text)
+        {
+            None => None,
+            Some(s) => match self.numbers("wavelength_range", &s)?.as_slice() {
+                [a, b] if a < b => Some((*a, *b)),
+                _ => {
+                    return Err(self.bad(format!(
+                        "DATA[{i}] ({ty}): `wavelength_range` must be two increasing \
+                         numbers, got {s:?}"
+                    )));
+                }
+            },
+        };
+        Ok(Dispersion::Formula {
+            kind,
+            coefficients,
+            range_um,
+        })
+    }
+
+    /// A `tabulated nk`, `n` or `k` entry (`cols`): the wavelengths and the one or two
+    /// columns of values (the second is zeros for `n` or `k`), sorted by wavelength.
+    fn tabulated(&self, cols: &str) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>)> {
+        let (i, ty) = (self.i, self.ty);
+        let width = match cols {
+            "nk" => 3,
+            "n" | "k" => 2,
+            _ => {
+                return Err(self.bad(format!(
+                    "DATA[{i}]: unsupported type {ty:?} (tabulated nk, n or k)"
+                )));
+            }
+        };
+        let text = self.field("data")?;
+        let mut rows: Vec<(f64, f64, f64)> = Vec::new();
+        for (ln, line) in text.lines().enumerate() {
+            if line.trim().is_empty() {
+                continue;
+            }
+            let v = self.numbers("data", line)?;
+            if v.len() != width {
+                return Err(self.bad(format!(
+                    "DATA[{i}] ({ty}): data line {} has {} numbers, expected {width}: {line:?}",
+                    ln + 1,
+                    v.len()
+                )));
+            }
+            // ok: v.len() == width >= 2.
+            rows.push((v[0], v[1], v.get(2).copied().unwrap_or(0.0)));
+        }
+        // A few database files list some rows out of order: sort by wavelength
+        // (stable, so a repeated wavelength keeps its first value first).
+        rows.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let w: Vec<f64> = rows.iter().map(|r| r.0).collect();
+        let a: Vec<f64> = rows.iter().map(|r| r.1).collect();
+        let b: Vec<f64> = rows.iter().map(|r| r.2).collect();
+        if w.is_empty() {
+            return Err(self.bad(format!("DATA[{i}] ({ty}): no data")));
+        }
+        Ok((w, a, b))
+    }
+}
+
 impl RiiData {
     /// Read a refractiveindex.info YAML file.
     pub fn read(path: &Path) -> Result<Self> {
@@ -168,123 +297,37 @@ impl RiiData {
             .ok_or_else(|| bad("no `DATA` list".into()))?;
         let mut n: Option<Dispersion> = None;
         let mut k: Option<Dispersion> = None;
-        for (i, entry) in data.iter().enumerate() {
-            let field = |name: &str| -> Result<String> {
-                entry
-                    .as_mapping_get(name)
-                    .and_then(scalar_text)
-                    .ok_or_else(|| bad(format!("DATA[{i}]: missing field `{name}`")))
+        for (i, yaml) in data.iter().enumerate() {
+            let untyped = DataEntry {
+                path,
+                i,
+                ty: "",
+                yaml,
             };
-            let ty = field("type")?;
-            let ty = ty.trim();
-            let numbers = |name: &str, s: &str| -> Result<Vec<f64>> {
-                s.split_whitespace()
-                    .map(|t| {
-                        t.parse::<f64>()
-                            .ok()
-                            .filter(|v| v.is_finite())
-                            .ok_or_else(|| {
-                                bad(format!("DATA[{i}] ({ty}): `{name}` has a bad number {t:?}"))
-                            })
-                    })
-                    .collect()
+            let ty = untyped.field("type")?;
+            let e = DataEntry {
+                ty: ty.trim(),
+                ..untyped
             };
-            let set = |slot: &mut Option<Dispersion>, what: &str, d: Dispersion| -> Result<()> {
-                if slot.is_some() {
-                    return Err(bad(format!(
-                        "DATA[{i}] ({ty}): {what} is given more than once"
-                    )));
-                }
-                *slot = Some(d);
-                Ok(())
-            };
-            if let Some(num) = ty.strip_prefix("formula") {
-                let kind: u8 = num
-                    .trim()
-                    .parse()
-                    .ok()
-                    .filter(|k| (1..=9).contains(k))
-                    .ok_or_else(|| {
-                        bad(format!(
-                            "DATA[{i}]: unsupported type {ty:?} (formula 1 to 9 are supported)"
-                        ))
-                    })?;
-                let coefficients = numbers("coefficients", &field("coefficients")?)?;
-                let range_um = match entry
-                    .as_mapping_get("wavelength_range")
-                    .and_then(scalar_text)
-                {
-                    None => None,
-                    Some(s) => match numbers("wavelength_range", &s)?.as_slice() {
-                        [a, b] if a < b => Some((*a, *b)),
-                        _ => {
-                            return Err(bad(format!(
-                                "DATA[{i}] ({ty}): `wavelength_range` must be two increasing \
-                                 numbers, got {s:?}"
-                            )));
-                        }
-                    },
-                };
-                set(
-                    &mut n,
-                    "n",
-                    Dispersion::Formula {
-                        kind,
-                        coefficients,
-                        range_um,
-                    },
-                )?;
-            } else if let Some(cols) = ty.strip_prefix("tabulated") {
+            if let Some(num) = e.ty.strip_prefix("formula") {
+                e.set(&mut n, "n", e.formula(num)?)?;
+            } else if let Some(cols) = e.ty.strip_prefix("tabulated") {
                 let cols = cols.trim();
-                let width = match cols {
-                    "nk" => 3,
-                    "n" | "k" => 2,
-                    _ => {
-                        return Err(bad(format!(
-                            "DATA[{i}]: unsupported type {ty:?} (tabulated nk, n or k)"
-                        )));
-                    }
-                };
-                let text = field("data")?;
-                let mut rows: Vec<(f64, f64, f64)> = Vec::new();
-                for (ln, line) in text.lines().enumerate() {
-                    if line.trim().is_empty() {
-                        continue;
-                    }
-                    let v = numbers("data", line)?;
-                    if v.len() != width {
-                        return Err(bad(format!(
-                            "DATA[{i}] ({ty}): data line {} has {} numbers, expected {width}: {line:?}",
-                            ln + 1,
-                            v.len()
-                        )));
-                    }
-                    // ok: v.len() == width >= 2.
-                    rows.push((v[0], v[1], v.get(2).copied().unwrap_or(0.0)));
-                }
-                // A few database files list some rows out of order: sort by wavelength
-                // (stable, so a repeated wavelength keeps its first value first).
-                rows.sort_by(|x, y| x.0.total_cmp(&y.0));
-                let w: Vec<f64> = rows.iter().map(|r| r.0).collect();
-                let a: Vec<f64> = rows.iter().map(|r| r.1).collect();
-                let b: Vec<f64> = rows.iter().map(|r| r.2).collect();
-                if w.is_empty() {
-                    return Err(bad(format!("DATA[{i}] ({ty}): no data")));
-                }
+                let (w, a, b) = e.tabulated(cols)?;
                 let table = |values| Dispersion::Table {
                     wavelength_um: w.clone(),
                     values,
                 };
                 match cols {
                     "nk" => {
-                        set(&mut n, "n", table(a))?;
-                        set(&mut k, "k", table(b))?;
+                        e.set(&mut n, "n", table(a))?;
+                        e.set(&mut k, "k", table(b))?;
                     }
-                    "n" => set(&mut n, "n", table(a))?,
-                    _ => set(&mut k, "k", table(a))?,
+                    "n" => e.set(&mut n, "n", table(a))?,
+                    _ => e.set(&mut k, "k", table(a))?,
                 }
             } else {
-                return Err(bad(format!("DATA[{i}]: unsupported type {ty:?}")));
+                return Err(e.bad(format!("DATA[{i}]: unsupported type {:?}", e.ty)));
             }
         }
         let n = n.ok_or_else(|| bad("the file gives no refractive index n".into()))?;

@@ -94,55 +94,8 @@ pub fn parse_rfc3339_timestamp(text: &str) -> Result<Timestamp, TimeError> {
     let minute = p.digits(2, "minute").map_err(&fail)?;
     p.expect_byte(b':', "':' after the minute").map_err(&fail)?;
     let second = p.digits(2, "second").map_err(&fail)?;
-    let mut nanosecond: u32 = 0;
-    if p.peek() == Some(b'.') {
-        p.i += 1;
-        let start = p.i;
-        while let Some(c @ b'0'..=b'9') = p.peek() {
-            let k = p.i - start;
-            if k < 9 {
-                nanosecond += u32::from(c - b'0') * 10u32.pow(8 - k as u32);
-            }
-            p.i += 1;
-        }
-        if p.i == start {
-            return Err(fail(
-                "expected digits after the decimal point of the seconds".to_string(),
-            ));
-        }
-    }
-    let offset_minutes: i32 = match p.next() {
-        Some(b'Z' | b'z') => 0,
-        Some(sign @ (b'+' | b'-')) => {
-            let oh = p.digits(2, "offset hour").map_err(&fail)?;
-            p.expect_byte(b':', "':' in the offset (±hh:mm)")
-                .map_err(&fail)?;
-            let om = p.digits(2, "offset minute").map_err(&fail)?;
-            if oh > 23 {
-                return Err(fail(format!(
-                    "offset hour {oh:02} is out of range (00 to 23)"
-                )));
-            }
-            if om > 59 {
-                return Err(fail(format!(
-                    "offset minute {om:02} is out of range (00 to 59)"
-                )));
-            }
-            let m = (oh * 60 + om) as i32;
-            if sign == b'-' { -m } else { m }
-        }
-        Some(_) => {
-            return Err(fail(format!(
-                "expected an offset 'Z' or ±hh:mm, found {:?}",
-                p.char_at(p.i - 1)
-            )));
-        }
-        None => {
-            return Err(fail(
-                "missing offset: a local time is ambiguous, end with 'Z' or ±hh:mm".to_string(),
-            ));
-        }
-    };
+    let nanosecond = p.fraction().map_err(&fail)?;
+    let offset_minutes = p.offset().map_err(&fail)?;
     if p.i != b.len() {
         return Err(fail(format!(
             "unexpected {:?} after the offset",
@@ -150,33 +103,7 @@ pub fn parse_rfc3339_timestamp(text: &str) -> Result<Timestamp, TimeError> {
         )));
     }
 
-    if !(1..=12).contains(&month) {
-        return Err(fail(format!("month {month:02} is out of range (01 to 12)")));
-    }
-    let dim = days_in_month(year, month);
-    if !(1..=dim).contains(&day) {
-        return Err(fail(format!(
-            "day {day:02} is out of range for {year:04}-{month:02} (01 to {dim:02})"
-        )));
-    }
-    if hour > 23 {
-        return Err(fail(format!("hour {hour:02} is out of range (00 to 23)")));
-    }
-    if minute > 59 {
-        return Err(fail(format!(
-            "minute {minute:02} is out of range (00 to 59)"
-        )));
-    }
-    if second == 60 {
-        return Err(fail(
-            "second 60 (a leap second) cannot be a Unix time: use 59".to_string(),
-        ));
-    }
-    if second > 59 {
-        return Err(fail(format!(
-            "second {second:02} is out of range (00 to 59)"
-        )));
-    }
+    check_ranges([year, month, day], [hour, minute, second]).map_err(fail)?;
 
     let days = days_from_civil(year as i64, month as i64, day as i64);
     let local = days * 86_400 + (hour * 3600 + minute * 60 + second) as i64;
@@ -202,6 +129,35 @@ pub fn format_rfc3339_utc(unix_seconds: i64) -> Option<String> {
         secs / 60 % 60,
         secs % 60
     ))
+}
+
+/// The date and time fields must be in range (no leap second).
+fn check_ranges(
+    [year, month, day]: [u32; 3],
+    [hour, minute, second]: [u32; 3],
+) -> Result<(), String> {
+    if !(1..=12).contains(&month) {
+        return Err(format!("month {month:02} is out of range (01 to 12)"));
+    }
+    let dim = days_in_month(year, month);
+    if !(1..=dim).contains(&day) {
+        return Err(format!(
+            "day {day:02} is out of range for {year:04}-{month:02} (01 to {dim:02})"
+        ));
+    }
+    if hour > 23 {
+        return Err(format!("hour {hour:02} is out of range (00 to 23)"));
+    }
+    if minute > 59 {
+        return Err(format!("minute {minute:02} is out of range (00 to 59)"));
+    }
+    if second == 60 {
+        return Err("second 60 (a leap second) cannot be a Unix time: use 59".to_string());
+    }
+    if second > 59 {
+        return Err(format!("second {second:02} is out of range (00 to 59)"));
+    }
+    Ok(())
 }
 
 /// Byte cursor over the text.
@@ -262,6 +218,54 @@ impl Cursor<'_> {
                 self.char_at(self.i - 1)
             )),
             None => Err(format!("expected {what}, the text ends")),
+        }
+    }
+
+    /// The optional fraction of the seconds (`.` and digits), in nanoseconds (digits
+    /// after the ninth are ignored).
+    fn fraction(&mut self) -> Result<u32, String> {
+        let mut nanosecond: u32 = 0;
+        if self.peek() == Some(b'.') {
+            self.i += 1;
+            let start = self.i;
+            while let Some(c @ b'0'..=b'9') = self.peek() {
+                let k = self.i - start;
+                if k < 9 {
+                    nanosecond += u32::from(c - b'0') * 10u32.pow(8 - k as u32);
+                }
+                self.i += 1;
+            }
+            if self.i == start {
+                return Err("expected digits after the decimal point of the seconds".to_string());
+            }
+        }
+        Ok(nanosecond)
+    }
+
+    /// The offset, `Z` or `±hh:mm`, in minutes.
+    fn offset(&mut self) -> Result<i32, String> {
+        match self.next() {
+            Some(b'Z' | b'z') => Ok(0),
+            Some(sign @ (b'+' | b'-')) => {
+                let oh = self.digits(2, "offset hour")?;
+                self.expect_byte(b':', "':' in the offset (±hh:mm)")?;
+                let om = self.digits(2, "offset minute")?;
+                if oh > 23 {
+                    return Err(format!("offset hour {oh:02} is out of range (00 to 23)"));
+                }
+                if om > 59 {
+                    return Err(format!("offset minute {om:02} is out of range (00 to 59)"));
+                }
+                let m = (oh * 60 + om) as i32;
+                Ok(if sign == b'-' { -m } else { m })
+            }
+            Some(_) => Err(format!(
+                "expected an offset 'Z' or ±hh:mm, found {:?}",
+                self.char_at(self.i - 1)
+            )),
+            None => {
+                Err("missing offset: a local time is ambiguous, end with 'Z' or ±hh:mm".to_string())
+            }
         }
     }
 }

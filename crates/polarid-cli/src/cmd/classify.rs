@@ -256,14 +256,5 @@ fn finish(
                 args.library.as_deref().unwrap_or("builtin"),
             ),
     };
-    table_report::write_classify_report(
-        &args.report,
-        ctx,
-        &args.fits,
-        fits,
-        &out.rows,
-        &refs,
-        &out.hypotheses,
-        out.calibration.as_ref(),
-    )
+    table_report::write_classify_report(&args.report, ctx, &args.fits, fits, out, &refs)
 }

@@ -10,22 +10,13 @@ use polarid_io::image;
 use polarid_pipeline::demo::bench::{BenchOutput, MAP_BIN, TEST_PREFIX};
 use polarid_pipeline::map::MapResult;
 
-use super::Rendered;
+use super::colour_demo::{ColourFigure, report_figures};
 use super::demo::common;
 use super::plots::{self, PlotSize};
-use super::report::{self, Figure, Report};
+use super::report::{self, Report};
 
 /// One figure: the drawing, its file stem under `plots/`, title and caption.
-pub struct BenchFigure {
-    /// The drawing.
-    pub plot: Rendered,
-    /// File stem (`plots/STEM.png`, `.svg`).
-    pub stem: String,
-    /// Title.
-    pub title: String,
-    /// Caption.
-    pub caption: String,
-}
+pub type BenchFigure = ColourFigure;
 
 fn is_test(t: &str) -> bool {
     t.starts_with(TEST_PREFIX)
@@ -147,13 +138,39 @@ pub fn write_map(dir: &Path, m: &MapResult) -> anyhow::Result<()> {
 
 /// The bench report.
 pub fn report(out: &BenchOutput, figs: &[BenchFigure]) -> Report {
+    let clf = super::demo::classifier_of(&out.model, &out.classification);
+    Report {
+        title: "polarid demo --bench: a lamp-and-lens bench with calibrated geometry".into(),
+        summary: summary(out),
+        inputs: inputs(out),
+        manifest: manifest_rows(out),
+        geometry: geometry_rows(out),
+        references: reference_rows(out),
+        estimates: out
+            .fits
+            .iter()
+            .map(|(_, f)| common::estimate_row(f, None))
+            .collect(),
+        classification: super::demo::report_classification(
+            &out.fits,
+            &out.classification,
+            clf.as_ref(),
+        ),
+        tables: vec![spread_table(out)],
+        figures: report_figures(figs),
+        generator: format!("polarid {} demo --bench", env!("CARGO_PKG_VERSION")),
+    }
+}
+
+/// Each plate's angles over its captures (ranges, and the mean θr and φ).
+fn geometry_rows(out: &BenchOutput) -> Vec<report::GeometryRow> {
     let mut targets: Vec<&str> = Vec::new();
     for t in &out.truth {
         if !targets.contains(&t.target.as_str()) {
             targets.push(&t.target);
         }
     }
-    let geometry = targets
+    targets
         .iter()
         .map(|&t| {
             let rows: Vec<_> = out.truth.iter().filter(|r| r.target == t).collect();
@@ -178,8 +195,12 @@ pub fn report(out: &BenchOutput, figs: &[BenchFigure]) -> Report {
                 captures: rows.len(),
             }
         })
-        .collect();
-    let spread: Vec<Vec<String>> = out
+        .collect()
+}
+
+/// The per-pixel geometry over each training plate's region.
+fn spread_table(out: &BenchOutput) -> report::Table {
+    let rows: Vec<Vec<String>> = out
         .truth
         .iter()
         .filter(|t| !is_test(&t.target))
@@ -196,6 +217,21 @@ pub fn report(out: &BenchOutput, figs: &[BenchFigure]) -> Report {
             ])
         })
         .collect();
+    report::Table {
+        caption: "Per-pixel geometry over each training plate's region (degrees): φ and \
+                  β are region means; the region's β range and standard deviation; the \
+                  noise-free DoLP of the region's summed Stokes vector."
+            .into(),
+        headers: ["target", "capture", "φ", "β", "β range", "β sd", "DoLP"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect(),
+        rows,
+    }
+}
+
+/// The training plates' rendered indices.
+fn reference_rows(out: &BenchOutput) -> Vec<report::ReferenceRow> {
     let mut references: Vec<report::ReferenceRow> = Vec::new();
     for t in out.truth.iter().filter(|t| !is_test(&t.target)) {
         if let (Some(c), Some(cls)) = (&t.calibrated, &t.class)
@@ -209,15 +245,12 @@ pub fn report(out: &BenchOutput, figs: &[BenchFigure]) -> Report {
             });
         }
     }
-    let estimates = out
-        .fits
-        .iter()
-        .map(|(_, f)| common::estimate_row(f, None))
-        .collect();
-    let clf = super::demo::classifier_of(&out.model, &out.classification);
-    let classification =
-        super::demo::report_classification(&out.fits, &out.classification, clf.as_ref());
-    let inputs = common::inputs(
+    references
+}
+
+/// The scenes, manifests and tables the bench demo wrote.
+fn inputs(out: &BenchOutput) -> Vec<report::InputItem> {
+    common::inputs(
         &out.scenes,
         &out.manifests,
         |_| "calibrated bench: camera, table plane, nine lamp positions, five plates".into(),
@@ -245,14 +278,18 @@ pub fn report(out: &BenchOutput, figs: &[BenchFigure]) -> Report {
                 "the test set's per-pixel maps (map, 4 × 4 binning)",
             ),
         ],
-    );
+    )
+}
+
+/// The report's summary: the bench, and the result of the plates and the map.
+fn summary(out: &BenchOutput) -> Vec<String> {
     let correct = common::correct(&out.classification);
     let (mut px, mut ok) = (0u64, 0u64);
     for r in &out.map.regions {
         px += r.pixels;
         ok += r.correct;
     }
-    let summary = vec![
+    vec![
         "A lamp-and-lens bench in simulation, with calibrated geometry: five 10 cm plates \
          (aluminum, copper, brass, green paint, polycarbonate) on a table, a camera with a \
          40° lens 0.8 m away, a lamp 0.55–0.9 m away moved through nine positions, three of \
@@ -272,67 +309,38 @@ pub fn report(out: &BenchOutput, figs: &[BenchFigure]) -> Report {
                 f64::NAN
             }
         ),
-    ];
-    Report {
-        title: "polarid demo --bench: a lamp-and-lens bench with calibrated geometry".into(),
-        summary,
-        inputs,
-        manifest: vec![
-            ("wavelength".into(), "650 nm (informational)".into()),
-            (
-                "camera".into(),
-                format!(
-                    "{} × {} pixels, fx = 659.4 px (40° across), mild barrel distortion, \
-                     0.8 m from the table at 50° zenith; 12 bit, 10 500 e⁻ full well, \
-                     2.5 e⁻ read noise, dark level 64 DN",
-                    out.size.0, out.size.1
-                ),
+    ]
+}
+
+/// The bench's settings.
+fn manifest_rows(out: &BenchOutput) -> Vec<(String, String)> {
+    vec![
+        ("wavelength".into(), "650 nm (informational)".into()),
+        (
+            "camera".into(),
+            format!(
+                "{} × {} pixels, fx = 659.4 px (40° across), mild barrel distortion, \
+                 0.8 m from the table at 50° zenith; 12 bit, 10 500 e⁻ full well, \
+                 2.5 e⁻ read noise, dark level 64 DN",
+                out.size.0, out.size.1
             ),
-            (
-                "exposure".into(),
-                "auto per capture: brightest plate pixel at 70 % of full scale".into(),
+        ),
+        (
+            "exposure".into(),
+            "auto per capture: brightest plate pixel at 70 % of full scale".into(),
+        ),
+        (
+            "regions".into(),
+            "the largest rectangle of each plate's pixels, inset by 1/8".into(),
+        ),
+        (
+            "classifier".into(),
+            format!(
+                "test plates: {}; map: {} (answers: a material, `ambiguous` or \
+                 `unknown`)",
+                polarid_pipeline::demo::rows_rule(&out.classification),
+                polarid_pipeline::demo::map_rule(&out.map)
             ),
-            (
-                "regions".into(),
-                "the largest rectangle of each plate's pixels, inset by 1/8".into(),
-            ),
-            (
-                "classifier".into(),
-                format!(
-                    "test plates: {}; map: {} (answers: a material, `ambiguous` or \
-                     `unknown`)",
-                    polarid_pipeline::demo::rows_rule(&out.classification),
-                    polarid_pipeline::demo::map_rule(&out.map)
-                ),
-            ),
-        ],
-        geometry,
-        references,
-        estimates,
-        classification,
-        tables: vec![report::Table {
-            caption: "Per-pixel geometry over each training plate's region (degrees): φ and \
-                      β are region means; the region's β range and standard deviation; the \
-                      noise-free DoLP of the region's summed Stokes vector."
-                .into(),
-            headers: ["target", "capture", "φ", "β", "β range", "β sd", "DoLP"]
-                .iter()
-                .map(|s| s.to_string())
-                .collect(),
-            rows: spread,
-        }],
-        figures: figs
-            .iter()
-            .map(|f| {
-                Figure::from_rendered(
-                    f.title.clone(),
-                    f.caption.clone(),
-                    &f.plot,
-                    format!("plots/{}.png", f.stem),
-                    Some(format!("plots/{}.svg", f.stem)),
-                )
-            })
-            .collect(),
-        generator: format!("polarid {} demo --bench", env!("CARGO_PKG_VERSION")),
-    }
+        ),
+    ]
 }

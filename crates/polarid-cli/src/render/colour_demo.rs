@@ -67,81 +67,85 @@ pub fn figures(out: &ColourDemoOutput) -> anyhow::Result<Vec<ColourFigure>> {
         let Some((_, ms)) = meas_by_band.iter().find(|(w, _)| *w == wl) else {
             continue;
         };
-        let mut per_target: BTreeMap<&str, Vec<&Measurement>> = BTreeMap::new();
-        for m in ms.iter().filter(|m| is_test(out, &m.target)) {
-            per_target.entry(m.target.as_str()).or_default().push(m);
-        }
-        let series: Vec<plots::DolpSeries> = band_fits
-            .iter()
-            .filter(|f| is_test(out, &f.target))
-            .filter_map(|f| {
-                let ms = per_target.get(f.target.as_str())?;
-                let points: Vec<plots::DolpPoint> = ms
-                    .iter()
-                    .map(|m| plots::DolpPoint {
-                        beta_deg: m.beta_deg,
-                        dolp: m.dolp,
-                        dolp_se: m.dolp_se,
-                    })
-                    .collect();
-                let lo = points.iter().map(|q| q.beta_deg).fold(f64::MAX, f64::min);
-                let hi = points.iter().map(|q| q.beta_deg).fold(f64::MIN, f64::max);
-                Some(plots::DolpSeries {
-                    label: f.target.clone(),
-                    points,
-                    curve: plots::eq9_curve(f.n, f.k, lo - 2.0, hi + 2.0, 60),
-                    curve_label: Some(format!("fit n = {:.2}, k = {:.2}", f.n, f.k)),
-                })
-            })
-            .collect();
-        figs.push(ColourFigure {
-            stem: format!("dolp_{wl:.0}nm"),
-            title: format!("DoLP against β at {wl:.0} nm"),
-            caption: format!(
-                "The test plates' DoLP in the {wl:.0} nm band (points, ±1 standard error), \
-                 from the per-band demosaic of the raw colour mosaics, and the eq. (9) curve \
-                 of each plate's {wl:.0} nm fit."
-            ),
-            plot: plots::dolp_vs_beta(
-                &format!("DoLP against β, {wl:.0} nm band, test plates"),
-                &series,
-                size,
-            )?,
-        });
-        let protos: Vec<plots::Prototype> = out
-            .model
-            .prototypes
-            .iter()
-            .filter(|p| p.wavelength_nm == Some(wl))
-            .map(|p| plots::Prototype {
-                class: p.class.clone(),
-                n: p.n,
-                k: p.k,
-            })
-            .collect();
-        let ests: Vec<plots::NkEstimate> = band_fits
-            .iter()
-            .filter(|f| is_test(out, &f.target))
-            .map(|f| plots::NkEstimate::from_fit(f.target.clone(), f, &out.classification, None))
-            .collect();
-        figs.push(ColourFigure {
-            stem: format!("nk_{wl:.0}nm"),
-            title: format!("The (n, k) plane at {wl:.0} nm"),
-            caption: format!(
-                "The training prototypes' {wl:.0} nm (n, k) (shaded: the band's own \
-                 Euclidean nearest-neighbour regions) and each test plate's {wl:.0} nm \
-                 estimate with its 1-σ ellipse; the legend gives the three-band answer \
-                 (set rule, 95%). At 650 nm copper and gold nearly coincide; at 550 and \
-                 450 nm they are apart."
-            ),
-            plot: plots::nk_plane(
-                &format!("(n, k) at {wl:.0} nm: prototypes and test estimates"),
-                &protos,
-                &ests,
-                size,
-            )?,
-        });
+        figs.extend(band_figures(out, wl, &band_fits, ms, size)?);
     }
+    figs.push(spectra_figure(out, size)?);
+    Ok(figs)
+}
+
+/// The two figures of band `wl`: the test plates' DoLP against β with their fits, and
+/// the (n, k) plane with the band's prototypes and test estimates.
+fn band_figures(
+    out: &ColourDemoOutput,
+    wl: f64,
+    band_fits: &[FitRow],
+    ms: &[Measurement],
+    size: PlotSize,
+) -> anyhow::Result<[ColourFigure; 2]> {
+    let mut per_target: BTreeMap<&str, Vec<&Measurement>> = BTreeMap::new();
+    for m in ms.iter().filter(|m| is_test(out, &m.target)) {
+        per_target.entry(m.target.as_str()).or_default().push(m);
+    }
+    let series: Vec<plots::DolpSeries> = band_fits
+        .iter()
+        .filter(|f| is_test(out, &f.target))
+        .filter_map(|f| {
+            let ms = per_target.get(f.target.as_str())?;
+            Some(super::demo::common::dolp_series(f.target.clone(), f, ms))
+        })
+        .collect();
+    let dolp = ColourFigure {
+        stem: format!("dolp_{wl:.0}nm"),
+        title: format!("DoLP against β at {wl:.0} nm"),
+        caption: format!(
+            "The test plates' DoLP in the {wl:.0} nm band (points, ±1 standard error), \
+             from the per-band demosaic of the raw colour mosaics, and the eq. (9) curve \
+             of each plate's {wl:.0} nm fit."
+        ),
+        plot: plots::dolp_vs_beta(
+            &format!("DoLP against β, {wl:.0} nm band, test plates"),
+            &series,
+            size,
+        )?,
+    };
+    let protos: Vec<plots::Prototype> = out
+        .model
+        .prototypes
+        .iter()
+        .filter(|p| p.wavelength_nm == Some(wl))
+        .map(|p| plots::Prototype {
+            class: p.class.clone(),
+            n: p.n,
+            k: p.k,
+        })
+        .collect();
+    let ests: Vec<plots::NkEstimate> = band_fits
+        .iter()
+        .filter(|f| is_test(out, &f.target))
+        .map(|f| plots::NkEstimate::from_fit(f.target.clone(), f, &out.classification, None))
+        .collect();
+    let nk = ColourFigure {
+        stem: format!("nk_{wl:.0}nm"),
+        title: format!("The (n, k) plane at {wl:.0} nm"),
+        caption: format!(
+            "The training prototypes' {wl:.0} nm (n, k) (shaded: the band's own \
+             Euclidean nearest-neighbour regions) and each test plate's {wl:.0} nm \
+             estimate with its 1-σ ellipse; the legend gives the three-band answer \
+             (set rule, 95%). At 650 nm copper and gold nearly coincide; at 550 and \
+             450 nm they are apart."
+        ),
+        plot: plots::nk_plane(
+            &format!("(n, k) at {wl:.0} nm: prototypes and test estimates"),
+            &protos,
+            &ests,
+            size,
+        )?,
+    };
+    Ok([dolp, nk])
+}
+
+/// `n(λ)` and `k(λ)` of the test plates against the materials' curves.
+fn spectra_figure(out: &ColourDemoOutput, size: PlotSize) -> anyhow::Result<ColourFigure> {
     let mut targets: Vec<Spectrum> = Vec::new();
     for (_, f) in out.fits.iter().filter(|(_, f)| is_test(out, &f.target)) {
         let p = SpectrumPoint {
@@ -179,7 +183,7 @@ pub fn figures(out: &ColourDemoOutput) -> anyhow::Result<Vec<ColourFigure>> {
             curve: Vec::new(),
         })
         .collect();
-    figs.push(ColourFigure {
+    Ok(ColourFigure {
         stem: "nk_spectra".into(),
         title: "n(λ) and k(λ)".into(),
         caption: "Each test plate's fitted n and k per band (markers, ±1 standard error) \
@@ -193,12 +197,46 @@ pub fn figures(out: &ColourDemoOutput) -> anyhow::Result<Vec<ColourFigure>> {
             &library,
             size,
         )?,
-    });
-    Ok(figs)
+    })
 }
 
 /// The colour demo's report.
 pub fn report(out: &ColourDemoOutput, figs: &[ColourFigure]) -> Report {
+    Report {
+        title: "polarid demo --color: copper, gold and aluminum told apart by a colour \
+                polarization camera"
+            .into(),
+        summary: summary(out),
+        inputs: inputs(out),
+        manifest: vec![
+            (
+                "camera".into(),
+                "colour DoFP, polarizers 90/45/135/0°, colours RGGB; 12 bit, full well \
+                 10 000 e⁻, read noise 3 e⁻, dark level 64 DN; blue response 0.5"
+                    .into(),
+            ),
+            ("bands".into(), "R 650 nm, G 550 nm, B 450 nm".into()),
+            (
+                "demosaic".into(),
+                "bilinear per lattice (4×4 period), region variance inflation 4096/121".into(),
+            ),
+            (
+                "region".into(),
+                "the default inset of each 32 × 32 plate (24 × 24 pixels)".into(),
+            ),
+        ],
+        references: references(out),
+        estimates: estimates(out),
+        classification: classification(out),
+        tables: vec![accuracy_table(out)],
+        figures: report_figures(figs),
+        generator: format!("polarid {} demo --color", env!("CARGO_PKG_VERSION")),
+        ..Default::default()
+    }
+}
+
+/// The report's summary: the experiment, and the copper and gold results.
+fn summary(out: &ColourDemoOutput) -> Vec<String> {
     let pct = |x: f64| format!("{:.1}%", 100.0 * x);
     let find = |b: &str, f: &str, r: &str| {
         out.accuracy
@@ -243,6 +281,11 @@ pub fn report(out: &ColourDemoOutput, figs: &[ColourFigure]) -> Report {
             pct(d3.ambiguous as f64 / (d3.copper.1 + d3.gold.1).max(1) as f64),
         ));
     }
+    summary
+}
+
+/// The scenes, manifests and tables the colour demo wrote.
+fn inputs(out: &ColourDemoOutput) -> Vec<report::InputItem> {
     let mut inputs: Vec<report::InputItem> = out
         .scenes
         .iter()
@@ -300,8 +343,12 @@ pub fn report(out: &ColourDemoOutput, figs: &[ColourFigure]) -> Report {
             detail: detail.into(),
         });
     }
-    let references = out
-        .materials
+    inputs
+}
+
+/// The materials' reference indices per band.
+fn references(out: &ColourDemoOutput) -> Vec<report::ReferenceRow> {
+    out.materials
         .iter()
         .flat_map(|m| {
             polarid_pipeline::demo::colour::COLOUR_BANDS_NM
@@ -319,9 +366,12 @@ pub fn report(out: &ColourDemoOutput, figs: &[ColourFigure]) -> Report {
                 })
                 .collect::<Vec<_>>()
         })
-        .collect();
-    let estimates = out
-        .fits
+        .collect()
+}
+
+/// Every fit, per target and band.
+fn estimates(out: &ColourDemoOutput) -> Vec<report::EstimateRow> {
+    out.fits
         .iter()
         .map(|(_, f)| report::EstimateRow {
             target: format!(
@@ -340,7 +390,11 @@ pub fn report(out: &ColourDemoOutput, figs: &[ColourFigure]) -> Report {
             measurements: f.measurements as usize,
             status: f.status,
         })
-        .collect();
+        .collect()
+}
+
+/// The three-band classification rows, then the 650 nm ones.
+fn classification(out: &ColourDemoOutput) -> Vec<report::ClassificationRow> {
     let mut classification =
         super::demo::report_classification(&out.fits, &out.classification, None);
     classification.extend(
@@ -351,6 +405,11 @@ pub fn report(out: &ColourDemoOutput, figs: &[ColourFigure]) -> Report {
                 c
             }),
     );
+    classification
+}
+
+/// The accuracy over the seeds: three bands against 650 nm alone.
+fn accuracy_table(out: &ColourDemoOutput) -> report::Table {
     let headers = [
         "classifier",
         "fit error model",
@@ -381,44 +440,14 @@ pub fn report(out: &ColourDemoOutput, figs: &[ColourFigure]) -> Report {
             ]
         })
         .collect();
-    Report {
-        title: "polarid demo --color: copper, gold and aluminum told apart by a colour \
-                polarization camera"
-            .into(),
-        summary,
-        inputs,
-        manifest: vec![
-            (
-                "camera".into(),
-                "colour DoFP, polarizers 90/45/135/0°, colours RGGB; 12 bit, full well \
-                 10 000 e⁻, read noise 3 e⁻, dark level 64 DN; blue response 0.5"
-                    .into(),
-            ),
-            ("bands".into(), "R 650 nm, G 550 nm, B 450 nm".into()),
-            (
-                "demosaic".into(),
-                "bilinear per lattice (4×4 period), region variance inflation 4096/121".into(),
-            ),
-            (
-                "region".into(),
-                "the default inset of each 32 × 32 plate (24 × 24 pixels)".into(),
-            ),
-        ],
-        references,
-        estimates,
-        classification,
-        tables: vec![report::Table {
-            caption: format!(
-                "Test plates right over {} seeds: three bands against the 650 nm band of the \
+    report::Table {
+        caption: format!(
+            "Test plates right over {} seeds: three bands against the 650 nm band of the \
                  same images, under the fit's default error model and without its \
                  surface-layer allowance.",
-                out.seeds
-            ),
-            headers: headers.iter().map(|s| s.to_string()).collect(),
-            rows,
-        }],
-        figures: report_figures(figs),
-        generator: format!("polarid {} demo --color", env!("CARGO_PKG_VERSION")),
-        ..Default::default()
+            out.seeds
+        ),
+        headers: headers.iter().map(|s| s.to_string()).collect(),
+        rows,
     }
 }

@@ -9,7 +9,7 @@ use std::fmt::Write as _;
 use polarid_io::table::classification::ClassificationRow;
 use polarid_io::table::fits::FitRow;
 use polarid_io::table::measurements::Measurement;
-use polarid_pipeline::demo::{DemoOutput, PLATES, SIDE, paper_estimate};
+use polarid_pipeline::demo::{DemoOutput, DemoPlate, PLATES, SIDE, paper_estimate};
 
 use super::Rendered;
 use super::plots::{self, PlotSize};
@@ -188,32 +188,36 @@ pub fn report_classification_on(
 /// The demo's report.
 pub fn report(out: &DemoOutput, figs: &[Rendered; 3]) -> Report {
     let clf = same_bench_classifier_of(&out.model, &out.classification);
-    build_report(
-        &out.fits,
-        &out.measurements,
-        &out.classification,
-        clf.as_ref(),
-        &out.model,
-        &out.scenes,
-        &out.manifests,
-        [&figs[0], &figs[1], &figs[2]],
-    )
+    let fits = &out.fits;
+    let class_rows = &out.classification;
+    Report {
+        title: "polarid demo: material classification from polarization, the paper's \
+                experiment in simulation"
+            .into(),
+        summary: summary(class_rows),
+        inputs: inputs(&out.scenes, &out.manifests),
+        manifest: manifest_rows(),
+        geometry: geometry_rows(&out.measurements),
+        references: reference_rows(),
+        estimates: fits
+            .iter()
+            .map(|(_, f)| common::estimate_row(f, plate(&f.target).map(|p| p.theta_r)))
+            .collect(),
+        classification: report_classification_on(fits, class_rows, clf.as_ref(), Some(&out.model)),
+        tables: vec![paper_table(fits)],
+        figures: figures_of(figs),
+        generator: format!("polarid {} demo", env!("CARGO_PKG_VERSION")),
+    }
 }
 
-/// The demo's report.
-#[allow(clippy::too_many_arguments)]
-fn build_report(
-    fits: &[(u64, FitRow)],
-    meas: &[(u64, Measurement)],
-    class_rows: &[ClassificationRow],
-    clf: Option<&polarid_core::classify::Classifier>,
-    model: &polarid_io::model::Model,
-    scenes: &[String],
-    manifests: &[String],
-    figs: [&Rendered; 3],
-) -> Report {
-    let plate = |t: &str| PLATES.iter().find(|p| p.target == t);
-    let geometry = PLATES
+/// The demo plate of target `t`.
+fn plate(t: &str) -> Option<&'static DemoPlate> {
+    PLATES.iter().find(|p| p.target == t)
+}
+
+/// The geometry of each plate: its angles and the range of β of its measurements.
+fn geometry_rows(meas: &[(u64, Measurement)]) -> Vec<report::GeometryRow> {
+    PLATES
         .iter()
         .map(|p| {
             let ms: Vec<&Measurement> = meas
@@ -235,8 +239,12 @@ fn build_report(
                 captures: ms.len(),
             }
         })
-        .collect();
-    let references = PLATES
+        .collect()
+}
+
+/// The training plates' reference indices.
+fn reference_rows() -> Vec<report::ReferenceRow> {
+    PLATES
         .iter()
         .filter(|p| p.training)
         .map(|p| report::ReferenceRow {
@@ -247,12 +255,11 @@ fn build_report(
                          their native layer (Table 1)"
                 .into(),
         })
-        .collect();
-    let estimates = fits
-        .iter()
-        .map(|(_, f)| common::estimate_row(f, plate(&f.target).map(|p| p.theta_r)))
-        .collect();
-    let classification = report_classification_on(fits, class_rows, clf, Some(model));
+        .collect()
+}
+
+/// The scenes, manifests and tables the demo wrote.
+fn inputs(scenes: &[String], manifests: &[String]) -> Vec<report::InputItem> {
     let scene_detail = |s: &str| {
         let t = s
             .trim_start_matches("captures/")
@@ -267,7 +274,7 @@ fn build_report(
             })
             .unwrap_or_default()
     };
-    let inputs = common::inputs(
+    common::inputs(
         scenes,
         manifests,
         scene_detail,
@@ -290,7 +297,11 @@ fn build_report(
                 "the test plate: the consistent set at 95%, one bench (classify)",
             ),
         ],
-    );
+    )
+}
+
+/// The paper's own estimates beside the simulation's.
+fn paper_table(fits: &[(u64, FitRow)]) -> report::Table {
     let paper_rows: Vec<Vec<String>> = fits
         .iter()
         .filter_map(|(_, f)| {
@@ -306,6 +317,31 @@ fn build_report(
             ])
         })
         .collect();
+    report::Table {
+        caption: "The paper's own estimates (Tables 1 and 2, real plates) beside the \
+                  simulation's. The simulated plates carry a native layer of a few \
+                  nanometres, so their estimates land on the index a single-interface \
+                  fit sees on the layered surface, not on the bulk reference (for \
+                  aluminum under Al₂O₃, lower n and k); the paper's differ from the \
+                  references by the model error of real surfaces."
+            .into(),
+        headers: [
+            "target",
+            "θr (°)",
+            "n̂ (here)",
+            "k̂ (here)",
+            "paper n̂",
+            "paper k̂",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect(),
+        rows: paper_rows,
+    }
+}
+
+/// The report's summary: the experiment, and the result of each test view.
+fn summary(class_rows: &[ClassificationRow]) -> Vec<String> {
     let mut summary = vec![
         "The paper's laboratory experiment (Thilak, Creusere & Voelz, ICIP 2007, section 7) \
          in simulation: flat plates of known index and roughness are rendered from the \
@@ -343,94 +379,70 @@ fn build_report(
     }
     result.push('.');
     summary.push(result);
-    Report {
-        title: "polarid demo: material classification from polarization, the paper's \
-                experiment in simulation"
-            .into(),
-        summary,
-        inputs,
-        manifest: vec![
-            ("wavelength".into(), "650 nm (informational)".into()),
-            (
-                "camera".into(),
-                "12 bit, full well 10 500 e⁻, read noise 2.5 e⁻, dark level 64 DN".into(),
-            ),
-            (
-                "exposure".into(),
-                "auto per capture: brightest plate pixel at 70 % of full scale; S0 divided \
-                 by the exposure"
-                    .into(),
-            ),
-            (
-                "frames".into(),
-                format!("{SIDE} × {SIDE} pixels per capture, 16-bit PNG"),
-            ),
-            ("region".into(), "[16, 16, 96, 96] of each plate".into()),
-            (
-                "classifier".into(),
-                "the consistent set at 95% (Mahalanobis distance, the estimate's noise and \
-                 each prototype's noise and surface-layer variation: one bench), as \
-                 classify --model; the paper's nearest neighbour (Euclidean in (n, k)) in \
-                 Table 2 beside it"
-                    .into(),
-            ),
-        ],
-        geometry,
-        references,
-        estimates,
-        classification,
-        tables: vec![report::Table {
-            caption: "The paper's own estimates (Tables 1 and 2, real plates) beside the \
-                      simulation's. The simulated plates carry a native layer of a few \
-                      nanometres, so their estimates land on the index a single-interface \
-                      fit sees on the layered surface, not on the bulk reference (for \
-                      aluminum under Al₂O₃, lower n and k); the paper's differ from the \
-                      references by the model error of real surfaces."
+    summary
+}
+
+/// The demo's settings.
+fn manifest_rows() -> Vec<(String, String)> {
+    vec![
+        ("wavelength".into(), "650 nm (informational)".into()),
+        (
+            "camera".into(),
+            "12 bit, full well 10 500 e⁻, read noise 2.5 e⁻, dark level 64 DN".into(),
+        ),
+        (
+            "exposure".into(),
+            "auto per capture: brightest plate pixel at 70 % of full scale; S0 divided \
+             by the exposure"
                 .into(),
-            headers: [
-                "target",
-                "θr (°)",
-                "n̂ (here)",
-                "k̂ (here)",
-                "paper n̂",
-                "paper k̂",
-            ]
-            .iter()
-            .map(|s| s.to_string())
-            .collect(),
-            rows: paper_rows,
-        }],
-        figures: vec![
-            Figure::from_rendered(
-                "DoLP against β, training plates",
-                "Measured DoLP of each training plate (points, ±1 standard-error bars, \
-                 mostly smaller than the points) and the fitted eq. (9) curve.",
-                figs[0],
-                "plots/dolp_training.png",
-                Some("plots/dolp_training.svg".into()),
-            ),
-            Figure::from_rendered(
-                "DoLP against β, test plate",
-                "The test aluminum plate at θr = 60° and 50°: the same material gives the \
-                 same DoLP(β) curve from both view angles.",
-                figs[1],
-                "plots/dolp_test.png",
-                Some("plots/dolp_test.svg".into()),
-            ),
-            Figure::from_rendered(
-                "The (n, k) plane",
-                "Training prototypes, the paper's nearest-neighbour decision regions (shaded; \
-                 Euclidean distance, § 6), and each test estimate's confidence region at the \
-                 set's confidence: a prototype is in the consistent set exactly when it lies \
-                 inside the region drawn for it (dashed: the region with that training \
-                 prototype's noise and surface-layer variation added to the estimate's \
-                 noise, Σ_est,noise + Σ_proto,sample: one bench). The legend gives each \
-                 view's answer.",
-                figs[2],
-                "plots/nk_plane.png",
-                Some("plots/nk_plane.svg".into()),
-            ),
-        ],
-        generator: format!("polarid {} demo", env!("CARGO_PKG_VERSION")),
-    }
+        ),
+        (
+            "frames".into(),
+            format!("{SIDE} × {SIDE} pixels per capture, 16-bit PNG"),
+        ),
+        ("region".into(), "[16, 16, 96, 96] of each plate".into()),
+        (
+            "classifier".into(),
+            "the consistent set at 95% (Mahalanobis distance, the estimate's noise and \
+             each prototype's noise and surface-layer variation: one bench), as \
+             classify --model; the paper's nearest neighbour (Euclidean in (n, k)) in \
+             Table 2 beside it"
+                .into(),
+        ),
+    ]
+}
+
+/// The report's figures, from the three rendered plots.
+fn figures_of(figs: &[Rendered; 3]) -> Vec<Figure> {
+    vec![
+        Figure::from_rendered(
+            "DoLP against β, training plates",
+            "Measured DoLP of each training plate (points, ±1 standard-error bars, \
+             mostly smaller than the points) and the fitted eq. (9) curve.",
+            &figs[0],
+            "plots/dolp_training.png",
+            Some("plots/dolp_training.svg".into()),
+        ),
+        Figure::from_rendered(
+            "DoLP against β, test plate",
+            "The test aluminum plate at θr = 60° and 50°: the same material gives the \
+             same DoLP(β) curve from both view angles.",
+            &figs[1],
+            "plots/dolp_test.png",
+            Some("plots/dolp_test.svg".into()),
+        ),
+        Figure::from_rendered(
+            "The (n, k) plane",
+            "Training prototypes, the paper's nearest-neighbour decision regions (shaded; \
+             Euclidean distance, § 6), and each test estimate's confidence region at the \
+             set's confidence: a prototype is in the consistent set exactly when it lies \
+             inside the region drawn for it (dashed: the region with that training \
+             prototype's noise and surface-layer variation added to the estimate's \
+             noise, Σ_est,noise + Σ_proto,sample: one bench). The legend gives each \
+             view's answer.",
+            &figs[2],
+            "plots/nk_plane.png",
+            Some("plots/nk_plane.svg".into()),
+        ),
+    ]
 }

@@ -184,14 +184,59 @@ pub fn figures(t: &Tables, refs: Option<&References>, what: &str) -> Result<Vec<
         }
         _ => String::new(),
     };
-    let fit_of = |target: &str, w: Option<f64>| {
-        t.fits.iter().find(|f| {
+    let drawn = Drawn {
+        t: *t,
+        refs,
+        what,
+        shown,
+        classes,
+        chosen,
+        more,
+        ref_text,
+    };
+    if bands.len() < 2 {
+        drawn.one_band(bands.first().copied())
+    } else {
+        drawn.per_band(&bands)
+    }
+}
+
+/// What the figures of the tables share: the targets drawn, the references chosen and
+/// the sentences the captions end with.
+struct Drawn<'a> {
+    t: Tables<'a>,
+    refs: Option<&'a References>,
+    what: &'a str,
+    shown: Vec<&'a str>,
+    classes: Vec<String>,
+    chosen: Vec<&'a MultiPrototype>,
+    more: String,
+    ref_text: String,
+}
+
+/// A figure drawn as `plots/<stem>.png`.
+fn fig(stem: &str, title: String, caption: String, plot: Rendered) -> ColourFigure {
+    ColourFigure {
+        stem: stem.into(),
+        title,
+        caption,
+        plot,
+    }
+}
+
+impl<'a> Drawn<'a> {
+    /// The fit of `target` in band `w` (`None`: the row without a wavelength).
+    fn fit_of(&self, target: &str, w: Option<f64>) -> Option<&'a FitRow> {
+        self.t.fits.iter().find(|f| {
             f.target == target
                 && (same_band(f.wavelength_nm, w) || (w.is_none() && f.wavelength_nm.is_none()))
         })
-    };
-    let series = |target: &str, w: Option<f64>| {
-        let ms: Vec<plots::DolpPoint> = t
+    }
+
+    /// The DoLP of `target` (in band `w`; `None`: every row) and its fitted curve.
+    fn series(&self, target: &str, w: Option<f64>) -> plots::DolpSeries {
+        let ms: Vec<plots::DolpPoint> = self
+            .t
             .measurements
             .iter()
             .filter(|m| {
@@ -207,7 +252,9 @@ pub fn figures(t: &Tables, refs: Option<&References>, what: &str) -> Result<Vec<
         let (lo, hi) = ms.iter().fold((f64::MAX, f64::MIN), |(a, b), p| {
             (a.min(p.beta_deg), b.max(p.beta_deg))
         });
-        let f = fit_of(target, w).filter(|f| f.n.is_finite() && f.k.is_finite());
+        let f = self
+            .fit_of(target, w)
+            .filter(|f| f.n.is_finite() && f.k.is_finite());
         plots::DolpSeries {
             label: target.to_string(),
             curve: match f {
@@ -217,23 +264,22 @@ pub fn figures(t: &Tables, refs: Option<&References>, what: &str) -> Result<Vec<
             curve_label: f.map(|f| format!("fit n = {:.2}, k = {:.2}", f.n, f.k)),
             points: ms,
         }
-    };
-    let estimate =
-        |f: &FitRow| plots::NkEstimate::from_fit(f.target.clone(), f, t.classification, None);
-    let mut figs = Vec::new();
-    let fig = |stem: &str, title: String, caption: String, plot: Rendered| ColourFigure {
-        stem: stem.into(),
-        title,
-        caption,
-        plot,
-    };
-    if bands.len() < 2 {
-        let w = bands.first().copied();
+    }
+
+    fn estimate(&self, f: &FitRow) -> plots::NkEstimate {
+        plots::NkEstimate::from_fit(f.target.clone(), f, self.t.classification, None)
+    }
+
+    /// The single-band figures (band `w`, or none): `dolp_vs_beta` and `nk_plane`.
+    fn one_band(&self, w: Option<f64>) -> Result<Vec<ColourFigure>> {
+        let (what, more, ref_text) = (self.what, &self.more, &self.ref_text);
+        let mut figs = Vec::new();
         let at = w
             .map(|w| format!(" at {} nm", band_label(w)))
             .unwrap_or_default();
-        if !t.measurements.is_empty() {
-            let s: Vec<plots::DolpSeries> = shown.iter().map(|n| series(n, None)).collect();
+        if !self.t.measurements.is_empty() {
+            let s: Vec<plots::DolpSeries> =
+                self.shown.iter().map(|n| self.series(n, None)).collect();
             figs.push(fig(
                 "dolp_vs_beta",
                 format!("DoLP against β{at}"),
@@ -241,7 +287,8 @@ pub fn figures(t: &Tables, refs: Option<&References>, what: &str) -> Result<Vec<
                 plots::dolp_vs_beta(&format!("DoLP against β{at} ({what})"), &s, PlotSize::REPORT)?,
             ));
         }
-        let protos: Vec<plots::Prototype> = chosen
+        let protos: Vec<plots::Prototype> = self
+            .chosen
             .iter()
             .filter_map(|p| {
                 let (n, k) = band_nk(p, w).or_else(|| p.bands.first().map(|b| (b.n, b.k)))?;
@@ -252,10 +299,11 @@ pub fn figures(t: &Tables, refs: Option<&References>, what: &str) -> Result<Vec<
                 })
             })
             .collect();
-        let ests: Vec<plots::NkEstimate> = shown
+        let ests: Vec<plots::NkEstimate> = self
+            .shown
             .iter()
-            .filter_map(|n| t.fits.iter().find(|f| f.target == *n))
-            .map(estimate)
+            .filter_map(|n| self.t.fits.iter().find(|f| f.target == *n))
+            .map(|f| self.estimate(f))
             .collect();
         figs.push(fig(
             "nk_plane",
@@ -263,120 +311,144 @@ pub fn figures(t: &Tables, refs: Option<&References>, what: &str) -> Result<Vec<
             format!("Each target's (n, k) with its 1-σ ellipse, and the references (shaded: their nearest-neighbour regions).{ref_text}{more}"),
             plots::nk_plane(&format!("(n, k){at} ({what})"), &protos, &ests, PlotSize::REPORT)?,
         ));
-        return Ok(figs);
+        Ok(figs)
     }
-    let tags: Vec<String> = bands.iter().map(|w| band_label(*w)).collect();
-    let tags = tags.join(", ");
-    if !t.measurements.is_empty() {
-        let dolp: Vec<DolpBand> = bands
+
+    /// The figures of two bands or more: `dolp_bands`, `nk_bands` and `nk_spectra`.
+    fn per_band(&self, bands: &[f64]) -> Result<Vec<ColourFigure>> {
+        let (what, more, ref_text) = (self.what, &self.more, &self.ref_text);
+        let mut figs = Vec::new();
+        let tags: Vec<String> = bands.iter().map(|w| band_label(*w)).collect();
+        let tags = tags.join(", ");
+        if !self.t.measurements.is_empty() {
+            let dolp: Vec<DolpBand> = bands
+                .iter()
+                .map(|&w| DolpBand {
+                    wavelength_nm: w,
+                    series: self.shown.iter().map(|n| self.series(n, Some(w))).collect(),
+                })
+                .collect();
+            figs.push(fig(
+                "dolp_bands",
+                "DoLP against β per band".into(),
+                format!("One panel per band ({tags} nm): each target's DoLP in the band (points, ±1 SE) and the eq. (9) curve of its fit in that band.{more}"),
+                dolp_by_band(&format!("DoLP against β per band ({what})"), &dolp)?,
+            ));
+        }
+        let nk: Vec<NkBand> = bands
             .iter()
-            .map(|&w| DolpBand {
+            .map(|&w| NkBand {
                 wavelength_nm: w,
-                series: shown.iter().map(|n| series(n, Some(w))).collect(),
+                references: self
+                    .chosen
+                    .iter()
+                    .filter_map(|p| {
+                        let (n, k) = band_nk(p, Some(w))?;
+                        Some(plots::Prototype {
+                            class: p.class.clone(),
+                            n,
+                            k,
+                        })
+                    })
+                    .collect(),
+                estimates: self
+                    .shown
+                    .iter()
+                    .map(|n| self.fit_of(n, Some(w)).map(|f| self.estimate(f)))
+                    .collect(),
             })
             .collect();
         figs.push(fig(
-            "dolp_bands",
-            "DoLP against β per band".into(),
-            format!("One panel per band ({tags} nm): each target's DoLP in the band (points, ±1 SE) and the eq. (9) curve of its fit in that band.{more}"),
-            dolp_by_band(&format!("DoLP against β per band ({what})"), &dolp)?,
+            "nk_bands",
+            "The (n, k) plane per band".into(),
+            format!("One panel per band ({tags} nm): each target's (n, k) in the band with its 1-σ ellipse, and the references' values in that band (circles).{ref_text}{more}"),
+            nk_by_band(&format!("(n, k) per band ({what})"), &nk)?,
         ));
+        figs.push(self.spectra(bands)?);
+        Ok(figs)
     }
-    let nk: Vec<NkBand> = bands
-        .iter()
-        .map(|&w| NkBand {
-            wavelength_nm: w,
-            references: chosen
-                .iter()
-                .filter_map(|p| {
-                    let (n, k) = band_nk(p, Some(w))?;
-                    Some(plots::Prototype {
-                        class: p.class.clone(),
-                        n,
-                        k,
+
+    /// `nk_spectra`: each target's n and k per band against the references' curves.
+    fn spectra(&self, bands: &[f64]) -> Result<ColourFigure> {
+        let (what, more, ref_text, refs) = (self.what, &self.more, &self.ref_text, self.refs);
+        let targets: Vec<Spectrum> = self
+            .shown
+            .iter()
+            .map(|name| Spectrum {
+                label: name.to_string(),
+                points: self
+                    .t
+                    .fits
+                    .iter()
+                    .filter(|f| f.target == *name)
+                    .filter_map(|f| {
+                        Some(SpectrumPoint {
+                            wavelength_nm: f.wavelength_nm?,
+                            n: f.n,
+                            k: f.k,
+                            n_se: Some(f.n_se),
+                            k_se: Some(f.k_se),
+                        })
                     })
-                })
-                .collect(),
-            estimates: shown
-                .iter()
-                .map(|n| fit_of(n, Some(w)).map(estimate))
-                .collect(),
-        })
-        .collect();
-    figs.push(fig(
-        "nk_bands",
-        "The (n, k) plane per band".into(),
-        format!("One panel per band ({tags} nm): each target's (n, k) in the band with its 1-σ ellipse, and the references' values in that band (circles).{ref_text}{more}"),
-        nk_by_band(&format!("(n, k) per band ({what})"), &nk)?,
-    ));
-    let targets: Vec<Spectrum> = shown
-        .iter()
-        .map(|name| Spectrum {
-            label: name.to_string(),
-            points: t
-                .fits
-                .iter()
-                .filter(|f| f.target == *name)
-                .filter_map(|f| {
-                    Some(SpectrumPoint {
-                        wavelength_nm: f.wavelength_nm?,
-                        n: f.n,
-                        k: f.k,
-                        n_se: Some(f.n_se),
-                        k_se: Some(f.k_se),
+                    .collect(),
+                curve: Vec::new(),
+            })
+            .collect();
+        let (lo, hi) = (bands[0] - 60.0, bands[bands.len() - 1] + 60.0);
+        let library: Vec<Spectrum> = self
+            .classes
+            .iter()
+            .map(|class| {
+                let members: Vec<&&MultiPrototype> =
+                    self.chosen.iter().filter(|p| &p.class == class).collect();
+                let points = bands
+                    .iter()
+                    .filter_map(|&w| {
+                        let v: Vec<(f64, f64)> =
+                            members.iter().filter_map(|p| band_nk(p, Some(w))).collect();
+                        (!v.is_empty()).then(|| SpectrumPoint {
+                            wavelength_nm: w,
+                            n: v.iter().map(|x| x.0).sum::<f64>() / v.len() as f64,
+                            k: v.iter().map(|x| x.1).sum::<f64>() / v.len() as f64,
+                            n_se: None,
+                            k_se: None,
+                        })
                     })
-                })
-                .collect(),
-            curve: Vec::new(),
-        })
-        .collect();
-    let (lo, hi) = (bands[0] - 60.0, bands[bands.len() - 1] + 60.0);
-    let library: Vec<Spectrum> = classes
-        .iter()
-        .map(|class| {
-            let members: Vec<&&MultiPrototype> =
-                chosen.iter().filter(|p| &p.class == class).collect();
-            let points = bands
-                .iter()
-                .filter_map(|&w| {
-                    let v: Vec<(f64, f64)> =
-                        members.iter().filter_map(|p| band_nk(p, Some(w))).collect();
-                    (!v.is_empty()).then(|| SpectrumPoint {
-                        wavelength_nm: w,
-                        n: v.iter().map(|x| x.0).sum::<f64>() / v.len() as f64,
-                        k: v.iter().map(|x| x.1).sum::<f64>() / v.len() as f64,
-                        n_se: None,
-                        k_se: None,
-                    })
-                })
-                .collect();
-            let curve = match refs {
-                Some(r) if r.builtin_curves => builtin_curve(class, lo, hi),
-                _ => Vec::new(),
-            };
-            Spectrum {
-                label: class.clone(),
-                points,
-                curve,
+                    .collect();
+                let curve = match refs {
+                    Some(r) if r.builtin_curves => builtin_curve(class, lo, hi),
+                    _ => Vec::new(),
+                };
+                Spectrum {
+                    label: class.clone(),
+                    points,
+                    curve,
+                }
+            })
+            .collect();
+        let curve_text = match refs {
+            Some(r) if r.builtin_curves => {
+                "lines: the materials' refractiveindex.info data, circles: their band values"
             }
-        })
-        .collect();
-    let curve_text = match refs {
-        Some(r) if r.builtin_curves => {
-            "lines: the materials' refractiveindex.info data, circles: their band values"
-        }
-        Some(_) => {
-            "lines through the references' bands (a model's class: the mean of its prototypes)"
-        }
-        None => "no references given",
-    };
-    figs.push(fig(
-        "nk_spectra",
-        "n(λ) and k(λ)".into(),
-        format!("Each target's fitted n and k per band (markers, ±1 SE) against the references ({curve_text}).{ref_text}{more}"),
-        nk_spectra(&format!("n(λ) and k(λ) ({what})"), &targets, &library, PlotSize::REPORT)?,
-    ));
-    Ok(figs)
+            Some(_) => {
+                "lines through the references' bands (a model's class: the mean of its prototypes)"
+            }
+            None => "no references given",
+        };
+        Ok(fig(
+            "nk_spectra",
+            "n(λ) and k(λ)".into(),
+            format!(
+                "Each target's fitted n and k per band (markers, ±1 SE) against the references ({curve_text}).{ref_text}{more}"
+            ),
+            nk_spectra(
+                &format!("n(λ) and k(λ) ({what})"),
+                &targets,
+                &library,
+                PlotSize::REPORT,
+            )?,
+        ))
+    }
 }
 
 /// A report of the tables with `figs` (files under `plots/`).
@@ -696,20 +768,17 @@ pub fn hypothesis_tables(
     out
 }
 
-/// Write the report of `classify`: `refs` are the classifier's prototypes; `hyps` and
-/// `cal` the hypothesis tests and in-scene references of `classify MEASUREMENTS.csv`
-/// (empty and `None` for fits), as tables after the classification
+/// Write the report of `classify` (its output `out`): `refs` are the classifier's
+/// prototypes; the hypothesis tests and in-scene references of `classify
+/// MEASUREMENTS.csv` (none for fits) are tables after the classification
 /// ([`hypothesis_tables`]).
-#[allow(clippy::too_many_arguments)] // the command's inputs, each once
 pub fn write_classify_report(
     args: &ReportArgs,
     ctx: &crate::Ctx,
     input: &Path,
     fits: &[FitRow],
-    rows: &[ClassificationRow],
+    out: &polarid_pipeline::classify::ClassifyOutput,
     refs: &References,
-    hyps: &[polarid_pipeline::classify::TargetHypotheses],
-    cal: Option<&polarid_pipeline::classify::reference::SceneCalibration>,
 ) -> Result<()> {
     let Some(dir) = &args.report else {
         return Ok(());
@@ -717,7 +786,7 @@ pub fn write_classify_report(
     let t = Tables {
         measurements: &[],
         fits,
-        classification: rows,
+        classification: &out.rows,
     };
     let figs = figures(&t, Some(refs), "classify")?;
     let inputs = vec![
@@ -740,7 +809,8 @@ pub fn write_classify_report(
         &figs,
         format!("polarid {} classify", env!("CARGO_PKG_VERSION")),
     );
-    rep.tables.extend(hypothesis_tables(hyps, cal));
+    rep.tables
+        .extend(hypothesis_tables(&out.hypotheses, out.calibration.as_ref()));
     write(dir, ctx.force, &rep, &figs)?;
     ctx.info(format!(
         "polarid classify: report written to {}",

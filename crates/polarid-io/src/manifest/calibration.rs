@@ -229,34 +229,9 @@ impl Parser<'_> {
         );
         // `opencv = "calib.yml"`: the intrinsics from an OpenCV calibration file (opencv.rs).
         let opencv = self.opencv_camera(t)?;
-        let (focal_px, principal_point_px, distortion, fv, pv) = if let Some((c, v)) = &opencv {
-            (c.focal_px, c.principal_point_px, c.distortion, *v, *v)
-        } else {
-            let fv = self.req(t, "focal_px", "camera.", &span)?;
-            let focal_px = match fv.get_ref() {
-                DeValue::Array(_) => self.numbers::<2>(fv, "camera.focal_px")?,
-                _ => {
-                    let f = self.num(fv, "camera.focal_px")?;
-                    [f, f]
-                }
-            };
-            let pv = self.req(t, "principal_point_px", "camera.", &span)?;
-            let principal_point_px = self.numbers::<2>(pv, "camera.principal_point_px")?;
-            let mut distortion = [0.0; 5];
-            if let Some(dv) = self.get(t, "distortion") {
-                let items = self.array(dv, "camera.distortion")?;
-                if !(items.len() == 4 || items.len() == 5) {
-                    return Err(self.err(
-                        &dv.span(),
-                        "camera.distortion",
-                        "expected [k1, k2, p1, p2] or [k1, k2, p1, p2, k3] (OpenCV order)",
-                    ));
-                }
-                for (d, it) in distortion.iter_mut().zip(items) {
-                    *d = self.num(it, "camera.distortion")?;
-                }
-            }
-            (focal_px, principal_point_px, distortion, fv, pv)
+        let (focal_px, principal_point_px, distortion, fv, pv) = match &opencv {
+            Some((c, v)) => (c.focal_px, c.principal_point_px, c.distortion, *v, *v),
+            None => self.intrinsics(t, &span)?,
         };
         let posv = self.req(t, "position", "camera.", &span)?;
         let position = self.numbers::<3>(posv, "camera.position")?;
@@ -267,58 +242,13 @@ impl Parser<'_> {
             cy: principal_point_px[1],
         };
         let dist = Distortion::from_array(distortion);
-        let (la, up, rot) = (
-            self.get(t, "look_at"),
-            self.get(t, "up"),
-            self.get(t, "rotation"),
-        );
-        let (orientation, built, at) = match (la, up, rot) {
-            (Some(lv), Some(uv), None) => {
-                let look_at = self.numbers::<3>(lv, "camera.look_at")?;
-                let up = self.numbers::<3>(uv, "camera.up")?;
-                let cam = PinholeCamera::look_at(intr, dist, position, look_at, up);
-                (CameraOrientation::LookAt { look_at, up }, cam, (lv, uv))
+        let (orientation, at) = self.orientation(t, &span)?;
+        let built = match &orientation {
+            CameraOrientation::LookAt { look_at, up } => {
+                PinholeCamera::look_at(intr, dist, position, *look_at, *up)
             }
-            (None, None, Some(rv)) => {
-                let rows = self.array(rv, "camera.rotation")?;
-                let bad = || {
-                    self.err(
-                        &rv.span(),
-                        "camera.rotation",
-                        "expected three rows of three numbers",
-                    )
-                };
-                if rows.len() != 3 {
-                    return Err(bad());
-                }
-                let mut m = [[0.0; 3]; 3];
-                for (row, it) in m.iter_mut().zip(rows) {
-                    *row = self
-                        .numbers::<3>(it, "camera.rotation")
-                        .map_err(|_| bad())?;
-                }
-                let cam = PinholeCamera::from_rotation(intr, dist, position, m);
-                (CameraOrientation::Rotation(m), cam, (rv, rv))
-            }
-            (_, _, Some(rv)) => {
-                return Err(self.err(
-                    &rv.span(),
-                    "camera.rotation",
-                    "give either `rotation` or `look_at` and `up`, not both",
-                ));
-            }
-            (Some(lv), None, None) => {
-                return Err(self.err(&lv.span(), "camera.up", "`look_at` needs `up`"));
-            }
-            (None, Some(uv), None) => {
-                return Err(self.err(&uv.span(), "camera.look_at", "`up` needs `look_at`"));
-            }
-            (None, None, None) => {
-                return Err(self.err(
-                    &span,
-                    "camera.look_at",
-                    "the camera needs an orientation: `look_at` and `up`, or `rotation`",
-                ));
+            CameraOrientation::Rotation(m) => {
+                PinholeCamera::from_rotation(intr, dist, position, *m)
             }
         };
         let camera = built.map_err(|e| {
@@ -353,6 +283,96 @@ impl Parser<'_> {
             camera,
             opencv: opencv.map(|(c, _)| c),
         }))
+    }
+
+    /// The intrinsics given in the `[camera]` table `t`: `focal_px`, `principal_point_px`,
+    /// `distortion`, and the values of the first two (for the spans of later errors).
+    fn intrinsics<'t, 'i>(
+        &self,
+        t: &'t Table<'i>,
+        span: &Range<usize>,
+    ) -> Result<([f64; 2], [f64; 2], [f64; 5], &'t Val<'i>, &'t Val<'i>)> {
+        let fv = self.req(t, "focal_px", "camera.", span)?;
+        let focal_px = match fv.get_ref() {
+            DeValue::Array(_) => self.numbers::<2>(fv, "camera.focal_px")?,
+            _ => {
+                let f = self.num(fv, "camera.focal_px")?;
+                [f, f]
+            }
+        };
+        let pv = self.req(t, "principal_point_px", "camera.", span)?;
+        let principal_point_px = self.numbers::<2>(pv, "camera.principal_point_px")?;
+        let mut distortion = [0.0; 5];
+        if let Some(dv) = self.get(t, "distortion") {
+            let items = self.array(dv, "camera.distortion")?;
+            if !(items.len() == 4 || items.len() == 5) {
+                return Err(self.err(
+                    &dv.span(),
+                    "camera.distortion",
+                    "expected [k1, k2, p1, p2] or [k1, k2, p1, p2, k3] (OpenCV order)",
+                ));
+            }
+            for (d, it) in distortion.iter_mut().zip(items) {
+                *d = self.num(it, "camera.distortion")?;
+            }
+        }
+        Ok((focal_px, principal_point_px, distortion, fv, pv))
+    }
+
+    /// The camera's orientation (`look_at` and `up`, or `rotation`), and the values it
+    /// was read from (for the spans of later errors).
+    fn orientation<'t, 'i>(
+        &self,
+        t: &'t Table<'i>,
+        span: &Range<usize>,
+    ) -> Result<(CameraOrientation, (&'t Val<'i>, &'t Val<'i>))> {
+        match (
+            self.get(t, "look_at"),
+            self.get(t, "up"),
+            self.get(t, "rotation"),
+        ) {
+            (Some(lv), Some(uv), None) => {
+                let look_at = self.numbers::<3>(lv, "camera.look_at")?;
+                let up = self.numbers::<3>(uv, "camera.up")?;
+                Ok((CameraOrientation::LookAt { look_at, up }, (lv, uv)))
+            }
+            (None, None, Some(rv)) => {
+                let rows = self.array(rv, "camera.rotation")?;
+                let bad = || {
+                    self.err(
+                        &rv.span(),
+                        "camera.rotation",
+                        "expected three rows of three numbers",
+                    )
+                };
+                if rows.len() != 3 {
+                    return Err(bad());
+                }
+                let mut m = [[0.0; 3]; 3];
+                for (row, it) in m.iter_mut().zip(rows) {
+                    *row = self
+                        .numbers::<3>(it, "camera.rotation")
+                        .map_err(|_| bad())?;
+                }
+                Ok((CameraOrientation::Rotation(m), (rv, rv)))
+            }
+            (_, _, Some(rv)) => Err(self.err(
+                &rv.span(),
+                "camera.rotation",
+                "give either `rotation` or `look_at` and `up`, not both",
+            )),
+            (Some(lv), None, None) => {
+                Err(self.err(&lv.span(), "camera.up", "`look_at` needs `up`"))
+            }
+            (None, Some(uv), None) => {
+                Err(self.err(&uv.span(), "camera.look_at", "`up` needs `look_at`"))
+            }
+            (None, None, None) => Err(self.err(
+                span,
+                "camera.look_at",
+                "the camera needs an orientation: `look_at` and `up`, or `rotation`",
+            )),
+        }
     }
 
     /// The `[[plane]]` tables, or the default plane; each is checked to have the camera

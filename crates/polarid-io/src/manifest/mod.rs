@@ -345,6 +345,28 @@ pub fn looks_like_manifest(text: &str) -> bool {
 type Table<'i> = DeTable<'i>;
 type Val<'i> = Spanned<DeValue<'i>>;
 
+/// The top-level values a capture takes when it does not give its own, and what it
+/// needs of the rest of the manifest.
+struct CaptureDefaults<'m> {
+    theta_r_deg: Option<f64>,
+    phi_deg: f64,
+    dark_level: f64,
+    saturation: Option<f64>,
+    wavelength_nm: Option<f64>,
+    angle_sd_deg: Option<f64>,
+    dark_signal_dn: Option<f64>,
+    /// Whether the manifest has a `[camera]`.
+    calibrated: bool,
+    site: Option<&'m SiteSpec>,
+    bands: &'m Bands,
+}
+
+/// Whether a name holds a comma, a quote or a control character (refused in region
+/// and class names, which CSV tables repeat).
+fn has_separator(name: &str) -> bool {
+    name.contains(',') || name.contains('"') || name.chars().any(char::is_control)
+}
+
 struct Parser<'a> {
     /// Whether the files named must exist.
     files: bool,
@@ -486,24 +508,8 @@ impl<'a> Parser<'a> {
     }
 
     fn manifest(&self) -> Result<Manifest> {
-        let root = DeTable::parse(self.text).map_err(|e| {
-            let span = e.span().unwrap_or(0..0);
-            IoError::Manifest {
-                path: self.path.to_path_buf(),
-                line: self.line(span.start),
-                field: self
-                    .text
-                    .get(self.line_start(span.start)..)
-                    .and_then(|l| l.split('=').next())
-                    .map(|k| k.trim().to_string())
-                    .filter(|k| !k.is_empty() && !k.contains('\n'))
-                    .unwrap_or_else(|| "-".into()),
-                value: self.snippet(&span),
-                reason: format!("invalid TOML: {}", e.message()),
-            }
-        })?;
+        let root = self.parse_root()?;
         let root = root.get_ref();
-        let whole = 0..0;
         self.warn_unknown(
             root,
             &[
@@ -525,27 +531,8 @@ impl<'a> Parser<'a> {
         );
         let theta_r_deg = self.angle(root, "theta_r_deg", "")?;
         let phi_deg = self.opt_num(root, "phi_deg", "")?.map_or(180.0, |x| x.0);
-        let dark_level = match self.opt_num(root, "dark_level", "")? {
-            Some((v, span)) if !(0.0..=MAX_LEVEL).contains(&v) => {
-                return Err(self.err(
-                    &span,
-                    "dark_level",
-                    "dark level must be >= 0 and at most 3.4e38 (the float32 range)",
-                ));
-            }
-            Some((v, _)) => v,
-            None => 0.0,
-        };
-        let saturation = match self.opt_num(root, "saturation", "")? {
-            Some((v, span)) if v <= dark_level || v > MAX_LEVEL => {
-                return Err(self.err(
-                    &span,
-                    "saturation",
-                    format!("saturation must be above the dark level {dark_level}"),
-                ));
-            }
-            other => other.map(|x| x.0),
-        };
+        let dark_level = self.dark_level(root, "", 0.0)?;
+        let saturation = self.saturation(root, "", dark_level, None)?;
         let wavelength_nm = match self.opt_num(root, "wavelength_nm", "")? {
             Some((v, span)) if v <= 0.0 => {
                 return Err(self.err(&span, "wavelength_nm", "wavelength must be > 0"));
@@ -561,168 +548,33 @@ impl<'a> Parser<'a> {
         let camera = self.camera(root)?;
         let planes = self.planes(root, camera.as_ref())?;
         let site = self.site(root)?;
-        if camera.is_some()
-            && let Some(v) = self
-                .get(root, "theta_r_deg")
-                .or_else(|| self.get(root, "phi_deg"))
-        {
-            let key = if self.get(root, "theta_r_deg").is_some() {
-                "theta_r_deg"
-            } else {
-                "phi_deg"
-            };
-            return Err(self.err(
-                &v.span(),
-                key,
-                "with [camera], the angles come from the calibrated geometry: \
-                 remove the angle or the [camera] table",
-            ));
+        if camera.is_some() {
+            self.refuse_top_angles(root)?;
         }
-
-        // Regions.
-        let mut regions = Vec::new();
-        let mut names = HashSet::new();
-        let region_vals = match self.get(root, "region") {
-            Some(v) => self.array(v, "region")?,
-            None => &[],
-        };
-        for (i, rv) in region_vals.iter().enumerate() {
-            let pre = format!("region[{}].", i + 1);
-            let t = self.table(rv, &format!("region[{}]", i + 1))?;
-            self.warn_unknown(
-                t,
-                &[
-                    "name",
-                    "rect",
-                    "class",
-                    "plane",
-                    "reference",
-                    "reference_n",
-                    "reference_k",
-                ],
-                &pre,
-            );
-            let name_v = self.get(t, "name").ok_or_else(|| {
-                self.err(&rv.span(), &format!("{pre}name"), "missing region name")
-            })?;
-            let name = self.string(name_v, &format!("{pre}name"))?;
-            if name.trim().is_empty()
-                || name.contains(',')
-                || name.contains('"')
-                || name.chars().any(char::is_control)
-                || name.trim() != name
-            {
-                return Err(self.err(
-                    &name_v.span(),
-                    &format!("{pre}name"),
-                    "region names must be non-empty, without leading or trailing spaces, \
-                     and contain no comma, quote or control character",
-                ));
-            }
-            // NFC, no zero-width or bidirectional-formatting character (as CSV names),
-            // so that look-alike names are one target or refused.
-            let name = crate::table::clean_name(&name)
-                .map_err(|why| self.err(&name_v.span(), &format!("{pre}name"), why))?;
-            if !names.insert(name.clone()) {
-                return Err(self.err(
-                    &name_v.span(),
-                    &format!("{pre}name"),
-                    "duplicate region name",
-                ));
-            }
-            let rect_v = self
-                .get(t, "rect")
-                .ok_or_else(|| self.err(&rv.span(), &format!("{pre}rect"), "missing rect"))?;
-            let items = self.array(rect_v, &format!("{pre}rect"))?;
-            let bad_rect = || {
-                self.err(
-                    &rect_v.span(),
-                    &format!("{pre}rect"),
-                    "rect must be [x, y, width, height]: four non-negative integers, width and height > 0",
-                )
-            };
-            if items.len() != 4 {
-                return Err(bad_rect());
-            }
-            let mut r = [0usize; 4];
-            for (k, it) in items.iter().enumerate() {
-                let v = match it.get_ref() {
-                    DeValue::Integer(i) => i64::from_str_radix(i.as_str(), i.radix()).ok(),
-                    _ => None,
-                };
-                r[k] = match v {
-                    // ok: k < 4 (items.len() == 4 was checked)
-                    Some(v) if v >= 0 => v as usize,
-                    _ => return Err(bad_rect()),
-                };
-            }
-            if r[2] == 0 || r[3] == 0 {
-                return Err(bad_rect());
-            }
-            let class = match self.get(t, "class") {
-                Some(v) => {
-                    let c = self.string(v, &format!("{pre}class"))?;
-                    if c.contains(',') || c.contains('"') || c.chars().any(char::is_control) {
-                        return Err(self.err(
-                            &v.span(),
-                            &format!("{pre}class"),
-                            "class names must contain no comma, quote or control character",
-                        ));
-                    }
-                    let c = crate::table::clean_name(&c)
-                        .map_err(|why| self.err(&v.span(), &format!("{pre}class"), why))?;
-                    Some(c).filter(|c| !c.is_empty())
-                }
-                None => None,
-            };
-            regions.push(Region {
-                name,
-                rect: Rect {
-                    x: r[0],
-                    y: r[1],
-                    width: r[2],
-                    height: r[3],
-                },
-                class,
-                line: self.line(rect_v.span().start),
-                index: i + 1,
-                plane: self.region_plane(t, &pre, &planes)?,
-                reference: self.region_reference(t, &pre)?,
-            });
-        }
-        if regions.is_empty() {
-            return Err(self.err(
-                &whole,
-                "region",
-                "no [[region]]: at least one target is needed",
-            ));
-        }
+        let regions = self.regions(root, &planes)?;
 
         // Captures.
         let cap_vals = match self.get(root, "capture") {
             Some(v) => self.array(v, "capture")?,
             None => &[],
         };
-        let mut captures = Vec::new();
-        for (i, cv) in cap_vals.iter().enumerate() {
-            captures.push(self.capture(
-                i + 1,
-                cv,
-                theta_r_deg,
-                phi_deg,
-                dark_level,
-                saturation,
-                camera.is_some(),
-                site.as_ref(),
-                (&bands, wavelength_nm),
-            )?);
-            if let Some(c) = captures.last_mut() {
-                c.angle_sd_deg = c.angle_sd_deg.or(angle_sd_deg);
-                c.dark_signal_dn = c.dark_signal_dn.or(dark_signal_dn);
-            }
-        }
+        let defaults = CaptureDefaults {
+            theta_r_deg,
+            phi_deg,
+            dark_level,
+            saturation,
+            wavelength_nm,
+            angle_sd_deg,
+            dark_signal_dn,
+            calibrated: camera.is_some(),
+            site: site.as_ref(),
+            bands: &bands,
+        };
+        let captures = (cap_vals.iter().enumerate())
+            .map(|(i, cv)| self.capture(i + 1, cv, &defaults))
+            .collect::<Result<Vec<_>>>()?;
         if captures.is_empty() {
-            return Err(self.err(&whole, "capture", "no [[capture]]: at least one is needed"));
+            return Err(self.err(&(0..0), "capture", "no [[capture]]: at least one is needed"));
         }
         if let Some(cam) = &camera {
             self.check_geometry(cam, &planes, &regions, &captures, cap_vals)?;
@@ -746,6 +598,218 @@ impl<'a> Parser<'a> {
         })
     }
 
+    /// The TOML document, or an error naming the line and the key where it is invalid.
+    fn parse_root(&self) -> Result<Spanned<Table<'a>>> {
+        DeTable::parse(self.text).map_err(|e| {
+            let span = e.span().unwrap_or(0..0);
+            IoError::Manifest {
+                path: self.path.to_path_buf(),
+                line: self.line(span.start),
+                field: self
+                    .text
+                    .get(self.line_start(span.start)..)
+                    .and_then(|l| l.split('=').next())
+                    .map(|k| k.trim().to_string())
+                    .filter(|k| !k.is_empty() && !k.contains('\n'))
+                    .unwrap_or_else(|| "-".into()),
+                value: self.snippet(&span),
+                reason: format!("invalid TOML: {}", e.message()),
+            }
+        })
+    }
+
+    /// With `[camera]`, the top level gives no angles.
+    fn refuse_top_angles(&self, root: &Table<'_>) -> Result<()> {
+        let Some((key, v)) = ["theta_r_deg", "phi_deg"]
+            .into_iter()
+            .find_map(|k| self.get(root, k).map(|v| (k, v)))
+        else {
+            return Ok(());
+        };
+        Err(self.err(
+            &v.span(),
+            key,
+            "with [camera], the angles come from the calibrated geometry: \
+             remove the angle or the [camera] table",
+        ))
+    }
+
+    /// The optional `dark_level` of a table (`default` when absent).
+    fn dark_level(&self, t: &Table<'_>, pre: &str, default: f64) -> Result<f64> {
+        match self.opt_num(t, "dark_level", pre)? {
+            Some((v, s)) if !(0.0..=MAX_LEVEL).contains(&v) => Err(self.err(
+                &s,
+                &format!("{pre}dark_level"),
+                "dark level must be >= 0 and at most 3.4e38 (the float32 range)",
+            )),
+            Some((v, _)) => Ok(v),
+            None => Ok(default),
+        }
+    }
+
+    /// The optional `saturation` of a table, above `dark_level` (`default` when absent).
+    fn saturation(
+        &self,
+        t: &Table<'_>,
+        pre: &str,
+        dark_level: f64,
+        default: Option<f64>,
+    ) -> Result<Option<f64>> {
+        match self.opt_num(t, "saturation", pre)? {
+            Some((v, s)) if v <= dark_level || v > MAX_LEVEL => Err(self.err(
+                &s,
+                &format!("{pre}saturation"),
+                format!("saturation must be above the dark level {dark_level}"),
+            )),
+            Some((v, _)) => Ok(Some(v)),
+            None => Ok(default),
+        }
+    }
+
+    /// The `[[region]]` tables: at least one, with distinct names.
+    fn regions(&self, root: &Table<'_>, planes: &[PlaneSpec]) -> Result<Vec<Region>> {
+        let region_vals = match self.get(root, "region") {
+            Some(v) => self.array(v, "region")?,
+            None => &[],
+        };
+        let mut names = HashSet::new();
+        let regions = (region_vals.iter().enumerate())
+            .map(|(i, rv)| self.region(i + 1, rv, planes, &mut names))
+            .collect::<Result<Vec<_>>>()?;
+        if regions.is_empty() {
+            return Err(self.err(
+                &(0..0),
+                "region",
+                "no [[region]]: at least one target is needed",
+            ));
+        }
+        Ok(regions)
+    }
+
+    /// The `[[region]]` table number `index` (1-based); `names` holds the names seen.
+    fn region(
+        &self,
+        index: usize,
+        rv: &Val<'_>,
+        planes: &[PlaneSpec],
+        names: &mut HashSet<String>,
+    ) -> Result<Region> {
+        let pre = format!("region[{index}].");
+        let t = self.table(rv, &format!("region[{index}]"))?;
+        self.warn_unknown(
+            t,
+            &[
+                "name",
+                "rect",
+                "class",
+                "plane",
+                "reference",
+                "reference_n",
+                "reference_k",
+            ],
+            &pre,
+        );
+        let name = self.region_name(t, rv, &pre, names)?;
+        let (rect, line) = self.region_rect(t, rv, &pre)?;
+        let class = match self.get(t, "class") {
+            Some(v) => {
+                let c = self.string(v, &format!("{pre}class"))?;
+                if has_separator(&c) {
+                    return Err(self.err(
+                        &v.span(),
+                        &format!("{pre}class"),
+                        "class names must contain no comma, quote or control character",
+                    ));
+                }
+                let c = crate::table::clean_name(&c)
+                    .map_err(|why| self.err(&v.span(), &format!("{pre}class"), why))?;
+                Some(c).filter(|c| !c.is_empty())
+            }
+            None => None,
+        };
+        Ok(Region {
+            name,
+            rect,
+            class,
+            line,
+            index,
+            plane: self.region_plane(t, &pre, planes)?,
+            reference: self.region_reference(t, &pre)?,
+        })
+    }
+
+    /// A region's `name`, checked, normalised and added to `names` (it must not be there).
+    fn region_name(
+        &self,
+        t: &Table<'_>,
+        rv: &Val<'_>,
+        pre: &str,
+        names: &mut HashSet<String>,
+    ) -> Result<String> {
+        let field = format!("{pre}name");
+        let name_v = self
+            .get(t, "name")
+            .ok_or_else(|| self.err(&rv.span(), &field, "missing region name"))?;
+        let name = self.string(name_v, &field)?;
+        if name.trim().is_empty() || has_separator(&name) || name.trim() != name {
+            return Err(self.err(
+                &name_v.span(),
+                &field,
+                "region names must be non-empty, without leading or trailing spaces, \
+                 and contain no comma, quote or control character",
+            ));
+        }
+        // NFC, no zero-width or bidirectional-formatting character (as CSV names),
+        // so that look-alike names are one target or refused.
+        let name =
+            crate::table::clean_name(&name).map_err(|why| self.err(&name_v.span(), &field, why))?;
+        if !names.insert(name.clone()) {
+            return Err(self.err(&name_v.span(), &field, "duplicate region name"));
+        }
+        Ok(name)
+    }
+
+    /// A region's `rect` and the line where it is given.
+    fn region_rect(&self, t: &Table<'_>, rv: &Val<'_>, pre: &str) -> Result<(Rect, usize)> {
+        let field = format!("{pre}rect");
+        let rect_v = self
+            .get(t, "rect")
+            .ok_or_else(|| self.err(&rv.span(), &field, "missing rect"))?;
+        let items = self.array(rect_v, &field)?;
+        let bad_rect = || {
+            self.err(
+                &rect_v.span(),
+                &field,
+                "rect must be [x, y, width, height]: four non-negative integers, width and height > 0",
+            )
+        };
+        if items.len() != 4 {
+            return Err(bad_rect());
+        }
+        let mut r = [0usize; 4];
+        for (k, it) in items.iter().enumerate() {
+            let v = match it.get_ref() {
+                DeValue::Integer(i) => i64::from_str_radix(i.as_str(), i.radix()).ok(),
+                _ => None,
+            };
+            r[k] = match v {
+                // ok: k < 4 (items.len() == 4 was checked)
+                Some(v) if v >= 0 => v as usize,
+                _ => return Err(bad_rect()),
+            };
+        }
+        if r[2] == 0 || r[3] == 0 {
+            return Err(bad_rect());
+        }
+        let rect = Rect {
+            x: r[0],
+            y: r[1],
+            width: r[2],
+            height: r[3],
+        };
+        Ok((rect, self.line(rect_v.span().start)))
+    }
+
     fn line_start(&self, pos: usize) -> usize {
         let end = pos.min(self.text.len());
         // Bytes, not `str` slicing: a span need not fall on a character boundary.
@@ -755,19 +819,8 @@ impl<'a> Parser<'a> {
             .map_or(0, |i| i + 1)
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn capture(
-        &self,
-        index: usize,
-        cv: &Val<'_>,
-        theta_r_top: Option<f64>,
-        phi_top: f64,
-        dark_top: f64,
-        sat_top: Option<f64>,
-        calibrated: bool,
-        site: Option<&SiteSpec>,
-        (bands, wavelength_top): (&Bands, Option<f64>),
-    ) -> Result<Capture> {
+    /// The `[[capture]]` table number `index` (1-based).
+    fn capture(&self, index: usize, cv: &Val<'_>, top: &CaptureDefaults<'_>) -> Result<Capture> {
         let pre = format!("capture[{index}].");
         let t = self.table(cv, &format!("capture[{index}]"))?;
         self.warn_unknown(
@@ -801,29 +854,11 @@ impl<'a> Parser<'a> {
             Some(v) => Some(self.string(v, &format!("{pre}name"))?),
             None => None,
         };
-        let illumination = self.capture_source(t, &pre, &span, calibrated, site)?;
+        let illumination = self.capture_source(t, &pre, &span, top.calibrated, top.site)?;
         let (theta_i_deg, theta_r_deg, phi_deg) = if illumination.is_some() {
             (f64::NAN, f64::NAN, f64::NAN)
         } else {
-            let theta_i_deg = self.angle(t, "theta_i_deg", &pre)?.ok_or_else(|| {
-                self.err(
-                    &span,
-                    &format!("{pre}theta_i_deg"),
-                    "missing source zenith angle",
-                )
-            })?;
-            let theta_r_deg = match self.angle(t, "theta_r_deg", &pre)?.or(theta_r_top) {
-                Some(v) => v,
-                None => {
-                    return Err(self.err(
-                        &span,
-                        &format!("{pre}theta_r_deg"),
-                        "no camera zenith angle: set theta_r_deg at the top or in the capture",
-                    ));
-                }
-            };
-            let phi_deg = self.opt_num(t, "phi_deg", &pre)?.map_or(phi_top, |x| x.0);
-            (theta_i_deg, theta_r_deg, phi_deg)
+            self.capture_angles(t, &pre, &span, top)?
         };
         let exposure = match self.opt_num(t, "exposure", &pre)? {
             Some((v, s)) if !(MIN_EXPOSURE..=MAX_EXPOSURE).contains(&v) => {
@@ -836,28 +871,8 @@ impl<'a> Parser<'a> {
             Some((v, _)) => v,
             None => 1.0,
         };
-        let dark_level = match self.opt_num(t, "dark_level", &pre)? {
-            Some((v, s)) if !(0.0..=MAX_LEVEL).contains(&v) => {
-                return Err(self.err(
-                    &s,
-                    &format!("{pre}dark_level"),
-                    "dark level must be >= 0 and at most 3.4e38 (the float32 range)",
-                ));
-            }
-            Some((v, _)) => v,
-            None => dark_top,
-        };
-        let saturation = match self.opt_num(t, "saturation", &pre)? {
-            Some((v, s)) if v <= dark_level || v > MAX_LEVEL => {
-                return Err(self.err(
-                    &s,
-                    &format!("{pre}saturation"),
-                    format!("saturation must be above the dark level {dark_level}"),
-                ));
-            }
-            Some((v, _)) => Some(v),
-            None => sat_top,
-        };
+        let dark_level = self.dark_level(t, &pre, top.dark_level)?;
+        let saturation = self.saturation(t, &pre, dark_level, top.saturation)?;
         if let (Some(s), None) = (saturation, self.get(t, "saturation"))
             && s <= dark_level
         {
@@ -867,37 +882,17 @@ impl<'a> Parser<'a> {
                 format!("dark level must be below the saturation level {s}"),
             ));
         }
-        let angle_sd_deg = self.angle_sd(t, &pre)?;
-        let dark_signal_dn = self.dark_signal(t, &pre)?;
+        let angle_sd_deg = self.angle_sd(t, &pre)?.or(top.angle_sd_deg);
+        let dark_signal_dn = self.dark_signal(t, &pre)?.or(top.dark_signal_dn);
         let (source, exposure, brackets) = match self.get(t, "brackets") {
-            Some(bv) => {
-                for k in ["frames", "dofp", "stokes", "exposure"] {
-                    if let Some(v) = self.get(t, k) {
-                        return Err(self.err(
-                            &v.span(),
-                            &format!("{pre}{k}"),
-                            format!(
-                                "a capture with `brackets` gives its data and exposures in \
-                                 each bracket, not `{k}`"
-                            ),
-                        ));
-                    }
-                }
-                let brackets = self.brackets(bv, &pre, bands)?;
-                match brackets.first() {
-                    Some(b) => (b.source.clone(), b.exposure, brackets),
-                    None => {
-                        return Err(self.err(&bv.span(), &format!("{pre}brackets"), "empty"));
-                    }
-                }
-            }
+            Some(bv) => self.hdr_capture(t, bv, &pre, top.bands)?,
             None => (
-                self.data_source(t, &pre, &span, true, bands)?,
+                self.data_source(t, &pre, &span, true, top.bands)?,
                 exposure,
                 Vec::new(),
             ),
         };
-        let wavelength_nm = self.capture_wavelength(t, &pre, wavelength_top, &source)?;
+        let wavelength_nm = self.capture_wavelength(t, &pre, top.wavelength_nm, &source)?;
         Ok(Capture {
             index,
             line: self.line(first_line),
@@ -917,6 +912,66 @@ impl<'a> Parser<'a> {
         })
     }
 
+    /// A far-field capture's `theta_i_deg`, `theta_r_deg` and `phi_deg` (the last two
+    /// default to the top level's).
+    fn capture_angles(
+        &self,
+        t: &Table<'_>,
+        pre: &str,
+        span: &Range<usize>,
+        top: &CaptureDefaults<'_>,
+    ) -> Result<(f64, f64, f64)> {
+        let theta_i_deg = self.angle(t, "theta_i_deg", pre)?.ok_or_else(|| {
+            self.err(
+                span,
+                &format!("{pre}theta_i_deg"),
+                "missing source zenith angle",
+            )
+        })?;
+        let theta_r_deg = self
+            .angle(t, "theta_r_deg", pre)?
+            .or(top.theta_r_deg)
+            .ok_or_else(|| {
+                self.err(
+                    span,
+                    &format!("{pre}theta_r_deg"),
+                    "no camera zenith angle: set theta_r_deg at the top or in the capture",
+                )
+            })?;
+        let phi_deg = self
+            .opt_num(t, "phi_deg", pre)?
+            .map_or(top.phi_deg, |x| x.0);
+        Ok((theta_i_deg, theta_r_deg, phi_deg))
+    }
+
+    /// An HDR capture's data (its `brackets` `bv`): the longest exposure's data, its
+    /// exposure, and every bracket.
+    fn hdr_capture(
+        &self,
+        t: &Table<'_>,
+        bv: &Val<'_>,
+        pre: &str,
+        bands: &Bands,
+    ) -> Result<(CaptureSource, f64, Vec<Bracket>)> {
+        for k in ["frames", "dofp", "stokes", "exposure"] {
+            if let Some(v) = self.get(t, k) {
+                return Err(self.err(
+                    &v.span(),
+                    &format!("{pre}{k}"),
+                    format!(
+                        "a capture with `brackets` gives its data and exposures in \
+                         each bracket, not `{k}`"
+                    ),
+                ));
+            }
+        }
+        let brackets = self.brackets(bv, pre, bands)?;
+        match brackets.first() {
+            Some(b) => Ok((b.source.clone(), b.exposure, brackets)),
+            None => Err(self.err(&bv.span(), &format!("{pre}brackets"), "empty")),
+        }
+    }
+
     /// The data of a capture or of a bracket (table `t`, fields under `pre`): exactly
     /// one of `frames`, `dofp` or (`allow_stokes`) `stokes`.
     fn data_source(
@@ -927,7 +982,6 @@ impl<'a> Parser<'a> {
         allow_stokes: bool,
         bands: &Bands,
     ) -> Result<CaptureSource> {
-        let span = span.clone();
         if !allow_stokes && let Some(v) = self.get(t, "stokes") {
             return Err(self.err(
                 &v.span(),
@@ -939,9 +993,9 @@ impl<'a> Parser<'a> {
             .into_iter()
             .filter(|k| self.get(t, k).is_some())
             .collect();
-        if kinds.len() != 1 {
+        let [kind] = kinds[..] else {
             return Err(self.err(
-                &span,
+                span,
                 &format!("{pre}frames"),
                 if kinds.is_empty() {
                     "a capture needs one of `frames`, `dofp` or `stokes`".to_string()
@@ -952,97 +1006,97 @@ impl<'a> Parser<'a> {
                     )
                 },
             ));
+        };
+        let v = self
+            .get(t, kind)
+            .ok_or_else(|| self.err(span, kind, "missing"))?;
+        let field = format!("{pre}{kind}");
+        match kind {
+            "frames" => self.frames(v, &field),
+            "dofp" => self.dofp(v, &field, bands),
+            _ => self.stokes(v, &field),
         }
-        let source = match kinds[0] {
-            // ok: kinds.len() == 1 was checked above
-            "frames" => {
-                let fv = self
-                    .get(t, "frames")
-                    .ok_or_else(|| self.err(&span, "frames", "missing"))?;
-                let field = format!("{pre}frames");
-                let items = self.array(fv, &field)?;
-                let mut frames = Vec::new();
-                for (j, it) in items.iter().enumerate() {
-                    let fpre = format!("{pre}frames[{}].", j + 1);
-                    let ft = self.table(it, &format!("{pre}frames[{}]", j + 1))?;
-                    self.warn_unknown(ft, &["angle_deg", "file"], &fpre);
-                    let (angle_deg, aspan) =
-                        self.opt_num(ft, "angle_deg", &fpre)?.ok_or_else(|| {
-                            self.err(
-                                &it.span(),
-                                &format!("{fpre}angle_deg"),
-                                "missing polarizer angle",
-                            )
-                        })?;
-                    if !(angle_deg.abs() <= 3600.0) {
-                        return Err(self.err(
-                            &aspan,
-                            &format!("{fpre}angle_deg"),
-                            "polarizer angle must be in [-3600, 3600] degrees",
-                        ));
-                    }
-                    let file_v = self.get(ft, "file").ok_or_else(|| {
-                        self.err(&it.span(), &format!("{fpre}file"), "missing file")
-                    })?;
-                    let file = self.file(file_v, &format!("{fpre}file"))?;
-                    frames.push(FrameRef { angle_deg, file });
-                }
-                let angles: Vec<f64> = frames.iter().map(|f| f.angle_deg).collect();
-                if let Err(e) = StokesSolver::from_degrees(&angles) {
-                    return Err(self.err(&fv.span(), &field, e.to_string()));
-                }
-                CaptureSource::Frames(frames)
+    }
+
+    /// A `frames` array `fv` (field `field`): polarizer angles and files.
+    fn frames(&self, fv: &Val<'_>, field: &str) -> Result<CaptureSource> {
+        let items = self.array(fv, field)?;
+        let mut frames = Vec::new();
+        for (j, it) in items.iter().enumerate() {
+            let fpre = format!("{field}[{}].", j + 1);
+            let ft = self.table(it, &format!("{field}[{}]", j + 1))?;
+            self.warn_unknown(ft, &["angle_deg", "file"], &fpre);
+            let (angle_deg, aspan) = self.opt_num(ft, "angle_deg", &fpre)?.ok_or_else(|| {
+                self.err(
+                    &it.span(),
+                    &format!("{fpre}angle_deg"),
+                    "missing polarizer angle",
+                )
+            })?;
+            if !(angle_deg.abs() <= 3600.0) {
+                return Err(self.err(
+                    &aspan,
+                    &format!("{fpre}angle_deg"),
+                    "polarizer angle must be in [-3600, 3600] degrees",
+                ));
             }
-            "dofp" => {
-                let dv = self
-                    .get(t, "dofp")
-                    .ok_or_else(|| self.err(&span, "dofp", "missing"))?;
-                let field = format!("{pre}dofp");
-                let dt = self.table(dv, &field)?;
-                self.warn_unknown(dt, &["file", "pattern", "color"], &format!("{field}."));
-                let file_v = self.get(dt, "file").ok_or_else(|| {
-                    self.err(&dv.span(), &format!("{field}.file"), "missing file")
-                })?;
-                let file = self.file(file_v, &format!("{field}.file"))?;
-                let pattern = match self.get(dt, "pattern") {
-                    None => Pattern::default(),
-                    Some(pv) => {
-                        let pf = format!("{field}.pattern");
-                        let items = self.array(pv, &pf)?;
-                        let mut a = Vec::new();
-                        for it in items {
-                            a.push(self.num(it, &pf)?);
-                        }
-                        Pattern::new(&a).map_err(|e| self.err(&pv.span(), &pf, e.to_string()))?
-                    }
-                };
-                match self.colour_dofp(dt, &field, file.clone(), pattern, bands)? {
-                    Some(colour) => colour,
-                    None => CaptureSource::Dofp { file, pattern },
+            let file_v = self
+                .get(ft, "file")
+                .ok_or_else(|| self.err(&it.span(), &format!("{fpre}file"), "missing file"))?;
+            let file = self.file(file_v, &format!("{fpre}file"))?;
+            frames.push(FrameRef { angle_deg, file });
+        }
+        let angles: Vec<f64> = frames.iter().map(|f| f.angle_deg).collect();
+        if let Err(e) = StokesSolver::from_degrees(&angles) {
+            return Err(self.err(&fv.span(), field, e.to_string()));
+        }
+        Ok(CaptureSource::Frames(frames))
+    }
+
+    /// A `dofp` table `dv` (field `field`): the mosaic's file and pattern.
+    fn dofp(&self, dv: &Val<'_>, field: &str, bands: &Bands) -> Result<CaptureSource> {
+        let dt = self.table(dv, field)?;
+        self.warn_unknown(dt, &["file", "pattern", "color"], &format!("{field}."));
+        let file_v = self
+            .get(dt, "file")
+            .ok_or_else(|| self.err(&dv.span(), &format!("{field}.file"), "missing file"))?;
+        let file = self.file(file_v, &format!("{field}.file"))?;
+        let pattern = match self.get(dt, "pattern") {
+            None => Pattern::default(),
+            Some(pv) => {
+                let pf = format!("{field}.pattern");
+                let items = self.array(pv, &pf)?;
+                let mut a = Vec::new();
+                for it in items {
+                    a.push(self.num(it, &pf)?);
                 }
-            }
-            _ => {
-                let sv = self
-                    .get(t, "stokes")
-                    .ok_or_else(|| self.err(&span, "stokes", "missing"))?;
-                let field = format!("{pre}stokes");
-                let st = self.table(sv, &field)?;
-                self.warn_unknown(st, &["s0", "s1", "s2"], &format!("{field}."));
-                let mut files = Vec::new();
-                for k in ["s0", "s1", "s2"] {
-                    let v = self.get(st, k).ok_or_else(|| {
-                        self.err(&sv.span(), &format!("{field}.{k}"), "missing file")
-                    })?;
-                    files.push(self.file(v, &format!("{field}.{k}"))?);
-                }
-                let mut it = files.into_iter();
-                match (it.next(), it.next(), it.next()) {
-                    (Some(s0), Some(s1), Some(s2)) => CaptureSource::Stokes { s0, s1, s2 },
-                    _ => return Err(self.err(&sv.span(), &field, "needs s0, s1 and s2")),
-                }
+                Pattern::new(&a).map_err(|e| self.err(&pv.span(), &pf, e.to_string()))?
             }
         };
-        Ok(source)
+        Ok(
+            match self.colour_dofp(dt, field, file.clone(), pattern, bands)? {
+                Some(colour) => colour,
+                None => CaptureSource::Dofp { file, pattern },
+            },
+        )
+    }
+
+    /// A `stokes` table `sv` (field `field`): the files of S0, S1 and S2.
+    fn stokes(&self, sv: &Val<'_>, field: &str) -> Result<CaptureSource> {
+        let st = self.table(sv, field)?;
+        self.warn_unknown(st, &["s0", "s1", "s2"], &format!("{field}."));
+        let mut files = Vec::new();
+        for k in ["s0", "s1", "s2"] {
+            let v = self
+                .get(st, k)
+                .ok_or_else(|| self.err(&sv.span(), &format!("{field}.{k}"), "missing file"))?;
+            files.push(self.file(v, &format!("{field}.{k}"))?);
+        }
+        let mut it = files.into_iter();
+        match (it.next(), it.next(), it.next()) {
+            (Some(s0), Some(s1), Some(s2)) => Ok(CaptureSource::Stokes { s0, s1, s2 }),
+            _ => Err(self.err(&sv.span(), field, "needs s0, s1 and s2")),
+        }
     }
 
     /// The `brackets` of a capture (HDR): at least 2 tables, each with an `exposure`

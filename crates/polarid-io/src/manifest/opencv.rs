@@ -151,7 +151,26 @@ pub fn parse_opencv_calibration(
              calibrate with cv::calibrateCamera (the pinhole model with k1, k2, p1, p2, k3)",
         ));
     }
-    let k = doc.matrix(ck, km)?;
+    let [fx, fy, cx, cy] = camera_matrix(path, ck, &doc.matrix(ck, km)?)?;
+    let distortion = distortion(path, dk, &doc.matrix(dk, dm)?)?;
+    let image_size = match (doc.get("image_width"), doc.get("image_height")) {
+        (Some(w), Some(h)) => Some([doc.size(w, "image_width")?, doc.size(h, "image_height")?]),
+        _ => None,
+    };
+    Ok(OpenCvCalibration {
+        path: path.to_path_buf(),
+        focal_px: [fx, fy],
+        principal_point_px: [cx, cy],
+        distortion,
+        image_size,
+        camera_matrix_key: ck.to_string(),
+        distortion_key: dk.to_string(),
+    })
+}
+
+/// `fx, fy, cx, cy` of the camera matrix `k` (entry `ck`), which must be
+/// `[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]` with `fx, fy > 0`.
+fn camera_matrix(path: &Path, ck: &str, k: &Matrix) -> Result<[f64; 4]> {
     if k.rows * k.cols != 9 || (k.rows != 3 && k.rows != 1 && k.cols != 1) {
         return Err(err(
             path,
@@ -200,7 +219,12 @@ pub fn parse_opencv_calibration(
             ));
         }
     }
-    let d = doc.matrix(dk, dm)?;
+    Ok([fx, fy, cx, cy])
+}
+
+/// `k1, k2, p1, p2, k3` of the distortion coefficients `d` (entry `dk`): 4, 5, 8, 12 or
+/// 14 of them, those after `k3` zero.
+fn distortion(path: &Path, dk: &str, d: &Matrix) -> Result<[f64; 5]> {
     if d.rows != 1 && d.cols != 1 {
         return Err(err(
             path,
@@ -235,19 +259,7 @@ pub fn parse_opencv_calibration(
     for (o, x) in distortion.iter_mut().zip(&d.values) {
         *o = *x;
     }
-    let image_size = match (doc.get("image_width"), doc.get("image_height")) {
-        (Some(w), Some(h)) => Some([doc.size(w, "image_width")?, doc.size(h, "image_height")?]),
-        _ => None,
-    };
-    Ok(OpenCvCalibration {
-        path: path.to_path_buf(),
-        focal_px: [fx, fy],
-        principal_point_px: [cx, cy],
-        distortion,
-        image_size,
-        camera_matrix_key: ck.to_string(),
-        distortion_key: dk.to_string(),
-    })
+    Ok(distortion)
 }
 
 impl Parser<'_> {
@@ -533,126 +545,21 @@ impl<'a> Doc<'a> {
         self.size(it, &format!("{pre}.{key}")).map(Some)
     }
 
+    /// The numbers of `items` (fields `field[1]`, `field[2]`, ...) and their lines.
+    fn scalars(&self, items: &[Item], field: &str) -> Result<(Vec<f64>, Vec<usize>)> {
+        let mut vals = Vec::with_capacity(items.len());
+        let mut lines = Vec::with_capacity(items.len());
+        for (i, it) in items.iter().enumerate() {
+            vals.push(self.number(it, &format!("{field}[{}]", i + 1))?);
+            lines.push(it.line);
+        }
+        Ok((vals, lines))
+    }
+
     /// The matrix of entry `key`.
     fn matrix(&self, key: &str, item: &Item) -> Result<Matrix> {
-        let scalars = |items: &[Item], field: &str| -> Result<(Vec<f64>, Vec<usize>)> {
-            let mut vals = Vec::with_capacity(items.len());
-            let mut lines = Vec::with_capacity(items.len());
-            for (i, it) in items.iter().enumerate() {
-                vals.push(self.number(it, &format!("{field}[{}]", i + 1))?);
-                lines.push(it.line);
-            }
-            Ok((vals, lines))
-        };
         match &item.node {
-            Node::Map(m) => {
-                let rows = self.count(m, "rows", key)?;
-                let cols = self.count(m, "cols", key)?;
-                let sizes = match m.iter().find(|(k, _)| k == "sizes") {
-                    Some((_, it)) => match &it.node {
-                        Node::Seq(s) => {
-                            let mut out = Vec::new();
-                            for (i, x) in s.iter().enumerate() {
-                                out.push(self.size(x, &format!("{key}.sizes[{}]", i + 1))?);
-                            }
-                            Some(out)
-                        }
-                        _ => None,
-                    },
-                    None => None,
-                };
-                let (rows, cols) = match (rows, cols, sizes.as_deref()) {
-                    (Some(r), Some(c), _) => (r, c),
-                    (None, None, Some([r, c])) => (*r, *c),
-                    (None, None, Some([n])) => (*n, 1),
-                    _ => {
-                        return Err(err(
-                            self.path,
-                            item.line,
-                            &format!("{key}.rows"),
-                            "",
-                            "an opencv-matrix needs `rows` and `cols`",
-                        ));
-                    }
-                };
-                if let Some((_, dt)) = m.iter().find(|(k, _)| k == "dt")
-                    && let Node::Scalar(s) = &dt.node
-                {
-                    let digits: String =
-                        s.trim().chars().take_while(char::is_ascii_digit).collect();
-                    let channels = digits.parse::<usize>().unwrap_or(1);
-                    let rest = s.trim().get(digits.len()..).unwrap_or("");
-                    if channels != 1 || rest.len() != 1 || !"ucwsifdh".contains(rest) {
-                        return Err(err(
-                            self.path,
-                            dt.line,
-                            &format!("{key}.dt"),
-                            s,
-                            "expected a single-channel numeric type (d, f, i, ...)",
-                        ));
-                    }
-                }
-                let Some((_, data)) = m.iter().find(|(k, _)| k == "data") else {
-                    return Err(err(
-                        self.path,
-                        item.line,
-                        &format!("{key}.data"),
-                        "",
-                        "an opencv-matrix needs `data`",
-                    ));
-                };
-                let field = format!("{key}.data");
-                let (values, lines) = match &data.node {
-                    Node::Seq(s) => scalars(s, &field)?,
-                    Node::Scalar(s) if s.contains("$base64$") => {
-                        return Err(err(
-                            self.path,
-                            data.line,
-                            &field,
-                            s,
-                            "base64-encoded data is not read: write the file without \
-                             FileStorage::BASE64",
-                        ));
-                    }
-                    Node::Scalar(s) => {
-                        return Err(err(
-                            self.path,
-                            data.line,
-                            &field,
-                            s,
-                            "expected a sequence of numbers",
-                        ));
-                    }
-                    Node::Map(_) | Node::Unreadable(_) => {
-                        return Err(err(
-                            self.path,
-                            data.line,
-                            &field,
-                            "",
-                            "expected a sequence of numbers",
-                        ));
-                    }
-                };
-                if values.len() != rows * cols {
-                    return Err(err(
-                        self.path,
-                        data.line,
-                        &field,
-                        format!("{} numbers", values.len()),
-                        format!(
-                            "rows x cols = {rows} x {cols} needs {} numbers",
-                            rows * cols
-                        ),
-                    ));
-                }
-                Ok(Matrix {
-                    rows,
-                    cols,
-                    values,
-                    lines,
-                    line: item.line,
-                })
-            }
+            Node::Map(m) => self.opencv_matrix(key, item, m),
             Node::Seq(s) if s.iter().all(|x| matches!(x.node, Node::Seq(_))) && !s.is_empty() => {
                 let mut values = Vec::new();
                 let mut lines = Vec::new();
@@ -670,7 +577,7 @@ impl<'a> Doc<'a> {
                             "every row must have the same length",
                         ));
                     }
-                    let (v, l) = scalars(row_items, &format!("{key}[{}]", r + 1))?;
+                    let (v, l) = self.scalars(row_items, &format!("{key}[{}]", r + 1))?;
                     values.extend(v);
                     lines.extend(l);
                 }
@@ -683,7 +590,7 @@ impl<'a> Doc<'a> {
                 })
             }
             Node::Seq(s) => {
-                let (values, lines) = scalars(s, key)?;
+                let (values, lines) = self.scalars(s, key)?;
                 Ok(Matrix {
                     rows: 1,
                     cols: values.len(),
@@ -705,6 +612,120 @@ impl<'a> Doc<'a> {
                 key,
                 "",
                 format!("cannot be read: {why}"),
+            )),
+        }
+    }
+
+    /// An `opencv-matrix` mapping `m` (entry `key`): `rows` and `cols` (or `sizes`), `dt`
+    /// and `data`.
+    fn opencv_matrix(&self, key: &str, item: &Item, m: &[(String, Item)]) -> Result<Matrix> {
+        let (rows, cols) = self.dimensions(key, item, m)?;
+        if let Some((_, dt)) = m.iter().find(|(k, _)| k == "dt")
+            && let Node::Scalar(s) = &dt.node
+        {
+            let digits: String = s.trim().chars().take_while(char::is_ascii_digit).collect();
+            let channels = digits.parse::<usize>().unwrap_or(1);
+            let rest = s.trim().get(digits.len()..).unwrap_or("");
+            if channels != 1 || rest.len() != 1 || !"ucwsifdh".contains(rest) {
+                return Err(err(
+                    self.path,
+                    dt.line,
+                    &format!("{key}.dt"),
+                    s,
+                    "expected a single-channel numeric type (d, f, i, ...)",
+                ));
+            }
+        }
+        let Some((_, data)) = m.iter().find(|(k, _)| k == "data") else {
+            return Err(err(
+                self.path,
+                item.line,
+                &format!("{key}.data"),
+                "",
+                "an opencv-matrix needs `data`",
+            ));
+        };
+        let field = format!("{key}.data");
+        let (values, lines) = match &data.node {
+            Node::Seq(s) => self.scalars(s, &field)?,
+            Node::Scalar(s) if s.contains("$base64$") => {
+                return Err(err(
+                    self.path,
+                    data.line,
+                    &field,
+                    s,
+                    "base64-encoded data is not read: write the file without \
+                     FileStorage::BASE64",
+                ));
+            }
+            Node::Scalar(s) => {
+                return Err(err(
+                    self.path,
+                    data.line,
+                    &field,
+                    s,
+                    "expected a sequence of numbers",
+                ));
+            }
+            Node::Map(_) | Node::Unreadable(_) => {
+                return Err(err(
+                    self.path,
+                    data.line,
+                    &field,
+                    "",
+                    "expected a sequence of numbers",
+                ));
+            }
+        };
+        if values.len() != rows * cols {
+            return Err(err(
+                self.path,
+                data.line,
+                &field,
+                format!("{} numbers", values.len()),
+                format!(
+                    "rows x cols = {rows} x {cols} needs {} numbers",
+                    rows * cols
+                ),
+            ));
+        }
+        Ok(Matrix {
+            rows,
+            cols,
+            values,
+            lines,
+            line: item.line,
+        })
+    }
+
+    /// The rows and columns of an `opencv-matrix` mapping (`rows` and `cols`, or the
+    /// `sizes` of an `opencv-nd-matrix`).
+    fn dimensions(&self, key: &str, item: &Item, m: &[(String, Item)]) -> Result<(usize, usize)> {
+        let rows = self.count(m, "rows", key)?;
+        let cols = self.count(m, "cols", key)?;
+        let sizes = match m.iter().find(|(k, _)| k == "sizes") {
+            Some((_, it)) => match &it.node {
+                Node::Seq(s) => {
+                    let mut out = Vec::new();
+                    for (i, x) in s.iter().enumerate() {
+                        out.push(self.size(x, &format!("{key}.sizes[{}]", i + 1))?);
+                    }
+                    Some(out)
+                }
+                _ => None,
+            },
+            None => None,
+        };
+        match (rows, cols, sizes.as_deref()) {
+            (Some(r), Some(c), _) => Ok((r, c)),
+            (None, None, Some([r, c])) => Ok((*r, *c)),
+            (None, None, Some([n])) => Ok((*n, 1)),
+            _ => Err(err(
+                self.path,
+                item.line,
+                &format!("{key}.rows"),
+                "",
+                "an opencv-matrix needs `rows` and `cols`",
             )),
         }
     }

@@ -9,7 +9,7 @@ use super::colour::MaterialSource;
 use super::context::Ctx;
 use super::plates::PlateContext;
 use super::raw::RawScene;
-use super::{CaptureKind, Geometry, ImageFormat, MAX_SIDE, Scene};
+use super::{CaptureKind, Geometry, ImageFormat, MAX_SIDE, Plate, Scene};
 use crate::error::{IoError, Result};
 
 impl Ctx<'_> {
@@ -105,22 +105,8 @@ impl Ctx<'_> {
             Some(v) => Some(self.name(v, "name")?),
             None => None,
         };
-        let side = |v: &Option<Spanned<i64>>, field: &str| -> Result<usize> {
-            let v = v
-                .as_ref()
-                .ok_or_else(|| self.missing(None, field, "frame size (pixels)"))?;
-            let x = *v.get_ref();
-            if !(2..=MAX_SIDE as i64).contains(&x) {
-                return Err(self.err(
-                    &v.span(),
-                    field,
-                    format!("must be an integer from 2 to {MAX_SIDE}"),
-                ));
-            }
-            Ok(x as usize)
-        };
-        let width = side(&raw.width, "width")?;
-        let height = side(&raw.height, "height")?;
+        let width = self.side(&raw.width, "width")?;
+        let height = self.side(&raw.height, "height")?;
         let wavelength_nm = match &raw.wavelength_nm {
             Some(v) => Some(self.num_in(v, "wavelength_nm", |x| x > 0.0, "> 0")?),
             None => None,
@@ -159,37 +145,7 @@ impl Ctx<'_> {
                  B 450 nm)",
             ));
         }
-        if matches!(capture, CaptureKind::Dofp { .. }) {
-            // What `measure` demosaics (bilinear): whole 2x2 cells, at least 4x4 pixels.
-            for (v, field, x) in [
-                (&raw.width, "width", width),
-                (&raw.height, "height", height),
-            ] {
-                if !x.is_multiple_of(2) || x < 4 {
-                    return Err(self.err(
-                        &v.as_ref().map_or(0..0, |v| v.span()),
-                        field,
-                        "a DoFP mosaic ([capture] dofp) has a 2x2 period: width and height \
-                         must be even and at least 4 (what `polarid measure` demosaics)",
-                    ));
-                }
-            }
-        }
-        if capture.bands().is_some() {
-            for (v, field, x) in [
-                (&raw.width, "width", width),
-                (&raw.height, "height", height),
-            ] {
-                if !x.is_multiple_of(4) {
-                    return Err(self.err(
-                        &v.as_ref().map_or(0..0, |v| v.span()),
-                        field,
-                        "a colour polarization mosaic ([capture] color) has a 4x4 period: \
-                         width and height must be multiples of 4",
-                    ));
-                }
-            }
-        }
+        self.check_mosaic_period(&raw, [width, height], &capture)?;
         let materials = MaterialSource {
             spec: raw.library.as_ref(),
             loaded: std::cell::OnceCell::new(),
@@ -203,43 +159,7 @@ impl Ctx<'_> {
             let (c, plates) = self.calibrated(&raw, width, height, &cx)?;
             (Geometry::Calibrated(Box::new(c)), plates)
         } else {
-            for (k, span) in [
-                ("plane", raw.plane.as_ref().map(|v| v.span())),
-                ("site", raw.site.as_ref().map(|v| v.span())),
-                ("source", raw.source.as_ref().map(|v| v.span())),
-            ] {
-                if let Some(span) = span {
-                    return Err(self.err(
-                        &span,
-                        k,
-                        "[[plane]], [site] and [[source]] describe a calibrated scene: add a \
-                         [camera] table, or give theta_r_deg and theta_i_deg instead",
-                    ));
-                }
-            }
-            let theta_r_deg = match &raw.theta_r_deg {
-                Some(v) => self.zenith(v, "theta_r_deg")?,
-                None => return Err(self.missing(None, "theta_r_deg", "camera zenith angle")),
-            };
-            let phi_deg = match &raw.phi_deg {
-                Some(v) => self.num(v, "phi_deg")?,
-                None => 180.0,
-            };
-            let theta_i_deg = match &raw.theta_i_deg {
-                Some(v) => self.theta_i(v)?,
-                None => {
-                    return Err(self.missing(None, "theta_i_deg", "source zenith angles"));
-                }
-            };
-            let plates = self.plates(&raw.plate, width, height, &cx)?;
-            (
-                Geometry::FarField {
-                    theta_r_deg,
-                    phi_deg,
-                    theta_i_deg,
-                },
-                plates,
-            )
+            self.far_field(&raw, width, height, &cx)?
         };
         Ok(Scene {
             path: self.path.to_path_buf(),
@@ -257,6 +177,104 @@ impl Ctx<'_> {
             capture,
             plates,
         })
+    }
+
+    /// The frame's `width` or `height` (pixels).
+    fn side(&self, v: &Option<Spanned<i64>>, field: &str) -> Result<usize> {
+        let v = v
+            .as_ref()
+            .ok_or_else(|| self.missing(None, field, "frame size (pixels)"))?;
+        let x = *v.get_ref();
+        if !(2..=MAX_SIDE as i64).contains(&x) {
+            return Err(self.err(
+                &v.span(),
+                field,
+                format!("must be an integer from 2 to {MAX_SIDE}"),
+            ));
+        }
+        Ok(x as usize)
+    }
+
+    /// A mosaic capture's frame size must hold whole periods of its pattern.
+    fn check_mosaic_period(
+        &self,
+        raw: &RawScene,
+        [width, height]: [usize; 2],
+        capture: &CaptureKind,
+    ) -> Result<()> {
+        let check = |bad: fn(usize) -> bool, reason: &str| -> Result<()> {
+            for (v, field, x) in [
+                (&raw.width, "width", width),
+                (&raw.height, "height", height),
+            ] {
+                if bad(x) {
+                    return Err(self.err(&v.as_ref().map_or(0..0, |v| v.span()), field, reason));
+                }
+            }
+            Ok(())
+        };
+        if matches!(capture, CaptureKind::Dofp { .. }) {
+            // What `measure` demosaics (bilinear): whole 2x2 cells, at least 4x4 pixels.
+            check(
+                |x| !x.is_multiple_of(2) || x < 4,
+                "a DoFP mosaic ([capture] dofp) has a 2x2 period: width and height \
+                 must be even and at least 4 (what `polarid measure` demosaics)",
+            )?;
+        }
+        if capture.bands().is_some() {
+            check(
+                |x| !x.is_multiple_of(4),
+                "a colour polarization mosaic ([capture] color) has a 4x4 period: \
+                 width and height must be multiples of 4",
+            )?;
+        }
+        Ok(())
+    }
+
+    /// The geometry and plates of a scene without `[camera]`: `theta_r_deg`, `phi_deg`
+    /// and `theta_i_deg`.
+    fn far_field(
+        &self,
+        raw: &RawScene,
+        width: usize,
+        height: usize,
+        cx: &PlateContext<'_>,
+    ) -> Result<(Geometry, Vec<Plate>)> {
+        for (k, span) in [
+            ("plane", raw.plane.as_ref().map(|v| v.span())),
+            ("site", raw.site.as_ref().map(|v| v.span())),
+            ("source", raw.source.as_ref().map(|v| v.span())),
+        ] {
+            if let Some(span) = span {
+                return Err(self.err(
+                    &span,
+                    k,
+                    "[[plane]], [site] and [[source]] describe a calibrated scene: add a \
+                     [camera] table, or give theta_r_deg and theta_i_deg instead",
+                ));
+            }
+        }
+        let theta_r_deg = match &raw.theta_r_deg {
+            Some(v) => self.zenith(v, "theta_r_deg")?,
+            None => return Err(self.missing(None, "theta_r_deg", "camera zenith angle")),
+        };
+        let phi_deg = match &raw.phi_deg {
+            Some(v) => self.num(v, "phi_deg")?,
+            None => 180.0,
+        };
+        let theta_i_deg = match &raw.theta_i_deg {
+            Some(v) => self.theta_i(v)?,
+            None => {
+                return Err(self.missing(None, "theta_i_deg", "source zenith angles"));
+            }
+        };
+        let plates = self.plates(&raw.plate, width, height, cx)?;
+        let geometry = Geometry::FarField {
+            theta_r_deg,
+            phi_deg,
+            theta_i_deg,
+        };
+        Ok((geometry, plates))
     }
 }
 

@@ -254,21 +254,8 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
             reason: "needs column `beta_deg`, or columns `theta_i_deg` and `theta_r_deg`".into(),
         })?;
     }
-    let c_phi = t.col("phi_deg");
-    let c_class = t.col("class");
-    let c_se = t.col("dolp_se");
-    let c_s0 = t.col("s0");
-    let c_pix = t.col("pixels");
-    let c_rej = t.col("rejected");
-    let c_exp = t.col("exposure");
-    let c_sat = t.col("saturated");
-    let c_bsd = t.col("beta_sd_deg");
-    let c_aolp = t.col("aolp_deg");
-    let c_apoi = t.col("aolp_poi_deg");
-    let c_asd = t.col("angle_sd_deg");
     let c_status = t.col("status");
     let c_reason = t.col("reason");
-    let c_wl = t.col("wavelength_nm");
     let c_ref = t.col(REFERENCE_COLUMN);
     let mut out = Vec::with_capacity(t.rows.len());
     // One reference per target: every row of a target says the same.
@@ -306,99 +293,128 @@ pub fn from_table(t: &CsvTable) -> Result<Vec<Measurement>> {
                 )
             })?,
         };
-        if !status.is_ok() {
-            out.push(Measurement {
+        out.push(if status.is_ok() {
+            measured_row(t, r, c_dolp, target, reference)?
+        } else {
+            Measurement {
                 reference,
                 ..skipped_row(t, r, target, status, c_reason)?
-            });
-            continue;
-        }
-        let angle = |c: Option<usize>| -> Result<Option<f64>> {
-            let v = t.opt_f64(r, c)?;
-            if let (Some(v), Some(c)) = (v, c)
-                && !(0.0..90.0).contains(&v)
-            {
-                return Err(t.err(r, c, "angle outside [0, 90) degrees"));
             }
-            Ok(v)
-        };
-        let theta_i_deg = angle(c_ti)?;
-        let theta_r_deg = angle(c_tr)?;
-        let phi_deg = t.opt_f64(r, c_phi)?.unwrap_or(180.0);
-        let beta_deg = match (t.opt_f64(r, c_beta)?, theta_i_deg, theta_r_deg) {
-            (Some(b), _, _) => {
-                let c = c_beta.unwrap_or(0);
-                if !(0.0..90.0).contains(&b) {
-                    return Err(t.err(r, c, "angle outside [0, 90) degrees"));
-                }
-                b
-            }
-            (None, Some(ti), Some(tr)) => {
-                geometry::beta(ti.to_radians(), tr.to_radians(), phi_deg.to_radians()).to_degrees()
-            }
-            (None, _, _) => {
-                let c = c_beta.or(c_ti).unwrap_or(0);
-                return Err(t.err(
-                    r,
-                    c,
-                    "missing value: need beta_deg, or theta_i_deg and theta_r_deg",
-                ));
-            }
-        };
-        let dolp = t.f64(r, c_dolp)?;
-        if !(0.0..=1.0).contains(&dolp) {
-            return Err(t.err(r, c_dolp, "DoLP outside [0, 1]"));
-        }
-        let dolp_se = t.opt_f64(r, c_se)?;
-        if let (Some(se), Some(c)) = (dolp_se, c_se)
-            && se <= 0.0
-        {
-            return Err(t.err(r, c, "standard error must be > 0"));
-        }
-        let in_range = |c: Option<usize>, hi: f64, what: &str| -> Result<Option<f64>> {
-            let v = t.opt_f64(r, c)?;
-            if let (Some(v), Some(c)) = (v, c)
-                && !(0.0..hi).contains(&v)
-            {
-                return Err(t.err(r, c, format!("{what} outside [0, {hi}) degrees")));
-            }
-            Ok(v)
-        };
-        let beta_sd_deg = in_range(c_bsd, 90.0, "spread of beta")?;
-        let aolp_deg = in_range(c_aolp, 180.0, "AoLP")?;
-        let aolp_poi_deg = in_range(c_apoi, 180.0, "AoLP")?;
-        let angle_sd_deg = in_range(c_asd, 90.0, "angle uncertainty")?;
-        let wavelength_nm = t.opt_f64(r, c_wl)?;
-        if let (Some(w), Some(c)) = (wavelength_nm, c_wl)
-            && !(w.is_finite() && w > 0.0)
-        {
-            return Err(t.err(r, c, "wavelength must be finite and > 0 nm"));
-        }
-        out.push(Measurement {
-            target,
-            class: t.opt_name(r, c_class)?,
-            theta_i_deg,
-            theta_r_deg,
-            phi_deg,
-            beta_deg,
-            dolp,
-            dolp_se,
-            s0: t.opt_f64(r, c_s0)?,
-            pixels: t.opt_u64(r, c_pix)?,
-            rejected: t.opt_u64(r, c_rej)?,
-            exposure: t.opt_f64(r, c_exp)?,
-            saturated: t.opt_u64(r, c_sat)?,
-            beta_sd_deg,
-            aolp_deg,
-            aolp_poi_deg,
-            angle_sd_deg,
-            status,
-            reason: t.opt_text(r, c_reason).unwrap_or_default(),
-            wavelength_nm,
-            reference,
         });
     }
     Ok(out)
+}
+
+/// A row whose status is `ok` (`c_dolp`: the `dolp` column): its values checked.
+fn measured_row(
+    t: &CsvTable,
+    r: usize,
+    c_dolp: usize,
+    target: String,
+    reference: Option<Reference>,
+) -> Result<Measurement> {
+    let c_beta = t.col("beta_deg");
+    let c_ti = t.col("theta_i_deg");
+    let c_tr = t.col("theta_r_deg");
+    let c_phi = t.col("phi_deg");
+    let c_class = t.col("class");
+    let c_se = t.col("dolp_se");
+    let c_s0 = t.col("s0");
+    let c_pix = t.col("pixels");
+    let c_rej = t.col("rejected");
+    let c_exp = t.col("exposure");
+    let c_sat = t.col("saturated");
+    let c_bsd = t.col("beta_sd_deg");
+    let c_aolp = t.col("aolp_deg");
+    let c_apoi = t.col("aolp_poi_deg");
+    let c_asd = t.col("angle_sd_deg");
+    let c_reason = t.col("reason");
+    let c_wl = t.col("wavelength_nm");
+    let status = RowStatus::Ok;
+    let angle = |c: Option<usize>| -> Result<Option<f64>> {
+        let v = t.opt_f64(r, c)?;
+        if let (Some(v), Some(c)) = (v, c)
+            && !(0.0..90.0).contains(&v)
+        {
+            return Err(t.err(r, c, "angle outside [0, 90) degrees"));
+        }
+        Ok(v)
+    };
+    let theta_i_deg = angle(c_ti)?;
+    let theta_r_deg = angle(c_tr)?;
+    let phi_deg = t.opt_f64(r, c_phi)?.unwrap_or(180.0);
+    let beta_deg = match (t.opt_f64(r, c_beta)?, theta_i_deg, theta_r_deg) {
+        (Some(b), _, _) => {
+            let c = c_beta.unwrap_or(0);
+            if !(0.0..90.0).contains(&b) {
+                return Err(t.err(r, c, "angle outside [0, 90) degrees"));
+            }
+            b
+        }
+        (None, Some(ti), Some(tr)) => {
+            geometry::beta(ti.to_radians(), tr.to_radians(), phi_deg.to_radians()).to_degrees()
+        }
+        (None, _, _) => {
+            let c = c_beta.or(c_ti).unwrap_or(0);
+            return Err(t.err(
+                r,
+                c,
+                "missing value: need beta_deg, or theta_i_deg and theta_r_deg",
+            ));
+        }
+    };
+    let dolp = t.f64(r, c_dolp)?;
+    if !(0.0..=1.0).contains(&dolp) {
+        return Err(t.err(r, c_dolp, "DoLP outside [0, 1]"));
+    }
+    let dolp_se = t.opt_f64(r, c_se)?;
+    if let (Some(se), Some(c)) = (dolp_se, c_se)
+        && se <= 0.0
+    {
+        return Err(t.err(r, c, "standard error must be > 0"));
+    }
+    let in_range = |c: Option<usize>, hi: f64, what: &str| -> Result<Option<f64>> {
+        let v = t.opt_f64(r, c)?;
+        if let (Some(v), Some(c)) = (v, c)
+            && !(0.0..hi).contains(&v)
+        {
+            return Err(t.err(r, c, format!("{what} outside [0, {hi}) degrees")));
+        }
+        Ok(v)
+    };
+    let beta_sd_deg = in_range(c_bsd, 90.0, "spread of beta")?;
+    let aolp_deg = in_range(c_aolp, 180.0, "AoLP")?;
+    let aolp_poi_deg = in_range(c_apoi, 180.0, "AoLP")?;
+    let angle_sd_deg = in_range(c_asd, 90.0, "angle uncertainty")?;
+    let wavelength_nm = t.opt_f64(r, c_wl)?;
+    if let (Some(w), Some(c)) = (wavelength_nm, c_wl)
+        && !(w.is_finite() && w > 0.0)
+    {
+        return Err(t.err(r, c, "wavelength must be finite and > 0 nm"));
+    }
+    Ok(Measurement {
+        target,
+        class: t.opt_name(r, c_class)?,
+        theta_i_deg,
+        theta_r_deg,
+        phi_deg,
+        beta_deg,
+        dolp,
+        dolp_se,
+        s0: t.opt_f64(r, c_s0)?,
+        pixels: t.opt_u64(r, c_pix)?,
+        rejected: t.opt_u64(r, c_rej)?,
+        exposure: t.opt_f64(r, c_exp)?,
+        saturated: t.opt_u64(r, c_sat)?,
+        beta_sd_deg,
+        aolp_deg,
+        aolp_poi_deg,
+        angle_sd_deg,
+        status,
+        reason: t.opt_text(r, c_reason).unwrap_or_default(),
+        wavelength_nm,
+        reference,
+    })
 }
 
 /// A row whose status is not `ok`: its numbers are read as they are (`nan` or empty

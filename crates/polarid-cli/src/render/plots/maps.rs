@@ -273,6 +273,73 @@ impl MapFigure<'_> {
     }
 }
 
+/// The legend of a class map: each answer's share of the pixels, and the kinds of
+/// `unknown` (with `reasons`) or `unknown` as a whole.
+fn class_legend(classes: &[u16], names: &[String], reasons: Option<&[u8]>) -> Vec<LegendItem> {
+    let mut counts = vec![0u64; names.len() + 1];
+    let mut unnamed: Vec<(u16, u64)> = Vec::new();
+    let mut unknown = [0u64; UnknownKind::ALL.len()];
+    for (i, &c) in classes.iter().enumerate() {
+        if c == 0
+            && let Some(&r) = reasons.and_then(|r| r.get(i))
+        {
+            let k = UnknownKind::of(r);
+            if let Some(j) = UnknownKind::ALL.iter().position(|&u| u == k) {
+                unknown[j] += 1;
+            }
+        }
+        match counts.get_mut(c as usize) {
+            Some(n) => *n += 1,
+            None => match unnamed.iter_mut().find(|(u, _)| *u == c) {
+                Some((_, n)) => *n += 1,
+                None => unnamed.push((c, 1)),
+            },
+        }
+    }
+    unnamed.sort_unstable();
+    let total = classes.len().max(1) as f64;
+    let pct = |n: u64| 100.0 * n as f64 / total;
+    let mut legend = vec![LegendItem::Heading("Answers (pixel share)".into())];
+    for (i, name) in names.iter().enumerate() {
+        let colour = if name == polarid_core::classify::AMBIGUOUS {
+            AMBIGUOUS_COLOUR
+        } else {
+            class_colour(i)
+        };
+        legend.push(LegendItem::Swatch(
+            colour,
+            format!("{name} ({:.0} %)", pct(counts[i + 1])),
+        ));
+    }
+    for (c, n) in unnamed {
+        legend.push(LegendItem::Swatch(
+            class_colour(c as usize - 1),
+            format!("class {c} ({:.0} %)", pct(n)),
+        ));
+    }
+    let any_unknown = unknown.iter().any(|&n| n > 0);
+    if reasons.is_some() && any_unknown {
+        for (k, n) in UnknownKind::ALL.iter().zip(unknown) {
+            if n > 0 {
+                legend.push(LegendItem::Swatch(
+                    k.colour(),
+                    format!("{} ({:.0} %)", k.label(), pct(n)),
+                ));
+            }
+        }
+    } else {
+        legend.push(LegendItem::Swatch(
+            NO_DATA,
+            format!(
+                "{} ({:.0} %)",
+                polarid_core::classify::UNKNOWN,
+                pct(counts[0])
+            ),
+        ));
+    }
+    legend
+}
+
 impl Figure for MapFigure<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<Option<Raster>> {
         let (main, side) = layout(root, self.title)?;
@@ -314,68 +381,7 @@ impl Figure for MapFigure<'_> {
                 reasons,
                 ..
             } => {
-                let mut counts = vec![0u64; names.len() + 1];
-                let mut unnamed: Vec<(u16, u64)> = Vec::new();
-                let mut unknown = [0u64; UnknownKind::ALL.len()];
-                for (i, &c) in classes.iter().enumerate() {
-                    if c == 0
-                        && let Some(&r) = reasons.and_then(|r| r.get(i))
-                    {
-                        let k = UnknownKind::of(r);
-                        if let Some(j) = UnknownKind::ALL.iter().position(|&u| u == k) {
-                            unknown[j] += 1;
-                        }
-                    }
-                    match counts.get_mut(c as usize) {
-                        Some(n) => *n += 1,
-                        None => match unnamed.iter_mut().find(|(u, _)| *u == c) {
-                            Some((_, n)) => *n += 1,
-                            None => unnamed.push((c, 1)),
-                        },
-                    }
-                }
-                unnamed.sort_unstable();
-                let total = classes.len().max(1) as f64;
-                let pct = |n: u64| 100.0 * n as f64 / total;
-                let mut legend = vec![LegendItem::Heading("Answers (pixel share)".into())];
-                for (i, name) in names.iter().enumerate() {
-                    let colour = if name == polarid_core::classify::AMBIGUOUS {
-                        AMBIGUOUS_COLOUR
-                    } else {
-                        class_colour(i)
-                    };
-                    legend.push(LegendItem::Swatch(
-                        colour,
-                        format!("{name} ({:.0} %)", pct(counts[i + 1])),
-                    ));
-                }
-                for (c, n) in unnamed {
-                    legend.push(LegendItem::Swatch(
-                        class_colour(c as usize - 1),
-                        format!("class {c} ({:.0} %)", pct(n)),
-                    ));
-                }
-                let any_unknown = unknown.iter().any(|&n| n > 0);
-                if reasons.is_some() && any_unknown {
-                    for (k, n) in UnknownKind::ALL.iter().zip(unknown) {
-                        if n > 0 {
-                            legend.push(LegendItem::Swatch(
-                                k.colour(),
-                                format!("{} ({:.0} %)", k.label(), pct(n)),
-                            ));
-                        }
-                    }
-                } else {
-                    legend.push(LegendItem::Swatch(
-                        NO_DATA,
-                        format!(
-                            "{} ({:.0} %)",
-                            polarid_core::classify::UNKNOWN,
-                            pct(counts[0])
-                        ),
-                    ));
-                }
-                draw_legend(&side, &legend)?;
+                draw_legend(&side, &class_legend(classes, names, *reasons))?;
             }
             MapKind::Scalar {
                 range, quantity, ..

@@ -6,6 +6,7 @@ use std::ops::Range;
 
 use anyhow::Result;
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 use super::PlotSize;
@@ -322,6 +323,163 @@ pub(super) fn voronoi_cell(
     poly
 }
 
+/// The styles of the confidence regions drawn, for the legend: solid (the estimate's own
+/// Σ), one dashed style per prototype class (colour, dash pattern, text), and whether a
+/// region was cut at n = 0 or k = 0.
+#[derive(Default)]
+struct RegionStyles {
+    solid: bool,
+    dashed: Vec<(RGBColor, (u32, u32), String)>,
+    cut: bool,
+}
+
+/// The plotting area of the (n, k) chart.
+type NkArea<DB> = DrawingArea<DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// The (n, k) ranges that hold the prototypes, the estimates' ±1 SE and their regions
+/// (padded, from 0 at the least); `None` when there is nothing to draw.
+fn bounds(protos: &[&Prototype], ests: &[&NkEstimate]) -> Option<(Range<f64>, Range<f64>)> {
+    let fin = |v: f64| if v.is_finite() && v > 0.0 { v } else { 0.0 };
+    let region_points = || {
+        ests.iter()
+            .flat_map(|e| e.regions.iter().flat_map(|r| r.boundary.iter().copied()))
+            .filter(|p| p.0.is_finite() && p.1.is_finite())
+    };
+    let ns = protos
+        .iter()
+        .map(|p| p.n)
+        .chain(
+            ests.iter()
+                .flat_map(|e| [e.n - fin(e.n_se), e.n + fin(e.n_se)]),
+        )
+        .chain(region_points().map(|p| p.0));
+    let ks = protos
+        .iter()
+        .map(|p| p.k)
+        .chain(
+            ests.iter()
+                .flat_map(|e| [e.k - fin(e.k_se), e.k + fin(e.k_se)]),
+        )
+        .chain(region_points().map(|p| p.1));
+    let ((n0, n1), (k0, k1)) = (min_max(ns)?, min_max(ks)?);
+    let (n0, n1) = padded(n0, n1, 0.12, 0.5);
+    let (k0, k1) = padded(k0, k1, 0.12, 0.5);
+    Some((n0.max(0.0)..n1, k0.max(0.0)..k1))
+}
+
+/// Estimate `e`'s confidence regions (its 1-σ ellipse when it has none) in colour `c`,
+/// lines `width` wide; `class_idx` gives a prototype class's colour index.
+fn draw_regions<DB: DrawingBackend>(
+    area: &NkArea<DB>,
+    e: &NkEstimate,
+    c: RGBColor,
+    width: u32,
+    class_idx: &dyn Fn(&str) -> Option<usize>,
+    styles: &mut RegionStyles,
+) -> Result<()> {
+    if e.regions.is_empty() {
+        let ell = covariance_ellipse(e.n, e.k, e.n_se, e.k_se, e.corr, 96);
+        if ell.len() > 3 {
+            area.draw(&PathElement::new(ell, c.stroke_width(2))).dr()?;
+        }
+    }
+    for r in &e.regions {
+        let pts: Vec<(f64, f64)> = r
+            .boundary
+            .iter()
+            .copied()
+            .filter(|p| p.0.is_finite() && p.1.is_finite())
+            .collect();
+        if pts.len() < 4 {
+            continue;
+        }
+        // n < 0 and k < 0 are not physical: the boundary is drawn only where
+        // n ≥ 0 and k ≥ 0, open where it was cut (a note in the legend says so).
+        let (pieces, was_cut) = clip_to_physical(&pts);
+        styles.cut |= was_cut;
+        match &r.with_prototype {
+            None => {
+                for piece in pieces {
+                    area.draw(&PathElement::new(piece, c.stroke_width(2)))
+                        .dr()?;
+                }
+                styles.solid = true;
+            }
+            Some(classes) => {
+                let ci = classes.first().and_then(|name| class_idx(name));
+                let pc = ci.map(|i| shade(class_colour(i), 0.75)).unwrap_or(c);
+                // One dash pattern per prototype class, so that overlapping
+                // regions of different classes stay apart.
+                let (dash, gap) = DASHES[ci.unwrap_or(0) % DASHES.len()];
+                for piece in &pieces {
+                    area.draw(&plotters::element::DashedPathElement::new(
+                        piece.iter().copied(),
+                        dash,
+                        gap,
+                        pc.stroke_width(width),
+                    ))
+                    .dr()?;
+                }
+                let text = format!("with {}'s Σ", classes.join(", "));
+                if !styles.dashed.iter().any(|(_, _, t)| *t == text) {
+                    styles.dashed.push((pc, (dash, gap), text));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The legend: the prototype classes, the estimates (in `colours`) with their answers,
+/// and the region styles drawn.
+fn nk_legend(
+    classes: &[&str],
+    ests: &[&NkEstimate],
+    colours: &[RGBColor],
+    styles: RegionStyles,
+) -> Vec<LegendItem> {
+    let mut legend = vec![LegendItem::Heading("Prototypes / regions".into())];
+    for (i, c) in classes.iter().enumerate() {
+        legend.push(LegendItem::Marker(
+            Marker::Circle,
+            class_colour(i),
+            c.to_string(),
+        ));
+    }
+    if !ests.is_empty() {
+        let heading = match ests.iter().find_map(|e| e.regions.first()) {
+            Some(r) => format!("Estimates: answer ({}% region)", r.confidence * 100.0),
+            None => "Estimates (1-σ ellipse)".to_string(),
+        };
+        legend.push(LegendItem::Heading(heading));
+    }
+    for (j, (e, &c)) in ests.iter().zip(colours).enumerate() {
+        let m = ESTIMATE_MARKERS[j % ESTIMATE_MARKERS.len()];
+        let text = match &e.answer {
+            Some(a) => format!("{}: {a}", e.label),
+            None => e.label.clone(),
+        };
+        legend.push(LegendItem::Marker(m, c, text));
+    }
+    if styles.solid || !styles.dashed.is_empty() {
+        legend.push(LegendItem::Heading("Regions".into()));
+    }
+    if styles.solid {
+        legend.push(LegendItem::Line(BLACK, "with the estimate's Σ only".into()));
+    }
+    for (c, pattern, text) in styles.dashed {
+        legend.push(LegendItem::Dashed(c, pattern, text));
+    }
+    if styles.cut {
+        legend.push(LegendItem::Note(
+            "Regions are cut at n = 0 and k = 0: their parts at n < 0 or k < 0 are \
+             not physical and not drawn (open ends)."
+                .into(),
+        ));
+    }
+    legend
+}
+
 impl Figure for NkFigure<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<Option<Raster>> {
         let (main, side) = layout(root, self.title)?;
@@ -335,36 +493,11 @@ impl Figure for NkFigure<'_> {
             .iter()
             .filter(|e| e.n.is_finite() && e.k.is_finite())
             .collect();
-        let fin = |v: f64| if v.is_finite() && v > 0.0 { v } else { 0.0 };
-        let region_points = || {
-            ests.iter()
-                .flat_map(|e| e.regions.iter().flat_map(|r| r.boundary.iter().copied()))
-                .filter(|p| p.0.is_finite() && p.1.is_finite())
-        };
-        let ns = protos
-            .iter()
-            .map(|p| p.n)
-            .chain(
-                ests.iter()
-                    .flat_map(|e| [e.n - fin(e.n_se), e.n + fin(e.n_se)]),
-            )
-            .chain(region_points().map(|p| p.0));
-        let ks = protos
-            .iter()
-            .map(|p| p.k)
-            .chain(
-                ests.iter()
-                    .flat_map(|e| [e.k - fin(e.k_se), e.k + fin(e.k_se)]),
-            )
-            .chain(region_points().map(|p| p.1));
-        let (Some((n0, n1)), Some((k0, k1))) = (min_max(ns), min_max(ks)) else {
+        let Some((nr, kr)) = bounds(&protos, &ests) else {
             draw_notice(&main, "No (n, k) values to plot")?;
             return Ok(None);
         };
-        let (n0, n1) = padded(n0, n1, 0.12, 0.5);
-        let (k0, k1) = padded(k0, k1, 0.12, 0.5);
-        let (n0, k0) = (n0.max(0.0), k0.max(0.0));
-        let mut ch = chart(&main, n0..n1, k0..k1, (12, 20, 8, 8))?;
+        let mut ch = chart(&main, nr.clone(), kr.clone(), (12, 20, 8, 8))?;
 
         // Classes in order of first appearance.
         let mut classes: Vec<&str> = Vec::new();
@@ -377,13 +510,19 @@ impl Figure for NkFigure<'_> {
 
         // Decision regions first, under the mesh lines.
         let sites: Vec<(f64, f64)> = protos.iter().map(|p| (p.n, p.k)).collect();
-        for (i, p) in protos.iter().enumerate() {
-            let cell = voronoi_cell(&sites, i, n0..n1, k0..k1);
-            if cell.len() >= 3 {
+        let cells: Vec<(RGBColor, Vec<(f64, f64)>)> = (protos.iter().enumerate())
+            .map(|(i, p)| {
                 let c = class_colour(class_idx(&p.class).unwrap_or(0));
-                ch.draw_series(std::iter::once(Polygon::new(cell, tint(c, 0.18).filled())))
-                    .dr()?;
-            }
+                (c, voronoi_cell(&sites, i, nr.clone(), kr.clone()))
+            })
+            .filter(|(_, cell)| cell.len() >= 3)
+            .collect();
+        for (c, cell) in &cells {
+            ch.draw_series(std::iter::once(Polygon::new(
+                cell.clone(),
+                tint(*c, 0.18).filled(),
+            )))
+            .dr()?;
         }
         configure_axes(
             &mut ch,
@@ -393,135 +532,41 @@ impl Figure for NkFigure<'_> {
         )?;
         let area = ch.plotting_area();
         // Region boundaries (cell edges between different classes are drawn darker).
-        for (i, p) in protos.iter().enumerate() {
-            let cell = voronoi_cell(&sites, i, n0..n1, k0..k1);
-            if cell.len() >= 3 {
-                let c = class_colour(class_idx(&p.class).unwrap_or(0));
-                let mut closed = cell.clone();
-                closed.push(cell[0]);
-                area.draw(&PathElement::new(closed, tint(c, 0.45).stroke_width(1)))
-                    .dr()?;
-            }
+        for (c, cell) in &cells {
+            let mut closed = cell.clone();
+            closed.push(cell[0]);
+            area.draw(&PathElement::new(closed, tint(*c, 0.45).stroke_width(1)))
+                .dr()?;
         }
         // Confidence regions (or 1-σ ellipses) under the markers, then the prototypes,
         // then the estimates' markers on top.
-        let est_colour = |e: &NkEstimate| {
-            e.predicted
-                .as_deref()
-                .and_then(class_idx)
-                .map(|i| shade(class_colour(i), 0.55))
-                .unwrap_or(BLACK)
-        };
-        let mut est_legend = Vec::new();
-        let mut cut = false;
-        // The region styles, listed once: solid (the estimate's own Σ) and one dashed
-        // style per prototype class (colour, dash pattern, text).
-        let mut solid = false;
-        let mut dashed: Vec<(RGBColor, (u32, u32), String)> = Vec::new();
+        let colours: Vec<RGBColor> = ests
+            .iter()
+            .map(|e| {
+                e.predicted
+                    .as_deref()
+                    .and_then(class_idx)
+                    .map(|i| shade(class_colour(i), 0.55))
+                    .unwrap_or(BLACK)
+            })
+            .collect();
+        let mut styles = RegionStyles::default();
         // Thinner lines when many regions overlap.
         let n_regions: usize = ests.iter().map(|e| e.regions.len()).sum();
         let width = if n_regions > 6 { 1 } else { 2 };
-        for (j, e) in ests.iter().enumerate() {
-            let m = ESTIMATE_MARKERS[j % ESTIMATE_MARKERS.len()];
-            let c = est_colour(e);
-            if e.regions.is_empty() {
-                let ell = covariance_ellipse(e.n, e.k, e.n_se, e.k_se, e.corr, 96);
-                if ell.len() > 3 {
-                    area.draw(&PathElement::new(ell, c.stroke_width(2))).dr()?;
-                }
-            }
-            for r in &e.regions {
-                let pts: Vec<(f64, f64)> = r
-                    .boundary
-                    .iter()
-                    .copied()
-                    .filter(|p| p.0.is_finite() && p.1.is_finite())
-                    .collect();
-                if pts.len() < 4 {
-                    continue;
-                }
-                // n < 0 and k < 0 are not physical: the boundary is drawn only where
-                // n ≥ 0 and k ≥ 0, open where it was cut (a note in the legend says so).
-                let (pieces, was_cut) = clip_to_physical(&pts);
-                cut |= was_cut;
-                match &r.with_prototype {
-                    None => {
-                        for piece in pieces {
-                            area.draw(&PathElement::new(piece, c.stroke_width(2)))
-                                .dr()?;
-                        }
-                        solid = true;
-                    }
-                    Some(classes) => {
-                        let ci = classes.first().and_then(|name| class_idx(name));
-                        let pc = ci.map(|i| shade(class_colour(i), 0.75)).unwrap_or(c);
-                        // One dash pattern per prototype class, so that overlapping
-                        // regions of different classes stay apart.
-                        let (dash, gap) = DASHES[ci.unwrap_or(0) % DASHES.len()];
-                        for piece in &pieces {
-                            area.draw(&plotters::element::DashedPathElement::new(
-                                piece.iter().copied(),
-                                dash,
-                                gap,
-                                pc.stroke_width(width),
-                            ))
-                            .dr()?;
-                        }
-                        let text = format!("with {}'s Σ", classes.join(", "));
-                        if !dashed.iter().any(|(_, _, t)| *t == text) {
-                            dashed.push((pc, (dash, gap), text));
-                        }
-                    }
-                }
-            }
-            let text = match &e.answer {
-                Some(a) => format!("{}: {a}", e.label),
-                None => e.label.clone(),
-            };
-            est_legend.push(LegendItem::Marker(m, c, text));
+        for (e, &c) in ests.iter().zip(&colours) {
+            draw_regions(area, e, c, width, &class_idx, &mut styles)?;
         }
         for p in &protos {
             let c = class_colour(class_idx(&p.class).unwrap_or(0));
             draw_marker(area, (p.n, p.k), Marker::Circle, 8, c.filled())?;
             draw_marker(area, (p.n, p.k), Marker::Circle, 8, BLACK.stroke_width(2))?;
         }
-        let mut legend = vec![LegendItem::Heading("Prototypes / regions".into())];
-        for (i, c) in classes.iter().enumerate() {
-            legend.push(LegendItem::Marker(
-                Marker::Circle,
-                class_colour(i),
-                c.to_string(),
-            ));
-        }
-        if !ests.is_empty() {
-            let heading = match ests.iter().find_map(|e| e.regions.first()) {
-                Some(r) => format!("Estimates: answer ({}% region)", r.confidence * 100.0),
-                None => "Estimates (1-σ ellipse)".to_string(),
-            };
-            legend.push(LegendItem::Heading(heading));
-        }
-        for (j, e) in ests.iter().enumerate() {
+        for (j, (e, &c)) in ests.iter().zip(&colours).enumerate() {
             let m = ESTIMATE_MARKERS[j % ESTIMATE_MARKERS.len()];
-            draw_marker(area, (e.n, e.k), m, 6, est_colour(e).filled())?;
+            draw_marker(area, (e.n, e.k), m, 6, c.filled())?;
         }
-        legend.extend(est_legend);
-        if solid || !dashed.is_empty() {
-            legend.push(LegendItem::Heading("Regions".into()));
-        }
-        if solid {
-            legend.push(LegendItem::Line(BLACK, "with the estimate's Σ only".into()));
-        }
-        for (c, pattern, text) in dashed {
-            legend.push(LegendItem::Dashed(c, pattern, text));
-        }
-        if cut {
-            legend.push(LegendItem::Note(
-                "Regions are cut at n = 0 and k = 0: their parts at n < 0 or k < 0 are \
-                 not physical and not drawn (open ends)."
-                    .into(),
-            ));
-        }
-        draw_legend(&side, &legend)?;
+        draw_legend(&side, &nk_legend(&classes, &ests, &colours, styles))?;
         Ok(None)
     }
 }

@@ -5,6 +5,7 @@
 
 use anyhow::Result;
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 use super::PlotSize;
@@ -93,15 +94,66 @@ fn finite(c: &[(f64, f64)]) -> Vec<(f64, f64)> {
         .collect()
 }
 
+/// A plotted position's DoLP and β are finite.
+fn valid(p: &DolpPoint) -> bool {
+    p.beta_deg.is_finite() && p.dolp.is_finite()
+}
+
+/// A position's standard error (0 when it has none).
+fn se(p: &DolpPoint) -> f64 {
+    p.dolp_se
+        .filter(|s| s.is_finite() && *s > 0.0)
+        .unwrap_or(0.0)
+}
+
+/// Plate `p`'s rows in colour `c`: the current positions (diamonds) and the recommended
+/// ones (circles, with their ±1 σ bars).
+fn draw_rows<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    p: &PlanPlate,
+    c: RGBColor,
+) -> Result<()> {
+    for q in p.current.iter().filter(|q| valid(q)) {
+        draw_marker(
+            area,
+            (q.beta_deg, q.dolp),
+            Marker::Diamond,
+            6,
+            WHITE.filled(),
+        )?;
+        draw_marker(
+            area,
+            (q.beta_deg, q.dolp),
+            Marker::Diamond,
+            6,
+            shade(c, 0.8).stroke_width(2),
+        )?;
+    }
+    for q in p.recommended.iter().filter(|q| valid(q)) {
+        let e = se(q);
+        if e > 0.0 {
+            let st = shade(c, 0.7).stroke_width(2);
+            area.draw(&PathElement::new(
+                vec![(q.beta_deg, q.dolp - e), (q.beta_deg, q.dolp + e)],
+                st,
+            ))
+            .dr()?;
+        }
+        draw_marker(area, (q.beta_deg, q.dolp), Marker::Circle, 6, c.filled())?;
+        draw_marker(
+            area,
+            (q.beta_deg, q.dolp),
+            Marker::Circle,
+            6,
+            shade(c, 0.6).stroke_width(1),
+        )?;
+    }
+    Ok(())
+}
+
 impl Figure for PlanFigure<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<Option<Raster>> {
         let (main, side) = layout(root, self.title)?;
-        let valid = |p: &DolpPoint| p.beta_deg.is_finite() && p.dolp.is_finite();
-        let se = |p: &DolpPoint| {
-            p.dolp_se
-                .filter(|s| s.is_finite() && *s > 0.0)
-                .unwrap_or(0.0)
-        };
         let points = || {
             self.plates
                 .iter()
@@ -148,42 +200,7 @@ impl Figure for PlanFigure<'_> {
                 ch.draw_series(LineSeries::new(curve, c.stroke_width(3)))
                     .dr()?;
             }
-            let area = ch.plotting_area();
-            for q in p.current.iter().filter(|q| valid(q)) {
-                draw_marker(
-                    area,
-                    (q.beta_deg, q.dolp),
-                    Marker::Diamond,
-                    6,
-                    WHITE.filled(),
-                )?;
-                draw_marker(
-                    area,
-                    (q.beta_deg, q.dolp),
-                    Marker::Diamond,
-                    6,
-                    shade(c, 0.8).stroke_width(2),
-                )?;
-            }
-            for q in p.recommended.iter().filter(|q| valid(q)) {
-                let e = se(q);
-                if e > 0.0 {
-                    let st = shade(c, 0.7).stroke_width(2);
-                    area.draw(&PathElement::new(
-                        vec![(q.beta_deg, q.dolp - e), (q.beta_deg, q.dolp + e)],
-                        st,
-                    ))
-                    .dr()?;
-                }
-                draw_marker(area, (q.beta_deg, q.dolp), Marker::Circle, 6, c.filled())?;
-                draw_marker(
-                    area,
-                    (q.beta_deg, q.dolp),
-                    Marker::Circle,
-                    6,
-                    shade(c, 0.6).stroke_width(1),
-                )?;
-            }
+            draw_rows(ch.plotting_area(), p, c)?;
             legend.push(LegendItem::Heading(p.heading.clone()));
             legend.push(LegendItem::Line(c, p.curve_label.clone()));
             if !alt.is_empty() {

@@ -338,6 +338,41 @@ fn value_se(v: f64, se: f64) -> String {
     format!("{} ± {}", num(v, 3), num(se, 3))
 }
 
+/// The cells of a classification row in the report's table.
+fn classification_cells(c: &ClassificationRow) -> Vec<String> {
+    let correct = match &c.truth {
+        Some(t) if t == &c.predicted => "yes",
+        Some(_) => "no",
+        None => "—",
+    };
+    vec![
+        c.target.clone(),
+        opt_str(&c.truth),
+        c.predicted.clone(),
+        num(c.distance, 3),
+        opt_str(&c.runner_up),
+        opt_num(c.runner_up_distance, 3),
+        opt_num(c.margin(), 3),
+        correct.to_string(),
+        c.status.clone(),
+        match (&c.candidates, c.confidence) {
+            (Some(v), p) => {
+                let set = if v.is_empty() {
+                    "none".to_string()
+                } else {
+                    v.join(", ")
+                };
+                match p {
+                    Some(p) => format!("{set} (at {}%)", p * 100.0),
+                    None => set,
+                }
+            }
+            (None, _) => "—".to_string(),
+        },
+        opt_str(&c.region),
+    ]
+}
+
 impl Report {
     /// The tables of the report as (section id, caption, headers, rows), formatted.
     fn tables(&self) -> Vec<(&'static str, Table)> {
@@ -438,39 +473,7 @@ impl Report {
                 ],
                 self.classification
                     .iter()
-                    .map(|c| {
-                        let correct = match &c.truth {
-                            Some(t) if t == &c.predicted => "yes",
-                            Some(_) => "no",
-                            None => "—",
-                        };
-                        vec![
-                            c.target.clone(),
-                            opt_str(&c.truth),
-                            c.predicted.clone(),
-                            num(c.distance, 3),
-                            opt_str(&c.runner_up),
-                            opt_num(c.runner_up_distance, 3),
-                            opt_num(c.margin(), 3),
-                            correct.to_string(),
-                            c.status.clone(),
-                            match (&c.candidates, c.confidence) {
-                                (Some(v), p) => {
-                                    let set = if v.is_empty() {
-                                        "none".to_string()
-                                    } else {
-                                        v.join(", ")
-                                    };
-                                    match p {
-                                        Some(p) => format!("{set} (at {}%)", p * 100.0),
-                                        None => set,
-                                    }
-                                }
-                                (None, _) => "—".to_string(),
-                            },
-                            opt_str(&c.region),
-                        ]
-                    })
+                    .map(classification_cells)
                     .collect(),
             ),
         ));
