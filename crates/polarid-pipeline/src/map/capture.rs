@@ -26,7 +26,8 @@ pub(crate) struct Dims {
     pub out_h: usize,
 }
 
-fn core_err(path: &Path) -> impl FnOnce(polarid_core::CoreError) -> IoError + '_ {
+/// The error of a core computation on the data of `path`.
+pub(super) fn core_err(path: &Path) -> impl FnOnce(polarid_core::CoreError) -> IoError + '_ {
     move |e| IoError::Core {
         path: path.to_path_buf(),
         source: e,
