@@ -28,6 +28,7 @@
 //! status 2) with the reason: no PNG/TIFF frames, loose frames beside capture folders,
 //! several frames without angles in their names, frames of different sizes or types.
 
+use std::fmt::Write;
 use std::path::{Component, Path, PathBuf};
 
 use polarid_io::frames_dir::{FrameStats, SensorDepth, frame_stats, list_folder};
@@ -92,23 +93,17 @@ fn data_err(dir: &Path, reason: impl Into<String>) -> PipelineError {
     }
 }
 
-/// Recognise the layout of `cfg.frames_dir` and write the manifest skeleton.
-///
-/// Errors: [`PipelineError::Data`] for a folder that fits no layout (module
-/// documentation), [`PipelineError::Io`] for a missing folder or an unreadable frame.
-pub fn init(cfg: &InitConfig) -> Result<InitOutput> {
-    let dir = cfg.frames_dir.as_path();
-    if !dir.is_dir() {
-        return Err(data_err(
-            dir,
-            if dir.exists() {
-                "is not a folder (give the folder that holds the frames)"
-            } else {
-                "no such folder"
-            },
-        ));
-    }
-    let mut warnings = Vec::new();
+/// The captures found in a folder and what else it holds.
+struct Layout {
+    /// The captures, in manifest order.
+    captures: Vec<FoundCapture>,
+    /// Dark frames (`dark*` files, or in a `dark`/`darks` folder).
+    dark_files: Vec<PathBuf>,
+}
+
+/// Recognise the layout of `dir` (module documentation); a warning for the entries that
+/// are not frames.
+fn find_captures(dir: &Path, warnings: &mut Vec<Warning>) -> Result<Layout> {
     let top = list_folder(dir)?;
     let is_dark_dir = |p: &Path| {
         p.file_name()
@@ -120,18 +115,8 @@ pub fn init(cfg: &InitConfig) -> Result<InitOutput> {
             .map(|n| n.to_string_lossy().to_lowercase())
             .is_some_and(|n| n.starts_with("dark"))
     };
-    let mut dark_files: Vec<PathBuf> = top
-        .images
-        .iter()
-        .filter(|p| is_dark_file(p))
-        .cloned()
-        .collect();
-    let loose: Vec<PathBuf> = top
-        .images
-        .iter()
-        .filter(|p| !is_dark_file(p))
-        .cloned()
-        .collect();
+    let (mut dark_files, loose): (Vec<PathBuf>, Vec<PathBuf>) =
+        top.images.iter().cloned().partition(|p| is_dark_file(p));
     let mut ignored: Vec<PathBuf> = top.others.clone();
     let mut capture_dirs = Vec::new();
     for d in &top.dirs {
@@ -154,7 +139,7 @@ pub fn init(cfg: &InitConfig) -> Result<InitOutput> {
         ignored.extend(sub.others);
         capture_dirs.push((d.clone(), sub.images));
     }
-    let captures = if !capture_dirs.is_empty() {
+    let mut captures = if !capture_dirs.is_empty() {
         if let Some(f) = loose.first() {
             return Err(data_err(
                 dir,
@@ -186,9 +171,8 @@ pub fn init(cfg: &InitConfig) -> Result<InitOutput> {
              folder of frames as the camera wrote them",
         ));
     } else {
-        flat_captures(dir, &loose, &mut warnings)?
+        flat_captures(dir, &loose, warnings)?
     };
-    let mut captures = captures;
     captures.sort_by(|a, b| natural_cmp(&a.name, &b.name));
     if !ignored.is_empty() {
         warnings.push(Warning(format!(
@@ -204,20 +188,24 @@ pub fn init(cfg: &InitConfig) -> Result<InitOutput> {
                 + if ignored.len() > 5 { ", ..." } else { "" }
         )));
     }
+    Ok(Layout {
+        captures,
+        dark_files,
+    })
+}
 
-    // Read every frame: sizes, types, values.
+/// Read every frame of `captures` (sizes, types, values): their statistics, in order.
+/// Errors: frames of different sizes or types, DoFP raws of an odd size.
+fn read_frames(dir: &Path, captures: &[FoundCapture]) -> Result<Vec<FrameStats>> {
     let mut stats: Vec<FrameStats> = Vec::new();
-    let mut inputs = Vec::new();
-    for c in &captures {
+    for c in captures {
         for f in capture_files(&c.data) {
             stats.push(frame_stats(&f)?);
-            inputs.push(f);
         }
     }
     let first = stats
         .first()
-        .ok_or_else(|| data_err(dir, "no frames found"))?
-        .clone();
+        .ok_or_else(|| data_err(dir, "no frames found"))?;
     for s in &stats {
         if [s.width, s.height] != [first.width, first.height] {
             return Err(data_err(
@@ -247,10 +235,7 @@ pub fn init(cfg: &InitConfig) -> Result<InitOutput> {
             ));
         }
     }
-    let has_dofp = captures
-        .iter()
-        .any(|c| matches!(c.data, CaptureData::Dofp(_)));
-    if has_dofp && (first.width % 2 != 0 || first.height % 2 != 0) {
+    if has_dofp(captures) && (first.width % 2 != 0 || first.height % 2 != 0) {
         return Err(data_err(
             dir,
             format!(
@@ -260,6 +245,23 @@ pub fn init(cfg: &InitConfig) -> Result<InitOutput> {
             ),
         ));
     }
+    Ok(stats)
+}
+
+/// Whether some captures are DoFP raws.
+fn has_dofp(captures: &[FoundCapture]) -> bool {
+    captures
+        .iter()
+        .any(|c| matches!(c.data, CaptureData::Dofp(_)))
+}
+
+/// The sensor depth of the raw frames (of every frame when all are Stokes images); a
+/// warning when raw frames reach the saturation level.
+fn sensor_depth(
+    stats: &[FrameStats],
+    captures: &[FoundCapture],
+    warnings: &mut Vec<Warning>,
+) -> SensorDepth {
     let raw_stats: Vec<FrameStats> = stats
         .iter()
         .zip(captures.iter().flat_map(|c| {
@@ -270,7 +272,7 @@ pub fn init(cfg: &InitConfig) -> Result<InitOutput> {
         .map(|(s, _)| s.clone())
         .collect();
     let depth = SensorDepth::infer(if raw_stats.is_empty() {
-        &stats
+        stats
     } else {
         &raw_stats
     });
@@ -294,56 +296,97 @@ pub fn init(cfg: &InitConfig) -> Result<InitOutput> {
             saturated[0].0.display()
         )));
     }
-    // Dark frames.
-    let mut dark = None;
-    if !dark_files.is_empty() {
-        let mut sum = 0.0;
-        for f in &dark_files {
-            let s = frame_stats(f)?;
-            if [s.width, s.height] != [first.width, first.height] {
-                return Err(data_err(
-                    dir,
-                    format!(
-                        "dark frame {} is {}x{}, the frames {}x{}",
-                        f.display(),
-                        s.width,
-                        s.height,
-                        first.width,
-                        first.height
-                    ),
-                ));
-            }
-            sum += s.mean;
-            inputs.push(f.clone());
+    depth
+}
+
+/// `dark_level` (the mean of the dark frames, to 0.1 DN) and how many there were;
+/// `None` without dark frames (a warning when the sensor depth is known). Errors: a dark
+/// frame whose size is not `first`'s.
+fn dark_level(
+    dir: &Path,
+    dark_files: &[PathBuf],
+    first: &FrameStats,
+    depth: &SensorDepth,
+    warnings: &mut Vec<Warning>,
+) -> Result<Option<(f64, usize)>> {
+    if dark_files.is_empty() {
+        if depth.saturation.is_some() {
+            warnings.push(Warning(
+                "no dark frames (dark*.png, or a dark/ folder): dark_level is 0; set it to your \
+                 camera's black level (docs/CAPTURE.md, \"Dark frames\")"
+                    .into(),
+            ));
         }
-        let level = (sum / dark_files.len() as f64 * 10.0).round() / 10.0;
-        dark = Some((level, dark_files.len()));
-    } else if depth.saturation.is_some() {
-        warnings.push(Warning(
-            "no dark frames (dark*.png, or a dark/ folder): dark_level is 0; set it to your \
-             camera's black level (docs/CAPTURE.md, \"Dark frames\")"
-                .into(),
+        return Ok(None);
+    }
+    let mut sum = 0.0;
+    for f in dark_files {
+        let s = frame_stats(f)?;
+        if [s.width, s.height] != [first.width, first.height] {
+            return Err(data_err(
+                dir,
+                format!(
+                    "dark frame {} is {}x{}, the frames {}x{}",
+                    f.display(),
+                    s.width,
+                    s.height,
+                    first.width,
+                    first.height
+                ),
+            ));
+        }
+        sum += s.mean;
+    }
+    let level = (sum / dark_files.len() as f64 * 10.0).round() / 10.0;
+    Ok(Some((level, dark_files.len())))
+}
+
+/// Recognise the layout of `cfg.frames_dir` and write the manifest skeleton.
+///
+/// Errors: [`PipelineError::Data`] for a folder that fits no layout (module
+/// documentation), [`PipelineError::Io`] for a missing folder or an unreadable frame.
+pub fn init(cfg: &InitConfig) -> Result<InitOutput> {
+    let dir = cfg.frames_dir.as_path();
+    if !dir.is_dir() {
+        return Err(data_err(
+            dir,
+            if dir.exists() {
+                "is not a folder (give the folder that holds the frames)"
+            } else {
+                "no such folder"
+            },
         ));
     }
-
+    let mut warnings = Vec::new();
+    let Layout {
+        captures,
+        dark_files,
+    } = find_captures(dir, &mut warnings)?;
+    let stats = read_frames(dir, &captures)?;
+    let depth = sensor_depth(&stats, &captures, &mut warnings);
+    let first = &stats[0];
+    let dark = dark_level(dir, &dark_files, first, &depth, &mut warnings)?;
+    let mut inputs: Vec<PathBuf> = captures
+        .iter()
+        .flat_map(|c| capture_files(&c.data))
+        .collect();
+    inputs.extend(dark_files);
+    let size = [first.width, first.height];
     let manifest_dir = parent_dir(&cfg.manifest_path);
-    let rel = |p: &Path| toml_str(&relative_path(p, &manifest_dir));
-    let text = render(
-        &Render {
-            dir,
-            captures: &captures,
-            size: [first.width, first.height],
-            depth: &depth,
-            dark,
-            opencv: cfg.opencv.as_deref(),
-            quad: has_dofp.then_some(()),
-        },
-        &rel,
-    );
+    let text = render(&Render {
+        dir,
+        captures: &captures,
+        size,
+        depth: &depth,
+        dark,
+        opencv: cfg.opencv.as_deref(),
+        quad: has_dofp(&captures),
+        rel: &|p: &Path| toml_str(&relative_path(p, &manifest_dir)),
+    });
     Ok(InitOutput {
         text,
         captures,
-        size: [first.width, first.height],
+        size,
         depth,
         dark,
         inputs,
@@ -694,100 +737,115 @@ struct Render<'a> {
     dark: Option<(f64, usize)>,
     opencv: Option<&'a Path>,
     /// Some DoFP captures (their pattern is explained).
-    quad: Option<()>,
+    quad: bool,
+    /// A path as the manifest writes it (a TOML string, relative to its folder).
+    rel: &'a dyn Fn(&Path) -> String,
 }
 
 /// The manifest text.
-fn render(r: &Render<'_>, rel: &dyn Fn(&Path) -> String) -> String {
-    use std::fmt::Write;
+fn render(r: &Render<'_>) -> String {
     let mut t = String::new();
-    let kinds: Vec<&str> = {
-        let mut k = Vec::new();
-        for c in r.captures {
+    r.header(&mut t);
+    r.sensor(&mut t);
+    r.geometry(&mut t);
+    r.targets(&mut t);
+    r.captures(&mut t);
+    t
+}
+
+impl Render<'_> {
+    /// What was found and what to fill in.
+    fn header(&self, t: &mut String) {
+        let mut kinds: Vec<&str> = Vec::new();
+        for c in self.captures {
             let s = match c.data {
                 CaptureData::Frames(_) => "rotating-polarizer frame sets",
                 CaptureData::Dofp(_) => "polarization-camera (DoFP) raw frames",
                 CaptureData::Stokes(_) => "Stokes image sets",
             };
-            if !k.contains(&s) {
-                k.push(s);
+            if !kinds.contains(&s) {
+                kinds.push(s);
             }
         }
-        k
-    };
-    let _ = writeln!(
-        t,
-        "# Capture-set manifest written by `polarid init` from {}.\n\
-         # Found: {} capture(s), {}; {}x{} pixels.\n\
-         # Fill in every value marked FILL IN (numbers written `nan`, rectangles [0, 0, 0, 0]):\n\
-         # `polarid measure` refuses the manifest, naming the line, until they are set.\n\
-         # Every key: docs/FORMATS.md (\"Capture-set manifest\"); how to measure them: docs/CAPTURE.md.\n",
-        r.dir.display(),
-        r.captures.len(),
-        kinds.join(" and "),
-        r.size[0],
-        r.size[1],
-    );
-    // Sensor.
-    let _ = writeln!(
-        t,
-        "# --- Sensor ---------------------------------------------------------------"
-    );
-    match r.dark {
-        Some((level, n)) => {
-            let _ = writeln!(
-                t,
-                "dark_level = {}          # DN: the mean of {n} dark frame(s) (lens capped, same exposure and gain)",
-                num(level)
-            );
-        }
-        None => {
-            let _ = writeln!(
-                t,
-                "dark_level = 0.0          # DN subtracted from every raw value: your camera's black level.\n\
-                 #                           Measure it: add dark frames (dark*.png, lens capped, same\n\
-                 #                           exposure and gain) to the folder and run `polarid init` again."
-            );
-        }
-    }
-    match r.depth.saturation {
-        Some(sat) => {
-            let _ = writeln!(
-                t,
-                "saturation = {}       # DN: raw values at or above are rejected. From the files: {}.\n\
-                 #                           Check it against your camera's bit depth ({} bits assumed).",
-                num(sat),
-                r.depth.evidence,
-                r.depth.bits.unwrap_or(0)
-            );
-        }
-        None => {
-            let _ = writeln!(
-                t,
-                "# saturation = 4095.0     # {}; set the raw level at which the sensor saturates.",
-                r.depth.evidence
-            );
-        }
-    }
-    let _ = writeln!(
-        t,
-        "# wavelength_nm = 650.0    # the light's wavelength (lamp x filter x sensor), nm: classify\n\
-         #                           compares with the materials at this wavelength."
-    );
-    let _ = writeln!(
-        t,
-        "# angle_sd_deg = 0.2       # standard uncertainty of the source and camera directions, degrees\n\
-         #                           (docs/ERRORS.md; docs/CAPTURE.md tells how to estimate it).\n"
-    );
-    // Geometry.
-    let _ = writeln!(
-        t,
-        "# --- Geometry -------------------------------------------------------------"
-    );
-    if let Some(cal) = r.opencv {
         let _ = writeln!(
             t,
-            "[camera]                    # a calibrated camera: every pixel gets its own angles\n\
+            "# Capture-set manifest written by `polarid init` from {}.\n\
+             # Found: {} capture(s), {}; {}x{} pixels.\n\
+             # Fill in every value marked FILL IN (numbers written `nan`, rectangles [0, 0, 0, 0]):\n\
+             # `polarid measure` refuses the manifest, naming the line, until they are set.\n\
+             # Every key: docs/FORMATS.md (\"Capture-set manifest\"); how to measure them: docs/CAPTURE.md.\n",
+            self.dir.display(),
+            self.captures.len(),
+            kinds.join(" and "),
+            self.size[0],
+            self.size[1],
+        );
+    }
+
+    /// Dark level, saturation, wavelength and angle uncertainty.
+    fn sensor(&self, t: &mut String) {
+        let _ = writeln!(
+            t,
+            "# --- Sensor ---------------------------------------------------------------"
+        );
+        match self.dark {
+            Some((level, n)) => {
+                let _ = writeln!(
+                    t,
+                    "dark_level = {}          # DN: the mean of {n} dark frame(s) (lens capped, same exposure and gain)",
+                    num(level)
+                );
+            }
+            None => {
+                let _ = writeln!(
+                    t,
+                    "dark_level = 0.0          # DN subtracted from every raw value: your camera's black level.\n\
+                 #                           Measure it: add dark frames (dark*.png, lens capped, same\n\
+                 #                           exposure and gain) to the folder and run `polarid init` again."
+                );
+            }
+        }
+        match self.depth.saturation {
+            Some(sat) => {
+                let _ = writeln!(
+                    t,
+                    "saturation = {}       # DN: raw values at or above are rejected. From the files: {}.\n\
+                 #                           Check it against your camera's bit depth ({} bits assumed).",
+                    num(sat),
+                    self.depth.evidence,
+                    self.depth.bits.unwrap_or(0)
+                );
+            }
+            None => {
+                let _ = writeln!(
+                    t,
+                    "# saturation = 4095.0     # {}; set the raw level at which the sensor saturates.",
+                    self.depth.evidence
+                );
+            }
+        }
+        let _ = writeln!(
+            t,
+            "# wavelength_nm = 650.0    # the light's wavelength (lamp x filter x sensor), nm: classify\n\
+         #                           compares with the materials at this wavelength."
+        );
+        let _ = writeln!(
+            t,
+            "# angle_sd_deg = 0.2       # standard uncertainty of the source and camera directions, degrees\n\
+         #                           (docs/ERRORS.md; docs/CAPTURE.md tells how to estimate it).\n"
+        );
+    }
+
+    /// The camera: calibrated (`[camera]`, `[[plane]]`) or far-field angles.
+    fn geometry(&self, t: &mut String) {
+        let _ = writeln!(
+            t,
+            "# --- Geometry -------------------------------------------------------------"
+        );
+        if let Some(cal) = self.opencv {
+            let _ = writeln!(
+                t,
+                "[camera]                    # a calibrated camera: every pixel gets its own angles\n\
              opencv = {}   # the camera matrix and distortion from OpenCV's calibrateCamera\n\
              position = [nan, nan, nan]  # FILL IN: the camera's centre of projection (entrance pupil, near the lens' front), scene frame\n\
              look_at = [nan, nan, nan]   # FILL IN: a point on the optical axis (e.g. the target in the image centre)\n\
@@ -799,106 +857,113 @@ fn render(r: &Render<'_>, rel: &dyn Fn(&Path) -> String) -> String {
              name = \"target\"\n\
              point = [0.0, 0.0, 0.0]     # a point of the plane\n\
              normal = [0.0, 0.0, 1.0]    # pointing to the camera's side\n",
-            rel(cal)
-        );
-    } else {
-        let _ = writeln!(
-            t,
-            "theta_r_deg = nan          # FILL IN: camera zenith, degrees from the target's normal, in [0, 90)\n\
+                (self.rel)(cal)
+            );
+        } else {
+            let _ = writeln!(
+                t,
+                "theta_r_deg = nan          # FILL IN: camera zenith, degrees from the target's normal, in [0, 90)\n\
              phi_deg = 180.0            # phi_r - phi_i; 180 = source and camera in one plane with the normal\n\
              # Far-field angles: the lamp and the camera far from the targets (distance > ~20x the\n\
              # target's size), so every pixel sees them at the same angles. For a lamp or a lens\n\
              # close to the targets use a calibrated camera instead: `polarid init DIR --opencv\n\
              # calib.yml` writes [camera] and a source position per capture (docs/CAPTURE.md).\n"
-        );
+            );
+        }
     }
-    // Regions.
-    let _ = writeln!(
-        t,
-        "# --- Targets --------------------------------------------------------------"
-    );
-    let _ = writeln!(
-        t,
-        "[[region]]                  # one table per target (copy it for each)\n\
+
+    /// One `[[region]]` to copy per target.
+    fn targets(&self, t: &mut String) {
+        let _ = writeln!(
+            t,
+            "# --- Targets --------------------------------------------------------------"
+        );
+        let _ = writeln!(
+            t,
+            "[[region]]                  # one table per target (copy it for each)\n\
          name = \"target1\"            # FILL IN: a unique name\n\
          rect = [0, 0, 0, 0]         # FILL IN: x (column), y (row), width, height in pixels of the files as\n\
          #                             stored ({}x{}{}), origin top-left. Find them on the S0 view of\n\
          #                             one capture:{}\n\
          # class = \"aluminum\"        # a reference plate of known material: its label for `polarid train`\n",
-        r.size[0],
-        r.size[1],
-        if r.quad.is_some() {
-            ", the raw mosaic"
-        } else {
-            ""
-        },
-        view_command(r.captures.first(), rel)
-    );
-    // Captures.
-    let _ = writeln!(
-        t,
-        "# --- Captures (one per source position) ------------------------------------"
-    );
-    if r.quad.is_some() {
+            self.size[0],
+            self.size[1],
+            if self.quad { ", the raw mosaic" } else { "" },
+            view_command(self.captures.first(), self.rel)
+        );
+    }
+
+    /// One `[[capture]]` per capture.
+    fn captures(&self, t: &mut String) {
         let _ = writeln!(
             t,
-            "# DoFP raws: `pattern` lists the polarizer angles of the 2x2 super-pixel row by row from\n\
+            "# --- Captures (one per source position) ------------------------------------"
+        );
+        if self.quad {
+            let _ = writeln!(
+                t,
+                "# DoFP raws: `pattern` lists the polarizer angles of the 2x2 super-pixel row by row from\n\
              # the top-left: [90, 45, 135, 0] for Sony IMX250MZR/IMX253MZR/IMX264MZR cameras (FLIR,\n\
              # Lucid, Basler, ...); check your camera's manual. A colour polarization camera\n\
              # (IMX250MYR): add color = \"RGGB\" to each dofp.\n"
-        );
-    }
-    for (i, c) in r.captures.iter().enumerate() {
-        let _ = writeln!(t, "[[capture]]");
-        let _ = writeln!(t, "name = {}", toml_str(&c.name));
-        if r.opencv.is_some() {
-            let _ = writeln!(
-                t,
-                "source = {{ position = [nan, nan, nan] }}   # FILL IN: the lamp's position (the centre of its emitting part), scene frame"
-            );
-        } else {
-            let _ = writeln!(
-                t,
-                "theta_i_deg = nan          # FILL IN: source zenith, degrees from the target's normal"
             );
         }
-        let _ = writeln!(
-            t,
-            "exposure = 1.0             # relative exposure (time x gain); S0 is divided by it{}",
-            if i == 0 {
-                ". Leave 1.0 when\n#                            every capture has the same exposure"
+        for (i, c) in self.captures.iter().enumerate() {
+            let _ = writeln!(t, "[[capture]]");
+            let _ = writeln!(t, "name = {}", toml_str(&c.name));
+            if self.opencv.is_some() {
+                let _ = writeln!(
+                    t,
+                    "source = {{ position = [nan, nan, nan] }}   # FILL IN: the lamp's position (the centre of its emitting part), scene frame"
+                );
             } else {
-                ""
+                let _ = writeln!(
+                    t,
+                    "theta_i_deg = nan          # FILL IN: source zenith, degrees from the target's normal"
+                );
             }
-        );
-        match &c.data {
-            CaptureData::Frames(f) => {
-                let _ = writeln!(t, "frames = [");
-                for (a, p) in f {
-                    let _ = writeln!(t, "  {{ angle_deg = {}, file = {} }},", num(*a), rel(p));
+            let _ = writeln!(
+                t,
+                "exposure = 1.0             # relative exposure (time x gain); S0 is divided by it{}",
+                if i == 0 {
+                    ". Leave 1.0 when\n#                            every capture has the same exposure"
+                } else {
+                    ""
                 }
-                let _ = writeln!(t, "]");
+            );
+            match &c.data {
+                CaptureData::Frames(f) => {
+                    let _ = writeln!(t, "frames = [");
+                    for (a, p) in f {
+                        let _ = writeln!(
+                            t,
+                            "  {{ angle_deg = {}, file = {} }},",
+                            num(*a),
+                            (self.rel)(p)
+                        );
+                    }
+                    let _ = writeln!(t, "]");
+                }
+                CaptureData::Dofp(p) => {
+                    let _ = writeln!(
+                        t,
+                        "dofp = {{ file = {}, pattern = [90, 45, 135, 0] }}",
+                        (self.rel)(p)
+                    );
+                }
+                CaptureData::Stokes([s0, s1, s2]) => {
+                    let _ = writeln!(
+                        t,
+                        "stokes = {{ s0 = {}, s1 = {}, s2 = {} }}",
+                        (self.rel)(s0),
+                        (self.rel)(s1),
+                        (self.rel)(s2)
+                    );
+                }
             }
-            CaptureData::Dofp(p) => {
-                let _ = writeln!(
-                    t,
-                    "dofp = {{ file = {}, pattern = [90, 45, 135, 0] }}",
-                    rel(p)
-                );
-            }
-            CaptureData::Stokes([s0, s1, s2]) => {
-                let _ = writeln!(
-                    t,
-                    "stokes = {{ s0 = {}, s1 = {}, s2 = {} }}",
-                    rel(s0),
-                    rel(s1),
-                    rel(s2)
-                );
-            }
+            let _ = writeln!(t);
         }
-        let _ = writeln!(t);
     }
-    t
 }
 
 /// The `polarid stokes` command that shows S0 and DoLP of a capture.

@@ -198,10 +198,10 @@ pub struct SunWindow {
 #[derive(Debug, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawSunWindow {
-    start: Option<toml::Spanned<toml::Value>>,
-    end: Option<toml::Spanned<toml::Value>>,
-    step_minutes: Option<toml::Spanned<toml::Value>>,
-    intensity: Option<toml::Spanned<toml::Value>>,
+    start: SunValue,
+    end: SunValue,
+    step_minutes: SunValue,
+    intensity: SunValue,
 }
 
 /// `[plan]` as written.
@@ -220,32 +220,106 @@ struct RawPlanKeys {
 /// Most times a sun window may give.
 pub const MAX_SUN_TIMES: f64 = 2000.0;
 
-/// Read the scene's `[plan.sun]` table (`None` without one). Errors name the file, the
-/// line, the key and the value (a configuration error: exit status 2).
-pub fn sun_window(scene: &Scene) -> Result<Option<SunWindow>> {
-    let file = scene.path.display().to_string();
-    let line_of = |span: &std::ops::Range<usize>| {
-        scene.text[..span.start.min(scene.text.len())]
+/// A `toml` value of `[plan.sun]` with its place in the file.
+type SunValue = Option<toml::Spanned<toml::Value>>;
+
+/// The scene file being read for `[plan.sun]`: its name and text, for errors naming the
+/// line.
+struct SunFile<'a> {
+    file: String,
+    text: &'a str,
+}
+
+impl SunFile<'_> {
+    /// The line of the byte offset `span.start`.
+    fn line_of(&self, span: &std::ops::Range<usize>) -> usize {
+        self.text[..span.start.min(self.text.len())]
             .bytes()
             .filter(|&b| b == b'\n')
             .count()
             + 1
-    };
-    let err =
-        |span: &std::ops::Range<usize>, key: &str, value: &dyn std::fmt::Display, why: &str| {
-            PipelineError::config(
-                format!("{file}, line {}: plan.sun.{key}", line_of(span)),
-                value,
-                why,
-            )
+    }
+
+    /// The configuration error of key `plan.sun.{key}` at `span`.
+    fn err(
+        &self,
+        span: &std::ops::Range<usize>,
+        key: &str,
+        value: &dyn std::fmt::Display,
+        why: &str,
+    ) -> PipelineError {
+        PipelineError::config(
+            format!("{}, line {}: plan.sun.{key}", self.file, self.line_of(span)),
+            value,
+            why,
+        )
+    }
+
+    /// The time `v` of key `key` (needed: `sun_span` is the table's place): as written,
+    /// Unix seconds and its UTC offset in minutes.
+    fn time(
+        &self,
+        v: &SunValue,
+        key: &str,
+        sun_span: &std::ops::Range<usize>,
+    ) -> Result<(String, f64, i32)> {
+        let Some(v) = v else {
+            return Err(PipelineError::config(
+                format!(
+                    "{}, line {}: plan.sun.{key}",
+                    self.file,
+                    self.line_of(sun_span)
+                ),
+                "(missing)",
+                "is needed: an RFC 3339 time with its offset, e.g. \"2026-06-21T09:00:00-06:00\"",
+            ));
         };
+        let Some(text) = v.get_ref().as_str() else {
+            return Err(self.err(
+                &v.span(),
+                key,
+                v.get_ref(),
+                "must be a quoted RFC 3339 time with its offset",
+            ));
+        };
+        let ts = polarid_io::time::parse_rfc3339_timestamp(text).map_err(|e| {
+            self.err(
+                &v.span(),
+                key,
+                &format!("{text:?}"),
+                &format!("is not a time: {e}"),
+            )
+        })?;
+        Ok((text.to_string(), ts.unix_seconds_f64(), ts.offset_minutes))
+    }
+
+    /// The number `v` of key `key` and its place (`None` when not given).
+    fn number(&self, v: &SunValue, key: &str) -> Result<Option<(f64, std::ops::Range<usize>)>> {
+        let Some(v) = v else { return Ok(None) };
+        let x = match v.get_ref() {
+            toml::Value::Float(f) => *f,
+            toml::Value::Integer(i) => *i as f64,
+            other => return Err(self.err(&v.span(), key, other, "must be a number")),
+        };
+        Ok(Some((x, v.span())))
+    }
+}
+
+/// Read the scene's `[plan.sun]` table (`None` without one). Errors name the file, the
+/// line, the key and the value (a configuration error: exit status 2).
+pub fn sun_window(scene: &Scene) -> Result<Option<SunWindow>> {
+    let f = SunFile {
+        file: scene.path.display().to_string(),
+        text: &scene.text,
+    };
+    let file = &f.file;
     let keys: RawPlanKeys = toml::from_str(&scene.text).map_err(|e| {
         PipelineError::config(
             format!("{file}: [plan]"),
             e.message(),
             format!(
                 "is not a valid [plan] table (line {}; keys: [plan.sun] start, end, step_minutes, intensity)",
-                e.span().map_or(0, |s| line_of(&s))
+                e.span().map_or(0, |s| f.line_of(&s))
             ),
         )
     })?;
@@ -255,7 +329,7 @@ pub fn sun_window(scene: &Scene) -> Result<Option<SunWindow>> {
     let plan_span = plan.span();
     let Some(sun) = plan.into_inner().sun else {
         return Err(PipelineError::config(
-            format!("{file}, line {}: [plan]", line_of(&plan_span)),
+            format!("{file}, line {}: [plan]", f.line_of(&plan_span)),
             "(no sun)",
             "must hold a [plan.sun] table (start, end, step_minutes)",
         ));
@@ -265,42 +339,16 @@ pub fn sun_window(scene: &Scene) -> Result<Option<SunWindow>> {
     let geometry_ok = matches!(&scene.geometry, Geometry::Calibrated(c) if c.site.is_some());
     if !geometry_ok {
         return Err(PipelineError::config(
-            format!("{file}, line {}: [plan.sun]", line_of(&sun_span)),
+            format!("{file}, line {}: [plan.sun]", f.line_of(&sun_span)),
             "(no [site])",
             "needs a calibrated scene ([camera]) with a [site] (latitude_deg, longitude_deg)",
         ));
     }
-    let time = |v: &Option<toml::Spanned<toml::Value>>, key: &str| -> Result<(String, f64, i32)> {
-        let Some(v) = v else {
-            return Err(PipelineError::config(
-                format!("{file}, line {}: plan.sun.{key}", line_of(&sun_span)),
-                "(missing)",
-                "is needed: an RFC 3339 time with its offset, e.g. \"2026-06-21T09:00:00-06:00\"",
-            ));
-        };
-        let Some(text) = v.get_ref().as_str() else {
-            return Err(err(
-                &v.span(),
-                key,
-                v.get_ref(),
-                "must be a quoted RFC 3339 time with its offset",
-            ));
-        };
-        let ts = polarid_io::time::parse_rfc3339_timestamp(text).map_err(|e| {
-            err(
-                &v.span(),
-                key,
-                &format!("{text:?}"),
-                &format!("is not a time: {e}"),
-            )
-        })?;
-        Ok((text.to_string(), ts.unix_seconds_f64(), ts.offset_minutes))
-    };
-    let (start, start_unix_s, offset_minutes) = time(&sun.start, "start")?;
-    let (_, end_unix_s, _) = time(&sun.end, "end")?;
+    let (start, start_unix_s, offset_minutes) = f.time(&sun.start, "start", &sun_span)?;
+    let (_, end_unix_s, _) = f.time(&sun.end, "end", &sun_span)?;
     let end_span = sun.end.as_ref().map_or(sun_span.clone(), |v| v.span());
     if !(end_unix_s > start_unix_s) {
-        return Err(err(
+        return Err(f.err(
             &end_span,
             "end",
             &format!("{end_unix_s}"),
@@ -308,28 +356,18 @@ pub fn sun_window(scene: &Scene) -> Result<Option<SunWindow>> {
         ));
     }
     if end_unix_s - start_unix_s > 366.0 * 86400.0 {
-        return Err(err(
+        return Err(f.err(
             &end_span,
             "end",
             &format!("{end_unix_s}"),
             "must be within a year of plan.sun.start",
         ));
     }
-    let number = |v: &Option<toml::Spanned<toml::Value>>,
-                  key: &str|
-     -> Result<Option<(f64, std::ops::Range<usize>)>> {
-        let Some(v) = v else { return Ok(None) };
-        let x = match v.get_ref() {
-            toml::Value::Float(f) => *f,
-            toml::Value::Integer(i) => *i as f64,
-            other => return Err(err(&v.span(), key, other, "must be a number")),
-        };
-        Ok(Some((x, v.span())))
-    };
-    let (step_minutes, step_span) =
-        number(&sun.step_minutes, "step_minutes")?.unwrap_or((15.0, sun_span.clone()));
+    let (step_minutes, step_span) = f
+        .number(&sun.step_minutes, "step_minutes")?
+        .unwrap_or((15.0, sun_span.clone()));
     if !(step_minutes >= 1.0 && step_minutes <= 1440.0) {
-        return Err(err(
+        return Err(f.err(
             &step_span,
             "step_minutes",
             &step_minutes,
@@ -338,7 +376,7 @@ pub fn sun_window(scene: &Scene) -> Result<Option<SunWindow>> {
     }
     let times = (end_unix_s - start_unix_s) / (60.0 * step_minutes);
     if times > MAX_SUN_TIMES {
-        return Err(err(
+        return Err(f.err(
             &step_span,
             "step_minutes",
             &step_minutes,
@@ -348,9 +386,9 @@ pub fn sun_window(scene: &Scene) -> Result<Option<SunWindow>> {
             ),
         ));
     }
-    let intensity = match number(&sun.intensity, "intensity")? {
+    let intensity = match f.number(&sun.intensity, "intensity")? {
         Some((x, span)) if !(x > 0.0 && x.is_finite()) => {
-            return Err(err(&span, "intensity", &x, "must be > 0"));
+            return Err(f.err(&span, "intensity", &x, "must be > 0"));
         }
         Some((x, _)) => Some(x),
         None => None,
@@ -686,67 +724,109 @@ fn angles(bench: &Bench, p: &PlateView, src: &SourceSpec) -> Option<(f64, f64, f
     }
 }
 
-/// What every plate sees from a source: `None` when a plate is unlit (below its
-/// horizon) or too dark ([`MIN_ELECTRONS`]), or `β` is under 2°.
-fn position_rows(
-    bench: &Bench,
-    plates: &[PlateView],
-    sensor: &Sensor,
-    exposure: &Exposure,
-    src: &SourceSpec,
-    intensity: f64,
-    dolp_se: Option<f64>,
-) -> Option<Vec<RowGeometry>> {
-    let mut s0 = Vec::with_capacity(plates.len());
-    let mut peak: f64 = 0.0;
-    let mut geo = Vec::with_capacity(plates.len());
-    for p in plates {
-        let (ti, tr, phi, e) = angles(bench, p, src)?;
-        let mut per_band = Vec::with_capacity(p.bands.len());
-        let mut beta = 0.0;
-        for &(n, k, response, _) in &p.bands {
-            let f = pbrdf(n, k, p.sigma, ti, tr, phi).ok()?;
-            // L = E cos θi (f00, …) times the band's response: S0 and the brightest
-            // polarizer angle S0 (1 + P) / 2.
-            let l0 = intensity * e * ti.cos() * f.local[0][0] * response;
-            peak = peak.max(0.5 * l0 * (1.0 + f.dolp));
-            per_band.push(l0);
-            beta = f.beta;
+impl Bench {
+    fn of(geometry: &Geometry) -> Bench {
+        match geometry {
+            Geometry::Calibrated(c) => Bench::Calibrated {
+                camera: c.camera.position,
+            },
+            Geometry::FarField {
+                theta_r_deg,
+                phi_deg,
+                ..
+            } => Bench::FarField {
+                theta_r: theta_r_deg.to_radians(),
+                phi: phi_deg.to_radians(),
+            },
         }
-        s0.push(per_band);
-        geo.push((beta, ti));
     }
-    let x = exposure.resolve(peak).ok()?;
-    let mut rows = Vec::with_capacity(plates.len());
-    for ((p, l0s), (beta, ti)) in plates.iter().zip(s0).zip(geo) {
-        if beta.to_degrees() < 2.0 {
-            return None;
+}
+
+/// How the scene's plates are lit and seen: what a source position gives.
+struct Lighting<'a> {
+    bench: Bench,
+    plates: Vec<PlateView>,
+    sensor: &'a Sensor,
+    exposure: &'a Exposure,
+    /// The sources' intensity (the mean of the scene's own).
+    intensity: f64,
+    /// A fixed DoLP standard error per row (`None`: from the shot and read noise).
+    dolp_se: Option<f64>,
+}
+
+impl Lighting<'_> {
+    /// The position of the source `spec` at the scene's intensity ([`Self::rows`]).
+    fn position(&self, label: String, spec: SourceSpec) -> Option<Position> {
+        self.position_with(label, spec, self.intensity)
+    }
+
+    /// The position of the source `spec` at `intensity` ([`Self::rows`]).
+    fn position_with(&self, label: String, spec: SourceSpec, intensity: f64) -> Option<Position> {
+        self.rows(&spec, intensity).map(|rows| Position {
+            label,
+            spec,
+            rows,
+            in_plane: true,
+        })
+    }
+
+    /// What every plate sees from a source: `None` when a plate is unlit (below its
+    /// horizon) or too dark ([`MIN_ELECTRONS`]), or `β` is under 2°.
+    fn rows(&self, src: &SourceSpec, intensity: f64) -> Option<Vec<RowGeometry>> {
+        let plates = &self.plates;
+        let mut s0 = Vec::with_capacity(plates.len());
+        let mut peak: f64 = 0.0;
+        let mut geo = Vec::with_capacity(plates.len());
+        for p in plates {
+            let (ti, tr, phi, e) = angles(&self.bench, p, src)?;
+            let mut per_band = Vec::with_capacity(p.bands.len());
+            let mut beta = 0.0;
+            for &(n, k, response, _) in &p.bands {
+                let f = pbrdf(n, k, p.sigma, ti, tr, phi).ok()?;
+                // L = E cos θi (f00, …) times the band's response: S0 and the brightest
+                // polarizer angle S0 (1 + P) / 2.
+                let l0 = intensity * e * ti.cos() * f.local[0][0] * response;
+                peak = peak.max(0.5 * l0 * (1.0 + f.dolp));
+                per_band.push(l0);
+                beta = f.beta;
+            }
+            s0.push(per_band);
+            geo.push((beta, ti));
         }
-        let mut bands = Vec::with_capacity(l0s.len());
-        for (l0, &(_, _, _, sets)) in l0s.iter().zip(&p.bands) {
-            // Expected S0 electrons of one pixel (the sum of two orthogonal polarizer
-            // frames: x · S0 · full well).
-            let el = sensor.electrons_per_unit(x) * l0;
-            if !(el >= MIN_ELECTRONS) {
+        let x = self.exposure.resolve(peak).ok()?;
+        let mut rows = Vec::with_capacity(plates.len());
+        for ((p, l0s), (beta, ti)) in plates.iter().zip(s0).zip(geo) {
+            if beta.to_degrees() < 2.0 {
                 return None;
             }
-            // Shot and read noise of a small DoLP from K independent sets of four
-            // samples (S1 = I0 − I90 has variance S0 + 2 r² electrons²):
-            // var P ≈ (S0 + 2 r²) / (K S0²).
-            let r2 = sensor.read_noise_e * sensor.read_noise_e;
-            let se = dolp_se.unwrap_or_else(|| ((el + 2.0 * r2) / (sets * el * el)).sqrt());
-            bands.push(BandNoise {
-                dolp_se: se,
-                electrons: el,
+            let mut bands = Vec::with_capacity(l0s.len());
+            for (l0, &(_, _, _, sets)) in l0s.iter().zip(&p.bands) {
+                // Expected S0 electrons of one pixel (the sum of two orthogonal polarizer
+                // frames: x · S0 · full well).
+                let el = self.sensor.electrons_per_unit(x) * l0;
+                if !(el >= MIN_ELECTRONS) {
+                    return None;
+                }
+                // Shot and read noise of a small DoLP from K independent sets of four
+                // samples (S1 = I0 − I90 has variance S0 + 2 r² electrons²):
+                // var P ≈ (S0 + 2 r²) / (K S0²).
+                let r2 = self.sensor.read_noise_e * self.sensor.read_noise_e;
+                let se = self
+                    .dolp_se
+                    .unwrap_or_else(|| ((el + 2.0 * r2) / (sets * el * el)).sqrt());
+                bands.push(BandNoise {
+                    dolp_se: se,
+                    electrons: el,
+                });
+            }
+            rows.push(RowGeometry {
+                beta_deg: beta.to_degrees(),
+                theta_i_deg: ti.to_degrees(),
+                bands,
             });
         }
-        rows.push(RowGeometry {
-            beta_deg: beta.to_degrees(),
-            theta_i_deg: ti.to_degrees(),
-            bands,
-        });
+        Some(rows)
     }
-    Some(rows)
 }
 
 /// The hypotheses of the plan and its error model.
@@ -764,6 +844,43 @@ struct Models {
 }
 
 impl Models {
+    fn new(
+        cfg: &PlanConfig,
+        names: Vec<String>,
+        models: Vec<CandidateModel>,
+        truth: Vec<usize>,
+        wavelengths: &[f64],
+    ) -> Models {
+        let fit = cfg.fit;
+        let angle_sd = fit.angle_sd_deg.to_radians();
+        Models {
+            names,
+            models,
+            truth,
+            cfg: HypothesisConfig {
+                confidence: cfg.confidence,
+                nuisances: Nuisances::from_error_model(
+                    fit.extinction_ratio,
+                    fit.retardance_deg.to_radians(),
+                    angle_sd,
+                ),
+            },
+            wavelengths: wavelengths.to_vec(),
+            angle_sd,
+            floor: fit.dolp_floor,
+            power: cfg.power,
+            fit,
+        }
+    }
+
+    /// Each target's truth grid.
+    fn grids(&self) -> Vec<Vec<TruthPoint>> {
+        self.truth
+            .iter()
+            .map(|&m| truth_grid(&self.models[m], &self.cfg))
+            .collect()
+    }
+
     /// Target `t`'s rows at `positions`: one per position and band (only band `band`
     /// when given).
     fn rows_of(&self, positions: &[&Position], t: usize, band: Option<usize>) -> Vec<PlanRow> {
@@ -847,11 +964,7 @@ impl Models {
     /// Every pair of every target, the full grid.
     fn evaluate(&self, positions: Vec<Position>) -> Result<Evaluation> {
         let refs: Vec<&Position> = positions.iter().collect();
-        let grids: Vec<Vec<TruthPoint>> = self
-            .truth
-            .iter()
-            .map(|&m| truth_grid(&self.models[m], &self.cfg))
-            .collect();
+        let grids = self.grids();
         let mut pairs = self
             .all_pairs()
             .into_par_iter()
@@ -1092,20 +1205,19 @@ fn exchange(
     best
 }
 
-/// Plan the captures of `scene` (module documentation).
-///
-/// Errors: a configuration error naming the option, a scene without plates of a
-/// candidate material (naming the plates and the library), an unusable library, a region
-/// with fewer lit positions than asked for.
-pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
-    cfg.validate()?;
-    let mut warnings = Vec::new();
-    let scene_path = scene.path.display().to_string();
-    // The bands: a colour scene's (every band together, as `classify`), else one.
-    let (wavelengths, band_letters, library): (Vec<f64>, Vec<char>, String) = match scene
-        .capture
-        .bands()
-    {
+/// The bands a scene is planned in and the library holding its candidates.
+struct PlanBands {
+    wavelengths: Vec<f64>,
+    letters: Vec<char>,
+    library: String,
+}
+
+/// A colour scene's bands (every band together, as `classify`; the one-band library
+/// `builtin` becomes `builtin-rgb`), else one band: the scene's wavelength or the
+/// built-in library's.
+fn plan_bands(scene: &Scene, cfg: &PlanConfig, warnings: &mut Vec<Warning>) -> PlanBands {
+    let scene_path = scene.path.display();
+    match scene.capture.bands() {
         Some(bands) => {
             let library = if cfg.library == "builtin" {
                 warnings.push(Warning(format!(
@@ -1116,11 +1228,11 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
             } else {
                 cfg.library.clone()
             };
-            (
-                bands.iter().map(|b| b.wavelength_nm).collect(),
-                bands.iter().map(|b| b.letter).collect(),
+            PlanBands {
+                wavelengths: bands.iter().map(|b| b.wavelength_nm).collect(),
+                letters: bands.iter().map(|b| b.letter).collect(),
                 library,
-            )
+            }
         }
         None => {
             let wl = match scene.wavelength_nm {
@@ -1133,12 +1245,24 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
                     polarid_io::library::BUILTIN_WAVELENGTH_NM
                 }
             };
-            (vec![wl], Vec::new(), cfg.library.clone())
+            PlanBands {
+                wavelengths: vec![wl],
+                letters: Vec::new(),
+                library: cfg.library.clone(),
+            }
         }
-    };
-    // The candidates.
-    let source = PrototypeSource::Library(library.clone());
-    let (protos, label, w) = source.load_multi_for(&wavelengths, 0)?;
+    }
+}
+
+/// The candidate materials of the library `bands.library` (only `cfg.materials` when
+/// given): their names (each once), their models and the library's label.
+fn candidate_models(
+    cfg: &PlanConfig,
+    bands: &PlanBands,
+    warnings: &mut Vec<Warning>,
+) -> Result<(Vec<String>, Vec<CandidateModel>, String)> {
+    let source = PrototypeSource::Library(bands.library.clone());
+    let (protos, label, w) = source.load_multi_for(&bands.wavelengths, 0)?;
     warnings.extend(w);
     let protos: Vec<MultiPrototype> = if cfg.materials.is_empty() {
         protos
@@ -1163,29 +1287,27 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
         if names.contains(&p.class) {
             continue;
         }
-        if let Some(m) = CandidateModel::from_prototype(p, &wavelengths) {
+        if let Some(m) = CandidateModel::from_prototype(p, &bands.wavelengths) {
             names.push(p.class.clone());
             models.push(m);
         }
     }
-    // The targets: plates whose class is a candidate.
-    let bench = match &scene.geometry {
-        Geometry::Calibrated(c) => Bench::Calibrated {
-            camera: c.camera.position,
-        },
-        Geometry::FarField {
-            theta_r_deg,
-            phi_deg,
-            ..
-        } => Bench::FarField {
-            theta_r: theta_r_deg.to_radians(),
-            phi: phi_deg.to_radians(),
-        },
-    };
-    // Pixels per independent DoLP estimate of each band: a super-pixel of four (DoFP),
-    // one pixel (rotating polarizer); a colour DoFP's band has `blocks` of the four 2×2
-    // blocks of each 4×4 period.
-    let per_set: Vec<f64> = match &scene.capture {
+    Ok((names, models, label))
+}
+
+/// The plates planned for (those whose class is a candidate), as the report names them,
+/// as indices into the candidates, and as the planner sees them.
+struct TargetPlates {
+    targets: Vec<Target>,
+    truth: Vec<usize>,
+    plates: Vec<PlateView>,
+}
+
+/// Pixels per independent DoLP estimate of each band: a super-pixel of four (DoFP), one
+/// pixel (rotating polarizer); a colour DoFP's band has `blocks` of the four 2×2 blocks
+/// of each 4×4 period.
+fn pixels_per_set(capture: &CaptureKind) -> Vec<f64> {
+    match capture {
         CaptureKind::Dofp { .. } => vec![4.0],
         CaptureKind::ColourDofp { pattern, bands } => (0..bands.len())
             .map(|b| {
@@ -1194,10 +1316,27 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
             })
             .collect(),
         CaptureKind::Frames { .. } => vec![1.0],
+    }
+}
+
+/// The scene's plates whose class is one of `names` (the library `label`'s materials);
+/// a warning for each other plate. Errors when none is.
+fn target_plates(
+    scene: &Scene,
+    names: &[String],
+    label: &str,
+    warnings: &mut Vec<Warning>,
+) -> Result<TargetPlates> {
+    let per_set = pixels_per_set(&scene.capture);
+    let responses: Vec<f64> = match scene.capture.bands() {
+        Some(bands) => bands.iter().map(|b| b.response).collect(),
+        None => vec![1.0],
     };
-    let mut targets = Vec::new();
-    let mut truth = Vec::new();
-    let mut plates = Vec::new();
+    let mut out = TargetPlates {
+        targets: Vec::new(),
+        truth: Vec::new(),
+        plates: Vec::new(),
+    };
     for p in &scene.plates {
         let Some(class) = &p.class else {
             warnings.push(Warning(format!(
@@ -1220,22 +1359,18 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
             }
             _ => ([0.0; 3], [0.0, 0.0, 1.0]),
         };
-        targets.push(Target {
+        out.targets.push(Target {
             name: p.name.clone(),
             material: class.clone(),
         });
-        truth.push(i);
+        out.truth.push(i);
         let pixels = (p.region.width * p.region.height) as f64;
         let optics: Vec<(f64, f64)> = if p.bands.is_empty() {
             vec![(p.optics.n, p.optics.k)]
         } else {
             p.bands.iter().map(|o| (o.n, o.k)).collect()
         };
-        let responses: Vec<f64> = match scene.capture.bands() {
-            Some(bands) => bands.iter().map(|b| b.response).collect(),
-            None => vec![1.0],
-        };
-        plates.push(PlateView {
+        out.plates.push(PlateView {
             center,
             normal,
             bands: optics
@@ -1247,39 +1382,22 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
             sigma: p.optics.sigma,
         });
     }
-    if targets.is_empty() {
+    if out.targets.is_empty() {
         return Err(PipelineError::config(
             "scene",
-            &scene_path,
+            scene.path.display(),
             format!(
                 "no plate has a class that is a material of {label}: give each plate the \
                  `class` of its material"
             ),
         ));
     }
-    let fit = &cfg.fit;
-    let angle_sd = fit.angle_sd_deg.to_radians();
-    let hcfg = HypothesisConfig {
-        confidence: cfg.confidence,
-        nuisances: Nuisances::from_error_model(
-            fit.extinction_ratio,
-            fit.retardance_deg.to_radians(),
-            angle_sd,
-        ),
-    };
-    let models = Models {
-        names: names.clone(),
-        models,
-        truth,
-        cfg: hcfg,
-        wavelengths: wavelengths.clone(),
-        angle_sd,
-        floor: fit.dolp_floor,
-        power: cfg.power,
-        fit: *fit,
-    };
-    // The scene's own sources.
-    let (own, intensity): (Vec<(String, SourceSpec)>, f64) = match &scene.geometry {
+    Ok(out)
+}
+
+/// The scene's own sources (label and spec) and their mean intensity.
+fn own_sources(geometry: &Geometry) -> (Vec<(String, SourceSpec)>, f64) {
+    match geometry {
         Geometry::Calibrated(c) => (
             c.sources
                 .iter()
@@ -1310,195 +1428,167 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
                 .collect(),
             1.0,
         ),
-    };
-    let make_with = |label: String, spec: SourceSpec, intensity: f64| -> Option<Position> {
-        position_rows(
-            &bench,
-            &plates,
-            &scene.sensor,
-            &scene.exposure,
-            &spec,
-            intensity,
-            cfg.dolp_se,
-        )
-        .map(|rows| Position {
-            label,
-            spec,
-            rows,
-            in_plane: true,
-        })
-    };
-    let make = |label: String, spec: SourceSpec| make_with(label, spec, intensity);
-    let mut current_positions = Vec::new();
-    for (label, spec) in &own {
-        match make(label.clone(), spec.clone()) {
-            Some(p) => current_positions.push(p),
-            None => warnings.push(Warning(format!(
-                "the scene's {label} leaves a plate dark or unlit: left out of the current plan"
-            ))),
-        }
     }
-    // The region's candidates.
-    let r = &cfg.region;
-    let steps_of = |(lo, hi): (f64, f64), step: f64| -> Vec<f64> {
-        let n = ((hi - lo) / step + 1e-9).floor() as usize;
-        (0..=n).map(|i| lo + i as f64 * step).collect()
+}
+
+/// The sun over the window `w`: one candidate per time the sun is up and lights every
+/// plate. Errors: a scene without a `[site]`, a window with fewer such times than
+/// `cfg.positions`.
+fn sun_candidates(
+    light: &Lighting,
+    scene: &Scene,
+    w: &SunWindow,
+    cfg: &PlanConfig,
+) -> Result<Vec<Position>> {
+    let scene_path = scene.path.display().to_string();
+    let site = match &scene.geometry {
+        Geometry::Calibrated(c) => c.site.as_ref(),
+        Geometry::FarField { .. } => None,
     };
-    let steps = |range: (f64, f64)| steps_of(range, r.step_deg);
+    let Some(site) = site else {
+        return Err(PipelineError::config(
+            "[plan.sun]",
+            &scene_path,
+            "needs a [site]",
+        ));
+    };
+    let core_site = polarid_core::sun::Site {
+        latitude_deg: site.latitude_deg,
+        longitude_deg: site.longitude_deg,
+        elevation_m: site.elevation_m,
+        pressure_mbar: site.pressure_mbar,
+        temperature_c: site.temperature_c,
+    };
+    let path = polarid_core::sun::sun_path(
+        &core_site,
+        w.start_unix_s,
+        w.end_unix_s,
+        60.0 * w.step_minutes,
+    )?;
     let mut cands = Vec::new();
-    let sun = sun_window(scene)?;
-    if let (Some(w), Geometry::Calibrated(c)) = (&sun, &scene.geometry) {
-        // The sun over the window: one candidate per time the sun is up and lights
-        // every plate.
-        let Some(site) = &c.site else {
-            return Err(PipelineError::config(
-                "[plan.sun]",
-                &scene_path,
-                "needs a [site]",
-            ));
+    for (t, pos) in path {
+        let time = local_time(t, w.offset_minutes);
+        let spec = SourceSpec::Sun {
+            time: time.clone(),
+            unix_seconds: t,
+            zenith_deg: pos.zenith_deg,
+            azimuth_deg: pos.azimuth_deg,
+            direction: polarid_core::sun::sun_direction(&pos),
         };
-        let core_site = polarid_core::sun::Site {
-            latitude_deg: site.latitude_deg,
-            longitude_deg: site.longitude_deg,
-            elevation_m: site.elevation_m,
-            pressure_mbar: site.pressure_mbar,
-            temperature_c: site.temperature_c,
-        };
-        let path = polarid_core::sun::sun_path(
-            &core_site,
-            w.start_unix_s,
-            w.end_unix_s,
-            60.0 * w.step_minutes,
-        )?;
-        for (t, pos) in path {
-            let time = local_time(t, w.offset_minutes);
-            let spec = SourceSpec::Sun {
-                time: time.clone(),
-                unix_seconds: t,
-                zenith_deg: pos.zenith_deg,
-                azimuth_deg: pos.azimuth_deg,
-                direction: polarid_core::sun::sun_direction(&pos),
-            };
-            if let Some(mut p) = make_with(time, spec, w.intensity.unwrap_or(intensity)) {
-                p.in_plane = false;
-                cands.push(p);
-            }
-        }
-        if cands.len() < cfg.positions {
-            return Err(PipelineError::config(
-                format!("{scene_path}: [plan.sun]"),
-                format!(
-                    "{} to {} every {} min",
-                    w.start,
-                    local_time(w.end_unix_s, w.offset_minutes),
-                    w.step_minutes
-                ),
-                format!(
-                    "gives only {} times when the sun is up and lights every plate, for {} \
-                     positions: widen the window, shorten the step or ask for fewer",
-                    cands.len(),
-                    cfg.positions
-                ),
-            ));
-        }
-    } else {
-        match (&bench, &scene.geometry) {
-            (Bench::Calibrated { camera }, Geometry::Calibrated(_)) => {
-                let n_p = plates.len() as f64;
-                let o = plates.iter().fold([0.0; 3], |a, p| {
-                    [
-                        a[0] + p.center[0] / n_p,
-                        a[1] + p.center[1] / n_p,
-                        a[2] + p.center[2] / n_p,
-                    ]
-                });
-                let nrm = plates[0].normal;
-                let away = sub(o, *camera);
-                let e1 = unit(sub(away, {
-                    let c = dot(away, nrm);
-                    [c * nrm[0], c * nrm[1], c * nrm[2]]
-                }));
-                let e2 = cross(nrm, e1);
-                let mut lamps: Vec<f64> = own
-                    .iter()
-                    .filter_map(|(_, s)| match s {
-                        SourceSpec::Position(p) => Some(norm(sub(*p, o))),
-                        _ => None,
-                    })
-                    .collect();
-                lamps.sort_by(f64::total_cmp);
-                let distance = r.distance.or(lamps.get(lamps.len() / 2).copied());
-                for &t in &steps(r.zenith_deg) {
-                    let azis = if t == 0.0 {
-                        vec![0.0]
-                    } else {
-                        let mut a = steps_of(r.azimuth_deg, 2.0 * r.step_deg);
-                        if r.azimuth_deg.0 <= 0.0 && r.azimuth_deg.1 >= 0.0 && !a.contains(&0.0) {
-                            a.push(0.0);
-                        }
-                        a
-                    };
-                    for &a in &azis {
-                        let (tr, ar) = (t.to_radians(), a.to_radians());
-                        let dir = [
-                            tr.sin() * ar.cos() * e1[0]
-                                + tr.sin() * ar.sin() * e2[0]
-                                + tr.cos() * nrm[0],
-                            tr.sin() * ar.cos() * e1[1]
-                                + tr.sin() * ar.sin() * e2[1]
-                                + tr.cos() * nrm[1],
-                            tr.sin() * ar.cos() * e1[2]
-                                + tr.sin() * ar.sin() * e2[2]
-                                + tr.cos() * nrm[2],
-                        ];
-                        let (label, spec) = match distance {
-                            Some(d) => (
-                                format!("d {d:.2}, t {t}, a {a}"),
-                                SourceSpec::Position([
-                                    o[0] + d * dir[0],
-                                    o[1] + d * dir[1],
-                                    o[2] + d * dir[2],
-                                ]),
-                            ),
-                            None => (format!("t {t}, a {a}"), SourceSpec::Direction(dir)),
-                        };
-                        if let Some(mut p) = make(label, spec) {
-                            p.in_plane = a == 0.0;
-                            cands.push(p);
-                        }
-                    }
-                }
-            }
-            _ => {
-                for &t in &steps(r.zenith_deg) {
-                    let tr = t.to_radians();
-                    if let Some(p) = make(
-                        format!("t {t}"),
-                        SourceSpec::Direction([tr.sin(), 0.0, tr.cos()]),
-                    ) {
-                        cands.push(p);
-                    }
-                }
-            }
+        if let Some(mut p) = light.position_with(time, spec, w.intensity.unwrap_or(light.intensity))
+        {
+            p.in_plane = false;
+            cands.push(p);
         }
     }
     if cands.len() < cfg.positions {
         return Err(PipelineError::config(
-            "positions",
-            cfg.positions,
+            format!("{scene_path}: [plan.sun]"),
             format!(
-                "the region gives only {} lit positions (zenith {:?}, azimuth {:?}, step {}): \
-                 widen it or ask for fewer",
+                "{} to {} every {} min",
+                w.start,
+                local_time(w.end_unix_s, w.offset_minutes),
+                w.step_minutes
+            ),
+            format!(
+                "gives only {} times when the sun is up and lights every plate, for {} \
+                 positions: widen the window, shorten the step or ask for fewer",
                 cands.len(),
-                r.zenith_deg,
-                r.azimuth_deg,
-                r.step_deg
+                cfg.positions
             ),
         ));
     }
-    // Active pairs: each target's hardest alternatives, screened on the candidates in
-    // the camera's plane of incidence (all of them when none is), each with the three
-    // points of its truth grid that were hardest there.
+    Ok(cands)
+}
+
+/// `lo, lo + step, …` up to `hi`.
+fn steps_of((lo, hi): (f64, f64), step: f64) -> Vec<f64> {
+    let n = ((hi - lo) / step + 1e-9).floor() as usize;
+    (0..=n).map(|i| lo + i as f64 * step).collect()
+}
+
+/// The region's lit candidates: lamps on a grid of zenith and azimuth about the plates'
+/// centre (calibrated bench; at the distance `r.distance`, else the median of the
+/// scene's lamps `own`, else distant), or far-field directions of the zeniths.
+fn region_candidates(light: &Lighting, own: &[(String, SourceSpec)], r: &Region) -> Vec<Position> {
+    let zeniths = steps_of(r.zenith_deg, r.step_deg);
+    let mut cands = Vec::new();
+    let Bench::Calibrated { camera } = &light.bench else {
+        for &t in &zeniths {
+            let tr = t.to_radians();
+            if let Some(p) = light.position(
+                format!("t {t}"),
+                SourceSpec::Direction([tr.sin(), 0.0, tr.cos()]),
+            ) {
+                cands.push(p);
+            }
+        }
+        return cands;
+    };
+    let plates = &light.plates;
+    let n_p = plates.len() as f64;
+    let o = plates.iter().fold([0.0; 3], |a, p| {
+        [
+            a[0] + p.center[0] / n_p,
+            a[1] + p.center[1] / n_p,
+            a[2] + p.center[2] / n_p,
+        ]
+    });
+    let nrm = plates[0].normal;
+    let away = sub(o, *camera);
+    let e1 = unit(sub(away, {
+        let c = dot(away, nrm);
+        [c * nrm[0], c * nrm[1], c * nrm[2]]
+    }));
+    let e2 = cross(nrm, e1);
+    let mut lamps: Vec<f64> = own
+        .iter()
+        .filter_map(|(_, s)| match s {
+            SourceSpec::Position(p) => Some(norm(sub(*p, o))),
+            _ => None,
+        })
+        .collect();
+    lamps.sort_by(f64::total_cmp);
+    let distance = r.distance.or(lamps.get(lamps.len() / 2).copied());
+    for &t in &zeniths {
+        let azis = if t == 0.0 {
+            vec![0.0]
+        } else {
+            let mut a = steps_of(r.azimuth_deg, 2.0 * r.step_deg);
+            if r.azimuth_deg.0 <= 0.0 && r.azimuth_deg.1 >= 0.0 && !a.contains(&0.0) {
+                a.push(0.0);
+            }
+            a
+        };
+        for &a in &azis {
+            let (tr, ar) = (t.to_radians(), a.to_radians());
+            let dir: [f64; 3] = std::array::from_fn(|i| {
+                tr.sin() * ar.cos() * e1[i] + tr.sin() * ar.sin() * e2[i] + tr.cos() * nrm[i]
+            });
+            let (label, spec) = match distance {
+                Some(d) => (
+                    format!("d {d:.2}, t {t}, a {a}"),
+                    SourceSpec::Position(std::array::from_fn(|i| o[i] + d * dir[i])),
+                ),
+                None => (format!("t {t}, a {a}"), SourceSpec::Direction(dir)),
+            };
+            if let Some(mut p) = light.position(label, spec) {
+                p.in_plane = a == 0.0;
+                cands.push(p);
+            }
+        }
+    }
+    cands
+}
+
+/// Active pairs: each target's hardest alternatives, screened on the candidates in the
+/// camera's plane of incidence (all of them when none is), each with the three points of
+/// its truth grid that were hardest there.
+fn active_pairs(
+    models: &Models,
+    cands: &[Position],
+    grids: &[Vec<TruthPoint>],
+) -> Result<Vec<Active>> {
     let in_plane: Vec<&Position> = cands.iter().filter(|p| p.in_plane).collect();
     let screen: Vec<&Position> = if in_plane.len() >= 3 {
         in_plane
@@ -1506,8 +1596,7 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
         cands.iter().collect()
     };
     let mut active: Vec<Active> = Vec::new();
-    for t in 0..targets.len() {
-        let grid = truth_grid(&models.models[models.truth[t]], &models.cfg);
+    for (t, grid) in grids.iter().enumerate() {
         let alts: Vec<usize> = (0..models.models.len())
             .filter(|&alt| alt != models.truth[t])
             .collect();
@@ -1515,7 +1604,7 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
             .into_par_iter()
             .map(|alt| {
                 let mut pts: Vec<(f64, TruthPoint)> = Vec::with_capacity(grid.len());
-                for &at in &grid {
+                for &at in grid {
                     pts.push((models.margin(&screen, t, alt, &[at])?.0, at));
                 }
                 pts.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -1531,14 +1620,22 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
             });
         }
     }
-    // Start: positions spread evenly in the first target's β.
-    let mut order: Vec<usize> = (0..cands.len()).collect();
-    order.sort_by(|&a, &b| {
+    Ok(active)
+}
+
+/// Sort candidate indices by the first target's β.
+fn sort_by_beta(idx: &mut [usize], cands: &[Position]) {
+    idx.sort_by(|&a, &b| {
         cands[a].rows[0]
             .beta_deg
             .total_cmp(&cands[b].rows[0].beta_deg)
     });
-    let n = cfg.positions;
+}
+
+/// The starting design: `n` positions spread evenly in the first target's β.
+fn start_design(cands: &[Position], n: usize) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..cands.len()).collect();
+    sort_by_beta(&mut order, cands);
     let mut idx: Vec<usize> = (0..n)
         .map(|i| order[(i * (order.len() - 1)) / (n - 1)])
         .collect();
@@ -1548,17 +1645,24 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
             idx.push(c);
         }
     }
+    idx
+}
+
+/// Up to three rounds of [`exchange`] from the positions `idx`: after each, every pair is
+/// checked at the chosen positions, and a pair found harder than the active ones (or a
+/// harder truth point of an active pair) is added before searching again. Returns the
+/// smallest margin before and after each pass.
+fn search(
+    models: &Models,
+    cands: &[Position],
+    grids: &[Vec<TruthPoint>],
+    idx: &mut [usize],
+    active: &mut Vec<Active>,
+) -> Result<Vec<f64>> {
     let all_pairs = models.all_pairs();
-    let grids: Vec<Vec<TruthPoint>> = models
-        .truth
-        .iter()
-        .map(|&m| truth_grid(&models.models[m], &models.cfg))
-        .collect();
     let mut progress = Vec::new();
     for _round in 0..3 {
-        let best = exchange(&models, &cands, &mut idx, &mut active, &mut progress);
-        // Check every pair at the chosen positions; add a pair found harder than the
-        // active ones and search again.
+        let best = exchange(models, cands, idx, active, &mut progress);
         let chosen: Vec<&Position> = idx.iter().map(|&i| &cands[i]).collect();
         let checked = all_pairs
             .par_iter()
@@ -1587,11 +1691,70 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
             break;
         }
     }
-    idx.sort_by(|&a, &b| {
-        cands[a].rows[0]
-            .beta_deg
-            .total_cmp(&cands[b].rows[0].beta_deg)
-    });
+    Ok(progress)
+}
+
+/// Plan the captures of `scene` (module documentation).
+///
+/// Errors: a configuration error naming the option, a scene without plates of a
+/// candidate material (naming the plates and the library), an unusable library, a region
+/// with fewer lit positions than asked for.
+pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
+    cfg.validate()?;
+    let mut warnings = Vec::new();
+    let bands = plan_bands(scene, cfg, &mut warnings);
+    let (names, models, label) = candidate_models(cfg, &bands, &mut warnings)?;
+    let TargetPlates {
+        targets,
+        truth,
+        plates,
+    } = target_plates(scene, &names, &label, &mut warnings)?;
+    let models = Models::new(cfg, names, models, truth, &bands.wavelengths);
+    let (own, intensity) = own_sources(&scene.geometry);
+    let light = Lighting {
+        bench: Bench::of(&scene.geometry),
+        plates,
+        sensor: &scene.sensor,
+        exposure: &scene.exposure,
+        intensity,
+        dolp_se: cfg.dolp_se,
+    };
+    let mut current_positions = Vec::new();
+    for (label, spec) in &own {
+        match light.position(label.clone(), spec.clone()) {
+            Some(p) => current_positions.push(p),
+            None => warnings.push(Warning(format!(
+                "the scene's {label} leaves a plate dark or unlit: left out of the current plan"
+            ))),
+        }
+    }
+    let sun = sun_window(scene)?;
+    let cands = match &sun {
+        Some(w) if matches!(scene.geometry, Geometry::Calibrated(_)) => {
+            sun_candidates(&light, scene, w, cfg)?
+        }
+        _ => region_candidates(&light, &own, &cfg.region),
+    };
+    if cands.len() < cfg.positions {
+        let r = &cfg.region;
+        return Err(PipelineError::config(
+            "positions",
+            cfg.positions,
+            format!(
+                "the region gives only {} lit positions (zenith {:?}, azimuth {:?}, step {}): \
+                 widen it or ask for fewer",
+                cands.len(),
+                r.zenith_deg,
+                r.azimuth_deg,
+                r.step_deg
+            ),
+        ));
+    }
+    let grids = models.grids();
+    let mut active = active_pairs(&models, &cands, &grids)?;
+    let mut idx = start_design(&cands, cfg.positions);
+    let progress = search(&models, &cands, &grids, &mut idx, &mut active)?;
+    sort_by_beta(&mut idx, &cands);
     let recommended = models.evaluate(idx.iter().map(|&i| cands[i].clone()).collect())?;
     let current = if current_positions.len() >= 2 {
         Some(models.evaluate(current_positions)?)
@@ -1601,11 +1764,11 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
     Ok(PlanOutput {
         scene: scene.path.clone(),
         targets,
-        materials: names,
+        materials: models.names,
         library: label,
-        library_source: library,
-        wavelengths_nm: wavelengths,
-        band_letters,
+        library_source: bands.library,
+        wavelengths_nm: bands.wavelengths,
+        band_letters: bands.letters,
         current,
         recommended,
         progress,

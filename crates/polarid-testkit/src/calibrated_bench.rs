@@ -112,9 +112,11 @@ pub fn manifest_text(plates: &[Plate], lamps: &[[f64; 3]]) -> String {
     }
     for (j, l) in lamps.iter().enumerate() {
         t += &format!(
-            "\n[[capture]]\nsource = {{ position = [{}, {}, {}] }}\n\
-             stokes = {{ s0 = \"c{j}_s0.tif\", s1 = \"c{j}_s1.tif\", s2 = \"c{j}_s2.tif\" }}\n",
+            "\n[[capture]]\nsource = {{ position = [{}, {}, {}] }}\n",
             l[0], l[1], l[2]
+        );
+        t += &format!(
+            "stokes = {{ s0 = \"c{j}_s0.tif\", s1 = \"c{j}_s1.tif\", s2 = \"c{j}_s2.tif\" }}\n"
         );
     }
     t

@@ -30,6 +30,7 @@ use polarid_io::table::classification::ClassificationRow;
 use polarid_io::table::fits::FitRow;
 use polarid_io::table::measurements::Measurement;
 
+use super::reference::SceneCalibration;
 use super::{ClassifyConfig, ClassifyOutput, PrototypeSource};
 use crate::fit::{FitConfig, fit};
 use crate::{PipelineError, Result};
@@ -275,6 +276,148 @@ pub fn explain_hypotheses(f: &FitRow, out: &HypothesisOutcome, top: usize, p: f6
     s
 }
 
+/// The calibration of the scene by its in-scene references ([`super::reference`]): the
+/// hypothesis rows of every reference target, the nuisance prior of every target's
+/// largest direction uncertainty.
+fn calibrate_references(
+    path: &Path,
+    groups: &[TargetRows<'_>],
+    protos: &[MultiPrototype],
+    cfg: &ClassifyConfig,
+    fit_cfg: &FitConfig,
+) -> Result<(Option<SceneCalibration>, Vec<crate::Warning>)> {
+    let mut refs = Vec::new();
+    let mut angle_all: f64 = 0.0;
+    for g in groups {
+        let (hrows, bands, angle_max) = hyp_rows(&g.rows, fit_cfg);
+        angle_all = angle_all.max(angle_max);
+        if let Some(r) = g.reference.clone() {
+            refs.push(super::reference::ReferenceRows {
+                target: g.target,
+                reference: r,
+                rows: hrows,
+                bands,
+            });
+        }
+    }
+    let prior = Nuisances::from_error_model(
+        fit_cfg.extinction_ratio,
+        fit_cfg.retardance_deg.to_radians(),
+        angle_all,
+    );
+    super::reference::calibrate_scene(
+        &path.display().to_string(),
+        &refs,
+        protos,
+        prior,
+        cfg.classifier.confidence,
+    )
+}
+
+/// The classification of the targets so far: a row and a note per target, the
+/// hypotheses of each tested one.
+#[derive(Default)]
+struct Classified {
+    rows: Vec<ClassificationRow>,
+    notes: Vec<String>,
+    hypotheses: Vec<super::TargetHypotheses>,
+}
+
+/// What classifying each target shares.
+struct TargetClassifier<'a> {
+    path: &'a Path,
+    cfg: &'a ClassifyConfig,
+    fit_cfg: &'a FitConfig,
+    protos: &'a [MultiPrototype],
+    priors: &'a [f64],
+    /// The in-scene references' calibration.
+    scene: Option<&'a SceneCalibration>,
+}
+
+impl TargetClassifier<'_> {
+    /// Classify target `g` (its fits `fits`, `f` the first): a reference's row, an
+    /// unclassified row when a fit is not `ok`, else the hypothesis tests on its rows.
+    fn target(
+        &self,
+        g: &TargetRows<'_>,
+        fits: &[FitRow],
+        f: &FitRow,
+        out: &mut Classified,
+    ) -> Result<()> {
+        let confidence = self.cfg.classifier.confidence;
+        if let Some(c) = self.scene
+            && let Some(rf) = c.references.iter().find(|r| r.target == g.target)
+        {
+            out.notes.push(super::reference::explain_reference(rf, c));
+            out.rows
+                .push(super::reference::reference_row(f, rf, confidence));
+            return Ok(());
+        }
+        let not_ok = fits
+            .iter()
+            .filter(|f| f.target == g.target)
+            .find(|f| f.status != FitStatus::Ok);
+        if let Some(bad) = not_ok {
+            let d = unclassified(
+                Status::FitNotOk(bad.status),
+                format!(
+                    "not classified: its fit{} is {} ({})",
+                    bad.wavelength_nm
+                        .map_or(String::new(), |w| format!(" at {w} nm")),
+                    bad.status,
+                    bad.reason
+                ),
+            );
+            out.notes.push(format!("{}: {}", g.target, d.reason));
+            out.rows.push(hypothesis_row(f, None, &d, confidence));
+            return Ok(());
+        }
+        self.tested(g, f, out)
+    }
+
+    /// Target `g` tested against every material on its rows (within the scale and
+    /// offset of the in-scene references when they calibrate them).
+    fn tested(&self, g: &TargetRows<'_>, f: &FitRow, out: &mut Classified) -> Result<()> {
+        let confidence = self.cfg.classifier.confidence;
+        let (hrows, bands, angle_max) = hyp_rows(&g.rows, self.fit_cfg);
+        let hcfg = HypothesisConfig {
+            confidence,
+            nuisances: Nuisances::from_error_model(
+                self.fit_cfg.extinction_ratio,
+                self.fit_cfg.retardance_deg.to_radians(),
+                angle_max,
+            ),
+        };
+        let priors = Some(self.priors);
+        let bounds = self.scene.and_then(|c| c.bounds.as_ref());
+        let tested = match bounds {
+            Some(b) => classify_rows_within(&hrows, &bands, self.protos, priors, &hcfg, b),
+            None => classify_rows(&hrows, &bands, self.protos, priors, &hcfg),
+        }
+        .map_err(|e| PipelineError::Data {
+            path: self.path.display().to_string(),
+            reason: format!("target {:?}: {e}", g.target),
+        })?;
+        let mut note = explain_hypotheses(f, &tested, self.cfg.explain, confidence);
+        if bounds.is_some() {
+            note.push_str(" (scale and offset calibrated by the in-scene reference)");
+        }
+        out.notes.push(note);
+        out.hypotheses.push(super::TargetHypotheses {
+            target: g.target.to_string(),
+            tested: tested.tested.clone(),
+            calibrated: bounds.is_some(),
+        });
+        out.rows.push(hypothesis_row(
+            f,
+            Some(&tested),
+            &tested.decision,
+            confidence,
+        ));
+        Ok(())
+    }
+}
+
 /// Classify every target of a measurements table (each row with its line in `path`)
 /// against `source` by the hypothesis tests, with the error model of `fit_cfg`
 /// (docs/ERRORS.md; nuisance bounds [`Nuisances::from_error_model`], the independent
@@ -322,117 +465,33 @@ pub fn classify_measurements(
             protos.len()
         )));
     }
-    let mut out_rows = Vec::new();
-    let mut notes = Vec::new();
-    let mut hypotheses = Vec::new();
     let groups = group(&assigned);
     // In-scene references calibrate the scale and the offset of every other target.
-    let mut refs = Vec::new();
-    let mut angle_all: f64 = 0.0;
-    for g in &groups {
-        let (hrows, bands, angle_max) = hyp_rows(&g.rows, fit_cfg);
-        angle_all = angle_all.max(angle_max);
-        if let Some(r) = g.reference.clone() {
-            refs.push(super::reference::ReferenceRows {
-                target: g.target,
-                reference: r,
-                rows: hrows,
-                bands,
-            });
-        }
-    }
-    let prior = Nuisances::from_error_model(
-        fit_cfg.extinction_ratio,
-        fit_cfg.retardance_deg.to_radians(),
-        angle_all,
-    );
-    let (scene, ref_warnings) = super::reference::calibrate_scene(
-        &path.display().to_string(),
-        &refs,
-        &protos,
-        prior,
-        cfg.classifier.confidence,
-    )?;
+    let (scene, ref_warnings) = calibrate_references(path, &groups, &protos, cfg, fit_cfg)?;
     warnings.extend(ref_warnings);
-    for g in groups {
-        let Some(f) = fits.iter().find(|f| f.target == g.target) else {
-            continue;
-        };
-        if let Some(rf) = scene
-            .as_ref()
-            .and_then(|c| c.references.iter().find(|r| r.target == g.target))
-        {
-            if let Some(c) = &scene {
-                notes.push(super::reference::explain_reference(rf, c));
-            }
-            out_rows.push(super::reference::reference_row(
-                f,
-                rf,
-                cfg.classifier.confidence,
-            ));
-            continue;
+    let classifier = TargetClassifier {
+        path,
+        cfg,
+        fit_cfg,
+        protos: &protos,
+        priors: &priors,
+        scene: scene.as_ref(),
+    };
+    let mut out = Classified::default();
+    for g in &groups {
+        if let Some(f) = fits.iter().find(|f| f.target == g.target) {
+            classifier.target(g, &fits, f, &mut out)?;
         }
-        let target_fits: Vec<&FitRow> = fits.iter().filter(|f| f.target == g.target).collect();
-        let not_ok = target_fits.iter().find(|f| f.status != FitStatus::Ok);
-        if let Some(bad) = not_ok {
-            let d = unclassified(
-                Status::FitNotOk(bad.status),
-                format!(
-                    "not classified: its fit{} is {} ({})",
-                    bad.wavelength_nm
-                        .map_or(String::new(), |w| format!(" at {w} nm")),
-                    bad.status,
-                    bad.reason
-                ),
-            );
-            notes.push(format!("{}: {}", g.target, d.reason));
-            out_rows.push(hypothesis_row(f, None, &d, cfg.classifier.confidence));
-            continue;
-        }
-        let (hrows, bands, angle_max) = hyp_rows(&g.rows, fit_cfg);
-        let hcfg = HypothesisConfig {
-            confidence: cfg.classifier.confidence,
-            nuisances: Nuisances::from_error_model(
-                fit_cfg.extinction_ratio,
-                fit_cfg.retardance_deg.to_radians(),
-                angle_max,
-            ),
-        };
-        let bounds = scene.as_ref().and_then(|c| c.bounds);
-        let out = match &bounds {
-            Some(b) => classify_rows_within(&hrows, &bands, &protos, Some(&priors), &hcfg, b),
-            None => classify_rows(&hrows, &bands, &protos, Some(&priors), &hcfg),
-        }
-        .map_err(|e| PipelineError::Data {
-            path: path.display().to_string(),
-            reason: format!("target {:?}: {e}", g.target),
-        })?;
-        let mut note = explain_hypotheses(f, &out, cfg.explain, cfg.classifier.confidence);
-        if bounds.is_some() {
-            note.push_str(" (scale and offset calibrated by the in-scene reference)");
-        }
-        notes.push(note);
-        hypotheses.push(super::TargetHypotheses {
-            target: g.target.to_string(),
-            tested: out.tested.clone(),
-            calibrated: bounds.is_some(),
-        });
-        out_rows.push(hypothesis_row(
-            f,
-            Some(&out),
-            &out.decision,
-            cfg.classifier.confidence,
-        ));
     }
     let clf = super::multi_classifier(protos, &label, cfg.classifier)?;
     Ok((
         ClassifyOutput {
-            rows: out_rows,
-            notes,
+            rows: out.rows,
+            notes: out.notes,
             label,
             classifier: clf,
             warnings,
-            hypotheses,
+            hypotheses: out.hypotheses,
             calibration: scene,
         },
         fits,

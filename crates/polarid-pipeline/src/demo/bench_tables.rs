@@ -39,6 +39,14 @@ pub(super) fn tables(
     class_rows: &[ClassificationRow],
     map: &MapResult,
 ) -> String {
+    let table1 = fits_table(truth, fits);
+    let table2 = classification_table(class_rows);
+    let table3 = map_table(map);
+    format!("{table1}\n{table2}\n{table3}")
+}
+
+/// Table 1: the fits against the plates' true index.
+fn fits_table(truth: &[TruthRow], fits: &[(u64, FitRow)]) -> String {
     let mut t1 = Vec::new();
     for (_, f) in fits {
         let Some((n, k)) = true_index(truth, &f.target) else {
@@ -61,12 +69,16 @@ pub(super) fn tables(
             f.status.to_string(),
         ]);
     }
-    let table1 = text_table(
+    text_table(
         "Table 1. Bench fits (simulated lamp-and-lens bench, per-pixel geometry). n, k: the \
          plates' true index; n̂, k̂: estimates ± 1 standard error; z: error in standard errors.",
         &["Target", "set", "n", "k", "n̂", "k̂", "z(n)", "z(k)", "fit"],
         &t1,
-    );
+    )
+}
+
+/// Table 2: the test plates' classification.
+fn classification_table(class_rows: &[ClassificationRow]) -> String {
     let t2: Vec<Vec<String>> = class_rows
         .iter()
         .map(|c| {
@@ -83,7 +95,7 @@ pub(super) fn tables(
             ]
         })
         .collect();
-    let table2 = text_table(
+    text_table(
         &format!(
             "Table 2. Test plates (another render, the lamp mirrored across the plane of \
              incidence) against the training fits, {}. Classification: a material, \
@@ -99,7 +111,11 @@ pub(super) fn tables(
             "margin",
         ],
         &t2,
-    );
+    )
+}
+
+/// Table 3: the map's shares per plate region.
+fn map_table(map: &MapResult) -> String {
     let t3: Vec<Vec<String>> = map
         .regions
         .iter()
@@ -136,7 +152,7 @@ pub(super) fn tables(
             ]
         })
         .collect();
-    let table3 = text_table(
+    text_table(
         &format!(
             "Table 3. Map of the test set ({MAP_BIN} × {MAP_BIN} binning, per-pixel fit, {}): \
              per plate region, the share of its blocks given one material, `ambiguous` and \
@@ -153,8 +169,7 @@ pub(super) fn tables(
             "correct",
         ],
         &t3,
-    );
-    format!("{table1}\n{table2}\n{table3}")
+    )
 }
 
 /// The rule of the classification rows in words (their `rule` and `confidence`

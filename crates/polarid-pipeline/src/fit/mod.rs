@@ -325,6 +325,21 @@ pub fn fit(
         // No target could be fitted: the input as a whole is unusable.
         return Err(e);
     }
+    let warnings = fit_warnings(cfg, rows, skipped_rows, &out);
+    Ok(FitOutput {
+        targets: out,
+        warnings,
+    })
+}
+
+/// The warnings of a fit of `rows` into `out` (`skipped_rows`: rows whose status is not
+/// ok): the mixed fit's mean geometry, skipped rows, targets not `ok`.
+fn fit_warnings(
+    cfg: &FitConfig,
+    rows: &[(u64, Measurement)],
+    skipped_rows: usize,
+    out: &[TargetFit],
+) -> Vec<Warning> {
     let mut warnings = Vec::new();
     if cfg.reflectance == Reflectance::Mixed
         && rows
@@ -350,10 +365,7 @@ pub fn fit(
             out.len()
         )));
     }
-    Ok(FitOutput {
-        targets: out,
-        warnings,
-    })
+    warnings
 }
 
 /// The largest standard error of an `ok` estimate, in widths of its search box

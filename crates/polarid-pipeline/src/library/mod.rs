@@ -261,6 +261,107 @@ fn nm(x_um: f64) -> String {
     format!("{:.1}", x_um * 1e3)
 }
 
+/// The mean `(n, k)` of file `s`'s `data` in every band of `cfg`. A band the data do not
+/// cover is skipped with a warning under `--skip-missing` (counted in `out.skipped`),
+/// else an error; so is a mean that is not a usable index.
+fn band_means(
+    cfg: &LibraryConfig,
+    s: &sources::Source,
+    data: &RiiData,
+    out: &mut LibraryBuild,
+) -> Result<Vec<(Band, f64, f64)>> {
+    let (lo_um, hi_um) = data.range_um();
+    let mut rows: Vec<(Band, f64, f64)> = Vec::new();
+    for &band in &cfg.bands {
+        let (first, last, _) = samples(band, cfg.step);
+        if !(first / 1e3 >= lo_um && last / 1e3 <= hi_um) {
+            let what = format!(
+                "band {band} is not covered by the data, whose range is {}–{} nm \
+                 (no extrapolation)",
+                nm(lo_um),
+                nm(hi_um)
+            );
+            if cfg.skip_missing {
+                out.warnings
+                    .push(Warning(format!("{}: {what}; skipped", s.path.display())));
+                out.skipped += 1;
+                continue;
+            }
+            return Err(IoError::Model {
+                path: s.path.clone(),
+                reason: format!("{what}; choose another band or pass --skip-missing"),
+            }
+            .into());
+        }
+        let (n, k) = data.band_mean(band.lo, band.hi, cfg.step)?;
+        if !(n > 0.0 && k >= 0.0) {
+            return Err(IoError::Model {
+                path: s.path.clone(),
+                reason: format!(
+                    "band mean n = {n}, k = {k} over {band} is not a usable index \
+                     (need n > 0, k >= 0)"
+                ),
+            }
+            .into());
+        }
+        rows.push((band, n, k));
+    }
+    Ok(rows)
+}
+
+/// The surface layer of file `s` (material `name`): as the names map gives it
+/// (`given`), else the built-in surface of its built-in source or of its name.
+fn surface_layer(
+    given: Option<Option<sources::LayerSpec>>,
+    s: &sources::Source,
+    name: &str,
+) -> Option<sources::LayerSpec> {
+    match given {
+        Some(spec) => spec,
+        None => BUILTIN_SOURCES
+            .iter()
+            .find(|b| s.path.ends_with(b.file))
+            .map(|b| b.name)
+            .and_then(builtin_surface)
+            .or_else(|| builtin_surface(name))
+            .map(|b| sources::LayerSpec {
+                name: b.layer.to_string(),
+                min_nm: b.min_nm,
+                max_nm: b.max_nm,
+                index: None,
+            }),
+    }
+}
+
+/// Surface layer `l` of file `s` in `band`: its index there (given, or the band mean of
+/// its data; a warning when they do not cover the band).
+fn layer_in_band(
+    l: &sources::LayerSpec,
+    band: Band,
+    cfg: &LibraryConfig,
+    s: &sources::Source,
+    warnings: &mut Vec<Warning>,
+) -> Result<MaterialLayer> {
+    let index = match l.index {
+        Some(x) => Some(x),
+        None => layer_index(&l.name, band.lo, band.hi, cfg.step)?,
+    };
+    if index.is_none() {
+        warnings.push(Warning(format!(
+            "{}: the data of surface layer {} do not cover band {band}; \
+             the layer has no index there",
+            s.path.display(),
+            l.name
+        )));
+    }
+    Ok(MaterialLayer {
+        name: l.name.clone(),
+        index,
+        min_nm: l.min_nm,
+        max_nm: l.max_nm,
+    })
+}
+
 /// Build a library from YAML files or folders of them (`inputs`) and an optional names
 /// map (CSV). Progress stage `"files"`.
 pub fn build_library(
@@ -275,48 +376,17 @@ pub fn build_library(
         None => BTreeMap::new(),
     };
     let multi = cfg.bands.len() > 1;
-    let mut materials: Vec<Material> = Vec::new();
-    let mut warnings = Vec::new();
-    let mut skipped = 0;
+    let mut out = LibraryBuild {
+        materials: Vec::new(),
+        files: Vec::new(),
+        warnings: Vec::new(),
+        skipped: 0,
+    };
     let mut names: BTreeMap<String, PathBuf> = BTreeMap::new();
     for (i, s) in srcs.iter().enumerate() {
         progress("files", i as u64, srcs.len() as u64);
         let data = RiiData::read(&s.path)?;
-        let (lo_um, hi_um) = data.range_um();
-        let mut rows: Vec<(Band, f64, f64)> = Vec::new();
-        for &band in &cfg.bands {
-            let (first, last, _) = samples(band, cfg.step);
-            if !(first / 1e3 >= lo_um && last / 1e3 <= hi_um) {
-                let what = format!(
-                    "band {band} is not covered by the data, whose range is {}–{} nm \
-                     (no extrapolation)",
-                    nm(lo_um),
-                    nm(hi_um)
-                );
-                if cfg.skip_missing {
-                    warnings.push(Warning(format!("{}: {what}; skipped", s.path.display())));
-                    skipped += 1;
-                    continue;
-                }
-                return Err(IoError::Model {
-                    path: s.path.clone(),
-                    reason: format!("{what}; choose another band or pass --skip-missing"),
-                }
-                .into());
-            }
-            let (n, k) = data.band_mean(band.lo, band.hi, cfg.step)?;
-            if !(n > 0.0 && k >= 0.0) {
-                return Err(IoError::Model {
-                    path: s.path.clone(),
-                    reason: format!(
-                        "band mean n = {n}, k = {k} over {band} is not a usable index \
-                         (need n > 0, k >= 0)"
-                    ),
-                }
-                .into());
-            }
-            rows.push((band, n, k));
-        }
+        let rows = band_means(cfg, s, &data, &mut out)?;
         if rows.is_empty() {
             continue;
         }
@@ -339,46 +409,13 @@ pub fn build_library(
             .or_else(|| sources::folder_category(s))
             .or_else(|| cfg.category.clone());
         let reference = m.reference.or_else(|| Some(s.rel.display().to_string()));
-        let layer: Option<sources::LayerSpec> = match m.layer {
-            Some(spec) => spec,
-            None => BUILTIN_SOURCES
-                .iter()
-                .find(|b| s.path.ends_with(b.file))
-                .map(|b| b.name)
-                .and_then(builtin_surface)
-                .or_else(|| builtin_surface(&name))
-                .map(|b| sources::LayerSpec {
-                    name: b.layer.to_string(),
-                    min_nm: b.min_nm,
-                    max_nm: b.max_nm,
-                    index: None,
-                }),
-        };
+        let layer = surface_layer(m.layer, s, &name);
         for (band, n, k) in rows {
             let layer = match &layer {
                 None => None,
-                Some(l) => {
-                    let index = match l.index {
-                        Some(x) => Some(x),
-                        None => layer_index(&l.name, band.lo, band.hi, cfg.step)?,
-                    };
-                    if index.is_none() {
-                        warnings.push(Warning(format!(
-                            "{}: the data of surface layer {} do not cover band {band}; \
-                             the layer has no index there",
-                            s.path.display(),
-                            l.name
-                        )));
-                    }
-                    Some(MaterialLayer {
-                        name: l.name.clone(),
-                        index,
-                        min_nm: l.min_nm,
-                        max_nm: l.max_nm,
-                    })
-                }
+                Some(l) => Some(layer_in_band(l, band, cfg, s, &mut out.warnings)?),
             };
-            materials.push(Material {
+            out.materials.push(Material {
                 name: name.clone(),
                 category: category.clone(),
                 n,
@@ -391,19 +428,15 @@ pub fn build_library(
         }
     }
     progress("files", srcs.len() as u64, srcs.len() as u64);
-    if materials.is_empty() {
+    if out.materials.is_empty() {
         return Err(PipelineError::config(
             "--band",
             cfg.band(),
             "is covered by no input file (every file was skipped)",
         ));
     }
-    Ok(LibraryBuild {
-        materials,
-        files: srcs.into_iter().map(|s| s.path).collect(),
-        warnings,
-        skipped,
-    })
+    out.files = srcs.into_iter().map(|s| s.path).collect();
+    Ok(out)
 }
 
 #[cfg(test)]

@@ -24,6 +24,7 @@ use polarid_core::map::{
 use polarid_io::IoError;
 use polarid_io::manifest::{Capture, CaptureSource, Manifest};
 
+use super::capture::core_err;
 use super::{MapConfig, MapPrototypes, MapResult, decide};
 use crate::error::{PipelineError, Result};
 use crate::progress::{Progress, Warning};
@@ -409,7 +410,6 @@ pub struct BandsFit {
 /// classified once on all its bands against `profiles` (module documentation). `path`
 /// names the data in errors and warnings, `label` the prototypes. Progress stages:
 /// `"pixels (fit, 450 nm)"` per band, `"pixels (classify)"`.
-#[allow(clippy::too_many_arguments)]
 pub fn fit_bands(
     cfg: &MapConfig,
     accs: Vec<BandDolp>,
@@ -423,6 +423,188 @@ pub fn fit_bands(
     let decision = decide::decision(cfg, MapPrototypes::Given { profiles, label }, &wavelengths)?;
     let plans = fit_plans(&accs, geo.far_betas, !geo.beta.is_empty(), path)?;
     fit_bands_with(cfg, accs, &plans, geo, &decision, None, path, progress)
+}
+
+/// What the per-pixel fit of every band shares (stage 2 of [`fit_bands_with`]).
+struct BandFitter<'a> {
+    cfg: &'a MapConfig,
+    geo: FitGeometry<'a>,
+    /// The prototypes of the decision.
+    profiles: &'a [MultiPrototype],
+    /// Every prototype's first band: a band's classifier when no prototype has it.
+    all_first: Vec<Prototype>,
+    /// The classifier that answers in the fit (`--rule nearest`, single band).
+    answer: Option<&'a PixelClassifier>,
+    pixel_plan: PixelBetaPlan,
+    /// Whether the fits are weighted by a noise model.
+    weighted: bool,
+    path: &'a Path,
+    progress: Progress<'a>,
+}
+
+/// One band fitted: its images, its fit's correlation of `n` and `k` per pixel (empty
+/// when the fit answers), its class per pixel and counts.
+struct BandFitted {
+    band: BandMap,
+    corr: Vec<f32>,
+    class: Vec<u16>,
+    counts: MapCounts,
+}
+
+impl BandFitter<'_> {
+    /// The classifier a band's fit needs (its per-band answer is used only as
+    /// `answer`): the prototypes' bands at its wavelength, else their first bands.
+    fn band_classifier(&self, a: &BandDolp) -> Result<PixelClassifier> {
+        let mut protos: Vec<Prototype> = self
+            .profiles
+            .iter()
+            .flat_map(|p| {
+                p.bands
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, b)| same_band(b.wavelength_nm, a.wavelength_nm))
+                    .filter_map(|(i, _)| p.band_prototype(i))
+            })
+            .collect();
+        if protos.is_empty() {
+            protos = self.all_first.clone();
+        }
+        Ok(Classifier::new(protos, ClassifierConfig::default())
+            .and_then(|c| PixelClassifier::new(c, None))
+            .map_err(core_err(self.path))?)
+    }
+
+    /// The band's noise model: given, or estimated for weighted fits (a warning when
+    /// too few pixels are usable), else none.
+    fn band_noise(
+        &self,
+        a: &BandDolp,
+        betas: Betas<'_>,
+        views: &[&[f32]],
+        (rv, sv): (&[&[f32]], &[&[f32]]),
+        warnings: &mut Vec<Warning>,
+    ) -> Result<Option<NoiseEstimate>> {
+        if let Some(given) = a.noise_model {
+            return Ok(given.map(|model| NoiseEstimate {
+                model,
+                pixels: 0,
+                outliers: 0,
+                reduced_chi2: f64::NAN,
+            }));
+        }
+        if !self.weighted {
+            return Ok(None);
+        }
+        let e = estimate_noise(betas, views, rv, sv, &a.flags).map_err(core_err(self.path))?;
+        if e.is_none() {
+            warnings.push(Warning(format!(
+                "{}: {}too few usable pixels to estimate the noise model; the per-pixel \
+                 fits are unweighted",
+                self.path.display(),
+                a.tag().map_or(String::new(), |t| format!("band {t} nm: "))
+            )));
+        }
+        Ok(e)
+    }
+
+    /// Band `a` fitted per pixel (with its far-field `plan`; `None`: a β per pixel).
+    fn fit(
+        &self,
+        a: &BandDolp,
+        plan: Option<&FitPlan>,
+        warnings: &mut Vec<Warning>,
+    ) -> Result<BandFitted> {
+        let npix = self.geo.npix;
+        let beta_views = band_betas(a, self.geo.beta);
+        let betas = match plan {
+            Some(p) => Betas::Shared(p),
+            None => Betas::PerPixel {
+                plan: &self.pixel_plan,
+                beta: &beta_views,
+            },
+        };
+        let own;
+        let pc = match self.answer {
+            Some(pc) => pc,
+            None => {
+                own = self.band_classifier(a)?;
+                &own
+            }
+        };
+        let img = || vec![0f32; npix];
+        let (mut n, mut k, mut n_se, mut k_se, mut rms) = (img(), img(), img(), img(), img());
+        let mut class = vec![0u16; npix];
+        let mut why = vec![0u8; npix];
+        let (views, rv, sv) = (slices(&a.dolp), slices(&a.read), slices(&a.shot));
+        let noise = self.band_noise(a, betas, &views, (&rv, &sv), warnings)?;
+        let map_noise = noise.map(|e| MapNoise {
+            model: e.model,
+            read: &rv,
+            shot: &sv,
+        });
+        let stage = a.tag().map_or("pixels (fit)".to_string(), |t| {
+            format!("pixels (fit, {t} nm)")
+        });
+        let report = |done: usize| (self.progress)(&stage, done as u64, npix as u64);
+        // The fit's correlation of n and k, for the decision after the fit.
+        let mut corr = if self.answer.is_none() {
+            vec![f32::NAN; npix]
+        } else {
+            Vec::new()
+        };
+        let counts: MapCounts = map::fit_and_classify_corr(
+            betas,
+            pc,
+            &views,
+            map_noise,
+            &a.flags,
+            self.cfg.tile,
+            MapOutputs {
+                n: &mut n,
+                k: &mut k,
+                n_se: &mut n_se,
+                k_se: &mut k_se,
+                rms_residual: &mut rms,
+                class: &mut class,
+                reason: &mut why,
+            },
+            &mut corr,
+            &report,
+        )
+        .map_err(core_err(self.path))?;
+        let band = BandMap {
+            wavelength_nm: a.wavelength_nm.unwrap_or(f64::NAN),
+            tag: a.tag(),
+            captures: a.captures.clone(),
+            n,
+            k,
+            n_se,
+            k_se,
+            rms_residual: rms,
+            reason: why,
+            reasons: counts.reasons,
+            noise,
+        };
+        Ok(BandFitted {
+            band,
+            corr,
+            class,
+            counts,
+        })
+    }
+}
+
+/// Every image of `v` as a slice.
+fn slices(v: &[Vec<f32>]) -> Vec<&[f32]> {
+    v.iter().map(Vec::as_slice).collect()
+}
+
+/// β of every pixel of band `a`'s captures (calibrated geometry; empty: far field).
+fn band_betas<'a>(a: &BandDolp, beta: &'a [Vec<f32>]) -> Vec<&'a [f32]> {
+    a.captures
+        .iter()
+        .filter_map(|&i| beta.get(i).map(Vec::as_slice))
+        .collect()
 }
 
 /// [`fit_bands`] with the map's decision and the bands' far-field plans ([`fit_plans`]).
@@ -440,143 +622,34 @@ pub(crate) fn fit_bands_with(
     progress: Progress<'_>,
 ) -> Result<BandsFit> {
     // Stage 2: every band fitted per pixel.
-    let npix = geo.npix;
     let calibrated = !geo.beta.is_empty();
     let tests_rows = matches!(decision.decider, decide::Decider::Hypothesis { .. });
-    let weighted = decide::weighted(cfg, calibrated, tests_rows);
-    let core_err = |e| IoError::Core {
-        path: path.to_path_buf(),
-        source: e,
-    };
-    let profiles = &decision.profiles;
     let options = FitOptions::default();
-    let k_can_be_zero = options.bounds.k_min == 0.0;
+    let fitter = BandFitter {
+        cfg,
+        geo,
+        profiles: &decision.profiles,
+        all_first: decision
+            .profiles
+            .iter()
+            .filter_map(|p| p.band_prototype(0))
+            .collect(),
+        answer,
+        pixel_plan: PixelBetaPlan::new(options).map_err(core_err(path))?,
+        weighted: decide::weighted(cfg, calibrated, tests_rows),
+        path,
+        progress,
+    };
     let mut warnings: Vec<Warning> = decision.warnings.clone();
     let mut bands: Vec<BandMap> = Vec::with_capacity(accs.len());
     let mut corrs: Vec<Vec<f32>> = Vec::with_capacity(accs.len());
     let mut answered = None;
-    let pixel_plan = PixelBetaPlan::new(options).map_err(core_err)?;
-    let all_first: Vec<Prototype> = profiles
-        .iter()
-        .filter_map(|p| p.band_prototype(0))
-        .collect();
     for (a, plan) in accs.iter().zip(plans) {
-        let beta_views: Vec<&[f32]> = a
-            .captures
-            .iter()
-            .filter_map(|&i| geo.beta.get(i).map(Vec::as_slice))
-            .collect();
-        let betas = match plan {
-            Some(p) => Betas::Shared(p),
-            None => Betas::PerPixel {
-                plan: &pixel_plan,
-                beta: &beta_views,
-            },
-        };
-        // The fit of a band needs a classifier; its per-band answer is used only as
-        // `answer`.
-        let own;
-        let pc = match answer {
-            Some(pc) => pc,
-            None => {
-                let mut protos: Vec<Prototype> = profiles
-                    .iter()
-                    .flat_map(|p| {
-                        p.bands
-                            .iter()
-                            .enumerate()
-                            .filter(|(_, b)| same_band(b.wavelength_nm, a.wavelength_nm))
-                            .filter_map(|(i, _)| p.band_prototype(i))
-                    })
-                    .collect();
-                if protos.is_empty() {
-                    protos = all_first.clone();
-                }
-                own = Classifier::new(protos, ClassifierConfig::default())
-                    .and_then(|c| PixelClassifier::new(c, None))
-                    .map_err(core_err)?;
-                &own
-            }
-        };
-        let img = || vec![0f32; npix];
-        let (mut n, mut k, mut n_se, mut k_se, mut rms) = (img(), img(), img(), img(), img());
-        let mut class = vec![0u16; npix];
-        let mut why = vec![0u8; npix];
-        let views: Vec<&[f32]> = a.dolp.iter().map(Vec::as_slice).collect();
-        let rv: Vec<&[f32]> = a.read.iter().map(Vec::as_slice).collect();
-        let sv: Vec<&[f32]> = a.shot.iter().map(Vec::as_slice).collect();
-        let noise = if let Some(given) = a.noise_model {
-            given.map(|model| NoiseEstimate {
-                model,
-                pixels: 0,
-                outliers: 0,
-                reduced_chi2: f64::NAN,
-            })
-        } else if weighted {
-            let e = estimate_noise(betas, &views, &rv, &sv, &a.flags).map_err(core_err)?;
-            if e.is_none() {
-                warnings.push(Warning(format!(
-                    "{}: {}too few usable pixels to estimate the noise model; the per-pixel \
-                     fits are unweighted",
-                    path.display(),
-                    a.tag().map_or(String::new(), |t| format!("band {t} nm: "))
-                )));
-            }
-            e
-        } else {
-            None
-        };
-        let map_noise = noise.map(|e| MapNoise {
-            model: e.model,
-            read: &rv,
-            shot: &sv,
-        });
-        let stage = a.tag().map_or("pixels (fit)".to_string(), |t| {
-            format!("pixels (fit, {t} nm)")
-        });
-        let report = |done: usize| progress(&stage, done as u64, npix as u64);
-        // The fit's correlation of n and k, for the decision after the fit.
-        let mut corr = if answer.is_none() {
-            vec![f32::NAN; npix]
-        } else {
-            Vec::new()
-        };
-        let counts: MapCounts = map::fit_and_classify_corr(
-            betas,
-            pc,
-            &views,
-            map_noise,
-            &a.flags,
-            cfg.tile,
-            MapOutputs {
-                n: &mut n,
-                k: &mut k,
-                n_se: &mut n_se,
-                k_se: &mut k_se,
-                rms_residual: &mut rms,
-                class: &mut class,
-                reason: &mut why,
-            },
-            &mut corr,
-            &report,
-        )
-        .map_err(core_err)?;
-        corrs.push(corr);
-        bands.push(BandMap {
-            wavelength_nm: a.wavelength_nm.unwrap_or(f64::NAN),
-            tag: a.tag(),
-            captures: a.captures.clone(),
-            n,
-            k,
-            n_se,
-            k_se,
-            rms_residual: rms,
-            reason: why,
-            reasons: counts.reasons,
-            noise,
-        });
+        let f = fitter.fit(a, plan.as_ref(), &mut warnings)?;
+        corrs.push(f.corr);
+        bands.push(f.band);
         if answer.is_some() {
-            answered = Some((class, counts));
+            answered = Some((f.class, f.counts));
         }
     }
     if let (Some(pc), Some((class, counts))) = (answer, answered) {
@@ -591,28 +664,36 @@ pub(crate) fn fit_bands_with(
     }
 
     // Stage 3: every pixel decided once on all its bands (module `decide`).
+    let npix = geo.npix;
     progress("pixels (classify)", 0, npix as u64);
-    let views: Vec<Vec<&[f32]>> = accs
-        .iter()
-        .map(|a| a.dolp.iter().map(Vec::as_slice).collect())
-        .collect();
-    let reads: Vec<Vec<&[f32]>> = accs
-        .iter()
-        .map(|a| a.read.iter().map(Vec::as_slice).collect())
-        .collect();
-    let shots: Vec<Vec<&[f32]>> = accs
-        .iter()
-        .map(|a| a.shot.iter().map(Vec::as_slice).collect())
-        .collect();
-    let beta_views: Vec<Vec<&[f32]>> = accs
-        .iter()
-        .map(|a| {
-            a.captures
-                .iter()
-                .filter_map(|&i| geo.beta.get(i).map(Vec::as_slice))
-                .collect()
-        })
-        .collect();
+    let k_can_be_zero = options.bounds.k_min == 0.0;
+    let (class, why, counts) =
+        decide_bands(decision, &accs, &bands, &corrs, plans, geo, k_can_be_zero);
+    progress("pixels (classify)", npix as u64, npix as u64);
+    Ok(BandsFit {
+        bands,
+        class,
+        reason: why,
+        class_names: decision.class_names.clone(),
+        counts,
+        warnings,
+    })
+}
+
+/// Stage 3 of a map: every pixel decided once on all its bands' fits (module `decide`).
+fn decide_bands(
+    decision: &decide::Decision,
+    accs: &[BandDolp],
+    bands: &[BandMap],
+    corrs: &[Vec<f32>],
+    plans: &[Option<FitPlan>],
+    geo: FitGeometry<'_>,
+    k_can_be_zero: bool,
+) -> (Vec<u16>, Vec<u8>, MapCounts) {
+    let views: Vec<Vec<&[f32]>> = accs.iter().map(|a| slices(&a.dolp)).collect();
+    let reads: Vec<Vec<&[f32]>> = accs.iter().map(|a| slices(&a.read)).collect();
+    let shots: Vec<Vec<&[f32]>> = accs.iter().map(|a| slices(&a.shot)).collect();
+    let beta_views: Vec<Vec<&[f32]>> = accs.iter().map(|a| band_betas(a, geo.beta)).collect();
     let inputs: Vec<decide::BandInput<'_>> = bands
         .iter()
         .enumerate()
@@ -634,16 +715,5 @@ pub(crate) fn fit_bands_with(
             noise: b.noise.map(|e| (e.model, &reads[bi][..], &shots[bi][..])),
         })
         .collect();
-    let (class, why, counts) =
-        decide::decide_pixels(decision, &inputs, geo.errors, k_can_be_zero, npix);
-    progress("pixels (classify)", npix as u64, npix as u64);
-    drop(inputs);
-    Ok(BandsFit {
-        bands,
-        class,
-        reason: why,
-        class_names: decision.class_names.clone(),
-        counts,
-        warnings,
-    })
+    decide::decide_pixels(decision, &inputs, geo.errors, k_can_be_zero, geo.npix)
 }

@@ -26,7 +26,8 @@ pub(crate) struct Dims {
     pub out_h: usize,
 }
 
-fn core_err(path: &Path) -> impl FnOnce(polarid_core::CoreError) -> IoError + '_ {
+/// The error of a core computation on the data of `path`.
+pub(super) fn core_err(path: &Path) -> impl FnOnce(polarid_core::CoreError) -> IoError + '_ {
     move |e| IoError::Core {
         path: path.to_path_buf(),
         source: e,
@@ -111,43 +112,70 @@ impl CaptureBand {
     }
 }
 
-/// A capture's mosaic `file`, the map's size, the pixel rules of its reconstruction and
-/// the dark threshold (DN), tested on the block mean by `stokes_dolp`.
+/// A capture's mosaic `file`, the pixel rules of its reconstruction and the binning of
+/// its Stokes images (the map's size; the dark threshold in DN, tested on the block mean
+/// by `stokes_dolp`; `weighted`: with the noise terms).
 fn read_mosaic(
     c: &Capture,
     file: &Path,
     cfg: &MapConfig,
     dims: &mut Option<Dims>,
-) -> Result<(Frame, Dims, PixelRules, f32)> {
+    weighted: bool,
+) -> Result<(Frame, PixelRules, StokesBinning)> {
     let raw = image::read_frame(file)?;
     let d = check_dims(dims, &raw, cfg.bin)?;
     let mut rules = rules_for(&raw, c.dark_level, c.saturation);
     let min_s0 = min_s0_for(&rules, raw.kind.is_integer(), cfg.min_s0);
     rules.min_s0 = f32::MIN;
-    Ok((raw, d, rules, min_s0))
+    let binning = StokesBinning {
+        d,
+        min_s0,
+        scale: 1.0,
+        bin: cfg.bin,
+        weighted,
+    };
+    Ok((raw, rules, binning))
 }
 
-/// One band's binned DoLP from its Stokes images `s` (`mask`: the mosaic's per-pixel
-/// flags; `scale` converts the signal to DN for the noise model), the dark test on the
-/// block mean at `min_s0`.
-#[allow(clippy::too_many_arguments)]
-fn stokes_band(
-    wavelength_nm: Option<f64>,
+/// How a capture's Stokes images are binned into DoLP: the map's size, the dark test on
+/// the block mean at `min_s0`, `scale` converting the signal to DN for the noise model,
+/// the binning, and whether the noise terms are kept.
+#[derive(Debug, Clone, Copy)]
+struct StokesBinning {
     d: Dims,
-    s: [&[f32]; 3],
-    mask: Option<&[u8]>,
     min_s0: f32,
     scale: f64,
     bin: usize,
     weighted: bool,
-) -> std::result::Result<CaptureBand, polarid_core::CoreError> {
-    let quad = NoiseAnalyzer::quad();
-    let mut b = CaptureBand::new(wavelength_nm, d, weighted);
-    let (dolp, flags, nz) = b.outputs(&quad, scale);
-    map::stokes_dolp_noise(
-        d.width, s[0], s[1], s[2], mask, min_s0, bin, dolp, flags, nz,
-    )?;
-    Ok(b)
+}
+
+impl StokesBinning {
+    /// One band's binned DoLP from its Stokes images `s` (`mask`: the mosaic's per-pixel
+    /// flags).
+    fn band(
+        &self,
+        wavelength_nm: Option<f64>,
+        s: [&[f32]; 3],
+        mask: Option<&[u8]>,
+    ) -> std::result::Result<CaptureBand, polarid_core::CoreError> {
+        let quad = NoiseAnalyzer::quad();
+        let d = self.d;
+        let mut b = CaptureBand::new(wavelength_nm, d, self.weighted);
+        let (dolp, flags, nz) = b.outputs(&quad, self.scale);
+        map::stokes_dolp_noise(
+            d.width,
+            s[0],
+            s[1],
+            s[2],
+            mask,
+            self.min_s0,
+            self.bin,
+            dolp,
+            flags,
+            nz,
+        )?;
+        Ok(b)
+    }
 }
 
 /// The binned DoLP of one capture per band (one band for a single-band capture; a
@@ -193,7 +221,7 @@ pub(crate) fn capture_bands(
             Ok((rules.min_s0, vec![b]))
         }
         CaptureSource::Dofp { file, pattern } => {
-            let (raw, d, rules, min_s0) = read_mosaic(c, file, cfg, dims)?;
+            let (raw, rules, binning) = read_mosaic(c, file, cfg, dims, weighted)?;
             let n = raw.width * raw.height;
             let (mut s0, mut s1, mut s2, mut m) =
                 (vec![0f32; n], vec![0f32; n], vec![0f32; n], vec![0u8; n]);
@@ -202,24 +230,22 @@ pub(crate) fn capture_bands(
             )
             .map_err(core_err(file))?;
             drop(raw);
-            let s = [&s0[..], &s1, &s2];
-            let b = stokes_band(c.wavelength_nm, d, s, Some(&m), min_s0, 1.0, bin, weighted);
-            Ok((min_s0, vec![b.map_err(core_err(file))?]))
+            let b = binning.band(c.wavelength_nm, [&s0[..], &s1, &s2], Some(&m));
+            Ok((binning.min_s0, vec![b.map_err(core_err(file))?]))
         }
         CaptureSource::ColourDofp {
             file,
             pattern,
             wavelengths_nm,
         } => {
-            let (raw, d, rules, min_s0) = read_mosaic(c, file, cfg, dims)?;
+            let (raw, rules, binning) = read_mosaic(c, file, cfg, dims, weighted)?;
             let imgs = colour_stokes(&raw, pattern, &rules, ColourMethod::Bilinear)?;
             drop(raw);
             let out = imgs.iter().zip(wavelengths_nm).map(|(img, &w)| {
-                let s = [&img.s0[..], &img.s1, &img.s2];
-                stokes_band(Some(w), d, s, Some(&img.mask), min_s0, 1.0, bin, weighted)
+                binning.band(Some(w), [&img.s0[..], &img.s1, &img.s2], Some(&img.mask))
             });
             Ok((
-                min_s0,
+                binning.min_s0,
                 out.collect::<std::result::Result<_, _>>()
                     .map_err(core_err(file))?,
             ))
@@ -236,16 +262,14 @@ pub(crate) fn capture_bands(
             let min_s0 = (cfg.min_s0.unwrap_or(0.0) / c.exposure) as f32;
             let s = [&i0.data[..], &i1.data, &i2.data];
             // S in DN / exposure: back to DN for the noise model.
-            let b = stokes_band(
-                c.wavelength_nm,
+            let binning = StokesBinning {
                 d,
-                s,
-                None,
                 min_s0,
-                c.exposure,
+                scale: c.exposure,
                 bin,
                 weighted,
-            );
+            };
+            let b = binning.band(c.wavelength_nm, s, None);
             Ok((min_s0, vec![b.map_err(core_err(s0))?]))
         }
     }

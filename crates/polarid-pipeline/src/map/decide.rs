@@ -289,6 +289,207 @@ fn band_rows(b: &BandInput<'_>, p: usize, rows: &mut Vec<PixelRow>) {
     }
 }
 
+/// What one band of a pixel gives its decision.
+enum BandSays {
+    /// Its estimate or rows are part of the decision.
+    Used,
+    /// Its interval on `n` reaches 0 (set rule): not placed by the data.
+    Valley,
+    /// Left out, for this reason.
+    Left(u8),
+}
+
+/// The decision of one pixel on every band (`decide_pixels`).
+struct PixelDecider<'a> {
+    d: &'a Decision,
+    bands: &'a [BandInput<'a>],
+    /// The systematic error model, one angle uncertainty per capture of the map.
+    errors: &'a MapErrorModel,
+    /// No systematic error (the nearest prototype's covariance).
+    none: MapErrorModel,
+    /// The fits' bounds allow `k = 0`.
+    k_can_be_zero: bool,
+    /// The class code of `ambiguous`.
+    ambiguous: u16,
+}
+
+impl PixelDecider<'_> {
+    /// Class code and reason of pixel `p`.
+    fn one(&self, s: &mut Scratch, p: usize) -> (u16, u8) {
+        s.bands.clear();
+        s.hyp.clear();
+        s.wl.clear();
+        let mut nearest = MultiEstimate { bands: Vec::new() };
+        let mut first_reason: Option<u8> = None;
+        let mut valley = false;
+        for (bi, b) in self.bands.iter().enumerate() {
+            let says = if b.reason[p] != reason::CLASSIFIED {
+                BandSays::Left(b.reason[p])
+            } else {
+                match &self.d.decider {
+                    Decider::Set { noise: true, .. } => self.noise_band(s, p, bi, b),
+                    Decider::Set { noise: false, .. } | Decider::Nearest(_) => {
+                        self.total_band(s, p, (bi, b), &mut nearest)
+                    }
+                    Decider::Hypothesis { floor, .. } => self.rows_band(s, p, b, *floor),
+                }
+            };
+            match says {
+                BandSays::Used => {}
+                BandSays::Valley => valley = true,
+                BandSays::Left(r) => {
+                    first_reason.get_or_insert(r);
+                }
+            }
+        }
+        match self.decide(s, &nearest) {
+            Some(code) => code,
+            None if valley => (self.ambiguous, reason::AMBIGUOUS),
+            None => (0, first_reason.unwrap_or(reason::FIT_INVALID_INPUT)),
+        }
+    }
+
+    /// Band `b`'s estimate with its fit's noise covariance (set rule, same bench).
+    fn noise_band(&self, s: &mut Scratch, p: usize, bi: usize, b: &BandInput<'_>) -> BandSays {
+        let (n, k) = (b.n[p] as f64, b.k[p] as f64);
+        let cov = fit_covariance(b.n_se[p] as f64, b.k_se[p] as f64, b.nk_corr[p] as f64);
+        if cov.is_some_and(|c| c.nn.sqrt() >= n) {
+            return BandSays::Valley;
+        }
+        // An unweighted fit's covariance is its own residuals' (T − 2 dof).
+        let dof = if b.noise.is_some() {
+            f64::INFINITY
+        } else {
+            b.dolp.iter().filter(|d| !d[p].is_nan()).count() as f64 - 2.0
+        };
+        s.bands.push(PixelBand {
+            band: bi,
+            n,
+            k,
+            cov,
+            dof,
+        });
+        BandSays::Used
+    }
+
+    /// Band `b`'s estimate with its total covariance (set rule, other bench) or its
+    /// noise covariance from its rows (nearest prototype).
+    fn total_band(
+        &self,
+        s: &mut Scratch,
+        p: usize,
+        (bi, b): (usize, &BandInput<'_>),
+        nearest: &mut MultiEstimate,
+    ) -> BandSays {
+        let (n, k) = (b.n[p] as f64, b.k[p] as f64);
+        let set = matches!(self.d.decider, Decider::Set { .. });
+        band_rows(b, p, &mut s.rows);
+        let model = if set { self.errors } else { &self.none };
+        let w = b.noise.is_some();
+        let Some(cov) = total_covariance(n, k, &s.rows, w, model, self.k_can_be_zero, &mut s.cov)
+        else {
+            return BandSays::Left(reason::FIT_ILL_CONDITIONED);
+        };
+        if set && cov.nn.sqrt() >= n {
+            return BandSays::Valley;
+        }
+        if set {
+            s.bands.push(PixelBand {
+                band: bi,
+                n,
+                k,
+                cov: Some(cov),
+                dof: f64::INFINITY,
+            });
+        } else {
+            nearest.bands.push(EstimateBand {
+                wavelength_nm: b.wavelength_nm,
+                estimate: Estimate {
+                    n,
+                    k,
+                    cov: Some(cov),
+                    fit_status: FitStatus::Ok,
+                },
+                film: None,
+            });
+        }
+        BandSays::Used
+    }
+
+    /// Band `b`'s rows for the hypothesis tests, with the DoLP floor `floor`.
+    fn rows_band(&self, s: &mut Scratch, p: usize, b: &BandInput<'_>, floor: f64) -> BandSays {
+        band_rows(b, p, &mut s.rows);
+        // Without a noise model the pixel's own scatter about its fit.
+        let t = s.rows.len() as f64;
+        let own = if t > 2.0 {
+            b.rms[p] as f64 * (t / (t - 2.0)).sqrt()
+        } else {
+            f64::NAN
+        };
+        let band = s.wl.len();
+        s.wl.push(
+            b.wavelength_nm
+                .unwrap_or(polarid_io::library::BUILTIN_WAVELENGTH_NM),
+        );
+        for r in &s.rows {
+            let se = if b.noise.is_some() { r.se } else { own };
+            s.hyp.push(HypRow {
+                beta: r.beta,
+                dolp: r.y,
+                dolp_sd: (se * se + floor * floor).sqrt(),
+                angle_sd: self.errors.angle_sd.get(r.capture).copied().unwrap_or(0.0),
+                band,
+            });
+        }
+        BandSays::Used
+    }
+
+    /// The class code and reason decided on the bands gathered in `s` and `nearest`
+    /// (`None`: no band to decide on).
+    fn decide(&self, s: &mut Scratch, nearest: &MultiEstimate) -> Option<(u16, u8)> {
+        let answer = match &self.d.decider {
+            Decider::Set { decider, .. } => {
+                if s.bands.is_empty() {
+                    return None;
+                }
+                decider.decide(&s.bands, &mut s.best)
+            }
+            Decider::Nearest(c) => {
+                if nearest.bands.is_empty() {
+                    return None;
+                }
+                let dec = c.classify_multi(nearest);
+                return Some(match dec.status {
+                    Status::Ok => match self.d.class_names.iter().position(|c| *c == dec.predicted)
+                    {
+                        Some(i) => (i as u16 + 1, reason::CLASSIFIED),
+                        None => (0, reason::REJECTED),
+                    },
+                    Status::Rejected | Status::NoCommonBand => (0, reason::REJECTED),
+                    Status::NoCovariance => (0, reason::FIT_ILL_CONDITIONED),
+                    _ => (0, reason::FIT_INVALID_INPUT),
+                });
+            }
+            Decider::Hypothesis { decider, .. } => {
+                if s.hyp.is_empty() {
+                    return None;
+                }
+                match decider.decide(&s.hyp, &s.wl) {
+                    Ok(a) => a,
+                    // Rows the test cannot take (a β outside [0, 90°)).
+                    Err(_) => return Some((0, reason::FIT_INVALID_INPUT)),
+                }
+            }
+        };
+        Some(match answer {
+            PixelAnswer::One(i) => (i + 1, reason::CLASSIFIED),
+            PixelAnswer::Ambiguous => (self.ambiguous, reason::AMBIGUOUS),
+            PixelAnswer::Unknown | PixelAnswer::NoBand => (0, reason::REJECTED),
+            PixelAnswer::NoCovariance => (0, reason::FIT_ILL_CONDITIONED),
+        })
+    }
+}
+
 /// Decide every pixel (in parallel): class code (0: none; `i`: `class_names[i - 1]`) and
 /// reason, and the counts. `errors`: the systematic error model, one angle uncertainty
 /// per capture of the map; `k_can_be_zero`: the fits' bounds allow `k = 0`.
@@ -299,158 +500,13 @@ pub(crate) fn decide_pixels(
     k_can_be_zero: bool,
     npix: usize,
 ) -> (Vec<u16>, Vec<u8>, MapCounts) {
-    let materials = d.materials();
-    let ambiguous = materials as u16 + 1;
-    let code = |a: PixelAnswer| -> (u16, u8) {
-        match a {
-            PixelAnswer::One(i) => (i + 1, reason::CLASSIFIED),
-            PixelAnswer::Ambiguous => (ambiguous, reason::AMBIGUOUS),
-            PixelAnswer::Unknown | PixelAnswer::NoBand => (0, reason::REJECTED),
-            PixelAnswer::NoCovariance => (0, reason::FIT_ILL_CONDITIONED),
-        }
-    };
-    let none = MapErrorModel::none(errors.angle_sd.len());
-    let one = |s: &mut Scratch, p: usize| -> (u16, u8) {
-        s.bands.clear();
-        s.hyp.clear();
-        s.wl.clear();
-        let mut first_reason: Option<u8> = None;
-        let mut valley = false;
-        let mut nearest = MultiEstimate { bands: Vec::new() };
-        for (bi, b) in bands.iter().enumerate() {
-            if b.reason[p] != reason::CLASSIFIED {
-                first_reason.get_or_insert(b.reason[p]);
-                continue;
-            }
-            let (n, k) = (b.n[p] as f64, b.k[p] as f64);
-            match &d.decider {
-                Decider::Set { noise: true, .. } => {
-                    let cov =
-                        fit_covariance(b.n_se[p] as f64, b.k_se[p] as f64, b.nk_corr[p] as f64);
-                    if cov.is_some_and(|c| c.nn.sqrt() >= n) {
-                        valley = true;
-                        continue;
-                    }
-                    // An unweighted fit's covariance is its own residuals' (T − 2 dof).
-                    let dof = if b.noise.is_some() {
-                        f64::INFINITY
-                    } else {
-                        b.dolp.iter().filter(|d| !d[p].is_nan()).count() as f64 - 2.0
-                    };
-                    s.bands.push(PixelBand {
-                        band: bi,
-                        n,
-                        k,
-                        cov,
-                        dof,
-                    });
-                }
-                Decider::Set { noise: false, .. } | Decider::Nearest(_) => {
-                    let set = matches!(d.decider, Decider::Set { .. });
-                    band_rows(b, p, &mut s.rows);
-                    let model = if set { errors } else { &none };
-                    let w = b.noise.is_some();
-                    let Some(cov) =
-                        total_covariance(n, k, &s.rows, w, model, k_can_be_zero, &mut s.cov)
-                    else {
-                        first_reason.get_or_insert(reason::FIT_ILL_CONDITIONED);
-                        continue;
-                    };
-                    if set && cov.nn.sqrt() >= n {
-                        valley = true;
-                        continue;
-                    }
-                    if set {
-                        s.bands.push(PixelBand {
-                            band: bi,
-                            n,
-                            k,
-                            cov: Some(cov),
-                            dof: f64::INFINITY,
-                        });
-                    } else {
-                        nearest.bands.push(EstimateBand {
-                            wavelength_nm: b.wavelength_nm,
-                            estimate: Estimate {
-                                n,
-                                k,
-                                cov: Some(cov),
-                                fit_status: FitStatus::Ok,
-                            },
-                            film: None,
-                        });
-                    }
-                }
-                Decider::Hypothesis { floor, .. } => {
-                    band_rows(b, p, &mut s.rows);
-                    // Without a noise model the pixel's own scatter about its fit.
-                    let t = s.rows.len() as f64;
-                    let own = if t > 2.0 {
-                        b.rms[p] as f64 * (t / (t - 2.0)).sqrt()
-                    } else {
-                        f64::NAN
-                    };
-                    let band = s.wl.len();
-                    s.wl.push(
-                        b.wavelength_nm
-                            .unwrap_or(polarid_io::library::BUILTIN_WAVELENGTH_NM),
-                    );
-                    for r in &s.rows {
-                        let se = if b.noise.is_some() { r.se } else { own };
-                        s.hyp.push(HypRow {
-                            beta: r.beta,
-                            dolp: r.y,
-                            dolp_sd: (se * se + floor * floor).sqrt(),
-                            angle_sd: errors.angle_sd.get(r.capture).copied().unwrap_or(0.0),
-                            band,
-                        });
-                    }
-                }
-            }
-        }
-        let answer = match &d.decider {
-            Decider::Set { decider, .. } => {
-                if s.bands.is_empty() {
-                    None
-                } else {
-                    Some(decider.decide(&s.bands, &mut s.best))
-                }
-            }
-            Decider::Nearest(c) => {
-                if nearest.bands.is_empty() {
-                    None
-                } else {
-                    let dec = c.classify_multi(&nearest);
-                    return match dec.status {
-                        Status::Ok => {
-                            match d.class_names.iter().position(|c| *c == dec.predicted) {
-                                Some(i) => (i as u16 + 1, reason::CLASSIFIED),
-                                None => (0, reason::REJECTED),
-                            }
-                        }
-                        Status::Rejected | Status::NoCommonBand => (0, reason::REJECTED),
-                        Status::NoCovariance => (0, reason::FIT_ILL_CONDITIONED),
-                        _ => (0, reason::FIT_INVALID_INPUT),
-                    };
-                }
-            }
-            Decider::Hypothesis { decider, .. } => {
-                if s.hyp.is_empty() {
-                    None
-                } else {
-                    match decider.decide(&s.hyp, &s.wl) {
-                        Ok(a) => Some(a),
-                        // Rows the test cannot take (a β outside [0, 90°)).
-                        Err(_) => return (0, reason::FIT_INVALID_INPUT),
-                    }
-                }
-            }
-        };
-        match answer {
-            Some(a) => code(a),
-            None if valley => (ambiguous, reason::AMBIGUOUS),
-            None => (0, first_reason.unwrap_or(reason::FIT_INVALID_INPUT)),
-        }
+    let decider = PixelDecider {
+        d,
+        bands,
+        errors,
+        none: MapErrorModel::none(errors.angle_sd.len()),
+        k_can_be_zero,
+        ambiguous: d.materials() as u16 + 1,
     };
     // Hypothesis tests take milliseconds a pixel: no batching of pixels.
     let min_len = match d.decider {
@@ -460,7 +516,7 @@ pub(crate) fn decide_pixels(
     let decided: Vec<(u16, u8)> = (0..npix)
         .into_par_iter()
         .with_min_len(min_len)
-        .map_init(Scratch::default, |s, p| one(s, p))
+        .map_init(Scratch::default, |s, p| decider.one(s, p))
         .collect();
     let mut counts = MapCounts {
         reasons: [0; reason::COUNT],

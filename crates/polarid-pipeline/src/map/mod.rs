@@ -381,13 +381,10 @@ pub fn pixel_classifier(
     model: &Model,
     model_path: &Path,
 ) -> Result<PixelClassifier> {
-    let core_err = |e| IoError::Core {
-        path: model_path.to_path_buf(),
-        source: e,
-    };
-    let classifier =
-        Classifier::new(model.prototypes(), ClassifierConfig::default()).map_err(core_err)?;
-    let pc = PixelClassifier::new(classifier, cfg.max_distance).map_err(core_err)?;
+    let classifier = Classifier::new(model.prototypes(), ClassifierConfig::default())
+        .map_err(capture::core_err(model_path))?;
+    let pc = PixelClassifier::new(classifier, cfg.max_distance)
+        .map_err(capture::core_err(model_path))?;
     Ok(pc.with_mahalanobis(cfg.metric == Metric::Mahalanobis))
 }
 
@@ -477,41 +474,9 @@ pub fn map_manifest_from(
         .collect();
     let plans = bands::fit_plans(&bands, &far_betas, calibrated, &m.path)?;
 
-    // Stage 1: DoLP per capture and band (one capture's frames in memory at a time; a
-    // colour mosaic reconstructed once). Calibrated geometry: a lamp at a finite
-    // distance moves the specular lobe across the scene, so a pixel is typically lit in
-    // some captures and dark in others. Its dark (or saturated) captures are left out
-    // of its own fit (DoLP NaN) instead of excluding the pixel ([`BandDolp::push`]); the
-    // far-field rule (flagged in any capture: not fitted) is unchanged.
     let t0 = Instant::now();
     let ncap = m.captures.len() as u64;
-    progress("captures (DoLP)", 0, ncap);
-    let mut dims = None;
-    let mut thresholds = Vec::with_capacity(m.captures.len());
-    for (i, c) in m.captures.iter().enumerate() {
-        let (th, images) =
-            capture::capture_bands(c, cfg, &mut dims, weighted).map_err(|e| match e {
-                e @ PipelineError::Config { .. } => e,
-                e => PipelineError::Data {
-                    path: format!("capture {} (line {})", c.index, c.line),
-                    reason: e.to_string(),
-                },
-            })?;
-        for b in images {
-            if let Some(j) = bands::band_of(&bands, b.wavelength_nm) {
-                bands[j].push(calibrated, b.dolp, &b.flags, b.noise);
-            }
-        }
-        thresholds.push(th);
-        progress("captures (DoLP)", i as u64 + 1, ncap);
-    }
-    let Some(d) = dims else {
-        return Err(PipelineError::Data {
-            path: m.path.display().to_string(),
-            reason: "the manifest has no capture".into(),
-        });
-    };
-    bands.iter_mut().for_each(|b| b.finish(calibrated));
+    let (d, thresholds) = dolp_stage(cfg, m, &mut bands, weighted, progress)?;
     // Calibrated geometry: β per pixel and capture.
     let beta_maps = if calibrated {
         progress("captures (geometry)", 0, ncap);
@@ -578,6 +543,52 @@ pub fn map_manifest_from(
         warnings,
         bands: fit.bands,
     })
+}
+
+/// Stage 1 of a map: DoLP per capture and band into `bands` (one capture's frames in
+/// memory at a time; a colour mosaic reconstructed once). Calibrated geometry: a lamp at
+/// a finite distance moves the specular lobe across the scene, so a pixel is typically
+/// lit in some captures and dark in others. Its dark (or saturated) captures are left
+/// out of its own fit (DoLP NaN) instead of excluding the pixel ([`BandDolp::push`]);
+/// the far-field rule (flagged in any capture: not fitted) is unchanged. Returns the
+/// map's size and each capture's S0 threshold.
+fn dolp_stage(
+    cfg: &MapConfig,
+    m: &Manifest,
+    bands: &mut [BandDolp],
+    weighted: bool,
+    progress: Progress<'_>,
+) -> Result<(capture::Dims, Vec<f32>)> {
+    let calibrated = m.camera.is_some();
+    let ncap = m.captures.len() as u64;
+    progress("captures (DoLP)", 0, ncap);
+    let mut dims = None;
+    let mut thresholds = Vec::with_capacity(m.captures.len());
+    for (i, c) in m.captures.iter().enumerate() {
+        let (th, images) =
+            capture::capture_bands(c, cfg, &mut dims, weighted).map_err(|e| match e {
+                e @ PipelineError::Config { .. } => e,
+                e => PipelineError::Data {
+                    path: format!("capture {} (line {})", c.index, c.line),
+                    reason: e.to_string(),
+                },
+            })?;
+        for b in images {
+            if let Some(j) = bands::band_of(bands, b.wavelength_nm) {
+                bands[j].push(calibrated, b.dolp, &b.flags, b.noise);
+            }
+        }
+        thresholds.push(th);
+        progress("captures (DoLP)", i as u64 + 1, ncap);
+    }
+    let Some(d) = dims else {
+        return Err(PipelineError::Data {
+            path: m.path.display().to_string(),
+            reason: "the manifest has no capture".into(),
+        });
+    };
+    bands.iter_mut().for_each(|b| b.finish(calibrated));
+    Ok((d, thresholds))
 }
 
 /// The paper's nearest prototype among the first band of `decision`'s prototypes (a
