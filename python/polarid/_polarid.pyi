@@ -452,7 +452,7 @@ def _noise_block(
     min_s0: float | None = None,
     row_offsets: Sequence[int] | None = None,
     stride: int = 1,
-) -> list[int] | tuple[list[int], list[list[float]], list[list[float]], list[list[float]], list[list[float]] | None]: ...
+) -> list[int] | tuple[list[int], list[list[list[float]]]]: ...
 def _estimate_noise(
     dolp: Sequence[Sequence[float]],
     read: Sequence[Sequence[float]],

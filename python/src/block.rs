@@ -522,9 +522,9 @@ fn _map_block<'py>(
 /// wavelength; 0 for single-band frames). Without ``row_offsets``: the number of usable
 /// pixels of every map row of the block (list, h/bin). With ``row_offsets`` (the usable
 /// pixels of the whole map before each row of the block, row-major) and ``stride``:
-/// ``(index, dolp, read, shot, beta_rad)``, the block's usable pixels whose map rank is
-/// a multiple of ``stride`` (``index`` row-major within the block's map pixels) and per
-/// capture their DoLP, noise terms and, with a β per pixel, β in radians (else None).
+/// ``(index, images)``, the block's usable pixels whose map rank is a multiple of
+/// ``stride`` (``index`` row-major within the block's map pixels) and their images per
+/// capture: DoLP, read and shot terms and, with a β per pixel, β in radians.
 #[pyfunction]
 #[pyo3(signature = (frames, angles_deg, beta_deg, *, pattern = None, color = None, bands = None, band = 0, halo = (0, 0, 0, 0), bin = 1, dark_level = None, saturation = None, min_s0 = None, row_offsets = None, stride = 1))]
 #[allow(clippy::too_many_arguments)]
@@ -563,9 +563,9 @@ fn _noise_block<'py>(
     let Some(offsets) = row_offsets else {
         return usable_per_row(b, &beta, inp.ow, inp.oh).into_bound_py_any(py);
     };
-    let s = noise_sample(b, &beta, inp.ow, &offsets, stride).py_err()?;
-    let beta = per_pixel.then_some(s.beta);
-    (s.index, s.dolp, s.read, s.shot, beta).into_bound_py_any(py)
+    noise_sample(b, &beta, inp.ow, &offsets, stride)
+        .py_err()?
+        .into_bound_py_any(py)
 }
 
 /// `(read_var_dn2, inv_gain, pixels, outliers, reduced_chi2)` of a noise estimate.

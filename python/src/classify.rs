@@ -368,7 +368,11 @@ pub fn classify<'py>(
     let (status_words, status) = match fit_status {
         Some(s) => {
             let (w, c) = fit_statuses(s, &shape)?;
-            (w, Some(flat_bands(&c.view(), band)))
+            let status = flat_bands(&c.view(), band)
+                .iter()
+                .map(|&c| w[c as usize])
+                .collect();
+            (w, Some(status))
         }
         None => (vec![FitStatus::Ok], None),
     };
@@ -382,7 +386,6 @@ pub fn classify<'py>(
         wavelength: opt("wavelength_nm", &wv)?,
         film: film_columns(film_shifts.as_ref().map(|x| x.as_array()), &flat)?,
         status,
-        status_words,
     };
     // The prototypes for these wavelengths, as `polarid classify` takes them.
     let (wavelengths, without) = distinct_wavelengths(inputs.wavelength.as_deref())?;
@@ -391,7 +394,7 @@ pub fn classify<'py>(
         .py_err()?;
     warn_texts(py, warnings.iter().map(|w| w.0.as_str()))?;
     let clf = multi_classifier(protos, &label, cfg).py_err()?;
-    let names = Names::new(&clf, &inputs.status_words);
+    let names = Names::new(&clf, &status_words);
     let res: Vec<(Row, Set)> = py.detach(|| {
         (0..inputs.n.len() / inputs.bands.max(1))
             .into_par_iter()
@@ -483,9 +486,8 @@ struct Flat {
     corr: Option<Vec<f64>>,
     wavelength: Option<Vec<f64>>,
     film: Option<Vec<Vec<f64>>>,
-    /// Index into `status_words` per band (None: all ok).
-    status: Option<Vec<u32>>,
-    status_words: Vec<FitStatus>,
+    /// The fit status of every band (None: all ok).
+    status: Option<Vec<FitStatus>>,
 }
 
 impl Flat {
@@ -499,10 +501,7 @@ impl Flat {
                 }
                 _ => None,
             };
-            let fit_status = self
-                .status
-                .as_ref()
-                .map_or(FitStatus::Ok, |c| self.status_words[c[j] as usize]);
+            let fit_status = self.status.as_ref().map_or(FitStatus::Ok, |c| c[j]);
             // Without shifts each band keeps the allowance folded into its covariance.
             let film = self.film.as_ref().and_then(|c| {
                 let a = [[c[0][j], c[1][j]], [c[2][j], c[3][j]], [c[4][j], c[5][j]]];

@@ -5,6 +5,7 @@
 //! map` calls, so the arrays equal the CLI's TIFFs (python/tests/test_map_manifest.py).
 
 use ndarray::{ArrayD, IxDyn};
+use polarid_core::classify::Bench;
 use polarid_io::manifest;
 use polarid_io::model::Model;
 use polarid_pipeline::map::{self, MapConfig};
@@ -221,8 +222,8 @@ pub fn map_config(
     bench: &str,
 ) -> PyResult<MapConfig> {
     let bench = match bench {
-        "same" => polarid_core::classify::Bench::Same,
-        "other" => polarid_core::classify::Bench::Other,
+        "same" => Bench::Same,
+        "other" => Bench::Other,
         b => {
             return Err(value_error(format!(
                 "bench must be \"same\" or \"other\", got {b:?}"

@@ -5,7 +5,7 @@
 
 use ndarray::{ArrayD, ArrayView1, IxDyn};
 use polarid_core::CoreError;
-use polarid_core::simulate::{Analyzer, Exposure, PlateOptics, Sensor, UniformRect, stokes_dolp};
+use polarid_core::simulate::{Analyzer, Exposure, PlateOptics, Sensor, stokes_dolp};
 use polarid_io::scene::CaptureKind;
 use polarid_pipeline::progress::no_progress;
 use polarid_pipeline::simulate::{RenderSpec, analyzers as capture_analyzers, render_into};
@@ -219,7 +219,7 @@ pub fn simulate<'py>(
         d.set_item("frames", array(py, &[c, na, h, w], frames)?)?;
         d.set_item("angles_deg", angles_deg)?;
     }
-    let rects = plates.iter().map(|(_, r)| (r.x, r.y, r.width, r.height));
+    let rects = plates.iter().map(|(_, [x, y, w, h])| (*x, *y, *w, *h));
     d.set_item("rects", rects.collect::<Vec<_>>())?;
     let radiance = stokes.clone().flatten().collect();
     d.set_item("radiance", array(py, &[c, np_, 3], radiance)?)?;
@@ -250,29 +250,18 @@ fn array<'py, T: numpy::Element>(
     Ok(to_numpy(py, a))
 }
 
-/// The plates in a row of `tile × tile` squares, `gap` pixels apart and from the edges,
-/// and the frame's `[width, height]`.
-fn layout(
-    optics: &[PlateOptics],
-    tile: usize,
-    gap: usize,
-) -> PyResult<(Vec<(PlateOptics, UniformRect)>, [usize; 2])> {
+/// The plates in a row of `tile × tile` squares, `gap` pixels apart and from the edges
+/// (optics, `[x, y, width, height]`), and the frame's `[width, height]`.
+type Layout = (Vec<(PlateOptics, [usize; 4])>, [usize; 2]);
+
+fn layout(optics: &[PlateOptics], tile: usize, gap: usize) -> PyResult<Layout> {
     if tile == 0 {
         return Err(value_error("tile must be at least 1 pixel"));
     }
-    let plates = optics.iter().enumerate().map(|(p, &o)| {
-        let (x, y, width, height, stokes) = (gap + p * (tile + gap), gap, tile, tile, [0.0; 3]);
-        (
-            o,
-            UniformRect {
-                x,
-                y,
-                width,
-                height,
-                stokes,
-            },
-        )
-    });
+    let plates = optics
+        .iter()
+        .enumerate()
+        .map(|(p, &o)| (o, [gap + p * (tile + gap), gap, tile, tile]));
     let size = [gap + optics.len() * (tile + gap), tile + 2 * gap];
     Ok((plates.collect(), size))
 }

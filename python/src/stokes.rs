@@ -260,10 +260,45 @@ pub fn demosaic<'py>(
     let (oh, ow) = if bilinear { (h, w) } else { (h / 2, w / 2) };
     let npix = oh * ow;
     if angles {
-        let size = (h, w, oh, ow);
-        return demosaic_angles(
-            py, &raw, size, bilinear, round, &pattern, dark_level, dtype, out,
-        );
+        let shape = [4, oh, ow];
+        let name = out_dtype(dtype, out)?;
+        let keep_int = |want: &str| int_output(want, &raw, dark_level, !bilinear || round);
+        return match name.as_str() {
+            "float32" => with_raw!(&raw, |data| {
+                with_output::<f32>(py, "out", out, &shape, |buf| {
+                    let planes = split4(buf, npix);
+                    let dark = dark_level as f32;
+                    if bilinear {
+                        mosaic::demosaic_bilinear_dark(data, w, &pattern, round, dark, planes)
+                    } else {
+                        superpixel_angles(data, w, h, &pattern, planes, |v| v.to_f32() - dark)
+                    }
+                })
+            }),
+            "uint16" => {
+                keep_int("uint16")?;
+                let RawArray::U16(a) = &raw else {
+                    unreachable!("checked by keep_int")
+                };
+                let data = a.as_slice()?;
+                with_output::<u16>(py, "out", out, &shape, |buf| {
+                    int_angles(data, w, h, bilinear, &pattern, split4(buf, npix))
+                })
+            }
+            "uint8" => {
+                keep_int("uint8")?;
+                let RawArray::U8(a) = &raw else {
+                    unreachable!("checked by keep_int")
+                };
+                let data = a.as_slice()?;
+                with_output::<u8>(py, "out", out, &shape, |buf| {
+                    int_angles(data, w, h, bilinear, &pattern, split4(buf, npix))
+                })
+            }
+            other => Err(value_error(format!(
+                "dtype must be float32, or uint8 / uint16 for a raw mosaic of that dtype, got {other}"
+            ))),
+        };
     }
     let mask = new_array::<u8>(py, &[oh, ow]);
     let s = {
@@ -292,78 +327,27 @@ pub fn demosaic<'py>(
     }
 }
 
-/// `demosaic(output="angles")`: the four per-angle images of a mosaic (`size`: its
-/// rows, columns and the output's) in the dtype asked.
-#[allow(clippy::too_many_arguments)]
-fn demosaic_angles<'py>(
-    py: Python<'py>,
-    raw: &RawArray<'py>,
-    (h, w, oh, ow): (usize, usize, usize, usize),
-    bilinear: bool,
-    round: bool,
-    pattern: &Pattern,
-    dark_level: f64,
-    dtype: Option<&Bound<'py, PyAny>>,
-    out: Option<&Bound<'py, PyAny>>,
-) -> PyResult<Bound<'py, PyAny>> {
-    let npix = oh * ow;
-    let shape = [4, oh, ow];
-    let name = out_dtype(dtype, out)?;
-    let keep_int = |want: &str, is: bool| -> PyResult<()> {
-        if !is {
-            return Err(value_error(format!(
-                "dtype {want} needs a {want} raw mosaic (got {})",
-                raw_dtype(raw)
-            )));
-        }
-        if dark_level != 0.0 {
-            return Err(value_error(format!(
-                "dtype {want} needs dark_level=0 (got {dark_level}): dark-subtracted values are not whole DN"
-            )));
-        }
-        if bilinear && !round {
-            return Err(value_error(format!(
-                "dtype {want} needs round=True with method=\"bilinear\": unrounded means are not whole DN"
-            )));
-        }
-        Ok(())
-    };
-    match name.as_str() {
-        "float32" => with_raw!(raw, |data| {
-            with_output::<f32>(py, "out", out, &shape, |buf| {
-                let planes = split4(buf, npix);
-                let dark = dark_level as f32;
-                if bilinear {
-                    mosaic::demosaic_bilinear_dark(data, w, pattern, round, dark, planes)
-                } else {
-                    superpixel_angles(data, w, h, pattern, planes, |v| v.to_f32() - dark)
-                }
-            })
-        }),
-        "uint16" => {
-            keep_int("uint16", matches!(raw, RawArray::U16(_)))?;
-            let RawArray::U16(a) = raw else {
-                unreachable!("checked by keep_int")
-            };
-            let data = a.as_slice()?;
-            with_output::<u16>(py, "out", out, &shape, |buf| {
-                int_angles(data, w, h, bilinear, pattern, split4(buf, npix))
-            })
-        }
-        "uint8" => {
-            keep_int("uint8", matches!(raw, RawArray::U8(_)))?;
-            let RawArray::U8(a) = raw else {
-                unreachable!("checked by keep_int")
-            };
-            let data = a.as_slice()?;
-            with_output::<u8>(py, "out", out, &shape, |buf| {
-                int_angles(data, w, h, bilinear, pattern, split4(buf, npix))
-            })
-        }
-        other => Err(value_error(format!(
-            "dtype must be float32, or uint8 / uint16 for a raw mosaic of that dtype, got {other}"
-        ))),
+/// Check that `demosaic(output="angles")` can write `want` (an integer dtype): a raw
+/// mosaic of that dtype, no dark level, whole-DN values (`whole`: superpixel, or
+/// bilinear with rounding).
+fn int_output(want: &str, raw: &RawArray<'_>, dark_level: f64, whole: bool) -> PyResult<()> {
+    if raw_dtype(raw) != want {
+        return Err(value_error(format!(
+            "dtype {want} needs a {want} raw mosaic (got {})",
+            raw_dtype(raw)
+        )));
     }
+    if dark_level != 0.0 {
+        return Err(value_error(format!(
+            "dtype {want} needs dark_level=0 (got {dark_level}): dark-subtracted values are not whole DN"
+        )));
+    }
+    if !whole {
+        return Err(value_error(format!(
+            "dtype {want} needs round=True with method=\"bilinear\": unrounded means are not whole DN"
+        )));
+    }
+    Ok(())
 }
 
 /// DoLP and AoLP straight from a raw division-of-focal-plane (DoFP) mosaic.

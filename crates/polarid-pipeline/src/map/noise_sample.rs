@@ -91,33 +91,19 @@ pub fn usable_per_row(
         .collect()
 }
 
-/// The pixels of a block in the map's noise sample: their indices (row-major within
-/// the block) and, per capture, their DoLP, noise terms and (a β per pixel) β.
-#[derive(Debug, Clone, PartialEq)]
-pub struct NoiseSample {
-    /// The sampled pixels, increasing.
-    pub index: Vec<usize>,
-    /// DoLP of every capture at the sampled pixels.
-    pub dolp: Vec<Vec<f32>>,
-    /// Read-noise term of every capture.
-    pub read: Vec<Vec<f32>>,
-    /// Shot-noise term of every capture.
-    pub shot: Vec<Vec<f32>>,
-    /// β of every capture, radians (empty with one β per capture).
-    pub beta: Vec<Vec<f32>>,
-}
-
 /// Noise pass 2: the block's usable pixels whose rank in the map is a multiple of
-/// `stride`; `row_offsets`: the usable pixels of the whole map before each row of the
-/// block (row-major). Errors: not one offset per row.
+/// `stride` (`row_offsets`: the usable pixels of the whole map before each row of the
+/// block, row-major) and their images: the DoLP, read and shot terms and (a β per pixel)
+/// β of every capture. Errors: not one offset per row.
 pub fn noise_sample(
     band: &BandDolp,
     beta: &BlockBeta,
     columns: usize,
     row_offsets: &[usize],
     stride: usize,
-) -> Result<NoiseSample, CoreError> {
-    let rows = band.images().1.len() / columns.max(1);
+) -> Result<(Vec<usize>, Vec<Vec<Vec<f32>>>), CoreError> {
+    let (dolp, flags, read, shot) = band.images();
+    let rows = flags.len() / columns.max(1);
     if row_offsets.len() != rows {
         return Err(CoreError::LengthMismatch {
             name: "row offsets (one per map row of the block)",
@@ -128,29 +114,19 @@ pub fn noise_sample(
     let mut index = Vec::new();
     for (y, &off) in row_offsets.iter().enumerate() {
         let usable = (y * columns..(y + 1) * columns).filter(|&p| usable(band, beta, p));
-        index.extend(
-            usable
-                .zip(off..)
-                .filter(|(_, r)| r % stride.max(1) == 0)
-                .map(|(p, _)| p),
-        );
+        let ranked = usable.zip(off..).filter(|(_, r)| r % stride.max(1) == 0);
+        index.extend(ranked.map(|(p, _)| p));
     }
-    let gather = |imgs: &[Vec<f32>]| -> Vec<Vec<f32>> {
-        imgs.iter()
-            .map(|im| index.iter().map(|&p| im[p]).collect())
-            .collect()
-    };
-    let (dolp, _, read, shot) = band.images();
-    Ok(NoiseSample {
-        dolp: gather(dolp),
-        read: gather(read),
-        shot: gather(shot),
-        beta: match beta {
-            BlockBeta::PerPixel(m) => gather(m),
-            BlockBeta::Shared(_) => Vec::new(),
-        },
-        index,
-    })
+    let mut images = vec![dolp, read, shot];
+    if let BlockBeta::PerPixel(m) = beta {
+        images.push(m.as_slice());
+    }
+    let gather = |im: &Vec<f32>| -> Vec<f32> { index.iter().map(|&p| im[p]).collect() };
+    let images = images
+        .iter()
+        .map(|imgs| imgs.iter().map(gather).collect())
+        .collect();
+    Ok((index, images))
 }
 
 /// The map's noise model from the gathered sample: per capture the DoLP, noise terms
@@ -183,16 +159,11 @@ pub fn estimate_sample(
             }
             let plan = PixelBetaPlan::new(FitOptions::default())?;
             let beta = views(m);
-            estimate_noise(
-                Betas::PerPixel {
-                    plan: &plan,
-                    beta: &beta,
-                },
-                &dv,
-                &rv,
-                &sv,
-                &flags,
-            )
+            let betas = Betas::PerPixel {
+                plan: &plan,
+                beta: &beta,
+            };
+            estimate_noise(betas, &dv, &rv, &sv, &flags)
         }
     }
 }

@@ -173,14 +173,14 @@ impl RenderSpec {
     /// Far-field captures of uniform plates (`polarid simulate`'s far-field scenes and
     /// `polarid.simulate`): capture `c` lit from source zenith `geometry[c][0]` and seen
     /// from camera zenith `geometry[c][1]` at azimuth difference `geometry[c][2]`
-    /// (degrees). Each plate (optics and rectangle) has the radiance per unit irradiance
+    /// (degrees). Each plate (optics, `[x, y, width, height]`) has the radiance per unit irradiance
     /// of `plate_radiance`; a capture's relative exposure is `exposure` resolved on its
     /// brightest noise-free reading through the analyzers (`Exposure::resolve`).
     /// Returns the spec and every capture's relative exposure.
     pub fn far_field(
         [width, height]: [usize; 2],
         background: [f64; 3],
-        plates: &[(PlateOptics, UniformRect)],
+        plates: &[(PlateOptics, [usize; 4])],
         geometry: &[[f64; 3]],
         analyzers: Vec<Analyzer>,
         exposure: Exposure,
@@ -198,9 +198,16 @@ impl RenderSpec {
             let [ti, tr, phi] = g.map(f64::to_radians);
             let caps = plates
                 .iter()
-                .map(|(o, r)| {
+                .map(|(o, [x, y, width, height])| {
                     let stokes = plate_radiance(o, ti, tr, phi)?;
-                    Ok(UniformRect { stokes, ..*r })
+                    let (x, y, width, height) = (*x, *y, *width, *height);
+                    Ok(UniformRect {
+                        x,
+                        y,
+                        width,
+                        height,
+                        stokes,
+                    })
                 })
                 .collect::<std::result::Result<Vec<_>, CoreError>>()?;
             let stokes: Vec<[f64; 3]> = caps.iter().map(|r| r.stokes).collect();
@@ -389,29 +396,17 @@ fn plan(scene: &Scene) -> Result<Plan> {
         });
     };
     let (theta_r_deg, phi_deg) = (*theta_r_deg, *phi_deg);
+    let (tr, phi) = (theta_r_deg.to_radians(), phi_deg.to_radians());
     let Some(analyzers) = analyzers(&scene.capture) else {
         return Err(crate::PipelineError::Data {
             path: scene.path.display().to_string(),
             reason: "internal error: a colour scene has no monochrome plan".into(),
         });
     };
-    let plates: Vec<(PlateOptics, UniformRect)> = scene
+    let plates: Vec<(PlateOptics, [usize; 4])> = scene
         .plates
         .iter()
-        .map(|p| {
-            let (x, y, width, height) = (p.rect.x, p.rect.y, p.rect.width, p.rect.height);
-            let stokes = [0.0; 3];
-            (
-                p.optics,
-                UniformRect {
-                    x,
-                    y,
-                    width,
-                    height,
-                    stokes,
-                },
-            )
-        })
+        .map(|p| (p.optics, [p.rect.x, p.rect.y, p.rect.width, p.rect.height]))
         .collect();
     let geometry: Vec<[f64; 3]> = theta_i_deg
         .iter()
@@ -436,11 +431,7 @@ fn plan(scene: &Scene) -> Result<Plan> {
     let mut warnings = Vec::new();
     for ((&ti_deg, caps), &exposure) in theta_i_deg.iter().zip(&spec.rects).zip(&exposures) {
         let epu = sensor.electrons_per_unit(exposure);
-        let beta = geometry::beta(
-            ti_deg.to_radians(),
-            theta_r_deg.to_radians(),
-            phi_deg.to_radians(),
-        );
+        let beta = geometry::beta(ti_deg.to_radians(), tr, phi);
         for (p, r) in scene.plates.iter().zip(caps) {
             let peak_e = epu * peak_intensity(&[r.stokes], &angles);
             if peak_e < 100.0 {
