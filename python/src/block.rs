@@ -42,6 +42,7 @@ use pyo3::prelude::*;
 use crate::arrays::{f64_contiguous, fmt_shape, raw_array, to_numpy};
 use crate::colour::wavelengths;
 use crate::errors::{IntoPyErr, PyResultExt, value_error};
+use crate::map::map_config;
 use crate::stokes::pixel_rules;
 use crate::with_raw;
 
@@ -60,36 +61,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
 /// the band's reason.
 const BAND_PLANES: usize = 6;
 
-/// The map's options, checked as `polarid map` checks them (errors name the option;
-/// every capture's angle uncertainty checked, the first one used).
-#[allow(clippy::too_many_arguments)]
-fn config(
-    bin: usize,
-    min_s0: Option<f64>,
-    max_distance: Option<f64>,
-    metric: &str,
-    tile: usize,
-    rule: &str,
-    confidence: f64,
-    errors: &ErrorArgs,
-    bench: &str,
-) -> PyResult<MapConfig> {
-    errors.check()?;
-    let first_sd = errors
-        .angle_sd_deg
-        .first()
-        .copied()
-        .unwrap_or(MapErrors::default().angle_sd_deg);
-    let errors = MapErrors {
-        angle_sd_deg: first_sd,
-        dolp_floor: errors.dolp_floor,
-        extinction_ratio: errors.extinction_ratio,
-        retardance_deg: errors.retardance_deg,
-    };
-    let rule = (rule, confidence);
-    crate::map::map_config(bin, min_s0, max_distance, metric, tile, rule, errors, bench)
-}
-
 /// The set rule's systematic error model as the Python side passes it: one angle
 /// uncertainty per capture (degrees) and the analyzer's terms.
 struct ErrorArgs {
@@ -100,16 +71,22 @@ struct ErrorArgs {
 }
 
 impl ErrorArgs {
-    /// Check every capture's angle uncertainty as `--angle-sd-deg` is checked.
-    fn check(&self) -> PyResult<()> {
-        for &a in &self.angle_sd_deg {
-            if !(a.is_finite() && (0.0..90.0).contains(&a)) {
-                return Err(value_error(format!(
-                    "angle_sd_deg must be in [0, 90), got {a}"
-                )));
-            }
+    /// The map's error options, every capture's angle uncertainty checked as
+    /// `--angle-sd-deg` is (the first one in the options).
+    fn options(&self) -> PyResult<MapErrors> {
+        let bad = |a: &&f64| !(a.is_finite() && (0.0..90.0).contains(*a));
+        if let Some(a) = self.angle_sd_deg.iter().find(bad) {
+            return Err(value_error(format!(
+                "angle_sd_deg must be in [0, 90), got {a}"
+            )));
         }
-        Ok(())
+        let first = self.angle_sd_deg.first().copied();
+        Ok(MapErrors {
+            angle_sd_deg: first.unwrap_or(MapErrors::default().angle_sd_deg),
+            dolp_floor: self.dolp_floor,
+            extinction_ratio: self.extinction_ratio,
+            retardance_deg: self.retardance_deg,
+        })
     }
 
     /// The core error model (as `polarid_pipeline::map`'s `error_model`: radians, no
@@ -202,15 +179,15 @@ fn _map_names(
         extinction_ratio,
         retardance_deg,
     };
-    let cfg = config(
+    let errs = errors.options()?;
+    let cfg = map_config(
         bin,
         min_s0,
         max_distance,
         metric,
         tile,
-        rule,
-        confidence,
-        &errors,
+        (rule, confidence),
+        errs,
         bench,
     )?;
     let protos = Protos::new(model_json, library, label)?;
@@ -455,37 +432,34 @@ fn _map_block<'py>(
             errors.angle_sd_deg.len()
         )));
     }
-    let cfg = config(
+    let errs = errors.options()?;
+    let cfg = map_config(
         bin,
         min_s0,
         max_distance,
         metric,
         tile,
-        rule,
-        confidence,
-        &errors,
+        (rule, confidence),
+        errs,
         bench,
     )?;
     let protos = Protos::new(model_json, library, label)?;
-    let mut models = Vec::new();
-    for &m in noise.iter().flatten() {
-        models.push(match m {
-            Some((r2, ig)) => {
-                if !(r2.is_finite() && ig.is_finite() && r2 >= 0.0 && ig >= 0.0 && r2 + ig > 0.0)
-                {
-                    return Err(value_error(format!(
-                        "noise must be (read_var_dn2, inv_gain), finite, >= 0 and not both 0, got ({r2}, {ig})"
-                    )));
-                }
-                Some(NoiseModel {
-                    read_var_dn2: r2,
-                    inv_gain: ig,
-                })
-            }
-            None => None,
-        });
+    let bad = |&(r2, ig): &(f64, f64)| {
+        !(r2.is_finite() && ig.is_finite() && r2 >= 0.0 && ig >= 0.0 && r2 + ig > 0.0)
+    };
+    if let Some((r2, ig)) = noise.iter().flatten().flatten().copied().find(bad) {
+        return Err(value_error(format!(
+            "noise must be (read_var_dn2, inv_gain), finite, >= 0 and not both 0, got ({r2}, {ig})"
+        )));
     }
-    let noise = noise.is_some().then_some(models.as_slice());
+    let models: Option<Vec<Option<NoiseModel>>> = noise.map(|v| {
+        let model = |(read_var_dn2, inv_gain)| NoiseModel {
+            read_var_dn2,
+            inv_gain,
+        };
+        v.into_iter().map(|m| m.map(model)).collect()
+    });
+    let noise = models.as_deref();
     let model = errors.model();
     let (far, beta): (Vec<f64>, Vec<Vec<f32>>) = match inp.beta_rad() {
         BlockBeta::Shared(b) => (b, Vec::new()),
