@@ -65,54 +65,9 @@ integer codes with their name tables (``status_code`` / ``status_names``,
 add the str arrays.
 """
 
-from ._polarid import (
-    FIT_STATUS,
-    __version__,
-    aolp,
-    beta_map,
-    classify,
-    classify_table,
-    demosaic,
-    dofp_dolp_aolp,
-    dolp,
-    dolp_aolp,
-    dolp_model,
-    dolp_model_grad,
-    fit_mixed,
-    fit_nk,
-    fit_table,
-    load_manifest,
-    measure,
-    pbrdf,
-    read_image,
-    simulate,
-    stokes,
-    stokes_color,
-)
-from ._polarid import map_manifest
+from . import _polarid
+from ._polarid import *  # noqa: F403
 
-__all__ = [
-    "FIT_STATUS",
-    "__version__",
-    "aolp",
-    "beta_map",
-    "classify",
-    "classify_table",
-    "demosaic",
-    "dofp_dolp_aolp",
-    "dolp",
-    "dolp_aolp",
-    "dolp_model",
-    "dolp_model_grad",
-    "fit_mixed",
-    "fit_nk",
-    "fit_table",
-    "load_manifest",
-    "measure",
-    "pbrdf",
-    "read_image",
-    "simulate",
-    "stokes",
-    "stokes_color",
-]
-__all__ += ["map_manifest"]
+#: The public names: the extension's (PyO3 keeps its ``__all__``), without the private
+#: helpers of ``polarid.dask``.
+__all__ = sorted(n for n in _polarid.__all__ if not n.startswith("_") or n == "__version__")

@@ -452,12 +452,12 @@ def _noise_block(
     min_s0: float | None = None,
     row_offsets: Sequence[int] | None = None,
     stride: int = 1,
-) -> NDArray[np.int64] | dict[str, NDArray[Any]]: ...
+) -> list[int] | tuple[list[int], list[list[list[float]]]]: ...
 def _estimate_noise(
-    dolp: ArrayLike,
-    read: ArrayLike,
-    shot: ArrayLike,
+    dolp: Sequence[Sequence[float]],
+    read: Sequence[Sequence[float]],
+    shot: Sequence[Sequence[float]],
     *,
     beta_deg: Sequence[float] | None = None,
-    beta_rad: ArrayLike | None = None,
+    beta_rad: Sequence[Sequence[float]] | None = None,
 ) -> tuple[float, float, int, int, float] | None: ...

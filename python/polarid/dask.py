@@ -194,7 +194,8 @@ def _count_block(x, beta=None, *, block_id, nblocks, per_capture_beta, t, a, kw)
 
 
 def _sample_block(x, beta, offsets, stride, block_id, nblocks, per_capture_beta, t, a, kw):
-    """Noise pass 2: the block's pixels of the map's noise sample (a dict of arrays)."""
+    """Noise pass 2: the block's pixels of the map's noise sample, ``(index, images)``
+    (``_noise_block``)."""
     frames, b, halo = _block_inputs(x, beta, block_id, nblocks, kw, per_capture_beta, t, a)
     return _noise_block(frames, kw["angles_deg"], b, halo=halo, **_stage1_kw(kw), band=kw["band"],
                         row_offsets=[int(v) for v in offsets], stride=int(stride))
@@ -253,19 +254,18 @@ def _estimate(da, x, beta, common, rows, cols, oh, ow, bin, per_capture_beta, sc
                 common["nblocks"], per_capture_beta, common["t"], common["a"], common["kw"]))
             where.append((r0[i], c0[j], out_cols[j]))
     parts = dask.compute(*tasks, scheduler=scheduler)
-    keys = ["dolp", "read", "shot"] + (["beta_rad"] if beta is not None else [])
-    gp, cols_ = [], {k: [] for k in keys}
-    for part, (ry, cx, bw) in zip(parts, where):
-        idx = np.asarray(part["index"], dtype=np.int64)
+    # Each part: (index, images): the DoLP, read and shot terms (and β) per capture.
+    gp = []
+    for (idx, _), (ry, cx, bw) in zip(parts, where):
+        idx = np.asarray(idx, dtype=np.int64)
         gp.append((ry + idx // bw) * ow + cx + idx % bw)
-        for k in keys:
-            cols_[k].append(np.asarray(part[k]))
     order = np.argsort(np.concatenate(gp), kind="stable")
-    sample = {k: np.ascontiguousarray(np.concatenate(v)[order]) for k, v in cols_.items()}
+    t = common["t"]
+    images = [np.concatenate([np.asarray(p[1][k], dtype=np.float32).reshape(t, -1) for p in parts],
+                             axis=1)[:, order].tolist() for k in range(len(parts[0][1]))]
     if beta is None:
-        return _estimate_noise(sample["dolp"], sample["read"], sample["shot"],
-                               beta_deg=[float(v) for v in per_capture_beta])
-    return _estimate_noise(sample["dolp"], sample["read"], sample["shot"], beta_rad=sample["beta_rad"])
+        return _estimate_noise(*images, beta_deg=[float(v) for v in per_capture_beta])
+    return _estimate_noise(*images[:3], beta_rad=images[3])
 
 
 def material_map(

@@ -12,15 +12,9 @@
 //! on the map's noise model (two numbers), so a map made of blocks whose edges are
 //! multiples of `bin` (and of the mosaic's period) equals the map of the whole frame.
 //!
-//! The noise model of `polarid map` (`polarid_core::map::noise::estimate_noise`) is a
-//! global estimate: a sample of every `m`-th usable pixel of the whole map (row-major
-//! order, `m = ⌈usable / NOISE_SAMPLE⌉`) is fitted and its residuals regressed. The
-//! Dask map reproduces it exactly in two passes over the blocks: `_noise_block`
-//! without `row_offsets` counts the usable pixels of every row of a block; with the
-//! offsets (usable pixels before each row of the block in the map's row-major order)
-//! and `stride = m`, it returns the block's sampled pixels (their DoLP, noise terms and
-//! β); `_estimate_noise` runs `estimate_noise` on the gathered sample, in the map's
-//! pixel order, which gives the very numbers `polarid map` estimates.
+//! The noise model of weighted fits is the whole map's, as `polarid map` estimates it:
+//! `_noise_block` and `_estimate_noise` translate the two passes over the blocks and
+//! the estimate of `polarid_pipeline::map::noise_sample`.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -28,25 +22,27 @@ use std::path::{Path, PathBuf};
 use ndarray::{ArrayD, IxDyn};
 use numpy::PyUntypedArrayMethods;
 use polarid_core::CoreError;
-use polarid_core::classify::Bench;
-use polarid_core::fit::{FitOptions, FitPlan, PixelBetaPlan};
-use polarid_core::map::noise::{NoiseModel, estimate_noise};
+use polarid_core::map::noise::NoiseModel;
 use polarid_core::map::sets::MapErrorModel;
-use polarid_core::map::{self as cmap, Betas, signal_reason};
+use polarid_core::map::{self as cmap};
 use polarid_core::mosaic::{ColourPattern, Pattern};
 use polarid_core::stokes::{PixelRules, StokesSolver};
 use polarid_core::systematic::Polarimetric;
 use polarid_io::model::Model;
+use polarid_pipeline::map::noise_sample::{
+    BlockBeta, estimate_sample, noise_sample, usable_per_row,
+};
 use polarid_pipeline::map::{
     self, Frames, FramesSource, MapConfig, MapErrors, MapPrototypes, REASON_NAMES, band_order,
     frames_bands, frames_class_names, map_frames,
 };
+use pyo3::IntoPyObjectExt;
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
 
 use crate::arrays::{f64_contiguous, fmt_shape, raw_array, to_numpy};
 use crate::colour::wavelengths;
 use crate::errors::{IntoPyErr, PyResultExt, value_error};
+use crate::map::map_config;
 use crate::stokes::pixel_rules;
 use crate::with_raw;
 
@@ -65,48 +61,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
 /// the band's reason.
 const BAND_PLANES: usize = 6;
 
-/// The map's options, checked as `polarid map` checks them (errors name the option).
-#[allow(clippy::too_many_arguments)]
-fn config(
-    bin: usize,
-    min_s0: Option<f64>,
-    max_distance: Option<f64>,
-    metric: &str,
-    tile: usize,
-    rule: &str,
-    confidence: f64,
-    errors: &ErrorArgs,
-    bench: &str,
-) -> PyResult<MapConfig> {
-    let metric = map::parse_metric(metric).py_err()?;
-    let bench = match bench {
-        "same" => Bench::Same,
-        "other" => Bench::Other,
-        b => {
-            return Err(value_error(format!(
-                "bench must be \"same\" or \"other\", got {b:?}"
-            )));
-        }
-    };
-    let first_sd = errors
-        .angle_sd_deg
-        .first()
-        .copied()
-        .unwrap_or(MapErrors::default().angle_sd_deg);
-    MapConfig::new(bin, min_s0, max_distance, metric, tile)
-        .and_then(|c| c.with_rule(map::parse_rule(rule)?, confidence))
-        .and_then(|c| {
-            c.with_errors(MapErrors {
-                angle_sd_deg: first_sd,
-                dolp_floor: errors.dolp_floor,
-                extinction_ratio: errors.extinction_ratio,
-                retardance_deg: errors.retardance_deg,
-            })
-        })
-        .map(|c| c.with_bench(bench))
-        .py_err()
-}
-
 /// The set rule's systematic error model as the Python side passes it: one angle
 /// uncertainty per capture (degrees) and the analyzer's terms.
 struct ErrorArgs {
@@ -117,16 +71,22 @@ struct ErrorArgs {
 }
 
 impl ErrorArgs {
-    /// Check every capture's angle uncertainty as `--angle-sd-deg` is checked.
-    fn check(&self) -> PyResult<()> {
-        for &a in &self.angle_sd_deg {
-            if !(a.is_finite() && (0.0..90.0).contains(&a)) {
-                return Err(value_error(format!(
-                    "angle_sd_deg must be in [0, 90), got {a}"
-                )));
-            }
+    /// The map's error options, every capture's angle uncertainty checked as
+    /// `--angle-sd-deg` is (the first one in the options).
+    fn options(&self) -> PyResult<MapErrors> {
+        let bad = |a: &&f64| !(a.is_finite() && (0.0..90.0).contains(*a));
+        if let Some(a) = self.angle_sd_deg.iter().find(bad) {
+            return Err(value_error(format!(
+                "angle_sd_deg must be in [0, 90), got {a}"
+            )));
         }
-        Ok(())
+        let first = self.angle_sd_deg.first().copied();
+        Ok(MapErrors {
+            angle_sd_deg: first.unwrap_or(MapErrors::default().angle_sd_deg),
+            dolp_floor: self.dolp_floor,
+            extinction_ratio: self.extinction_ratio,
+            retardance_deg: self.retardance_deg,
+        })
     }
 
     /// The core error model (as `polarid_pipeline::map`'s `error_model`: radians, no
@@ -219,16 +179,15 @@ fn _map_names(
         extinction_ratio,
         retardance_deg,
     };
-    errors.check()?;
-    let cfg = config(
+    let errs = errors.options()?;
+    let cfg = map_config(
         bin,
         min_s0,
         max_distance,
         metric,
         tile,
-        rule,
-        confidence,
-        &errors,
+        (rule, confidence),
+        errs,
         bench,
     )?;
     let protos = Protos::new(model_json, library, label)?;
@@ -401,18 +360,9 @@ impl Inputs<'_> {
         }
     }
 
-    /// β in radians, as the fit takes it (see [`BetaRad`]).
-    fn beta_rad(&self) -> BetaRad {
-        if self.per_pixel {
-            BetaRad::PerPixel(
-                self.beta
-                    .chunks_exact((self.ow * self.oh).max(1))
-                    .map(|b| b.iter().map(|d| d.to_radians() as f32).collect())
-                    .collect(),
-            )
-        } else {
-            BetaRad::Shared(self.beta.iter().map(|d| d.to_radians()).collect())
-        }
+    /// β in radians, as the fit takes it.
+    fn beta_rad(&self) -> BlockBeta {
+        BlockBeta::from_degrees(&self.beta, self.per_pixel, self.ow * self.oh)
     }
 }
 
@@ -482,42 +432,38 @@ fn _map_block<'py>(
             errors.angle_sd_deg.len()
         )));
     }
-    errors.check()?;
-    let cfg = config(
+    let errs = errors.options()?;
+    let cfg = map_config(
         bin,
         min_s0,
         max_distance,
         metric,
         tile,
-        rule,
-        confidence,
-        &errors,
+        (rule, confidence),
+        errs,
         bench,
     )?;
     let protos = Protos::new(model_json, library, label)?;
-    let mut models = Vec::new();
-    for &m in noise.iter().flatten() {
-        models.push(match m {
-            Some((r2, ig)) => {
-                if !(r2.is_finite() && ig.is_finite() && r2 >= 0.0 && ig >= 0.0 && r2 + ig > 0.0)
-                {
-                    return Err(value_error(format!(
-                        "noise must be (read_var_dn2, inv_gain), finite, >= 0 and not both 0, got ({r2}, {ig})"
-                    )));
-                }
-                Some(NoiseModel {
-                    read_var_dn2: r2,
-                    inv_gain: ig,
-                })
-            }
-            None => None,
-        });
+    let bad = |&(r2, ig): &(f64, f64)| {
+        !(r2.is_finite() && ig.is_finite() && r2 >= 0.0 && ig >= 0.0 && r2 + ig > 0.0)
+    };
+    if let Some((r2, ig)) = noise.iter().flatten().flatten().copied().find(bad) {
+        return Err(value_error(format!(
+            "noise must be (read_var_dn2, inv_gain), finite, >= 0 and not both 0, got ({r2}, {ig})"
+        )));
     }
-    let noise = noise.is_some().then_some(models.as_slice());
+    let models: Option<Vec<Option<NoiseModel>>> = noise.map(|v| {
+        let model = |(read_var_dn2, inv_gain)| NoiseModel {
+            read_var_dn2,
+            inv_gain,
+        };
+        v.into_iter().map(|m| m.map(model)).collect()
+    });
+    let noise = models.as_deref();
     let model = errors.model();
     let (far, beta): (Vec<f64>, Vec<Vec<f32>>) = match inp.beta_rad() {
-        BetaRad::Shared(b) => (b, Vec::new()),
-        BetaRad::PerPixel(m) => (vec![f64::NAN; inp.t_len], m),
+        BlockBeta::Shared(b) => (b, Vec::new()),
+        BlockBeta::PerPixel(m) => (vec![f64::NAN; inp.t_len], m),
     };
     let src = protos.src();
     let fit = with_raw!(&inp.raw, |data| {
@@ -543,18 +489,16 @@ fn _map_block<'py>(
 }
 
 /// The noise-model sample of a block (private: the global step of
-/// ``polarid.dask.material_map``'s weighted fits; see the module documentation).
+/// ``polarid.dask.material_map``'s weighted fits,
+/// ``polarid_pipeline::map::noise_sample``).
 ///
 /// Inputs as ``_map_block``; ``band``: the band sampled (index in increasing
-/// wavelength; 0 for single-band frames). Without ``row_offsets``: int64
-/// (h/bin,), the number of usable pixels of every map row of the block (pixels without a
-/// flag whose captures' DoLP, noise terms and β are finite: all captures, or at least 3
-/// with a β per pixel). With ``row_offsets`` (int64 (h/bin,): the usable pixels of the
-/// whole map before each row of the block, row-major) and ``stride``: a dict of the
-/// block's usable pixels whose map rank is a multiple of ``stride``: ``index`` int64
-/// (S,) (row-major within the block's map pixels), ``dolp``, ``read``, ``shot`` float32
-/// (S, T) and, with a β per pixel, ``beta_rad`` float32 (S, T) (the radians the fit
-/// uses).
+/// wavelength; 0 for single-band frames). Without ``row_offsets``: the number of usable
+/// pixels of every map row of the block (list, h/bin). With ``row_offsets`` (the usable
+/// pixels of the whole map before each row of the block, row-major) and ``stride``:
+/// ``(index, images)``, the block's usable pixels whose map rank is a multiple of
+/// ``stride`` (``index`` row-major within the block's map pixels) and their images per
+/// capture: DoLP, read and shot terms and, with a β per pixel, β in radians.
 #[pyfunction]
 #[pyo3(signature = (frames, angles_deg, beta_deg, *, pattern = None, color = None, bands = None, band = 0, halo = (0, 0, 0, 0), bin = 1, dark_level = None, saturation = None, min_s0 = None, row_offsets = None, stride = 1))]
 #[allow(clippy::too_many_arguments)]
@@ -572,207 +516,68 @@ fn _noise_block<'py>(
     dark_level: Option<Vec<f64>>,
     saturation: Option<Vec<Option<f64>>>,
     min_s0: Option<f64>,
-    row_offsets: Option<Vec<i64>>,
+    row_offsets: Option<Vec<usize>>,
     stride: usize,
 ) -> PyResult<Bound<'py, PyAny>> {
-    // The options as the map checks them.
     let cfg = MapConfig::new(bin, min_s0, None, map::Metric::Euclidean, 1).py_err()?;
     let colour = color.map(|c| (c, bands));
     let inp = inputs(
         frames, angles_deg, beta_deg, pattern, colour, halo, bin, dark_level, saturation,
     )?;
-    let (ow, oh, t_len) = (inp.ow, inp.oh, inp.t_len);
-    if let Some(o) = &row_offsets
-        && o.len() != oh
-    {
-        return Err(value_error(format!(
-            "row_offsets needs one value per map row of the block ({oh}), got {}",
-            o.len()
-        )));
-    }
-    let stride = stride.max(1) as i64;
     let per_pixel = inp.per_pixel;
     let bands = with_raw!(&inp.raw, |data| {
         let f = inp.frames(data);
         py.detach(|| frames_bands(&cfg, &f, per_pixel, true))
     });
     let bands = bands.py_err()?;
-    let Some(b) = bands.get(band) else {
-        return Err(value_error(format!(
-            "band {band} of a map of {} band(s)",
-            bands.len()
-        )));
-    };
-    let (dolp, flags, read, shot) = b.images();
-    let beta_rad = inp.beta_rad();
-    let masks: Vec<u64> = (0..ow * oh)
-        .map(|p| usable_mask((dolp, flags, read, shot), &beta_rad, t_len, p))
-        .collect();
+    let b = bands
+        .get(band)
+        .ok_or_else(|| value_error(format!("band {band} of a map of {} band(s)", bands.len())))?;
+    let beta = inp.beta_rad();
     let Some(offsets) = row_offsets else {
-        let counts: Vec<i64> = masks
-            .chunks_exact(ow.max(1))
-            .map(|r| r.iter().filter(|&&m| m != 0).count() as i64)
-            .collect();
-        let a =
-            ArrayD::from_shape_vec(IxDyn(&[oh]), counts).map_err(|e| value_error(e.to_string()))?;
-        return Ok(to_numpy(py, a));
+        return usable_per_row(b, &beta, inp.ow, inp.oh).into_bound_py_any(py);
     };
-    let mut index: Vec<i64> = Vec::new();
-    for (y, off) in offsets.iter().enumerate() {
-        let mut rank = *off;
-        for x in 0..ow {
-            let p = y * ow + x;
-            if masks[p] != 0 {
-                if rank % stride == 0 {
-                    index.push(p as i64);
-                }
-                rank += 1;
-            }
-        }
-    }
-    let s = index.len();
-    let gather = |imgs: &[Vec<f32>]| -> PyResult<Bound<'py, PyAny>> {
-        let mut v = Vec::with_capacity(s * t_len);
-        for &p in &index {
-            v.extend(imgs.iter().map(|im| im[p as usize]));
-        }
-        let a = ArrayD::from_shape_vec(IxDyn(&[s, t_len]), v)
-            .map_err(|e| value_error(e.to_string()))?;
-        Ok(to_numpy(py, a))
-    };
-    let d = PyDict::new(py);
-    d.set_item("dolp", gather(dolp)?)?;
-    d.set_item("read", gather(read)?)?;
-    d.set_item("shot", gather(shot)?)?;
-    if let BetaRad::PerPixel(maps) = &beta_rad {
-        d.set_item("beta_rad", gather(maps)?)?;
-    }
-    let idx = ArrayD::from_shape_vec(IxDyn(&[s]), index).map_err(|e| value_error(e.to_string()))?;
-    d.set_item("index", to_numpy(py, idx))?;
-    Ok(d.into_any())
+    noise_sample(b, &beta, inp.ow, &offsets, stride)
+        .py_err()?
+        .into_bound_py_any(py)
 }
 
 /// `(read_var_dn2, inv_gain, pixels, outliers, reduced_chi2)` of a noise estimate.
 type NoiseTuple = (f64, f64, usize, usize, f64);
 
-/// The map's noise model from the gathered sample (private: see the module
-/// documentation). ``dolp``, ``read``, ``shot``: float32 (S, T), the sampled pixels in
-/// the map's row-major order; ``beta_deg`` (T,) with one β per capture, or
-/// ``beta_rad`` float32 (S, T) per pixel. Returns None when the sample gives no
-/// estimate (too few usable pixels), else ``(read_var_dn2, inv_gain, pixels, outliers,
-/// reduced_chi2)``: the estimate of ``polarid map`` (``map_summary.json``'s
-/// ``noise``).
+/// The map's noise model from the gathered sample (private:
+/// ``polarid_pipeline::map::noise_sample::estimate_sample``). ``dolp``, ``read``,
+/// ``shot``: per capture, the sampled pixels in the map's row-major order; ``beta_deg``
+/// (T,) with one β per capture, or ``beta_rad`` per capture and pixel. Returns None
+/// when the sample gives no estimate (too few usable pixels), else ``(read_var_dn2,
+/// inv_gain, pixels, outliers, reduced_chi2)``: the estimate of ``polarid map``
+/// (``map_summary.json``'s ``noise``).
 #[pyfunction]
 #[pyo3(signature = (dolp, read, shot, *, beta_deg = None, beta_rad = None))]
-fn _estimate_noise<'py>(
-    py: Python<'py>,
-    dolp: &Bound<'py, PyAny>,
-    read: &Bound<'py, PyAny>,
-    shot: &Bound<'py, PyAny>,
+fn _estimate_noise(
+    py: Python<'_>,
+    dolp: Vec<Vec<f32>>,
+    read: Vec<Vec<f32>>,
+    shot: Vec<Vec<f32>>,
     beta_deg: Option<Vec<f64>>,
-    beta_rad: Option<&Bound<'py, PyAny>>,
+    beta_rad: Option<Vec<Vec<f32>>>,
 ) -> PyResult<Option<NoiseTuple>> {
-    let cols = |name: &str, a: &Bound<'py, PyAny>| -> PyResult<(usize, usize, Vec<Vec<f32>>)> {
-        let a = f64_contiguous(name, a)?;
-        let sh = a.shape().to_vec();
-        let [s, t] = sh[..] else {
-            return Err(value_error(format!(
-                "{name} must have shape (pixels, captures), got shape {}",
-                fmt_shape(&sh)
-            )));
-        };
-        let v = a.as_slice()?;
-        let imgs = (0..t)
-            .map(|c| (0..s).map(|p| v[p * t + c] as f32).collect())
-            .collect();
-        Ok((s, t, imgs))
-    };
-    let (s, t, dolp) = cols("dolp", dolp)?;
-    let (s1, t1, read) = cols("read", read)?;
-    let (s2, t2, shot) = cols("shot", shot)?;
-    if (s1, t1) != (s, t) || (s2, t2) != (s, t) {
-        return Err(value_error("dolp, read and shot must have the same shape"));
-    }
-    let flags = vec![0u8; s];
-    let dv: Vec<&[f32]> = dolp.iter().map(Vec::as_slice).collect();
-    let rv: Vec<&[f32]> = read.iter().map(Vec::as_slice).collect();
-    let sv: Vec<&[f32]> = shot.iter().map(Vec::as_slice).collect();
-    let est = match (beta_deg, beta_rad) {
-        (Some(b), None) => {
-            let b: Vec<f64> = b.iter().map(|d| d.to_radians()).collect();
-            let plan = FitPlan::new(&b, FitOptions::default()).py_err()?;
-            py.detach(|| estimate_noise(Betas::Shared(&plan), &dv, &rv, &sv, &flags))
-        }
-        (None, Some(b)) => {
-            let (sb, tb, maps) = cols("beta_rad", b)?;
-            if (sb, tb) != (s, t) {
-                return Err(value_error("beta_rad must have the shape of dolp"));
-            }
-            let bv: Vec<&[f32]> = maps.iter().map(Vec::as_slice).collect();
-            let plan = PixelBetaPlan::new(FitOptions::default()).py_err()?;
-            py.detach(|| {
-                estimate_noise(
-                    Betas::PerPixel {
-                        plan: &plan,
-                        beta: &bv,
-                    },
-                    &dv,
-                    &rv,
-                    &sv,
-                    &flags,
-                )
-            })
-        }
+    let beta = match (beta_deg, beta_rad) {
+        (Some(b), None) => BlockBeta::from_degrees(&b, false, 0),
+        (None, Some(b)) => BlockBeta::PerPixel(b),
         _ => return Err(value_error("give either beta_deg or beta_rad")),
-    }
-    .py_err()?;
+    };
+    let est = py
+        .detach(|| estimate_sample(&dolp, &read, &shot, &beta))
+        .py_err()?;
     Ok(est.map(|e| {
+        let m = e.model;
         (
-            e.model.read_var_dn2,
-            e.model.inv_gain,
+            m.read_var_dn2,
+            m.inv_gain,
             e.pixels,
             e.outliers,
             e.reduced_chi2,
         )
     }))
 }
-
-/// The β of a block's fits: radians, one per capture or one image per capture (f32, as
-/// the pipeline's geometry stage stores them).
-enum BetaRad {
-    Shared(Vec<f64>),
-    PerPixel(Vec<Vec<f32>>),
-}
-
-/// The captures a pixel can use in the noise-model sample, as a bit mask (0: not
-/// usable): the rule of `polarid_core::map::noise::estimate_noise` (no signal flag;
-/// DoLP, noise terms and β finite, a term positive; every capture, or with a β per
-/// pixel and fewer than 64 captures at least 3 of them).
-fn usable_mask(st: BandImages<'_>, beta: &BetaRad, t_len: usize, p: usize) -> u64 {
-    let (dolp, flags, read, shot) = st;
-    if signal_reason(flags[p]) != 0 {
-        return 0;
-    }
-    let ok = |t: usize| {
-        let (d, a, b) = (dolp[t][p], read[t][p], shot[t][p]);
-        let bt = match beta {
-            BetaRad::Shared(v) => v[t],
-            BetaRad::PerPixel(m) => m[t][p] as f64,
-        };
-        d.is_finite() && a.is_finite() && b.is_finite() && (a > 0.0 || b > 0.0) && bt.is_finite()
-    };
-    let per_pixel = matches!(beta, BetaRad::PerPixel(_)) && t_len < 64;
-    if per_pixel {
-        let m = (0..t_len)
-            .filter(|&t| ok(t))
-            .fold(0u64, |m, t| m | (1 << t));
-        if m.count_ones() >= 3 { m } else { 0 }
-    } else if (0..t_len).all(ok) {
-        u64::MAX
-    } else {
-        0
-    }
-}
-
-/// A band's images ([`polarid_pipeline::map::BandDolp::images`]).
-type BandImages<'a> = (&'a [Vec<f32>], &'a [u8], &'a [Vec<f32>], &'a [Vec<f32>]);

@@ -15,8 +15,8 @@ use std::path::Path;
 use ndarray::{ArrayD, ArrayViewD, IxDyn};
 use polarid_core::FitStatus;
 use polarid_core::classify::{
-    AMBIGUOUS, ClassifierConfig, Cov2, Estimate, EstimateBand, MultiEstimate, Prototype, Rule,
-    UNKNOWN,
+    AMBIGUOUS, Classifier, ClassifierConfig, Cov2, Decision, Estimate, EstimateBand, MultiEstimate,
+    Prototype, Rule, UNKNOWN,
 };
 use polarid_core::systematic::FilmShifts;
 use polarid_pipeline::classify::{
@@ -342,10 +342,7 @@ pub fn classify<'py>(
         max_distance,
     )?;
     let source = prototype_source(library_or_model)?;
-
-    // Broadcast the numeric inputs.
-    let nv = n.as_array();
-    let kv = k.as_array();
+    let (nv, kv) = (n.as_array(), k.as_array());
     let sn = n_se.as_ref().map(|x| x.as_array());
     let sk = k_se.as_ref().map(|x| x.as_array());
     let sc = nk_corr.as_ref().map(|x| x.as_array());
@@ -362,291 +359,332 @@ pub fn classify<'py>(
         }
     }
     let shape = broadcast_shape(&shapes)?;
-    // The band axis, and the shape of the result.
-    let band = match band_axis {
-        None => None,
-        Some(_) if wv.is_none() => {
-            return Err(value_error(
-                "band_axis needs wavelength_nm (the wavelength of every band)",
-            ));
-        }
-        Some(a) => {
-            let nd = shape.len() as isize;
-            if !(-nd..nd).contains(&a) {
-                return Err(value_error(format!(
-                    "band_axis {a} is out of range for inputs of shape {}",
-                    fmt_shape(&shape)
-                )));
-            }
-            Some(if a < 0 { (a + nd) as usize } else { a as usize })
-        }
-    };
-    let nb = band.map_or(1, |a| shape[a]);
-    let out_shape: Vec<usize> = match band {
-        Some(a) => shape
-            .iter()
-            .enumerate()
-            .filter(|&(i, _)| i != a)
-            .map(|(_, &d)| d)
-            .collect(),
-        None => shape.clone(),
-    };
+    let band = band_axis_of(band_axis, wv.is_some(), &shape)?;
     let flat = |name: &str, v: &ArrayViewD<'_, f64>| -> PyResult<Vec<f64>> {
         Ok(flat_bands(&broadcast_to(name, v, &shape)?, band))
     };
-    let fn_ = flat("n", &nv)?;
-    let fk = flat("k", &kv)?;
-    let fsn = sn.as_ref().map(|v| flat("n_se", v)).transpose()?;
-    let fsk = sk.as_ref().map(|v| flat("k_se", v)).transpose()?;
-    let fsc = sc.as_ref().map(|v| flat("nk_corr", v)).transpose()?;
-    let fw = wv.as_ref().map(|v| flat("wavelength_nm", v)).transpose()?;
-    // The six surface-layer shift columns, each flattened like the other inputs.
-    let ffilm: Option<Vec<Vec<f64>>> = match film_shifts.as_ref().map(|x| x.as_array()) {
-        None => None,
-        Some(v) => {
-            let nd = v.ndim();
-            if nd == 0 || v.shape()[nd - 1] != 6 {
-                return Err(value_error(format!(
-                    "film_shifts needs a last axis of length 6 (film1_dn, film1_dk, ..., \
-                     film3_dk), got shape {}",
-                    fmt_shape(v.shape())
-                )));
-            }
-            let mut cols = Vec::with_capacity(6);
-            for c in 0..6 {
-                let comp = v.index_axis(ndarray::Axis(nd - 1), c);
-                cols.push(flat("film_shifts", &comp)?);
-            }
-            Some(cols)
-        }
-    };
-    let (status_words, status_codes) = match fit_status {
+    let opt =
+        |name: &str, v: &Option<ArrayViewD<'_, f64>>| v.as_ref().map(|v| flat(name, v)).transpose();
+    let (status_words, status) = match fit_status {
         Some(s) => {
             let (w, c) = fit_statuses(s, &shape)?;
-            (w, Some(c))
+            let status = flat_bands(&c.view(), band)
+                .iter()
+                .map(|&c| w[c as usize])
+                .collect();
+            (w, Some(status))
         }
         None => (vec![FitStatus::Ok], None),
     };
-    let fst: Option<Vec<u32>> = status_codes.map(|c| flat_bands(&c.view(), band));
-
+    let inputs = Flat {
+        bands: band.map_or(1, |a| shape[a]),
+        n: flat("n", &nv)?,
+        k: flat("k", &kv)?,
+        n_se: opt("n_se", &sn)?,
+        k_se: opt("k_se", &sk)?,
+        corr: opt("nk_corr", &sc)?,
+        wavelength: opt("wavelength_nm", &wv)?,
+        film: film_columns(film_shifts.as_ref().map(|x| x.as_array()), &flat)?,
+        status,
+    };
     // The prototypes for these wavelengths, as `polarid classify` takes them.
-    let mut wavelengths: Vec<f64> = Vec::new();
-    let mut without = 0usize;
-    if let Some(w) = &fw {
-        let mut seen: HashSet<u64> = HashSet::new();
-        for &x in w {
-            if x.is_nan() {
-                without += 1;
-            } else if seen.insert(x.to_bits()) {
-                check_wavelength(x)?;
-                wavelengths.push(x);
-            }
-        }
-    }
+    let (wavelengths, without) = distinct_wavelengths(inputs.wavelength.as_deref())?;
     let (protos, label, warnings) = py
         .detach(|| source.load_multi_for(&wavelengths, without))
         .py_err()?;
     warn_texts(py, warnings.iter().map(|w| w.0.as_str()))?;
     let clf = multi_classifier(protos, &label, cfg).py_err()?;
-
-    // Name tables: classes (and "unknown", ""), decision statuses.
-    let mut classes: Vec<String> = vec![String::new(), UNKNOWN.to_string(), AMBIGUOUS.into()];
-    for p in clf.prototypes() {
-        if !classes.contains(&p.class) {
-            classes.push(p.class.clone());
-        }
-    }
-    let class_idx: HashMap<&str, u32> = classes
-        .iter()
-        .enumerate()
-        .map(|(i, c)| (c.as_str(), i as u32))
-        .collect();
-    let mut labels: Vec<String> = [
-        "ok",
-        "rejected",
-        "no_covariance",
-        "invalid_estimate",
-        "ambiguous",
-        "no_common_band",
-    ]
-    .iter()
-    .map(|s| s.to_string())
-    .collect();
-    for w in &status_words {
-        labels.push(format!("fit_{w}"));
-    }
-    let label_idx: HashMap<&str, u32> = labels
-        .iter()
-        .enumerate()
-        .map(|(i, c)| (c.as_str(), i as u32))
-        .collect();
-
-    let len = fn_.len() / nb.max(1);
-    // Candidates, category, bands used.
-    type Set = (Vec<String>, Option<String>, String);
+    let names = Names::new(&clf, &status_words);
     let res: Vec<(Row, Set)> = py.detach(|| {
-        (0..len)
+        (0..inputs.n.len() / inputs.bands.max(1))
             .into_par_iter()
-            .map(|i| {
-                let est = MultiEstimate {
-                    bands: (i * nb..(i + 1) * nb)
-                        .map(|j| {
-                            let cov = match (&fsn, &fsk) {
-                                (Some(a), Some(b)) => {
-                                    let c = fsc.as_ref().map_or(0.0, |c| c[j]);
-                                    Cov2::from_se(a[j], b[j], if c.is_nan() { 0.0 } else { c })
-                                }
-                                _ => None,
-                            };
-                            let fit_status = match &fst {
-                                Some(c) => status_words[c[j] as usize],
-                                None => FitStatus::Ok,
-                            };
-                            EstimateBand {
-                                wavelength_nm: fw.as_ref().map(|w| w[j]).filter(|w| !w.is_nan()),
-                                estimate: Estimate {
-                                    n: fn_[j],
-                                    k: fk[j],
-                                    cov,
-                                    fit_status,
-                                },
-                                // Without shifts each band keeps the allowance folded
-                                // into its covariance.
-                                film: ffilm.as_ref().and_then(|c| {
-                                    let a = [
-                                        [c[0][j], c[1][j]],
-                                        [c[2][j], c[3][j]],
-                                        [c[4][j], c[5][j]],
-                                    ];
-                                    a.iter()
-                                        .flatten()
-                                        .all(|x| x.is_finite())
-                                        .then_some(FilmShifts(a))
-                                }),
-                            }
-                        })
-                        .collect(),
-                };
-                let d = clf.classify_multi(&est);
-                let ci = |c: &str| class_idx.get(c).copied().unwrap_or(1);
-                let ru = d.runner_up.as_deref().map_or(0, ci);
-                let set = (
-                    d.candidates.iter().map(|c| c.class.clone()).collect(),
-                    d.set_category.clone(),
-                    d.bands_used_text(),
-                );
-                (
-                    (
-                        ci(&d.predicted),
-                        if d.nearest.is_some() {
-                            d.distance
-                        } else {
-                            f64::NAN
-                        },
-                        ru,
-                        if d.runner_up.is_some() {
-                            d.runner_up_distance
-                        } else {
-                            f64::NAN
-                        },
-                        d.margin,
-                        label_idx
-                            .get(d.status.label().as_str())
-                            .copied()
-                            .unwrap_or(3),
-                    ),
-                    set,
-                )
-            })
+            .map(|i| names.row(&clf.classify_multi(&inputs.estimate(i))))
             .collect()
     });
-    let (res, sets): (Vec<Row>, Vec<Set>) = res.into_iter().unzip();
-
-    let out = PyDict::new(py);
+    let out_shape: Vec<usize> = (0..shape.len())
+        .filter(|&i| Some(i) != band)
+        .map(|i| shape[i])
+        .collect();
     if out_shape.is_empty() {
-        let r = res
-            .first()
-            .copied()
-            .unwrap_or((1, f64::NAN, 0, f64::NAN, f64::NAN, 3));
-        out.set_item("predicted", &classes[r.0 as usize])?;
-        out.set_item("distance", r.1)?;
-        out.set_item(
-            "runner_up",
-            (r.2 != 0).then(|| classes[r.2 as usize].clone()),
-        )?;
-        out.set_item("runner_up_distance", r.3)?;
-        out.set_item("margin", r.4)?;
-        out.set_item("status", &labels[r.5 as usize])?;
-        let (cands, cat, bands) = sets.into_iter().next().unwrap_or_default();
-        out.set_item("n_candidates", cands.len())?;
-        out.set_item("candidates", cands)?;
-        out.set_item("category", cat)?;
-        out.set_item("bands_used", bands)?;
-        return Ok(out);
+        scalar_result(py, &names, res.into_iter().next())
+    } else {
+        array_result(py, &names, res, &out_shape, strings)
     }
-    let dim = IxDyn(&out_shape);
-    let u = |f: fn(&Row) -> u32| -> PyResult<ArrayD<u32>> {
-        ArrayD::from_shape_vec(dim.clone(), res.iter().map(f).collect())
-            .map_err(|e| value_error(e.to_string()))
+}
+
+/// `band_axis` as an axis of inputs of `shape` (it needs `wavelength_nm`).
+fn band_axis_of(
+    band_axis: Option<isize>,
+    wavelengths: bool,
+    shape: &[usize],
+) -> PyResult<Option<usize>> {
+    let Some(a) = band_axis else {
+        return Ok(None);
     };
-    let fl = |f: fn(&Row) -> f64| -> PyResult<ArrayD<f64>> {
-        ArrayD::from_shape_vec(dim.clone(), res.iter().map(f).collect())
-            .map_err(|e| value_error(e.to_string()))
-    };
-    let class_refs: Vec<&str> = classes.iter().map(String::as_str).collect();
-    let label_refs: Vec<&str> = labels.iter().map(String::as_str).collect();
-    // Candidates (`;`-joined), categories and bands used: codes into tables of distinct
-    // values.
-    let mut joined = NameTable::default();
-    let mut cats = NameTable::default();
-    let mut bands = NameTable::default();
-    let mut jc = Vec::with_capacity(sets.len());
-    let mut cc = Vec::with_capacity(sets.len());
-    let mut bc = Vec::with_capacity(sets.len());
-    let mut nc = Vec::with_capacity(sets.len());
-    for (cands, cat, used) in &sets {
-        jc.push(joined.code(&cands.join(";")));
-        cc.push(cats.code(cat.as_deref().unwrap_or("")));
-        bc.push(bands.code(used));
-        nc.push(cands.len() as u32);
+    if !wavelengths {
+        return Err(value_error(
+            "band_axis needs wavelength_nm (the wavelength of every band)",
+        ));
     }
-    drop(sets);
+    let nd = shape.len() as isize;
+    if !(-nd..nd).contains(&a) {
+        return Err(value_error(format!(
+            "band_axis {a} is out of range for inputs of shape {}",
+            fmt_shape(shape)
+        )));
+    }
+    Ok(Some(if a < 0 { (a + nd) as usize } else { a as usize }))
+}
+
+/// The six surface-layer shift columns of `film_shifts` (last axis 6), each flattened
+/// by `flat` like the other inputs.
+fn film_columns(
+    v: Option<ArrayViewD<'_, f64>>,
+    flat: &dyn Fn(&str, &ArrayViewD<'_, f64>) -> PyResult<Vec<f64>>,
+) -> PyResult<Option<Vec<Vec<f64>>>> {
+    let Some(v) = v else {
+        return Ok(None);
+    };
+    let nd = v.ndim();
+    if nd == 0 || v.shape()[nd - 1] != 6 {
+        return Err(value_error(format!(
+            "film_shifts needs a last axis of length 6 (film1_dn, film1_dk, ..., \
+             film3_dk), got shape {}",
+            fmt_shape(v.shape())
+        )));
+    }
+    (0..6)
+        .map(|c| flat("film_shifts", &v.index_axis(ndarray::Axis(nd - 1), c)))
+        .collect::<PyResult<Vec<_>>>()
+        .map(Some)
+}
+
+/// The distinct wavelengths of `w` (checked as `--wavelength-nm`), in order of first
+/// appearance, and the number of estimates without one (NaN).
+fn distinct_wavelengths(w: Option<&[f64]>) -> PyResult<(Vec<f64>, usize)> {
+    let (mut wavelengths, mut without) = (Vec::new(), 0usize);
+    let mut seen: HashSet<u64> = HashSet::new();
+    for &x in w.unwrap_or_default() {
+        if x.is_nan() {
+            without += 1;
+        } else if seen.insert(x.to_bits()) {
+            check_wavelength(x)?;
+            wavelengths.push(x);
+        }
+    }
+    Ok((wavelengths, without))
+}
+
+/// The inputs of `classify` flattened in estimate order (the bands of an estimate
+/// consecutive).
+struct Flat {
+    bands: usize,
+    n: Vec<f64>,
+    k: Vec<f64>,
+    n_se: Option<Vec<f64>>,
+    k_se: Option<Vec<f64>>,
+    corr: Option<Vec<f64>>,
+    wavelength: Option<Vec<f64>>,
+    film: Option<Vec<Vec<f64>>>,
+    /// The fit status of every band (None: all ok).
+    status: Option<Vec<FitStatus>>,
+}
+
+impl Flat {
+    /// Estimate `i` on its bands.
+    fn estimate(&self, i: usize) -> MultiEstimate {
+        let band = |j: usize| {
+            let cov = match (&self.n_se, &self.k_se) {
+                (Some(a), Some(b)) => {
+                    let c = self.corr.as_ref().map_or(0.0, |c| c[j]);
+                    Cov2::from_se(a[j], b[j], if c.is_nan() { 0.0 } else { c })
+                }
+                _ => None,
+            };
+            let fit_status = self.status.as_ref().map_or(FitStatus::Ok, |c| c[j]);
+            // Without shifts each band keeps the allowance folded into its covariance.
+            let film = self.film.as_ref().and_then(|c| {
+                let a = [[c[0][j], c[1][j]], [c[2][j], c[3][j]], [c[4][j], c[5][j]]];
+                a.iter()
+                    .flatten()
+                    .all(|x| x.is_finite())
+                    .then_some(FilmShifts(a))
+            });
+            EstimateBand {
+                wavelength_nm: self
+                    .wavelength
+                    .as_ref()
+                    .map(|w| w[j])
+                    .filter(|w| !w.is_nan()),
+                estimate: Estimate {
+                    n: self.n[j],
+                    k: self.k[j],
+                    cov,
+                    fit_status,
+                },
+                film,
+            }
+        };
+        MultiEstimate {
+            bands: (i * self.bands..(i + 1) * self.bands).map(band).collect(),
+        }
+    }
+}
+
+/// An estimate's candidates, category and bands used.
+type Set = (Vec<String>, Option<String>, String);
+
+/// The name tables of the results: classes (`""`, `"unknown"`, `"ambiguous"`, the
+/// prototypes' classes) and decision statuses.
+struct Names {
+    classes: Vec<String>,
+    labels: Vec<String>,
+}
+
+impl Names {
+    fn new(clf: &Classifier, status_words: &[FitStatus]) -> Self {
+        let mut classes: Vec<String> = vec![String::new(), UNKNOWN.to_string(), AMBIGUOUS.into()];
+        for p in clf.prototypes() {
+            if !classes.contains(&p.class) {
+                classes.push(p.class.clone());
+            }
+        }
+        let fixed = [
+            "ok",
+            "rejected",
+            "no_covariance",
+            "invalid_estimate",
+            "ambiguous",
+            "no_common_band",
+        ];
+        let labels = fixed
+            .iter()
+            .map(|s| s.to_string())
+            .chain(status_words.iter().map(|w| format!("fit_{w}")))
+            .collect();
+        Self { classes, labels }
+    }
+
+    /// A decision as codes into the tables, and its set.
+    fn row(&self, d: &Decision) -> (Row, Set) {
+        let code = |names: &[String], s: &str, other: u32| {
+            names
+                .iter()
+                .position(|c| c == s)
+                .map_or(other, |i| i as u32)
+        };
+        let ci = |c: &str| code(&self.classes, c, 1);
+        let nan_unless = |b: bool, x: f64| if b { x } else { f64::NAN };
+        let row = (
+            ci(&d.predicted),
+            nan_unless(d.nearest.is_some(), d.distance),
+            d.runner_up.as_deref().map_or(0, ci),
+            nan_unless(d.runner_up.is_some(), d.runner_up_distance),
+            d.margin,
+            code(&self.labels, &d.status.label(), 3),
+        );
+        let set = (
+            d.candidates.iter().map(|c| c.class.clone()).collect(),
+            d.set_category.clone(),
+            d.bands_used_text(),
+        );
+        (row, set)
+    }
+}
+
+/// The result of a scalar estimate: names, numbers and a list of candidates.
+fn scalar_result<'py>(
+    py: Python<'py>,
+    names: &Names,
+    res: Option<(Row, Set)>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let (r, (cands, cat, bands)) =
+        res.unwrap_or(((1, f64::NAN, 0, f64::NAN, f64::NAN, 3), Default::default()));
+    let out = PyDict::new(py);
+    out.set_item("predicted", &names.classes[r.0 as usize])?;
+    out.set_item("distance", r.1)?;
+    out.set_item(
+        "runner_up",
+        (r.2 != 0).then(|| names.classes[r.2 as usize].clone()),
+    )?;
+    out.set_item("runner_up_distance", r.3)?;
+    out.set_item("margin", r.4)?;
+    out.set_item("status", &names.labels[r.5 as usize])?;
+    out.set_item("n_candidates", cands.len())?;
+    out.set_item("candidates", cands)?;
+    out.set_item("category", cat)?;
+    out.set_item("bands_used", bands)?;
+    Ok(out)
+}
+
+/// The result of array estimates (`shape`): numbers and codes into name tables (and
+/// with `strings` the names).
+fn array_result<'py>(
+    py: Python<'py>,
+    names: &Names,
+    res: Vec<(Row, Set)>,
+    shape: &[usize],
+    strings: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let (res, sets): (Vec<Row>, Vec<Set>) = res.into_iter().unzip();
+    let dim = IxDyn(shape);
     let arr = |v: Vec<u32>| {
         ArrayD::from_shape_vec(dim.clone(), v).map_err(|e| value_error(e.to_string()))
     };
-    let jr = joined.refs();
-    let cr = cats.refs();
-    let br = bands.refs();
-    let (pc, rc, sc, jcs, ccs, bcs) = (
-        u(|r| r.0)?,
-        u(|r| r.2)?,
-        u(|r| r.5)?,
-        arr(jc)?,
-        arr(cc)?,
-        arr(bc)?,
-    );
-    if strings {
-        out.set_item("predicted", str_array(py, &class_refs, pc.clone())?)?;
-        out.set_item("runner_up", str_array(py, &class_refs, rc.clone())?)?;
-        out.set_item("status", str_array(py, &label_refs, sc.clone())?)?;
-        out.set_item("candidates", str_array(py, &jr, jcs.clone())?)?;
-        out.set_item("category", str_array(py, &cr, ccs.clone())?)?;
-        out.set_item("bands_used", str_array(py, &br, bcs.clone())?)?;
+    let fl = |f: fn(&Row) -> f64| -> PyResult<Bound<'py, PyAny>> {
+        let a = ArrayD::from_shape_vec(dim.clone(), res.iter().map(f).collect());
+        Ok(to_numpy(py, a.map_err(|e| value_error(e.to_string()))?))
+    };
+    // Candidates (`;`-joined), categories and bands used: codes into tables of distinct
+    // values.
+    let (mut joined, mut cats, mut bands) = Default::default();
+    let (mut jc, mut cc, mut bc, mut nc) = (vec![], vec![], vec![], vec![]);
+    for (cands, cat, used) in &sets {
+        jc.push(NameTable::code(&mut joined, &cands.join(";")));
+        cc.push(NameTable::code(&mut cats, cat.as_deref().unwrap_or("")));
+        bc.push(NameTable::code(&mut bands, used));
+        nc.push(cands.len() as u32);
     }
-    out.set_item("distance", to_numpy(py, fl(|r| r.1)?))?;
-    out.set_item("runner_up_distance", to_numpy(py, fl(|r| r.3)?))?;
-    out.set_item("margin", to_numpy(py, fl(|r| r.4)?))?;
-    out.set_item("predicted_code", to_numpy(py, pc))?;
-    out.set_item("runner_up_code", to_numpy(py, rc))?;
-    out.set_item("class_names", class_refs)?;
-    out.set_item("status_code", to_numpy(py, sc))?;
-    out.set_item("status_names", label_refs)?;
-    out.set_item("candidates_code", to_numpy(py, jcs))?;
-    out.set_item("candidates_names", jr)?;
-    out.set_item("category_code", to_numpy(py, ccs))?;
-    out.set_item("category_names", cr)?;
-    out.set_item("bands_used_code", to_numpy(py, bcs))?;
-    out.set_item("bands_used_names", br)?;
+    let class_refs: Vec<&str> = names.classes.iter().map(String::as_str).collect();
+    let label_refs: Vec<&str> = names.labels.iter().map(String::as_str).collect();
+    let coded: [(&str, &str, Vec<&str>, ArrayD<u32>); 6] = [
+        (
+            "predicted",
+            "class_names",
+            class_refs.clone(),
+            arr(res.iter().map(|r| r.0).collect())?,
+        ),
+        (
+            "runner_up",
+            "",
+            class_refs,
+            arr(res.iter().map(|r| r.2).collect())?,
+        ),
+        (
+            "status",
+            "status_names",
+            label_refs,
+            arr(res.iter().map(|r| r.5).collect())?,
+        ),
+        ("candidates", "candidates_names", joined.refs(), arr(jc)?),
+        ("category", "category_names", cats.refs(), arr(cc)?),
+        ("bands_used", "bands_used_names", bands.refs(), arr(bc)?),
+    ];
+    let out = PyDict::new(py);
+    if strings {
+        for (name, _, table, codes) in &coded {
+            out.set_item(*name, str_array(py, table, codes.clone())?)?;
+        }
+    }
+    out.set_item("distance", fl(|r| r.1)?)?;
+    out.set_item("runner_up_distance", fl(|r| r.3)?)?;
+    out.set_item("margin", fl(|r| r.4)?)?;
+    for (name, table_name, table, codes) in coded {
+        out.set_item(format!("{name}_code"), to_numpy(py, codes))?;
+        if !table_name.is_empty() {
+            out.set_item(table_name, table)?;
+        }
+    }
     out.set_item("n_candidates", to_numpy(py, arr(nc)?))?;
     Ok(out)
 }
@@ -656,6 +694,7 @@ pub fn classify<'py>(
 type Row = (u32, f64, u32, f64, f64, u32);
 
 /// Distinct strings and their codes (`""` is code 0).
+#[derive(Debug)]
 struct NameTable {
     names: Vec<String>,
     index: HashMap<String, u32>,

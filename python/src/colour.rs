@@ -122,14 +122,9 @@ pub fn stokes_color<'py>(
     return_mask: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let cp = ColourPattern::new(Pattern::new(&pattern).py_err()?, color).py_err()?;
-    let method = match method {
-        "bilinear" => ColourMethod::Bilinear,
-        "superpixel" => ColourMethod::Superpixel,
-        _ => {
-            return Err(value_error(format!(
-                "method must be \"bilinear\" or \"superpixel\", got {method:?}"
-            )));
-        }
+    let method = match crate::stokes::method_is_bilinear(method)? {
+        true => ColourMethod::Bilinear,
+        false => ColourMethod::Superpixel,
     };
     let nms = wavelengths(&cp, bands)?;
     let want: Vec<String> = quantities.unwrap_or_else(|| QUANTITIES.map(String::from).to_vec());
@@ -157,26 +152,11 @@ pub fn stokes_color<'py>(
         .map(|_| return_mask.then(|| new_array::<u8>(py, &[oh, ow])))
         .collect();
     let counts = {
-        let mut guards = Vec::with_capacity(nb);
-        for a in &arrays {
-            let g: Vec<Option<_>> = a
-                .iter()
-                .map(|x| {
-                    x.as_ref()
-                        .map(|x| x.try_readwrite().map_err(PyErr::from))
-                        .transpose()
-                })
-                .collect::<PyResult<_>>()?;
-            guards.push(g);
-        }
-        let mut mguards: Vec<Option<_>> = masks
+        let mut guards: Vec<Vec<_>> = arrays
             .iter()
-            .map(|x| {
-                x.as_ref()
-                    .map(|x| x.try_readwrite().map_err(PyErr::from))
-                    .transpose()
-            })
+            .map(|a| a.iter().map(write).collect::<PyResult<_>>())
             .collect::<PyResult<_>>()?;
+        let mut mguards: Vec<_> = masks.iter().map(write).collect::<PyResult<_>>()?;
         let mut outs: Vec<DofpOutputs<'_>> = Vec::with_capacity(nb);
         for (g, m) in guards.iter_mut().zip(mguards.iter_mut()) {
             let mut sl: Vec<Option<&mut [f32]>> = Vec::with_capacity(5);
@@ -228,4 +208,13 @@ pub fn stokes_color<'py>(
         d.set_item(letter.to_string(), e)?;
     }
     Ok(d)
+}
+
+/// A write guard on an optional output array.
+fn write<'py, T: numpy::Element>(
+    x: &Option<Bound<'py, numpy::PyArrayDyn<T>>>,
+) -> PyResult<Option<numpy::PyReadwriteArrayDyn<'py, T>>> {
+    x.as_ref()
+        .map(|x| x.try_readwrite().map_err(PyErr::from))
+        .transpose()
 }

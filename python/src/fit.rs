@@ -18,7 +18,7 @@ use polarid_pipeline::fit::{
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use crate::arrays::{f64_contiguous, fmt_shape, to_numpy};
+use crate::arrays::{FloatArray, f64_contiguous, float_array, fmt_shape, to_numpy};
 use crate::errors::{PyResultExt, value_error};
 
 /// Register this module's functions and constants.
@@ -178,98 +178,30 @@ pub fn fit_nk<'py>(
     };
     // float32 DoLP (the dtype of polarid.dolp) is read as it is and converted chunk by
     // chunk in the workers; every other dtype becomes one float64 array.
-    let np = py.import("numpy")?;
-    let dolp_arr = np.call_method1("asarray", (dolp,))?;
-    let is_f32 = dolp_arr
-        .getattr("dtype")?
-        .getattr("name")?
-        .extract::<String>()?
-        == "float32";
-    let y32: Option<PyReadonlyArrayDyn<'py, f32>> = if is_f32 {
-        Some(
-            np.call_method1("ascontiguousarray", (&dolp_arr,))?
-                .extract()?,
-        )
-    } else {
-        None
+    let y = float_array("dolp", dolp)?;
+    let shape = match &y {
+        FloatArray::F32(a) => a.shape().to_vec(),
+        FloatArray::F64(a) => a.shape().to_vec(),
     };
-    let y64 = match y32 {
-        Some(_) => None,
-        None => Some(f64_contiguous("dolp", &dolp_arr)?),
+    let (betas, beta_full) = read_beta(beta_deg, &shape)?;
+    let t = match &beta_full {
+        Some(_) => shape.last().copied().unwrap_or(0),
+        None => betas.len(),
     };
-    let shape = match (&y32, &y64) {
-        (Some(a), _) => a.shape().to_vec(),
-        (_, Some(a)) => a.shape().to_vec(),
-        _ => Vec::new(),
-    };
-    // beta_deg: 1-D, one angle per measurement; or a β per pixel, broadcast to dolp.
-    let beta_arr = py.import("numpy")?.call_method1("asarray", (beta_deg,))?;
-    let beta_ndim: usize = beta_arr.getattr("ndim")?.extract()?;
-    let per_pixel = beta_ndim > 1;
-    let (betas, beta_full): (Vec<f64>, Option<PyReadonlyArrayDyn<'py, f64>>) = if per_pixel {
-        let b = py
-            .import("numpy")?
-            .call_method1("broadcast_to", (&beta_arr, shape.clone()))
-            .map_err(|_| {
-                let bs: Vec<usize> = beta_arr
-                    .getattr("shape")
-                    .and_then(|s| s.extract())
-                    .unwrap_or_default();
-                value_error(format!(
-                    "beta_deg of shape {} cannot be broadcast to the shape {} of dolp",
-                    fmt_shape(&bs),
-                    fmt_shape(&shape)
-                ))
-            })?;
-        (Vec::new(), Some(f64_contiguous("beta_deg", &b)?))
-    } else {
-        let beta = f64_contiguous("beta_deg", &beta_arr)?;
-        if beta.ndim() != 1 {
-            return Err(value_error(format!(
-                "beta_deg must be 1-D (one angle per measurement) or broadcastable to dolp, got shape {}",
-                fmt_shape(beta.shape())
-            )));
-        }
-        let v = beta.as_slice()?.iter().map(|b| b.to_radians()).collect();
-        (v, None)
-    };
-    let t = if per_pixel {
-        shape.last().copied().unwrap_or(0)
-    } else {
-        betas.len()
-    };
-    if shape.last() != Some(&t) || (per_pixel && shape.len() < 2) {
+    if shape.last() != Some(&t) || (beta_full.is_some() && shape.len() < 2) {
         return Err(value_error(format!(
             "dolp of shape {} does not match beta_deg: its last axis must have {t} values (one per angle)",
             fmt_shape(&shape)
         )));
     }
-    // Standard errors broadcast to dolp's shape, contiguous.
-    let se: Option<PyReadonlyArrayDyn<'py, f64>> = match dolp_se {
-        None => None,
-        Some(s) => {
-            let np = py.import("numpy")?;
-            let s = np.call_method1("asarray", (s, "float64"))?;
-            let b = np
-                .call_method1("broadcast_to", (s, shape.clone()))
-                .map_err(|_| {
-                    value_error(format!(
-                        "dolp_se cannot be broadcast to the shape {} of dolp",
-                        fmt_shape(&shape)
-                    ))
-                })?;
-            Some(f64_contiguous("dolp_se", &b)?)
-        }
+    let se = dolp_se
+        .map(|s| broadcast_f64("dolp_se", s, &shape))
+        .transpose()?;
+    let ys = match &y {
+        FloatArray::F32(a) => Ys::F32(a.as_slice()?),
+        FloatArray::F64(a) => Ys::F64(a.as_slice()?),
     };
-    let ys = match (&y32, &y64) {
-        (Some(a), _) => Ys::F32(a.as_slice()?),
-        (_, Some(a)) => Ys::F64(a.as_slice()?),
-        _ => Ys::F64(&[]),
-    };
-    let ses = match &se {
-        Some(s) => Some(s.as_slice()?),
-        None => None,
-    };
+    let ses = se.as_ref().map(|s| s.as_slice()).transpose()?;
     let lead = shape[..shape.len() - 1].to_vec();
     let pixels: usize = lead.iter().product();
     if let Some(bf) = &beta_full {
@@ -305,6 +237,56 @@ pub fn fit_nk<'py>(
         |y: &[f64], se: Option<&[f64]>, _: usize, out: &mut [NkFit]| fit_batch(&plan, y, se, out);
     let out = py.detach(|| ys.batch(t, &fit, ses, pixels)).py_err()?;
     batch_dict(py, &lead, out, status_strings)
+}
+
+/// `beta_deg` as the fit takes it: one angle per measurement (1-D, radians), or a β
+/// per pixel broadcast to dolp's `shape` (degrees).
+type Betas<'py> = (Vec<f64>, Option<PyReadonlyArrayDyn<'py, f64>>);
+
+fn read_beta<'py>(beta_deg: &Bound<'py, PyAny>, shape: &[usize]) -> PyResult<Betas<'py>> {
+    let np = beta_deg.py().import("numpy")?;
+    let ndim: usize = np.call_method1("ndim", (beta_deg,))?.extract()?;
+    if ndim > 1 {
+        return Ok((
+            Vec::new(),
+            Some(broadcast_f64("beta_deg", beta_deg, shape)?),
+        ));
+    }
+    let beta = f64_contiguous("beta_deg", beta_deg)?;
+    if beta.ndim() != 1 {
+        return Err(value_error(format!(
+            "beta_deg must be 1-D (one angle per measurement) or broadcastable to dolp, got shape {}",
+            fmt_shape(beta.shape())
+        )));
+    }
+    Ok((
+        beta.as_slice()?.iter().map(|b| b.to_radians()).collect(),
+        None,
+    ))
+}
+
+/// `obj` as float64 broadcast to dolp's `shape`, contiguous.
+fn broadcast_f64<'py>(
+    name: &str,
+    obj: &Bound<'py, PyAny>,
+    shape: &[usize],
+) -> PyResult<PyReadonlyArrayDyn<'py, f64>> {
+    let np = obj.py().import("numpy")?;
+    let a = np.call_method1("asarray", (obj, "float64"))?;
+    let b = np
+        .call_method1("broadcast_to", (&a, shape.to_vec()))
+        .map_err(|_| {
+            let s: Vec<usize> = a
+                .getattr("shape")
+                .and_then(|s| s.extract())
+                .unwrap_or_default();
+            value_error(format!(
+                "{name} cannot be broadcast to the shape {} of dolp (its shape is {})",
+                fmt_shape(shape),
+                fmt_shape(&s)
+            ))
+        })?;
+    f64_contiguous(name, &b)
 }
 
 /// Pixels per parallel task of [`batch`].

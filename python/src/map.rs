@@ -5,6 +5,7 @@
 //! map` calls, so the arrays equal the CLI's TIFFs (python/tests/test_map_manifest.py).
 
 use ndarray::{ArrayD, IxDyn};
+use polarid_core::classify::Bench;
 use polarid_io::manifest;
 use polarid_io::model::Model;
 use polarid_pipeline::map::{self, MapConfig};
@@ -154,28 +155,23 @@ pub fn map_manifest<'py>(
     retardance_deg: f64,
     bench: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let metric = map::parse_metric(metric).py_err()?;
-    let bench = match bench {
-        "same" => polarid_core::classify::Bench::Same,
-        "other" => polarid_core::classify::Bench::Other,
-        b => {
-            return Err(value_error(format!(
-                "bench must be \"same\" or \"other\", got {b:?}"
-            )));
-        }
-    };
     let errors = map::MapErrors {
         angle_sd_deg,
         dolp_floor,
         extinction_ratio,
         retardance_deg,
     };
-    let cfg = MapConfig::new(bin, min_s0, max_distance, metric, tile)
-        .and_then(|c| c.with_rule(map::parse_rule(rule)?, confidence))
-        .and_then(|c| c.with_errors(errors))
-        .and_then(|c| Ok(c.with_weights(map::parse_weights(weights)?)))
-        .py_err()?
-        .with_bench(bench);
+    let cfg = map_config(
+        bin,
+        min_s0,
+        max_distance,
+        metric,
+        tile,
+        (rule, confidence),
+        errors,
+        bench,
+    )?
+    .with_weights(map::parse_weights(weights).py_err()?);
     let mpath = path_arg(manifest_path)?;
     let model_path = model.map(path_arg).transpose()?;
     if model_path.is_some() == library.is_some() {
@@ -188,7 +184,7 @@ pub fn map_manifest<'py>(
         .detach(|| manifest::load(&mpath))
         .map_err(IntoPyErr::into_py_err)?;
     warn_all(py, &m)?;
-    let mut r = match (&model_path, &library) {
+    let r = match (&model_path, &library) {
         (Some(p), _) => {
             let mdl = py
                 .detach(|| Model::read(p))
@@ -210,6 +206,40 @@ pub fn map_manifest<'py>(
             .skip(m.warnings.len())
             .map(|w| w.0.as_str()),
     )?;
+    result(py, r)
+}
+
+/// The map's options, checked as `polarid map` checks them (errors name the option).
+#[allow(clippy::too_many_arguments)]
+pub fn map_config(
+    bin: usize,
+    min_s0: Option<f64>,
+    max_distance: Option<f64>,
+    metric: &str,
+    tile: usize,
+    (rule, confidence): (&str, f64),
+    errors: map::MapErrors,
+    bench: &str,
+) -> PyResult<MapConfig> {
+    let bench = match bench {
+        "same" => Bench::Same,
+        "other" => Bench::Other,
+        b => {
+            return Err(value_error(format!(
+                "bench must be \"same\" or \"other\", got {b:?}"
+            )));
+        }
+    };
+    let metric = map::parse_metric(metric).py_err()?;
+    MapConfig::new(bin, min_s0, max_distance, metric, tile)
+        .and_then(|c| c.with_rule(map::parse_rule(rule)?, confidence))
+        .and_then(|c| c.with_errors(errors))
+        .map(|c| c.with_bench(bench))
+        .py_err()
+}
+
+/// A map's images, counts and summary as the dict of `map_manifest`.
+fn result(py: Python<'_>, mut r: map::MapResult) -> PyResult<Bound<'_, PyDict>> {
     let summary = r.summary_json().to_string();
     let colour = r.is_colour();
     let (h, w) = (r.height, r.width);
@@ -218,7 +248,7 @@ pub fn map_manifest<'py>(
     names.extend(r.class_names.iter().cloned());
     d.set_item("class_names", names)?;
     d.set_item("reason_names", r.reason_names().to_vec())?;
-    let counts = |v: Vec<i64>| -> PyResult<Bound<'py, PyAny>> {
+    let counts = |v: Vec<i64>| -> PyResult<Bound<'_, PyAny>> {
         let a =
             ArrayD::from_shape_vec(IxDyn(&[v.len()]), v).map_err(|e| value_error(e.to_string()))?;
         Ok(to_numpy(py, a))

@@ -1,14 +1,16 @@
 //! A minimal in-memory simulator: plates of known `(n, k, σ)` lit from several source
-//! zeniths and seen by a noisy polarization camera (`polarid_core::simulate`), rendered
-//! by the renderer of `polarid simulate` (`polarid_pipeline::simulate::render_into`).
+//! zeniths and seen by a noisy polarization camera, planned and rendered as `polarid
+//! simulate` plans and renders a far-field scene (`polarid_pipeline::simulate`:
+//! `RenderSpec::far_field`, `render_into`; the same exposure and frame seeds).
 
-use ndarray::{ArrayD, IxDyn};
+use ndarray::{ArrayD, ArrayView1, IxDyn};
 use polarid_core::CoreError;
-use polarid_core::simulate::{Analyzer, PlateOptics, Sensor, UniformRect, plate_radiance};
+use polarid_core::simulate::{Analyzer, Exposure, PlateOptics, Sensor, stokes_dolp};
+use polarid_io::scene::CaptureKind;
 use polarid_pipeline::progress::no_progress;
-use polarid_pipeline::simulate::{RenderSpec, render_into};
+use polarid_pipeline::simulate::{RenderSpec, analyzers as capture_analyzers, render_into};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList};
+use pyo3::types::PyDict;
 
 use crate::arrays::{f64_contiguous, to_numpy};
 use crate::errors::{PyResultExt, value_error};
@@ -53,8 +55,17 @@ fn plate_of(i: usize, item: &Bound<'_, PyAny>) -> PyResult<PlateOptics> {
     )))
 }
 
-/// Broadcast a per-capture angle argument (scalar or length C) to length C.
-fn per_capture(name: &'static str, obj: &Bound<'_, PyAny>, c: usize) -> PyResult<Vec<f64>> {
+/// Broadcast a per-capture angle argument (scalar or length C; None: `default`) to
+/// length C.
+fn per_capture(
+    name: &'static str,
+    obj: Option<&Bound<'_, PyAny>>,
+    default: f64,
+    c: usize,
+) -> PyResult<Vec<f64>> {
+    let Some(obj) = obj else {
+        return Ok(vec![default; c]);
+    };
     let a = f64_contiguous(name, obj)?;
     let v: Vec<f64> = a.as_array().iter().copied().collect();
     match v.len() {
@@ -95,12 +106,14 @@ fn per_capture(name: &'static str, obj: &Bound<'_, PyAny>, c: usize) -> PyResult
 /// bit_depth, full_well_e, read_noise_e, dark_level_dn, shot_noise
 ///     The sensor (defaults: 12 bits, 10 000 e⁻, 3 e⁻ rms, no offset, shot noise on).
 /// fill : float, default 0.8
-///     Automatic exposure: per capture, the brightest plate's brightest polarizer
-///     reading is ``fill`` × full well.
+///     Automatic exposure (a scene's ``[exposure]`` ``fraction``, in (0, 1]): per
+///     capture, the brightest plate's brightest reading through the analyzer is
+///     ``fill`` × full well.
 /// electrons_per_unit : float, optional
 ///     Fixed exposure instead (electrons per unit of radiance, all captures).
 /// seed : int
-///     Random seed; the output is deterministic for a given seed.
+///     Random seed (a scene's ``seed``): a scene of the same plates, angles, sensor and
+///     exposure gives the same frames in ``polarid simulate``.
 ///
 /// Returns
 /// -------
@@ -157,14 +170,11 @@ pub fn simulate<'py>(
             "theta_i_deg is empty: give at least one capture",
         ));
     }
-    let tr = match theta_r_deg {
-        Some(o) => per_capture("theta_r_deg", o, c)?,
-        None => vec![45.0; c],
-    };
-    let ph = match phi_deg {
-        Some(o) => per_capture("phi_deg", o, c)?,
-        None => vec![180.0; c],
-    };
+    let tr = per_capture("theta_r_deg", theta_r_deg, 45.0, c)?;
+    let ph = per_capture("phi_deg", phi_deg, 180.0, c)?;
+    let analyzers = analyzers(dofp, &pattern, &angles_deg, tile, gap)?;
+    let (plates, [w, h]) = layout(&optics, tile, gap)?;
+    let geometry: Vec<[f64; 3]> = (0..c).map(|i| [ti[i], tr[i], ph[i]]).collect();
     let sensor = Sensor {
         bit_depth,
         full_well_e,
@@ -172,135 +182,113 @@ pub fn simulate<'py>(
         dark_level_dn,
         shot_noise,
     };
-    if !(fill > 0.0 && fill.is_finite()) {
-        return Err(CoreError::OutOfRange {
-            name: "fill",
-            value: fill,
-            expected: "> 0",
+    let exposure = match electrons_per_unit {
+        Some(e) => Exposure::Fixed(e / full_well_e),
+        None => Exposure::Auto { fraction: fill },
+    };
+    let na = analyzers.len();
+    let (spec, frames) = py
+        .detach(|| -> Result<_, CoreError> {
+            check_zenith("theta_i_deg", &ArrayView1::from(&ti[..]).into_dyn())?;
+            check_zenith("theta_r_deg", &ArrayView1::from(&tr[..]).into_dyn())?;
+            for &p in &ph {
+                polarid_core::error::ensure_finite("phi_deg", p)?;
+            }
+            sensor.validate()?;
+            let (spec, _) = RenderSpec::far_field(
+                [w, h],
+                [0.0; 3],
+                &plates,
+                &geometry,
+                analyzers,
+                exposure,
+                sensor,
+            )?;
+            let mut frames = vec![0u16; c * na * w * h];
+            render_into(&spec, seed, &mut frames, &no_progress)?;
+            Ok((spec, frames))
         })
-        .py_err();
+        .py_err()?;
+    let np_ = plates.len();
+    let stokes = spec.rects.iter().flatten().map(|r| r.stokes);
+    let d = PyDict::new(py);
+    if dofp {
+        d.set_item("raw", array(py, &[c, h, w], frames)?)?;
+        d.set_item("pattern", pattern)?;
+    } else {
+        d.set_item("frames", array(py, &[c, na, h, w], frames)?)?;
+        d.set_item("angles_deg", angles_deg)?;
     }
-    let analyzers: Vec<Analyzer> = if dofp {
-        let p = polarid_core::mosaic::Pattern::new(&pattern).py_err()?;
-        let a = p.angles_deg().map(f64::to_radians);
+    let rects = plates.iter().map(|(_, [x, y, w, h])| (*x, *y, *w, *h));
+    d.set_item("rects", rects.collect::<Vec<_>>())?;
+    let radiance = stokes.clone().flatten().collect();
+    d.set_item("radiance", array(py, &[c, np_, 3], radiance)?)?;
+    let dolp = stokes.map(|s| stokes_dolp(&s)).collect();
+    d.set_item("dolp", array(py, &[c, np_], dolp)?)?;
+    let beta = geometry.iter().map(|g| {
+        let [a, b, p] = g.map(f64::to_radians);
+        polarid_core::geometry::beta(a, b, p).to_degrees()
+    });
+    d.set_item("beta_deg", array(py, &[c], beta.collect())?)?;
+    d.set_item("theta_i_deg", array(py, &[c], ti)?)?;
+    d.set_item("theta_r_deg", array(py, &[c], tr)?)?;
+    d.set_item("phi_deg", array(py, &[c], ph)?)?;
+    d.set_item(
+        "electrons_per_unit",
+        array(py, &[c], spec.electrons_per_unit)?,
+    )?;
+    Ok(d)
+}
+
+/// `v` as a numpy array of `shape`.
+fn array<'py, T: numpy::Element>(
+    py: Python<'py>,
+    shape: &[usize],
+    v: Vec<T>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let a = ArrayD::from_shape_vec(IxDyn(shape), v).map_err(|e| value_error(e.to_string()))?;
+    Ok(to_numpy(py, a))
+}
+
+/// The plates in a row of `tile × tile` squares, `gap` pixels apart and from the edges
+/// (optics, `[x, y, width, height]`), and the frame's `[width, height]`.
+type Layout = (Vec<(PlateOptics, [usize; 4])>, [usize; 2]);
+
+fn layout(optics: &[PlateOptics], tile: usize, gap: usize) -> PyResult<Layout> {
+    if tile == 0 {
+        return Err(value_error("tile must be at least 1 pixel"));
+    }
+    let plates = optics
+        .iter()
+        .enumerate()
+        .map(|(p, &o)| (o, [gap + p * (tile + gap), gap, tile, tile]));
+    let size = [gap + optics.len() * (tile + gap), tile + 2 * gap];
+    Ok((plates.collect(), size))
+}
+
+/// The analyzers of a capture: one DoFP mosaic (`pattern`; even `tile` and `gap`) or a
+/// rotating polarizer at `angles_deg`.
+fn analyzers(
+    dofp: bool,
+    pattern: &[f64],
+    angles_deg: &[f64],
+    tile: usize,
+    gap: usize,
+) -> PyResult<Vec<Analyzer>> {
+    let capture = if dofp {
         if !tile.is_multiple_of(2) || !gap.is_multiple_of(2) {
             return Err(value_error(format!(
                 "a DoFP mosaic needs an even tile and gap, got tile = {tile}, gap = {gap}"
             )));
         }
-        vec![Analyzer::Mosaic(a)]
+        let pattern = polarid_core::mosaic::Pattern::new(pattern).py_err()?;
+        CaptureKind::Dofp { pattern }
     } else {
-        for &a in &angles_deg {
+        for &a in angles_deg {
             polarid_core::error::ensure_finite("polarizer angle", a).py_err()?;
         }
-        angles_deg
-            .iter()
-            .map(|a| Analyzer::Uniform(a.to_radians()))
-            .collect()
+        let angles_deg = angles_deg.to_vec();
+        CaptureKind::Frames { angles_deg }
     };
-    if tile == 0 {
-        return Err(value_error("tile must be at least 1 pixel"));
-    }
-    let np_ = optics.len();
-    let (w, h) = (gap + np_ * (tile + gap), tile + 2 * gap);
-    let rects_xy: Vec<(usize, usize)> = (0..np_).map(|p| (gap + p * (tile + gap), gap)).collect();
-    let na = analyzers.len();
-
-    let out = py
-        .detach(|| -> Result<_, CoreError> {
-            {
-                let tiv = ndarray::ArrayView1::from(&ti[..]).into_dyn();
-                let trv = ndarray::ArrayView1::from(&tr[..]).into_dyn();
-                check_zenith("theta_i_deg", &tiv)?;
-                check_zenith("theta_r_deg", &trv)?;
-            }
-            sensor.validate()?;
-            let mut radiance = vec![0f64; c * np_ * 3];
-            let mut dolp = vec![0f64; c * np_];
-            let mut beta = vec![0f64; c];
-            let mut epus = vec![0f64; c];
-            let mut all_rects = Vec::with_capacity(c);
-            for ci in 0..c {
-                polarid_core::error::ensure_finite("phi_deg", ph[ci])?;
-                let (a, b, p) = (
-                    ti[ci].to_radians(),
-                    tr[ci].to_radians(),
-                    ph[ci].to_radians(),
-                );
-                beta[ci] = polarid_core::geometry::beta(a, b, p).to_degrees();
-                let mut rects = Vec::with_capacity(np_);
-                let mut peak = 0f64;
-                for (pi, o) in optics.iter().enumerate() {
-                    let s = plate_radiance(o, a, b, p)?;
-                    radiance[(ci * np_ + pi) * 3..(ci * np_ + pi) * 3 + 3].copy_from_slice(&s);
-                    let l = s[1].hypot(s[2]);
-                    dolp[ci * np_ + pi] = if s[0] > 0.0 { l / s[0] } else { f64::NAN };
-                    peak = peak.max(0.5 * (s[0] + l));
-                    let (x, y) = rects_xy[pi];
-                    rects.push(UniformRect {
-                        x,
-                        y,
-                        width: tile,
-                        height: tile,
-                        stokes: s,
-                    });
-                }
-                let epu = match electrons_per_unit {
-                    Some(e) => e,
-                    None if peak > 0.0 => fill * full_well_e / peak,
-                    None => 0.0,
-                };
-                epus[ci] = epu;
-                all_rects.push(rects);
-            }
-            // The frames: the pipeline's renderer (parallel, one seed per frame).
-            let spec = RenderSpec {
-                width: w,
-                height: h,
-                background: [0.0; 3],
-                rects: all_rects,
-                electrons_per_unit: epus.clone(),
-                analyzers,
-                sensor,
-            };
-            let mut frames = vec![0u16; c * na * w * h];
-            let frame_seed = |ci: usize, ai: usize| {
-                seed ^ ((ci * na + ai) as u64 + 1).wrapping_mul(0xD1B5_4A32_D192_ED03)
-            };
-            render_into(&spec, &frame_seed, &mut frames, &no_progress)?;
-            Ok((radiance, dolp, beta, epus, frames))
-        })
-        .py_err()?;
-    let (radiance, dolp, beta, epus, frames) = out;
-    let arr = |shape: &[usize], v: Vec<f64>| -> PyResult<Bound<'py, PyAny>> {
-        Ok(to_numpy(
-            py,
-            ArrayD::from_shape_vec(IxDyn(shape), v).map_err(|e| value_error(e.to_string()))?,
-        ))
-    };
-    let d = PyDict::new(py);
-    if dofp {
-        let a = ArrayD::from_shape_vec(IxDyn(&[c, h, w]), frames)
-            .map_err(|e| value_error(e.to_string()))?;
-        d.set_item("raw", to_numpy(py, a))?;
-        d.set_item("pattern", pattern)?;
-    } else {
-        let a = ArrayD::from_shape_vec(IxDyn(&[c, na, h, w]), frames)
-            .map_err(|e| value_error(e.to_string()))?;
-        d.set_item("frames", to_numpy(py, a))?;
-        d.set_item("angles_deg", angles_deg)?;
-    }
-    let rects = PyList::empty(py);
-    for &(x, y) in &rects_xy {
-        rects.append((x, y, tile, tile))?;
-    }
-    d.set_item("rects", rects)?;
-    d.set_item("radiance", arr(&[c, np_, 3], radiance)?)?;
-    d.set_item("dolp", arr(&[c, np_], dolp)?)?;
-    d.set_item("theta_i_deg", arr(&[c], ti)?)?;
-    d.set_item("theta_r_deg", arr(&[c], tr)?)?;
-    d.set_item("phi_deg", arr(&[c], ph)?)?;
-    d.set_item("beta_deg", arr(&[c], beta)?)?;
-    d.set_item("electrons_per_unit", arr(&[c], epus)?)?;
-    Ok(d)
+    Ok(capture_analyzers(&capture).unwrap_or_default())
 }

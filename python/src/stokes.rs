@@ -262,40 +262,21 @@ pub fn demosaic<'py>(
     if angles {
         let shape = [4, oh, ow];
         let name = out_dtype(dtype, out)?;
-        let keep_int = |want: &str, is: bool| -> PyResult<()> {
-            if !is {
-                return Err(value_error(format!(
-                    "dtype {want} needs a {want} raw mosaic (got {})",
-                    raw_dtype(&raw)
-                )));
-            }
-            if dark_level != 0.0 {
-                return Err(value_error(format!(
-                    "dtype {want} needs dark_level=0 (got {dark_level}): dark-subtracted values are not whole DN"
-                )));
-            }
-            if bilinear && !round {
-                return Err(value_error(format!(
-                    "dtype {want} needs round=True with method=\"bilinear\": unrounded means are not whole DN"
-                )));
-            }
-            Ok(())
-        };
+        let keep_int = |want: &str| int_output(want, &raw, dark_level, !bilinear || round);
         return match name.as_str() {
             "float32" => with_raw!(&raw, |data| {
                 with_output::<f32>(py, "out", out, &shape, |buf| {
                     let planes = split4(buf, npix);
+                    let dark = dark_level as f32;
                     if bilinear {
-                        let dark = dark_level as f32;
                         mosaic::demosaic_bilinear_dark(data, w, &pattern, round, dark, planes)
                     } else {
-                        let dark = dark_level as f32;
                         superpixel_angles(data, w, h, &pattern, planes, |v| v.to_f32() - dark)
                     }
                 })
             }),
             "uint16" => {
-                keep_int("uint16", matches!(raw, RawArray::U16(_)))?;
+                keep_int("uint16")?;
                 let RawArray::U16(a) = &raw else {
                     unreachable!("checked by keep_int")
                 };
@@ -305,7 +286,7 @@ pub fn demosaic<'py>(
                 })
             }
             "uint8" => {
-                keep_int("uint8", matches!(raw, RawArray::U8(_)))?;
+                keep_int("uint8")?;
                 let RawArray::U8(a) = &raw else {
                     unreachable!("checked by keep_int")
                 };
@@ -344,6 +325,29 @@ pub fn demosaic<'py>(
     } else {
         Ok(s)
     }
+}
+
+/// Check that `demosaic(output="angles")` can write `want` (an integer dtype): a raw
+/// mosaic of that dtype, no dark level, whole-DN values (`whole`: superpixel, or
+/// bilinear with rounding).
+fn int_output(want: &str, raw: &RawArray<'_>, dark_level: f64, whole: bool) -> PyResult<()> {
+    if raw_dtype(raw) != want {
+        return Err(value_error(format!(
+            "dtype {want} needs a {want} raw mosaic (got {})",
+            raw_dtype(raw)
+        )));
+    }
+    if dark_level != 0.0 {
+        return Err(value_error(format!(
+            "dtype {want} needs dark_level=0 (got {dark_level}): dark-subtracted values are not whole DN"
+        )));
+    }
+    if !whole {
+        return Err(value_error(format!(
+            "dtype {want} needs round=True with method=\"bilinear\": unrounded means are not whole DN"
+        )));
+    }
+    Ok(())
 }
 
 /// DoLP and AoLP straight from a raw division-of-focal-plane (DoFP) mosaic.
@@ -480,7 +484,7 @@ pub fn dofp_dolp_aolp<'py>(
 }
 
 /// `method` of `demosaic` / `dofp_dolp_aolp`: true for bilinear.
-fn method_is_bilinear(method: &str) -> PyResult<bool> {
+pub(crate) fn method_is_bilinear(method: &str) -> PyResult<bool> {
     match method {
         "bilinear" => Ok(true),
         "superpixel" => Ok(false),

@@ -45,6 +45,7 @@ mod capture;
 mod decide;
 mod frames;
 mod geometry;
+pub mod noise_sample;
 pub mod rules;
 mod summary;
 

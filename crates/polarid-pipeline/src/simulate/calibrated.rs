@@ -19,7 +19,7 @@ use polarid_core::CoreError;
 use polarid_core::dop::dop;
 use polarid_core::mosaic::ColourPattern;
 use polarid_core::simulate::{
-    Analyzer, BandStokesMaps, PerspectiveScene, PlanarPlate, PlateOptics, StokesMaps, frame_seed,
+    BandStokesMaps, PerspectiveScene, PlanarPlate, PlateOptics, StokesMaps, frame_seed,
     plate_stokes, polarizer_intensity, render_colour_frame_stokes, render_frame_stokes,
     stokes_dolp,
 };
@@ -191,23 +191,12 @@ pub(super) fn simulate(
     let ps = perspective_scene(scene, cal).map_err(label)?;
     let sensor = &scene.sensor;
     let (w, h) = (scene.width, scene.height);
-    let angles: Vec<f64> = scene
-        .capture
-        .angles_deg()
-        .iter()
-        .map(|a| a.to_radians())
-        .collect();
-    let analyzers: Vec<Analyzer> = match &scene.capture {
-        CaptureKind::Frames { angles_deg } => angles_deg
-            .iter()
-            .map(|a| Analyzer::Uniform(a.to_radians()))
-            .collect(),
-        CaptureKind::Dofp { pattern } => {
-            vec![Analyzer::Mosaic(pattern.angles_deg().map(f64::to_radians))]
-        }
-        CaptureKind::ColourDofp { pattern, bands } => {
+    let angles = super::angles_rad(&scene.capture);
+    let analyzers = match (&scene.capture, super::analyzers(&scene.capture)) {
+        (CaptureKind::ColourDofp { pattern, bands }, _) => {
             return simulate_colour(scene, cal, &ps, pattern, bands, staged, prefix, progress);
         }
+        (_, a) => a.unwrap_or_default(),
     };
     let ncap = cal.sources.len();
     let total = (ncap * analyzers.len()) as u64;
@@ -344,12 +333,7 @@ fn colour_capture(
             plate: &mut maps.plate,
         },
     )?;
-    let angles: Vec<f64> = pattern
-        .polar()
-        .angles_deg()
-        .iter()
-        .map(|a| a.to_radians())
-        .collect();
+    let angles = super::angles_rad(&scene.capture);
     // Brightest noise-free polarizer intensity per plate and band.
     let nb = bands.len();
     let mut peaks = vec![vec![0.0f64; nb]; scene.plates.len()];

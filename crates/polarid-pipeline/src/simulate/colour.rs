@@ -68,12 +68,7 @@ fn plan(scene: &Scene) -> Result<Plan<'_>> {
     let sensor = &scene.sensor;
     let (theta_r_deg, phi_deg) = (*theta_r_deg, *phi_deg);
     let (tr, phi) = (theta_r_deg.to_radians(), phi_deg.to_radians());
-    let angles: Vec<f64> = pattern
-        .polar()
-        .angles_deg()
-        .iter()
-        .map(|a| a.to_radians())
-        .collect();
+    let angles = super::angles_rad(&scene.capture);
     let label = |e: polarid_core::CoreError| IoError::Core {
         path: scene.path.clone(),
         source: e,

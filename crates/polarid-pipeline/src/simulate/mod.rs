@@ -43,8 +43,8 @@ use polarid_core::CoreError;
 use polarid_core::dop::dop;
 use polarid_core::geometry;
 use polarid_core::simulate::{
-    Analyzer, Sensor, UniformRect, frame_seed, peak_intensity, plate_radiance, render_frame,
-    stokes_dolp,
+    Analyzer, Exposure, PlateOptics, Sensor, UniformRect, frame_seed, peak_intensity,
+    plate_radiance, render_frame, stokes_dolp,
 };
 use polarid_io::IoError;
 use polarid_io::atomic::{StagedDir, write_atomic};
@@ -170,7 +170,68 @@ pub struct RenderSpec {
 }
 
 impl RenderSpec {
-    /// Render frame `analyzer` of capture `capture` into `buf` (`width × height`).
+    /// Far-field captures of uniform plates (`polarid simulate`'s far-field scenes and
+    /// `polarid.simulate`): capture `c` lit from source zenith `geometry[c][0]` and seen
+    /// from camera zenith `geometry[c][1]` at azimuth difference `geometry[c][2]`
+    /// (degrees). Each plate (optics, `[x, y, width, height]`) has the radiance per unit irradiance
+    /// of `plate_radiance`; a capture's relative exposure is `exposure` resolved on its
+    /// brightest noise-free reading through the analyzers (`Exposure::resolve`).
+    /// Returns the spec and every capture's relative exposure.
+    pub fn far_field(
+        [width, height]: [usize; 2],
+        background: [f64; 3],
+        plates: &[(PlateOptics, [usize; 4])],
+        geometry: &[[f64; 3]],
+        analyzers: Vec<Analyzer>,
+        exposure: Exposure,
+        sensor: Sensor,
+    ) -> std::result::Result<(Self, Vec<f64>), CoreError> {
+        let angles: Vec<f64> = analyzers
+            .iter()
+            .flat_map(|a| match *a {
+                Analyzer::Uniform(x) => vec![x],
+                Analyzer::Mosaic(m) => m.to_vec(),
+            })
+            .collect();
+        let (mut rects, mut exposures) = (Vec::new(), Vec::new());
+        for g in geometry {
+            let [ti, tr, phi] = g.map(f64::to_radians);
+            let caps = plates
+                .iter()
+                .map(|(o, [x, y, width, height])| {
+                    let stokes = plate_radiance(o, ti, tr, phi)?;
+                    let (x, y, width, height) = (*x, *y, *width, *height);
+                    Ok(UniformRect {
+                        x,
+                        y,
+                        width,
+                        height,
+                        stokes,
+                    })
+                })
+                .collect::<std::result::Result<Vec<_>, CoreError>>()?;
+            let stokes: Vec<[f64; 3]> = caps.iter().map(|r| r.stokes).collect();
+            exposures.push(exposure.resolve(peak_intensity(&stokes, &angles))?);
+            rects.push(caps);
+        }
+        let spec = RenderSpec {
+            width,
+            height,
+            background,
+            electrons_per_unit: exposures
+                .iter()
+                .map(|&x| sensor.electrons_per_unit(x))
+                .collect(),
+            rects,
+            analyzers,
+            sensor,
+        };
+        Ok((spec, exposures))
+    }
+
+    /// Render frame `analyzer` of capture `capture` of a simulation seeded `seed` into
+    /// `buf` (`width × height`; the frame's noise seed `frame_seed(seed, capture,
+    /// analyzer)`).
     fn render(
         &self,
         capture: usize,
@@ -197,18 +258,19 @@ impl RenderSpec {
             an,
             &self.sensor,
             epu,
-            seed,
+            frame_seed(seed, capture as u64, analyzer as u64),
             buf,
         )
     }
 }
 
 /// Render every frame of `spec` into `out` (`C × A × height × width`, capture-major),
-/// in parallel; `seed(capture, analyzer)` gives each frame's noise seed, so the output
-/// is the same for given seeds. Progress stage `"frames"`.
+/// in parallel, with the frames' noise seeds of `polarid simulate` (`frame_seed(seed,
+/// capture, analyzer)`), so the output is the same for a given seed. Progress stage
+/// `"frames"`.
 pub fn render_into(
     spec: &RenderSpec,
-    seed: &(dyn Fn(usize, usize) -> u64 + Sync),
+    seed: u64,
     out: &mut [u16],
     progress: Progress<'_>,
 ) -> std::result::Result<(), CoreError> {
@@ -230,7 +292,7 @@ pub fn render_into(
         .enumerate()
         .try_for_each(|(fi, buf)| {
             let (ci, ai) = (fi / na, fi % na);
-            spec.render(ci, ai, seed(ci, ai), buf)?;
+            spec.render(ci, ai, seed, buf)?;
             let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             progress("frames", d, total);
             Ok(())
@@ -285,6 +347,31 @@ pub fn frame_file(scene: &Scene, capture: usize, frame: usize) -> String {
     }
 }
 
+/// The analyzers of a monochrome capture, radians (`None`: a colour capture).
+pub fn analyzers(capture: &CaptureKind) -> Option<Vec<Analyzer>> {
+    match capture {
+        CaptureKind::Frames { angles_deg } => Some(
+            angles_deg
+                .iter()
+                .map(|a| Analyzer::Uniform(a.to_radians()))
+                .collect(),
+        ),
+        CaptureKind::Dofp { pattern } => Some(vec![Analyzer::Mosaic(
+            pattern.angles_deg().map(f64::to_radians),
+        )]),
+        CaptureKind::ColourDofp { .. } => None,
+    }
+}
+
+/// Every polarizer angle of `capture`, radians.
+fn angles_rad(capture: &CaptureKind) -> Vec<f64> {
+    capture
+        .angles_deg()
+        .iter()
+        .map(|a| a.to_radians())
+        .collect()
+}
+
 /// The radiance, exposure and truth of every capture of a scene.
 struct Plan {
     spec: RenderSpec,
@@ -310,41 +397,42 @@ fn plan(scene: &Scene) -> Result<Plan> {
     };
     let (theta_r_deg, phi_deg) = (*theta_r_deg, *phi_deg);
     let (tr, phi) = (theta_r_deg.to_radians(), phi_deg.to_radians());
-    let angles: Vec<f64> = scene
-        .capture
-        .angles_deg()
+    let Some(analyzers) = analyzers(&scene.capture) else {
+        return Err(crate::PipelineError::Data {
+            path: scene.path.display().to_string(),
+            reason: "internal error: a colour scene has no monochrome plan".into(),
+        });
+    };
+    let plates: Vec<(PlateOptics, [usize; 4])> = scene
+        .plates
         .iter()
-        .map(|a| a.to_radians())
+        .map(|p| (p.optics, [p.rect.x, p.rect.y, p.rect.width, p.rect.height]))
         .collect();
-    let label = |e: CoreError| IoError::Core {
+    let geometry: Vec<[f64; 3]> = theta_i_deg
+        .iter()
+        .map(|&ti| [ti, theta_r_deg, phi_deg])
+        .collect();
+    let (size, bg) = ([scene.width, scene.height], [scene.background, 0.0, 0.0]);
+    let (spec, exposures) = RenderSpec::far_field(
+        size,
+        bg,
+        &plates,
+        &geometry,
+        analyzers,
+        scene.exposure,
+        *sensor,
+    )
+    .map_err(|e| IoError::Core {
         path: scene.path.clone(),
         source: e,
-    };
-    let mut rects: Vec<Vec<UniformRect>> = Vec::with_capacity(theta_i_deg.len());
-    let mut exposures = Vec::with_capacity(theta_i_deg.len());
+    })?;
+    let angles = angles_rad(&scene.capture);
     let mut truth = Vec::new();
     let mut warnings = Vec::new();
-    for &ti_deg in theta_i_deg {
-        let ti = ti_deg.to_radians();
-        let mut caps = Vec::with_capacity(scene.plates.len());
-        for p in &scene.plates {
-            let s = plate_radiance(&p.optics, ti, tr, phi).map_err(label)?;
-            caps.push(UniformRect {
-                x: p.rect.x,
-                y: p.rect.y,
-                width: p.rect.width,
-                height: p.rect.height,
-                stokes: s,
-            });
-        }
-        let stokes: Vec<[f64; 3]> = caps.iter().map(|r| r.stokes).collect();
-        let exposure = scene
-            .exposure
-            .resolve(peak_intensity(&stokes, &angles))
-            .map_err(label)?;
+    for ((&ti_deg, caps), &exposure) in theta_i_deg.iter().zip(&spec.rects).zip(&exposures) {
         let epu = sensor.electrons_per_unit(exposure);
-        let beta = geometry::beta(ti, tr, phi);
-        for (p, r) in scene.plates.iter().zip(&caps) {
+        let beta = geometry::beta(ti_deg.to_radians(), tr, phi);
+        for (p, r) in scene.plates.iter().zip(caps) {
             let peak_e = epu * peak_intensity(&[r.stokes], &angles);
             if peak_e < 100.0 {
                 warnings.push(Warning(format!(
@@ -376,36 +464,7 @@ fn plan(scene: &Scene) -> Result<Plan> {
                 band: None,
             });
         }
-        rects.push(caps);
-        exposures.push(exposure);
     }
-    let analyzers = match &scene.capture {
-        CaptureKind::Frames { angles_deg } => angles_deg
-            .iter()
-            .map(|a| Analyzer::Uniform(a.to_radians()))
-            .collect(),
-        CaptureKind::Dofp { pattern } => {
-            vec![Analyzer::Mosaic(pattern.angles_deg().map(f64::to_radians))]
-        }
-        CaptureKind::ColourDofp { .. } => {
-            return Err(crate::PipelineError::Data {
-                path: scene.path.display().to_string(),
-                reason: "internal error: a colour scene has no monochrome plan".into(),
-            });
-        }
-    };
-    let spec = RenderSpec {
-        width: scene.width,
-        height: scene.height,
-        background: [scene.background, 0.0, 0.0],
-        electrons_per_unit: exposures
-            .iter()
-            .map(|&x| sensor.electrons_per_unit(x))
-            .collect(),
-        rects,
-        analyzers,
-        sensor: *sensor,
-    };
     Ok(Plan {
         spec,
         exposures,
@@ -444,16 +503,11 @@ pub fn simulate_into(
     let done = std::sync::atomic::AtomicU64::new(0);
     jobs.par_iter().try_for_each(|&(ci, fi)| -> Result<()> {
         let mut buf = vec![0u16; w * h];
-        spec.render(
-            ci,
-            fi,
-            frame_seed(scene.seed, ci as u64, fi as u64),
-            &mut buf,
-        )
-        .map_err(|e| IoError::Core {
-            path: scene.path.clone(),
-            source: e,
-        })?;
+        spec.render(ci, fi, scene.seed, &mut buf)
+            .map_err(|e| IoError::Core {
+                path: scene.path.clone(),
+                source: e,
+            })?;
         let name = format!("{prefix}{}", frame_file(scene, ci, fi));
         write_frame(staged, &name, &spec.sensor, w, h, &buf)?;
         let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
@@ -583,12 +637,12 @@ rect = [0, 0, 8, 8]
         let spec = plan(&scene).unwrap().spec;
         let mut a = vec![0u16; 12 * 16 * 8];
         let mut b = a.clone();
-        let seed = |c: usize, f: usize| (c * 10 + f) as u64;
-        render_into(&spec, &seed, &mut a, &crate::progress::no_progress).unwrap();
-        render_into(&spec, &seed, &mut b, &crate::progress::no_progress).unwrap();
+        let seed = 7;
+        render_into(&spec, seed, &mut a, &crate::progress::no_progress).unwrap();
+        render_into(&spec, seed, &mut b, &crate::progress::no_progress).unwrap();
         assert_eq!(a, b);
         assert!(a.iter().any(|&v| v > 0));
         let mut short = vec![0u16; 5];
-        assert!(render_into(&spec, &seed, &mut short, &crate::progress::no_progress).is_err());
+        assert!(render_into(&spec, seed, &mut short, &crate::progress::no_progress).is_err());
     }
 }
