@@ -105,6 +105,14 @@ pub fn manifest_text(scene: &Scene, exposures: &[f64]) -> String {
             let _ = writeln!(m, "class = {}", toml_str(c));
         }
     }
+    capture_tables(&mut m, scene, exposures, theta_i);
+    m
+}
+
+/// The manifest's `[[capture]]` tables: per capture its source (or `theta_i_deg`), its
+/// relative exposure and its frame files.
+fn capture_tables(m: &mut String, scene: &Scene, exposures: &[f64], theta_i: &[f64]) {
+    let cal = scene.calibrated();
     for (ci, &x) in exposures.iter().enumerate() {
         match cal.and_then(|c| c.sources.get(ci)) {
             Some(s) => {
@@ -163,7 +171,6 @@ pub fn manifest_text(scene: &Scene, exposures: &[f64]) -> String {
             }
         }
     }
-    m
 }
 
 /// `[x, y, z]` as TOML numbers.
