@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The one command that runs every test of polarid (README, CI). It must finish within 8
 # minutes on 2 cores from a clean clone, build included:
-#   1. the repository reads nothing beside it (scripts/check_self_contained.sh), and no
-#      crate has a module import cycle (scripts/check_cycles.py);
+#   1. the repository reads nothing beside it (scripts/check_self_contained.sh), no
+#      crate has a module import cycle (scripts/check_cycles.py), and no function is
+#      over 120 lines outside the SIMD kernels (scripts/check_long_functions.py);
 #   2. cargo fmt --check, then cargo clippy on every target (examples and the benchmarks
 #      of benches/ included) with warnings as errors (the lints: [workspace.lints] of
 #      Cargo.toml);
@@ -30,6 +31,8 @@ step "self-contained (no reads outside the repository)"
 ./scripts/check_self_contained.sh
 step "no module import cycles"
 python3 scripts/check_cycles.py
+step "no function over 120 lines"
+python3 scripts/check_long_functions.py
 step "cargo fmt --check"
 cargo fmt --all -- --check
 
