@@ -23,6 +23,10 @@
 # POLARID_RENDERS names their directory and say so on the terminal when skipped.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# The tests need no debug information: without the release profile's line tables the
+# test build links faster. Every cargo and maturin call below (and .ci/run's) sees the
+# same setting, so that they share one build.
+export CARGO_PROFILE_RELEASE_DEBUG="${CARGO_PROFILE_RELEASE_DEBUG:-false}"
 root=$(pwd)
 start=$SECONDS
 step() { echo "== $1 [$((SECONDS - start)) s]"; }
