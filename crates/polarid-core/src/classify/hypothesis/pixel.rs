@@ -392,16 +392,19 @@ impl PixelTests {
         // Most promising first; stop at the second class that passes.
         open.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         let mut found: Option<u16> = None;
+        let mut found_chi2 = f64::NAN;
         for &(_, m) in open.iter() {
             let mat = &set.materials[m];
             if found == Some(mat.class) {
                 continue;
             }
-            if fit_checked(rows, wavelengths, &mat.cand, cfg, Detail::Verdict).consistent {
+            let fit = fit_checked(rows, wavelengths, &mat.cand, cfg, Detail::Verdict);
+            if fit.consistent {
                 if found.is_some() {
                     return Ok(Verdict::Several);
                 }
                 found = Some(mat.class);
+                found_chi2 = fit.chi2;
             }
         }
         let Some(class) = found else {
@@ -411,8 +414,15 @@ impl PixelTests {
         // (`classify_rows`): one that passes and fits better than the answer's most
         // probable prototype joins it. Bounded as above, with the answer's `χ²_min` as a
         // second limit.
-        let Some(bar) = self.answer_chi2(rows, wavelengths, cfg, set, class) else {
-            return Ok(Verdict::One(class));
+        // A class of one prototype: the test just made; several: the most probable one's.
+        let several = set.materials.iter().filter(|m| m.class == class).count() > 1;
+        let bar = if several {
+            match self.answer_chi2(rows, wavelengths, cfg, set, class) {
+                Some(b) => b,
+                None => return Ok(Verdict::One(class)),
+            }
+        } else {
+            found_chi2
         };
         let limit = limit.min(bar + 1e-6 * (1.0 + bar));
         open.clear();
@@ -439,9 +449,8 @@ impl PixelTests {
         Ok(Verdict::One(class))
     }
 
-    /// The `χ²_min` of `class`'s most probable prototype, the bar of the widened test: its
-    /// only prototype's, or with several, the one of highest evidence as `classify_rows`
-    /// ranks them (`None` if none is found).
+    /// The `χ²_min` of the most probable of `class`'s several prototypes (highest evidence,
+    /// as `classify_rows` ranks them), the bar of the widened test (`None` if none).
     fn answer_chi2(
         &self,
         rows: &[HypRow],
@@ -451,15 +460,9 @@ impl PixelTests {
         class: u16,
     ) -> Option<f64> {
         let mut best: Option<(f64, f64)> = None;
-        let several = set.materials.iter().filter(|m| m.class == class).count() > 1;
-        let detail = if several {
-            Detail::Evidence
-        } else {
-            Detail::Verdict
-        };
         for mat in set.materials.iter().filter(|m| m.class == class) {
-            let f = fit_checked(rows, wavelengths, &mat.cand, cfg, detail);
-            let key = if several { f.log_evidence } else { 0.0 };
+            let f = fit_checked(rows, wavelengths, &mat.cand, cfg, Detail::Evidence);
+            let key = f.log_evidence;
             let better = match best {
                 None => true,
                 Some((k, chi2)) => key > k || (key == k && f.chi2 < chi2),
