@@ -403,3 +403,139 @@ def test_colour_options(colour_set):
         pdask.material_map(raw, None, np.zeros((3, 8, 8)), library="builtin-rgb", color="RGGB")
     with pytest.raises(ValueError, match="colour mosaics only"):
         pdask.material_map(raw, None, [50, 55, 60], library="builtin-rgb", pattern=[90, 45, 135, 0])
+
+
+# --- calibrated colour captures (a beta per pixel and band-independent geometry) -------------
+
+# A calibrated colour scene (docs/SCENE.md, "Calibrated colour scenes"): copper, gold and
+# aluminum plates seen by a lens camera at 0.45 m, a lamp at ten positions.
+CALIBRATED_COLOUR_SCENE = """name = "colour_bench"
+width = 320
+height = 240
+seed = {seed}
+format = "tiff"
+bands = { R = 650.0, G = 550.0, B = 450.0 }
+library = "builtin-rgb"
+
+[sensor]
+bit_depth = 12
+full_well_e = 30000.0
+read_noise_e = 2.5
+dark_level_dn = 64.0
+band_response = { B = 0.6 }
+
+[capture]
+kind = "dofp"
+pattern = [90, 45, 135, 0]
+color = "RGGB"
+
+[camera]
+focal_px = 280.0
+principal_point_px = [159.5, 119.5]
+distortion = [-0.05, 0.01, 0.0, 0.0, 0.0]
+position = [-0.3686, 0.0, 0.2581]
+look_at = [0.0, 0.0, 0.0]
+up = [0.0, 0.0, 1.0]
+
+[[source]]
+position = [0.5500, 0.0000, 0.9526]
+[[source]]
+position = [0.7388, 0.0000, 0.9456]
+[[source]]
+position = [0.7193, 0.0000, 0.6947]
+[[source]]
+position = [1.0517, 0.0000, 0.7641]
+[[source]]
+position = [0.9712, 0.0000, 0.5164]
+[[source]]
+position = [1.1276, 0.0000, 0.4104]
+[[source]]
+position = [0.7200, 0.1530, 0.8175]
+[[source]]
+position = [0.7544, -0.1330, 0.6428]
+[[source]]
+position = [1.0856, 0.1526, 0.4881]
+[[source]]
+position = [0.8295, -0.1763, 0.5299]
+
+[[plate]]
+name = "copper"
+material = "copper"
+sigma = 0.3
+center = [-0.085, 0.0, 0.0]
+size = [0.16, 0.07]
+axis = [0.0, 1.0, 0.0]
+
+[[plate]]
+name = "gold"
+material = "gold"
+sigma = 0.3
+center = [0.0, 0.0, 0.0]
+size = [0.16, 0.07]
+axis = [0.0, 1.0, 0.0]
+
+[[plate]]
+name = "aluminum"
+material = "aluminum"
+sigma = 0.3
+center = [0.1, 0.0, 0.0]
+size = [0.16, 0.07]
+axis = [0.0, 1.0, 0.0]
+"""
+
+
+@pytest.fixture(scope="module")
+def calibrated_colour_set(tmp_path_factory, polarid_cli):
+    """The calibrated colour scene at seed 3, a three-band model trained on seed 4."""
+    d = tmp_path_factory.mktemp("dask_colour_calibrated")
+    for seed in (3, 4):
+        (d / f"scene{seed}.toml").write_text(CALIBRATED_COLOUR_SCENE.replace("{seed}", str(seed)))
+        run(polarid_cli, "simulate", d / f"scene{seed}.toml", "-o", d / f"sim{seed}")
+    run(polarid_cli, "measure", d / "sim4" / "manifest.toml", "-o", d / "m4.csv")
+    run(polarid_cli, "fit", d / "m4.csv", "-o", d / "f4.csv")
+    run(polarid_cli, "train", d / "f4.csv", "-o", d / "model.json")
+    return d
+
+
+def test_colour_calibrated_equal_cli(client, calibrated_colour_set, polarid_cli):
+    """Calibrated colour mosaics: a beta per pixel and capture (map_manifest's, as polarid
+    map computes it), noise-weighted per band by default; the Dask map's classes, reasons
+    and every band's n, k equal `polarid map`'s (bin 2, chunks cutting the frames)."""
+    d = calibrated_colour_set
+    manifest = d / "sim3" / "manifest.toml"
+    caps = polarid.load_manifest(manifest)["captures"]
+    raw = np.stack([read_image(c["dofp"]["file"]) for c in caps])
+    levels = dict(dark_level=[c["dark_level"] for c in caps], saturation=[c["saturation"] for c in caps])
+    out = d / "cli_2"
+    run(polarid_cli, "map", manifest, "--model", d / "model.json", "-o", out, "--bin", "2")
+    beta = polarid.map_manifest(manifest, d / "model.json", bin=2)["beta_deg"]
+    assert beta.shape == (raw.shape[0], raw.shape[1] // 2, raw.shape[2] // 2)
+    x = da.from_array(raw, chunks=(3, 96, 128))
+    b = da.from_array(beta, chunks=(4, 24, 32))
+    maps = pdask.material_map(x, None, b, d / "model.json", color=caps[0]["dofp"]["color"],
+                              pattern=caps[0]["dofp"]["pattern"], bin=2, **levels)
+    assert min(maps["class"].numblocks) > 1
+    summary = json.loads((out / "map_summary.json").read_text())
+    assert summary["weights"] == maps["weights"] == "noise"
+    arrays = {"class": maps["class"], "reason": maps["reason"]}
+    for wl, band in maps["bands"].items():
+        for key in ("n", "k"):
+            arrays[(wl, key)] = band[key]
+    got = dict(zip(arrays, dask.compute(*arrays.values(), scheduler=client)))
+    classes = json.loads((out / "classes.json").read_text())
+    assert maps["class_names"] == [classes[str(i)] for i in range(len(classes))]
+    cli_class = read_image(out / "class.tif")
+    np.testing.assert_array_equal(got["reason"], read_image(out / "reason.tif"))
+    np.testing.assert_array_equal(got["class"], cli_class)
+    assert (got["reason"] == 0).sum() > 500  # plates named
+    worst = 0.0
+    for wl in maps["bands"]:
+        for key in ("n", "k"):
+            g, c = got[(wl, key)], read_image(out / f"{key}_{wl:.0f}.tif")
+            np.testing.assert_array_equal(np.isnan(g), np.isnan(c), err_msg=f"{key} {wl}")
+            ok = ~np.isnan(c)
+            diff = np.abs(g[ok].astype(np.float64) - c[ok])
+            assert (diff <= 1e-6).all(), (key, wl, diff.max())
+            worst = max(worst, float(diff.max()))
+    print(f"dask calibrated colour vs cli: {cli_class.size} pixels, classified "
+          f"{(got['reason'] == 0).sum()}, max |dn|, |dk| {worst:.2e}")
