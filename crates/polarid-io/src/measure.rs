@@ -118,18 +118,14 @@ pub fn measure_images_with(
         .first()
         .map(|p| p.display().to_string())
         .unwrap_or_default();
-    let rect_err = |r: &Region, reason: String| IoError::Manifest {
-        path: m.path.clone(),
-        line: r.line,
-        field: format!("region[{}].rect", r.index),
-        value: format!(
-            "[{}, {}, {}, {}]",
-            r.rect.x, r.rect.y, r.rect.width, r.rect.height
-        ),
-        reason: format!(
-            "in capture {} (line {}, {first_file}, {}x{} pixels): {reason}",
-            c.index, c.line, img.width, img.height
-        ),
+    let rect_err = |r: &Region, reason: String| {
+        r.rect_error(
+            &m.path,
+            format!(
+                "in capture {} (line {}, {first_file}, {}x{} pixels): {reason}",
+                c.index, c.line, img.width, img.height
+            ),
+        )
     };
     let rows = if let Some(spec) = &c.illumination {
         calibrated_rows(m, c, spec, img, &rect_err)?
@@ -690,15 +686,9 @@ fn band_rows(
                         .first()
                         .map(|p| p.display().to_string())
                         .unwrap_or_default();
-                    return Err(IoError::Manifest {
-                        path: m.path.clone(),
-                        line: r.line,
-                        field: format!("region[{}].rect", r.index),
-                        value: format!(
-                            "[{}, {}, {}, {}]",
-                            r.rect.x, r.rect.y, r.rect.width, r.rect.height
-                        ),
-                        reason: format!(
+                    return Err(r.rect_error(
+                        &m.path,
+                        format!(
                             "in capture {} (line {}, {file},{band}, {}x{} pixels): {}: {}",
                             c.index,
                             c.line,
@@ -707,7 +697,7 @@ fn band_rows(
                             row.status,
                             row.reason
                         ),
-                    });
+                    ));
                 }
             }
             rows.push(row);

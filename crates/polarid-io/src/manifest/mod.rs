@@ -177,6 +177,21 @@ pub struct Bracket {
     pub source: CaptureSource,
 }
 
+impl Region {
+    /// An [`IoError::Manifest`] of the manifest at `path` naming this region's `rect`
+    /// (its line and value).
+    pub fn rect_error(&self, path: &Path, reason: String) -> IoError {
+        let r = self.rect;
+        IoError::Manifest {
+            path: path.to_path_buf(),
+            line: self.line,
+            field: format!("region[{}].rect", self.index),
+            value: format!("[{}, {}, {}, {}]", r.x, r.y, r.width, r.height),
+            reason,
+        }
+    }
+}
+
 impl Capture {
     /// Every file the capture reads (all brackets of an HDR capture).
     pub fn files(&self) -> Vec<&Path> {
