@@ -190,35 +190,22 @@ pub fn hypothesis_row(
         _ => None,
     };
     ClassificationRow {
-        target: f.target.clone(),
-        class: f.class.clone(),
-        predicted: d.predicted.clone(),
-        distance: d.nearest.map(|_| d.distance),
-        runner_up: d.runner_up.clone(),
-        runner_up_distance: d.runner_up.as_ref().map(|_| d.runner_up_distance),
-        status: d.status.label(),
-        candidates: d.candidates.iter().map(|c| c.class.clone()).collect(),
         candidate_probabilities: d
             .candidates
             .iter()
             .map(|c| c.probability.unwrap_or(f64::NAN))
             .collect(),
         probability,
-        margin: Some(d.margin),
-        nearest: d.nearest_class.clone(),
         category: d.set_category.clone(),
         metric: "chi2".into(),
         rule: RULE_NAME.into(),
         confidence: out.map(|_| confidence),
-        gate: d.gate,
-        votes: None,
-        reason: d.reason.clone(),
         bands_used: if d.bands_used.len() > 1 {
             d.bands_used_text()
         } else {
             String::new()
         },
-        ..Default::default()
+        ..super::decision_row(f, d)
     }
 }
 
