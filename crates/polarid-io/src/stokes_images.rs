@@ -5,7 +5,7 @@
 //! capture on these; [`crate::measure`] turns the images into region rows (the rules are
 //! described there).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use polarid_core::CoreError;
 use polarid_core::mosaic::{self, Pattern};
@@ -217,14 +217,14 @@ pub fn frames_stokes(
     rules: &PixelRules,
 ) -> Result<StokesImages> {
     let Some(first) = frames.first() else {
-        return Err(IoError::Core {
-            path: PathBuf::from("<no frames>"),
-            source: CoreError::TooFew {
+        return Err(IoError::core(
+            "<no frames>",
+            CoreError::TooFew {
                 what: "frames",
                 needed: solver.len(),
                 got: 0,
             },
-        });
+        ));
     };
     let mut out = StokesImages::alloc(first.width, first.height, Sampling::Independent);
     let views: Vec<&[f32]> = frames.iter().map(|f| f.data.as_slice()).collect();
@@ -238,10 +238,7 @@ pub fn frames_stokes(
             &mut out.s2,
             &mut out.mask,
         )
-        .map_err(|e| IoError::Core {
-            path: first.path.clone(),
-            source: e,
-        })?;
+        .map_err(|e| IoError::core(&first.path, e))?;
     Ok(out)
 }
 
@@ -257,10 +254,7 @@ pub fn dofp_stokes(
     demosaic: Demosaic,
     round: bool,
 ) -> Result<StokesImages> {
-    let wrap = |e| IoError::Core {
-        path: raw.path.clone(),
-        source: e,
-    };
+    let wrap = |e| IoError::core(&raw.path, e);
     let out = match demosaic {
         Demosaic::Bilinear => {
             let mut o = StokesImages::alloc(raw.width, raw.height, Sampling::BilinearDofp);
@@ -309,23 +303,18 @@ pub fn read_stokes(s0: &Path, s1: &Path, s2: &Path) -> Result<StokesImages> {
         image::check_float(f, "a Stokes image")?;
     }
     let got = imgs.len();
-    let [f0, f1, f2]: [Frame; 3] = imgs.try_into().map_err(|_| IoError::Core {
-        path: s0.to_path_buf(),
-        source: CoreError::TooFew {
+    let [f0, f1, f2]: [Frame; 3] = imgs.try_into().map_err(|_| {
+        let source = CoreError::TooFew {
             what: "Stokes images",
             needed: 3,
             got,
-        },
+        };
+        IoError::core(s0, source)
     })?;
     let (width, height) = (f0.width, f0.height);
     let mut mask = vec![0u8; width * height];
-    let counts =
-        stokes::mask_stokes(width, &f0.data, &f1.data, &f2.data, 0.0, &mut mask).map_err(|e| {
-            IoError::Core {
-                path: s0.to_path_buf(),
-                source: e,
-            }
-        })?;
+    let counts = stokes::mask_stokes(width, &f0.data, &f1.data, &f2.data, 0.0, &mut mask)
+        .map_err(|e| IoError::core(s0, e))?;
     Ok(StokesImages {
         width,
         height,
