@@ -46,19 +46,12 @@ pub fn is_measurements(t: &CsvTable) -> bool {
         && t.col("n").is_none()
 }
 
-/// The user's priors (`--prior NAME=W`) as one weight per prototype (1 for a material
-/// not named). Errors name the prior: an unknown material, a weight that is not finite
-/// and ≥ 0, all weights 0.
+/// The user's priors (`--prior NAME=W`, each weight finite and ≥ 0 as
+/// [`ClassifyConfig::validate`] checks) as one weight per prototype (1 for a material not
+/// named). Errors name the prior: an unknown material, all weights 0.
 pub fn prior_weights(priors: &[(String, f64)], protos: &[MultiPrototype]) -> Result<Vec<f64>> {
     let mut w = vec![1.0; protos.len()];
     for (name, v) in priors {
-        if !(v.is_finite() && *v >= 0.0) {
-            return Err(PipelineError::config(
-                "prior",
-                format!("{name}={v}"),
-                "weights must be finite and >= 0",
-            ));
-        }
         let mut found = false;
         for (i, p) in protos.iter().enumerate() {
             if &p.class == name {
