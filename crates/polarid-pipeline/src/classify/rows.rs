@@ -23,7 +23,7 @@ use std::path::Path;
 use polarid_core::FitStatus;
 use polarid_core::classify::{
     Decision, HypRow, HypothesisConfig, HypothesisOutcome, MultiPrototype, Nuisances, Status,
-    UNKNOWN, classify_rows, reference::classify_rows_within,
+    classify_rows, reference::classify_rows_within,
 };
 use polarid_io::table::CsvTable;
 use polarid_io::table::classification::ClassificationRow;
@@ -139,28 +139,6 @@ fn hyp_rows(rows: &[&Measurement], fit_cfg: &FitConfig) -> (Vec<HypRow>, Vec<f64
         });
     }
     (hrows, bands, angle_max)
-}
-
-/// A decision that classifies nothing (the fit's status, no rows).
-fn unclassified(status: Status, reason: String) -> Decision {
-    Decision {
-        predicted: UNKNOWN.into(),
-        nearest_class: None,
-        nearest: None,
-        distance: f64::NAN,
-        runner_up: None,
-        runner_up_distance: f64::NAN,
-        margin: f64::NAN,
-        gate: None,
-        votes: 0,
-        status,
-        reason,
-        ranked: Vec::new(),
-        candidates: Vec::new(),
-        set_tested: false,
-        set_category: None,
-        bands_used: Vec::new(),
-    }
 }
 
 /// The classification CSV row of a hypothesis decision: `candidates` with their
@@ -338,7 +316,7 @@ impl TargetClassifier<'_> {
             .filter(|f| f.target == g.target)
             .find(|f| f.status != FitStatus::Ok);
         if let Some(bad) = not_ok {
-            let d = unclassified(
+            let d = Decision::unclassified(
                 Status::FitNotOk(bad.status),
                 format!(
                     "not classified: its fit{} is {} ({})",
