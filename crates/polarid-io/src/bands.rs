@@ -241,13 +241,7 @@ fn hdr_colour_images(
     let paths = c.files();
     let frames = image::read_frames(&paths)?;
     let (Some(first), Some(reference)) = (frames.first(), c.brackets.first()) else {
-        return Err(IoError::Manifest {
-            path: m.path.clone(),
-            line: c.line,
-            field: format!("capture[{}].brackets", c.index),
-            value: String::new(),
-            reason: "no frames".into(),
-        });
+        return Err(c.field_error(&m.path, "brackets", "", "no frames"));
     };
     let raw_rules = rules_for(first, c.dark_level, c.saturation);
     let mut notes = saturation_notes(c, &frames, raw_rules.saturation);

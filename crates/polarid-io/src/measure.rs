@@ -348,16 +348,15 @@ fn region_geometry(
     );
     match filled {
         Ok(()) => Ok(maps),
-        Err(e @ CoreError::SourceBelowHorizon { .. }) => Err(IoError::Manifest {
-            path: m.path.clone(),
-            line: c.line,
-            field: format!("capture[{}].source.{}", c.index, spec.key()),
-            value: source_text(spec),
-            reason: format!(
+        Err(e @ CoreError::SourceBelowHorizon { .. }) => Err(c.field_error(
+            &m.path,
+            &format!("source.{}", spec.key()),
+            source_text(spec),
+            format!(
                 "for target {:?} (region[{}], plane {plane_name:?}): {e}",
                 r.name, r.index
             ),
-        }),
+        )),
         Err(e) => Err(rect_err(
             r,
             format!("{e} (plane {plane_name:?}, source {})", source_text(spec)),
@@ -383,13 +382,7 @@ pub fn beta_map(
     let Some(spec) = &c.illumination else {
         return Ok(None);
     };
-    let err = |reason: String| IoError::Manifest {
-        path: m.path.clone(),
-        line: c.line,
-        field: format!("capture[{}].source", c.index),
-        value: source_text(spec),
-        reason,
-    };
+    let err = |reason: String| c.field_error(&m.path, "source", source_text(spec), reason);
     let camera = m
         .camera
         .as_ref()
@@ -424,13 +417,7 @@ fn calibrated_rows(
     img: &StokesImages,
     rect_err: &dyn Fn(&Region, String) -> IoError,
 ) -> Result<Vec<Measurement>> {
-    let no_geometry = |reason: &str| IoError::Manifest {
-        path: m.path.clone(),
-        line: c.line,
-        field: format!("capture[{}].source", c.index),
-        value: source_text(spec),
-        reason: reason.into(),
-    };
+    let no_geometry = |reason: &str| c.field_error(&m.path, "source", source_text(spec), reason);
     let camera = m
         .camera
         .as_ref()
@@ -647,15 +634,13 @@ pub fn measure_colour_frame(
 /// a single-band capture needs a wavelength.
 fn check_band_wavelength(m: &Manifest, c: &Capture) -> Result<()> {
     if !matches!(c.source, CaptureSource::ColourDofp { .. }) && c.wavelength_nm.is_none() {
-        return Err(IoError::Manifest {
-            path: m.path.clone(),
-            line: c.line,
-            field: format!("capture[{}].wavelength_nm", c.index),
-            value: String::new(),
-            reason: "a manifest with colour captures measures every capture per band: give \
-                     this single-band capture its wavelength_nm (or the top-level one)"
-                .into(),
-        });
+        return Err(c.field_error(
+            &m.path,
+            "wavelength_nm",
+            "",
+            "a manifest with colour captures measures every capture per band: give \
+                     this single-band capture its wavelength_nm (or the top-level one)",
+        ));
     }
     Ok(())
 }

@@ -343,12 +343,8 @@ pub fn capture_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
     match &c.source {
         CaptureSource::Frames(frames) => {
             let angles: Vec<f64> = frames.iter().map(|f| f.angle_deg).collect();
-            let solver = StokesSolver::from_degrees(&angles).map_err(|e| IoError::Manifest {
-                path: m.path.clone(),
-                line: c.line,
-                field: format!("capture[{}].frames", c.index),
-                value: format!("{angles:?}"),
-                reason: e.to_string(),
+            let solver = StokesSolver::from_degrees(&angles).map_err(|e| {
+                c.field_error(&m.path, "frames", format!("{angles:?}"), e.to_string())
             })?;
             let paths: Vec<&Path> = frames.iter().map(|f| f.file.as_path()).collect();
             let imgs = image::read_frames(&paths)?;
@@ -374,15 +370,13 @@ pub fn capture_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
             out.dark_signal_dn = c.dark_signal_dn.unwrap_or(0.0);
             Ok(out)
         }
-        CaptureSource::ColourDofp { .. } => Err(IoError::Manifest {
-            path: m.path.clone(),
-            line: c.line,
-            field: format!("capture[{}].dofp.color", c.index),
-            value: "color".into(),
-            reason: "a colour capture has one set of Stokes images per band: use \
-                     polarid_io::bands::capture_band_images"
-                .into(),
-        }),
+        CaptureSource::ColourDofp { .. } => Err(c.field_error(
+            &m.path,
+            "dofp.color",
+            "color",
+            "a colour capture has one set of Stokes images per band: use \
+                     polarid_io::bands::capture_band_images",
+        )),
     }
 }
 
@@ -411,13 +405,7 @@ pub fn hdr_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
     let paths: Vec<&Path> = c.files();
     let frames = image::read_frames(&paths)?;
     let (Some(first), Some(reference)) = (frames.first(), c.brackets.first()) else {
-        return Err(IoError::Manifest {
-            path: m.path.clone(),
-            line: c.line,
-            field: format!("capture[{}].brackets", c.index),
-            value: String::new(),
-            reason: "no frames".into(),
-        });
+        return Err(c.field_error(&m.path, "brackets", "", "no frames"));
     };
     let per = frames.len() / nb.max(1);
     let (width, height, n) = (first.width, first.height, first.data.len());
@@ -455,12 +443,8 @@ pub fn hdr_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
     let mut out = match &reference.source {
         CaptureSource::Frames(refs) => {
             let angles: Vec<f64> = refs.iter().map(|f| f.angle_deg).collect();
-            let solver = StokesSolver::from_degrees(&angles).map_err(|e| IoError::Manifest {
-                path: m.path.clone(),
-                line: c.line,
-                field: format!("capture[{}].brackets", c.index),
-                value: format!("{angles:?}"),
-                reason: e.to_string(),
+            let solver = StokesSolver::from_degrees(&angles).map_err(|e| {
+                c.field_error(&m.path, "brackets", format!("{angles:?}"), e.to_string())
             })?;
             // Not `< sat` is saturated: NaN counts as saturated too.
             let pick = pick_brackets(n, nb, |b, p| (0..per).any(|a| !(value(b, a, p) < sat)));
@@ -485,24 +469,21 @@ pub fn hdr_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
             )?
         }
         CaptureSource::Stokes { s0, .. } => {
-            return Err(IoError::Manifest {
-                path: m.path.clone(),
-                line: c.line,
-                field: format!("capture[{}].brackets", c.index),
-                value: s0.display().to_string(),
-                reason: "HDR brackets need raw data (`frames` or `dofp`), not Stokes images".into(),
-            });
+            return Err(c.field_error(
+                &m.path,
+                "brackets",
+                s0.display().to_string(),
+                "HDR brackets need raw data (`frames` or `dofp`), not Stokes images",
+            ));
         }
         CaptureSource::ColourDofp { file, .. } => {
-            return Err(IoError::Manifest {
-                path: m.path.clone(),
-                line: c.line,
-                field: format!("capture[{}].brackets", c.index),
-                value: file.display().to_string(),
-                reason: "a colour capture has one set of Stokes images per band: use \
-                         polarid_io::bands::capture_band_images"
-                    .into(),
-            });
+            return Err(c.field_error(
+                &m.path,
+                "brackets",
+                file.display().to_string(),
+                "a colour capture has one set of Stokes images per band: use \
+                         polarid_io::bands::capture_band_images",
+            ));
         }
     };
     out.dark_signal_dn = dark_threshold_dn(c, &raw_rules, first.kind.is_integer());

@@ -193,6 +193,24 @@ impl Region {
 }
 
 impl Capture {
+    /// An [`IoError::Manifest`] of the manifest at `path` naming this capture's field
+    /// `key` (`capture[i].KEY`, at the capture's line) and the value at fault.
+    pub fn field_error(
+        &self,
+        path: &Path,
+        key: &str,
+        value: impl Into<String>,
+        reason: impl Into<String>,
+    ) -> IoError {
+        IoError::Manifest {
+            path: path.to_path_buf(),
+            line: self.line,
+            field: format!("capture[{}].{key}", self.index),
+            value: value.into(),
+            reason: reason.into(),
+        }
+    }
+
     /// Every file the capture reads (all brackets of an HDR capture).
     pub fn files(&self) -> Vec<&Path> {
         if self.brackets.is_empty() {

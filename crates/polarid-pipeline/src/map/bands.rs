@@ -277,16 +277,15 @@ pub(crate) fn band_list(m: &Manifest) -> Result<Vec<BandDolp>> {
         per_capture.push(match (&c.source, c.wavelength_nm) {
             (CaptureSource::ColourDofp { .. }, _) | (_, Some(_)) => capture_wavelengths(c),
             (_, None) => {
-                return Err(IoError::Manifest {
-                    path: m.path.clone(),
-                    line: c.line,
-                    field: format!("capture[{}].wavelength_nm", c.index),
-                    value: String::new(),
-                    reason: "a manifest with colour captures is mapped per band: give this \
-                             single-band capture its wavelength_nm (or the top-level one)"
-                        .into(),
-                }
-                .into());
+                return Err(c
+                    .field_error(
+                        &m.path,
+                        "wavelength_nm",
+                        "",
+                        "a manifest with colour captures is mapped per band: give this \
+                             single-band capture its wavelength_nm (or the top-level one)",
+                    )
+                    .into());
             }
         });
     }
