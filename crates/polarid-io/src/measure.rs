@@ -51,7 +51,7 @@
 
 use polarid_core::CoreError;
 use polarid_core::geometry::{self, GeometryMaps, PinholeCamera, Source, ViewGeometry};
-use polarid_core::region::{Rect, RegionGeometry, region_stats, region_stats_local};
+use polarid_core::region::{Rect, RegionGeometry, RegionStats, region_stats, region_stats_local};
 
 use crate::error::{IoError, Result};
 use crate::manifest::{Capture, CaptureSource, Manifest, Region, SourceSpec};
@@ -199,10 +199,13 @@ fn row_status(c: &Capture, img: &StokesImages, cnt: [u64; 4], s0_dn: f64) -> (Ro
     (RowStatus::Ok, String::new())
 }
 
-/// The row of a region without a usable pixel: counts, status and reason, no values.
-fn empty_row(
+/// The row of region `r` in capture `c` with its statistics `st` (`None`: no usable
+/// pixel, the counts `cnt` only), status and reason; the capture's angles in the far
+/// field (a calibrated capture's caller sets its per-region angles).
+fn region_row(
     r: &Region,
     c: &Capture,
+    st: Option<&RegionStats>,
     cnt: [u64; 4],
     status: (RowStatus, String),
     beta_deg: f64,
@@ -215,13 +218,17 @@ fn empty_row(
         theta_r_deg: far.then_some(c.theta_r_deg),
         phi_deg: if far { c.phi_deg } else { f64::NAN },
         beta_deg,
-        dolp: f64::NAN,
-        dolp_se: None,
-        s0: None,
-        pixels: Some(0),
-        rejected: Some(cnt[1] + cnt[2] + cnt[3]),
+        dolp: st.map_or(f64::NAN, |s| s.dolp),
+        // Noiseless data have no scatter; an SE of 0 is left empty (the CSV contract
+        // requires dolp_se > 0 when present).
+        dolp_se: st
+            .and_then(|s| s.dolp_se)
+            .filter(|se| se.is_finite() && *se > 0.0),
+        s0: st.map(|s| s.s0() / c.exposure),
+        pixels: Some(st.map_or(0, |s| s.pixels)),
+        rejected: Some(st.map_or(cnt[1] + cnt[2] + cnt[3], |s| s.rejected)),
         exposure: Some(c.exposure),
-        saturated: Some(cnt[1]),
+        saturated: Some(st.map_or(cnt[1], |s| s.saturated)),
         beta_sd_deg: None,
         aolp_deg: None,
         aolp_poi_deg: None,
@@ -249,7 +256,7 @@ fn far_field_rows(
         let cnt = rect_counts(img, r.rect);
         if cnt[0] == 0 {
             let st = row_status(c, img, cnt, f64::NAN);
-            rows.push(empty_row(r, c, cnt, st, beta_deg));
+            rows.push(region_row(r, c, None, cnt, st, beta_deg));
             continue;
         }
         let st = region_stats(
@@ -262,32 +269,8 @@ fn far_field_rows(
             img.sampling,
         )
         .map_err(|e| rect_err(r, e.to_string()))?;
-        let (status, reason) = row_status(c, img, cnt, st.s0());
-        rows.push(Measurement {
-            target: r.name.clone(),
-            class: r.class.clone(),
-            theta_i_deg: Some(c.theta_i_deg),
-            theta_r_deg: Some(c.theta_r_deg),
-            phi_deg: c.phi_deg,
-            beta_deg,
-            dolp: st.dolp,
-            // Noiseless data have no scatter; an SE of 0 is left empty (the CSV
-            // contract requires dolp_se > 0 when present).
-            dolp_se: st.dolp_se.filter(|se| se.is_finite() && *se > 0.0),
-            s0: Some(st.s0() / c.exposure),
-            pixels: Some(st.pixels),
-            rejected: Some(st.rejected),
-            exposure: Some(c.exposure),
-            saturated: Some(st.saturated),
-            beta_sd_deg: None,
-            aolp_deg: None,
-            aolp_poi_deg: None,
-            angle_sd_deg: c.angle_sd_deg,
-            status,
-            reason,
-            wavelength_nm: c.wavelength_nm,
-            reference: r.reference.clone(),
-        });
+        let status = row_status(c, img, cnt, st.s0());
+        rows.push(region_row(r, c, Some(&st), cnt, status, beta_deg));
     }
     Ok(rows)
 }
@@ -435,7 +418,7 @@ fn calibrated_rows(
         let cnt = rect_counts(img, r.rect);
         if cnt[0] == 0 {
             let st = row_status(c, img, cnt, f64::NAN);
-            rows.push(empty_row(r, c, cnt, st, f64::NAN));
+            rows.push(region_row(r, c, None, cnt, st, f64::NAN));
             continue;
         }
         let area = r.rect.width * r.rect.height;
@@ -458,29 +441,15 @@ fn calibrated_rows(
         )
         .map_err(|e| rect_err(r, e.to_string()))?;
         let finite_deg = |x: f64| x.is_finite().then(|| x.to_degrees());
-        let (status, reason) = row_status(c, img, cnt, st.stats.s0());
+        let status = row_status(c, img, cnt, st.stats.s0());
         rows.push(Measurement {
-            target: r.name.clone(),
-            class: r.class.clone(),
             theta_i_deg: Some(st.theta_i.to_degrees()),
             theta_r_deg: Some(st.theta_r.to_degrees()),
             phi_deg: st.phi.to_degrees(),
-            beta_deg: st.beta.to_degrees(),
-            dolp: st.stats.dolp,
-            dolp_se: st.stats.dolp_se.filter(|se| se.is_finite() && *se > 0.0),
-            s0: Some(st.stats.s0() / c.exposure),
-            pixels: Some(st.stats.pixels),
-            rejected: Some(st.stats.rejected),
-            exposure: Some(c.exposure),
-            saturated: Some(st.stats.saturated),
             beta_sd_deg: Some(st.beta_sd.to_degrees()),
             aolp_deg: finite_deg(st.aolp),
             aolp_poi_deg: finite_deg(st.aolp_poi),
-            angle_sd_deg: c.angle_sd_deg,
-            status,
-            reason,
-            wavelength_nm: c.wavelength_nm,
-            reference: r.reference.clone(),
+            ..region_row(r, c, Some(&st.stats), cnt, status, st.beta.to_degrees())
         });
     }
     Ok(rows)
