@@ -75,13 +75,8 @@ pub fn colour_stokes(
             ..Default::default()
         })
         .collect();
-    let counts =
-        colour_polar(&raw.data, raw.width, pattern, method, rules, outs).map_err(|source| {
-            IoError::Core {
-                path: raw.path.clone(),
-                source,
-            }
-        })?;
+    let counts = colour_polar(&raw.data, raw.width, pattern, method, rules, outs)
+        .map_err(|source| IoError::core(&raw.path, source))?;
     for (o, c) in imgs.iter_mut().zip(counts) {
         o.counts = c;
     }
@@ -176,13 +171,8 @@ fn colour_bands(
 ///
 /// Errors: [`IoError::Core`] naming the file when not one whole period is left.
 fn whole_periods(c: &Capture, raw: Frame, notes: &mut Vec<String>) -> Result<Frame> {
-    let cropped =
-        polarid_core::mosaic::crop_to_whole_periods(&raw.data, raw.width).map_err(|source| {
-            IoError::Core {
-                path: raw.path.clone(),
-                source,
-            }
-        })?;
+    let cropped = polarid_core::mosaic::crop_to_whole_periods(&raw.data, raw.width)
+        .map_err(|source| IoError::core(&raw.path, source))?;
     let Some((data, width, height)) = cropped else {
         return Ok(raw);
     };
@@ -251,13 +241,7 @@ fn hdr_colour_images(
     let paths = c.files();
     let frames = image::read_frames(&paths)?;
     let (Some(first), Some(reference)) = (frames.first(), c.brackets.first()) else {
-        return Err(IoError::Manifest {
-            path: m.path.clone(),
-            line: c.line,
-            field: format!("capture[{}].brackets", c.index),
-            value: String::new(),
-            reason: "no frames".into(),
-        });
+        return Err(c.field_error(&m.path, "brackets", "", "no frames"));
     };
     let raw_rules = rules_for(first, c.dark_level, c.saturation);
     let mut notes = saturation_notes(c, &frames, raw_rules.saturation);

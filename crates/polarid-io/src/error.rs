@@ -152,6 +152,14 @@ impl IoError {
             source,
         }
     }
+
+    /// Wrap a [`CoreError`] with the file whose data caused it.
+    pub fn core(path: impl Into<PathBuf>, source: CoreError) -> Self {
+        IoError::Core {
+            path: path.into(),
+            source,
+        }
+    }
 }
 
 /// True when an operating-system error is the fault of the path or data the user gave

@@ -26,12 +26,15 @@
 //! and renamed into place only when complete. Inside a [`crate::atomic::StagedDir`]
 //! pass the staged path.
 
+use std::borrow::Cow;
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
 use crate::atomic::write_atomic;
 use crate::error::{IoError, Result};
 use crate::limits;
+use tiff::encoder::TiffValue;
+use tiff::encoder::colortype::{self as tiff_color, ColorType};
 
 /// The sample type of a frame as stored.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -141,14 +144,8 @@ fn read_frame_in_flight(path: &Path, in_flight: u64) -> Result<Frame> {
 }
 
 /// Decode a grayscale PNG or TIFF frame held in memory; `path` labels errors and is
-/// recorded in the frame. Same rules as [`read_frame`], with the size limit
-/// [`MAX_PIXELS`].
-pub fn decode_frame(path: &Path, bytes: &[u8]) -> Result<Frame> {
-    decode_frame_limited(path, bytes, MAX_PIXELS)
-}
-
-/// [`decode_frame`] with a caller-chosen limit on the number of pixels (fuzzing uses a
-/// small one to keep each run fast).
+/// recorded in the frame. Same rules as [`read_frame`], with a caller-chosen limit on the
+/// number of pixels (fuzzing uses a small one to keep each run fast).
 pub fn decode_frame_limited(path: &Path, bytes: &[u8], max_pixels: u64) -> Result<Frame> {
     decode(
         path,
@@ -520,25 +517,17 @@ fn check_buf(path: &Path, width: usize, height: usize, len: usize) -> Result<(u3
     Ok((w, h))
 }
 
-fn tiff_bytes<C>(path: &Path, w: u32, h: u32, data: &[C::Inner]) -> Result<Vec<u8>>
-where
-    C: tiff::encoder::colortype::ColorType,
-    [C::Inner]: tiff::encoder::TiffValue,
-{
-    tiff_bytes_max::<C>(path, w, h, data, None)
-}
-
-/// [`tiff_bytes`] with a `MaxSampleValue` tag when `max_sample` is given.
-fn tiff_bytes_max<C>(
+/// The TIFF bytes of a `w × h` image, with a `MaxSampleValue` tag when `max_sample` is
+/// given.
+fn tiff_bytes<C>(
     path: &Path,
-    w: u32,
-    h: u32,
+    (w, h): (u32, u32),
     data: &[C::Inner],
     max_sample: Option<u16>,
 ) -> Result<Vec<u8>>
 where
-    C: tiff::encoder::colortype::ColorType,
-    [C::Inner]: tiff::encoder::TiffValue,
+    C: ColorType,
+    [C::Inner]: TiffValue,
 {
     let mut cur = Cursor::new(Vec::new());
     let enc_err = |e: tiff::TiffError| image_err(path, format!("cannot encode TIFF: {e}"));
@@ -567,8 +556,8 @@ pub fn write_tiff_f32(
     height: usize,
     data: &[f32],
 ) -> Result<()> {
-    let (w, h) = check_buf(path, width, height, data.len())?;
-    let bytes = tiff_bytes::<tiff::encoder::colortype::Gray32Float>(path, w, h, data)?;
+    let size = check_buf(path, width, height, data.len())?;
+    let bytes = tiff_bytes::<tiff_color::Gray32Float>(path, size, data, None)?;
     write_bytes(path, force, &bytes)
 }
 
@@ -589,22 +578,11 @@ fn wants_tiff(path: &Path) -> Result<bool> {
     }
 }
 
+/// The PNG bytes of a `w × h` image, with an `sBIT` chunk (grayscale: one byte) when
+/// `sbit` is given.
 fn png_bytes(
     path: &Path,
-    w: u32,
-    h: u32,
-    color: png::ColorType,
-    depth: png::BitDepth,
-    data: &[u8],
-) -> Result<Vec<u8>> {
-    png_bytes_sbit(path, w, h, color, depth, data, None)
-}
-
-/// [`png_bytes`] with an `sBIT` chunk (grayscale: one byte) when `sbit` is given.
-fn png_bytes_sbit(
-    path: &Path,
-    w: u32,
-    h: u32,
+    (w, h): (u32, u32),
     color: png::ColorType,
     depth: png::BitDepth,
     data: &[u8],
@@ -626,6 +604,54 @@ fn png_bytes_sbit(
     Ok(out)
 }
 
+/// A grayscale sample type of the PNG/TIFF writers (8 or 16 bits): its TIFF colour
+/// type, PNG bit depth and PNG (big-endian) bytes.
+trait GraySample: Copy {
+    type Tiff: ColorType<Inner = Self>;
+    const PNG_DEPTH: png::BitDepth;
+    fn png_data(data: &[Self]) -> Cow<'_, [u8]>;
+}
+
+impl GraySample for u8 {
+    type Tiff = tiff_color::Gray8;
+    const PNG_DEPTH: png::BitDepth = png::BitDepth::Eight;
+    fn png_data(data: &[u8]) -> Cow<'_, [u8]> {
+        data.into()
+    }
+}
+
+impl GraySample for u16 {
+    type Tiff = tiff_color::Gray16;
+    const PNG_DEPTH: png::BitDepth = png::BitDepth::Sixteen;
+    fn png_data(data: &[u16]) -> Cow<'_, [u8]> {
+        data.iter().flat_map(|v| v.to_be_bytes()).collect()
+    }
+}
+
+/// Write a grayscale image as PNG or TIFF (from the file name's extension); `bits`
+/// (significant bits, largest value) records the bit depth: a PNG `sBIT` chunk, a TIFF
+/// `MaxSampleValue` tag.
+fn write_gray<S: GraySample>(
+    path: &Path,
+    force: bool,
+    (width, height): (usize, usize),
+    data: &[S],
+    bits: Option<(u8, u16)>,
+) -> Result<()>
+where
+    [S]: TiffValue,
+{
+    let size = check_buf(path, width, height, data.len())?;
+    let bytes = if wants_tiff(path)? {
+        tiff_bytes::<S::Tiff>(path, size, data, bits.map(|b| b.1))?
+    } else {
+        let color = png::ColorType::Grayscale;
+        let sbit = bits.map(|b| b.0);
+        png_bytes(path, size, color, S::PNG_DEPTH, &S::png_data(data), sbit)?
+    };
+    write_bytes(path, force, &bytes)
+}
+
 /// Write an 8-bit grayscale image as PNG or TIFF (from the file name's extension).
 pub fn write_gray8(
     path: &Path,
@@ -634,20 +660,7 @@ pub fn write_gray8(
     height: usize,
     data: &[u8],
 ) -> Result<()> {
-    let (w, h) = check_buf(path, width, height, data.len())?;
-    let bytes = if wants_tiff(path)? {
-        tiff_bytes::<tiff::encoder::colortype::Gray8>(path, w, h, data)?
-    } else {
-        png_bytes(
-            path,
-            w,
-            h,
-            png::ColorType::Grayscale,
-            png::BitDepth::Eight,
-            data,
-        )?
-    };
-    write_bytes(path, force, &bytes)
+    write_gray(path, force, (width, height), data, None)
 }
 
 /// Write a 16-bit grayscale image as PNG or TIFF (from the file name's extension).
@@ -658,21 +671,7 @@ pub fn write_gray16(
     height: usize,
     data: &[u16],
 ) -> Result<()> {
-    let (w, h) = check_buf(path, width, height, data.len())?;
-    let bytes = if wants_tiff(path)? {
-        tiff_bytes::<tiff::encoder::colortype::Gray16>(path, w, h, data)?
-    } else {
-        let be: Vec<u8> = data.iter().flat_map(|v| v.to_be_bytes()).collect();
-        png_bytes(
-            path,
-            w,
-            h,
-            png::ColorType::Grayscale,
-            png::BitDepth::Sixteen,
-            &be,
-        )?
-    };
-    write_bytes(path, force, &bytes)
+    write_gray(path, force, (width, height), data, None)
 }
 
 /// The largest value of samples of type `kind` whose file records `bits` significant
@@ -700,7 +699,7 @@ pub fn write_gray16_bits(
     data: &[u16],
     bits: u8,
 ) -> Result<()> {
-    let (w, h) = check_buf(path, width, height, data.len())?;
+    check_buf(path, width, height, data.len())?;
     if !(1..=16).contains(&bits) {
         return Err(image_err(
             path,
@@ -714,21 +713,7 @@ pub fn write_gray16_bits(
             format!("sample {v} does not fit in {bits} bits (at most {max})"),
         ));
     }
-    let bytes = if wants_tiff(path)? {
-        tiff_bytes_max::<tiff::encoder::colortype::Gray16>(path, w, h, data, Some(max))?
-    } else {
-        let be: Vec<u8> = data.iter().flat_map(|v| v.to_be_bytes()).collect();
-        png_bytes_sbit(
-            path,
-            w,
-            h,
-            png::ColorType::Grayscale,
-            png::BitDepth::Sixteen,
-            &be,
-            Some(bits),
-        )?
-    };
-    write_bytes(path, force, &bytes)
+    write_gray(path, force, (width, height), data, Some((bits, max)))
 }
 
 /// Write an 8-bit RGB PNG (views, colour maps); `data` is `width × height × 3`.
@@ -748,7 +733,8 @@ pub fn write_rgb8_png(
             ),
         ));
     }
-    let (w, h) = check_buf(path, width, height, width * height)?;
-    let bytes = png_bytes(path, w, h, png::ColorType::Rgb, png::BitDepth::Eight, data)?;
+    let size = check_buf(path, width, height, width * height)?;
+    let (color, depth) = (png::ColorType::Rgb, png::BitDepth::Eight);
+    let bytes = png_bytes(path, size, color, depth, data, None)?;
     write_bytes(path, force, &bytes)
 }

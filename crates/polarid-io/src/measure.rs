@@ -51,7 +51,7 @@
 
 use polarid_core::CoreError;
 use polarid_core::geometry::{self, GeometryMaps, PinholeCamera, Source, ViewGeometry};
-use polarid_core::region::{Rect, RegionGeometry, region_stats, region_stats_local};
+use polarid_core::region::{Rect, RegionGeometry, RegionStats, region_stats, region_stats_local};
 
 use crate::error::{IoError, Result};
 use crate::manifest::{Capture, CaptureSource, Manifest, Region, SourceSpec};
@@ -118,18 +118,14 @@ pub fn measure_images_with(
         .first()
         .map(|p| p.display().to_string())
         .unwrap_or_default();
-    let rect_err = |r: &Region, reason: String| IoError::Manifest {
-        path: m.path.clone(),
-        line: r.line,
-        field: format!("region[{}].rect", r.index),
-        value: format!(
-            "[{}, {}, {}, {}]",
-            r.rect.x, r.rect.y, r.rect.width, r.rect.height
-        ),
-        reason: format!(
-            "in capture {} (line {}, {first_file}, {}x{} pixels): {reason}",
-            c.index, c.line, img.width, img.height
-        ),
+    let rect_err = |r: &Region, reason: String| {
+        r.rect_error(
+            &m.path,
+            format!(
+                "in capture {} (line {}, {first_file}, {}x{} pixels): {reason}",
+                c.index, c.line, img.width, img.height
+            ),
+        )
     };
     let rows = if let Some(spec) = &c.illumination {
         calibrated_rows(m, c, spec, img, &rect_err)?
@@ -203,10 +199,13 @@ fn row_status(c: &Capture, img: &StokesImages, cnt: [u64; 4], s0_dn: f64) -> (Ro
     (RowStatus::Ok, String::new())
 }
 
-/// The row of a region without a usable pixel: counts, status and reason, no values.
-fn empty_row(
+/// The row of region `r` in capture `c` with its statistics `st` (`None`: no usable
+/// pixel, the counts `cnt` only), status and reason; the capture's angles in the far
+/// field (a calibrated capture's caller sets its per-region angles).
+fn region_row(
     r: &Region,
     c: &Capture,
+    st: Option<&RegionStats>,
     cnt: [u64; 4],
     status: (RowStatus, String),
     beta_deg: f64,
@@ -219,13 +218,17 @@ fn empty_row(
         theta_r_deg: far.then_some(c.theta_r_deg),
         phi_deg: if far { c.phi_deg } else { f64::NAN },
         beta_deg,
-        dolp: f64::NAN,
-        dolp_se: None,
-        s0: None,
-        pixels: Some(0),
-        rejected: Some(cnt[1] + cnt[2] + cnt[3]),
+        dolp: st.map_or(f64::NAN, |s| s.dolp),
+        // Noiseless data have no scatter; an SE of 0 is left empty (the CSV contract
+        // requires dolp_se > 0 when present).
+        dolp_se: st
+            .and_then(|s| s.dolp_se)
+            .filter(|se| se.is_finite() && *se > 0.0),
+        s0: st.map(|s| s.s0() / c.exposure),
+        pixels: Some(st.map_or(0, |s| s.pixels)),
+        rejected: Some(st.map_or(cnt[1] + cnt[2] + cnt[3], |s| s.rejected)),
         exposure: Some(c.exposure),
-        saturated: Some(cnt[1]),
+        saturated: Some(st.map_or(cnt[1], |s| s.saturated)),
         beta_sd_deg: None,
         aolp_deg: None,
         aolp_poi_deg: None,
@@ -253,7 +256,7 @@ fn far_field_rows(
         let cnt = rect_counts(img, r.rect);
         if cnt[0] == 0 {
             let st = row_status(c, img, cnt, f64::NAN);
-            rows.push(empty_row(r, c, cnt, st, beta_deg));
+            rows.push(region_row(r, c, None, cnt, st, beta_deg));
             continue;
         }
         let st = region_stats(
@@ -266,32 +269,8 @@ fn far_field_rows(
             img.sampling,
         )
         .map_err(|e| rect_err(r, e.to_string()))?;
-        let (status, reason) = row_status(c, img, cnt, st.s0());
-        rows.push(Measurement {
-            target: r.name.clone(),
-            class: r.class.clone(),
-            theta_i_deg: Some(c.theta_i_deg),
-            theta_r_deg: Some(c.theta_r_deg),
-            phi_deg: c.phi_deg,
-            beta_deg,
-            dolp: st.dolp,
-            // Noiseless data have no scatter; an SE of 0 is left empty (the CSV
-            // contract requires dolp_se > 0 when present).
-            dolp_se: st.dolp_se.filter(|se| se.is_finite() && *se > 0.0),
-            s0: Some(st.s0() / c.exposure),
-            pixels: Some(st.pixels),
-            rejected: Some(st.rejected),
-            exposure: Some(c.exposure),
-            saturated: Some(st.saturated),
-            beta_sd_deg: None,
-            aolp_deg: None,
-            aolp_poi_deg: None,
-            angle_sd_deg: c.angle_sd_deg,
-            status,
-            reason,
-            wavelength_nm: c.wavelength_nm,
-            reference: r.reference.clone(),
-        });
+        let status = row_status(c, img, cnt, st.s0());
+        rows.push(region_row(r, c, Some(&st), cnt, status, beta_deg));
     }
     Ok(rows)
 }
@@ -352,16 +331,15 @@ fn region_geometry(
     );
     match filled {
         Ok(()) => Ok(maps),
-        Err(e @ CoreError::SourceBelowHorizon { .. }) => Err(IoError::Manifest {
-            path: m.path.clone(),
-            line: c.line,
-            field: format!("capture[{}].source.{}", c.index, spec.key()),
-            value: source_text(spec),
-            reason: format!(
+        Err(e @ CoreError::SourceBelowHorizon { .. }) => Err(c.field_error(
+            &m.path,
+            &format!("source.{}", spec.key()),
+            source_text(spec),
+            format!(
                 "for target {:?} (region[{}], plane {plane_name:?}): {e}",
                 r.name, r.index
             ),
-        }),
+        )),
         Err(e) => Err(rect_err(
             r,
             format!("{e} (plane {plane_name:?}, source {})", source_text(spec)),
@@ -387,13 +365,7 @@ pub fn beta_map(
     let Some(spec) = &c.illumination else {
         return Ok(None);
     };
-    let err = |reason: String| IoError::Manifest {
-        path: m.path.clone(),
-        line: c.line,
-        field: format!("capture[{}].source", c.index),
-        value: source_text(spec),
-        reason,
-    };
+    let err = |reason: String| c.field_error(&m.path, "source", source_text(spec), reason);
     let camera = m
         .camera
         .as_ref()
@@ -428,13 +400,7 @@ fn calibrated_rows(
     img: &StokesImages,
     rect_err: &dyn Fn(&Region, String) -> IoError,
 ) -> Result<Vec<Measurement>> {
-    let no_geometry = |reason: &str| IoError::Manifest {
-        path: m.path.clone(),
-        line: c.line,
-        field: format!("capture[{}].source", c.index),
-        value: source_text(spec),
-        reason: reason.into(),
-    };
+    let no_geometry = |reason: &str| c.field_error(&m.path, "source", source_text(spec), reason);
     let camera = m
         .camera
         .as_ref()
@@ -452,7 +418,7 @@ fn calibrated_rows(
         let cnt = rect_counts(img, r.rect);
         if cnt[0] == 0 {
             let st = row_status(c, img, cnt, f64::NAN);
-            rows.push(empty_row(r, c, cnt, st, f64::NAN));
+            rows.push(region_row(r, c, None, cnt, st, f64::NAN));
             continue;
         }
         let area = r.rect.width * r.rect.height;
@@ -475,29 +441,15 @@ fn calibrated_rows(
         )
         .map_err(|e| rect_err(r, e.to_string()))?;
         let finite_deg = |x: f64| x.is_finite().then(|| x.to_degrees());
-        let (status, reason) = row_status(c, img, cnt, st.stats.s0());
+        let status = row_status(c, img, cnt, st.stats.s0());
         rows.push(Measurement {
-            target: r.name.clone(),
-            class: r.class.clone(),
             theta_i_deg: Some(st.theta_i.to_degrees()),
             theta_r_deg: Some(st.theta_r.to_degrees()),
             phi_deg: st.phi.to_degrees(),
-            beta_deg: st.beta.to_degrees(),
-            dolp: st.stats.dolp,
-            dolp_se: st.stats.dolp_se.filter(|se| se.is_finite() && *se > 0.0),
-            s0: Some(st.stats.s0() / c.exposure),
-            pixels: Some(st.stats.pixels),
-            rejected: Some(st.stats.rejected),
-            exposure: Some(c.exposure),
-            saturated: Some(st.stats.saturated),
             beta_sd_deg: Some(st.beta_sd.to_degrees()),
             aolp_deg: finite_deg(st.aolp),
             aolp_poi_deg: finite_deg(st.aolp_poi),
-            angle_sd_deg: c.angle_sd_deg,
-            status,
-            reason,
-            wavelength_nm: c.wavelength_nm,
-            reference: r.reference.clone(),
+            ..region_row(r, c, Some(&st.stats), cnt, status, st.beta.to_degrees())
         });
     }
     Ok(rows)
@@ -651,15 +603,13 @@ pub fn measure_colour_frame(
 /// a single-band capture needs a wavelength.
 fn check_band_wavelength(m: &Manifest, c: &Capture) -> Result<()> {
     if !matches!(c.source, CaptureSource::ColourDofp { .. }) && c.wavelength_nm.is_none() {
-        return Err(IoError::Manifest {
-            path: m.path.clone(),
-            line: c.line,
-            field: format!("capture[{}].wavelength_nm", c.index),
-            value: String::new(),
-            reason: "a manifest with colour captures measures every capture per band: give \
-                     this single-band capture its wavelength_nm (or the top-level one)"
-                .into(),
-        });
+        return Err(c.field_error(
+            &m.path,
+            "wavelength_nm",
+            "",
+            "a manifest with colour captures measures every capture per band: give \
+                     this single-band capture its wavelength_nm (or the top-level one)",
+        ));
     }
     Ok(())
 }
@@ -690,15 +640,9 @@ fn band_rows(
                         .first()
                         .map(|p| p.display().to_string())
                         .unwrap_or_default();
-                    return Err(IoError::Manifest {
-                        path: m.path.clone(),
-                        line: r.line,
-                        field: format!("region[{}].rect", r.index),
-                        value: format!(
-                            "[{}, {}, {}, {}]",
-                            r.rect.x, r.rect.y, r.rect.width, r.rect.height
-                        ),
-                        reason: format!(
+                    return Err(r.rect_error(
+                        &m.path,
+                        format!(
                             "in capture {} (line {}, {file},{band}, {}x{} pixels): {}: {}",
                             c.index,
                             c.line,
@@ -707,7 +651,7 @@ fn band_rows(
                             row.status,
                             row.reason
                         ),
-                    });
+                    ));
                 }
             }
             rows.push(row);

@@ -5,7 +5,7 @@
 //! capture on these; [`crate::measure`] turns the images into region rows (the rules are
 //! described there).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use polarid_core::CoreError;
 use polarid_core::mosaic::{self, Pattern};
@@ -217,14 +217,14 @@ pub fn frames_stokes(
     rules: &PixelRules,
 ) -> Result<StokesImages> {
     let Some(first) = frames.first() else {
-        return Err(IoError::Core {
-            path: PathBuf::from("<no frames>"),
-            source: CoreError::TooFew {
+        return Err(IoError::core(
+            "<no frames>",
+            CoreError::TooFew {
                 what: "frames",
                 needed: solver.len(),
                 got: 0,
             },
-        });
+        ));
     };
     let mut out = StokesImages::alloc(first.width, first.height, Sampling::Independent);
     let views: Vec<&[f32]> = frames.iter().map(|f| f.data.as_slice()).collect();
@@ -238,10 +238,7 @@ pub fn frames_stokes(
             &mut out.s2,
             &mut out.mask,
         )
-        .map_err(|e| IoError::Core {
-            path: first.path.clone(),
-            source: e,
-        })?;
+        .map_err(|e| IoError::core(&first.path, e))?;
     Ok(out)
 }
 
@@ -257,10 +254,7 @@ pub fn dofp_stokes(
     demosaic: Demosaic,
     round: bool,
 ) -> Result<StokesImages> {
-    let wrap = |e| IoError::Core {
-        path: raw.path.clone(),
-        source: e,
-    };
+    let wrap = |e| IoError::core(&raw.path, e);
     let out = match demosaic {
         Demosaic::Bilinear => {
             let mut o = StokesImages::alloc(raw.width, raw.height, Sampling::BilinearDofp);
@@ -309,23 +303,18 @@ pub fn read_stokes(s0: &Path, s1: &Path, s2: &Path) -> Result<StokesImages> {
         image::check_float(f, "a Stokes image")?;
     }
     let got = imgs.len();
-    let [f0, f1, f2]: [Frame; 3] = imgs.try_into().map_err(|_| IoError::Core {
-        path: s0.to_path_buf(),
-        source: CoreError::TooFew {
+    let [f0, f1, f2]: [Frame; 3] = imgs.try_into().map_err(|_| {
+        let source = CoreError::TooFew {
             what: "Stokes images",
             needed: 3,
             got,
-        },
+        };
+        IoError::core(s0, source)
     })?;
     let (width, height) = (f0.width, f0.height);
     let mut mask = vec![0u8; width * height];
-    let counts =
-        stokes::mask_stokes(width, &f0.data, &f1.data, &f2.data, 0.0, &mut mask).map_err(|e| {
-            IoError::Core {
-                path: s0.to_path_buf(),
-                source: e,
-            }
-        })?;
+    let counts = stokes::mask_stokes(width, &f0.data, &f1.data, &f2.data, 0.0, &mut mask)
+        .map_err(|e| IoError::core(s0, e))?;
     Ok(StokesImages {
         width,
         height,
@@ -354,12 +343,8 @@ pub fn capture_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
     match &c.source {
         CaptureSource::Frames(frames) => {
             let angles: Vec<f64> = frames.iter().map(|f| f.angle_deg).collect();
-            let solver = StokesSolver::from_degrees(&angles).map_err(|e| IoError::Manifest {
-                path: m.path.clone(),
-                line: c.line,
-                field: format!("capture[{}].frames", c.index),
-                value: format!("{angles:?}"),
-                reason: e.to_string(),
+            let solver = StokesSolver::from_degrees(&angles).map_err(|e| {
+                c.field_error(&m.path, "frames", format!("{angles:?}"), e.to_string())
             })?;
             let paths: Vec<&Path> = frames.iter().map(|f| f.file.as_path()).collect();
             let imgs = image::read_frames(&paths)?;
@@ -385,15 +370,13 @@ pub fn capture_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
             out.dark_signal_dn = c.dark_signal_dn.unwrap_or(0.0);
             Ok(out)
         }
-        CaptureSource::ColourDofp { .. } => Err(IoError::Manifest {
-            path: m.path.clone(),
-            line: c.line,
-            field: format!("capture[{}].dofp.color", c.index),
-            value: "color".into(),
-            reason: "a colour capture has one set of Stokes images per band: use \
-                     polarid_io::bands::capture_band_images"
-                .into(),
-        }),
+        CaptureSource::ColourDofp { .. } => Err(c.field_error(
+            &m.path,
+            "dofp.color",
+            "color",
+            "a colour capture has one set of Stokes images per band: use \
+                     polarid_io::bands::capture_band_images",
+        )),
     }
 }
 
@@ -422,13 +405,7 @@ pub fn hdr_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
     let paths: Vec<&Path> = c.files();
     let frames = image::read_frames(&paths)?;
     let (Some(first), Some(reference)) = (frames.first(), c.brackets.first()) else {
-        return Err(IoError::Manifest {
-            path: m.path.clone(),
-            line: c.line,
-            field: format!("capture[{}].brackets", c.index),
-            value: String::new(),
-            reason: "no frames".into(),
-        });
+        return Err(c.field_error(&m.path, "brackets", "", "no frames"));
     };
     let per = frames.len() / nb.max(1);
     let (width, height, n) = (first.width, first.height, first.data.len());
@@ -466,12 +443,8 @@ pub fn hdr_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
     let mut out = match &reference.source {
         CaptureSource::Frames(refs) => {
             let angles: Vec<f64> = refs.iter().map(|f| f.angle_deg).collect();
-            let solver = StokesSolver::from_degrees(&angles).map_err(|e| IoError::Manifest {
-                path: m.path.clone(),
-                line: c.line,
-                field: format!("capture[{}].brackets", c.index),
-                value: format!("{angles:?}"),
-                reason: e.to_string(),
+            let solver = StokesSolver::from_degrees(&angles).map_err(|e| {
+                c.field_error(&m.path, "brackets", format!("{angles:?}"), e.to_string())
             })?;
             // Not `< sat` is saturated: NaN counts as saturated too.
             let pick = pick_brackets(n, nb, |b, p| (0..per).any(|a| !(value(b, a, p) < sat)));
@@ -496,24 +469,21 @@ pub fn hdr_images(m: &Manifest, c: &Capture) -> Result<StokesImages> {
             )?
         }
         CaptureSource::Stokes { s0, .. } => {
-            return Err(IoError::Manifest {
-                path: m.path.clone(),
-                line: c.line,
-                field: format!("capture[{}].brackets", c.index),
-                value: s0.display().to_string(),
-                reason: "HDR brackets need raw data (`frames` or `dofp`), not Stokes images".into(),
-            });
+            return Err(c.field_error(
+                &m.path,
+                "brackets",
+                s0.display().to_string(),
+                "HDR brackets need raw data (`frames` or `dofp`), not Stokes images",
+            ));
         }
         CaptureSource::ColourDofp { file, .. } => {
-            return Err(IoError::Manifest {
-                path: m.path.clone(),
-                line: c.line,
-                field: format!("capture[{}].brackets", c.index),
-                value: file.display().to_string(),
-                reason: "a colour capture has one set of Stokes images per band: use \
-                         polarid_io::bands::capture_band_images"
-                    .into(),
-            });
+            return Err(c.field_error(
+                &m.path,
+                "brackets",
+                file.display().to_string(),
+                "a colour capture has one set of Stokes images per band: use \
+                         polarid_io::bands::capture_band_images",
+            ));
         }
     };
     out.dark_signal_dn = dark_threshold_dn(c, &raw_rules, first.kind.is_integer());

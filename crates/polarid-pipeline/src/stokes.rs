@@ -161,13 +161,7 @@ fn colour_bands(
 
 /// The core's error on `raw`, naming its file.
 fn on_file(raw: &Frame) -> impl FnOnce(polarid_core::CoreError) -> PipelineError + '_ {
-    |source| {
-        IoError::Core {
-            path: raw.path.clone(),
-            source,
-        }
-        .into()
-    }
+    |source| IoError::core(&raw.path, source).into()
 }
 
 /// Stokes images, mask, counts, DoLP and AoLP of a monochrome DoFP mosaic in one pass.

@@ -76,7 +76,7 @@ pub enum BenchArg {
     Other,
 }
 
-/// `NAME=W` of `--prior`.
+/// `NAME=W` of `--prior` (the weight is checked by the pipeline).
 fn parse_prior(s: &str) -> Result<(String, f64), String> {
     let (name, w) = s
         .rsplit_once('=')
@@ -85,12 +85,33 @@ fn parse_prior(s: &str) -> Result<(String, f64), String> {
         .trim()
         .parse()
         .map_err(|_| format!("the weight of {name:?} is not a number: {w:?}"))?;
-    if !(w.is_finite() && w >= 0.0) {
-        return Err(format!(
-            "the weight of {name:?} must be finite and >= 0, got {w}"
-        ));
-    }
     Ok((name.trim().to_string(), w))
+}
+
+impl Args {
+    /// The prototypes and the pipeline's settings (with the `--prior` weights, which
+    /// only the tests against measured rows use).
+    fn pipe_config(
+        &self,
+        classifier: polarid_core::classify::ClassifierConfig,
+    ) -> anyhow::Result<(PrototypeSource, ClassifyConfig)> {
+        let source = match &self.model {
+            Some(m) => PrototypeSource::Model(m.clone()),
+            None => PrototypeSource::Library(self.library.clone().unwrap_or("builtin".into())),
+        };
+        let cfg = ClassifyConfig {
+            classifier,
+            explain: self.explain,
+            wolff: self.wolff.request()?,
+            wavelength_nm: self.wavelength_nm,
+            bench: match self.bench {
+                BenchArg::Same => polarid_core::classify::Bench::Same,
+                BenchArg::Other => polarid_core::classify::Bench::Other,
+            },
+            priors: self.priors.clone(),
+        };
+        Ok((source, cfg))
+    }
 }
 
 /// Run `polarid classify`.
@@ -110,34 +131,10 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         .into());
     }
     let fits = read_fits(&args.fits).cli()?;
-    let source = match &args.model {
-        Some(m) => PrototypeSource::Model(m.clone()),
-        None => PrototypeSource::Library(args.library.clone().unwrap_or("builtin".into())),
-    };
-    let cfg = ClassifyConfig {
-        classifier,
-        explain: args.explain,
-        wolff: args.wolff.request()?,
-        wavelength_nm: args.wavelength_nm,
-        bench: match args.bench {
-            BenchArg::Same => polarid_core::classify::Bench::Same,
-            BenchArg::Other => polarid_core::classify::Bench::Other,
-        },
-        priors: Vec::new(),
-    };
+    let (source, cfg) = args.pipe_config(classifier)?;
     let out = pipe::classify(&args.fits, &fits, &source, &cfg).cli()?;
-    let out_path = args.output.clone();
-    let mut inputs: Vec<&Path> = vec![&args.fits];
-    inputs.extend(args.model.as_deref());
-    inputs.extend(args.wolff.wolff.as_deref());
-    ctx.write_output(out_path.as_deref(), &inputs, |w| {
-        classification::write(w, out_path.as_deref().unwrap_or(Path::new("-")), &out.rows)
-    })?;
-    let count = |s: &str| out.rows.iter().filter(|r| r.status == s).count();
-    ctx.info(format!(
-        "classified {} target(s) against {} ({} prototypes, rule {}, {} metric{}): {} ok, {} \
-         ambiguous, {} rejected, {} other",
-        out.rows.len(),
+    let what = format!(
+        "against {} ({} prototypes, rule {}, {} metric{})",
         out.label,
         out.classifier.prototypes().len(),
         classifier.rule.name(),
@@ -146,13 +143,9 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
             polarid_core::classify::Rule::Set => format!(", confidence {}", classifier.confidence),
             polarid_core::classify::Rule::Nearest => format!(", k = {}", classifier.k),
         },
-        count("ok"),
-        count("ambiguous"),
-        count("rejected"),
-        out.rows.len() - count("ok") - count("ambiguous") - count("rejected")
-    ));
+    );
     let rows: Vec<_> = fits.iter().map(|(_, f)| f.clone()).collect();
-    finish(&args, ctx, &out, &rows)
+    finish(&args, ctx, &out, &rows, &what)
 }
 
 /// `polarid classify MEASUREMENTS.csv`: the hypothesis tests against the measured rows
@@ -165,21 +158,7 @@ fn run_measurements(
 ) -> anyhow::Result<()> {
     let rows = polarid_io::table::measurements::from_table(table)?;
     let rows: Vec<_> = table.rows.iter().map(|(l, _)| *l).zip(rows).collect();
-    let source = match &args.model {
-        Some(m) => PrototypeSource::Model(m.clone()),
-        None => PrototypeSource::Library(args.library.clone().unwrap_or("builtin".into())),
-    };
-    let cfg = ClassifyConfig {
-        classifier,
-        explain: args.explain,
-        wolff: args.wolff.request()?,
-        wavelength_nm: args.wavelength_nm,
-        bench: match args.bench {
-            BenchArg::Same => polarid_core::classify::Bench::Same,
-            BenchArg::Other => polarid_core::classify::Bench::Other,
-        },
-        priors: args.priors.clone(),
-    };
+    let (source, cfg) = args.pipe_config(classifier)?;
     let fit_cfg = polarid_pipeline::fit::FitConfig::default();
     let nearest = classifier.rule == polarid_core::classify::Rule::Nearest;
     let (out, fits) = if nearest {
@@ -189,8 +168,7 @@ fn run_measurements(
             )
             .into());
         }
-        let measured: Vec<_> = rows.clone();
-        let mut with_wl = measured.clone();
+        let mut with_wl = rows.clone();
         for (_, m) in &mut with_wl {
             m.wavelength_nm = m.wavelength_nm.or(args.wavelength_nm);
         }
@@ -208,17 +186,8 @@ fn run_measurements(
         }
         pipe::rows::classify_measurements(&args.fits, &rows, &source, &cfg, &fit_cfg).cli()?
     };
-    let out_path = args.output.clone();
-    let mut inputs: Vec<&Path> = vec![&args.fits];
-    inputs.extend(args.model.as_deref());
-    ctx.write_output(out_path.as_deref(), &inputs, |w| {
-        classification::write(w, out_path.as_deref().unwrap_or(Path::new("-")), &out.rows)
-    })?;
-    let count = |s: &str| out.rows.iter().filter(|r| r.status == s).count();
-    ctx.info(format!(
-        "classified {} target(s) from their measured rows against {} ({} materials, {}, \
-         confidence {}): {} ok, {} ambiguous, {} rejected, {} other",
-        out.rows.len(),
+    let what = format!(
+        "from their measured rows against {} ({} materials, {}, confidence {})",
         out.label,
         out.classifier.prototypes().len(),
         if nearest {
@@ -227,21 +196,34 @@ fn run_measurements(
             "each material tested against the rows"
         },
         classifier.confidence,
-        count("ok"),
-        count("ambiguous"),
-        count("rejected"),
-        out.rows.len() - count("ok") - count("ambiguous") - count("rejected")
-    ));
-    finish(&args, ctx, &out, &fits)
+    );
+    finish(&args, ctx, &out, &fits, &what)
 }
 
-/// The warnings and notes of a classification, then its `--report` (both inputs).
+/// Write the rows to `--output` (or standard output; the inputs are never overwritten),
+/// then the summary (`classified N target(s) WHAT: ...`), the warnings and notes of a
+/// classification, and its `--report` (both inputs).
 fn finish(
     args: &Args,
     ctx: &Ctx,
     out: &pipe::ClassifyOutput,
     fits: &[polarid_io::table::fits::FitRow],
+    what: &str,
 ) -> anyhow::Result<()> {
+    let out_path = args.output.as_deref();
+    let mut inputs: Vec<&Path> = vec![&args.fits];
+    inputs.extend(args.model.as_deref());
+    inputs.extend(args.wolff.wolff.as_deref());
+    ctx.write_output(out_path, &inputs, |w| {
+        classification::write(w, out_path.unwrap_or(Path::new("-")), &out.rows)
+    })?;
+    let count = |s: &str| out.rows.iter().filter(|r| r.status == s).count();
+    let (ok, amb, rej) = (count("ok"), count("ambiguous"), count("rejected"));
+    ctx.info(format!(
+        "classified {} target(s) {what}: {ok} ok, {amb} ambiguous, {rej} rejected, {} other",
+        out.rows.len(),
+        out.rows.len() - ok - amb - rej
+    ));
     for w in &out.warnings {
         ctx.info(format!("polarid: warning: {w}"));
     }

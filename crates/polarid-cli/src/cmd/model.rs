@@ -57,10 +57,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
                         r.theta_r_deg.to_radians(),
                         r.phi_deg.to_radians(),
                     )
-                    .map_err(|source| IoError::Core {
-                        path: args.input.clone(),
-                        source,
-                    })
+                    .map_err(|source| IoError::core(&args.input, source))
                     .with_context(|| format!("line {}", r.line))?;
                     Ok(PbrdfOut {
                         beta_deg: p.beta.to_degrees(),

@@ -379,16 +379,7 @@ fn estimates(out: &ColourDemoOutput) -> Vec<report::EstimateRow> {
                 f.target,
                 f.wavelength_nm.unwrap_or(f64::NAN)
             ),
-            class: f.class.clone(),
-            theta_r_deg: Some(COLOUR_THETA_R),
-            n: f.n,
-            n_se: f.n_se,
-            k: f.k,
-            k_se: f.k_se,
-            nk_corr: f.nk_corr,
-            rms_residual: f.rms_residual,
-            measurements: f.measurements as usize,
-            status: f.status,
+            ..super::demo::common::estimate_row(f, Some(COLOUR_THETA_R))
         })
         .collect()
 }

@@ -85,15 +85,17 @@ pub fn classifier_of(
     model: &polarid_io::model::Model,
     rows: &[ClassificationRow],
 ) -> Option<polarid_core::classify::Classifier> {
+    polarid_core::classify::Classifier::new(model.prototypes(), set_rule_of(rows)).ok()
+}
+
+/// The set rule at the confidence of the classification rows (the default 95% when
+/// they carry none).
+fn set_rule_of(rows: &[ClassificationRow]) -> polarid_core::classify::ClassifierConfig {
     let confidence = rows
         .iter()
         .find_map(|c| c.confidence)
         .unwrap_or(polarid_core::classify::DEFAULT_CONFIDENCE);
-    polarid_core::classify::Classifier::new(
-        model.prototypes(),
-        polarid_core::classify::ClassifierConfig::set(confidence),
-    )
-    .ok()
+    polarid_core::classify::ClassifierConfig::set(confidence)
 }
 
 /// [`classifier_of`] as `classify --model` compares the demo's test plate with its
@@ -104,20 +106,13 @@ pub fn same_bench_classifier_of(
     rows: &[ClassificationRow],
 ) -> Option<polarid_core::classify::Classifier> {
     use polarid_core::classify::Bench;
-    let confidence = rows
-        .iter()
-        .find_map(|c| c.confidence)
-        .unwrap_or(polarid_core::classify::DEFAULT_CONFIDENCE);
     let bench = if model.has_sample_covariances() {
         Bench::Same
     } else {
         Bench::Other
     };
-    polarid_core::classify::Classifier::multi(
-        model.multi_prototypes_on(bench),
-        polarid_core::classify::ClassifierConfig::set(confidence),
-    )
-    .ok()
+    polarid_core::classify::Classifier::multi(model.multi_prototypes_on(bench), set_rule_of(rows))
+        .ok()
 }
 
 /// The fit row with the covariance that decides its comparison with `model`'s

@@ -468,16 +468,7 @@ pub fn report(
                 Some(w) => format!("{} @ {} nm", f.target, band_label(w)),
                 None => f.target.clone(),
             },
-            class: f.class.clone(),
-            theta_r_deg: f.theta_r_deg,
-            n: f.n,
-            n_se: f.n_se,
-            k: f.k,
-            k_se: f.k_se,
-            nk_corr: f.nk_corr,
-            rms_residual: f.rms_residual,
-            measurements: f.measurements as usize,
-            status: f.status,
+            ..super::demo::common::estimate_row(f, f.theta_r_deg)
         })
         .collect();
     let numbered: Vec<(u64, FitRow)> = t.fits.iter().map(|f| (0, f.clone())).collect();

@@ -317,6 +317,24 @@ fn classify_with_wolff_baseline() {
     let fr: f64 = r[2][col(&r, "wolff_fr_max")].parse().unwrap();
     let p = polarid_core::dop::dop(1.60, 4.34, 67.5f64.to_radians());
     assert!((fr - (1.0 + p) / (1.0 - p)).abs() < 1e-9, "{fr}");
+    // A negative prior weight is a usage error naming the prior and its value.
+    let o = polarid_in(
+        d,
+        &[
+            "classify",
+            "meas.csv",
+            "--library",
+            "builtin",
+            "--prior",
+            "aluminum=-1",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(2));
+    let e = text(&o.stderr);
+    assert!(
+        e.contains("prior weights must be finite and >= 0, got aluminum=-1"),
+        "{e}"
+    );
 }
 
 #[test]

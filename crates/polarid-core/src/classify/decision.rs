@@ -155,7 +155,9 @@ impl Decision {
 }
 
 impl Decision {
-    pub(super) fn unclassified(status: Status, reason: String) -> Self {
+    /// A decision that classifies nothing: `unknown` with `status` and `reason`, nothing
+    /// compared.
+    pub fn unclassified(status: Status, reason: String) -> Self {
         Self {
             predicted: UNKNOWN.into(),
             nearest_class: None,

@@ -692,16 +692,6 @@ impl Parser<'_> {
                     })
             })
             .collect::<Result<Vec<_>>>()?;
-        let rect_err = |r: &Region, reason: String| IoError::Manifest {
-            path: self.path.to_path_buf(),
-            line: r.line,
-            field: format!("region[{}].rect", r.index),
-            value: format!(
-                "[{}, {}, {}, {}]",
-                r.rect.x, r.rect.y, r.rect.width, r.rect.height
-            ),
-            reason,
-        };
         // Rays: independent of the source (probe with a source straight above).
         for r in regions {
             let Some(vg) = views.get(r.plane) else {
@@ -710,7 +700,7 @@ impl Parser<'_> {
             let up = Source::Direction(vg.plane().normal());
             if let Err(e) = vg.check_rect(r.rect, &up) {
                 let plane = planes.get(r.plane).map_or("", |p| p.name.as_str());
-                return Err(rect_err(r, format!("{e} (plane {plane:?})")));
+                return Err(r.rect_error(self.path, format!("{e} (plane {plane:?})")));
             }
         }
         for (c, cv) in captures.iter().zip(cap_vals) {

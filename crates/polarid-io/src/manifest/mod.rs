@@ -177,7 +177,40 @@ pub struct Bracket {
     pub source: CaptureSource,
 }
 
+impl Region {
+    /// An [`IoError::Manifest`] of the manifest at `path` naming this region's `rect`
+    /// (its line and value).
+    pub fn rect_error(&self, path: &Path, reason: String) -> IoError {
+        let r = self.rect;
+        IoError::Manifest {
+            path: path.to_path_buf(),
+            line: self.line,
+            field: format!("region[{}].rect", self.index),
+            value: format!("[{}, {}, {}, {}]", r.x, r.y, r.width, r.height),
+            reason,
+        }
+    }
+}
+
 impl Capture {
+    /// An [`IoError::Manifest`] of the manifest at `path` naming this capture's field
+    /// `key` (`capture[i].KEY`, at the capture's line) and the value at fault.
+    pub fn field_error(
+        &self,
+        path: &Path,
+        key: &str,
+        value: impl Into<String>,
+        reason: impl Into<String>,
+    ) -> IoError {
+        IoError::Manifest {
+            path: path.to_path_buf(),
+            line: self.line,
+            field: format!("capture[{}].{key}", self.index),
+            value: value.into(),
+            reason: reason.into(),
+        }
+    }
+
     /// Every file the capture reads (all brackets of an HDR capture).
     pub fn files(&self) -> Vec<&Path> {
         if self.brackets.is_empty() {

@@ -400,6 +400,21 @@ pub fn classification_row(f: &FitRow, d: &Decision, clf: &Classifier) -> Classif
             .and_then(|nb| clf.prototypes()[nb.index].category.clone()),
     };
     ClassificationRow {
+        category,
+        metric: cfg.distance_metric().name().into(),
+        rule: cfg.rule.name().into(),
+        confidence: d.set_tested.then_some(cfg.confidence),
+        votes: d.nearest.map(|_| d.votes as u64),
+        bands_used: d.bands_used_text(),
+        ..decision_row(f, d)
+    }
+}
+
+/// The columns of fit `f`'s classification row that every rule fills alike from its
+/// decision `d` (target, class, answer, status, candidates, nearest and runner-up,
+/// margin, gate, reason).
+pub(crate) fn decision_row(f: &FitRow, d: &Decision) -> ClassificationRow {
+    ClassificationRow {
         target: f.target.clone(),
         class: f.class.clone(),
         predicted: d.predicted.clone(),
@@ -410,14 +425,8 @@ pub fn classification_row(f: &FitRow, d: &Decision, clf: &Classifier) -> Classif
         candidates: d.candidates.iter().map(|c| c.class.clone()).collect(),
         margin: Some(d.margin),
         nearest: d.nearest_class.clone(),
-        category,
-        metric: cfg.distance_metric().name().into(),
-        rule: cfg.rule.name().into(),
-        confidence: d.set_tested.then_some(cfg.confidence),
         gate: d.gate,
-        votes: d.nearest.map(|_| d.votes as u64),
         reason: d.reason.clone(),
-        bands_used: d.bands_used_text(),
         ..Default::default()
     }
 }

@@ -23,7 +23,7 @@ use std::path::Path;
 use polarid_core::FitStatus;
 use polarid_core::classify::{
     Decision, HypRow, HypothesisConfig, HypothesisOutcome, MultiPrototype, Nuisances, Status,
-    UNKNOWN, classify_rows, reference::classify_rows_within,
+    classify_rows, reference::classify_rows_within,
 };
 use polarid_io::table::CsvTable;
 use polarid_io::table::classification::ClassificationRow;
@@ -46,19 +46,12 @@ pub fn is_measurements(t: &CsvTable) -> bool {
         && t.col("n").is_none()
 }
 
-/// The user's priors (`--prior NAME=W`) as one weight per prototype (1 for a material
-/// not named). Errors name the prior: an unknown material, a weight that is not finite
-/// and ≥ 0, all weights 0.
+/// The user's priors (`--prior NAME=W`, each weight finite and ≥ 0 as
+/// [`ClassifyConfig::validate`] checks) as one weight per prototype (1 for a material not
+/// named). Errors name the prior: an unknown material, all weights 0.
 pub fn prior_weights(priors: &[(String, f64)], protos: &[MultiPrototype]) -> Result<Vec<f64>> {
     let mut w = vec![1.0; protos.len()];
     for (name, v) in priors {
-        if !(v.is_finite() && *v >= 0.0) {
-            return Err(PipelineError::config(
-                "prior",
-                format!("{name}={v}"),
-                "weights must be finite and >= 0",
-            ));
-        }
         let mut found = false;
         for (i, p) in protos.iter().enumerate() {
             if &p.class == name {
@@ -148,28 +141,6 @@ fn hyp_rows(rows: &[&Measurement], fit_cfg: &FitConfig) -> (Vec<HypRow>, Vec<f64
     (hrows, bands, angle_max)
 }
 
-/// A decision that classifies nothing (the fit's status, no rows).
-fn unclassified(status: Status, reason: String) -> Decision {
-    Decision {
-        predicted: UNKNOWN.into(),
-        nearest_class: None,
-        nearest: None,
-        distance: f64::NAN,
-        runner_up: None,
-        runner_up_distance: f64::NAN,
-        margin: f64::NAN,
-        gate: None,
-        votes: 0,
-        status,
-        reason,
-        ranked: Vec::new(),
-        candidates: Vec::new(),
-        set_tested: false,
-        set_category: None,
-        bands_used: Vec::new(),
-    }
-}
-
 /// The classification CSV row of a hypothesis decision: `candidates` with their
 /// probabilities, `probability` of the answer (the named material's; the sum of the set's
 /// for `ambiguous`; empty for `unknown`), `distance`/`gate` the best material's `χ²`,
@@ -190,35 +161,22 @@ pub fn hypothesis_row(
         _ => None,
     };
     ClassificationRow {
-        target: f.target.clone(),
-        class: f.class.clone(),
-        predicted: d.predicted.clone(),
-        distance: d.nearest.map(|_| d.distance),
-        runner_up: d.runner_up.clone(),
-        runner_up_distance: d.runner_up.as_ref().map(|_| d.runner_up_distance),
-        status: d.status.label(),
-        candidates: d.candidates.iter().map(|c| c.class.clone()).collect(),
         candidate_probabilities: d
             .candidates
             .iter()
             .map(|c| c.probability.unwrap_or(f64::NAN))
             .collect(),
         probability,
-        margin: Some(d.margin),
-        nearest: d.nearest_class.clone(),
         category: d.set_category.clone(),
         metric: "chi2".into(),
         rule: RULE_NAME.into(),
         confidence: out.map(|_| confidence),
-        gate: d.gate,
-        votes: None,
-        reason: d.reason.clone(),
         bands_used: if d.bands_used.len() > 1 {
             d.bands_used_text()
         } else {
             String::new()
         },
-        ..Default::default()
+        ..super::decision_row(f, d)
     }
 }
 
@@ -358,7 +316,7 @@ impl TargetClassifier<'_> {
             .filter(|f| f.target == g.target)
             .find(|f| f.status != FitStatus::Ok);
         if let Some(bad) = not_ok {
-            let d = unclassified(
+            let d = Decision::unclassified(
                 Status::FitNotOk(bad.status),
                 format!(
                     "not classified: its fit{} is {} ({})",

@@ -262,15 +262,12 @@ impl BandDolp {
 pub(crate) fn band_list(m: &Manifest) -> Result<Vec<BandDolp>> {
     if !is_colour(m) {
         if m.captures.len() < 3 {
-            return Err(IoError::Core {
-                path: m.path.clone(),
-                source: polarid_core::CoreError::TooFew {
-                    what: "DoLP measurements (source positions)",
-                    needed: 3,
-                    got: m.captures.len(),
-                },
-            }
-            .into());
+            let source = polarid_core::CoreError::TooFew {
+                what: "DoLP measurements (source positions)",
+                needed: 3,
+                got: m.captures.len(),
+            };
+            return Err(IoError::core(&m.path, source).into());
         }
         let captures = (0..m.captures.len()).collect();
         return Ok(vec![BandDolp::unnamed(mono_wavelength(m), captures)]);
@@ -280,16 +277,15 @@ pub(crate) fn band_list(m: &Manifest) -> Result<Vec<BandDolp>> {
         per_capture.push(match (&c.source, c.wavelength_nm) {
             (CaptureSource::ColourDofp { .. }, _) | (_, Some(_)) => capture_wavelengths(c),
             (_, None) => {
-                return Err(IoError::Manifest {
-                    path: m.path.clone(),
-                    line: c.line,
-                    field: format!("capture[{}].wavelength_nm", c.index),
-                    value: String::new(),
-                    reason: "a manifest with colour captures is mapped per band: give this \
-                             single-band capture its wavelength_nm (or the top-level one)"
-                        .into(),
-                }
-                .into());
+                return Err(c
+                    .field_error(
+                        &m.path,
+                        "wavelength_nm",
+                        "",
+                        "a manifest with colour captures is mapped per band: give this \
+                             single-band capture its wavelength_nm (or the top-level one)",
+                    )
+                    .into());
             }
         });
     }
@@ -352,13 +348,7 @@ pub(crate) fn fit_plans(
             let b: Vec<f64> = a.captures.iter().map(|&i| far_betas[i]).collect();
             FitPlan::new(&b, FitOptions::default())
                 .map(Some)
-                .map_err(|e| {
-                    IoError::Core {
-                        path: path.to_path_buf(),
-                        source: e,
-                    }
-                    .into()
-                })
+                .map_err(|e| IoError::core(path, e).into())
         })
         .collect()
 }

@@ -28,10 +28,7 @@ pub(crate) struct Dims {
 
 /// The error of a core computation on the data of `path`.
 pub(super) fn core_err(path: &Path) -> impl FnOnce(polarid_core::CoreError) -> IoError + '_ {
-    move |e| IoError::Core {
-        path: path.to_path_buf(),
-        source: e,
-    }
+    move |e| IoError::core(path, e)
 }
 
 /// Check that a capture's frame has the map's size (set by the first capture).
@@ -196,18 +193,13 @@ pub(crate) fn capture_bands(
             let paths: Vec<&Path> = frames.iter().map(|f| f.file.as_path()).collect();
             let imgs = image::read_frames(&paths)?;
             let Some(first) = imgs.first() else {
-                return Err(IoError::Core {
-                    path: c.source.files().first().map_or_else(
-                        || std::path::PathBuf::from("<no frames>"),
-                        |p| p.to_path_buf(),
-                    ),
-                    source: polarid_core::CoreError::TooFew {
-                        what: "frames",
-                        needed: solver.len(),
-                        got: 0,
-                    },
-                }
-                .into());
+                let path = c.source.files().first().copied();
+                let source = polarid_core::CoreError::TooFew {
+                    what: "frames",
+                    needed: solver.len(),
+                    got: 0,
+                };
+                return Err(IoError::core(path.unwrap_or(Path::new("<no frames>")), source).into());
             };
             let d = check_dims(dims, first, bin)?;
             let mut b = CaptureBand::new(c.wavelength_nm, d, weighted);

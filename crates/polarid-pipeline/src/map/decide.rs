@@ -127,12 +127,7 @@ pub(crate) fn decision(
     bands: &[Option<f64>],
 ) -> Result<Decision> {
     let label = src.label();
-    let core_err = |e| {
-        PipelineError::from(IoError::Core {
-            path: label.clone().into(),
-            source: e,
-        })
-    };
+    let core_err = |e| PipelineError::from(IoError::core(&label, e));
     let mut warnings = Vec::new();
     let (profiles, same) = match src {
         MapPrototypes::Model { model, path } => {

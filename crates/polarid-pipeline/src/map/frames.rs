@@ -266,10 +266,7 @@ pub fn map_frames<T: Sample>(
     noise: Option<&[Option<NoiseModel>]>,
     path: &Path,
 ) -> Result<BandsFit> {
-    let core_err = |e| IoError::Core {
-        path: path.to_path_buf(),
-        source: e,
-    };
+    let core_err = |e| IoError::core(path, e);
     let cfg = cfg.clone().with_weights(match noise {
         Some(_) => Weights::Noise,
         None => Weights::None,

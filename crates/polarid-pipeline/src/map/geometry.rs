@@ -40,12 +40,7 @@ pub(crate) fn beta_maps(
     bin: usize,
     progress: &dyn Fn(usize),
 ) -> Result<BetaMaps> {
-    let core = |e| {
-        PipelineError::from(IoError::Core {
-            path: m.path.clone(),
-            source: e,
-        })
-    };
+    let core = |e| PipelineError::from(IoError::core(&m.path, e));
     let Some(cam) = &m.camera else {
         return Err(PipelineError::Data {
             path: m.path.display().to_string(),

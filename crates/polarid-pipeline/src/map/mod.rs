@@ -608,13 +608,7 @@ fn nearest_classifier(
     Classifier::new(first, ClassifierConfig::default())
         .and_then(|c| PixelClassifier::new(c, cfg.max_distance))
         .map(|pc| pc.with_mahalanobis(cfg.metric == Metric::Mahalanobis))
-        .map_err(|e| {
-            IoError::Core {
-                path: label.into(),
-                source: e,
-            }
-            .into()
-        })
+        .map_err(|e| IoError::core(label, e).into())
 }
 
 /// `MapResult::beta_range_deg` and `MapResult::beta_maps_deg` of the β maps (radians):

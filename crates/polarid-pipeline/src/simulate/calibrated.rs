@@ -184,10 +184,7 @@ pub(super) fn simulate(
     prefix: &str,
     progress: Progress<'_>,
 ) -> Result<Simulated> {
-    let label = |e: CoreError| IoError::Core {
-        path: scene.path.clone(),
-        source: e,
-    };
+    let label = |e: CoreError| IoError::core(&scene.path, e);
     let ps = perspective_scene(scene, cal).map_err(label)?;
     let sensor = &scene.sensor;
     let (w, h) = (scene.width, scene.height);
@@ -413,10 +410,7 @@ fn simulate_colour(
     prefix: &str,
     progress: Progress<'_>,
 ) -> Result<Simulated> {
-    let label = |e: CoreError| IoError::Core {
-        path: scene.path.clone(),
-        source: e,
-    };
+    let label = |e: CoreError| IoError::core(&scene.path, e);
     let (w, h) = (scene.width, scene.height);
     let ncap = cal.sources.len();
     let mut maps = ColourMaps::new(w * h, bands.len());
@@ -449,10 +443,7 @@ pub(super) fn render_colour_set(
     pattern: &ColourPattern,
     bands: &[SceneBand],
 ) -> Result<ColourFrames> {
-    let label = |e: CoreError| IoError::Core {
-        path: scene.path.clone(),
-        source: e,
-    };
+    let label = |e: CoreError| IoError::core(&scene.path, e);
     let ps = perspective_scene(scene, cal).map_err(label)?;
     let mut maps = ColourMaps::new(scene.width * scene.height, bands.len());
     let mut out = ColourFrames {
@@ -491,10 +482,7 @@ pub fn beta_map(scene: &Scene, capture: usize) -> Result<Vec<f32>> {
         .sources
         .get(capture)
         .ok_or_else(|| bad(format!("no capture {} in the scene", capture + 1)))?;
-    let label = |e: CoreError| IoError::Core {
-        path: scene.path.clone(),
-        source: e,
-    };
+    let label = |e: CoreError| IoError::core(&scene.path, e);
     let ps = perspective_scene(scene, cal).map_err(label)?;
     let light = src.light();
     let (w, h) = (scene.width, scene.height);

@@ -69,10 +69,7 @@ fn plan(scene: &Scene) -> Result<Plan<'_>> {
     let (theta_r_deg, phi_deg) = (*theta_r_deg, *phi_deg);
     let (tr, phi) = (theta_r_deg.to_radians(), phi_deg.to_radians());
     let angles = super::angles_rad(&scene.capture);
-    let label = |e: polarid_core::CoreError| IoError::Core {
-        path: scene.path.clone(),
-        source: e,
-    };
+    let label = |e: polarid_core::CoreError| IoError::core(&scene.path, e);
     let resp: Vec<f64> = bands.iter().map(|b| b.response).collect();
     let mut out = Plan {
         pattern,
@@ -170,13 +167,7 @@ impl Plan<'_> {
             seed,
             buf,
         )
-        .map_err(|e| {
-            IoError::Core {
-                path: scene.path.clone(),
-                source: e,
-            }
-            .into()
-        })
+        .map_err(|e| IoError::core(&scene.path, e).into())
     }
 }
 

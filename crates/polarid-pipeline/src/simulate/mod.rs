@@ -422,10 +422,7 @@ fn plan(scene: &Scene) -> Result<Plan> {
         scene.exposure,
         *sensor,
     )
-    .map_err(|e| IoError::Core {
-        path: scene.path.clone(),
-        source: e,
-    })?;
+    .map_err(|e| IoError::core(&scene.path, e))?;
     let angles = angles_rad(&scene.capture);
     let mut truth = Vec::new();
     let mut warnings = Vec::new();
@@ -504,10 +501,7 @@ pub fn simulate_into(
     jobs.par_iter().try_for_each(|&(ci, fi)| -> Result<()> {
         let mut buf = vec![0u16; w * h];
         spec.render(ci, fi, scene.seed, &mut buf)
-            .map_err(|e| IoError::Core {
-                path: scene.path.clone(),
-                source: e,
-            })?;
+            .map_err(|e| IoError::core(&scene.path, e))?;
         let name = format!("{prefix}{}", frame_file(scene, ci, fi));
         write_frame(staged, &name, &spec.sensor, w, h, &buf)?;
         let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
