@@ -19,7 +19,9 @@
 //! With `P_t(d, δ) = |P_layer(β_t + δ, d)|` (module [`super`]), for any `(d, δ)` in the
 //! box `P_t ∈ [L_t, H_t]`, the range of `|P_layer|` over `β ∈ [β_t − Δ, β_t + Δ]` and
 //! `d ∈ [d_min, d_max]`; and the row's weight `1/σ_t² ≥ w_t = 1/(σ_y² + (P'_max σ_a/2)²)`
-//! with `P'_max` the largest `|∂P/∂β|` of eq. (9) over the row's `β` cell. Then for every
+//! with `P'_max` the largest `|P'|` over the row's `β` cell, `P'` the slope the test's
+//! row variance takes ([`angle_slope`](super::angle_slope): the material under its layer
+//! at the middle of the layer's range). Then for every
 //! point of the box
 //!
 //! ```text
@@ -45,11 +47,11 @@ use std::f64::consts::FRAC_PI_2;
 use std::sync::{Arc, OnceLock, RwLock};
 
 use super::{
-    CandidateModel, Detail, EXTENDED_LAYER_NM, HypRow, HypothesisConfig, check_candidate,
-    check_rows, chi2_pass_bound, fit_checked, layered_dolp,
+    CandidateModel, Detail, EXTENDED_LAYER_NM, HypRow, HypothesisConfig, band_slope,
+    check_candidate, check_rows, chi2_pass_bound, fit_checked, layered_dolp,
 };
 use crate::classify::MultiPrototype;
-use crate::dop::{dop, dop_beta_derivs};
+use crate::dop::dop;
 use crate::error::Result;
 
 /// Cells of the `β` tables over `[0, π/2]` (0.1°).
@@ -91,7 +93,8 @@ struct Table {
     lo: Vec<f64>,
     /// Highest `|P|` over the cell and the thickness range.
     hi: Vec<f64>,
-    /// Highest `|∂P/∂β|` of eq. (9) at the bulk index over the cell.
+    /// Highest `|P'|` over the cell, `P'` the slope of the row variance's angle term
+    /// ([`angle_slope`](super::angle_slope): under the layer at mid range).
     dp: Vec<f64>,
 }
 
@@ -130,7 +133,7 @@ impl Table {
                 let phase = 4.0 * std::f64::consts::PI * (d_hi - d_lo) * (n.hypot(k) + 1.0) / w;
                 let m = (phase / PHASE_STEP).ceil() as usize + 1;
                 if m > MAX_D_NODES {
-                    return Self::unbounded(bulk, &betas);
+                    return Self::unbounded(cand, b, w, &betas);
                 }
                 m.max(3)
             }
@@ -184,24 +187,25 @@ impl Table {
         Self {
             lo,
             hi,
-            dp: Self::slopes(bulk, &betas),
+            dp: Self::slopes(cand, b, w, &betas),
         }
     }
 
     /// A table that bounds nothing (`|P| ∈ [0, 1]`).
-    fn unbounded(bulk: (f64, f64), betas: &[f64]) -> Self {
+    fn unbounded(cand: &CandidateModel, b: usize, w: f64, betas: &[f64]) -> Self {
         Self {
             lo: vec![0.0; BETA_CELLS],
             hi: vec![1.0; BETA_CELLS],
-            dp: Self::slopes(bulk, betas),
+            dp: Self::slopes(cand, b, w, betas),
         }
     }
 
-    /// Highest `|∂P/∂β|` of eq. (9) per cell (corners widened as the ranges are).
-    fn slopes(bulk: (f64, f64), betas: &[f64]) -> Vec<f64> {
+    /// Highest `|P'|` per cell, `P'` the slope of the row variance of `cand` at band `b`
+    /// (wavelength `w`; [`band_slope`]), corners widened as the ranges are.
+    fn slopes(cand: &CandidateModel, b: usize, w: f64, betas: &[f64]) -> Vec<f64> {
         let g: Vec<f64> = betas
             .iter()
-            .map(|&b| dop_beta_derivs(bulk.0, bulk.1, b).dp_dbeta.abs())
+            .map(|&beta| band_slope(cand, b, w, beta).abs())
             .collect();
         (0..BETA_CELLS)
             .map(|i| {

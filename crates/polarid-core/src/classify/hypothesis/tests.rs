@@ -120,8 +120,7 @@ proptest! {
         let chi2_at = |d: f64, s: f64, o: f64| -> f64 {
             rows.iter().map(|r| {
                 let m = s * exact(&cand, &[650.0], r, d, o);
-                let (n, k) = cand.bulk[0];
-                let a = 0.5 * dop_beta_derivs(n, k, r.beta).dp_dbeta * r.angle_sd;
+                let a = 0.5 * angle_slope(&cand, &[650.0], 0, r.beta) * r.angle_sd;
                 (r.dolp - m).powi(2) / (r.dolp_sd.powi(2) + a * a)
             }).sum()
         };
@@ -133,6 +132,33 @@ proptest! {
         prop_assert!((2.0..=5.0).contains(&fit.thickness_nm));
         prop_assert!((0.98..=1.0).contains(&fit.scale));
         prop_assert!(fit.offset.abs() <= 0.3f64.to_radians() + 1e-12);
+    }
+}
+
+/// The row variance's slope is the hypothesis' own model's: eq. 9's analytic slope
+/// without a layer (or a layer of zero range at 0 nm), the layered curve's at mid range
+/// with one, which for aluminium under 2–5 nm of Al₂O₃ differs from the bulk's.
+#[test]
+fn angle_slope_is_the_layered_models() {
+    for bdeg in [30.0, 47.5, 60.0, 70.0, 80.0] {
+        let b = f64::to_radians(bdeg);
+        let bare = dop_beta_derivs(AL.0, AL.1, b).dp_dbeta;
+        assert_eq!(angle_slope(&model(AL, None), &[650.0], 0, b), bare);
+        let zero = model(AL, Some((AL2O3, 0.0, 0.0)));
+        assert_eq!(angle_slope(&zero, &[650.0], 0, b), bare);
+        let h = 1e-4;
+        let fd = (layered_dolp(AL, AL2O3, 3.5 / 650.0, b + h)
+            - layered_dolp(AL, AL2O3, 3.5 / 650.0, b - h))
+            / (2.0 * h);
+        let got = angle_slope(&model(AL, Some((AL2O3, 2.0, 5.0))), &[650.0], 0, b);
+        assert!(
+            (got - fd).abs() < 1e-6 * (1.0 + fd.abs()),
+            "{bdeg}: {got} vs {fd}"
+        );
+        assert!(
+            (got - bare).abs() > 1e-3 * bare.abs(),
+            "{bdeg}: {got} vs {bare}"
+        );
     }
 }
 
