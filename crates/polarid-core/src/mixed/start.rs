@@ -86,21 +86,41 @@ impl Grid {
 /// `χ²(node)` of the module documentation at one grid node: `pmn`, the node's `(P, m00)`
 /// per capture; `lob`, its `(G, ln cos θi)` per capture; `bb = ρd/π`; `dl`: scratch of
 /// one value per capture.
+///
+/// `bound`: the best cost so far. The DoLP term alone (the first sum, cheap: no
+/// logarithm) is a lower bound of the total, in floating point too (every term added is
+/// ≥ 0 and rounding is monotone); when it already reaches `bound` the node cannot be
+/// better (the caller keeps a node only when its cost is `< bound`) and that partial sum
+/// is returned without the brightness term. The costs below `bound` are bit-identical to
+/// the full evaluation's (the same operations in the same order).
 #[inline]
-fn node_cost(pb: &Problem, pmn: &[(f64, f64)], lob: &[(f64, f64)], bb: f64, dl: &mut [f64]) -> f64 {
+fn node_cost(
+    pb: &Problem,
+    pmn: &[(f64, f64)],
+    lob: &[(f64, f64)],
+    bb: f64,
+    dl: &mut [f64],
+    bound: f64,
+) -> f64 {
     let t_len = pb.caps.len();
     let mut c = 0.0;
-    let mut mean = 0.0;
     for t in 0..t_len {
         let (pp, m00) = pmn[t];
-        let (g, lci) = lob[t];
+        let (g, _) = lob[t];
         let a = m00 * g;
         let ab = a + bb;
         let s = if ab > 0.0 { a / ab } else { 1.0 };
         let p = &pb.caps[t];
         let v = (pp * s - p.y_dolp) * p.inv_se;
         c += v * v;
-        let l = p.ln_s0 - lci - ab.ln();
+        dl[t] = ab;
+    }
+    if c >= bound {
+        return c;
+    }
+    let mut mean = 0.0;
+    for t in 0..t_len {
+        let l = pb.caps[t].ln_s0 - lob[t].1 - dl[t].ln();
         dl[t] = l;
         mean += l;
     }
@@ -177,7 +197,7 @@ pub(super) fn grid_starts(pb: &Problem, model: MixedModel, nstarts: usize) -> Ve
             for ti in 0..trs.len() {
                 let lob = &lobes[(si * trs.len() + ti) * t_len..(si * trs.len() + ti + 1) * t_len];
                 for (ri, &rho) in rhos.iter().enumerate() {
-                    let total = node_cost(pb, pmn, lob, rho / PI, &mut dl);
+                    let total = node_cost(pb, pmn, lob, rho / PI, &mut dl, bn.0);
                     if total < bn.0 {
                         *bn = (total, si, ti, ri);
                     }

@@ -477,13 +477,33 @@ const BAND_SETS: [(&str, &[f64]); 2] = [
     ("one band (650 nm)", &[650.0]),
 ];
 
-/// Classify the test plates of one seed's rows under every (bands, fit, rule).
+/// The fits of `fits` (lines from 2) in the bands `keep`, renumbered from line 2.
+///
+/// Every (target, band) is fitted on its own rows alone (`fit`), so these are the fits
+/// [`fits_of`] makes of the same rows restricted to `keep`, without fitting again.
+fn fits_in(fits: &[(u64, FitRow)], keep: &[f64]) -> Vec<(u64, FitRow)> {
+    fits.iter()
+        .filter(|(_, f)| f.wavelength_nm.is_some_and(|w| keep.contains(&w)))
+        .enumerate()
+        .map(|(i, (_, f))| (i as u64 + 2, f.clone()))
+        .collect()
+}
+
+/// Classify the test plates of one seed's rows under every (bands, fit, rule). Each
+/// plate is fitted once per fit error model in all bands; the 650 nm classifiers use
+/// those fits' 650 nm rows.
 fn seed_outcomes(train: &[Measurement], test: &[Measurement]) -> Result<Outcomes> {
+    let mut fitted = Vec::new();
+    for (_, cfg) in fit_configs().iter() {
+        fitted.push((
+            fits_of(train, &COLOUR_BANDS_NM, cfg)?,
+            fits_of(test, &COLOUR_BANDS_NM, cfg)?,
+        ));
+    }
     let mut out = Vec::new();
     for (bi, (_, keep)) in BAND_SETS.iter().enumerate() {
-        for (fi, (_, cfg)) in fit_configs().iter().enumerate() {
-            let tr = fits_of(train, keep, cfg)?;
-            let te = fits_of(test, keep, cfg)?;
+        for (fi, (tr, te)) in fitted.iter().enumerate() {
+            let (tr, te) = (fits_in(tr, keep), fits_in(te, keep));
             let (_, protos, cmp) = prototypes(&tr)?;
             for (ri, (_, rcfg)) in rules().iter().enumerate() {
                 let clf = multi_classifier(protos.clone(), "the trained prototypes", *rcfg)?;
