@@ -119,14 +119,21 @@ impl<'a> OutFile<'a> {
     }
 }
 
-/// Render, encode and write `files` into `staged`, in parallel (TIFFs `w × h`; PNG
-/// views with fast compression, [`views::write_png_fast`]).
+/// Stage `files` in `output` (none may overwrite one of `inputs`), render, encode and
+/// write them in parallel (TIFFs `w × h`; PNG views with fast compression,
+/// [`views::write_png_fast`]), and commit; returns how many were written.
 fn write_files(
-    staged: &StagedDir,
-    w: usize,
-    h: usize,
+    output: &Path,
+    ctx: &Ctx,
+    inputs: &[PathBuf],
+    (w, h): (usize, usize),
     files: Vec<(String, OutFile<'_>)>,
-) -> Result<(), IoError> {
+) -> Result<usize, IoError> {
+    let inputs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+    let staged = StagedDir::new(output, ctx.force)?;
+    for (name, _) in &files {
+        check_output(&staged.final_path(name), ctx.force, &inputs)?;
+    }
     let paths: Vec<PathBuf> = files
         .iter()
         .map(|(name, _)| staged.path(name))
@@ -140,7 +147,9 @@ fn write_files(
                 let (vw, vh, px) = render();
                 views::write_png_fast(path, vw, vh, &px)
             }
-        })
+        })?;
+    staged.commit()?;
+    Ok(files.len())
 }
 
 /// `--bands L=NM,...` as (letter, nm) entries (the pipeline checks them).
@@ -224,14 +233,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         ("dolp.tif".into(), OutFile::Tiff(dolp)),
         ("aolp.tif".into(), OutFile::Tiff(aolp)),
     ];
-    let input_refs: Vec<&Path> = r.inputs.iter().map(PathBuf::as_path).collect();
-    let staged = StagedDir::new(&args.output, ctx.force)?;
-    for (name, _) in &files {
-        check_output(&staged.final_path(name), ctx.force, &input_refs)?;
-    }
-    let n_files = files.len();
-    write_files(&staged, w, h, files)?;
-    staged.commit()?;
+    let n_files = write_files(&args.output, ctx, &r.inputs, (w, h), files)?;
     let c = img.counts;
     ctx.info(format!(
         "polarid stokes: wrote {} files ({w}x{h}) to {}; pixels valid {}, saturated {}, dark {}, invalid {}",

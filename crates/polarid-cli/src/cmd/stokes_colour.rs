@@ -8,9 +8,6 @@
 //! are those of [`crate::render::views`] with each band's mask (saturated and dark
 //! pixels in their colours); all files are written in parallel ([`super::write_files`]).
 
-use std::path::Path;
-
-use polarid_io::atomic::{StagedDir, check_output};
 use polarid_io::manifest::colour::wavelength_label;
 use polarid_pipeline::stokes::{StokesBand, StokesResult};
 
@@ -100,14 +97,7 @@ pub fn write(args: &Args, r: &StokesResult, ctx: &Ctx) -> anyhow::Result<()> {
         "dolp_rgb.png".into(),
         OutFile::png(move || (w, h, rgb_preview(bands_ref, n, |b, i| b.dolp[i] / dolp_max))),
     ));
-    let inputs: Vec<&Path> = r.inputs.iter().map(|p| p.as_path()).collect();
-    let staged = StagedDir::new(&args.output, ctx.force)?;
-    for (name, _) in &files {
-        check_output(&staged.final_path(name), ctx.force, &inputs)?;
-    }
-    let n_files = files.len();
-    write_files(&staged, w, h, files)?;
-    staged.commit()?;
+    let n_files = write_files(&args.output, ctx, &r.inputs, (w, h), files)?;
     let per_band: Vec<String> = bands
         .iter()
         .map(|b| {
