@@ -300,9 +300,10 @@ pub fn layered_dolp(bulk: (f64, f64), layer: (f64, f64), d_waves: f64, beta: f64
 /// P'(β) = ∂|P_layer(N_b, N_L,b, d̄/λ_b; β)|/∂β
 /// ```
 ///
-/// by a central difference (step 1e-6 rad, within `[0, π/2]`) of the Airy sum; eq. 9's analytic slope
-/// ([`crate::dop::dop_beta_derivs`]) at the bulk index when there is no layer or `d̄ = 0`.
-/// Panics if `band` is not an index of `wavelengths` and of the model's bands.
+/// by a central difference (step 1e-6 rad, within `[0, π/2]`) of the Airy sum; eq. 9's
+/// analytic slope ([`crate::dop::dop_beta_derivs`]) at the bulk index when there is no
+/// layer or `d̄ = 0`. Panics if `band` is not an index of `wavelengths` and of the
+/// model's bands.
 pub fn angle_slope(cand: &CandidateModel, wavelengths: &[f64], band: usize, beta: f64) -> f64 {
     band_slope(cand, band, wavelengths[band], beta)
 }
