@@ -386,6 +386,66 @@ fn row_variance_model_is_calibrated() {
     assert!(failures.is_empty(), "not calibrated: {failures:?}");
 }
 
+/// The true material's own test (`test_hypothesis`: `χ²_min` over the nuisance box
+/// against its null) over many targets of the study's materials, at 90, 95 and 99%: it
+/// passes as often as stated in BOTH directions, within 4 binomial standard errors of
+/// the pooled targets. The targets' oracle (their `χ²` at the true nuisances against
+/// `χ²_T`) is printed beside it. Measured (full, 2,000 per material, 24,000 targets):
+/// 0.8967 / 0.9474 / 0.9893 (oracle 0.9009 / 0.9500 / 0.9902); before the null's ridge
+/// was made consistent 0.8915 / 0.9446 / 0.9885 (N-BK7 0.927 at 95%).
+#[test]
+fn truths_own_test_passes_at_the_confidence() {
+    use polarid_core::classify::test_hypothesis;
+    let per = polarid_testkit::seeds(300, 2000) as usize;
+    let protos = library();
+    let levels = [0.9, 0.95, 0.99];
+    let mut rng = StdRng::seed_from_u64(study_seed(77));
+    let (mut pass, mut oracle) = ([0usize; 3], [0usize; 3]);
+    let mut n_all = 0usize;
+    eprintln!("| material | passes at 0.90 | 0.95 | 0.99 |");
+    for &name in MATERIALS.iter() {
+        let (bulk, layer, lo, hi) = as_found(&protos, name);
+        let cand = hypothesis(&protos, name);
+        let mut own = [0usize; 3];
+        for _ in 0..per {
+            let d = rng.range(lo, hi);
+            let (rows, s, off) = target_truth(&mut rng, bulk, layer, d);
+            let c2t = chi2_true(&rows, &cand, bulk, layer, d, s, off, false);
+            for (j, &p) in levels.iter().enumerate() {
+                let f = test_hypothesis(&rows, &[WL], &cand, &config(p)).unwrap();
+                own[j] += usize::from(f.consistent);
+                oracle[j] += usize::from(c2t <= chi2_quantile_any(p, rows.len() as f64));
+            }
+        }
+        let frac = |j: usize| own[j] as f64 / per as f64;
+        eprintln!(
+            "| {name} | {:.4} | {:.4} | {:.4} |",
+            frac(0),
+            frac(1),
+            frac(2)
+        );
+        for j in 0..3 {
+            pass[j] += own[j];
+        }
+        n_all += per;
+    }
+    let frac = |x: &[usize; 3], j: usize| x[j] as f64 / n_all as f64;
+    eprintln!(
+        "| all ({n_all}) | {:.4} | {:.4} | {:.4} | oracle {:.4} / {:.4} / {:.4} |",
+        frac(&pass, 0),
+        frac(&pass, 1),
+        frac(&pass, 2),
+        frac(&oracle, 0),
+        frac(&oracle, 1),
+        frac(&oracle, 2)
+    );
+    for (j, &p) in levels.iter().enumerate() {
+        let se = (p * (1.0 - p) / n_all as f64).sqrt();
+        let got = frac(&pass, j);
+        assert!((got - p).abs() <= 4.0 * se, "at {p}: {got}");
+    }
+}
+
 #[test]
 fn library_materials_as_found() {
     let full = polarid_testkit::full();
@@ -543,8 +603,8 @@ fn library_materials_as_found() {
     // 95% confidence: the truth among the answers near 95% (binomial margin of the
     // cheap run), named alone often, another material named alone almost never. The
     // truth's test at 90% and 99% neither under- nor over-covers beyond the margin.
-    // Measured (full): 0.886 / 0.942 / 0.986 at 90 / 95 / 99% (the sample's oracle, χ² at
-    // the true nuisances against χ²_T: 0.888 / 0.944 / 0.988).
+    // Measured (full): 0.891 / 0.944 / 0.987 at 90 / 95 / 99% (the sample's oracle, χ² at
+    // the true nuisances against χ²_T: 0.886 / 0.943 / 0.988).
     let margin = if full { 0.02 } else { 0.06 };
     assert!(
         (0.95 - margin..=0.95 + margin).contains(&cov),
