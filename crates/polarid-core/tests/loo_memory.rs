@@ -1,6 +1,10 @@
 //! Leave-one-out over 20,000 labelled estimates stays linear in memory (issue 19: it
 //! took 6.1 GB, n² neighbours, before). A counting allocator records the peak of live
 //! heap bytes during the evaluation; n² neighbours would be 20,000² × 16 bytes = 6.4 GB.
+//!
+//! The evaluation takes time n²: the quick suite runs 5,000 items (n² neighbours: 400 MB)
+//! against the same bound per item (3.3 KB: 16 MiB), `POLARID_FULL=1` the 20,000 (64
+//! MiB). (polarid-core has no test dependency on the test kit: the flag is read here.)
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -34,7 +38,8 @@ static GLOBAL: Counting = Counting;
 
 #[test]
 fn leave_one_out_of_20000_items_is_linear_in_memory() {
-    let n = 20_000;
+    let full = std::env::var_os("POLARID_FULL").is_some_and(|v| !v.is_empty() && v != "0");
+    let n: usize = if full { 20_000 } else { 5_000 };
     let classes = ["aluminum", "copper", "gold", "paint"];
     let items: Vec<Labelled> = (0..n)
         .map(|i| {
@@ -63,9 +68,11 @@ fn leave_one_out_of_20000_items_is_linear_in_memory() {
     assert_eq!(ev.items.len(), n);
     // The four classes are well separated: nearly everything is right.
     assert!(ev.accuracy > 0.95, "{}", ev.accuracy);
-    // Linear: a few hundred bytes per item (decisions, names); n² would be 6.4 GB.
+    // Linear: a few hundred bytes per item (decisions, names); n² would be 6.4 GB at
+    // 20,000 items, 400 MB at 5,000. The bound: 64 MiB for 20,000 items.
+    println!("peak heap during leave-one-out: {peak} bytes for {n} items");
     assert!(
-        peak < 64 << 20,
+        peak < (64 << 20) / 20_000 * n,
         "peak heap during leave-one-out: {peak} bytes for {n} items"
     );
 }

@@ -5,7 +5,8 @@
 //!   deviates), so that the tests need no random-number dependency and their streams
 //!   stay the same across versions of `rand`;
 //! - [`full`] and [`seeds`]: the size of the statistical studies (quick by default, full
-//!   size with `POLARID_FULL=1`);
+//!   size with `POLARID_FULL=1`); [`max_misses`] ([`binomial_sf`]): how many misses a
+//!   quick-size study may see under its claimed rate;
 //! - [`note!`]: a line on the terminal that the test harness does not capture (a test
 //!   on the independent renders says so when `POLARID_RENDERS` is not set);
 //! - [`calibrated_bench`]: a synthetic calibrated bench (perspective camera, lamps at a
@@ -85,6 +86,44 @@ pub fn seeds(quick: u64, full_size: u64) -> u64 {
     if full() { full_size } else { quick }
 }
 
+/// `P(X ≥ k)` for `X ~ Binomial(n, p)` (summed in log space: no underflow for the
+/// sample sizes of the studies).
+pub fn binomial_sf(k: u64, n: u64, p: f64) -> f64 {
+    if k == 0 {
+        return 1.0;
+    }
+    if k > n || p <= 0.0 {
+        return 0.0;
+    }
+    if p >= 1.0 {
+        return 1.0;
+    }
+    let (lp, lq) = (p.ln(), (-p).ln_1p());
+    // ln P(X = i), from ln P(X = 0) = n ln(1 − p).
+    let mut l = n as f64 * lq;
+    let mut sum = 0.0;
+    for i in 0..=n {
+        if i >= k {
+            sum += l.exp();
+        }
+        l += ((n - i) as f64 / (i + 1) as f64).ln() + lp - lq;
+    }
+    sum.min(1.0)
+}
+
+/// The most misses (wrong answers, or values outside a stated interval) among `n` trials
+/// that a rule whose miss rate is at most `rate` still makes with probability at least
+/// `alpha` (the largest `m` with `P(X ≥ m) ≥ alpha`, `X ~ Binomial(n, rate)`): a study
+/// run at a quick size asserts `misses <= max_misses(n, rate, 1e-3)` for a claim "at least
+/// `1 − rate` right", which a few seeds cannot test as a plain fraction, and its full
+/// size (`POLARID_FULL=1`) the fraction itself.
+pub fn max_misses(n: u64, rate: f64, alpha: f64) -> u64 {
+    (1..=n)
+        .take_while(|&m| binomial_sf(m, n, rate) >= alpha)
+        .last()
+        .unwrap_or(0)
+}
+
 /// Writes `msg` on the terminal even while the test harness captures the output of
 /// passing tests (it captures `print!`/`eprint!`, not direct writes to stderr).
 pub fn note(msg: &str) {
@@ -125,6 +164,19 @@ mod tests {
         // 5 standard errors: mean se 1/√n = 0.0032, variance se √(2/n) = 0.0045.
         assert!(mean.abs() < 0.016, "{mean}");
         assert!((var - 1.0).abs() < 0.023, "{var}");
+    }
+
+    #[test]
+    fn binomial_tail_and_miss_bound() {
+        // P(X ≥ 1) = 1 − (1 − p)^n; P(X ≥ n) = p^n; the whole distribution sums to 1.
+        assert!((binomial_sf(1, 10, 0.5) - (1.0 - 0.5f64.powi(10))).abs() < 1e-14);
+        assert!((binomial_sf(10, 10, 0.5) - 0.5f64.powi(10)).abs() < 1e-15);
+        assert!((binomial_sf(0, 600, 0.01) - 1.0).abs() < 1e-12);
+        assert!((binomial_sf(3, 60, 0.01) - 0.022_42).abs() < 1e-5);
+        assert_eq!(binomial_sf(61, 60, 0.5), 0.0);
+        // 50 trials at a 2% miss rate: P(X ≥ 5) = 0.0032 ≥ 1e-3 > P(X ≥ 6) = 0.000 48.
+        assert_eq!(max_misses(50, 0.02, 1e-3), 5);
+        assert_eq!(max_misses(10, 0.0, 1e-3), 0);
     }
 
     #[test]

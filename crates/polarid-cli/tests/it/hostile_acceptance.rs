@@ -65,6 +65,33 @@ fn run_measured(dir: &Path, bound_kib: u64, args: &[&str]) -> (Output, Option<u6
     (o, rss)
 }
 
+/// [`run_measured`] always under `ulimit -v bound_kib` too (address space, which bounds
+/// the resident memory from above and also fails on large untouched reservations).
+fn run_measured_within(dir: &Path, bound_kib: u64, args: &[&str]) -> (Output, Option<u64>) {
+    if !Path::new(GNU_TIME).exists() {
+        return run_measured(dir, bound_kib, args);
+    }
+    let rss_file = dir.join(".rss");
+    let _ = fs::remove_file(&rss_file);
+    let o = Command::new("sh")
+        .arg("-c")
+        .arg(format!("ulimit -v {bound_kib} && exec \"$0\" \"$@\""))
+        .arg(GNU_TIME)
+        .args(["-f", "%M", "-o"])
+        .arg(&rss_file)
+        .arg(bin())
+        .args(args)
+        .current_dir(dir)
+        .env_remove("POLARID_MEMORY_LIMIT")
+        .output()
+        .unwrap();
+    let rss = fs::read_to_string(&rss_file)
+        .ok()
+        .and_then(|s| s.lines().last().and_then(|l| l.trim().parse::<u64>().ok()));
+    let _ = fs::remove_file(&rss_file);
+    (o, rss)
+}
+
 /// Exit status `code`, no panic, every word in the message.
 #[track_caller]
 fn status(o: &Output, code: i32, words: &[&str]) -> String {
@@ -264,6 +291,9 @@ fn dev_zero_is_refused_with_exit_2_under_1_gb_measured() {
     }
 }
 
+/// Also `reliability.rs`'s linear-memory check of `evaluate` (its former
+/// `evaluate_of_20000_fits_runs_in_linear_memory`, the same run under `ulimit -v` of 1 GB):
+/// one run of the n² leave-one-out (5 CPU-s) checks both the address space and the peak.
 #[test]
 fn evaluate_of_20000_rows_runs_under_1_gb_measured() {
     let d = tempfile::tempdir().unwrap();
@@ -283,7 +313,7 @@ fn evaluate_of_20000_rows_runs_under_1_gb_measured() {
     }
     fs::write(p.join("fits.csv"), s).unwrap();
     // 6.1 GB before issue 19.
-    let (o, rss) = run_measured(p, GB_1, &["evaluate", "fits.csv", "-o", "m.csv"]);
+    let (o, rss) = run_measured_within(p, GB_1, &["evaluate", "fits.csv", "-o", "m.csv"]);
     status(&o, 0, &[]);
     peak_under("evaluate, 20,000 fits", rss, GB_1);
     let m = fs::read_to_string(p.join("m.csv")).unwrap();

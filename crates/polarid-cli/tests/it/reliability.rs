@@ -300,33 +300,9 @@ fn special_files_are_refused_at_every_entry_point() {
     }
 }
 
-#[test]
-fn evaluate_of_20000_fits_runs_in_linear_memory() {
-    let d = tempfile::tempdir().unwrap();
-    let mut s = String::from(FITS_HEADER);
-    let classes = ["aluminum", "copper", "gold", "paint"];
-    for i in 0..20_000 {
-        let c = i % 4;
-        let u = ((i as f64) * 0.618_033_988_75).fract() - 0.5;
-        let v = ((i as f64) * 0.414_213_562_37).fract() - 0.5;
-        s += &format!(
-            "T{i},{},{},{},0.05,0.05,0.1,0.001,5,ok\n",
-            classes[c],
-            0.5 + c as f64 * 0.5 + 0.2 * u,
-            1.0 + c as f64 * 0.8 + 0.2 * v
-        );
-    }
-    fs::write(d.path().join("fits.csv"), s).unwrap();
-    // It took 6.1 GB before; now under 1 GB of address space.
-    let o = run_limited(
-        d.path(),
-        1_000_000,
-        &["evaluate", "fits.csv", "-o", "m.csv"],
-    );
-    ok(&o);
-    let m = fs::read_to_string(d.path().join("m.csv")).unwrap();
-    assert!(m.contains("aluminum") && m.contains("accuracy"), "{m}");
-}
+// `evaluate` of 20,000 fits in linear memory (under `ulimit -v` of 1 GB; 6.1 GB before):
+// `hostile_acceptance::evaluate_of_20000_rows_runs_under_1_gb_measured`, which runs it
+// under that limit and measures the peak in the same run.
 
 // ---------------------------------------------------------------------------------------
 // 3. Atomic directories, concurrent writers, signals, stale staging

@@ -782,17 +782,27 @@ mod tests {
     /// The acceptance from images: over many seeds, the three-band classifier
     /// (Mahalanobis nearest neighbour ≥ 99%, the set rule with the fit's default error
     /// model ≥ 98% and never another material) gets the copper and gold test plates
-    /// right; on the 650 nm rows alone of plates under native layers no rule reaches 99%
-    /// (about 150-210 s for 100 seeds on 2 loaded cores). `COLOUR_LAYER_NM=0` runs plates
-    /// without native layers. `COLOUR_TABLE=1 cargo test --release -p polarid-pipeline
-    /// --lib demo::colour -- --nocapture` prints docs/BANDS.md's table (`COLOUR_SEEDS`
-    /// seeds, default 100).
+    /// right; on the 650 nm rows alone of plates under native layers no rule reaches 99%.
+    ///
+    /// Size: 25 seeds (50 copper and gold test plates, about 11 CPU-s), 100 with
+    /// `POLARID_FULL=1` (`COLOUR_SEEDS` overrides both). At the quick size the rates
+    /// claimed as "at least" allow the misses that a rule at exactly that rate makes
+    /// with probability 10⁻³ ([`polarid_testkit::max_misses`]: 5 of 50 for 98%), and
+    /// the 650 nm Mahalanobis nearest neighbour under the default error model (97%
+    /// right over 200 seeds: 50 plates cannot tell that from 99%) is held only to the
+    /// three bands' rate; the Euclidean rule (55%), the set rules (64-67%, the rest
+    /// `ambiguous` or `unknown`) and the Mahalanobis rule without the allowance (86%)
+    /// still show at 650 nm that one band cannot. The full size asserts every rate as
+    /// a plain fraction. `COLOUR_LAYER_NM=0` runs plates without native layers.
+    /// `COLOUR_TABLE=1 cargo test --release -p polarid-pipeline --lib demo::colour --
+    /// --nocapture` prints docs/BANDS.md's table (`COLOUR_SEEDS=100` for its size).
     #[test]
     fn three_bands_from_images_tell_copper_from_gold_where_650nm_cannot() {
+        let full = polarid_testkit::full();
         let seeds = std::env::var("COLOUR_SEEDS")
             .ok()
             .and_then(|s| s.parse().ok())
-            .unwrap_or(COLOUR_SEEDS);
+            .unwrap_or_else(|| polarid_testkit::seeds(25, COLOUR_SEEDS));
         let layer = std::env::var("COLOUR_LAYER_NM")
             .ok()
             .and_then(|s| s.parse().ok())
@@ -817,11 +827,22 @@ mod tests {
         // copper and gold right, the set rule (the default, on the same bench as
         // `classify`) ≥ 98%, never another material (docs/BANDS.md: 99.7% over 300
         // seeds, two gold plates `unknown`).
+        // At least `rate` right: the fraction at full size, else no more misses than a
+        // rule right exactly at `rate` makes with probability 10⁻³.
+        let at_least = |r: &AccuracyRow, rate: f64| {
+            let n = r.copper.1 + r.gold.1;
+            let misses = n - (r.copper.0 + r.gold.0);
+            if full {
+                r.copper_gold() >= rate
+            } else {
+                misses <= polarid_testkit::max_misses(n, 1.0 - rate, 1e-3)
+            }
+        };
         let r = get("three", "default", "nearest, Mahalanobis");
-        assert!(r.copper_gold() >= 0.99, "{r:?}");
+        assert!(at_least(&r, 0.99), "{r:?}");
         let r = get("three", "default", "set, 95%");
         let cg = (r.copper.1 + r.gold.1) as f64;
-        assert!(r.copper_gold() >= 0.98, "three bands, default, set: {r:?}");
+        assert!(at_least(&r, 0.98), "three bands, default, set: {r:?}");
         assert!(never_wrong(&r), "three bands, default, set: {r:?}");
         let r = get("three", "--film", "set, 95%");
         if layer > 0.0 {
@@ -835,7 +856,7 @@ mod tests {
             // Clean plates: the 95% set on the same bench holds the plate's material
             // about 95% of the time, else it is `unknown` (docs/BANDS.md: 94.5%).
             assert!(
-                r.copper_gold() >= 0.9 && never_wrong(&r),
+                at_least(&r, 0.9) && never_wrong(&r),
                 "clean plates, --film 0, set: {r:?}"
             );
         }
@@ -854,6 +875,10 @@ mod tests {
                 (false, _) => &["nearest, Euclidean"],
             };
             for rule in rules {
+                if !full && fit == "default" && *rule == "nearest, Mahalanobis" {
+                    // 97% right: a fraction below 99% only over many plates (above).
+                    continue;
+                }
                 let r = get("one", fit, rule);
                 assert!(r.copper_gold() < 0.99, "650 nm, {fit}, {rule}: {r:?}");
             }

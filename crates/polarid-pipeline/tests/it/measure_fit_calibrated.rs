@@ -105,14 +105,18 @@ fn errors_in_se(rows: &[(u64, Measurement)]) -> Vec<f64> {
         .collect()
 }
 
+/// 150 seeds per bench with `POLARID_FULL=1` (600 fits: at least 99% within 3 SE; 599
+/// measured), 50 in the quick suite (200 fits: no more misses than a 99% rate makes with
+/// probability 10⁻³, `polarid_testkit::max_misses`: 8).
 #[test]
 fn measure_then_fit_recovers_nk_within_3_se() {
+    let seeds = polarid_testkit::seeds(50, 150);
     let (mut inside, mut total) = (0, 0);
     let mut worst: Vec<f64> = Vec::new();
     for s in [MILD, CLOSE] {
         let d = tempfile::tempdir().unwrap();
         let (m, cleans) = prepare(d.path(), &s);
-        for seed in 0..150 {
+        for seed in 0..seeds {
             for e in errors_in_se(&measure_seed(&m, &cleans, &s, seed)) {
                 inside += usize::from(e < 3.0);
                 total += 1;
@@ -127,7 +131,16 @@ fn measure_then_fit_recovers_nk_within_3_se() {
         worst[worst.len() / 2],
         worst[worst.len() - 1]
     );
-    assert!(rate >= 0.99, "{inside} of {total} within 3 SE");
+    if polarid_testkit::full() {
+        assert!(rate >= 0.99, "{inside} of {total} within 3 SE");
+    } else {
+        let misses = (total - inside) as u64;
+        let most = polarid_testkit::max_misses(total as u64, 0.01, 1e-3);
+        assert!(
+            misses <= most,
+            "{inside} of {total} within 3 SE (at most {most} misses)"
+        );
+    }
 }
 
 /// The same rows fitted as if each region had one β — its rectangle's centre's, or the
