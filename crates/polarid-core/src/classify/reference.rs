@@ -23,8 +23,8 @@
 //! χ²(d, s, δ) = Σ_t (y_t − m_t)² / σ_t²,   σ_t² = dolp_sd_t² + (P'_t σ_angle,t / 2)²
 //! ```
 //!
-//! (the row variance of the hypothesis tests: `P'_t = ∂P/∂β` of eq. 9 at the bulk index,
-//! [`crate::dop::dop_beta_derivs`]), with `s = Σ w y p / Σ w p²` in closed form, `(d, δ)`
+//! (the row variance of the hypothesis tests: `P'_t = ∂P/∂β` of the reference under its
+//! layer at mid range, [`angle_slope`]), with `s = Σ w y p / Σ w p²` in closed form, `(d, δ)`
 //! on a grid refined by golden sections.
 //!
 //! # Uncertainty
@@ -62,10 +62,9 @@
 
 use super::MultiPrototype;
 use super::hypothesis::{
-    CandidateModel, HypRow, HypothesisConfig, HypothesisOutcome, Nuisances, classify_rows,
-    layered_dolp,
+    CandidateModel, HypRow, HypothesisConfig, HypothesisOutcome, Nuisances, angle_slope,
+    classify_rows, layered_dolp,
 };
-use crate::dop::dop_beta_derivs;
 use crate::error::{CoreError, Result};
 use crate::systematic::chi2_sf;
 
@@ -251,8 +250,10 @@ pub fn calibrate(
     let w: Vec<f64> = rows
         .iter()
         .map(|r| {
-            let (n, k) = reference.bulk[r.band];
-            let a = 0.5 * dop_beta_derivs(n, k, r.beta).dp_dbeta * r.angle_sd;
+            // The slope of the reference as it is found (its layer at mid range), as the
+            // hypothesis tests take it ([`angle_slope`]).
+            let slope = angle_slope(reference, wavelengths, r.band, r.beta);
+            let a = 0.5 * slope * r.angle_sd;
             1.0 / (r.dolp_sd * r.dolp_sd + a * a)
         })
         .collect();
@@ -625,7 +626,8 @@ mod tests {
             .iter()
             .map(|x| {
                 let m = f.scale * model(&cand, &[WL], x, 0.0, f.offset);
-                let a = 0.5 * dop_beta_derivs(1.5, 7.6, x.beta + c).dp_dbeta * x.angle_sd;
+                let a =
+                    0.5 * crate::dop::dop_beta_derivs(1.5, 7.6, x.beta + c).dp_dbeta * x.angle_sd;
                 (x.dolp - m).powi(2) / (x.dolp_sd.powi(2) + a * a)
             })
             .sum();
