@@ -409,79 +409,7 @@ def test_colour_options(colour_set):
 
 # A calibrated colour scene (docs/SCENE.md, "Calibrated colour scenes"): copper, gold and
 # aluminum plates seen by a lens camera at 0.45 m, a lamp at ten positions.
-CALIBRATED_COLOUR_SCENE = """name = "colour_bench"
-width = 320
-height = 240
-seed = {seed}
-format = "tiff"
-bands = { R = 650.0, G = 550.0, B = 450.0 }
-library = "builtin-rgb"
-
-[sensor]
-bit_depth = 12
-full_well_e = 30000.0
-read_noise_e = 2.5
-dark_level_dn = 64.0
-band_response = { B = 0.6 }
-
-[capture]
-kind = "dofp"
-pattern = [90, 45, 135, 0]
-color = "RGGB"
-
-[camera]
-focal_px = 280.0
-principal_point_px = [159.5, 119.5]
-distortion = [-0.05, 0.01, 0.0, 0.0, 0.0]
-position = [-0.3686, 0.0, 0.2581]
-look_at = [0.0, 0.0, 0.0]
-up = [0.0, 0.0, 1.0]
-
-[[source]]
-position = [0.5500, 0.0000, 0.9526]
-[[source]]
-position = [0.7388, 0.0000, 0.9456]
-[[source]]
-position = [0.7193, 0.0000, 0.6947]
-[[source]]
-position = [1.0517, 0.0000, 0.7641]
-[[source]]
-position = [0.9712, 0.0000, 0.5164]
-[[source]]
-position = [1.1276, 0.0000, 0.4104]
-[[source]]
-position = [0.7200, 0.1530, 0.8175]
-[[source]]
-position = [0.7544, -0.1330, 0.6428]
-[[source]]
-position = [1.0856, 0.1526, 0.4881]
-[[source]]
-position = [0.8295, -0.1763, 0.5299]
-
-[[plate]]
-name = "copper"
-material = "copper"
-sigma = 0.3
-center = [-0.085, 0.0, 0.0]
-size = [0.16, 0.07]
-axis = [0.0, 1.0, 0.0]
-
-[[plate]]
-name = "gold"
-material = "gold"
-sigma = 0.3
-center = [0.0, 0.0, 0.0]
-size = [0.16, 0.07]
-axis = [0.0, 1.0, 0.0]
-
-[[plate]]
-name = "aluminum"
-material = "aluminum"
-sigma = 0.3
-center = [0.1, 0.0, 0.0]
-size = [0.16, 0.07]
-axis = [0.0, 1.0, 0.0]
-"""
+CALIBRATED_COLOUR_SCENE = (SCENES / "colour_calibrated_bench.toml").read_text()
 
 
 @pytest.fixture(scope="module")
@@ -489,7 +417,7 @@ def calibrated_colour_set(tmp_path_factory, polarid_cli):
     """The calibrated colour scene at seed 3, a three-band model trained on seed 4."""
     d = tmp_path_factory.mktemp("dask_colour_calibrated")
     for seed in (3, 4):
-        (d / f"scene{seed}.toml").write_text(CALIBRATED_COLOUR_SCENE.replace("{seed}", str(seed)))
+        (d / f"scene{seed}.toml").write_text(CALIBRATED_COLOUR_SCENE.replace("seed = 3", f"seed = {seed}"))
         run(polarid_cli, "simulate", d / f"scene{seed}.toml", "-o", d / f"sim{seed}")
     run(polarid_cli, "measure", d / "sim4" / "manifest.toml", "-o", d / "m4.csv")
     run(polarid_cli, "fit", d / "m4.csv", "-o", d / "f4.csv")

@@ -24,80 +24,9 @@ use polarid_core::geometry::ViewGeometry;
 const PLATES: [&str; 3] = ["copper", "gold", "aluminum"];
 const BANDS: [f64; 3] = [450.0, 550.0, 650.0];
 
-/// The scene (docs/SCENE.md, "Calibrated colour scenes"); `SEED` is replaced.
-const SCENE: &str = r#"name = "colour_bench"
-width = 320
-height = 240
-seed = SEED
-format = "tiff"
-bands = { R = 650.0, G = 550.0, B = 450.0 }
-library = "builtin-rgb"
-
-[sensor]
-bit_depth = 12
-full_well_e = 30000.0
-read_noise_e = 2.5
-dark_level_dn = 64.0
-band_response = { B = 0.6 }
-
-[capture]
-kind = "dofp"
-pattern = [90, 45, 135, 0]
-color = "RGGB"
-
-[camera]
-focal_px = 280.0
-principal_point_px = [159.5, 119.5]
-distortion = [-0.05, 0.01, 0.0, 0.0, 0.0]
-position = [-0.3686, 0.0, 0.2581]
-look_at = [0.0, 0.0, 0.0]
-up = [0.0, 0.0, 1.0]
-
-[[source]]
-position = [0.5500, 0.0000, 0.9526]
-[[source]]
-position = [0.7388, 0.0000, 0.9456]
-[[source]]
-position = [0.7193, 0.0000, 0.6947]
-[[source]]
-position = [1.0517, 0.0000, 0.7641]
-[[source]]
-position = [0.9712, 0.0000, 0.5164]
-[[source]]
-position = [1.1276, 0.0000, 0.4104]
-[[source]]
-position = [0.7200, 0.1530, 0.8175]
-[[source]]
-position = [0.7544, -0.1330, 0.6428]
-[[source]]
-position = [1.0856, 0.1526, 0.4881]
-[[source]]
-position = [0.8295, -0.1763, 0.5299]
-
-[[plate]]
-name = "copper"
-material = "copper"
-sigma = 0.3
-center = [-0.085, 0.0, 0.0]
-size = [0.16, 0.07]
-axis = [0.0, 1.0, 0.0]
-
-[[plate]]
-name = "gold"
-material = "gold"
-sigma = 0.3
-center = [0.0, 0.0, 0.0]
-size = [0.16, 0.07]
-axis = [0.0, 1.0, 0.0]
-
-[[plate]]
-name = "aluminum"
-material = "aluminum"
-sigma = 0.3
-center = [0.1, 0.0, 0.0]
-size = [0.16, 0.07]
-axis = [0.0, 1.0, 0.0]
-"#;
+/// The scene (examples/scenes/colour_calibrated_bench.toml, docs/SCENE.md "Calibrated
+/// colour scenes"); its `seed = 3` line is replaced.
+const SCENE: &str = include_str!("../../../../examples/scenes/colour_calibrated_bench.toml");
 
 fn ok(o: &Output) {
     assert!(
@@ -121,7 +50,7 @@ fn p(d: &Path, name: &str) -> String {
 fn simulate(d: &Path, seed: u64) -> HashMap<(String, u32), (f64, f64)> {
     std::fs::write(
         d.join("scene.toml"),
-        SCENE.replace("SEED", &seed.to_string()),
+        SCENE.replace("seed = 3", &format!("seed = {seed}")),
     )
     .unwrap();
     ok(&polarid_in(
