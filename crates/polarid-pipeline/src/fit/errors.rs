@@ -7,7 +7,12 @@
 //!
 //! It also writes the **sample** covariance of a row (`n_se_sample`, `k_se_sample`,
 //! `nk_corr_sample`): the noise plus the surface layer's variation from plate to plate of
-//! one material, a layer of standard thickness [`SAMPLE_LAYER_RATIO`]` · film_sd_nm`
+//! one material. For a class named as a built-in material with a native layer
+//! (`polarid_io::surfaces`: Al₂O₃ 2–5 nm on aluminum, …) that is its own layer, of the
+//! standard deviation of the difference of two thicknesses drawn uniformly from its
+//! range, `(max − min)/√6`, plus the error model's generic layers at
+//! [`SAMPLE_RESIDUAL_RATIO`]` · film_sd_nm`; for any other class (and for fits of the
+//! mixed reflectance model) the generic layers at [`SAMPLE_LAYER_RATIO`]` · film_sd_nm`
 //! (same three indices, same propagation). It is what differs between two plates of one
 //! material measured on one bench, where the bench's own errors (angles, DoLP floor,
 //! extinction) are shared and cancel (docs/ERRORS.md "Same bench"): a model's prototypes
@@ -15,6 +20,7 @@
 
 use polarid_core::FitStatus;
 use polarid_core::dop::dop;
+use polarid_core::film::thin_film;
 use polarid_core::fit::NkFit;
 use polarid_core::systematic::{
     FilmShifts, Gof, aolp_deviation, chi2_sf, film_shifts, propagate, systematic_covariance,
@@ -30,6 +36,16 @@ use super::{FitConfig, Group};
 /// (uniform), at most by the span. Half the 3 nm default, 1.5 nm, covers that (the
 /// largest difference, 3 nm, at 2 standard deviations) and is 0 with `--film-sd-nm 0`.
 pub const SAMPLE_LAYER_RATIO: f64 = 0.5;
+
+/// For a class with a known native layer (a built-in material's name,
+/// `polarid_io::surfaces::builtin_surface`), the generic layers' share of the sample
+/// covariance beside the native layer's own variation: `0.3 · film_sd_nm` (0.9 nm of each
+/// generic index at the default), for what the native layer's range does not describe —
+/// adsorbed contamination over the oxide, the oxide's own index, a plate's layer outside
+/// the literature's range. Without it the native layer alone moves the estimate along one
+/// direction, and two plates whose layers differ by a few nm (the effective index is not
+/// linear in the thickness) fall outside the resulting needle-thin ellipse.
+pub const SAMPLE_RESIDUAL_RATIO: f64 = 0.3;
 
 /// What the error model adds to a fit row.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -115,7 +131,8 @@ pub(crate) fn assess(g: &Group, f: &NkFit, corr: &[f64], cfg: &FitConfig) -> Err
     // A fit without standard errors (singular) keeps them unknown.
     if f.n_se.is_finite() && f.k_se.is_finite() {
         rep.total = (prop.total.n_se, prop.total.k_se, prop.total.nk_corr);
-        rep.sample = sample_covariance(f, &betas, &residual, se.as_deref(), &pol, cfg);
+        let own = own_layer(g, cfg);
+        rep.sample = sample_covariance(f, &betas, &residual, se.as_deref(), &pol, own, cfg);
         if g.wavelength_nm.is_some() && !prop.total.in_u {
             rep.film = film_shifts(f.n, f.k, &betas, se.as_deref(), &pol)
                 .ok()
@@ -163,6 +180,36 @@ pub(crate) fn assess(g: &Group, f: &NkFit, corr: &[f64], cfg: &FitConfig) -> Err
     rep
 }
 
+/// A material's own native layer as it varies between two plates: its index at the
+/// band and the standard deviation of the difference of two thicknesses drawn uniformly
+/// from the material's range, `(max − min)/√6`, in wavelengths.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct OwnLayer {
+    index: (f64, f64),
+    sd_waves: f64,
+}
+
+/// The own layer of `g`'s class when it is a built-in material with a native surface
+/// whose index is known at the band (`polarid_io::surfaces`); `None` otherwise (the
+/// generic layers of the error model apply).
+fn own_layer(g: &Group, cfg: &FitConfig) -> Option<OwnLayer> {
+    let class = g
+        .rows
+        .iter()
+        .find_map(|(_, m)| m.class.as_deref().filter(|c| !c.is_empty()))?;
+    let s = polarid_io::surfaces::builtin_surface(class)?;
+    let wl = g
+        .wavelength_nm
+        .filter(|w| w.is_finite() && *w > 0.0)
+        .unwrap_or(cfg.wavelength_nm);
+    let index = polarid_io::surfaces::layer_index_builtin_band(s.layer, wl).ok()??;
+    let sd_nm = (s.max_nm - s.min_nm) / 6f64.sqrt();
+    Some(OwnLayer {
+        index,
+        sd_waves: sd_nm / wl,
+    })
+}
+
 /// The error model of the sample covariance: the surface layer alone, of standard
 /// thickness [`SAMPLE_LAYER_RATIO`] times `pol`'s (no floor, no scale error; the angle
 /// errors are left out by the caller).
@@ -177,23 +224,45 @@ pub(crate) fn sample_polarimetric(
     }
 }
 
-/// The sample covariance of the module documentation: the noise plus a layer of
-/// standard thickness `SAMPLE_LAYER_RATIO · film_sd` (the angle, floor and scale terms
-/// left out: a bench shares them between its plates), through the same propagation
-/// (`(n, u = k²)` near `k = 0`).
+/// The sample covariance of the module documentation: the noise plus the layers'
+/// variation between plates — `own`'s layer and the generic layers at
+/// `SAMPLE_RESIDUAL_RATIO · film_sd`, or without `own` the generic layers at
+/// `SAMPLE_LAYER_RATIO · film_sd` (the angle, floor and scale terms left out: a bench
+/// shares them between its plates) — through the same propagation (`(n, u = k²)` near
+/// `k = 0`).
 fn sample_covariance(
     f: &NkFit,
     betas: &[f64],
     residual: &[f64],
     se: Option<&[f64]>,
     pol: &polarid_core::systematic::Polarimetric,
+    own: Option<OwnLayer>,
     cfg: &FitConfig,
 ) -> Option<(f64, f64, f64)> {
     let t_len = betas.len();
-    let layer = sample_polarimetric(pol);
-    let zero = vec![0.0; t_len];
     let mut sys = vec![0.0; t_len * t_len];
+    let mut layer = sample_polarimetric(pol);
+    if own.is_some() {
+        layer.film_sd_waves = SAMPLE_RESIDUAL_RATIO * pol.film_sd_waves;
+    }
+    let zero = vec![0.0; t_len];
     systematic_covariance(f.n, f.k, betas, &zero, &layer, &mut sys).ok()?;
+    if let Some(l) = own.filter(|_| pol.film_sd_waves > 0.0) {
+        // g_t: the DoLP change of one standard thickness of the material's own layer,
+        // Σ += g gᵀ (one thickness, every row).
+        let g: Vec<f64> = betas
+            .iter()
+            .map(|&b| {
+                thin_film(l.index, l.sd_waves, (f.n, f.k), b, 1.0)
+                    .map_or(0.0, |r| r.signed_dolp() - dop(f.n, f.k, b))
+            })
+            .collect();
+        for (i, gi) in g.iter().enumerate() {
+            for (j, gj) in g.iter().enumerate() {
+                sys[i * t_len + j] += gi * gj;
+            }
+        }
+    }
     let p = propagate(f.n, f.k, betas, residual, se, &sys, cfg.k_range.0 == 0.0).ok()?;
     let c = p.total;
     (c.n_se.is_finite() && c.k_se.is_finite()).then_some((c.n_se, c.k_se, c.nk_corr))
