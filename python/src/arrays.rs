@@ -233,6 +233,16 @@ pub fn to_numpy<'py, T: numpy::Element>(py: Python<'py>, a: ArrayD<T>) -> Bound<
     a.into_pyarray(py).into_any()
 }
 
+/// `v` as a numpy array of `shape` (row-major, no copy).
+pub fn shaped<'py, T: numpy::Element>(
+    py: Python<'py>,
+    shape: &[usize],
+    v: Vec<T>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let a = ArrayD::from_shape_vec(IxDyn(shape), v).map_err(|e| value_error(e.to_string()))?;
+    Ok(to_numpy(py, a))
+}
+
 /// A numpy array of strings `names[codes[i]]` (dtype `<U…`), built by numpy's `take`.
 pub fn str_array<'py>(
     py: Python<'py>,

@@ -19,7 +19,6 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use ndarray::{ArrayD, IxDyn};
 use numpy::PyUntypedArrayMethods;
 use polarid_core::CoreError;
 use polarid_core::map::noise::NoiseModel;
@@ -39,7 +38,7 @@ use polarid_pipeline::map::{
 use pyo3::IntoPyObjectExt;
 use pyo3::prelude::*;
 
-use crate::arrays::{f64_contiguous, fmt_shape, raw_array, to_numpy};
+use crate::arrays::{f64_contiguous, fmt_shape, raw_array, shaped};
 use crate::colour::wavelengths;
 use crate::errors::{IntoPyErr, PyResultExt, value_error};
 use crate::map::map_config;
@@ -483,9 +482,7 @@ fn _map_block<'py>(
     }
     out.extend(fit.class.iter().map(|&c| c as f32));
     out.extend(fit.reason.iter().map(|&r| r as f32));
-    let a = ArrayD::from_shape_vec(IxDyn(&[BAND_PLANES * nb + 2, oh, ow]), out)
-        .map_err(|e| value_error(e.to_string()))?;
-    Ok(to_numpy(py, a))
+    shaped(py, &[BAND_PLANES * nb + 2, oh, ow], out)
 }
 
 /// The noise-model sample of a block (private: the global step of

@@ -12,7 +12,7 @@
 use std::ffi::CString;
 use std::path::{Path, PathBuf};
 
-use ndarray::{ArrayD, IxDyn};
+use ndarray::Array1;
 use polarid_io::manifest::{self, CaptureSource, Manifest};
 use polarid_io::measure::beta_deg;
 use polarid_io::table::measurements::Measurement;
@@ -21,7 +21,7 @@ use pyo3::exceptions::PyUserWarning;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use crate::arrays::{str_array, to_numpy};
+use crate::arrays::{shaped, str_array};
 use crate::errors::{PyResultExt, value_error};
 
 /// Register this module's functions.
@@ -89,9 +89,7 @@ pub(crate) fn warn_texts<'a>(
 pub fn read_image<'py>(py: Python<'py>, path: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
     let p = path_arg(path)?;
     let frame = py.detach(|| polarid_io::image::read_frame(&p)).py_err()?;
-    let a = ArrayD::from_shape_vec(IxDyn(&[frame.height, frame.width]), frame.data)
-        .map_err(|e| value_error(e.to_string()))?;
-    Ok(to_numpy(py, a))
+    shaped(py, &[frame.height, frame.width], frame.data)
 }
 
 /// The β (eq. 5, degrees) of every pixel of a capture with calibrated geometry.
@@ -185,8 +183,7 @@ pub fn beta_map<'py>(
         )
         .py_err()?;
     let (w, h, data) = beta;
-    let a = ArrayD::from_shape_vec(IxDyn(&[h, w]), data).map_err(|e| value_error(e.to_string()))?;
-    Ok(to_numpy(py, a))
+    shaped(py, &[h, w], data)
 }
 
 /// Read and validate a capture-set manifest (TOML, docs/FORMATS.md).
@@ -380,19 +377,11 @@ pub fn measurements_dict<'py>(
     py: Python<'py>,
     rows: &[Measurement],
 ) -> PyResult<Bound<'py, PyDict>> {
-    let dim = IxDyn(&[rows.len()]);
-    let f = |g: &dyn Fn(&Measurement) -> f64| -> PyResult<Bound<'py, PyAny>> {
-        let a = ArrayD::from_shape_vec(dim.clone(), rows.iter().map(g).collect())
-            .map_err(|e| value_error(e.to_string()))?;
-        Ok(to_numpy(py, a))
-    };
-    let i = |g: &dyn Fn(&Measurement) -> Option<u64>| -> PyResult<Bound<'py, PyAny>> {
-        let a = ArrayD::from_shape_vec(
-            dim.clone(),
-            rows.iter().map(|r| g(r).map_or(-1, |v| v as i64)).collect(),
-        )
-        .map_err(|e| value_error(e.to_string()))?;
-        Ok(to_numpy(py, a))
+    let dim = [rows.len()];
+    let f = |g: &dyn Fn(&Measurement) -> f64| shaped(py, &dim, rows.iter().map(g).collect());
+    let i = |g: &dyn Fn(&Measurement) -> Option<u64>| {
+        let v: Vec<i64> = rows.iter().map(|r| g(r).map_or(-1, |v| v as i64)).collect();
+        shaped(py, &dim, v)
     };
     let strs = |g: &dyn Fn(&Measurement) -> &str| -> PyResult<Bound<'py, PyAny>> {
         let mut names: Vec<&str> = Vec::new();
@@ -405,9 +394,7 @@ pub fn measurements_dict<'py>(
             });
             codes.push(idx as u32);
         }
-        let codes =
-            ArrayD::from_shape_vec(dim.clone(), codes).map_err(|e| value_error(e.to_string()))?;
-        str_array(py, &names, codes)
+        str_array(py, &names, Array1::from(codes).into_dyn())
     };
     let nan = f64::NAN;
     let d = PyDict::new(py);
