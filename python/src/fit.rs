@@ -9,9 +9,9 @@ use ndarray::{ArrayD, IxDyn};
 use numpy::{PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use polarid_core::CoreError;
 use polarid_core::fit::{
-    FitBounds, FitOptions, FitPlan, FitStatus, NkFit, PixelBetaPlan, fit_batch,
-    fit_batch_pixel_beta,
+    FitOptions, FitPlan, FitStatus, NkFit, PixelBetaPlan, fit_batch, fit_batch_pixel_beta,
 };
+use polarid_core::mixed::Shadowing;
 use polarid_pipeline::fit::{
     FitConfig, PlanCache, Reflectance, check_range, parse_shadowing, read_measurements,
 };
@@ -167,15 +167,12 @@ pub fn fit_nk<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     check_range("n_range", n_range).py_err()?;
     check_range("k_range", k_range).py_err()?;
-    let opts = FitOptions {
-        bounds: FitBounds {
-            n_min: n_range.0,
-            n_max: n_range.1,
-            k_min: k_range.0,
-            k_max: k_range.1,
-        },
-        ..Default::default()
-    };
+    let opts = FitConfig {
+        n_range,
+        k_range,
+        ..FitConfig::default()
+    }
+    .fit_options();
     // float32 DoLP (the dtype of polarid.dolp) is read as it is and converted chunk by
     // chunk in the workers; every other dtype becomes one float64 array.
     let y = float_array("dolp", dolp)?;
@@ -611,6 +608,15 @@ fn batch_dict<'py>(
     Ok(d)
 }
 
+/// `shadowing` of `fit_table` and `fit_mixed`: `"none"` or `"smith"`.
+pub(crate) fn shadowing_arg(name: &str) -> PyResult<Shadowing> {
+    parse_shadowing(name).ok_or_else(|| {
+        value_error(format!(
+            "shadowing must be \"none\" or \"smith\", got {name:?}"
+        ))
+    })
+}
+
 /// Fit every target of a measurements CSV — the table-level form of ``polarid fit``
 /// (same Rust function, ``polarid_pipeline::fit``: same rows, statuses and numbers).
 ///
@@ -717,11 +723,7 @@ pub fn fit_table<'py>(
         k_range,
         depolarized_dolp,
         estimate_theta_r,
-        shadowing: parse_shadowing(shadowing).ok_or_else(|| {
-            value_error(format!(
-                "shadowing must be \"none\" or \"smith\", got {shadowing:?}"
-            ))
-        })?,
+        shadowing: shadowing_arg(shadowing)?,
         s0_rel_sd,
         sigma_range,
         angle_sd_deg,

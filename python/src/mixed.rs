@@ -4,11 +4,11 @@
 //! pure-specular model.
 
 use polarid_core::mixed::{MixedCapture, MixedFit, MixedOptions, fit_mixed as core_fit};
-use polarid_pipeline::fit::parse_shadowing;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::errors::{PyResultExt, value_error};
+use crate::fit::shadowing_arg;
 
 /// Register this module's functions.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -108,11 +108,7 @@ fn fit_mixed<'py>(
             se.len()
         )));
     }
-    let shadowing = parse_shadowing(shadowing).ok_or_else(|| {
-        value_error(format!(
-            "shadowing must be \"none\" or \"smith\", got {shadowing:?}"
-        ))
-    })?;
+    let shadowing = shadowing_arg(shadowing)?;
     let caps: Vec<MixedCapture> = (0..t)
         .map(|i| {
             MixedCapture::new(
