@@ -217,17 +217,13 @@ fn spread_table(out: &BenchOutput) -> report::Table {
             ])
         })
         .collect();
-    report::Table {
-        caption: "Per-pixel geometry over each training plate's region (degrees): φ and \
-                  β are region means; the region's β range and standard deviation; the \
-                  noise-free DoLP of the region's summed Stokes vector."
-            .into(),
-        headers: ["target", "capture", "φ", "β", "β range", "β sd", "DoLP"]
-            .iter()
-            .map(|s| s.to_string())
-            .collect(),
+    report::Table::new(
+        "Per-pixel geometry over each training plate's region (degrees): φ and β are \
+         region means; the region's β range and standard deviation; the noise-free DoLP of \
+         the region's summed Stokes vector.",
+        &["target", "capture", "φ", "β", "β range", "β sd", "DoLP"],
         rows,
-    }
+    )
 }
 
 /// The training plates' rendered indices.

@@ -431,14 +431,11 @@ fn accuracy_table(out: &ColourDemoOutput) -> report::Table {
             ]
         })
         .collect();
-    report::Table {
-        caption: format!(
-            "Test plates right over {} seeds: three bands against the 650 nm band of the \
-                 same images, under the fit's default error model and without its \
-                 surface-layer allowance.",
-            out.seeds
-        ),
-        headers: headers.iter().map(|s| s.to_string()).collect(),
-        rows,
-    }
+    let caption = format!(
+        "Test plates right over {} seeds: three bands against the 650 nm band of the \
+             same images, under the fit's default error model and without its \
+             surface-layer allowance.",
+        out.seeds
+    );
+    report::Table::new(caption, &headers, rows)
 }

@@ -312,27 +312,22 @@ fn paper_table(fits: &[(u64, FitRow)]) -> report::Table {
             ])
         })
         .collect();
-    report::Table {
-        caption: "The paper's own estimates (Tables 1 and 2, real plates) beside the \
-                  simulation's. The simulated plates carry a native layer of a few \
-                  nanometres, so their estimates land on the index a single-interface \
-                  fit sees on the layered surface, not on the bulk reference (for \
-                  aluminum under Al₂O₃, lower n and k); the paper's differ from the \
-                  references by the model error of real surfaces."
-            .into(),
-        headers: [
+    report::Table::new(
+        "The paper's own estimates (Tables 1 and 2, real plates) beside the simulation's. \
+         The simulated plates carry a native layer of a few nanometres, so their estimates \
+         land on the index a single-interface fit sees on the layered surface, not on the \
+         bulk reference (for aluminum under Al₂O₃, lower n and k); the paper's differ from \
+         the references by the model error of real surfaces.",
+        &[
             "target",
             "θr (°)",
             "n̂ (here)",
             "k̂ (here)",
             "paper n̂",
             "paper k̂",
-        ]
-        .iter()
-        .map(|s| s.to_string())
-        .collect(),
-        rows: paper_rows,
-    }
+        ],
+        paper_rows,
+    )
 }
 
 /// The report's summary: the experiment, and the result of each test view.

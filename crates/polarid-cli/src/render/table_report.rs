@@ -664,12 +664,12 @@ pub fn hypothesis_tables(
                      scale and offset."
                 .into(),
         };
-        out.push(report::Table {
-            caption: format!(
+        out.push(report::Table::new(
+            format!(
                 "In-scene references: the polarimeter scale and the common angle offset their \
                  rows measure (± 1 SE), with their own native layer. {bounds}"
             ),
-            headers: [
+            &[
                 "Target",
                 "Material",
                 "Scale",
@@ -678,12 +678,8 @@ pub fn hypothesis_tables(
                 "χ² (dof)",
                 "p-value",
                 "Used",
-            ]
-            .iter()
-            .map(|h| h.to_string())
-            .collect(),
-            rows: c
-                .references
+            ],
+            c.references
                 .iter()
                 .map(|r| {
                     let mut row = vec![r.target.clone(), r.reference.to_string()];
@@ -705,7 +701,7 @@ pub fn hypothesis_tables(
                     row
                 })
                 .collect(),
-        });
+        ));
     }
     if !hyps.is_empty() {
         let mut rows = Vec::new();
@@ -731,14 +727,13 @@ pub fn hypothesis_tables(
                 ]);
             }
         }
-        out.push(report::Table {
-            caption: "Each material tested against each target's measured rows, most probable \
-                      first: its probability, whether it passes at the confidence, χ² \
-                      (effective dof) and p-value, and the native-layer thickness, polarimeter \
-                      scale and common angle offset it needed (bounded by the in-scene \
-                      reference when there is one, else by the error model)."
-                .into(),
-            headers: [
+        out.push(report::Table::new(
+            "Each material tested against each target's measured rows, most probable first: \
+             its probability, whether it passes at the confidence, χ² (effective dof) and \
+             p-value, and the native-layer thickness, polarimeter scale and common angle \
+             offset it needed (bounded by the in-scene reference when there is one, else by \
+             the error model).",
+            &[
                 "Target",
                 "Material",
                 "Probability",
@@ -749,12 +744,9 @@ pub fn hypothesis_tables(
                 "Scale",
                 "Offset (°)",
                 "Bounds",
-            ]
-            .iter()
-            .map(|h| h.to_string())
-            .collect(),
+            ],
             rows,
-        });
+        ));
     }
     out
 }
