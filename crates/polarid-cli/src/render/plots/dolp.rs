@@ -34,16 +34,26 @@ pub struct DolpSeries {
     pub curve_label: Option<String>,
 }
 
-impl DolpSeries {
-    /// The points with a finite β and DoLP, each with its ±1 SE bar's half-height (0: none).
-    fn drawn(&self) -> impl Iterator<Item = (&DolpPoint, f64)> {
-        let se = |p: &DolpPoint| p.dolp_se.filter(|s| s.is_finite() && *s > 0.0);
-        let ok = |p: &&DolpPoint| p.beta_deg.is_finite() && p.dolp.is_finite();
-        self.points
-            .iter()
-            .filter(ok)
-            .map(move |p| (p, se(p).unwrap_or(0.0)))
+impl DolpPoint {
+    /// Whether the point can be drawn: its β and DoLP are finite.
+    pub(super) fn valid(&self) -> bool {
+        self.beta_deg.is_finite() && self.dolp.is_finite()
     }
+
+    /// Its ±1 SE bar's half-height (0 when it has no standard error).
+    pub(super) fn se(&self) -> f64 {
+        self.dolp_se
+            .filter(|s| s.is_finite() && *s > 0.0)
+            .unwrap_or(0.0)
+    }
+}
+
+/// The samples of curve `c` whose both coordinates are finite.
+pub(super) fn finite(c: &[(f64, f64)]) -> Vec<(f64, f64)> {
+    c.iter()
+        .copied()
+        .filter(|(x, y)| x.is_finite() && y.is_finite())
+        .collect()
 }
 
 /// `samples` points of `f(β)` for β evenly spaced over `[beta_min_deg, beta_max_deg]`
@@ -95,13 +105,17 @@ pub fn dolp_vs_beta(title: &str, series: &[DolpSeries], size: PlotSize) -> Resul
 /// (`None`: no finite value).
 pub(super) fn dolp_ranges(series: &[DolpSeries]) -> (Option<(f64, f64)>, Option<(f64, f64)>) {
     let xs = series.iter().flat_map(|s| {
-        s.drawn()
-            .map(|(p, _)| p.beta_deg)
+        s.points
+            .iter()
+            .filter(|p| p.valid())
+            .map(|p| p.beta_deg)
             .chain(s.curve.iter().filter(|c| c.1.is_finite()).map(|c| c.0))
     });
     let ys = series.iter().flat_map(|s| {
-        s.drawn()
-            .flat_map(|(p, e)| [p.dolp - e, p.dolp + e])
+        s.points
+            .iter()
+            .filter(|p| p.valid())
+            .flat_map(|p| [p.dolp - p.se(), p.dolp + p.se()])
             .chain(s.curve.iter().filter(|c| c.0.is_finite()).map(|c| c.1))
     });
     (min_max(xs), min_max(ys))
@@ -116,19 +130,14 @@ pub(super) fn draw_dolp_series<DB: DrawingBackend>(
     c: RGBColor,
     (line, radius, detailed): (u32, i32, bool),
 ) -> Result<()> {
-    let curve: Vec<(f64, f64)> = s
-        .curve
-        .iter()
-        .copied()
-        .filter(|(x, y)| x.is_finite() && y.is_finite())
-        .collect();
+    let curve = finite(&s.curve);
     if !curve.is_empty() {
         ch.draw_series(LineSeries::new(curve, c.stroke_width(line)))
             .dr()?;
     }
     let area = ch.plotting_area();
-    for (p, e) in s.drawn() {
-        let at = (p.beta_deg, p.dolp);
+    for p in s.points.iter().filter(|p| p.valid()) {
+        let (at, e) = ((p.beta_deg, p.dolp), p.se());
         if e > 0.0 {
             let st = shade(c, 0.8).stroke_width(2);
             area.draw(&PathElement::new(
