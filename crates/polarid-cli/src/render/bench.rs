@@ -32,7 +32,7 @@ pub fn figures(out: &BenchOutput) -> anyhow::Result<Vec<BenchFigure>> {
         .filter(|(t, _)| !is_test(t))
         .filter_map(|(t, ms)| {
             let f = fit_of(t)?;
-            Some(common::dolp_series(t.to_string(), f, ms))
+            Some(common::dolp_series(t.to_string(), Some(f), ms))
         })
         .collect();
     let mut figs = vec![BenchFigure {

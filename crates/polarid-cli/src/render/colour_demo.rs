@@ -91,7 +91,11 @@ fn band_figures(
         .filter(|f| is_test(out, &f.target))
         .filter_map(|f| {
             let ms = per_target.get(f.target.as_str())?;
-            Some(super::demo::common::dolp_series(f.target.clone(), f, ms))
+            Some(super::demo::common::dolp_series(
+                f.target.clone(),
+                Some(f),
+                ms,
+            ))
         })
         .collect();
     let dolp = ColourFigure {

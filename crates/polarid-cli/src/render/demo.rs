@@ -32,7 +32,7 @@ pub fn figures(out: &DemoOutput) -> anyhow::Result<[Rendered; 3]> {
                 } else {
                     format!("test plate, θr = {:.0}°", p.theta_r)
                 };
-                Some(common::dolp_series(label, f, ms))
+                Some(common::dolp_series(label, Some(f), ms))
             })
             .collect()
     };

@@ -17,7 +17,7 @@ use polarid_core::classify::{MultiPrototype, same_band};
 use polarid_io::library::{BUILTIN_SOURCES, RiiData};
 use polarid_io::table::classification::ClassificationRow;
 use polarid_io::table::fits::FitRow;
-use polarid_io::table::measurements::Measurement;
+use polarid_io::table::measurements::{Measurement, RowStatus};
 
 use super::plots::bands::{Spectrum, SpectrumPoint, nk_spectra};
 use super::plots::panels::{DolpBand, NkBand, band_label, dolp_by_band, nk_by_band};
@@ -235,35 +235,17 @@ impl<'a> Drawn<'a> {
 
     /// The DoLP of `target` (in band `w`; `None`: every row) and its fitted curve.
     fn series(&self, target: &str, w: Option<f64>) -> plots::DolpSeries {
-        let ms: Vec<plots::DolpPoint> = self
+        let ms: Vec<&Measurement> = self
             .t
             .measurements
             .iter()
-            .filter(|m| {
-                m.target == target && m.status == polarid_io::table::measurements::RowStatus::Ok
-            })
+            .filter(|m| m.target == target && m.status == RowStatus::Ok)
             .filter(|m| w.is_none() || same_band(m.wavelength_nm, w))
-            .map(|m| plots::DolpPoint {
-                beta_deg: m.beta_deg,
-                dolp: m.dolp,
-                dolp_se: m.dolp_se,
-            })
             .collect();
-        let (lo, hi) = ms.iter().fold((f64::MAX, f64::MIN), |(a, b), p| {
-            (a.min(p.beta_deg), b.max(p.beta_deg))
-        });
         let f = self
             .fit_of(target, w)
             .filter(|f| f.n.is_finite() && f.k.is_finite());
-        plots::DolpSeries {
-            label: target.to_string(),
-            curve: match f {
-                Some(f) if !ms.is_empty() => plots::eq9_curve(f.n, f.k, lo - 2.0, hi + 2.0, 60),
-                _ => Vec::new(),
-            },
-            curve_label: f.map(|f| format!("fit n = {:.2}, k = {:.2}", f.n, f.k)),
-            points: ms,
-        }
+        super::demo::common::dolp_series(target.to_string(), f, &ms)
     }
 
     fn estimate(&self, f: &FitRow) -> plots::NkEstimate {

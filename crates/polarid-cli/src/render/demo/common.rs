@@ -20,9 +20,10 @@ pub fn by_target(meas: &[(u64, Measurement)]) -> BTreeMap<&str, Vec<&Measurement
     by_target
 }
 
-/// One plate's DoLP against β: its measurements `ms` (±1 standard error) and the curve
-/// of eq. (9) of its fit `f`, 2° beyond the measured β on each side.
-pub fn dolp_series(label: String, f: &FitRow, ms: &[&Measurement]) -> plots::DolpSeries {
+/// One plate's DoLP against β: its measurements `ms` (±1 standard error) and, with its
+/// fit `f` and measurements, the curve of eq. (9) of the fit, 2° beyond the measured β on
+/// each side.
+pub fn dolp_series(label: String, f: Option<&FitRow>, ms: &[&Measurement]) -> plots::DolpSeries {
     let points: Vec<plots::DolpPoint> = ms
         .iter()
         .map(|m| plots::DolpPoint {
@@ -35,9 +36,12 @@ pub fn dolp_series(label: String, f: &FitRow, ms: &[&Measurement]) -> plots::Dol
     let hi = points.iter().map(|q| q.beta_deg).fold(f64::MIN, f64::max);
     plots::DolpSeries {
         label,
+        curve: match f {
+            Some(f) if !points.is_empty() => plots::eq9_curve(f.n, f.k, lo - 2.0, hi + 2.0, 60),
+            _ => Vec::new(),
+        },
+        curve_label: f.map(|f| format!("fit n = {:.2}, k = {:.2}", f.n, f.k)),
         points,
-        curve: plots::eq9_curve(f.n, f.k, lo - 2.0, hi + 2.0, 60),
-        curve_label: Some(format!("fit n = {:.2}, k = {:.2}", f.n, f.k)),
     }
 }
 
