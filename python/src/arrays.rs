@@ -62,6 +62,18 @@ pub fn broadcast_to<'a>(
     })
 }
 
+/// The named views broadcast together: their common shape ([`broadcast_shape`]) and
+/// the zero-copy views ([`broadcast_to`]), in the order of `args`.
+pub fn broadcast_all<'a>(
+    args: &[(&str, &'a ArrayViewD<'a, f64>)],
+) -> PyResult<(Vec<usize>, Vec<ArrayViewD<'a, f64>>)> {
+    let shapes: Vec<(&str, &[usize])> = args.iter().map(|(n, v)| (*n, v.shape())).collect();
+    let shape = broadcast_shape(&shapes)?;
+    let views = args.iter().map(|(n, v)| broadcast_to(n, v, &shape));
+    let views = views.collect::<PyResult<_>>()?;
+    Ok((shape, views))
+}
+
 /// Apply a check (e.g. `polarid_core::error::ensure_range`) to every element; the first
 /// failure is returned.
 pub fn check_each(
