@@ -133,13 +133,15 @@ impl Protos {
     }
 }
 
-/// A colour pattern and the wavelength of each of its bands (pattern order).
+/// A colour pattern (`pattern` by default IMX250MYR's 90, 45, 135, 0) and the wavelength
+/// of each of its bands (pattern order).
 fn colour_pattern(
     color: &str,
-    pattern: &[f64],
+    pattern: Option<Vec<f64>>,
     bands: Option<HashMap<String, f64>>,
 ) -> PyResult<(ColourPattern, Vec<f64>)> {
-    let cp = ColourPattern::new(Pattern::new(pattern).py_err()?, color).py_err()?;
+    let pattern = pattern.unwrap_or_else(|| vec![90.0, 45.0, 135.0, 0.0]);
+    let cp = ColourPattern::new(Pattern::new(&pattern).py_err()?, color).py_err()?;
     let nms = wavelengths(&cp, bands)?;
     Ok((cp, nms))
 }
@@ -191,10 +193,7 @@ fn _map_names(
     )?;
     let protos = Protos::new(model_json, library, label)?;
     let wls = match color {
-        Some(c) => {
-            let p = pattern.unwrap_or_else(|| vec![90.0, 45.0, 135.0, 0.0]);
-            band_order(&colour_pattern(c, &p, bands)?.1).0
-        }
+        Some(c) => band_order(&colour_pattern(c, pattern, bands)?.1).0,
         None => Vec::new(),
     };
     let bands_of: Vec<Option<f64>> = if wls.is_empty() {
@@ -298,8 +297,7 @@ fn inputs<'py>(
     };
     let kind = match (colour, pattern, &angles_deg) {
         (Some((c, bands)), p, _) => {
-            let p = p.unwrap_or_else(|| vec![90.0, 45.0, 135.0, 0.0]);
-            let (cp, nms) = colour_pattern(c, &p, bands)?;
+            let (cp, nms) = colour_pattern(c, p, bands)?;
             Kind::Colour(cp, nms)
         }
         (None, Some(p), _) => Kind::Dofp(Pattern::new(&p).py_err()?),
