@@ -26,7 +26,7 @@ fn is_test(t: &str) -> bool {
 pub fn figures(out: &BenchOutput) -> anyhow::Result<Vec<BenchFigure>> {
     let size = PlotSize::REPORT;
     let fit_of = |t: &str| out.fits.iter().map(|(_, f)| f).find(|f| f.target == t);
-    let by_target = common::by_target(&out.measurements);
+    let by_target = common::by_target(out.measurements.iter().map(|(_, m)| m));
     let series: Vec<plots::DolpSeries> = by_target
         .iter()
         .filter(|(t, _)| !is_test(t))

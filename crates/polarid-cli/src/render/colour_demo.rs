@@ -4,8 +4,6 @@
 //! `n(λ)` and `k(λ)` of the test plates against the materials' library curves; the
 //! accuracy table (three bands against 650 nm alone, over many seeds).
 
-use std::collections::BTreeMap;
-
 use polarid_io::table::fits::FitRow;
 use polarid_io::table::measurements::Measurement;
 use polarid_pipeline::demo::colour::{
@@ -82,10 +80,7 @@ fn band_figures(
     ms: &[Measurement],
     size: PlotSize,
 ) -> anyhow::Result<[ColourFigure; 2]> {
-    let mut per_target: BTreeMap<&str, Vec<&Measurement>> = BTreeMap::new();
-    for m in ms.iter().filter(|m| is_test(out, &m.target)) {
-        per_target.entry(m.target.as_str()).or_default().push(m);
-    }
+    let per_target = super::demo::common::by_target(ms.iter().filter(|m| is_test(out, &m.target)));
     let series: Vec<plots::DolpSeries> = band_fits
         .iter()
         .filter(|f| is_test(out, &f.target))

@@ -19,7 +19,7 @@ use super::report::{self, Figure, Report};
 pub fn figures(out: &DemoOutput) -> anyhow::Result<[Rendered; 3]> {
     let is_training = |t: &str| PLATES.iter().any(|p| p.training && p.target == t);
     let fit_of = |t: &str| out.fits.iter().map(|(_, f)| f).find(|f| f.target == t);
-    let by_target = common::by_target(&out.measurements);
+    let by_target = common::by_target(out.measurements.iter().map(|(_, m)| m));
     let series = |training: bool| -> Vec<plots::DolpSeries> {
         PLATES
             .iter()

@@ -11,10 +11,12 @@ use polarid_io::table::measurements::Measurement;
 use crate::render::plots;
 use crate::render::report;
 
-/// The measurements of each target, in file order.
-pub fn by_target(meas: &[(u64, Measurement)]) -> BTreeMap<&str, Vec<&Measurement>> {
+/// The measurements of each target, in their order.
+pub fn by_target<'a>(
+    meas: impl IntoIterator<Item = &'a Measurement>,
+) -> BTreeMap<&'a str, Vec<&'a Measurement>> {
     let mut by_target: BTreeMap<&str, Vec<&Measurement>> = BTreeMap::new();
-    for (_, m) in meas {
+    for m in meas {
         by_target.entry(m.target.as_str()).or_default().push(m);
     }
     by_target
