@@ -43,7 +43,7 @@ pub fn figures(out: &BenchOutput) -> anyhow::Result<Vec<BenchFigure>> {
                   against the region's β, and the fitted eq. (9) curve."
             .into(),
     }];
-    let protos = common::prototypes(&out.model);
+    let protos = common::prototypes(&out.model.prototypes);
     let clf = super::demo::classifier_of(&out.model, &out.classification);
     let ests: Vec<plots::NkEstimate> = out
         .fits

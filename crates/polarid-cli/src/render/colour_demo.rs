@@ -107,17 +107,8 @@ fn band_figures(
             size,
         )?,
     };
-    let protos: Vec<plots::Prototype> = out
-        .model
-        .prototypes
-        .iter()
-        .filter(|p| p.wavelength_nm == Some(wl))
-        .map(|p| plots::Prototype {
-            class: p.class.clone(),
-            n: p.n,
-            k: p.k,
-        })
-        .collect();
+    let band = out.model.prototypes.iter();
+    let protos = super::demo::common::prototypes(band.filter(|p| p.wavelength_nm == Some(wl)));
     let ests: Vec<plots::NkEstimate> = band_fits
         .iter()
         .filter(|f| is_test(out, &f.target))

@@ -47,7 +47,7 @@ pub fn figures(out: &DemoOutput) -> anyhow::Result<[Rendered; 3]> {
         &series(false),
         size,
     )?;
-    let protos = common::prototypes(&out.model);
+    let protos = common::prototypes(&out.model.prototypes);
     let clf = same_bench_classifier_of(&out.model, &out.classification);
     let ests: Vec<plots::NkEstimate> = out
         .fits

@@ -3,7 +3,7 @@
 
 use std::collections::BTreeMap;
 
-use polarid_io::model::Model;
+use polarid_io::model::ModelPrototype;
 use polarid_io::table::classification::ClassificationRow;
 use polarid_io::table::fits::FitRow;
 use polarid_io::table::measurements::Measurement;
@@ -47,11 +47,9 @@ pub fn dolp_series(label: String, f: Option<&FitRow>, ms: &[&Measurement]) -> pl
     }
 }
 
-/// The model's prototypes as the (n, k) plane draws them.
-pub fn prototypes(model: &Model) -> Vec<plots::Prototype> {
-    model
-        .prototypes
-        .iter()
+/// A model's prototypes as the (n, k) plane draws them.
+pub fn prototypes<'a>(ps: impl IntoIterator<Item = &'a ModelPrototype>) -> Vec<plots::Prototype> {
+    ps.into_iter()
         .map(|p| plots::Prototype {
             class: p.class.clone(),
             n: p.n,
