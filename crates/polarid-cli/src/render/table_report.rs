@@ -248,6 +248,22 @@ impl<'a> Drawn<'a> {
         super::demo::common::dolp_series(target.to_string(), f, &ms)
     }
 
+    /// The chosen references' `(n, k)` in band `w` (`or_first`: else in their first band).
+    fn references(&self, w: Option<f64>, or_first: bool) -> Vec<plots::Prototype> {
+        let first = |p: &MultiPrototype| p.bands.first().filter(|_| or_first).map(|b| (b.n, b.k));
+        self.chosen
+            .iter()
+            .filter_map(|p| {
+                let (n, k) = band_nk(p, w).or_else(|| first(p))?;
+                Some(plots::Prototype {
+                    class: p.class.clone(),
+                    n,
+                    k,
+                })
+            })
+            .collect()
+    }
+
     fn estimate(&self, f: &FitRow) -> plots::NkEstimate {
         plots::NkEstimate::from_fit(f.target.clone(), f, self.t.classification, None)
     }
@@ -269,18 +285,7 @@ impl<'a> Drawn<'a> {
                 plots::dolp_vs_beta(&format!("DoLP against β{at} ({what})"), &s, PlotSize::REPORT)?,
             ));
         }
-        let protos: Vec<plots::Prototype> = self
-            .chosen
-            .iter()
-            .filter_map(|p| {
-                let (n, k) = band_nk(p, w).or_else(|| p.bands.first().map(|b| (b.n, b.k)))?;
-                Some(plots::Prototype {
-                    class: p.class.clone(),
-                    n,
-                    k,
-                })
-            })
-            .collect();
+        let protos = self.references(w, true);
         let ests: Vec<plots::NkEstimate> = self
             .shown
             .iter()
@@ -321,18 +326,7 @@ impl<'a> Drawn<'a> {
             .iter()
             .map(|&w| NkBand {
                 wavelength_nm: w,
-                references: self
-                    .chosen
-                    .iter()
-                    .filter_map(|p| {
-                        let (n, k) = band_nk(p, Some(w))?;
-                        Some(plots::Prototype {
-                            class: p.class.clone(),
-                            n,
-                            k,
-                        })
-                    })
-                    .collect(),
+                references: self.references(Some(w), false),
                 estimates: self
                     .shown
                     .iter()
