@@ -23,6 +23,7 @@ use pyo3::types::{PyDict, PyList};
 
 use crate::arrays::{shaped, str_array};
 use crate::errors::{PyResultExt, value_error};
+use crate::set_fields;
 
 /// Register this module's functions.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -228,11 +229,8 @@ pub fn load_manifest<'py>(
     warn_all(py, &m)?;
     let d = PyDict::new(py);
     d.set_item("path", m.path.display().to_string())?;
-    d.set_item("theta_r_deg", m.theta_r_deg)?;
-    d.set_item("phi_deg", m.phi_deg)?;
-    d.set_item("dark_level", m.dark_level)?;
-    d.set_item("saturation", m.saturation)?;
-    d.set_item("wavelength_nm", m.wavelength_nm)?;
+    set_fields!(d, m, theta_r_deg, phi_deg);
+    set_fields!(d, m, dark_level, saturation, wavelength_nm);
     d.set_item("calibrated", m.camera.is_some())?;
     let regions = PyList::empty(py);
     for r in &m.regions {
@@ -240,23 +238,15 @@ pub fn load_manifest<'py>(
         rd.set_item("name", &r.name)?;
         rd.set_item("rect", (r.rect.x, r.rect.y, r.rect.width, r.rect.height))?;
         rd.set_item("class", r.class.as_deref())?;
-        rd.set_item("line", r.line)?;
-        rd.set_item("index", r.index)?;
+        set_fields!(rd, r, line, index);
         regions.append(rd)?;
     }
     d.set_item("regions", regions)?;
     let captures = PyList::empty(py);
     for c in &m.captures {
         let cd = PyDict::new(py);
-        cd.set_item("index", c.index)?;
-        cd.set_item("line", c.line)?;
-        cd.set_item("name", c.name.as_deref())?;
-        cd.set_item("theta_i_deg", c.theta_i_deg)?;
-        cd.set_item("theta_r_deg", c.theta_r_deg)?;
-        cd.set_item("phi_deg", c.phi_deg)?;
-        cd.set_item("exposure", c.exposure)?;
-        cd.set_item("dark_level", c.dark_level)?;
-        cd.set_item("saturation", c.saturation)?;
+        set_fields!(cd, c, index, line, name, theta_i_deg, theta_r_deg, phi_deg);
+        set_fields!(cd, c, exposure, dark_level, saturation);
         // A calibrated capture has no single β (the far-field angles are not set).
         let calibrated = c.illumination.is_some();
         cd.set_item("beta_deg", (!calibrated).then(|| beta_deg(c)))?;

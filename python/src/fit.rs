@@ -20,6 +20,7 @@ use pyo3::types::{PyDict, PyList};
 
 use crate::arrays::{FloatArray, f64_contiguous, float_array, fmt_shape, to_numpy};
 use crate::errors::{PyResultExt, value_error};
+use crate::set_fields;
 
 /// Register this module's functions and constants.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -67,16 +68,8 @@ fn pixel_plan_for(opts: FitOptions) -> Result<Arc<PixelBetaPlan>, CoreError> {
 
 fn single_dict<'py>(py: Python<'py>, f: &NkFit) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
-    d.set_item("n", f.n)?;
-    d.set_item("k", f.k)?;
-    d.set_item("n_se", f.n_se)?;
-    d.set_item("k_se", f.k_se)?;
-    d.set_item("nk_corr", f.nk_corr)?;
-    d.set_item("rms_residual", f.rms_residual)?;
-    d.set_item("cost", f.cost)?;
-    d.set_item("iterations", f.iterations)?;
-    d.set_item("evaluations", f.evaluations)?;
-    d.set_item("starts", f.starts)?;
+    set_fields!(d, f, n, k, n_se, k_se, nk_corr, rms_residual);
+    set_fields!(d, f, cost, iterations, evaluations, starts);
     d.set_item("status", f.status.as_str())?;
     d.set_item("reason", f.reason)?;
     Ok(d)
