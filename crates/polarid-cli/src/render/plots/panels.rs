@@ -134,13 +134,7 @@ impl Figure for DolpPanels<'_> {
         }
         let mut legend = vec![LegendItem::Heading("targets (±1 SE)".into())];
         // ok: `bands` is not empty (checked above).
-        for (i, s) in self.bands[0].series.iter().enumerate() {
-            legend.push(LegendItem::Marker(
-                Marker::Circle,
-                class_colour(i),
-                s.label.clone(),
-            ));
-        }
+        legend.extend(class_markers(self.bands[0].series.iter().map(|s| &s.label)));
         legend.push(LegendItem::Line(BLACK, "eq. (9) fit of the band".into()));
         draw_legend(&side, &legend)?;
         Ok(None)
@@ -246,13 +240,7 @@ impl Figure for NkPanels<'_> {
         if !classes.is_empty() {
             legend.push(LegendItem::Heading("references".into()));
         }
-        for (i, c) in classes.iter().enumerate() {
-            legend.push(LegendItem::Marker(
-                Marker::Circle,
-                class_colour(i),
-                c.to_string(),
-            ));
-        }
+        legend.extend(class_markers(&classes));
         legend.push(LegendItem::Heading("targets (1-σ ellipse)".into()));
         let n_targets = self.bands.iter().map(|b| b.estimates.len()).max();
         for j in 0..n_targets.unwrap_or(0) {
