@@ -276,64 +276,44 @@ fn summary(out: &ColourDemoOutput) -> Vec<String> {
 
 /// The scenes, manifests and tables the colour demo wrote.
 fn inputs(out: &ColourDemoOutput) -> Vec<report::InputItem> {
-    let mut inputs: Vec<report::InputItem> = out
-        .scenes
-        .iter()
-        .zip(&out.manifests)
-        .flat_map(|(s, m)| {
-            [
-                report::InputItem {
-                    role: "scene".into(),
-                    path: s.clone(),
-                    detail: "colour scene (true angles)".into(),
-                },
-                report::InputItem {
-                    role: "manifest".into(),
-                    path: m.clone(),
-                    detail: "bands and dofp.color, written by the simulator".into(),
-                },
-            ]
-        })
-        .collect();
-    for (role, path, detail) in [
-        (
-            "measurements",
-            "measurements.csv",
-            "DoLP per capture, band and plate",
-        ),
-        (
-            "fits",
-            "fits.csv",
-            "n, k per target per band (default error model)",
-        ),
-        (
-            "model",
-            "model.json",
-            "three-band prototypes of the training plates",
-        ),
-        (
-            "classification",
-            "classification.csv",
-            "test plates, three bands, set rule",
-        ),
-        (
-            "classification",
-            "classification_650nm.csv",
-            "test plates, 650 nm rows only, set rule",
-        ),
-        (
-            "table",
-            "accuracy.md",
-            "three bands against 650 nm, all seeds",
-        ),
-    ] {
-        inputs.push(report::InputItem {
-            role: role.into(),
-            path: path.into(),
-            detail: detail.into(),
-        });
-    }
-    inputs
+    super::demo::common::inputs(
+        &out.scenes,
+        &out.manifests,
+        |_| "colour scene (true angles)".into(),
+        "bands and dofp.color, written by the simulator",
+        &[
+            (
+                "measurements",
+                "measurements.csv",
+                "DoLP per capture, band and plate",
+            ),
+            (
+                "fits",
+                "fits.csv",
+                "n, k per target per band (default error model)",
+            ),
+            (
+                "model",
+                "model.json",
+                "three-band prototypes of the training plates",
+            ),
+            (
+                "classification",
+                "classification.csv",
+                "test plates, three bands, set rule",
+            ),
+            (
+                "classification",
+                "classification_650nm.csv",
+                "test plates, 650 nm rows only, set rule",
+            ),
+            (
+                "table",
+                "accuracy.md",
+                "three bands against 650 nm, all seeds",
+            ),
+        ],
+    )
 }
 
 /// The materials' reference indices per band.
