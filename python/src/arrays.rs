@@ -62,6 +62,18 @@ pub fn broadcast_to<'a>(
     })
 }
 
+/// The named views broadcast together: their common shape ([`broadcast_shape`]) and
+/// the zero-copy views ([`broadcast_to`]), in the order of `args`.
+pub fn broadcast_all<'a>(
+    args: &[(&str, &'a ArrayViewD<'a, f64>)],
+) -> PyResult<(Vec<usize>, Vec<ArrayViewD<'a, f64>>)> {
+    let shapes: Vec<(&str, &[usize])> = args.iter().map(|(n, v)| (*n, v.shape())).collect();
+    let shape = broadcast_shape(&shapes)?;
+    let views = args.iter().map(|(n, v)| broadcast_to(n, v, &shape));
+    let views = views.collect::<PyResult<_>>()?;
+    Ok((shape, views))
+}
+
 /// Apply a check (e.g. `polarid_core::error::ensure_range`) to every element; the first
 /// failure is returned.
 pub fn check_each(
@@ -231,6 +243,16 @@ pub fn float_array<'py>(name: &str, obj: &Bound<'py, PyAny>) -> PyResult<FloatAr
 /// Hand an owned array of any element type to numpy without a copy.
 pub fn to_numpy<'py, T: numpy::Element>(py: Python<'py>, a: ArrayD<T>) -> Bound<'py, PyAny> {
     a.into_pyarray(py).into_any()
+}
+
+/// `v` as a numpy array of `shape` (row-major, no copy).
+pub fn shaped<'py, T: numpy::Element>(
+    py: Python<'py>,
+    shape: &[usize],
+    v: Vec<T>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let a = ArrayD::from_shape_vec(IxDyn(shape), v).map_err(|e| value_error(e.to_string()))?;
+    Ok(to_numpy(py, a))
 }
 
 /// A numpy array of strings `names[codes[i]]` (dtype `<U…`), built by numpy's `take`.

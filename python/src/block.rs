@@ -19,7 +19,6 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use ndarray::{ArrayD, IxDyn};
 use numpy::PyUntypedArrayMethods;
 use polarid_core::CoreError;
 use polarid_core::map::noise::NoiseModel;
@@ -39,7 +38,7 @@ use polarid_pipeline::map::{
 use pyo3::IntoPyObjectExt;
 use pyo3::prelude::*;
 
-use crate::arrays::{f64_contiguous, fmt_shape, raw_array, to_numpy};
+use crate::arrays::{f64_contiguous, fmt_shape, raw_array, shaped};
 use crate::colour::wavelengths;
 use crate::errors::{IntoPyErr, PyResultExt, value_error};
 use crate::map::map_config;
@@ -134,13 +133,15 @@ impl Protos {
     }
 }
 
-/// A colour pattern and the wavelength of each of its bands (pattern order).
+/// A colour pattern (`pattern` by default IMX250MYR's 90, 45, 135, 0) and the wavelength
+/// of each of its bands (pattern order).
 fn colour_pattern(
     color: &str,
-    pattern: &[f64],
+    pattern: Option<Vec<f64>>,
     bands: Option<HashMap<String, f64>>,
 ) -> PyResult<(ColourPattern, Vec<f64>)> {
-    let cp = ColourPattern::new(Pattern::new(pattern).py_err()?, color).py_err()?;
+    let pattern = pattern.unwrap_or_else(|| vec![90.0, 45.0, 135.0, 0.0]);
+    let cp = ColourPattern::new(Pattern::new(&pattern).py_err()?, color).py_err()?;
     let nms = wavelengths(&cp, bands)?;
     Ok((cp, nms))
 }
@@ -192,10 +193,7 @@ fn _map_names(
     )?;
     let protos = Protos::new(model_json, library, label)?;
     let wls = match color {
-        Some(c) => {
-            let p = pattern.unwrap_or_else(|| vec![90.0, 45.0, 135.0, 0.0]);
-            band_order(&colour_pattern(c, &p, bands)?.1).0
-        }
+        Some(c) => band_order(&colour_pattern(c, pattern, bands)?.1).0,
         None => Vec::new(),
     };
     let bands_of: Vec<Option<f64>> = if wls.is_empty() {
@@ -299,8 +297,7 @@ fn inputs<'py>(
     };
     let kind = match (colour, pattern, &angles_deg) {
         (Some((c, bands)), p, _) => {
-            let p = p.unwrap_or_else(|| vec![90.0, 45.0, 135.0, 0.0]);
-            let (cp, nms) = colour_pattern(c, &p, bands)?;
+            let (cp, nms) = colour_pattern(c, p, bands)?;
             Kind::Colour(cp, nms)
         }
         (None, Some(p), _) => Kind::Dofp(Pattern::new(&p).py_err()?),
@@ -483,9 +480,7 @@ fn _map_block<'py>(
     }
     out.extend(fit.class.iter().map(|&c| c as f32));
     out.extend(fit.reason.iter().map(|&r| r as f32));
-    let a = ArrayD::from_shape_vec(IxDyn(&[BAND_PLANES * nb + 2, oh, ow]), out)
-        .map_err(|e| value_error(e.to_string()))?;
-    Ok(to_numpy(py, a))
+    shaped(py, &[BAND_PLANES * nb + 2, oh, ow], out)
 }
 
 /// The noise-model sample of a block (private: the global step of

@@ -27,7 +27,9 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString};
 use rayon::prelude::*;
 
-use crate::arrays::{F64Like, broadcast_shape, broadcast_to, fmt_shape, str_array, to_numpy};
+use crate::arrays::{
+    F64Like, broadcast_shape, broadcast_to, fmt_shape, shaped, str_array, to_numpy,
+};
 use crate::errors::{PyResultExt, value_error};
 use crate::files::{path_arg, warn_texts};
 
@@ -631,10 +633,7 @@ fn array_result<'py>(
     let arr = |v: Vec<u32>| {
         ArrayD::from_shape_vec(dim.clone(), v).map_err(|e| value_error(e.to_string()))
     };
-    let fl = |f: fn(&Row) -> f64| -> PyResult<Bound<'py, PyAny>> {
-        let a = ArrayD::from_shape_vec(dim.clone(), res.iter().map(f).collect());
-        Ok(to_numpy(py, a.map_err(|e| value_error(e.to_string()))?))
-    };
+    let fl = |f: fn(&Row) -> f64| shaped(py, shape, res.iter().map(f).collect());
     // Candidates (`;`-joined), categories and bands used: codes into tables of distinct
     // values.
     let (mut joined, mut cats, mut bands) = Default::default();
@@ -685,7 +684,7 @@ fn array_result<'py>(
             out.set_item(table_name, table)?;
         }
     }
-    out.set_item("n_candidates", to_numpy(py, arr(nc)?))?;
+    out.set_item("n_candidates", shaped(py, shape, nc)?)?;
     Ok(out)
 }
 

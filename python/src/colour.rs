@@ -14,7 +14,7 @@ use polarid_io::manifest::colour::{band_table, pattern_wavelengths};
 use crate::arrays::raw_array;
 use crate::errors::{PyResultExt, value_error};
 use crate::stokes::{mosaic_shape, new_array, pixel_rules};
-use crate::with_raw;
+use crate::{set_fields, with_raw};
 
 /// Register this module's functions.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -200,10 +200,7 @@ pub fn stokes_color<'py>(
         }
         let c = PyDict::new(py);
         let pc = &counts[b];
-        c.set_item("valid", pc.valid)?;
-        c.set_item("saturated", pc.saturated)?;
-        c.set_item("dark", pc.dark)?;
-        c.set_item("invalid", pc.invalid)?;
+        set_fields!(c, pc, valid, saturated, dark, invalid);
         e.set_item("counts", c)?;
         d.set_item(letter.to_string(), e)?;
     }

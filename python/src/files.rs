@@ -12,7 +12,7 @@
 use std::ffi::CString;
 use std::path::{Path, PathBuf};
 
-use ndarray::{ArrayD, IxDyn};
+use ndarray::Array1;
 use polarid_io::manifest::{self, CaptureSource, Manifest};
 use polarid_io::measure::beta_deg;
 use polarid_io::table::measurements::Measurement;
@@ -21,8 +21,9 @@ use pyo3::exceptions::PyUserWarning;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use crate::arrays::{str_array, to_numpy};
+use crate::arrays::{shaped, str_array};
 use crate::errors::{PyResultExt, value_error};
+use crate::set_fields;
 
 /// Register this module's functions.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -89,9 +90,7 @@ pub(crate) fn warn_texts<'a>(
 pub fn read_image<'py>(py: Python<'py>, path: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
     let p = path_arg(path)?;
     let frame = py.detach(|| polarid_io::image::read_frame(&p)).py_err()?;
-    let a = ArrayD::from_shape_vec(IxDyn(&[frame.height, frame.width]), frame.data)
-        .map_err(|e| value_error(e.to_string()))?;
-    Ok(to_numpy(py, a))
+    shaped(py, &[frame.height, frame.width], frame.data)
 }
 
 /// The β (eq. 5, degrees) of every pixel of a capture with calibrated geometry.
@@ -185,8 +184,7 @@ pub fn beta_map<'py>(
         )
         .py_err()?;
     let (w, h, data) = beta;
-    let a = ArrayD::from_shape_vec(IxDyn(&[h, w]), data).map_err(|e| value_error(e.to_string()))?;
-    Ok(to_numpy(py, a))
+    shaped(py, &[h, w], data)
 }
 
 /// Read and validate a capture-set manifest (TOML, docs/FORMATS.md).
@@ -231,11 +229,8 @@ pub fn load_manifest<'py>(
     warn_all(py, &m)?;
     let d = PyDict::new(py);
     d.set_item("path", m.path.display().to_string())?;
-    d.set_item("theta_r_deg", m.theta_r_deg)?;
-    d.set_item("phi_deg", m.phi_deg)?;
-    d.set_item("dark_level", m.dark_level)?;
-    d.set_item("saturation", m.saturation)?;
-    d.set_item("wavelength_nm", m.wavelength_nm)?;
+    set_fields!(d, m, theta_r_deg, phi_deg);
+    set_fields!(d, m, dark_level, saturation, wavelength_nm);
     d.set_item("calibrated", m.camera.is_some())?;
     let regions = PyList::empty(py);
     for r in &m.regions {
@@ -243,23 +238,15 @@ pub fn load_manifest<'py>(
         rd.set_item("name", &r.name)?;
         rd.set_item("rect", (r.rect.x, r.rect.y, r.rect.width, r.rect.height))?;
         rd.set_item("class", r.class.as_deref())?;
-        rd.set_item("line", r.line)?;
-        rd.set_item("index", r.index)?;
+        set_fields!(rd, r, line, index);
         regions.append(rd)?;
     }
     d.set_item("regions", regions)?;
     let captures = PyList::empty(py);
     for c in &m.captures {
         let cd = PyDict::new(py);
-        cd.set_item("index", c.index)?;
-        cd.set_item("line", c.line)?;
-        cd.set_item("name", c.name.as_deref())?;
-        cd.set_item("theta_i_deg", c.theta_i_deg)?;
-        cd.set_item("theta_r_deg", c.theta_r_deg)?;
-        cd.set_item("phi_deg", c.phi_deg)?;
-        cd.set_item("exposure", c.exposure)?;
-        cd.set_item("dark_level", c.dark_level)?;
-        cd.set_item("saturation", c.saturation)?;
+        set_fields!(cd, c, index, line, name, theta_i_deg, theta_r_deg, phi_deg);
+        set_fields!(cd, c, exposure, dark_level, saturation);
         // A calibrated capture has no single β (the far-field angles are not set).
         let calibrated = c.illumination.is_some();
         cd.set_item("beta_deg", (!calibrated).then(|| beta_deg(c)))?;
@@ -380,19 +367,11 @@ pub fn measurements_dict<'py>(
     py: Python<'py>,
     rows: &[Measurement],
 ) -> PyResult<Bound<'py, PyDict>> {
-    let dim = IxDyn(&[rows.len()]);
-    let f = |g: &dyn Fn(&Measurement) -> f64| -> PyResult<Bound<'py, PyAny>> {
-        let a = ArrayD::from_shape_vec(dim.clone(), rows.iter().map(g).collect())
-            .map_err(|e| value_error(e.to_string()))?;
-        Ok(to_numpy(py, a))
-    };
-    let i = |g: &dyn Fn(&Measurement) -> Option<u64>| -> PyResult<Bound<'py, PyAny>> {
-        let a = ArrayD::from_shape_vec(
-            dim.clone(),
-            rows.iter().map(|r| g(r).map_or(-1, |v| v as i64)).collect(),
-        )
-        .map_err(|e| value_error(e.to_string()))?;
-        Ok(to_numpy(py, a))
+    let dim = [rows.len()];
+    let f = |g: &dyn Fn(&Measurement) -> f64| shaped(py, &dim, rows.iter().map(g).collect());
+    let i = |g: &dyn Fn(&Measurement) -> Option<u64>| {
+        let v: Vec<i64> = rows.iter().map(|r| g(r).map_or(-1, |v| v as i64)).collect();
+        shaped(py, &dim, v)
     };
     let strs = |g: &dyn Fn(&Measurement) -> &str| -> PyResult<Bound<'py, PyAny>> {
         let mut names: Vec<&str> = Vec::new();
@@ -405,9 +384,7 @@ pub fn measurements_dict<'py>(
             });
             codes.push(idx as u32);
         }
-        let codes =
-            ArrayD::from_shape_vec(dim.clone(), codes).map_err(|e| value_error(e.to_string()))?;
-        str_array(py, &names, codes)
+        str_array(py, &names, Array1::from(codes).into_dyn())
     };
     let nan = f64::NAN;
     let d = PyDict::new(py);

@@ -9,9 +9,9 @@ use ndarray::{ArrayD, IxDyn};
 use numpy::{PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use polarid_core::CoreError;
 use polarid_core::fit::{
-    FitBounds, FitOptions, FitPlan, FitStatus, NkFit, PixelBetaPlan, fit_batch,
-    fit_batch_pixel_beta,
+    FitOptions, FitPlan, FitStatus, NkFit, PixelBetaPlan, fit_batch, fit_batch_pixel_beta,
 };
+use polarid_core::mixed::Shadowing;
 use polarid_pipeline::fit::{
     FitConfig, PlanCache, Reflectance, check_range, parse_shadowing, read_measurements,
 };
@@ -20,6 +20,7 @@ use pyo3::types::{PyDict, PyList};
 
 use crate::arrays::{FloatArray, f64_contiguous, float_array, fmt_shape, to_numpy};
 use crate::errors::{PyResultExt, value_error};
+use crate::set_fields;
 
 /// Register this module's functions and constants.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -67,16 +68,8 @@ fn pixel_plan_for(opts: FitOptions) -> Result<Arc<PixelBetaPlan>, CoreError> {
 
 fn single_dict<'py>(py: Python<'py>, f: &NkFit) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
-    d.set_item("n", f.n)?;
-    d.set_item("k", f.k)?;
-    d.set_item("n_se", f.n_se)?;
-    d.set_item("k_se", f.k_se)?;
-    d.set_item("nk_corr", f.nk_corr)?;
-    d.set_item("rms_residual", f.rms_residual)?;
-    d.set_item("cost", f.cost)?;
-    d.set_item("iterations", f.iterations)?;
-    d.set_item("evaluations", f.evaluations)?;
-    d.set_item("starts", f.starts)?;
+    set_fields!(d, f, n, k, n_se, k_se, nk_corr, rms_residual);
+    set_fields!(d, f, cost, iterations, evaluations, starts);
     d.set_item("status", f.status.as_str())?;
     d.set_item("reason", f.reason)?;
     Ok(d)
@@ -167,15 +160,12 @@ pub fn fit_nk<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     check_range("n_range", n_range).py_err()?;
     check_range("k_range", k_range).py_err()?;
-    let opts = FitOptions {
-        bounds: FitBounds {
-            n_min: n_range.0,
-            n_max: n_range.1,
-            k_min: k_range.0,
-            k_max: k_range.1,
-        },
-        ..Default::default()
-    };
+    let opts = FitConfig {
+        n_range,
+        k_range,
+        ..FitConfig::default()
+    }
+    .fit_options();
     // float32 DoLP (the dtype of polarid.dolp) is read as it is and converted chunk by
     // chunk in the workers; every other dtype becomes one float64 array.
     let y = float_array("dolp", dolp)?;
@@ -611,6 +601,15 @@ fn batch_dict<'py>(
     Ok(d)
 }
 
+/// `shadowing` of `fit_table` and `fit_mixed`: `"none"` or `"smith"`.
+pub(crate) fn shadowing_arg(name: &str) -> PyResult<Shadowing> {
+    parse_shadowing(name).ok_or_else(|| {
+        value_error(format!(
+            "shadowing must be \"none\" or \"smith\", got {name:?}"
+        ))
+    })
+}
+
 /// Fit every target of a measurements CSV — the table-level form of ``polarid fit``
 /// (same Rust function, ``polarid_pipeline::fit``: same rows, statuses and numbers).
 ///
@@ -717,11 +716,7 @@ pub fn fit_table<'py>(
         k_range,
         depolarized_dolp,
         estimate_theta_r,
-        shadowing: parse_shadowing(shadowing).ok_or_else(|| {
-            value_error(format!(
-                "shadowing must be \"none\" or \"smith\", got {shadowing:?}"
-            ))
-        })?,
+        shadowing: shadowing_arg(shadowing)?,
         s0_rel_sd,
         sigma_range,
         angle_sd_deg,

@@ -27,6 +27,15 @@ pub mod pbrdf;
 pub mod simulate;
 pub mod stokes;
 
+/// `dict[name] = value.name` for each named field of `value` (`set_fields!(d, f, n, k)`
+/// sets `d["n"] = f.n`, `d["k"] = f.k`), in that order.
+#[macro_export]
+macro_rules! set_fields {
+    ($d:expr, $v:expr, $($field:ident),+ $(,)?) => {
+        $($d.set_item(stringify!($field), &$v.$field)?;)+
+    };
+}
+
 /// Recover the complex refractive index of shiny surfaces from passive polarization
 /// images, and classify the material (Rust extension module of `polarid`).
 #[pymodule]

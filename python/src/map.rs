@@ -4,7 +4,6 @@
 //! `map_manifest` calls `polarid_pipeline::map::map_manifest`, the function `polarid
 //! map` calls, so the arrays equal the CLI's TIFFs (python/tests/test_map_manifest.py).
 
-use ndarray::{ArrayD, IxDyn};
 use polarid_core::classify::Bench;
 use polarid_io::manifest;
 use polarid_io::model::Model;
@@ -13,7 +12,7 @@ use polarid_pipeline::progress::no_progress;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::to_numpy;
+use crate::arrays::shaped;
 use crate::errors::{IntoPyErr, PyResultExt, value_error};
 use crate::files::{path_arg, warn_all, warn_texts};
 
@@ -21,16 +20,6 @@ use crate::files::{path_arg, warn_all, warn_texts};
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(map_manifest, m)?)?;
     Ok(())
-}
-
-fn image<'py, T: numpy::Element>(
-    py: Python<'py>,
-    h: usize,
-    w: usize,
-    v: Vec<T>,
-) -> PyResult<Bound<'py, PyAny>> {
-    let a = ArrayD::from_shape_vec(IxDyn(&[h, w]), v).map_err(|e| value_error(e.to_string()))?;
-    Ok(to_numpy(py, a))
 }
 
 /// Per-pixel ``(n, k)`` and material maps of a capture set: ``polarid map`` as arrays.
@@ -248,10 +237,20 @@ fn result(py: Python<'_>, mut r: map::MapResult) -> PyResult<Bound<'_, PyDict>> 
     names.extend(r.class_names.iter().cloned());
     d.set_item("class_names", names)?;
     d.set_item("reason_names", r.reason_names().to_vec())?;
-    let counts = |v: Vec<i64>| -> PyResult<Bound<'_, PyAny>> {
-        let a =
-            ArrayD::from_shape_vec(IxDyn(&[v.len()]), v).map_err(|e| value_error(e.to_string()))?;
-        Ok(to_numpy(py, a))
+    let counts = |v: Vec<i64>| shaped(py, &[v.len()], v);
+    // The fit images of a band (`n`, `k`, ...) into `d`.
+    let fit_images = |d: &Bound<'_, PyDict>, b: &mut map::BandMap| -> PyResult<()> {
+        let all = [
+            &mut b.n,
+            &mut b.k,
+            &mut b.n_se,
+            &mut b.k_se,
+            &mut b.rms_residual,
+        ];
+        for (name, v) in map::BAND_IMAGES.iter().zip(all) {
+            d.set_item(*name, shaped(py, &[h, w], std::mem::take(v))?)?;
+        }
+        Ok(())
     };
     let classes: Vec<i64> = r.counts.classes.iter().map(|&c| c as i64).collect();
     let nreasons = r.reason_names().len();
@@ -265,30 +264,22 @@ fn result(py: Python<'_>, mut r: map::MapResult) -> PyResult<Bound<'_, PyDict>> 
     d.set_item("summary", json.call_method1("loads", (summary,))?)?;
     if r.class_names.len() <= u8::MAX as usize {
         let c8: Vec<u8> = r.class.iter().map(|&c| c as u8).collect();
-        d.set_item("class", image(py, h, w, c8)?)?;
+        d.set_item("class", shaped(py, &[h, w], c8)?)?;
     } else {
-        d.set_item("class", image(py, h, w, r.class)?)?;
+        d.set_item("class", shaped(py, &[h, w], r.class)?)?;
     }
-    d.set_item("reason", image(py, h, w, r.reason)?)?;
-    if !colour && let Some(b) = r.bands.pop() {
-        d.set_item("n", image(py, h, w, b.n)?)?;
-        d.set_item("k", image(py, h, w, b.k)?)?;
-        d.set_item("n_se", image(py, h, w, b.n_se)?)?;
-        d.set_item("k_se", image(py, h, w, b.k_se)?)?;
-        d.set_item("rms_residual", image(py, h, w, b.rms_residual)?)?;
+    d.set_item("reason", shaped(py, &[h, w], r.reason)?)?;
+    if !colour && let Some(mut b) = r.bands.pop() {
+        fit_images(&d, &mut b)?;
     } else {
         let bands = PyDict::new(py);
-        for b in r.bands {
+        for mut b in r.bands {
             let bd = PyDict::new(py);
             bd.set_item("wavelength_nm", b.wavelength_nm)?;
             let caps: Vec<usize> = b.captures.iter().map(|&i| i + 1).collect();
             bd.set_item("captures", caps)?;
-            bd.set_item("n", image(py, h, w, b.n)?)?;
-            bd.set_item("k", image(py, h, w, b.k)?)?;
-            bd.set_item("n_se", image(py, h, w, b.n_se)?)?;
-            bd.set_item("k_se", image(py, h, w, b.k_se)?)?;
-            bd.set_item("rms_residual", image(py, h, w, b.rms_residual)?)?;
-            bd.set_item("reason", image(py, h, w, b.reason)?)?;
+            fit_images(&bd, &mut b)?;
+            bd.set_item("reason", shaped(py, &[h, w], b.reason)?)?;
             let rc: Vec<i64> = b.reasons[..nreasons].iter().map(|&c| c as i64).collect();
             bd.set_item("reason_counts", counts(rc)?)?;
             bands.set_item(b.wavelength_nm, bd)?;
@@ -298,9 +289,7 @@ fn result(py: Python<'_>, mut r: map::MapResult) -> PyResult<Bound<'_, PyDict>> 
     if r.calibrated {
         let t = r.beta_maps_deg.len();
         let flat: Vec<f64> = r.beta_maps_deg.into_iter().flatten().collect();
-        let a = ArrayD::from_shape_vec(IxDyn(&[t, h, w]), flat)
-            .map_err(|e| value_error(e.to_string()))?;
-        d.set_item("beta_deg", to_numpy(py, a))?;
+        d.set_item("beta_deg", shaped(py, &[t, h, w], flat)?)?;
     }
     Ok(d)
 }

@@ -4,11 +4,12 @@
 //! pure-specular model.
 
 use polarid_core::mixed::{MixedCapture, MixedFit, MixedOptions, fit_mixed as core_fit};
-use polarid_pipeline::fit::parse_shadowing;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::errors::{PyResultExt, value_error};
+use crate::fit::shadowing_arg;
+use crate::set_fields;
 
 /// Register this module's functions.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -19,24 +20,11 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
 fn fit_dict<'py>(py: Python<'py>, f: &MixedFit) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("model", f.model.as_str())?;
-    d.set_item("n", f.n)?;
-    d.set_item("k", f.k)?;
-    d.set_item("sigma", f.sigma)?;
-    d.set_item("rho_d", f.rho_d)?;
-    d.set_item("scale", f.scale)?;
+    set_fields!(d, f, n, k, sigma, rho_d, scale);
     d.set_item("theta_r_deg", f.theta_r.to_degrees())?;
-    d.set_item("theta_r_estimated", f.theta_r_estimated)?;
-    d.set_item("n_se", f.n_se)?;
-    d.set_item("k_se", f.k_se)?;
-    d.set_item("sigma_se", f.sigma_se)?;
-    d.set_item("rho_d_se", f.rho_d_se)?;
+    set_fields!(d, f, theta_r_estimated, n_se, k_se, sigma_se, rho_d_se);
     d.set_item("theta_r_se_deg", f.theta_r_se.to_degrees())?;
-    d.set_item("nk_corr", f.nk_corr)?;
-    d.set_item("chi2", f.chi2)?;
-    d.set_item("aic", f.aic)?;
-    d.set_item("bic", f.bic)?;
-    d.set_item("rms_dolp", f.rms_dolp)?;
-    d.set_item("rms_s0_rel", f.rms_s0_rel)?;
+    set_fields!(d, f, nk_corr, chi2, aic, bic, rms_dolp, rms_s0_rel);
     d.set_item("status", f.status.as_str())?;
     d.set_item("reason", f.reason.as_str())?;
     Ok(d)
@@ -108,11 +96,7 @@ fn fit_mixed<'py>(
             se.len()
         )));
     }
-    let shadowing = parse_shadowing(shadowing).ok_or_else(|| {
-        value_error(format!(
-            "shadowing must be \"none\" or \"smith\", got {shadowing:?}"
-        ))
-    })?;
+    let shadowing = shadowing_arg(shadowing)?;
     let caps: Vec<MixedCapture> = (0..t)
         .map(|i| {
             MixedCapture::new(

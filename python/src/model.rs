@@ -8,7 +8,7 @@ use polarid_core::error::{ensure_finite, ensure_range};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
-use crate::arrays::{F64Like, PAR_MIN_LEN, broadcast_shape, broadcast_to, check_each, to_python};
+use crate::arrays::{F64Like, PAR_MIN_LEN, broadcast_all, check_each, to_python};
 use crate::errors::PyResultExt;
 
 /// Register this module's functions.
@@ -41,28 +41,6 @@ fn check_inputs(
     check_each(k, |x| ensure_range("k", x, 0.0, f64::INFINITY, "k >= 0"))?;
     check_each(beta_deg, |x| {
         ensure_range("beta_deg", x, 0.0, 90.0, "0 <= beta_deg <= 90")
-    })
-}
-
-/// The three argument views broadcast to their common shape.
-struct Broadcast<'a> {
-    shape: Vec<usize>,
-    n: ArrayViewD<'a, f64>,
-    k: ArrayViewD<'a, f64>,
-    b: ArrayViewD<'a, f64>,
-}
-
-fn broadcast3<'a>(
-    n: &'a ArrayViewD<'a, f64>,
-    k: &'a ArrayViewD<'a, f64>,
-    b: &'a ArrayViewD<'a, f64>,
-) -> PyResult<Broadcast<'a>> {
-    let shape = broadcast_shape(&[("n", n.shape()), ("k", k.shape()), ("beta_deg", b.shape())])?;
-    Ok(Broadcast {
-        n: broadcast_to("n", n, &shape)?,
-        k: broadcast_to("k", k, &shape)?,
-        b: broadcast_to("beta_deg", b, &shape)?,
-        shape,
     })
 }
 
@@ -106,13 +84,13 @@ pub fn dolp_model<'py>(
     beta_deg: F64Like<'py>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let (nv, kv, bv) = (n.as_array(), k.as_array(), beta_deg.as_array());
-    let bc = broadcast3(&nv, &kv, &bv)?;
+    let (shape, b) = broadcast_all(&[("n", &nv), ("k", &kv), ("beta_deg", &bv)])?;
     let out = py
         .detach(|| -> Result<ArrayD<f64>, CoreError> {
             check_inputs(&nv, &kv, &bv)?;
-            let mut p = ArrayD::<f64>::zeros(IxDyn(&bc.shape));
+            let mut p = ArrayD::<f64>::zeros(IxDyn(&shape));
             let len = p.len();
-            let z = Zip::from(&mut p).and(&bc.n).and(&bc.k).and(&bc.b);
+            let z = Zip::from(&mut p).and(&b[0]).and(&b[1]).and(&b[2]);
             let f = |p: &mut f64, &n: &f64, &k: &f64, &b: &f64| {
                 *p = dop_terms(n, k, &BetaTerms::new(b.to_radians()));
             };
@@ -147,11 +125,11 @@ pub fn dolp_model_grad<'py>(
     beta_deg: F64Like<'py>,
 ) -> PyResult<Bound<'py, PyTuple>> {
     let (nv, kv, bv) = (n.as_array(), k.as_array(), beta_deg.as_array());
-    let bc = broadcast3(&nv, &kv, &bv)?;
+    let (shape, b) = broadcast_all(&[("n", &nv), ("k", &kv), ("beta_deg", &bv)])?;
     let [p, dn, dk] = py
         .detach(|| -> Result<[ArrayD<f64>; 3], CoreError> {
             check_inputs(&nv, &kv, &bv)?;
-            let dim = IxDyn(&bc.shape);
+            let dim = IxDyn(&shape);
             let mut p = ArrayD::<f64>::zeros(dim.clone());
             let mut dn = ArrayD::<f64>::zeros(dim.clone());
             let mut dk = ArrayD::<f64>::zeros(dim);
@@ -159,9 +137,9 @@ pub fn dolp_model_grad<'py>(
             let z = Zip::from(&mut p)
                 .and(&mut dn)
                 .and(&mut dk)
-                .and(&bc.n)
-                .and(&bc.k)
-                .and(&bc.b);
+                .and(&b[0])
+                .and(&b[1])
+                .and(&b[2]);
             let f = |p: &mut f64, dn: &mut f64, dk: &mut f64, &n: &f64, &k: &f64, &b: &f64| {
                 let DopGrad { p: v, dp_dn, dp_dk } =
                     dop_grad_terms(n, k, &BetaTerms::new(b.to_radians()));

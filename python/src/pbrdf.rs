@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
 
-use crate::arrays::{F64Like, PAR_MIN_LEN, broadcast_shape, broadcast_to, check_each, to_python};
+use crate::arrays::{F64Like, PAR_MIN_LEN, broadcast_all, check_each, to_python};
 use crate::errors::PyResultExt;
 
 /// Register this module's functions.
@@ -95,17 +95,8 @@ pub fn pbrdf<'py>(
         phi.as_array(),
     ];
     let names = ["n", "k", "sigma", "theta_i", "theta_r", "phi"];
-    let shapes: Vec<(&str, &[usize])> = names
-        .iter()
-        .zip(&views)
-        .map(|(nm, v)| (*nm, v.shape()))
-        .collect();
-    let shape = broadcast_shape(&shapes)?;
-    let b: Vec<ArrayViewD<'_, f64>> = names
-        .iter()
-        .zip(&views)
-        .map(|(nm, v)| broadcast_to(nm, v, &shape))
-        .collect::<PyResult<_>>()?;
+    let named: Vec<_> = names.into_iter().zip(&views).collect();
+    let (shape, b) = broadcast_all(&named)?;
     let (local, global, beta, tilt, dolp) = py
         .detach(|| -> Result<_, CoreError> {
             check_zenith("theta_i_deg", &views[3])?;

@@ -3,7 +3,7 @@
 //! simulate` plans and renders a far-field scene (`polarid_pipeline::simulate`:
 //! `RenderSpec::far_field`, `render_into`; the same exposure and frame seeds).
 
-use ndarray::{ArrayD, ArrayView1, IxDyn};
+use ndarray::ArrayView1;
 use polarid_core::CoreError;
 use polarid_core::simulate::{Analyzer, Exposure, PlateOptics, Sensor, stokes_dolp};
 use polarid_io::scene::CaptureKind;
@@ -12,7 +12,7 @@ use polarid_pipeline::simulate::{RenderSpec, analyzers as capture_analyzers, ren
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{f64_contiguous, to_numpy};
+use crate::arrays::{f64_contiguous, shaped};
 use crate::errors::{PyResultExt, value_error};
 use crate::pbrdf::check_zenith;
 
@@ -213,41 +213,31 @@ pub fn simulate<'py>(
     let stokes = spec.rects.iter().flatten().map(|r| r.stokes);
     let d = PyDict::new(py);
     if dofp {
-        d.set_item("raw", array(py, &[c, h, w], frames)?)?;
+        d.set_item("raw", shaped(py, &[c, h, w], frames)?)?;
         d.set_item("pattern", pattern)?;
     } else {
-        d.set_item("frames", array(py, &[c, na, h, w], frames)?)?;
+        d.set_item("frames", shaped(py, &[c, na, h, w], frames)?)?;
         d.set_item("angles_deg", angles_deg)?;
     }
     let rects = plates.iter().map(|(_, [x, y, w, h])| (*x, *y, *w, *h));
     d.set_item("rects", rects.collect::<Vec<_>>())?;
     let radiance = stokes.clone().flatten().collect();
-    d.set_item("radiance", array(py, &[c, np_, 3], radiance)?)?;
+    d.set_item("radiance", shaped(py, &[c, np_, 3], radiance)?)?;
     let dolp = stokes.map(|s| stokes_dolp(&s)).collect();
-    d.set_item("dolp", array(py, &[c, np_], dolp)?)?;
+    d.set_item("dolp", shaped(py, &[c, np_], dolp)?)?;
     let beta = geometry.iter().map(|g| {
         let [a, b, p] = g.map(f64::to_radians);
         polarid_core::geometry::beta(a, b, p).to_degrees()
     });
-    d.set_item("beta_deg", array(py, &[c], beta.collect())?)?;
-    d.set_item("theta_i_deg", array(py, &[c], ti)?)?;
-    d.set_item("theta_r_deg", array(py, &[c], tr)?)?;
-    d.set_item("phi_deg", array(py, &[c], ph)?)?;
+    d.set_item("beta_deg", shaped(py, &[c], beta.collect())?)?;
+    d.set_item("theta_i_deg", shaped(py, &[c], ti)?)?;
+    d.set_item("theta_r_deg", shaped(py, &[c], tr)?)?;
+    d.set_item("phi_deg", shaped(py, &[c], ph)?)?;
     d.set_item(
         "electrons_per_unit",
-        array(py, &[c], spec.electrons_per_unit)?,
+        shaped(py, &[c], spec.electrons_per_unit)?,
     )?;
     Ok(d)
-}
-
-/// `v` as a numpy array of `shape`.
-fn array<'py, T: numpy::Element>(
-    py: Python<'py>,
-    shape: &[usize],
-    v: Vec<T>,
-) -> PyResult<Bound<'py, PyAny>> {
-    let a = ArrayD::from_shape_vec(IxDyn(shape), v).map_err(|e| value_error(e.to_string()))?;
-    Ok(to_numpy(py, a))
 }
 
 /// The plates in a row of `tile × tile` squares, `gap` pixels apart and from the edges

@@ -224,9 +224,7 @@ fn finish(
         out.rows.len(),
         out.rows.len() - ok - amb - rej
     ));
-    for w in &out.warnings {
-        ctx.info(format!("polarid: warning: {w}"));
-    }
+    super::common::warn_all(ctx, &out.warnings);
     for n in &out.notes {
         ctx.info(n);
     }

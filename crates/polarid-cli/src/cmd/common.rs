@@ -7,7 +7,7 @@ use std::sync::{Mutex, OnceLock};
 use clap::ValueEnum;
 use polarid_core::classify::{ClassifierConfig, Confusion, Metric, Rule};
 use polarid_pipeline::options::ClassifierOptions;
-use polarid_pipeline::{PipelineError, Progress, Warning};
+use polarid_pipeline::{PipelineError, Progress};
 
 use crate::{BadInput, Ctx};
 
@@ -55,7 +55,7 @@ pub fn with_progress<T>(ctx: &Ctx, what: &str, f: impl FnOnce(Progress) -> T) ->
 }
 
 /// Print warnings (`polarid: warning: ...`) unless `--quiet`.
-pub fn warn_all<'a>(ctx: &Ctx, warnings: impl IntoIterator<Item = &'a Warning>) {
+pub fn warn_all(ctx: &Ctx, warnings: impl IntoIterator<Item = impl std::fmt::Display>) {
     for w in warnings {
         ctx.info(format!("polarid: warning: {w}"));
     }

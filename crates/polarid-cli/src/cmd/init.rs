@@ -43,11 +43,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         opencv: args.opencv.clone(),
     })
     .cli()?;
-    for w in &out.warnings {
-        if !ctx.quiet {
-            eprintln!("polarid: warning: {w}");
-        }
-    }
+    super::common::warn_all(ctx, &out.warnings);
     let inputs: Vec<&std::path::Path> = out.inputs.iter().map(PathBuf::as_path).collect();
     ctx.write_output(Some(&output), &inputs, |w| {
         w.write_all(out.text.as_bytes())

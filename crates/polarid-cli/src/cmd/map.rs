@@ -33,7 +33,7 @@ use polarid_io::manifest;
 use polarid_io::model::Model;
 use polarid_pipeline::map::{self, MapConfig, MapResult, Metric};
 
-use super::common::{Bars, PipeResult};
+use super::common::{Bars, PipeResult, warn_all};
 use crate::Ctx;
 use crate::render::map_figures;
 use crate::render::table_report::References;
@@ -146,9 +146,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
             super::classify::BenchArg::Other => polarid_core::classify::Bench::Other,
         });
     let m = manifest::load(&args.manifest)?;
-    for w in &m.warnings {
-        ctx.info(format!("polarid: warning: {w}"));
-    }
+    warn_all(ctx, &m.warnings);
     let model = args.model.as_ref().map(|p| Model::read(p)).transpose()?;
     let spec = args.library.as_deref().unwrap_or("builtin");
     let src = match (&model, &args.model) {
@@ -182,9 +180,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     let r = map::map_manifest_from(&cfg, &m, src, &progress).cli()?;
     drop(bars);
     // The manifest's warnings were printed above; the others follow.
-    for w in r.warnings.iter().skip(m.warnings.len()) {
-        ctx.info(format!("polarid: warning: {}", w.0));
-    }
+    warn_all(ctx, r.warnings.iter().skip(m.warnings.len()));
     let refs = map_figures::references(&label, &profiles, args.library.as_deref(), model.is_some());
     write_outputs(&args, &r, &refs, ctx)?;
     let a = r.answers();

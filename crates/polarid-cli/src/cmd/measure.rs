@@ -80,11 +80,7 @@ pub fn measure_manifest(
 /// Run `polarid measure`.
 pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     let m = manifest::load(&args.manifest)?;
-    for w in &m.warnings {
-        if !ctx.quiet {
-            eprintln!("polarid: warning: {w}");
-        }
-    }
+    warn_all(ctx, &m.warnings);
     let mut inputs: Vec<&Path> = vec![args.manifest.as_path()];
     for c in &m.captures {
         inputs.extend(c.files());

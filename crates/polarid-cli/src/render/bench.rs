@@ -26,13 +26,13 @@ fn is_test(t: &str) -> bool {
 pub fn figures(out: &BenchOutput) -> anyhow::Result<Vec<BenchFigure>> {
     let size = PlotSize::REPORT;
     let fit_of = |t: &str| out.fits.iter().map(|(_, f)| f).find(|f| f.target == t);
-    let by_target = common::by_target(&out.measurements);
+    let by_target = common::by_target(out.measurements.iter().map(|(_, m)| m));
     let series: Vec<plots::DolpSeries> = by_target
         .iter()
         .filter(|(t, _)| !is_test(t))
         .filter_map(|(t, ms)| {
             let f = fit_of(t)?;
-            Some(common::dolp_series(t.to_string(), f, ms))
+            Some(common::dolp_series(t.to_string(), Some(f), ms))
         })
         .collect();
     let mut figs = vec![BenchFigure {
@@ -43,7 +43,7 @@ pub fn figures(out: &BenchOutput) -> anyhow::Result<Vec<BenchFigure>> {
                   against the region's β, and the fitted eq. (9) curve."
             .into(),
     }];
-    let protos = common::prototypes(&out.model);
+    let protos = common::prototypes(&out.model.prototypes);
     let clf = super::demo::classifier_of(&out.model, &out.classification);
     let ests: Vec<plots::NkEstimate> = out
         .fits
@@ -217,17 +217,13 @@ fn spread_table(out: &BenchOutput) -> report::Table {
             ])
         })
         .collect();
-    report::Table {
-        caption: "Per-pixel geometry over each training plate's region (degrees): φ and \
-                  β are region means; the region's β range and standard deviation; the \
-                  noise-free DoLP of the region's summed Stokes vector."
-            .into(),
-        headers: ["target", "capture", "φ", "β", "β range", "β sd", "DoLP"]
-            .iter()
-            .map(|s| s.to_string())
-            .collect(),
+    report::Table::new(
+        "Per-pixel geometry over each training plate's region (degrees): φ and β are \
+         region means; the region's β range and standard deviation; the noise-free DoLP of \
+         the region's summed Stokes vector.",
+        &["target", "capture", "φ", "β", "β range", "β sd", "DoLP"],
         rows,
-    }
+    )
 }
 
 /// The training plates' rendered indices.

@@ -4,8 +4,6 @@
 //! `n(λ)` and `k(λ)` of the test plates against the materials' library curves; the
 //! accuracy table (three bands against 650 nm alone, over many seeds).
 
-use std::collections::BTreeMap;
-
 use polarid_io::table::fits::FitRow;
 use polarid_io::table::measurements::Measurement;
 use polarid_pipeline::demo::colour::{
@@ -82,16 +80,17 @@ fn band_figures(
     ms: &[Measurement],
     size: PlotSize,
 ) -> anyhow::Result<[ColourFigure; 2]> {
-    let mut per_target: BTreeMap<&str, Vec<&Measurement>> = BTreeMap::new();
-    for m in ms.iter().filter(|m| is_test(out, &m.target)) {
-        per_target.entry(m.target.as_str()).or_default().push(m);
-    }
+    let per_target = super::demo::common::by_target(ms.iter().filter(|m| is_test(out, &m.target)));
     let series: Vec<plots::DolpSeries> = band_fits
         .iter()
         .filter(|f| is_test(out, &f.target))
         .filter_map(|f| {
             let ms = per_target.get(f.target.as_str())?;
-            Some(super::demo::common::dolp_series(f.target.clone(), f, ms))
+            Some(super::demo::common::dolp_series(
+                f.target.clone(),
+                Some(f),
+                ms,
+            ))
         })
         .collect();
     let dolp = ColourFigure {
@@ -108,17 +107,8 @@ fn band_figures(
             size,
         )?,
     };
-    let protos: Vec<plots::Prototype> = out
-        .model
-        .prototypes
-        .iter()
-        .filter(|p| p.wavelength_nm == Some(wl))
-        .map(|p| plots::Prototype {
-            class: p.class.clone(),
-            n: p.n,
-            k: p.k,
-        })
-        .collect();
+    let band = out.model.prototypes.iter();
+    let protos = super::demo::common::prototypes(band.filter(|p| p.wavelength_nm == Some(wl)));
     let ests: Vec<plots::NkEstimate> = band_fits
         .iter()
         .filter(|f| is_test(out, &f.target))
@@ -286,64 +276,44 @@ fn summary(out: &ColourDemoOutput) -> Vec<String> {
 
 /// The scenes, manifests and tables the colour demo wrote.
 fn inputs(out: &ColourDemoOutput) -> Vec<report::InputItem> {
-    let mut inputs: Vec<report::InputItem> = out
-        .scenes
-        .iter()
-        .zip(&out.manifests)
-        .flat_map(|(s, m)| {
-            [
-                report::InputItem {
-                    role: "scene".into(),
-                    path: s.clone(),
-                    detail: "colour scene (true angles)".into(),
-                },
-                report::InputItem {
-                    role: "manifest".into(),
-                    path: m.clone(),
-                    detail: "bands and dofp.color, written by the simulator".into(),
-                },
-            ]
-        })
-        .collect();
-    for (role, path, detail) in [
-        (
-            "measurements",
-            "measurements.csv",
-            "DoLP per capture, band and plate",
-        ),
-        (
-            "fits",
-            "fits.csv",
-            "n, k per target per band (default error model)",
-        ),
-        (
-            "model",
-            "model.json",
-            "three-band prototypes of the training plates",
-        ),
-        (
-            "classification",
-            "classification.csv",
-            "test plates, three bands, set rule",
-        ),
-        (
-            "classification",
-            "classification_650nm.csv",
-            "test plates, 650 nm rows only, set rule",
-        ),
-        (
-            "table",
-            "accuracy.md",
-            "three bands against 650 nm, all seeds",
-        ),
-    ] {
-        inputs.push(report::InputItem {
-            role: role.into(),
-            path: path.into(),
-            detail: detail.into(),
-        });
-    }
-    inputs
+    super::demo::common::inputs(
+        &out.scenes,
+        &out.manifests,
+        |_| "colour scene (true angles)".into(),
+        "bands and dofp.color, written by the simulator",
+        &[
+            (
+                "measurements",
+                "measurements.csv",
+                "DoLP per capture, band and plate",
+            ),
+            (
+                "fits",
+                "fits.csv",
+                "n, k per target per band (default error model)",
+            ),
+            (
+                "model",
+                "model.json",
+                "three-band prototypes of the training plates",
+            ),
+            (
+                "classification",
+                "classification.csv",
+                "test plates, three bands, set rule",
+            ),
+            (
+                "classification",
+                "classification_650nm.csv",
+                "test plates, 650 nm rows only, set rule",
+            ),
+            (
+                "table",
+                "accuracy.md",
+                "three bands against 650 nm, all seeds",
+            ),
+        ],
+    )
 }
 
 /// The materials' reference indices per band.
@@ -431,14 +401,11 @@ fn accuracy_table(out: &ColourDemoOutput) -> report::Table {
             ]
         })
         .collect();
-    report::Table {
-        caption: format!(
-            "Test plates right over {} seeds: three bands against the 650 nm band of the \
-                 same images, under the fit's default error model and without its \
-                 surface-layer allowance.",
-            out.seeds
-        ),
-        headers: headers.iter().map(|s| s.to_string()).collect(),
-        rows,
-    }
+    let caption = format!(
+        "Test plates right over {} seeds: three bands against the 650 nm band of the \
+             same images, under the fit's default error model and without its \
+             surface-layer allowance.",
+        out.seeds
+    );
+    report::Table::new(caption, &headers, rows)
 }

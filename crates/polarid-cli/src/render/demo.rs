@@ -19,7 +19,7 @@ use super::report::{self, Figure, Report};
 pub fn figures(out: &DemoOutput) -> anyhow::Result<[Rendered; 3]> {
     let is_training = |t: &str| PLATES.iter().any(|p| p.training && p.target == t);
     let fit_of = |t: &str| out.fits.iter().map(|(_, f)| f).find(|f| f.target == t);
-    let by_target = common::by_target(&out.measurements);
+    let by_target = common::by_target(out.measurements.iter().map(|(_, m)| m));
     let series = |training: bool| -> Vec<plots::DolpSeries> {
         PLATES
             .iter()
@@ -32,7 +32,7 @@ pub fn figures(out: &DemoOutput) -> anyhow::Result<[Rendered; 3]> {
                 } else {
                     format!("test plate, θr = {:.0}°", p.theta_r)
                 };
-                Some(common::dolp_series(label, f, ms))
+                Some(common::dolp_series(label, Some(f), ms))
             })
             .collect()
     };
@@ -47,7 +47,7 @@ pub fn figures(out: &DemoOutput) -> anyhow::Result<[Rendered; 3]> {
         &series(false),
         size,
     )?;
-    let protos = common::prototypes(&out.model);
+    let protos = common::prototypes(&out.model.prototypes);
     let clf = same_bench_classifier_of(&out.model, &out.classification);
     let ests: Vec<plots::NkEstimate> = out
         .fits
@@ -312,27 +312,22 @@ fn paper_table(fits: &[(u64, FitRow)]) -> report::Table {
             ])
         })
         .collect();
-    report::Table {
-        caption: "The paper's own estimates (Tables 1 and 2, real plates) beside the \
-                  simulation's. The simulated plates carry a native layer of a few \
-                  nanometres, so their estimates land on the index a single-interface \
-                  fit sees on the layered surface, not on the bulk reference (for \
-                  aluminum under Al₂O₃, lower n and k); the paper's differ from the \
-                  references by the model error of real surfaces."
-            .into(),
-        headers: [
+    report::Table::new(
+        "The paper's own estimates (Tables 1 and 2, real plates) beside the simulation's. \
+         The simulated plates carry a native layer of a few nanometres, so their estimates \
+         land on the index a single-interface fit sees on the layered surface, not on the \
+         bulk reference (for aluminum under Al₂O₃, lower n and k); the paper's differ from \
+         the references by the model error of real surfaces.",
+        &[
             "target",
             "θr (°)",
             "n̂ (here)",
             "k̂ (here)",
             "paper n̂",
             "paper k̂",
-        ]
-        .iter()
-        .map(|s| s.to_string())
-        .collect(),
-        rows: paper_rows,
-    }
+        ],
+        paper_rows,
+    )
 }
 
 /// The report's summary: the experiment, and the result of each test view.

@@ -17,7 +17,7 @@ use polarid_core::classify::{MultiPrototype, same_band};
 use polarid_io::library::{BUILTIN_SOURCES, RiiData};
 use polarid_io::table::classification::ClassificationRow;
 use polarid_io::table::fits::FitRow;
-use polarid_io::table::measurements::Measurement;
+use polarid_io::table::measurements::{Measurement, RowStatus};
 
 use super::plots::bands::{Spectrum, SpectrumPoint, nk_spectra};
 use super::plots::panels::{DolpBand, NkBand, band_label, dolp_by_band, nk_by_band};
@@ -235,35 +235,33 @@ impl<'a> Drawn<'a> {
 
     /// The DoLP of `target` (in band `w`; `None`: every row) and its fitted curve.
     fn series(&self, target: &str, w: Option<f64>) -> plots::DolpSeries {
-        let ms: Vec<plots::DolpPoint> = self
+        let ms: Vec<&Measurement> = self
             .t
             .measurements
             .iter()
-            .filter(|m| {
-                m.target == target && m.status == polarid_io::table::measurements::RowStatus::Ok
-            })
+            .filter(|m| m.target == target && m.status == RowStatus::Ok)
             .filter(|m| w.is_none() || same_band(m.wavelength_nm, w))
-            .map(|m| plots::DolpPoint {
-                beta_deg: m.beta_deg,
-                dolp: m.dolp,
-                dolp_se: m.dolp_se,
-            })
             .collect();
-        let (lo, hi) = ms.iter().fold((f64::MAX, f64::MIN), |(a, b), p| {
-            (a.min(p.beta_deg), b.max(p.beta_deg))
-        });
         let f = self
             .fit_of(target, w)
             .filter(|f| f.n.is_finite() && f.k.is_finite());
-        plots::DolpSeries {
-            label: target.to_string(),
-            curve: match f {
-                Some(f) if !ms.is_empty() => plots::eq9_curve(f.n, f.k, lo - 2.0, hi + 2.0, 60),
-                _ => Vec::new(),
-            },
-            curve_label: f.map(|f| format!("fit n = {:.2}, k = {:.2}", f.n, f.k)),
-            points: ms,
-        }
+        super::demo::common::dolp_series(target.to_string(), f, &ms)
+    }
+
+    /// The chosen references' `(n, k)` in band `w` (`or_first`: else in their first band).
+    fn references(&self, w: Option<f64>, or_first: bool) -> Vec<plots::Prototype> {
+        let first = |p: &MultiPrototype| p.bands.first().filter(|_| or_first).map(|b| (b.n, b.k));
+        self.chosen
+            .iter()
+            .filter_map(|p| {
+                let (n, k) = band_nk(p, w).or_else(|| first(p))?;
+                Some(plots::Prototype {
+                    class: p.class.clone(),
+                    n,
+                    k,
+                })
+            })
+            .collect()
     }
 
     fn estimate(&self, f: &FitRow) -> plots::NkEstimate {
@@ -287,18 +285,7 @@ impl<'a> Drawn<'a> {
                 plots::dolp_vs_beta(&format!("DoLP against β{at} ({what})"), &s, PlotSize::REPORT)?,
             ));
         }
-        let protos: Vec<plots::Prototype> = self
-            .chosen
-            .iter()
-            .filter_map(|p| {
-                let (n, k) = band_nk(p, w).or_else(|| p.bands.first().map(|b| (b.n, b.k)))?;
-                Some(plots::Prototype {
-                    class: p.class.clone(),
-                    n,
-                    k,
-                })
-            })
-            .collect();
+        let protos = self.references(w, true);
         let ests: Vec<plots::NkEstimate> = self
             .shown
             .iter()
@@ -339,18 +326,7 @@ impl<'a> Drawn<'a> {
             .iter()
             .map(|&w| NkBand {
                 wavelength_nm: w,
-                references: self
-                    .chosen
-                    .iter()
-                    .filter_map(|p| {
-                        let (n, k) = band_nk(p, Some(w))?;
-                        Some(plots::Prototype {
-                            class: p.class.clone(),
-                            n,
-                            k,
-                        })
-                    })
-                    .collect(),
+                references: self.references(Some(w), false),
                 estimates: self
                     .shown
                     .iter()
@@ -664,12 +640,12 @@ pub fn hypothesis_tables(
                      scale and offset."
                 .into(),
         };
-        out.push(report::Table {
-            caption: format!(
+        out.push(report::Table::new(
+            format!(
                 "In-scene references: the polarimeter scale and the common angle offset their \
                  rows measure (± 1 SE), with their own native layer. {bounds}"
             ),
-            headers: [
+            &[
                 "Target",
                 "Material",
                 "Scale",
@@ -678,12 +654,8 @@ pub fn hypothesis_tables(
                 "χ² (dof)",
                 "p-value",
                 "Used",
-            ]
-            .iter()
-            .map(|h| h.to_string())
-            .collect(),
-            rows: c
-                .references
+            ],
+            c.references
                 .iter()
                 .map(|r| {
                     let mut row = vec![r.target.clone(), r.reference.to_string()];
@@ -705,7 +677,7 @@ pub fn hypothesis_tables(
                     row
                 })
                 .collect(),
-        });
+        ));
     }
     if !hyps.is_empty() {
         let mut rows = Vec::new();
@@ -731,14 +703,13 @@ pub fn hypothesis_tables(
                 ]);
             }
         }
-        out.push(report::Table {
-            caption: "Each material tested against each target's measured rows, most probable \
-                      first: its probability, whether it passes at the confidence, χ² \
-                      (effective dof) and p-value, and the native-layer thickness, polarimeter \
-                      scale and common angle offset it needed (bounded by the in-scene \
-                      reference when there is one, else by the error model)."
-                .into(),
-            headers: [
+        out.push(report::Table::new(
+            "Each material tested against each target's measured rows, most probable first: \
+             its probability, whether it passes at the confidence, χ² (effective dof) and \
+             p-value, and the native-layer thickness, polarimeter scale and common angle \
+             offset it needed (bounded by the in-scene reference when there is one, else by \
+             the error model).",
+            &[
                 "Target",
                 "Material",
                 "Probability",
@@ -749,12 +720,9 @@ pub fn hypothesis_tables(
                 "Scale",
                 "Offset (°)",
                 "Bounds",
-            ]
-            .iter()
-            .map(|h| h.to_string())
-            .collect(),
+            ],
             rows,
-        });
+        ));
     }
     out
 }

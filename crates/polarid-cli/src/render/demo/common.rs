@@ -3,7 +3,7 @@
 
 use std::collections::BTreeMap;
 
-use polarid_io::model::Model;
+use polarid_io::model::ModelPrototype;
 use polarid_io::table::classification::ClassificationRow;
 use polarid_io::table::fits::FitRow;
 use polarid_io::table::measurements::Measurement;
@@ -11,18 +11,21 @@ use polarid_io::table::measurements::Measurement;
 use crate::render::plots;
 use crate::render::report;
 
-/// The measurements of each target, in file order.
-pub fn by_target(meas: &[(u64, Measurement)]) -> BTreeMap<&str, Vec<&Measurement>> {
+/// The measurements of each target, in their order.
+pub fn by_target<'a>(
+    meas: impl IntoIterator<Item = &'a Measurement>,
+) -> BTreeMap<&'a str, Vec<&'a Measurement>> {
     let mut by_target: BTreeMap<&str, Vec<&Measurement>> = BTreeMap::new();
-    for (_, m) in meas {
+    for m in meas {
         by_target.entry(m.target.as_str()).or_default().push(m);
     }
     by_target
 }
 
-/// One plate's DoLP against β: its measurements `ms` (±1 standard error) and the curve
-/// of eq. (9) of its fit `f`, 2° beyond the measured β on each side.
-pub fn dolp_series(label: String, f: &FitRow, ms: &[&Measurement]) -> plots::DolpSeries {
+/// One plate's DoLP against β: its measurements `ms` (±1 standard error) and, with its
+/// fit `f` and measurements, the curve of eq. (9) of the fit, 2° beyond the measured β on
+/// each side.
+pub fn dolp_series(label: String, f: Option<&FitRow>, ms: &[&Measurement]) -> plots::DolpSeries {
     let points: Vec<plots::DolpPoint> = ms
         .iter()
         .map(|m| plots::DolpPoint {
@@ -35,17 +38,18 @@ pub fn dolp_series(label: String, f: &FitRow, ms: &[&Measurement]) -> plots::Dol
     let hi = points.iter().map(|q| q.beta_deg).fold(f64::MIN, f64::max);
     plots::DolpSeries {
         label,
+        curve: match f {
+            Some(f) if !points.is_empty() => plots::eq9_curve(f.n, f.k, lo - 2.0, hi + 2.0, 60),
+            _ => Vec::new(),
+        },
+        curve_label: f.map(|f| format!("fit n = {:.2}, k = {:.2}", f.n, f.k)),
         points,
-        curve: plots::eq9_curve(f.n, f.k, lo - 2.0, hi + 2.0, 60),
-        curve_label: Some(format!("fit n = {:.2}, k = {:.2}", f.n, f.k)),
     }
 }
 
-/// The model's prototypes as the (n, k) plane draws them.
-pub fn prototypes(model: &Model) -> Vec<plots::Prototype> {
-    model
-        .prototypes
-        .iter()
+/// A model's prototypes as the (n, k) plane draws them.
+pub fn prototypes<'a>(ps: impl IntoIterator<Item = &'a ModelPrototype>) -> Vec<plots::Prototype> {
+    ps.into_iter()
         .map(|p| plots::Prototype {
             class: p.class.clone(),
             n: p.n,

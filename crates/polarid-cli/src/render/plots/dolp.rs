@@ -34,6 +34,28 @@ pub struct DolpSeries {
     pub curve_label: Option<String>,
 }
 
+impl DolpPoint {
+    /// Whether the point can be drawn: its β and DoLP are finite.
+    pub(super) fn valid(&self) -> bool {
+        self.beta_deg.is_finite() && self.dolp.is_finite()
+    }
+
+    /// Its ±1 SE bar's half-height (0 when it has no standard error).
+    pub(super) fn se(&self) -> f64 {
+        self.dolp_se
+            .filter(|s| s.is_finite() && *s > 0.0)
+            .unwrap_or(0.0)
+    }
+}
+
+/// The samples of curve `c` whose both coordinates are finite.
+pub(super) fn finite(c: &[(f64, f64)]) -> Vec<(f64, f64)> {
+    c.iter()
+        .copied()
+        .filter(|(x, y)| x.is_finite() && y.is_finite())
+        .collect()
+}
+
 /// `samples` points of `f(β)` for β evenly spaced over `[beta_min_deg, beta_max_deg]`
 /// (degrees; `f` takes degrees), for [`DolpSeries::curve`].
 pub fn sample_curve(
@@ -79,6 +101,67 @@ pub fn dolp_vs_beta(title: &str, series: &[DolpSeries], size: PlotSize) -> Resul
     render(&DolpFigure { title, series }, size)
 }
 
+/// The ranges of β and of DoLP ± 1 SE over the valid points and the curves of `series`
+/// (`None`: no finite value).
+pub(super) fn dolp_ranges(series: &[DolpSeries]) -> (Option<(f64, f64)>, Option<(f64, f64)>) {
+    let xs = series.iter().flat_map(|s| {
+        s.points
+            .iter()
+            .filter(|p| p.valid())
+            .map(|p| p.beta_deg)
+            .chain(s.curve.iter().filter(|c| c.1.is_finite()).map(|c| c.0))
+    });
+    let ys = series.iter().flat_map(|s| {
+        s.points
+            .iter()
+            .filter(|p| p.valid())
+            .flat_map(|p| [p.dolp - p.se(), p.dolp + p.se()])
+            .chain(s.curve.iter().filter(|c| c.0.is_finite()).map(|c| c.1))
+    });
+    (min_max(xs), min_max(ys))
+}
+
+/// Draw `s` in colour `c`: its finite curve `line` pixels wide, then every valid point as
+/// a filled circle of radius `radius` over its ±1 SE bar; `detailed`: with caps on the
+/// bars and a ring around the circles.
+pub(super) fn draw_dolp_series<DB: DrawingBackend>(
+    ch: &mut Chart2d<'_, DB>,
+    s: &DolpSeries,
+    c: RGBColor,
+    (line, radius, detailed): (u32, i32, bool),
+) -> Result<()> {
+    let curve = finite(&s.curve);
+    if !curve.is_empty() {
+        ch.draw_series(LineSeries::new(curve, c.stroke_width(line)))
+            .dr()?;
+    }
+    let area = ch.plotting_area();
+    for p in s.points.iter().filter(|p| p.valid()) {
+        let (at, e) = ((p.beta_deg, p.dolp), p.se());
+        if e > 0.0 {
+            let st = shade(c, 0.8).stroke_width(2);
+            area.draw(&PathElement::new(
+                vec![(p.beta_deg, p.dolp - e), (p.beta_deg, p.dolp + e)],
+                st,
+            ))
+            .dr()?;
+            for yy in [p.dolp - e, p.dolp + e].into_iter().filter(|_| detailed) {
+                area.draw(
+                    &(EmptyElement::at((p.beta_deg, yy))
+                        + PathElement::new(vec![(-5, 0), (5, 0)], st)),
+                )
+                .dr()?;
+            }
+        }
+        draw_marker(area, at, Marker::Circle, radius, c.filled())?;
+        if detailed {
+            let ring = shade(c, 0.6).stroke_width(1);
+            draw_marker(area, at, Marker::Circle, radius, ring)?;
+        }
+    }
+    Ok(())
+}
+
 struct DolpFigure<'a> {
     title: &'a str,
     series: &'a [DolpSeries],
@@ -87,31 +170,11 @@ struct DolpFigure<'a> {
 impl Figure for DolpFigure<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<Option<Raster>> {
         let (main, side) = layout(root, self.title)?;
-        let valid = |p: &DolpPoint| p.beta_deg.is_finite() && p.dolp.is_finite();
-        let xs = self.series.iter().flat_map(|s| {
-            s.points
-                .iter()
-                .filter(|p| valid(p))
-                .map(|p| p.beta_deg)
-                .chain(s.curve.iter().filter(|c| c.1.is_finite()).map(|c| c.0))
-        });
-        let Some((x0, x1)) = min_max(xs) else {
+        let (Some((x0, x1)), ys) = dolp_ranges(self.series) else {
             draw_notice(&main, "No DoLP data to plot")?;
             return Ok(None);
         };
-        let se = |p: &DolpPoint| {
-            p.dolp_se
-                .filter(|s| s.is_finite() && *s > 0.0)
-                .unwrap_or(0.0)
-        };
-        let ys = self.series.iter().flat_map(|s| {
-            s.points
-                .iter()
-                .filter(|p| valid(p))
-                .flat_map(|p| [p.dolp - se(p), p.dolp + se(p)])
-                .chain(s.curve.iter().filter(|c| c.0.is_finite()).map(|c| c.1))
-        });
-        let (y0, y1) = min_max(ys).unwrap_or((0.0, 1.0));
+        let (y0, y1) = ys.unwrap_or((0.0, 1.0));
         let (x0, x1) = padded(x0, x1, 0.04, 2.0);
         let (x0, x1) = (x0.max(0.0), x1.min(90.0));
         let y0 = if y0 > 0.0 && y0 < 0.5 * y1 {
@@ -126,43 +189,7 @@ impl Figure for DolpFigure<'_> {
         let mut legend = Vec::new();
         for (i, s) in self.series.iter().enumerate() {
             let c = class_colour(i);
-            let curve: Vec<(f64, f64)> = s
-                .curve
-                .iter()
-                .copied()
-                .filter(|(x, y)| x.is_finite() && y.is_finite())
-                .collect();
-            if !curve.is_empty() {
-                ch.draw_series(LineSeries::new(curve, c.stroke_width(3)))
-                    .dr()?;
-            }
-            let area = ch.plotting_area();
-            for p in s.points.iter().filter(|p| valid(p)) {
-                let e = se(p);
-                if e > 0.0 {
-                    let st = shade(c, 0.8).stroke_width(2);
-                    area.draw(&PathElement::new(
-                        vec![(p.beta_deg, p.dolp - e), (p.beta_deg, p.dolp + e)],
-                        st,
-                    ))
-                    .dr()?;
-                    for yy in [p.dolp - e, p.dolp + e] {
-                        area.draw(
-                            &(EmptyElement::at((p.beta_deg, yy))
-                                + PathElement::new(vec![(-5, 0), (5, 0)], st)),
-                        )
-                        .dr()?;
-                    }
-                }
-                draw_marker(area, (p.beta_deg, p.dolp), Marker::Circle, 6, c.filled())?;
-                draw_marker(
-                    area,
-                    (p.beta_deg, p.dolp),
-                    Marker::Circle,
-                    6,
-                    shade(c, 0.6).stroke_width(1),
-                )?;
-            }
+            draw_dolp_series(&mut ch, s, c, (3, 6, true))?;
             legend.push(LegendItem::Marker(
                 Marker::Circle,
                 c,

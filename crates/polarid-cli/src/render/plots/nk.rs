@@ -439,13 +439,7 @@ fn nk_legend(
     styles: RegionStyles,
 ) -> Vec<LegendItem> {
     let mut legend = vec![LegendItem::Heading("Prototypes / regions".into())];
-    for (i, c) in classes.iter().enumerate() {
-        legend.push(LegendItem::Marker(
-            Marker::Circle,
-            class_colour(i),
-            c.to_string(),
-        ));
-    }
+    legend.extend(class_markers(classes));
     if !ests.is_empty() {
         let heading = match ests.iter().find_map(|e| e.regions.first()) {
             Some(r) => format!("Estimates: answer ({}% region)", r.confidence * 100.0),

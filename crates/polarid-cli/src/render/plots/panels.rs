@@ -11,6 +11,7 @@ use plotters::prelude::*;
 
 use super::PlotSize;
 use super::canvas::*;
+use super::dolp::{dolp_ranges, draw_dolp_series};
 use super::nk::covariance_ellipse;
 use super::style::DrawResult as _;
 use super::style::*;
@@ -102,32 +103,11 @@ struct DolpPanels<'a> {
     bands: &'a [DolpBand],
 }
 
-fn dolp_se(p: &super::DolpPoint) -> f64 {
-    p.dolp_se
-        .filter(|s| s.is_finite() && *s > 0.0)
-        .unwrap_or(0.0)
-}
-
 fn draw_dolp_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, b: &DolpBand) -> Result<()> {
-    let ok = |p: &&super::DolpPoint| p.beta_deg.is_finite() && p.dolp.is_finite();
-    let xs = b.series.iter().flat_map(|s| {
-        s.points
-            .iter()
-            .filter(ok)
-            .map(|p| p.beta_deg)
-            .chain(s.curve.iter().filter(|c| c.1.is_finite()).map(|c| c.0))
-    });
-    let Some((x0, x1)) = min_max(xs) else {
+    let (Some((x0, x1)), ys) = dolp_ranges(&b.series) else {
         return draw_notice(area, "No DoLP data in this band");
     };
-    let ys = b.series.iter().flat_map(|s| {
-        s.points
-            .iter()
-            .filter(ok)
-            .flat_map(|p| [p.dolp - dolp_se(p), p.dolp + dolp_se(p)])
-            .chain(s.curve.iter().filter(|c| c.0.is_finite()).map(|c| c.1))
-    });
-    let (y0, y1) = min_max(ys).unwrap_or((0.0, 1.0));
+    let (y0, y1) = ys.unwrap_or((0.0, 1.0));
     let (x0, x1) = padded(x0, x1, 0.04, 2.0);
     let (x0, x1) = (x0.max(0.0), x1.min(90.0));
     let (y0, y1) = padded(y0, y1, 0.06, 0.05);
@@ -136,29 +116,7 @@ fn draw_dolp_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, b: &DolpBa
     let tag = band_label(b.wavelength_nm);
     configure_axes(&mut ch, "β (degrees)", &format!("DoLP at {tag} nm"), true)?;
     for (i, s) in b.series.iter().enumerate() {
-        let c = class_colour(i);
-        let curve: Vec<(f64, f64)> = s
-            .curve
-            .iter()
-            .copied()
-            .filter(|(x, y)| x.is_finite() && y.is_finite())
-            .collect();
-        if !curve.is_empty() {
-            ch.draw_series(LineSeries::new(curve, c.stroke_width(2)))
-                .dr()?;
-        }
-        let pa = ch.plotting_area();
-        for p in s.points.iter().filter(ok) {
-            let e = dolp_se(p);
-            if e > 0.0 {
-                pa.draw(&PathElement::new(
-                    vec![(p.beta_deg, p.dolp - e), (p.beta_deg, p.dolp + e)],
-                    shade(c, 0.8).stroke_width(2),
-                ))
-                .dr()?;
-            }
-            draw_marker(pa, (p.beta_deg, p.dolp), Marker::Circle, 5, c.filled())?;
-        }
+        draw_dolp_series(&mut ch, s, class_colour(i), (2, 5, false))?;
     }
     Ok(())
 }
@@ -176,13 +134,7 @@ impl Figure for DolpPanels<'_> {
         }
         let mut legend = vec![LegendItem::Heading("targets (±1 SE)".into())];
         // ok: `bands` is not empty (checked above).
-        for (i, s) in self.bands[0].series.iter().enumerate() {
-            legend.push(LegendItem::Marker(
-                Marker::Circle,
-                class_colour(i),
-                s.label.clone(),
-            ));
-        }
+        legend.extend(class_markers(self.bands[0].series.iter().map(|s| &s.label)));
         legend.push(LegendItem::Line(BLACK, "eq. (9) fit of the band".into()));
         draw_legend(&side, &legend)?;
         Ok(None)
@@ -288,13 +240,7 @@ impl Figure for NkPanels<'_> {
         if !classes.is_empty() {
             legend.push(LegendItem::Heading("references".into()));
         }
-        for (i, c) in classes.iter().enumerate() {
-            legend.push(LegendItem::Marker(
-                Marker::Circle,
-                class_colour(i),
-                c.to_string(),
-            ));
-        }
+        legend.extend(class_markers(&classes));
         legend.push(LegendItem::Heading("targets (1-σ ellipse)".into()));
         let n_targets = self.bands.iter().map(|b| b.estimates.len()).max();
         for j in 0..n_targets.unwrap_or(0) {

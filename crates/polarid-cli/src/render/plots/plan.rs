@@ -10,7 +10,7 @@ use plotters::prelude::*;
 
 use super::PlotSize;
 use super::canvas::*;
-use super::dolp::DolpPoint;
+use super::dolp::{DolpPoint, finite};
 use super::style::DrawResult as _;
 use super::style::*;
 use crate::render::Rendered;
@@ -87,25 +87,6 @@ struct PlanFigure<'a> {
     axes: PlanAxes,
 }
 
-fn finite(c: &[(f64, f64)]) -> Vec<(f64, f64)> {
-    c.iter()
-        .copied()
-        .filter(|(x, y)| x.is_finite() && y.is_finite())
-        .collect()
-}
-
-/// A plotted position's DoLP and β are finite.
-fn valid(p: &DolpPoint) -> bool {
-    p.beta_deg.is_finite() && p.dolp.is_finite()
-}
-
-/// A position's standard error (0 when it has none).
-fn se(p: &DolpPoint) -> f64 {
-    p.dolp_se
-        .filter(|s| s.is_finite() && *s > 0.0)
-        .unwrap_or(0.0)
-}
-
 /// Plate `p`'s rows in colour `c`: the current positions (diamonds) and the recommended
 /// ones (circles, with their ±1 σ bars).
 fn draw_rows<DB: DrawingBackend>(
@@ -113,7 +94,7 @@ fn draw_rows<DB: DrawingBackend>(
     p: &PlanPlate,
     c: RGBColor,
 ) -> Result<()> {
-    for q in p.current.iter().filter(|q| valid(q)) {
+    for q in p.current.iter().filter(|q| q.valid()) {
         draw_marker(
             area,
             (q.beta_deg, q.dolp),
@@ -129,8 +110,8 @@ fn draw_rows<DB: DrawingBackend>(
             shade(c, 0.8).stroke_width(2),
         )?;
     }
-    for q in p.recommended.iter().filter(|q| valid(q)) {
-        let e = se(q);
+    for q in p.recommended.iter().filter(|q| q.valid()) {
+        let e = q.se();
         if e > 0.0 {
             let st = shade(c, 0.7).stroke_width(2);
             area.draw(&PathElement::new(
@@ -158,7 +139,7 @@ impl Figure for PlanFigure<'_> {
             self.plates
                 .iter()
                 .flat_map(|p| p.recommended.iter().chain(&p.current))
-                .filter(|p| valid(p))
+                .filter(|p| p.valid())
         };
         let curves = || {
             self.plates
@@ -171,7 +152,7 @@ impl Figure for PlanFigure<'_> {
             return Ok(None);
         };
         let ys = points()
-            .flat_map(|p| [p.dolp - se(p), p.dolp + se(p)])
+            .flat_map(|p| [p.dolp - p.se(), p.dolp + p.se()])
             .chain(curves().map(|c| c.1));
         let (_, y1) = min_max(ys).unwrap_or((0.0, 1.0));
         let (x0, x1) = padded(x0, x1, 0.02, 2.0);
@@ -213,7 +194,7 @@ impl Figure for PlanFigure<'_> {
             .plates
             .iter()
             .flat_map(|p| &p.recommended)
-            .any(|q| se(q) > 0.0);
+            .any(|q| q.se() > 0.0);
         legend.push(LegendItem::Marker(
             Marker::Circle,
             grey,

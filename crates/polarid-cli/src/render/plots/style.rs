@@ -122,6 +122,18 @@ pub(super) enum LegendItem {
     Note(String),
 }
 
+/// Legend entries: a circle in [`class_colour`] `i` for the `i`-th of `labels`.
+pub(super) fn class_markers(
+    labels: impl IntoIterator<Item = impl ToString>,
+) -> impl Iterator<Item = LegendItem> {
+    let marker = |(i, l): (usize, _)| LegendItem::Marker(Marker::Circle, class_colour(i), l);
+    labels
+        .into_iter()
+        .map(|l| l.to_string())
+        .enumerate()
+        .map(marker)
+}
+
 /// Conversion of plotters' drawing errors (whose backend error type varies) to anyhow.
 pub(super) trait DrawResult<T> {
     fn dr(self) -> Result<T>;

@@ -44,18 +44,10 @@ impl Report {
             s.push_str("None.\n\n");
         }
         if !self.inputs.is_empty() {
-            md_table(
-                &mut s,
-                &Table {
-                    caption: String::new(),
-                    headers: vec!["Input".into(), "Path".into(), "Details".into()],
-                    rows: self
-                        .inputs
-                        .iter()
-                        .map(|i| vec![i.role.clone(), i.path.clone(), i.detail.clone()])
-                        .collect(),
-                },
-            );
+            let rows = self.inputs.iter();
+            let rows = rows.map(|i| vec![i.role.clone(), i.path.clone(), i.detail.clone()]);
+            let headers = ["Input", "Path", "Details"];
+            md_table(&mut s, &Table::new("", &headers, rows.collect()));
         }
         if !self.manifest.is_empty() {
             s.push_str("Manifest:\n\n");

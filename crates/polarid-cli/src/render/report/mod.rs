@@ -373,18 +373,24 @@ fn classification_cells(c: &ClassificationRow) -> Vec<String> {
     ]
 }
 
+impl Table {
+    /// A table of `rows` under `headers`.
+    pub fn new(caption: impl Into<String>, headers: &[&str], rows: Vec<Vec<String>>) -> Self {
+        Self {
+            caption: caption.into(),
+            headers: headers.iter().map(|h| h.to_string()).collect(),
+            rows,
+        }
+    }
+}
+
 impl Report {
     /// The tables of the report as (section id, caption, headers, rows), formatted.
     fn tables(&self) -> Vec<(&'static str, Table)> {
-        let t = |caption: &str, headers: &[&str], rows: Vec<Vec<String>>| Table {
-            caption: caption.to_string(),
-            headers: headers.iter().map(|h| h.to_string()).collect(),
-            rows,
-        };
         let mut out = Vec::new();
         out.push((
             "geometry",
-            t(
+            Table::new(
                 "Observation geometry per target (degrees).",
                 &["Target", "Class", "θr", "θi", "φ", "β", "Captures"],
                 self.geometry
@@ -405,7 +411,7 @@ impl Report {
         ));
         out.push((
             "reference",
-            t(
+            Table::new(
                 "Reference indices of refraction N = n + ik.",
                 &["Material", "n", "k", "Source"],
                 self.references
@@ -423,7 +429,7 @@ impl Report {
         ));
         out.push((
             "estimates",
-            t(
+            Table::new(
                 "Fitted indices with 1-σ standard errors (eq. 9).",
                 &[
                     "Target",
@@ -456,8 +462,8 @@ impl Report {
         ));
         out.push((
             "classification",
-            t(
-                &classification_caption(&self.classification),
+            Table::new(
+                classification_caption(&self.classification),
                 &[
                     "Target",
                     "Known class",
