@@ -27,11 +27,10 @@
 //! and clipping, exactly as [`Sensor::sample`], with one random stream per row seeded as
 //! in [`super::render_frame`].
 
-use rand::SeedableRng;
-use rand::rngs::Xoshiro256PlusPlus;
-use rayon::prelude::*;
-
-use super::{PlateOptics, Sensor, plate_radiance, polarizer_intensity};
+use super::{
+    PlateOptics, Sensor, check_frame_size, check_rects, plate_radiance, polarizer_intensity,
+    sample_frame,
+};
 use crate::error::{CoreError, Result, ensure_finite};
 use crate::mosaic::ColourPattern;
 
@@ -87,13 +86,7 @@ fn check_frame(
                 .into(),
         });
     }
-    if out_len != width * height {
-        return Err(CoreError::LengthMismatch {
-            name: "out",
-            expected: width * height,
-            got: out_len,
-        });
-    }
+    check_frame_size(width, height, &[("out", out_len)])?;
     let nb = pattern.bands().len();
     for &(name, len) in per_band {
         if len != nb {
@@ -156,35 +149,21 @@ pub fn render_colour_frame(
         &lists,
         electrons_per_unit,
     )?;
-    for r in rects {
-        if r.width == 0 || r.height == 0 || r.x + r.width > width || r.y + r.height > height {
-            return Err(CoreError::InvalidRegion {
-                x: r.x,
-                y: r.y,
-                width: r.width,
-                height: r.height,
-                reason: format!("is empty or leaves the {width}x{height} frame"),
-            });
-        }
-    }
+    check_rects(
+        width,
+        height,
+        rects.iter().map(|r| [r.x, r.y, r.width, r.height]),
+    )?;
     let angles = polarizer_angles();
-    out.par_chunks_mut(width)
-        .enumerate()
-        .for_each(|(row, line)| {
-            let mut rng = row_rng(seed, row);
-            for (col, px) in line.iter_mut().enumerate() {
-                let s = rects
-                    .iter()
-                    .rev()
-                    .find(|r| {
-                        col >= r.x && col < r.x + r.width && row >= r.y && row < r.y + r.height
-                    })
-                    .map_or(background, |r| r.stokes.as_slice());
-                let (b, k) = pattern.channel_at(row, col);
-                let e = electrons_per_unit[b] * polarizer_intensity(&s[b], angles[k]);
-                *px = sensor.sample(e, &mut rng);
-            }
-        });
+    sample_frame(width, sensor, seed, out, |row, col| {
+        let s = rects
+            .iter()
+            .rev()
+            .find(|r| col >= r.x && col < r.x + r.width && row >= r.y && row < r.y + r.height)
+            .map_or(background, |r| r.stokes.as_slice());
+        let (b, k) = pattern.channel_at(row, col);
+        electrons_per_unit[b] * polarizer_intensity(&s[b], angles[k])
+    });
     Ok(())
 }
 
@@ -218,38 +197,20 @@ pub fn render_colour_frame_stokes(
         ],
         electrons_per_unit,
     )?;
-    for m in stokes {
-        if m.len() != width * height {
-            return Err(CoreError::LengthMismatch {
-                name: "stokes map",
-                expected: width * height,
-                got: m.len(),
-            });
-        }
-    }
+    let maps: Vec<_> = stokes.iter().map(|m| ("stokes map", m.len())).collect();
+    check_frame_size(width, height, &maps)?;
     let angles = polarizer_angles();
-    out.par_chunks_mut(width)
-        .enumerate()
-        .for_each(|(row, line)| {
-            let mut rng = row_rng(seed, row);
-            for (col, px) in line.iter_mut().enumerate() {
-                let (b, k) = pattern.channel_at(row, col);
-                let s = stokes[b][row * width + col].map(f64::from);
-                let e = electrons_per_unit[b] * polarizer_intensity(&s, angles[k]);
-                *px = sensor.sample(e, &mut rng);
-            }
-        });
+    sample_frame(width, sensor, seed, out, |row, col| {
+        let (b, k) = pattern.channel_at(row, col);
+        let s = stokes[b][row * width + col].map(f64::from);
+        electrons_per_unit[b] * polarizer_intensity(&s, angles[k])
+    });
     Ok(())
 }
 
 /// The polarizer angle of `k` (radians): `k × 45°` (the `k` of [`ColourPattern::channel_at`]).
 fn polarizer_angles() -> [f64; 4] {
     std::array::from_fn(|k| (45.0 * k as f64).to_radians())
-}
-
-/// The random stream of row `row` (as [`super::render_frame`]).
-fn row_rng(seed: u64, row: usize) -> Xoshiro256PlusPlus {
-    Xoshiro256PlusPlus::seed_from_u64(seed ^ (row as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15))
 }
 
 #[cfg(test)]
