@@ -7,7 +7,7 @@
 //! optionally its own diffuse albedo); the roughness σ is a property of the surface's
 //! shape and the same in every band. In the far field (collimated source of normal
 //! irradiance `E0 = 1`) the radiance Stokes vector of band `b` is that of the monochrome
-//! simulator, [`plate_radiance`]:
+//! simulator, [`super::plate_radiance`]:
 //!
 //! ```text
 //! L_b = cos θi · ( f00_b + ρd_b/π ,  f10_b ,  f20_b ),     f_b: paper eq. (3) at (n_b, k_b)
@@ -27,10 +27,7 @@
 //! and clipping, exactly as [`Sensor::sample`], with one random stream per row seeded as
 //! in [`super::render_frame`].
 
-use super::{
-    PlateOptics, Sensor, check_frame_size, check_rects, plate_radiance, polarizer_intensity,
-    sample_frame,
-};
+use super::{Sensor, check_frame_size, check_rects, polarizer_intensity, sample_frame};
 use crate::error::{CoreError, Result, ensure_finite};
 use crate::mosaic::ColourPattern;
 
@@ -48,23 +45,6 @@ pub struct ColourRect {
     /// Radiance Stokes vector `(S0, S1, S2)` of each band, in the order of
     /// [`ColourPattern::bands`].
     pub stokes: Vec<[f64; 3]>,
-}
-
-/// The far-field radiance Stokes vector of each band of a plate (module documentation):
-/// [`plate_radiance`] with each band's optics `bands[b]` (source zenith `theta_i`,
-/// camera zenith `theta_r`, azimuth difference `phi`, radians).
-///
-/// Errors: those of [`plate_radiance`] (optics or angles out of range).
-pub fn colour_plate_radiance(
-    bands: &[PlateOptics],
-    theta_i: f64,
-    theta_r: f64,
-    phi: f64,
-) -> Result<Vec<[f64; 3]>> {
-    bands
-        .iter()
-        .map(|o| plate_radiance(o, theta_i, theta_r, phi))
-        .collect()
 }
 
 /// Check a colour frame's size (non-zero multiples of the 4×4 period), the output
@@ -169,7 +149,7 @@ pub fn render_colour_frame(
 
 /// Render one raw colour polarization frame into `out` (`width × height`, both non-zero
 /// multiples of 4) from per-band radiance Stokes maps (`stokes[b]`, each `width × height`,
-/// e.g. [`super::PerspectiveScene::render`] with band `b`'s optics), with the sensor
+/// e.g. [`super::PerspectiveScene::render_bands`]), with the sensor
 /// model and seeding of [`render_colour_frame`].
 ///
 /// Errors: those of [`render_colour_frame`]; [`CoreError::LengthMismatch`] for a map
@@ -218,6 +198,7 @@ mod tests {
     use super::*;
     use crate::dop::dop;
     use crate::mosaic::{ColourMethod, DofpOutputs, Pattern, colour_polar};
+    use crate::simulate::{PlateOptics, plate_radiance};
     use crate::stokes::PixelRules;
 
     /// Copper at 450, 550 and 650 nm (builtin-rgb band means), in the band order of
@@ -312,7 +293,10 @@ mod tests {
             let opt = optics(&nk);
             for (si, ti) in [35.0f64, 55.0, 75.0].into_iter().enumerate() {
                 let (tr, phi) = (60.0f64.to_radians(), std::f64::consts::PI);
-                let stokes = colour_plate_radiance(&opt, ti.to_radians(), tr, phi).unwrap();
+                let stokes: Vec<[f64; 3]> = opt
+                    .iter()
+                    .map(|o| plate_radiance(o, ti.to_radians(), tr, phi).unwrap())
+                    .collect();
                 let rect = ColourRect {
                     x: 0,
                     y: 0,

@@ -30,11 +30,9 @@ pub mod colour;
 pub mod imperfect;
 pub mod perspective;
 
-pub use colour::{
-    ColourRect, colour_plate_radiance, render_colour_frame, render_colour_frame_stokes,
-};
+pub use colour::{ColourRect, render_colour_frame, render_colour_frame_stokes};
 pub use perspective::{
-    BandStokesMaps, Light, PerspectiveScene, PixelHit, PlanarPlate, StokesMaps, plate_stokes,
+    BandStokesMaps, Light, PerspectiveScene, PixelHit, PlanarPlate, plate_stokes,
 };
 
 use rand::SeedableRng;
@@ -357,7 +355,7 @@ pub fn render_frame(
 }
 
 /// Render one raw frame into `out` (`width × height`, row-major) from a per-pixel
-/// radiance Stokes map `stokes` (e.g. of [`PerspectiveScene::render`]), with the sensor
+/// radiance Stokes map `stokes` (e.g. of [`PerspectiveScene::render_bands`]), with the sensor
 /// model and seeding of [`render_frame`]: `electrons_per_unit · I(a)` expected
 /// electrons per pixel behind the polarizer angle `a` of `analyzer`.
 #[allow(clippy::too_many_arguments)]

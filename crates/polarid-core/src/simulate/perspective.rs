@@ -252,17 +252,6 @@ pub struct BandStokesMaps<'a> {
     pub plate: &'a mut [u16],
 }
 
-/// Caller-owned outputs of [`PerspectiveScene::render`]: one value per pixel of the
-/// `width × height` frame, row-major.
-#[derive(Debug)]
-pub struct StokesMaps<'a> {
-    /// Radiance Stokes vectors `(S0, S1, S2)` (f32: a frame of 2048 × 2448 pixels takes
-    /// 60 MB).
-    pub stokes: &'a mut [[f32; 3]],
-    /// Plate seen: 0 for the background, `i + 1` for plate `i`.
-    pub plate: &'a mut [u16],
-}
-
 impl PerspectiveScene {
     /// Pair `camera` with `plates` (at most 65534).
     ///
@@ -391,11 +380,12 @@ impl PerspectiveScene {
         }
     }
 
-    /// Render a colour scene's per-band radiance Stokes maps and the plate map of a
-    /// `width × height` frame: every pixel's ray is traced once ([`Self::pixel`]'s
-    /// geometry) and its Stokes vector in band `b` is [`plate_stokes`] with the optics
-    /// `optics[plate][b]` of the plate it sees (`background[b]` where it sees none), in
-    /// parallel over rows. The plates' own optics ([`PlanarPlate::optics`]) are not used.
+    /// Render the per-band radiance Stokes maps (one band for a single-band scene) and
+    /// the plate map of a `width × height` frame: every pixel's ray is traced once
+    /// ([`Self::pixel`]'s geometry) and its Stokes vector in band `b` is [`plate_stokes`]
+    /// with the optics `optics[plate][b]` of the plate it sees (`background[b]` where it
+    /// sees none), in parallel over rows. The plates' own optics
+    /// ([`PlanarPlate::optics`]) are not used.
     ///
     /// Errors: [`CoreError::InvalidDimensions`] (an empty frame),
     /// [`CoreError::LengthMismatch`] (a map that is not `width × height` long; `optics`
@@ -490,31 +480,6 @@ impl PerspectiveScene {
             Some((_, e)) => Err(e),
             None => Ok(()),
         }
-    }
-
-    /// Render the radiance Stokes vector and the plate index of every pixel of a
-    /// `width × height` frame into `out` (pixels that see no plate get `background`),
-    /// in parallel over rows: [`Self::render_bands`] with one band, the plates' own optics.
-    ///
-    /// Errors: [`CoreError::InvalidDimensions`] (an empty frame),
-    /// [`CoreError::LengthMismatch`] (a buffer that is not `width × height` long),
-    /// [`CoreError::NonFinite`] (a non-finite background), and those of
-    /// [`PerspectiveScene::pixel`] for the first failing row (the maps are then partly
-    /// written).
-    pub fn render(
-        &self,
-        width: usize,
-        height: usize,
-        light: &Light,
-        background: [f64; 3],
-        out: StokesMaps<'_>,
-    ) -> Result<()> {
-        let optics: Vec<Vec<PlateOptics>> = self.plates.iter().map(|p| vec![p.optics]).collect();
-        let out = BandStokesMaps {
-            stokes: vec![out.stokes],
-            plate: out.plate,
-        };
-        self.render_bands(width, height, light, &optics, &[background], out)
     }
 }
 
