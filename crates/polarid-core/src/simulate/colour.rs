@@ -7,7 +7,7 @@
 //! optionally its own diffuse albedo); the roughness σ is a property of the surface's
 //! shape and the same in every band. In the far field (collimated source of normal
 //! irradiance `E0 = 1`) the radiance Stokes vector of band `b` is that of the monochrome
-//! simulator, [`plate_radiance`]:
+//! simulator, [`super::plate_radiance`]:
 //!
 //! ```text
 //! L_b = cos θi · ( f00_b + ρd_b/π ,  f10_b ,  f20_b ),     f_b: paper eq. (3) at (n_b, k_b)
@@ -27,11 +27,7 @@
 //! and clipping, exactly as [`Sensor::sample`], with one random stream per row seeded as
 //! in [`super::render_frame`].
 
-use rand::SeedableRng;
-use rand::rngs::Xoshiro256PlusPlus;
-use rayon::prelude::*;
-
-use super::{PlateOptics, Sensor, plate_radiance, polarizer_intensity};
+use super::{Sensor, check_frame_size, check_rects, polarizer_intensity, sample_frame};
 use crate::error::{CoreError, Result, ensure_finite};
 use crate::mosaic::ColourPattern;
 
@@ -49,23 +45,6 @@ pub struct ColourRect {
     /// Radiance Stokes vector `(S0, S1, S2)` of each band, in the order of
     /// [`ColourPattern::bands`].
     pub stokes: Vec<[f64; 3]>,
-}
-
-/// The far-field radiance Stokes vector of each band of a plate (module documentation):
-/// [`plate_radiance`] with each band's optics `bands[b]` (source zenith `theta_i`,
-/// camera zenith `theta_r`, azimuth difference `phi`, radians).
-///
-/// Errors: those of [`plate_radiance`] (optics or angles out of range).
-pub fn colour_plate_radiance(
-    bands: &[PlateOptics],
-    theta_i: f64,
-    theta_r: f64,
-    phi: f64,
-) -> Result<Vec<[f64; 3]>> {
-    bands
-        .iter()
-        .map(|o| plate_radiance(o, theta_i, theta_r, phi))
-        .collect()
 }
 
 /// Check a colour frame's size (non-zero multiples of the 4×4 period), the output
@@ -87,13 +66,7 @@ fn check_frame(
                 .into(),
         });
     }
-    if out_len != width * height {
-        return Err(CoreError::LengthMismatch {
-            name: "out",
-            expected: width * height,
-            got: out_len,
-        });
-    }
+    check_frame_size(width, height, &[("out", out_len)])?;
     let nb = pattern.bands().len();
     for &(name, len) in per_band {
         if len != nb {
@@ -156,41 +129,27 @@ pub fn render_colour_frame(
         &lists,
         electrons_per_unit,
     )?;
-    for r in rects {
-        if r.width == 0 || r.height == 0 || r.x + r.width > width || r.y + r.height > height {
-            return Err(CoreError::InvalidRegion {
-                x: r.x,
-                y: r.y,
-                width: r.width,
-                height: r.height,
-                reason: format!("is empty or leaves the {width}x{height} frame"),
-            });
-        }
-    }
+    check_rects(
+        width,
+        height,
+        rects.iter().map(|r| [r.x, r.y, r.width, r.height]),
+    )?;
     let angles = polarizer_angles();
-    out.par_chunks_mut(width)
-        .enumerate()
-        .for_each(|(row, line)| {
-            let mut rng = row_rng(seed, row);
-            for (col, px) in line.iter_mut().enumerate() {
-                let s = rects
-                    .iter()
-                    .rev()
-                    .find(|r| {
-                        col >= r.x && col < r.x + r.width && row >= r.y && row < r.y + r.height
-                    })
-                    .map_or(background, |r| r.stokes.as_slice());
-                let (b, k) = pattern.channel_at(row, col);
-                let e = electrons_per_unit[b] * polarizer_intensity(&s[b], angles[k]);
-                *px = sensor.sample(e, &mut rng);
-            }
-        });
+    sample_frame(width, sensor, seed, out, |row, col| {
+        let s = rects
+            .iter()
+            .rev()
+            .find(|r| col >= r.x && col < r.x + r.width && row >= r.y && row < r.y + r.height)
+            .map_or(background, |r| r.stokes.as_slice());
+        let (b, k) = pattern.channel_at(row, col);
+        electrons_per_unit[b] * polarizer_intensity(&s[b], angles[k])
+    });
     Ok(())
 }
 
 /// Render one raw colour polarization frame into `out` (`width × height`, both non-zero
 /// multiples of 4) from per-band radiance Stokes maps (`stokes[b]`, each `width × height`,
-/// e.g. [`super::PerspectiveScene::render`] with band `b`'s optics), with the sensor
+/// e.g. [`super::PerspectiveScene::render_bands`]), with the sensor
 /// model and seeding of [`render_colour_frame`].
 ///
 /// Errors: those of [`render_colour_frame`]; [`CoreError::LengthMismatch`] for a map
@@ -218,27 +177,14 @@ pub fn render_colour_frame_stokes(
         ],
         electrons_per_unit,
     )?;
-    for m in stokes {
-        if m.len() != width * height {
-            return Err(CoreError::LengthMismatch {
-                name: "stokes map",
-                expected: width * height,
-                got: m.len(),
-            });
-        }
-    }
+    let maps: Vec<_> = stokes.iter().map(|m| ("stokes map", m.len())).collect();
+    check_frame_size(width, height, &maps)?;
     let angles = polarizer_angles();
-    out.par_chunks_mut(width)
-        .enumerate()
-        .for_each(|(row, line)| {
-            let mut rng = row_rng(seed, row);
-            for (col, px) in line.iter_mut().enumerate() {
-                let (b, k) = pattern.channel_at(row, col);
-                let s = stokes[b][row * width + col].map(f64::from);
-                let e = electrons_per_unit[b] * polarizer_intensity(&s, angles[k]);
-                *px = sensor.sample(e, &mut rng);
-            }
-        });
+    sample_frame(width, sensor, seed, out, |row, col| {
+        let (b, k) = pattern.channel_at(row, col);
+        let s = stokes[b][row * width + col].map(f64::from);
+        electrons_per_unit[b] * polarizer_intensity(&s, angles[k])
+    });
     Ok(())
 }
 
@@ -247,16 +193,12 @@ fn polarizer_angles() -> [f64; 4] {
     std::array::from_fn(|k| (45.0 * k as f64).to_radians())
 }
 
-/// The random stream of row `row` (as [`super::render_frame`]).
-fn row_rng(seed: u64, row: usize) -> Xoshiro256PlusPlus {
-    Xoshiro256PlusPlus::seed_from_u64(seed ^ (row as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::dop::dop;
     use crate::mosaic::{ColourMethod, DofpOutputs, Pattern, colour_polar};
+    use crate::simulate::{PlateOptics, plate_radiance};
     use crate::stokes::PixelRules;
 
     /// Copper at 450, 550 and 650 nm (builtin-rgb band means), in the band order of
@@ -351,7 +293,10 @@ mod tests {
             let opt = optics(&nk);
             for (si, ti) in [35.0f64, 55.0, 75.0].into_iter().enumerate() {
                 let (tr, phi) = (60.0f64.to_radians(), std::f64::consts::PI);
-                let stokes = colour_plate_radiance(&opt, ti.to_radians(), tr, phi).unwrap();
+                let stokes: Vec<[f64; 3]> = opt
+                    .iter()
+                    .map(|o| plate_radiance(o, ti.to_radians(), tr, phi).unwrap())
+                    .collect();
                 let rect = ColourRect {
                     x: 0,
                     y: 0,

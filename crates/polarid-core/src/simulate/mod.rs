@@ -30,11 +30,9 @@ pub mod colour;
 pub mod imperfect;
 pub mod perspective;
 
-pub use colour::{
-    ColourRect, colour_plate_radiance, render_colour_frame, render_colour_frame_stokes,
-};
+pub use colour::{ColourRect, render_colour_frame, render_colour_frame_stokes};
 pub use perspective::{
-    BandStokesMaps, Light, PerspectiveScene, PixelHit, PlanarPlate, StokesMaps, plate_stokes,
+    BandStokesMaps, Light, PerspectiveScene, PixelHit, PlanarPlate, plate_stokes,
 };
 
 use rand::SeedableRng;
@@ -310,6 +308,17 @@ pub enum Analyzer {
     Mosaic([f64; 4]),
 }
 
+impl Analyzer {
+    /// The polarizer angle of pixel `(row, col)`.
+    #[inline]
+    pub fn angle_at(&self, row: usize, col: usize) -> f64 {
+        match *self {
+            Analyzer::Uniform(a) => a,
+            Analyzer::Mosaic(p) => p[(row % 2) * 2 + (col % 2)],
+        }
+    }
+}
+
 /// Render one raw frame into `out` (`width × height`, row-major): background radiance
 /// `background` (Stokes) outside the rectangles, sensor noise everywhere.
 /// `electrons_per_unit` converts radiance units to expected electrons (exposure ×
@@ -328,58 +337,25 @@ pub fn render_frame(
 ) -> Result<()> {
     sensor.validate()?;
     ensure_finite("electrons_per_unit", electrons_per_unit)?;
-    if width == 0 || height == 0 {
-        return Err(CoreError::InvalidDimensions {
-            width,
-            height,
-            reason: "empty frame".into(),
-        });
-    }
-    if out.len() != width * height {
-        return Err(CoreError::LengthMismatch {
-            name: "out",
-            expected: width * height,
-            got: out.len(),
-        });
-    }
-    for r in rects {
-        if r.width == 0 || r.height == 0 || r.x + r.width > width || r.y + r.height > height {
-            return Err(CoreError::InvalidRegion {
-                x: r.x,
-                y: r.y,
-                width: r.width,
-                height: r.height,
-                reason: format!("is empty or leaves the {width}x{height} frame"),
-            });
-        }
-    }
-    out.par_chunks_mut(width)
-        .enumerate()
-        .for_each(|(row, line)| {
-            let mut rng = Xoshiro256PlusPlus::seed_from_u64(
-                seed ^ (row as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
-            );
-            for (col, px) in line.iter_mut().enumerate() {
-                let s = rects
-                    .iter()
-                    .rev()
-                    .find(|r| {
-                        col >= r.x && col < r.x + r.width && row >= r.y && row < r.y + r.height
-                    })
-                    .map(|r| r.stokes)
-                    .unwrap_or(background);
-                let a = match analyzer {
-                    Analyzer::Uniform(a) => a,
-                    Analyzer::Mosaic(p) => p[(row % 2) * 2 + (col % 2)],
-                };
-                *px = sensor.sample(electrons_per_unit * polarizer_intensity(&s, a), &mut rng);
-            }
-        });
+    check_frame_size(width, height, &[("out", out.len())])?;
+    check_rects(
+        width,
+        height,
+        rects.iter().map(|r| [r.x, r.y, r.width, r.height]),
+    )?;
+    sample_frame(width, sensor, seed, out, |row, col| {
+        let s = rects
+            .iter()
+            .rev()
+            .find(|r| col >= r.x && col < r.x + r.width && row >= r.y && row < r.y + r.height)
+            .map_or(background, |r| r.stokes);
+        electrons_per_unit * polarizer_intensity(&s, analyzer.angle_at(row, col))
+    });
     Ok(())
 }
 
 /// Render one raw frame into `out` (`width × height`, row-major) from a per-pixel
-/// radiance Stokes map `stokes` (e.g. of [`PerspectiveScene::render`]), with the sensor
+/// radiance Stokes map `stokes` (e.g. of [`PerspectiveScene::render_bands`]), with the sensor
 /// model and seeding of [`render_frame`]: `electrons_per_unit · I(a)` expected
 /// electrons per pixel behind the polarizer angle `a` of `analyzer`.
 #[allow(clippy::too_many_arguments)]
@@ -395,6 +371,25 @@ pub fn render_frame_stokes(
 ) -> Result<()> {
     sensor.validate()?;
     ensure_finite("electrons_per_unit", electrons_per_unit)?;
+    check_frame_size(
+        width,
+        height,
+        &[("stokes map", stokes.len()), ("out", out.len())],
+    )?;
+    sample_frame(width, sensor, seed, out, |row, col| {
+        let s = stokes[row * width + col].map(f64::from);
+        electrons_per_unit * polarizer_intensity(&s, analyzer.angle_at(row, col))
+    });
+    Ok(())
+}
+
+/// Check a frame's size: not empty, and every buffer (`name`, length) `width × height`
+/// long.
+pub(crate) fn check_frame_size(
+    width: usize,
+    height: usize,
+    buffers: &[(&'static str, usize)],
+) -> Result<()> {
     if width == 0 || height == 0 {
         return Err(CoreError::InvalidDimensions {
             width,
@@ -402,7 +397,7 @@ pub fn render_frame_stokes(
             reason: "empty frame".into(),
         });
     }
-    for (name, len) in [("stokes map", stokes.len()), ("out", out.len())] {
+    for &(name, len) in buffers {
         if len != width * height {
             return Err(CoreError::LengthMismatch {
                 name,
@@ -411,23 +406,49 @@ pub fn render_frame_stokes(
             });
         }
     }
+    Ok(())
+}
+
+/// Check that every rectangle `[x, y, width, height]` is non-empty and inside the frame.
+fn check_rects(
+    width: usize,
+    height: usize,
+    rects: impl IntoIterator<Item = [usize; 4]>,
+) -> Result<()> {
+    for [x, y, w, h] in rects {
+        if w == 0 || h == 0 || x + w > width || y + h > height {
+            return Err(CoreError::InvalidRegion {
+                x,
+                y,
+                width: w,
+                height: h,
+                reason: format!("is empty or leaves the {width}x{height} frame"),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Fill `out` (rows of `width` pixels) with raw samples of `electrons(row, col)` expected
+/// photo-electrons, in parallel over rows, each row with its own random stream from
+/// `seed` (the pixels of a row draw in order).
+fn sample_frame(
+    width: usize,
+    sensor: &Sensor,
+    seed: u64,
+    out: &mut [u16],
+    electrons: impl Fn(usize, usize) -> f64 + Sync,
+) {
     out.par_chunks_mut(width)
-        .zip(stokes.par_chunks(width))
         .enumerate()
-        .for_each(|(row, (line, sline))| {
+        .for_each(|(row, line)| {
             let mut rng = Xoshiro256PlusPlus::seed_from_u64(
                 seed ^ (row as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
             );
-            for (col, (px, s)) in line.iter_mut().zip(sline).enumerate() {
-                let s = s.map(f64::from);
-                let a = match analyzer {
-                    Analyzer::Uniform(a) => a,
-                    Analyzer::Mosaic(p) => p[(row % 2) * 2 + (col % 2)],
-                };
-                *px = sensor.sample(electrons_per_unit * polarizer_intensity(&s, a), &mut rng);
+            for (col, px) in line.iter_mut().enumerate() {
+                *px = sensor.sample(electrons(row, col), &mut rng);
             }
         });
-    Ok(())
 }
 
 #[cfg(test)]

@@ -39,7 +39,7 @@ use crate::error::{CoreError, Result, ensure_range};
 use crate::geometry::{PinholeCamera, PixelGeometry, Plane, Source, ViewGeometry};
 use crate::pbrdf;
 
-use super::PlateOptics;
+use super::{PlateOptics, check_frame_size};
 
 type V3 = [f64; 3];
 
@@ -252,17 +252,6 @@ pub struct BandStokesMaps<'a> {
     pub plate: &'a mut [u16],
 }
 
-/// Caller-owned outputs of [`PerspectiveScene::render`]: one value per pixel of the
-/// `width × height` frame, row-major.
-#[derive(Debug)]
-pub struct StokesMaps<'a> {
-    /// Radiance Stokes vectors `(S0, S1, S2)` (f32: a frame of 2048 × 2448 pixels takes
-    /// 60 MB).
-    pub stokes: &'a mut [[f32; 3]],
-    /// Plate seen: 0 for the background, `i + 1` for plate `i`.
-    pub plate: &'a mut [u16],
-}
-
 impl PerspectiveScene {
     /// Pair `camera` with `plates` (at most 65534).
     ///
@@ -324,20 +313,7 @@ impl PerspectiveScene {
     /// Errors: [`CoreError::InvalidDimensions`], [`CoreError::LengthMismatch`], and those
     /// of [`PinholeCamera::ray`] for the first failing row.
     pub fn plate_map(&self, width: usize, height: usize, out: &mut [u16]) -> Result<()> {
-        if width == 0 || height == 0 {
-            return Err(CoreError::InvalidDimensions {
-                width,
-                height,
-                reason: "empty frame".into(),
-            });
-        }
-        if out.len() != width * height {
-            return Err(CoreError::LengthMismatch {
-                name: "plate map",
-                expected: width * height,
-                got: out.len(),
-            });
-        }
+        check_frame_size(width, height, &[("plate map", out.len())])?;
         let first_error = out
             .par_chunks_mut(width)
             .enumerate()
@@ -365,11 +341,7 @@ impl PerspectiveScene {
     /// (that point is unlit: zero radiance).
     pub fn pixel(&self, u: f64, v: f64, light: &Light) -> Result<Option<PixelHit>> {
         let light = light.validate()?;
-        self.pixel_checked(u, v, &light)
-    }
-
-    fn pixel_checked(&self, u: f64, v: f64, light: &Light) -> Result<Option<PixelHit>> {
-        let Some((i, g, e)) = self.hit_geometry(u, v, light)? else {
+        let Some((i, g, e)) = self.hit_geometry(u, v, &light)? else {
             return Ok(None);
         };
         let stokes = if e > 0.0 {
@@ -408,11 +380,12 @@ impl PerspectiveScene {
         }
     }
 
-    /// Render a colour scene's per-band radiance Stokes maps and the plate map of a
-    /// `width × height` frame: every pixel's ray is traced once ([`Self::pixel`]'s
-    /// geometry) and its Stokes vector in band `b` is [`plate_stokes`] with the optics
-    /// `optics[plate][b]` of the plate it sees (`background[b]` where it sees none), in
-    /// parallel over rows. The plates' own optics ([`PlanarPlate::optics`]) are not used.
+    /// Render the per-band radiance Stokes maps (one band for a single-band scene) and
+    /// the plate map of a `width × height` frame: every pixel's ray is traced once
+    /// ([`Self::pixel`]'s geometry) and its Stokes vector in band `b` is [`plate_stokes`]
+    /// with the optics `optics[plate][b]` of the plate it sees (`background[b]` where it
+    /// sees none), in parallel over rows. The plates' own optics
+    /// ([`PlanarPlate::optics`]) are not used.
     ///
     /// Errors: [`CoreError::InvalidDimensions`] (an empty frame),
     /// [`CoreError::LengthMismatch`] (a map that is not `width × height` long; `optics`
@@ -430,13 +403,7 @@ impl PerspectiveScene {
         out: BandStokesMaps<'_>,
     ) -> Result<()> {
         let light = light.validate()?;
-        if width == 0 || height == 0 {
-            return Err(CoreError::InvalidDimensions {
-                width,
-                height,
-                reason: "empty frame".into(),
-            });
-        }
+        check_frame_size(width, height, &[])?;
         let (n, nb) = (width * height, out.stokes.len());
         let mut lens: Vec<(&'static str, usize, usize)> = vec![
             ("plate map", n, out.plate.len()),
@@ -501,76 +468,6 @@ impl PerspectiveScene {
                             for (line, b) in s.iter_mut().zip(&bg) {
                                 line[col] = *b;
                             }
-                            p[col] = 0;
-                        }
-                        Err(e) => return Some((row, e)),
-                    }
-                }
-                None
-            })
-            .min_by_key(|(row, _)| *row);
-        match first_error {
-            Some((_, e)) => Err(e),
-            None => Ok(()),
-        }
-    }
-
-    /// Render the radiance Stokes vector and the plate index of every pixel of a
-    /// `width × height` frame into `out` (pixels that see no plate get `background`),
-    /// in parallel over rows.
-    ///
-    /// Errors: [`CoreError::InvalidDimensions`] (an empty frame),
-    /// [`CoreError::LengthMismatch`] (a buffer that is not `width × height` long),
-    /// [`CoreError::NonFinite`] (a non-finite background), and those of
-    /// [`PerspectiveScene::pixel`] for the first failing row (the maps are then partly
-    /// written).
-    pub fn render(
-        &self,
-        width: usize,
-        height: usize,
-        light: &Light,
-        background: [f64; 3],
-        out: StokesMaps<'_>,
-    ) -> Result<()> {
-        let light = light.validate()?;
-        if width == 0 || height == 0 {
-            return Err(CoreError::InvalidDimensions {
-                width,
-                height,
-                reason: "empty frame".into(),
-            });
-        }
-        let n = width * height;
-        for (name, len) in [
-            ("stokes map", out.stokes.len()),
-            ("plate map", out.plate.len()),
-        ] {
-            if len != n {
-                return Err(CoreError::LengthMismatch {
-                    name,
-                    expected: n,
-                    got: len,
-                });
-            }
-        }
-        for b in background {
-            crate::error::ensure_finite("background", b)?;
-        }
-        let bg = background.map(|x| x as f32);
-        let first_error = out
-            .stokes
-            .par_chunks_mut(width)
-            .zip(out.plate.par_chunks_mut(width))
-            .enumerate()
-            .filter_map(|(row, (s, p))| {
-                for col in 0..width {
-                    match self.pixel_checked(col as f64, row as f64, &light) {
-                        Ok(Some(hit)) => {
-                            s[col] = hit.stokes.map(|x| x as f32);
-                            p[col] = hit.plate as u16 + 1;
-                        }
-                        Ok(None) => {
-                            s[col] = bg;
                             p[col] = 0;
                         }
                         Err(e) => return Some((row, e)),

@@ -1,36 +1,33 @@
 //! Simulation of a calibrated scene: a pinhole camera, plates on planes, one light per
 //! capture (`polarid_core::simulate::perspective`).
 //!
-//! Per capture, in turn: the radiance Stokes vector of every pixel (f32) and the plate it
-//! sees are rendered; the exposure is resolved from the brightest plate pixel (noise-free,
-//! brightest polarizer angle), as for far-field scenes; the frames are rendered from the
-//! Stokes map with the sensor model (in parallel over frames and rows) and written; the
-//! truth of every plate's region is computed from its pixels (f64). Memory: one Stokes
-//! map (12 bytes a pixel), one plate map (2 bytes a pixel) and one frame per analyzer.
-//!
-//! **Colour** (`[capture] color`): per capture, one Stokes map per band from the same
-//! traced geometry (`PerspectiveScene::render_bands`, each band with the plates' optics
-//! in that band), the exposure from the brightest plate pixel over bands (weighted by
-//! their responses `r_b`) and polarizer angles, one raw colour mosaic
-//! (`render_colour_frame_stokes`, band `b` at `exposure · full_well · r_b` electrons per
-//! unit radiance), and the truth per plate and band. Memory: one Stokes map per band.
+//! Per capture, in turn ([`trace_capture`]): the radiance Stokes vector of every pixel
+//! (f32) in every band and the plate it sees are rendered from one traced geometry
+//! (`PerspectiveScene::render_bands`; a single-band scene is one band with the plates'
+//! own optics and response 1); the exposure is resolved from the brightest plate pixel
+//! (noise-free, over bands weighted by their responses `r_b` and polarizer angles), as
+//! for far-field scenes, and band `b` gets `exposure · full_well · r_b` electrons per
+//! unit radiance; the frames are rendered from the Stokes maps with the sensor model (one
+//! frame per analyzer, in parallel, or one raw colour mosaic,
+//! `render_colour_frame_stokes`) and written; the truth of every plate's region is
+//! computed per band from its pixels (f64). Memory: one Stokes map per band (12 bytes a
+//! pixel), one plate map (2 bytes a pixel) and the frames of one capture.
 
 use polarid_core::CoreError;
 use polarid_core::dop::dop;
 use polarid_core::mosaic::ColourPattern;
 use polarid_core::simulate::{
-    BandStokesMaps, PerspectiveScene, PlanarPlate, PlateOptics, StokesMaps, frame_seed,
-    plate_stokes, polarizer_intensity, render_colour_frame_stokes, render_frame_stokes,
-    stokes_dolp,
+    BandStokesMaps, PerspectiveScene, PlanarPlate, PlateOptics, frame_seed, plate_stokes,
+    polarizer_intensity, render_colour_frame_stokes, render_frame_stokes, stokes_dolp,
 };
 use polarid_io::IoError;
 use polarid_io::atomic::StagedDir;
-use polarid_io::scene::{Calibrated, CaptureKind, Plate, Scene, SceneBand};
+use polarid_io::scene::{Calibrated, CaptureKind, Plate, Scene};
 use rayon::prelude::*;
 
 use super::{
-    CalibratedTruth, ColourFrames, Simulated, TruthBand, TruthRow, capture_dir, frame_file,
-    manifest_text, write_frame, write_text_files,
+    CalibratedTruth, ColourFrames, Simulated, TruthBand, TruthRow, capture_dir, exposure_warning,
+    frame_file, manifest_text, plate_bands, write_frame, write_text_files,
 };
 use crate::error::Result;
 use crate::progress::{Progress, Warning};
@@ -75,10 +72,8 @@ fn stats(xs: &[f64]) -> (f64, f64, f64, f64) {
 }
 
 /// The truth of plate `p` (index `pi`) in capture `ci`: its region's pixels, traced in
-/// f64. One row for a single-band scene; for a colour scene one row per band (`bands`),
-/// each with the band's optics, its S0 times the band's response and
-/// `peak_electrons[b]`.
-#[allow(clippy::too_many_arguments)]
+/// f64, one row per band ([`plate_bands`]), each with the band's optics, its S0 times the
+/// band's response and `peak_electrons[b]`.
 fn region_truth(
     scene: &Scene,
     ps: &PerspectiveScene,
@@ -87,7 +82,6 @@ fn region_truth(
     pi: usize,
     exposure: f64,
     peak_electrons: &[f64],
-    bands: Option<&[SceneBand]>,
 ) -> std::result::Result<Vec<TruthRow>, CoreError> {
     let p = &scene.plates[pi];
     let light = cal.sources[ci].light();
@@ -113,27 +107,17 @@ fn region_truth(
     let npx = beta.len();
     let (b_mean, b_sd, b_lo, b_hi) = stats(&beta);
     let sensor = &scene.sensor;
-    // (optics, band, response) of every row: the plate's own, or one per band.
-    let rows: Vec<(PlateOptics, Option<&SceneBand>, f64)> = match bands {
-        None => vec![(p.optics, None, 1.0)],
-        Some(bs) => p
-            .bands
-            .iter()
-            .zip(bs)
-            .map(|(o, b)| (*o, Some(b), b.response))
-            .collect(),
-    };
+    let rows = plate_bands(p, scene.capture.bands());
     let mut out = Vec::with_capacity(rows.len());
     for (ri, (o, band, response)) in rows.into_iter().enumerate() {
         let mut sum = [0.0f64; 3];
         let mut eq9 = Vec::with_capacity(npx);
         for h in &hits {
-            // The single-band scene's own Stokes vector, else the band's (the same
-            // function, `plate_stokes`, with the band's optics).
-            let st = match band {
-                None => h.stokes,
-                Some(_) if h.irradiance > 0.0 => plate_stokes(&o, &h.geometry, h.irradiance)?,
-                Some(_) => [0.0; 3],
+            // The band's Stokes vector: `plate_stokes` with the band's optics.
+            let st = if h.irradiance > 0.0 {
+                plate_stokes(&o, &h.geometry, h.irradiance)?
+            } else {
+                [0.0; 3]
             };
             for (s, x) in sum.iter_mut().zip(st) {
                 *s += x;
@@ -175,156 +159,52 @@ fn region_truth(
     Ok(out)
 }
 
-/// Simulate the calibrated scene `scene` (geometry `cal`) into `staged` under `prefix`
-/// (see the module documentation). Progress stage `"frames"`.
-pub(super) fn simulate(
-    scene: &Scene,
-    cal: &Calibrated,
-    staged: &StagedDir,
-    prefix: &str,
-    progress: Progress<'_>,
-) -> Result<Simulated> {
-    let label = |e: CoreError| IoError::core(&scene.path, e);
-    let ps = perspective_scene(scene, cal).map_err(label)?;
-    let sensor = &scene.sensor;
-    let (w, h) = (scene.width, scene.height);
-    let angles = super::angles_rad(&scene.capture);
-    let analyzers = match (&scene.capture, super::analyzers(&scene.capture)) {
-        (CaptureKind::ColourDofp { pattern, bands }, _) => {
-            return simulate_colour(scene, cal, &ps, pattern, bands, staged, prefix, progress);
-        }
-        (_, a) => a.unwrap_or_default(),
-    };
-    let ncap = cal.sources.len();
-    let total = (ncap * analyzers.len()) as u64;
-    let mut stokes = vec![[0f32; 3]; w * h];
-    let mut plate = vec![0u16; w * h];
-    let mut exposures = Vec::with_capacity(ncap);
-    let mut truth = Vec::new();
-    let mut warnings = Vec::new();
-    let mut done = 0u64;
-    for (ci, src) in cal.sources.iter().enumerate() {
-        ps.render(
-            w,
-            h,
-            &src.light(),
-            [scene.background, 0.0, 0.0],
-            StokesMaps {
-                stokes: &mut stokes,
-                plate: &mut plate,
-            },
-        )
-        .map_err(label)?;
-        // Brightest noise-free polarizer intensity per plate.
-        let mut peaks = vec![0.0f64; scene.plates.len()];
-        for (s, &p) in stokes.iter().zip(&plate) {
-            if let Some(pk) = (p as usize).checked_sub(1).and_then(|i| peaks.get_mut(i)) {
-                let s = s.map(f64::from);
-                for &a in &angles {
-                    *pk = pk.max(polarizer_intensity(&s, a));
-                }
-            }
-        }
-        let peak = peaks.iter().copied().fold(0.0, f64::max);
-        let exposure = scene.exposure.resolve(peak).map_err(label)?;
-        let epu = sensor.electrons_per_unit(exposure);
-        analyzers
-            .par_iter()
-            .enumerate()
-            .try_for_each(|(fi, an)| -> Result<()> {
-                let mut buf = vec![0u16; w * h];
-                let seed = frame_seed(scene.seed, ci as u64, fi as u64);
-                render_frame_stokes(w, h, &stokes, *an, sensor, epu, seed, &mut buf)
-                    .map_err(label)?;
-                let name = format!("{prefix}{}", frame_file(scene, ci, fi));
-                write_frame(staged, &name, sensor, w, h, &buf)
-            })?;
-        done += analyzers.len() as u64;
-        progress("frames", done, total);
-        let dir = capture_dir(scene, ci);
-        for (pi, p) in scene.plates.iter().enumerate() {
-            let peak_e = epu * peaks[pi];
-            if peak_e < 100.0 {
-                warnings.push(Warning(format!(
-                    "plate {:?} in capture {dir} is dim: {peak_e:.0} electrons at its \
-                     brightest (its specular lobe misses the camera, or another plate is much \
-                     brighter); its DoLP will be noisy",
-                    p.name
-                )));
-            } else if peak_e > sensor.full_well_e {
-                warnings.push(Warning(format!(
-                    "plate {:?} in capture {dir} saturates ({peak_e:.0} electrons expected at \
-                     its brightest pixel, full well {})",
-                    p.name, sensor.full_well_e
-                )));
-            }
-            truth.extend(
-                region_truth(scene, &ps, cal, ci, pi, exposure, &[peak_e], None).map_err(label)?,
-            );
-        }
-        exposures.push(exposure);
-    }
-    let text = manifest_text(scene, &exposures);
-    write_text_files(scene, staged, prefix, &text, &truth)?;
-    Ok(Simulated {
-        manifest: format!("{prefix}manifest.toml"),
-        captures: ncap,
-        frames: total as usize,
-        truth,
-        warnings,
-    })
-}
-
-/// One capture of a calibrated colour scene, rendered.
-struct ColourCapture {
-    frame: Vec<u16>,
+/// One capture of a calibrated scene, traced ([`trace_capture`]).
+struct Capture {
     exposure: f64,
+    /// Expected electrons per unit radiance of each band.
+    epu: Vec<f64>,
     truth: Vec<TruthRow>,
     warnings: Vec<Warning>,
 }
 
-/// Scratch maps of a calibrated colour scene: one Stokes map per band and the plate map.
-struct ColourMaps {
+/// Scratch maps of a calibrated scene: one Stokes map per band and the plate map.
+struct Maps {
     stokes: Vec<Vec<[f32; 3]>>,
     plate: Vec<u16>,
 }
 
-impl ColourMaps {
-    fn new(npix: usize, bands: usize) -> Self {
-        Self {
-            stokes: vec![vec![[0f32; 3]; npix]; bands],
-            plate: vec![0u16; npix],
-        }
-    }
-}
-
-/// Render capture `ci` of a calibrated colour scene: every pixel's ray traced once and
-/// its radiance in each band from the band's optics
+/// Trace capture `ci` of a calibrated scene into `maps` (module documentation): every
+/// pixel's ray traced once and its radiance in each band of [`plate_bands`]
 /// ([`PerspectiveScene::render_bands`]); the exposure from the brightest plate pixel over
-/// bands (weighted by their responses) and polarizer angles; band `b`'s pixels get
-/// `exposure · full_well · r_b` expected electrons per unit radiance; one raw mosaic
-/// (`render_colour_frame_stokes`, seed `frame_seed(seed, ci, 0)`); the truth per plate
-/// and band.
-#[allow(clippy::too_many_arguments)]
-fn colour_capture(
+/// bands (weighted by their responses) and polarizer angles; band `b`'s expected
+/// electrons per unit radiance `exposure · full_well · r_b`; the truth and the warnings
+/// per plate and band.
+fn trace_capture(
     scene: &Scene,
     cal: &Calibrated,
     ps: &PerspectiveScene,
-    pattern: &ColourPattern,
-    bands: &[SceneBand],
     ci: usize,
-    maps: &mut ColourMaps,
-) -> std::result::Result<ColourCapture, CoreError> {
+    maps: &mut Maps,
+) -> std::result::Result<Capture, CoreError> {
     let sensor = &scene.sensor;
     let (w, h) = (scene.width, scene.height);
-    let optics: Vec<Vec<PlateOptics>> = scene.plates.iter().map(|p| p.bands.clone()).collect();
-    let bg = vec![[scene.background, 0.0, 0.0]; bands.len()];
+    let bands: Vec<_> = scene
+        .plates
+        .iter()
+        .map(|p| plate_bands(p, scene.capture.bands()))
+        .collect();
+    let optics: Vec<Vec<PlateOptics>> = bands
+        .iter()
+        .map(|b| b.iter().map(|x| x.0).collect())
+        .collect();
+    let nb = maps.stokes.len();
     ps.render_bands(
         w,
         h,
         &cal.sources[ci].light(),
         &optics,
-        &bg,
+        &vec![[scene.background, 0.0, 0.0]; nb],
         BandStokesMaps {
             stokes: maps.stokes.iter_mut().map(|m| m.as_mut_slice()).collect(),
             plate: &mut maps.plate,
@@ -332,7 +212,6 @@ fn colour_capture(
     )?;
     let angles = super::angles_rad(&scene.capture);
     // Brightest noise-free polarizer intensity per plate and band.
-    let nb = bands.len();
     let mut peaks = vec![vec![0.0f64; nb]; scene.plates.len()];
     for (b, map) in maps.stokes.iter().enumerate() {
         for (s, &p) in map.iter().zip(&maps.plate) {
@@ -344,92 +223,136 @@ fn colour_capture(
             }
         }
     }
+    let resp: Vec<f64> = scene
+        .capture
+        .bands()
+        .map_or(vec![1.0], |bs| bs.iter().map(|b| b.response).collect());
     let peak = peaks
         .iter()
-        .flat_map(|pk| pk.iter().zip(bands).map(|(x, b)| x * b.response))
+        .flat_map(|pk| pk.iter().zip(&resp).map(|(x, r)| x * r))
         .fold(0.0, f64::max);
     let exposure = scene.exposure.resolve(peak)?;
-    let epu: Vec<f64> = bands
+    let epu: Vec<f64> = resp
         .iter()
-        .map(|b| sensor.electrons_per_unit(exposure) * b.response)
+        .map(|r| sensor.electrons_per_unit(exposure) * r)
         .collect();
-    let mut frame = vec![0u16; w * h];
-    let refs: Vec<&[[f32; 3]]> = maps.stokes.iter().map(Vec::as_slice).collect();
-    let seed = frame_seed(scene.seed, ci as u64, 0);
-    render_colour_frame_stokes(w, h, &refs, pattern, sensor, &epu, seed, &mut frame)?;
-    let dir = capture_dir(scene, ci);
+    let at = format!("in capture {}", capture_dir(scene, ci));
     let (mut truth, mut warnings) = (Vec::new(), Vec::new());
     for (pi, p) in scene.plates.iter().enumerate() {
         let peak_e: Vec<f64> = peaks[pi].iter().zip(&epu).map(|(x, e)| x * e).collect();
-        for (band, &pe) in bands.iter().zip(&peak_e) {
-            if pe < 100.0 {
-                warnings.push(Warning(format!(
-                    "plate {:?} in capture {dir} is dim in band {} ({} nm): {pe:.0} electrons \
-                     at its brightest; its DoLP will be noisy",
-                    p.name, band.letter, band.wavelength_nm
-                )));
-            } else if pe > sensor.full_well_e {
-                warnings.push(Warning(format!(
-                    "plate {:?} in capture {dir} saturates in band {} ({} nm): {pe:.0} \
-                     electrons expected at its brightest pixel, full well {}",
-                    p.name, band.letter, band.wavelength_nm, sensor.full_well_e
-                )));
-            }
+        for ((_, band, _), &pe) in bands[pi].iter().zip(&peak_e) {
+            warnings.extend(exposure_warning(&p.name, &at, *band, pe, sensor, true));
         }
-        truth.extend(region_truth(
-            scene,
-            ps,
-            cal,
-            ci,
-            pi,
-            exposure,
-            &peak_e,
-            Some(bands),
-        )?);
+        truth.extend(region_truth(scene, ps, cal, ci, pi, exposure, &peak_e)?);
     }
-    Ok(ColourCapture {
-        frame,
+    Ok(Capture {
         exposure,
+        epu,
         truth,
         warnings,
     })
 }
 
-/// Simulate a calibrated colour scene into `staged` under `prefix`: one raw colour
-/// mosaic per capture ([`colour_capture`]), rendered one capture at a time, the
-/// calibrated manifest with `bands` and `dofp.color`, and the truth per plate, capture
-/// and band.
-#[allow(clippy::too_many_arguments)]
-fn simulate_colour(
+/// Trace every capture of a calibrated scene in turn ([`trace_capture`]) and hand each,
+/// with its Stokes maps, to `frames`; the exposures, truth and warnings of all captures.
+fn each_capture(
     scene: &Scene,
     cal: &Calibrated,
-    ps: &PerspectiveScene,
+    mut frames: impl FnMut(usize, &Maps, &Capture) -> Result<()>,
+) -> Result<(Vec<f64>, Vec<TruthRow>, Vec<Warning>)> {
+    let label = |e: CoreError| IoError::core(&scene.path, e);
+    let ps = perspective_scene(scene, cal).map_err(label)?;
+    let (npix, nb) = (
+        scene.width * scene.height,
+        scene.capture.bands().map_or(1, <[_]>::len),
+    );
+    let mut maps = Maps {
+        stokes: vec![vec![[0f32; 3]; npix]; nb],
+        plate: vec![0u16; npix],
+    };
+    let (mut exposures, mut truth, mut warnings) = (Vec::new(), Vec::new(), Vec::new());
+    for ci in 0..cal.sources.len() {
+        let c = trace_capture(scene, cal, &ps, ci, &mut maps).map_err(label)?;
+        frames(ci, &maps, &c)?;
+        exposures.push(c.exposure);
+        truth.extend(c.truth);
+        warnings.extend(c.warnings);
+    }
+    Ok((exposures, truth, warnings))
+}
+
+/// The raw colour mosaic of capture `ci` from its traced maps (seed
+/// `frame_seed(seed, ci, 0)`).
+fn colour_frame(
+    scene: &Scene,
     pattern: &ColourPattern,
-    bands: &[SceneBand],
+    ci: usize,
+    maps: &Maps,
+    epu: &[f64],
+) -> std::result::Result<Vec<u16>, CoreError> {
+    let (w, h) = (scene.width, scene.height);
+    let mut frame = vec![0u16; w * h];
+    let refs: Vec<&[[f32; 3]]> = maps.stokes.iter().map(Vec::as_slice).collect();
+    let seed = frame_seed(scene.seed, ci as u64, 0);
+    render_colour_frame_stokes(w, h, &refs, pattern, &scene.sensor, epu, seed, &mut frame)?;
+    Ok(frame)
+}
+
+/// Simulate the calibrated scene `scene` (geometry `cal`) into `staged` under `prefix`
+/// (see the module documentation). Progress stage `"frames"`.
+pub(super) fn simulate(
+    scene: &Scene,
+    cal: &Calibrated,
     staged: &StagedDir,
     prefix: &str,
     progress: Progress<'_>,
 ) -> Result<Simulated> {
     let label = |e: CoreError| IoError::core(&scene.path, e);
+    let sensor = &scene.sensor;
     let (w, h) = (scene.width, scene.height);
+    let analyzers = super::analyzers(&scene.capture).unwrap_or_default();
+    let per_capture = analyzers.len().max(1);
     let ncap = cal.sources.len();
-    let mut maps = ColourMaps::new(w * h, bands.len());
-    let (mut exposures, mut truth, mut warnings) = (Vec::new(), Vec::new(), Vec::new());
-    for ci in 0..ncap {
-        let c = colour_capture(scene, cal, ps, pattern, bands, ci, &mut maps).map_err(label)?;
-        let name = format!("{prefix}{}", frame_file(scene, ci, 0));
-        write_frame(staged, &name, &scene.sensor, w, h, &c.frame)?;
-        progress("frames", ci as u64 + 1, ncap as u64);
-        exposures.push(c.exposure);
-        truth.extend(c.truth);
-        warnings.extend(c.warnings);
-    }
+    let total = (ncap * per_capture) as u64;
+    let (exposures, truth, warnings) = each_capture(scene, cal, |ci, maps, c| {
+        let write = |fi: usize, buf: &[u16]| {
+            let name = format!("{prefix}{}", frame_file(scene, ci, fi));
+            write_frame(staged, &name, sensor, w, h, buf)
+        };
+        match &scene.capture {
+            CaptureKind::ColourDofp { pattern, .. } => write(
+                0,
+                &colour_frame(scene, pattern, ci, maps, &c.epu).map_err(label)?,
+            )?,
+            _ => analyzers
+                .par_iter()
+                .enumerate()
+                .try_for_each(|(fi, an)| -> Result<()> {
+                    let mut buf = vec![0u16; w * h];
+                    let seed = frame_seed(scene.seed, ci as u64, fi as u64);
+                    render_frame_stokes(
+                        w,
+                        h,
+                        &maps.stokes[0],
+                        *an,
+                        sensor,
+                        c.epu[0],
+                        seed,
+                        &mut buf,
+                    )
+                    .map_err(label)?;
+                    write(fi, &buf)
+                })?,
+        }
+        progress("frames", ((ci + 1) * per_capture) as u64, total);
+        Ok(())
+    })?;
     let text = manifest_text(scene, &exposures);
     write_text_files(scene, staged, prefix, &text, &truth)?;
     Ok(Simulated {
         manifest: format!("{prefix}manifest.toml"),
         captures: ncap,
-        frames: ncap,
+        frames: total as usize,
         truth,
         warnings,
     })
@@ -441,27 +364,21 @@ pub(super) fn render_colour_set(
     scene: &Scene,
     cal: &Calibrated,
     pattern: &ColourPattern,
-    bands: &[SceneBand],
 ) -> Result<ColourFrames> {
-    let label = |e: CoreError| IoError::core(&scene.path, e);
-    let ps = perspective_scene(scene, cal).map_err(label)?;
-    let mut maps = ColourMaps::new(scene.width * scene.height, bands.len());
-    let mut out = ColourFrames {
+    let mut frames = Vec::new();
+    let (exposures, truth, warnings) = each_capture(scene, cal, |ci, maps, c| {
+        let frame = colour_frame(scene, pattern, ci, maps, &c.epu);
+        frames.push(frame.map_err(|e| IoError::core(&scene.path, e))?);
+        Ok(())
+    })?;
+    Ok(ColourFrames {
         width: scene.width,
         height: scene.height,
-        frames: Vec::new(),
-        exposures: Vec::new(),
-        truth: Vec::new(),
-        warnings: Vec::new(),
-    };
-    for ci in 0..cal.sources.len() {
-        let c = colour_capture(scene, cal, &ps, pattern, bands, ci, &mut maps).map_err(label)?;
-        out.frames.push(c.frame);
-        out.exposures.push(c.exposure);
-        out.truth.extend(c.truth);
-        out.warnings.extend(c.warnings);
-    }
-    Ok(out)
+        frames,
+        exposures,
+        truth,
+        warnings,
+    })
 }
 
 /// β (eq. 5, degrees) of every pixel of capture `capture` (0-based) of a calibrated

@@ -43,13 +43,13 @@ use polarid_core::CoreError;
 use polarid_core::dop::dop;
 use polarid_core::geometry;
 use polarid_core::simulate::{
-    Analyzer, Exposure, PlateOptics, Sensor, UniformRect, frame_seed, peak_intensity,
+    Analyzer, ColourRect, Exposure, PlateOptics, Sensor, UniformRect, frame_seed, peak_intensity,
     plate_radiance, render_frame, stokes_dolp,
 };
 use polarid_io::IoError;
 use polarid_io::atomic::{StagedDir, write_atomic};
 use polarid_io::image;
-use polarid_io::scene::{CaptureKind, Geometry, Scene};
+use polarid_io::scene::{CaptureKind, Geometry, Plate, Scene, SceneBand};
 use polarid_io::table::fmt_f64;
 use rayon::prelude::*;
 
@@ -372,18 +372,85 @@ fn angles_rad(capture: &CaptureKind) -> Vec<f64> {
         .collect()
 }
 
-/// The radiance, exposure and truth of every capture of a scene.
+/// `(optics, band, response)` of every band of plate `p` in a scene with bands `bands`:
+/// one per band, or for a single-band scene the plate's own optics with response 1.
+fn plate_bands<'a>(
+    p: &'a Plate,
+    bands: Option<&'a [SceneBand]>,
+) -> Vec<(PlateOptics, Option<&'a SceneBand>, f64)> {
+    match bands {
+        None => vec![(p.optics, None, 1.0)],
+        Some(bs) => p
+            .bands
+            .iter()
+            .zip(bs)
+            .map(|(o, b)| (*o, Some(b), b.response))
+            .collect(),
+    }
+}
+
+/// The warning for plate `plate` `at` a capture (`at theta_i = 35 deg`, `in capture c01`)
+/// in `band` whose brightest pixel expects `peak_e` electrons: dim below 100, saturated
+/// above the full well (`calibrated`: "at its brightest pixel").
+fn exposure_warning(
+    plate: &str,
+    at: &str,
+    band: Option<&SceneBand>,
+    peak_e: f64,
+    sensor: &Sensor,
+    calibrated: bool,
+) -> Option<Warning> {
+    let in_band = band.map_or(String::new(), |b| {
+        format!(" in band {} ({} nm)", b.letter, b.wavelength_nm)
+    });
+    let (why, open, close) = match band {
+        None => (
+            " (its specular lobe misses the camera, or another plate is much brighter)",
+            " (",
+            ")",
+        ),
+        Some(_) => ("", ": ", ""),
+    };
+    let pixel = if calibrated {
+        " at its brightest pixel"
+    } else {
+        ""
+    };
+    if peak_e < 100.0 {
+        Some(Warning(format!(
+            "plate {plate:?} {at} is dim{in_band}: {peak_e:.0} electrons at its \
+             brightest{why}; its DoLP will be noisy"
+        )))
+    } else if peak_e > sensor.full_well_e {
+        Some(Warning(format!(
+            "plate {plate:?} {at} saturates{in_band}{open}{peak_e:.0} electrons \
+             expected{pixel}, full well {}{close}",
+            sensor.full_well_e
+        )))
+    } else {
+        None
+    }
+}
+
+/// The radiance, exposure and truth of every capture of a far-field scene.
 struct Plan {
-    spec: RenderSpec,
+    /// Per capture, the plates with their radiance in every band ([`plate_bands`]).
+    rects: Vec<Vec<ColourRect>>,
+    /// Expected electrons per unit radiance, per capture and band.
+    epu: Vec<Vec<f64>>,
     /// Relative exposure of every capture.
     exposures: Vec<f64>,
     truth: Vec<TruthRow>,
     warnings: Vec<Warning>,
 }
 
-/// Plan the simulation of a far-field scene (no rendering yet).
+/// Plan the simulation of a far-field scene (no rendering yet): per capture, each band of
+/// each plate has the radiance of `plate_radiance` (paper eq. 3) with the band's optics;
+/// the exposure is resolved from the brightest plate pixel over every band (weighted by
+/// its response `r_b`) and polarizer angle; band `b` gets `x · full_well · r_b` expected
+/// electrons per unit radiance, and the truth's `s0` is `r_b ·` the radiance in DN per
+/// unit exposure. A single-band scene is one band of response 1.
 fn plan(scene: &Scene) -> Result<Plan> {
-    let sensor = &scene.sensor;
     let Geometry::FarField {
         theta_r_deg,
         phi_deg,
@@ -395,79 +462,109 @@ fn plan(scene: &Scene) -> Result<Plan> {
             reason: "internal error: a calibrated scene has no far-field plan".into(),
         });
     };
+    let sensor = &scene.sensor;
     let (theta_r_deg, phi_deg) = (*theta_r_deg, *phi_deg);
     let (tr, phi) = (theta_r_deg.to_radians(), phi_deg.to_radians());
-    let Some(analyzers) = analyzers(&scene.capture) else {
-        return Err(crate::PipelineError::Data {
-            path: scene.path.display().to_string(),
-            reason: "internal error: a colour scene has no monochrome plan".into(),
-        });
-    };
-    let plates: Vec<(PlateOptics, [usize; 4])> = scene
-        .plates
-        .iter()
-        .map(|p| (p.optics, [p.rect.x, p.rect.y, p.rect.width, p.rect.height]))
-        .collect();
-    let geometry: Vec<[f64; 3]> = theta_i_deg
-        .iter()
-        .map(|&ti| [ti, theta_r_deg, phi_deg])
-        .collect();
-    let (size, bg) = ([scene.width, scene.height], [scene.background, 0.0, 0.0]);
-    let (spec, exposures) = RenderSpec::far_field(
-        size,
-        bg,
-        &plates,
-        &geometry,
-        analyzers,
-        scene.exposure,
-        *sensor,
-    )
-    .map_err(|e| IoError::core(&scene.path, e))?;
     let angles = angles_rad(&scene.capture);
-    let mut truth = Vec::new();
-    let mut warnings = Vec::new();
-    for ((&ti_deg, caps), &exposure) in theta_i_deg.iter().zip(&spec.rects).zip(&exposures) {
-        let epu = sensor.electrons_per_unit(exposure);
-        let beta = geometry::beta(ti_deg.to_radians(), tr, phi);
-        for (p, r) in scene.plates.iter().zip(caps) {
-            let peak_e = epu * peak_intensity(&[r.stokes], &angles);
-            if peak_e < 100.0 {
-                warnings.push(Warning(format!(
-                    "plate {:?} at theta_i = {ti_deg} deg is dim: {peak_e:.0} electrons at its \
-                     brightest (its specular lobe misses the camera, or another plate is much \
-                     brighter); its DoLP will be noisy",
-                    p.name
-                )));
-            } else if peak_e > sensor.full_well_e {
-                warnings.push(Warning(format!(
-                    "plate {:?} at theta_i = {ti_deg} deg saturates ({peak_e:.0} electrons \
-                     expected, full well {})",
-                    p.name, sensor.full_well_e
-                )));
-            }
-            truth.push(TruthRow {
-                target: p.name.clone(),
-                class: p.class.clone(),
-                theta_i_deg: ti_deg,
-                theta_r_deg,
-                phi_deg,
-                beta_deg: beta.to_degrees(),
-                dolp: stokes_dolp(&r.stokes),
-                s0: r.stokes[0] * sensor.dn_per_unit(),
-                dolp_eq9_specular: dop(p.optics.n, p.optics.k, beta),
-                exposure,
-                peak_electrons: peak_e,
-                calibrated: None,
-                band: None,
+    let label = |e: CoreError| IoError::core(&scene.path, e);
+    let bands = scene.capture.bands();
+    let resp: Vec<f64> = bands.map_or(vec![1.0], |bs| bs.iter().map(|b| b.response).collect());
+    let plates: Vec<_> = scene.plates.iter().map(|p| plate_bands(p, bands)).collect();
+    let mut out = Plan {
+        rects: Vec::new(),
+        epu: Vec::new(),
+        exposures: Vec::new(),
+        truth: Vec::new(),
+        warnings: Vec::new(),
+    };
+    for &ti_deg in theta_i_deg {
+        let ti = ti_deg.to_radians();
+        let mut caps = Vec::with_capacity(scene.plates.len());
+        for (p, pb) in scene.plates.iter().zip(&plates) {
+            let stokes = pb.iter().map(|(o, ..)| plate_radiance(o, ti, tr, phi));
+            caps.push(ColourRect {
+                x: p.rect.x,
+                y: p.rect.y,
+                width: p.rect.width,
+                height: p.rect.height,
+                stokes: stokes
+                    .collect::<std::result::Result<_, _>>()
+                    .map_err(label)?,
             });
         }
+        // The brightest pixel over plates, bands (weighted by their response) and angles.
+        let weighted: Vec<[f64; 3]> = caps
+            .iter()
+            .flat_map(|r| r.stokes.iter().zip(&resp).map(|(s, &w)| s.map(|x| x * w)))
+            .collect();
+        let exposure = scene
+            .exposure
+            .resolve(peak_intensity(&weighted, &angles))
+            .map_err(label)?;
+        let epu: Vec<f64> = resp
+            .iter()
+            .map(|&w| sensor.electrons_per_unit(exposure) * w)
+            .collect();
+        let beta = geometry::beta(ti, tr, phi);
+        let at = format!("at theta_i = {ti_deg} deg");
+        for ((p, pb), r) in scene.plates.iter().zip(&plates).zip(&caps) {
+            for ((o, band, response), (s, &e)) in pb.iter().zip(r.stokes.iter().zip(&epu)) {
+                let peak_e = e * peak_intensity(&[*s], &angles);
+                let w = exposure_warning(&p.name, &at, *band, peak_e, sensor, false);
+                out.warnings.extend(w);
+                out.truth.push(TruthRow {
+                    target: p.name.clone(),
+                    class: p.class.clone(),
+                    theta_i_deg: ti_deg,
+                    theta_r_deg,
+                    phi_deg,
+                    beta_deg: beta.to_degrees(),
+                    dolp: stokes_dolp(s),
+                    s0: s[0] * response * sensor.dn_per_unit(),
+                    dolp_eq9_specular: dop(o.n, o.k, beta),
+                    exposure,
+                    peak_electrons: peak_e,
+                    calibrated: None,
+                    band: band.map(|b| TruthBand {
+                        letter: b.letter,
+                        wavelength_nm: b.wavelength_nm,
+                        n: o.n,
+                        k: o.k,
+                    }),
+                });
+            }
+        }
+        out.rects.push(caps);
+        out.epu.push(epu);
+        out.exposures.push(exposure);
     }
-    Ok(Plan {
-        spec,
-        exposures,
-        truth,
-        warnings,
-    })
+    Ok(out)
+}
+
+impl Plan {
+    /// The frames of a single-band scene (`None` for a colour scene): one per analyzer.
+    fn spec(&self, scene: &Scene) -> Option<RenderSpec> {
+        let rects = self.rects.iter().map(|caps| {
+            caps.iter()
+                .map(|r| UniformRect {
+                    x: r.x,
+                    y: r.y,
+                    width: r.width,
+                    height: r.height,
+                    stokes: r.stokes[0],
+                })
+                .collect()
+        });
+        Some(RenderSpec {
+            width: scene.width,
+            height: scene.height,
+            background: [scene.background, 0.0, 0.0],
+            rects: rects.collect(),
+            electrons_per_unit: self.epu.iter().map(|e| e[0]).collect(),
+            analyzers: analyzers(&scene.capture)?,
+            sensor: scene.sensor,
+        })
+    }
 }
 
 /// Simulate `scene` into `staged` under `prefix` (`""` or a directory name ending in
@@ -483,40 +580,37 @@ pub fn simulate_into(
     if let Geometry::Calibrated(cal) = &scene.geometry {
         return calibrated::simulate(scene, cal, staged, prefix, progress);
     }
-    if scene.capture.bands().is_some() {
-        return colour::simulate(scene, staged, prefix, progress);
-    }
-    let Plan {
-        spec,
-        exposures,
-        truth,
-        warnings,
-    } = plan(scene)?;
-    let na = spec.analyzers.len();
-    let jobs: Vec<(usize, usize)> = (0..spec.rects.len())
+    let plan = plan(scene)?;
+    // A frame per analyzer, or one raw colour mosaic per capture.
+    let spec = plan.spec(scene);
+    let na = spec.as_ref().map_or(1, |s| s.analyzers.len());
+    let jobs: Vec<(usize, usize)> = (0..plan.rects.len())
         .flat_map(|c| (0..na).map(move |a| (c, a)))
         .collect();
-    let (w, h) = (spec.width, spec.height);
+    let (w, h) = (scene.width, scene.height);
     let done = std::sync::atomic::AtomicU64::new(0);
     jobs.par_iter().try_for_each(|&(ci, fi)| -> Result<()> {
         let mut buf = vec![0u16; w * h];
-        spec.render(ci, fi, scene.seed, &mut buf)
-            .map_err(|e| IoError::core(&scene.path, e))?;
+        match &spec {
+            Some(spec) => spec
+                .render(ci, fi, scene.seed, &mut buf)
+                .map_err(|e| IoError::core(&scene.path, e))?,
+            None => plan.render_colour(scene, ci, &mut buf)?,
+        }
         let name = format!("{prefix}{}", frame_file(scene, ci, fi));
-        write_frame(staged, &name, &spec.sensor, w, h, &buf)?;
+        write_frame(staged, &name, &scene.sensor, w, h, &buf)?;
         let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
         progress("frames", d, jobs.len() as u64);
         Ok(())
     })?;
-
-    let text = manifest_text(scene, &exposures);
-    write_text_files(scene, staged, prefix, &text, &truth)?;
+    let text = manifest_text(scene, &plan.exposures);
+    write_text_files(scene, staged, prefix, &text, &plan.truth)?;
     Ok(Simulated {
         manifest: format!("{prefix}manifest.toml"),
         captures: scene.captures(),
         frames: jobs.len(),
-        truth,
-        warnings,
+        truth: plan.truth,
+        warnings: plan.warnings,
     })
 }
 
@@ -628,7 +722,7 @@ rect = [0, 0, 8, 8]
     fn render_into_is_seeded_and_checks_sizes() {
         let dir = tempfile::tempdir().unwrap();
         let scene = polarid_io::scene::parse(&dir.path().join("s.toml"), SCENE).unwrap();
-        let spec = plan(&scene).unwrap().spec;
+        let spec = plan(&scene).unwrap().spec(&scene).unwrap();
         let mut a = vec![0u16; 12 * 16 * 8];
         let mut b = a.clone();
         let seed = 7;

@@ -30,6 +30,25 @@ fn bench_camera(distortion: Distortion) -> PinholeCamera {
     .unwrap()
 }
 
+/// `render_bands` with one band, the plates' own optics: the Stokes and plate maps of a
+/// `w × h` frame.
+fn render(
+    scene: &PerspectiveScene,
+    w: usize,
+    h: usize,
+    light: &Light,
+    background: [f64; 3],
+    stokes: &mut [[f32; 3]],
+    plate: &mut [u16],
+) -> Result<()> {
+    let optics: Vec<Vec<PlateOptics>> = scene.plates().iter().map(|p| vec![*p.optics()]).collect();
+    let out = BandStokesMaps {
+        stokes: vec![stokes],
+        plate,
+    };
+    scene.render_bands(w, h, light, &optics, &[background], out)
+}
+
 fn floor_plate(center: V3, size: f64, o: PlateOptics) -> PlanarPlate {
     PlanarPlate::new(
         Plane::horizontal(),
@@ -256,18 +275,7 @@ fn specular_lobe_sits_at_the_mirror_point() {
     let (w, h) = (320, 240);
     let mut st = vec![[0f32; 3]; w * h];
     let mut pl = vec![0u16; w * h];
-    scene
-        .render(
-            w,
-            h,
-            &light,
-            [0.0; 3],
-            StokesMaps {
-                stokes: &mut st,
-                plate: &mut pl,
-            },
-        )
-        .unwrap();
+    render(&scene, w, h, &light, [0.0; 3], &mut st, &mut pl).unwrap();
     let (imax, _) =
         st.iter().enumerate().fold(
             (0, f32::MIN),
@@ -316,18 +324,7 @@ fn nearest_plate_hides_and_background_is_dark() {
     let (w, h) = (320, 240);
     let mut st = vec![[9f32; 3]; w * h];
     let mut pl = vec![9u16; w * h];
-    scene
-        .render(
-            w,
-            h,
-            &light,
-            [0.0; 3],
-            StokesMaps {
-                stokes: &mut st,
-                plate: &mut pl,
-            },
-        )
-        .unwrap();
+    render(&scene, w, h, &light, [0.0; 3], &mut st, &mut pl).unwrap();
     let counts = [0u16, 1, 2].map(|k| pl.iter().filter(|&&p| p == k).count());
     let mut pm = vec![7u16; w * h];
     scene.plate_map(w, h, &mut pm).unwrap();
@@ -349,16 +346,7 @@ fn nearest_plate_hides_and_background_is_dark() {
     // Buffers of the wrong size.
     let mut short = vec![0u16; 5];
     assert!(matches!(
-        scene.render(
-            w,
-            h,
-            &light,
-            [0.0; 3],
-            StokesMaps {
-                stokes: &mut st,
-                plate: &mut short,
-            }
-        ),
+        render(&scene, w, h, &light, [0.0; 3], &mut st, &mut short),
         Err(CoreError::LengthMismatch { .. })
     ));
 }
@@ -400,8 +388,8 @@ fn plate_construction_errors() {
     ));
 }
 
-/// `render_bands` gives, in every band, the map `render` gives for the same plates with
-/// that band's optics (bit for bit), the same plate map, and the band's background; bad
+/// `render_bands` gives, in every band, the map it gives with one band for the same
+/// plates with that band's optics (bit for bit), the same plate map, and the band's background; bad
 /// list lengths are refused.
 #[test]
 fn render_bands_matches_render_per_band() {
@@ -457,18 +445,7 @@ fn render_bands_matches_render_per_band() {
     for (b, map) in maps.iter().enumerate() {
         let mut st = vec![[0f32; 3]; w * h];
         let mut pb = vec![0u16; w * h];
-        scene_with(b)
-            .render(
-                w,
-                h,
-                &light,
-                bg[b],
-                StokesMaps {
-                    stokes: &mut st,
-                    plate: &mut pb,
-                },
-            )
-            .unwrap();
+        render(&scene_with(b), w, h, &light, bg[b], &mut st, &mut pb).unwrap();
         assert_eq!(&st, map, "band {b}");
         assert_eq!(pb, pl);
     }
