@@ -251,24 +251,13 @@ fn check_inputs(
         imp.extinction_ratio > 1.0,
         "> 1",
     )?;
-    check(
-        "retardance",
-        imp.retardance,
-        imp.retardance.is_finite() && imp.retardance >= 0.0,
-        ">= 0",
-    )?;
-    check(
-        "dolp_se",
-        imp.dolp_se,
-        imp.dolp_se.is_finite() && imp.dolp_se >= 0.0,
-        ">= 0",
-    )?;
-    check(
-        "s0_rel_sd",
-        imp.s0_rel_sd,
-        imp.s0_rel_sd.is_finite() && imp.s0_rel_sd >= 0.0,
-        ">= 0",
-    )?;
+    for (name, v) in [
+        ("retardance", imp.retardance),
+        ("dolp_se", imp.dolp_se),
+        ("s0_rel_sd", imp.s0_rel_sd),
+    ] {
+        check(name, v, v.is_finite() && v >= 0.0, ">= 0")?;
+    }
     check(
         "wavelength_nm",
         imp.wavelength_nm,

@@ -136,9 +136,7 @@ impl Sensor {
         let dn = (self.dark_level_dn + q / self.gain_e_per_dn()).round();
         dn.clamp(0.0, self.max_dn()) as u16
     }
-}
 
-impl Sensor {
     /// Raw DN above the dark level per unit of radiance behind the polarizer at relative
     /// exposure 1: `2^bits − 1 − dark`. At exposure `x`, a radiance `I` behind the
     /// polarizer gives `x · I · full_well` expected electrons, i.e.

@@ -8,7 +8,7 @@ use polarid_io::manifest::{CameraOrientation, SourceSpec};
 use polarid_io::scene::{Calibrated, CaptureKind, Geometry, Scene};
 use polarid_io::table::{fmt_f64, write_rows};
 
-use super::{TruthRow, capture_dir, frame_file};
+use super::{TruthRow, frame_file};
 
 /// A TOML number (always with a decimal point or exponent).
 fn toml_num(x: f64) -> String {
@@ -146,27 +146,18 @@ fn capture_tables(m: &mut String, scene: &Scene, exposures: &[f64], theta_i: &[f
                 }
                 let _ = writeln!(m, "]");
             }
-            CaptureKind::Dofp { pattern } => {
-                let p = pattern.angles_deg().map(toml_num);
+            CaptureKind::Dofp { .. } | CaptureKind::ColourDofp { .. } => {
+                let color = match &scene.capture {
+                    CaptureKind::ColourDofp { pattern, .. } => {
+                        format!(", color = {}", toml_str(&pattern.color()))
+                    }
+                    _ => String::new(),
+                };
                 let _ = writeln!(
                     m,
-                    "dofp = {{ file = {}, pattern = [{}] }}",
-                    toml_str(&format!(
-                        "{}/raw.{}",
-                        capture_dir(scene, ci),
-                        scene.format.extension()
-                    )),
-                    p.join(", ")
-                );
-            }
-            CaptureKind::ColourDofp { pattern, .. } => {
-                let p = pattern.polar().angles_deg().map(toml_num);
-                let _ = writeln!(
-                    m,
-                    "dofp = {{ file = {}, pattern = [{}], color = {} }}",
+                    "dofp = {{ file = {}, pattern = {}{color} }}",
                     toml_str(&frame_file(scene, ci, 0)),
-                    p.join(", "),
-                    toml_str(&pattern.color())
+                    toml_vec(&scene.capture.angles_deg()),
                 );
             }
         }

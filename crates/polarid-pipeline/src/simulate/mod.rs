@@ -198,9 +198,8 @@ impl RenderSpec {
             let [ti, tr, phi] = g.map(f64::to_radians);
             let caps = plates
                 .iter()
-                .map(|(o, [x, y, width, height])| {
-                    let stokes = plate_radiance(o, ti, tr, phi)?;
-                    let (x, y, width, height) = (*x, *y, *width, *height);
+                .map(|&(o, [x, y, width, height])| {
+                    let stokes = plate_radiance(&o, ti, tr, phi)?;
                     Ok(UniformRect {
                         x,
                         y,
