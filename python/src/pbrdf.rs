@@ -76,7 +76,6 @@ pub fn check_zenith(name: &'static str, v: &ArrayViewD<'_, f64>) -> Result<(), C
 ///     (the message names the argument and value, in degrees), shapes that do not
 ///     broadcast.
 #[pyfunction]
-#[allow(clippy::too_many_arguments)]
 pub fn pbrdf<'py>(
     py: Python<'py>,
     n: F64Like<'py>,

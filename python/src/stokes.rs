@@ -99,7 +99,6 @@ pub fn pixel_rules(
 /// the first. The GIL is released; rows are processed in parallel.
 #[pyfunction]
 #[pyo3(signature = (frames, angles_deg, *, dark_level = 0.0, saturation = None, min_s0 = 0.0, return_mask = false))]
-#[allow(clippy::too_many_arguments)]
 pub fn stokes<'py>(
     py: Python<'py>,
     frames: &Bound<'py, PyAny>,

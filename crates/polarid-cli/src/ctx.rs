@@ -30,13 +30,11 @@ impl Ctx {
     }
 
     /// True when progress bars should be drawn.
-    #[allow(dead_code)]
     pub fn show_progress(&self) -> bool {
         !self.quiet && self.stderr_is_tty
     }
 
     /// A progress bar of `len` steps, hidden unless standard error is a terminal.
-    #[allow(dead_code)]
     pub fn progress(&self, len: u64, what: &str) -> indicatif::ProgressBar {
         if !self.show_progress() {
             return indicatif::ProgressBar::hidden();
@@ -52,7 +50,6 @@ impl Ctx {
     }
 
     /// Print an informational message on standard error unless `--quiet`.
-    #[allow(dead_code)]
     pub fn info(&self, msg: impl AsRef<str>) {
         if !self.quiet {
             eprintln!("{}", msg.as_ref());
@@ -61,7 +58,6 @@ impl Ctx {
 
     /// Write a text output to `path` atomically, or to standard output when `path` is
     /// `None` or `-`. `inputs` are never overwritten.
-    #[allow(dead_code)]
     pub fn write_output(
         &self,
         path: Option<&Path>,

@@ -40,8 +40,8 @@
 
 use std::path::{Path, PathBuf};
 
-use polarid_io::manifest::{self, Manifest};
-use polarid_io::table::measurements::{self, Measurement};
+use polarid_io::manifest;
+use polarid_io::table::measurements;
 use polarid_pipeline::measure;
 
 use super::common::{Bars, PipeResult, warn_all};
@@ -59,22 +59,6 @@ pub struct Args {
     /// in a capture, instead of writing its row with a status and a reason.
     #[arg(long)]
     pub strict: bool,
-}
-
-/// Measure every region of every capture of a loaded manifest (one row per target per
-/// capture, captures in manifest order) with [`polarid_pipeline::measure::measure_with`],
-/// showing a progress bar over the captures and a warning per saturated region.
-pub fn measure_manifest(
-    m: &Manifest,
-    cfg: &measure::MeasureConfig,
-    ctx: &Ctx,
-) -> anyhow::Result<Vec<Measurement>> {
-    let out = {
-        let bars = Bars::new(ctx);
-        measure::measure_with(m, cfg, &|s, d, t| bars.report(s, d, t)).cli()?
-    };
-    warn_all(ctx, &out.warnings);
-    Ok(out.rows)
 }
 
 /// Run `polarid measure`.
@@ -96,7 +80,14 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     let cfg = measure::MeasureConfig {
         strict: args.strict,
     };
-    let rows = measure_manifest(&m, &cfg, ctx)?;
+    // Every region of every capture (one row per target per capture, in manifest
+    // order), a progress bar over the captures, a warning per saturated region.
+    let out = {
+        let bars = Bars::new(ctx);
+        measure::measure_with(&m, &cfg, &|s, d, t| bars.report(s, d, t)).cli()?
+    };
+    warn_all(ctx, &out.warnings);
+    let rows = out.rows;
     let label = output.clone().unwrap_or_else(|| PathBuf::from("<stdout>"));
     ctx.write_output(output.as_deref(), &inputs, |w| {
         measurements::write(w, &label, &rows)

@@ -10,8 +10,8 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use polarid_io::atomic::StagedDir;
-use polarid_io::scene::{self, CaptureKind, ImageFormat, Scene};
-use polarid_pipeline::simulate::{self as pipeline, Simulated};
+use polarid_io::scene::{self, CaptureKind, ImageFormat};
+use polarid_pipeline::simulate as pipeline;
 
 use super::common::{Bars, PipeResult, warn_all};
 use crate::Ctx;
@@ -26,18 +26,6 @@ pub struct Args {
     pub output: PathBuf,
 }
 
-/// Simulate `scene` into `staged` under `prefix` ([`pipeline::simulate_into`]) with a
-/// progress bar over the frames.
-pub fn simulate_into(
-    scene: &Scene,
-    staged: &StagedDir,
-    prefix: &str,
-    ctx: &Ctx,
-) -> anyhow::Result<Simulated> {
-    let bars = Bars::new(ctx);
-    pipeline::simulate_into(scene, staged, prefix, &|s, d, t| bars.report(s, d, t)).cli()
-}
-
 /// Run `polarid simulate`.
 pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     let scene = scene::load(&args.scene)?;
@@ -49,8 +37,12 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         .into());
     }
     let staged = StagedDir::new(&args.output, ctx.force)?;
-    let sim = simulate_into(&scene, &staged, "", ctx)
-        .with_context(|| format!("simulating {}", args.scene.display()))?;
+    // A progress bar over the frames.
+    let sim = {
+        let bars = Bars::new(ctx);
+        pipeline::simulate_into(&scene, &staged, "", &|s, d, t| bars.report(s, d, t)).cli()
+    }
+    .with_context(|| format!("simulating {}", args.scene.display()))?;
     staged.commit()?;
     warn_all(ctx, &sim.warnings);
     let kind = match &scene.capture {

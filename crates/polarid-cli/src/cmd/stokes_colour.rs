@@ -13,7 +13,7 @@ use polarid_pipeline::stokes::{StokesBand, StokesResult};
 
 use super::{Args, OutFile, write_files};
 use crate::Ctx;
-use crate::render::views::{self, DolpScale};
+use crate::render::views;
 
 /// An RGB preview from the bands lettered R, G, B (a missing colour is black):
 /// `f(value)` in `[0, 1]` per channel.
@@ -46,10 +46,7 @@ pub fn write(args: &Args, r: &StokesResult, ctx: &Ctx) -> anyhow::Result<()> {
         .iter()
         .flat_map(|b| b.dolp.iter().step_by(7).copied())
         .collect();
-    let dolp_max = match args.dolp_max {
-        DolpScale::Fixed(m) => m,
-        DolpScale::Auto => views::auto_dolp_max(&all_dolp),
-    };
+    let dolp_max = args.dolp_max.resolve(&all_dolp);
     // S0 scale: the 99.5th percentile of every band's finite S0
     let s0s: Vec<f32> = bands
         .iter()

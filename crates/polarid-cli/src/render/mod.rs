@@ -37,12 +37,6 @@ pub struct Rendered {
     pub png: Vec<u8>,
     /// The SVG document.
     pub svg: String,
-    /// Width in pixels.
-    #[allow(dead_code)] // for callers that lay the drawing out (no command needs it yet)
-    pub width: u32,
-    /// Height in pixels.
-    #[allow(dead_code)]
-    pub height: u32,
 }
 
 /// The files written by [`Rendered::write`].

@@ -596,11 +596,11 @@ pub fn write_fit_report(
         classification: &[],
     };
     let figs = figures(&t, Some(&refs), "fit")?;
-    let inputs = vec![report::InputItem {
-        role: "measurements".into(),
-        path: input.display().to_string(),
-        detail: format!("{} row(s)", meas.len()),
-    }];
+    let inputs = vec![report::InputItem::new(
+        "measurements",
+        input.display().to_string(),
+        format!("{} row(s)", meas.len()),
+    )];
     let rep = report(
         format!("polarid fit: {}", input.display()),
         vec![describe(fits)],
@@ -749,16 +749,12 @@ pub fn write_classify_report(
     };
     let figs = figures(&t, Some(refs), "classify")?;
     let inputs = vec![
-        report::InputItem {
-            role: "fits".into(),
-            path: input.display().to_string(),
-            detail: describe(fits),
-        },
-        report::InputItem {
-            role: "prototypes".into(),
-            path: refs.label.clone(),
-            detail: format!("{} prototype(s)", refs.profiles.len()),
-        },
+        report::InputItem::new("fits", input.display().to_string(), describe(fits)),
+        report::InputItem::new(
+            "prototypes",
+            refs.label.clone(),
+            format!("{} prototype(s)", refs.profiles.len()),
+        ),
     ];
     let mut rep = report(
         format!("polarid classify: {}", input.display()),

@@ -87,23 +87,15 @@ pub fn inputs(
 ) -> Vec<report::InputItem> {
     let mut inputs: Vec<report::InputItem> = Vec::new();
     for (s, m) in scenes.iter().zip(manifests) {
-        inputs.push(report::InputItem {
-            role: "scene".into(),
-            path: s.clone(),
-            detail: scene_detail(s),
-        });
-        inputs.push(report::InputItem {
-            role: "manifest".into(),
-            path: m.clone(),
-            detail: manifest_detail.into(),
-        });
+        inputs.push(report::InputItem::new("scene", s.clone(), scene_detail(s)));
+        inputs.push(report::InputItem::new(
+            "manifest",
+            m.clone(),
+            manifest_detail,
+        ));
     }
     for &(role, path, detail) in files {
-        inputs.push(report::InputItem {
-            role: role.into(),
-            path: path.into(),
-            detail: detail.into(),
-        });
+        inputs.push(report::InputItem::new(role, path, detail));
     }
     inputs
 }

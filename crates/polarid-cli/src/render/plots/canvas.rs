@@ -99,12 +99,7 @@ pub(super) fn render(fig: &impl Figure, size: PlotSize) -> Result<Rendered> {
             svg.insert_str(end, &over[a..b]);
         }
     }
-    Ok(Rendered {
-        png,
-        svg,
-        width: w,
-        height: h,
-    })
+    Ok(Rendered { png, svg })
 }
 
 /// Copy `r` into the RGB buffer `buf` (`w` × `h`), clipped.

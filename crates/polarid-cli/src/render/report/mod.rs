@@ -31,6 +31,14 @@ pub struct InputItem {
     pub detail: String,
 }
 
+impl InputItem {
+    /// An input: its role, path and details.
+    pub fn new(role: &str, path: impl Into<String>, detail: impl Into<String>) -> Self {
+        let (role, path, detail) = (role.to_string(), path.into(), detail.into());
+        Self { role, path, detail }
+    }
+}
+
 /// The observation geometry of one target.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct GeometryRow {
