@@ -2,6 +2,7 @@
 
 use anyhow::Result;
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 use super::PlotSize;
@@ -121,6 +122,23 @@ pub(super) fn dolp_ranges(series: &[DolpSeries]) -> (Option<(f64, f64)>, Option<
     (min_max(xs), min_max(ys))
 }
 
+/// Draw `p`'s ±1 SE bar in `st`; `false` (nothing drawn) when its SE is 0.
+pub(super) fn draw_se_bar<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    p: &DolpPoint,
+    st: ShapeStyle,
+) -> Result<bool> {
+    let e = p.se();
+    if e > 0.0 {
+        area.draw(&PathElement::new(
+            vec![(p.beta_deg, p.dolp - e), (p.beta_deg, p.dolp + e)],
+            st,
+        ))
+        .dr()?;
+    }
+    Ok(e > 0.0)
+}
+
 /// Draw `s` in colour `c`: its finite curve `line` pixels wide, then every valid point as
 /// a filled circle of radius `radius` over its ±1 SE bar; `detailed`: with caps on the
 /// bars and a ring around the circles.
@@ -138,13 +156,8 @@ pub(super) fn draw_dolp_series<DB: DrawingBackend>(
     let area = ch.plotting_area();
     for p in s.points.iter().filter(|p| p.valid()) {
         let (at, e) = ((p.beta_deg, p.dolp), p.se());
-        if e > 0.0 {
-            let st = shade(c, 0.8).stroke_width(2);
-            area.draw(&PathElement::new(
-                vec![(p.beta_deg, p.dolp - e), (p.beta_deg, p.dolp + e)],
-                st,
-            ))
-            .dr()?;
+        let st = shade(c, 0.8).stroke_width(2);
+        if draw_se_bar(area, p, st)? {
             for yy in [p.dolp - e, p.dolp + e].into_iter().filter(|_| detailed) {
                 area.draw(
                     &(EmptyElement::at((p.beta_deg, yy))

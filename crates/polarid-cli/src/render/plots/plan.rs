@@ -10,7 +10,7 @@ use plotters::prelude::*;
 
 use super::PlotSize;
 use super::canvas::*;
-use super::dolp::{DolpPoint, finite};
+use super::dolp::{DolpPoint, draw_se_bar, finite};
 use super::style::DrawResult as _;
 use super::style::*;
 use crate::render::Rendered;
@@ -111,15 +111,7 @@ fn draw_rows<DB: DrawingBackend>(
         )?;
     }
     for q in p.recommended.iter().filter(|q| q.valid()) {
-        let e = q.se();
-        if e > 0.0 {
-            let st = shade(c, 0.7).stroke_width(2);
-            area.draw(&PathElement::new(
-                vec![(q.beta_deg, q.dolp - e), (q.beta_deg, q.dolp + e)],
-                st,
-            ))
-            .dr()?;
-        }
+        draw_se_bar(area, q, shade(c, 0.7).stroke_width(2))?;
         draw_marker(area, (q.beta_deg, q.dolp), Marker::Circle, 6, c.filled())?;
         draw_marker(
             area,
