@@ -210,17 +210,19 @@ fn own_layer(g: &Group, cfg: &FitConfig) -> Option<OwnLayer> {
     })
 }
 
-/// The error model of the sample covariance: the surface layer alone, of standard
-/// thickness [`SAMPLE_LAYER_RATIO`] times `pol`'s (no floor, no scale error; the angle
+/// The error model of the sample covariance: the generic surface layers alone, of
+/// standard thickness `ratio` times `pol`'s ([`SAMPLE_LAYER_RATIO`], or
+/// [`SAMPLE_RESIDUAL_RATIO`] beside a native layer; no floor, no scale error; the angle
 /// errors are left out by the caller).
 pub(crate) fn sample_polarimetric(
     pol: &polarid_core::systematic::Polarimetric,
+    ratio: f64,
 ) -> polarid_core::systematic::Polarimetric {
     polarid_core::systematic::Polarimetric {
         dolp_floor: 0.0,
         extinction_ratio: f64::INFINITY,
         retardance: 0.0,
-        film_sd_waves: SAMPLE_LAYER_RATIO * pol.film_sd_waves,
+        film_sd_waves: ratio * pol.film_sd_waves,
     }
 }
 
@@ -241,10 +243,12 @@ fn sample_covariance(
 ) -> Option<(f64, f64, f64)> {
     let t_len = betas.len();
     let mut sys = vec![0.0; t_len * t_len];
-    let mut layer = sample_polarimetric(pol);
-    if own.is_some() {
-        layer.film_sd_waves = SAMPLE_RESIDUAL_RATIO * pol.film_sd_waves;
-    }
+    let ratio = if own.is_some() {
+        SAMPLE_RESIDUAL_RATIO
+    } else {
+        SAMPLE_LAYER_RATIO
+    };
+    let layer = sample_polarimetric(pol, ratio);
     let zero = vec![0.0; t_len];
     systematic_covariance(f.n, f.k, betas, &zero, &layer, &mut sys).ok()?;
     if let Some(l) = own.filter(|_| pol.film_sd_waves > 0.0) {

@@ -204,7 +204,10 @@ fn checked_row(
         r.nk_corr = c.nk_corr;
         // The sample covariance (noise and the layer's variation between plates,
         // docs/ERRORS.md "Same bench").
-        let pol = super::errors::sample_polarimetric(&cfg.polarimetric_at(g.wavelength_nm));
+        let pol = super::errors::sample_polarimetric(
+            &cfg.polarimetric_at(g.wavelength_nm),
+            super::errors::SAMPLE_LAYER_RATIO,
+        );
         if let Some(s) = mixed::total_nk_cov(caps, opts, f, &vec![0.0; angle_sd.len()], &pol)
             && s.n_se.is_finite()
             && s.k_se.is_finite()
