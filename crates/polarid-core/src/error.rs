@@ -209,6 +209,19 @@ pub fn ensure_finite(name: &'static str, value: f64) -> Result<f64> {
     }
 }
 
+/// `got == expected`, or [`CoreError::LengthMismatch`] naming `name`.
+#[inline]
+pub(crate) fn check_len(name: &'static str, got: usize, expected: usize) -> Result<()> {
+    if got != expected {
+        return Err(CoreError::LengthMismatch {
+            name,
+            expected,
+            got,
+        });
+    }
+    Ok(())
+}
+
 /// Check that `value` lies in `[lo, hi]` (and is finite).
 #[inline]
 pub fn ensure_range(

@@ -45,9 +45,9 @@ use std::collections::BTreeSet;
 use rayon::prelude::*;
 
 use crate::classify::{Classifier, Cov2};
-use crate::error::{CoreError, Result};
+use crate::error::{CoreError, Result, check_len};
 use crate::fit::{FitPlan, FitStatus, NkFit, PixelBetaPlan, fit_batch, fit_batch_pixel_beta};
-use crate::stokes::{PixelRules, Sample, StokesSolver, check_image, check_len, mask};
+use crate::stokes::{PixelRules, Sample, StokesSolver, check_image, mask};
 use noise::NoiseModel;
 use sets::{CovScratch, MapErrorModel, PixelRow};
 
@@ -337,13 +337,7 @@ pub fn frames_dolp_noise<T: Sample>(
     noise: Option<NoiseOut<'_>>,
 ) -> Result<()> {
     rules.validate()?;
-    if frames.len() != solver.len() {
-        return Err(CoreError::LengthMismatch {
-            name: "frames",
-            expected: solver.len(),
-            got: frames.len(),
-        });
-    }
+    check_len("frames", frames.len(), solver.len())?;
     let n = frames.first().map_or(0, |f| f.len());
     check_image(width, n)?;
     for f in frames {
@@ -853,25 +847,13 @@ fn check_map_inputs(
             (beta.len(), plan.options().bounds.k_min)
         }
     };
-    if dolp.len() != t_len {
-        return Err(CoreError::LengthMismatch {
-            name: "DoLP images (captures)",
-            expected: t_len,
-            got: dolp.len(),
-        });
-    }
+    check_len("DoLP images (captures)", dolp.len(), t_len)?;
     for d in dolp {
         check_len("dolp", d.len(), npix)?;
     }
     if let Some(nz) = noise {
         for (name, imgs) in [("noise read terms", nz.read), ("noise shot terms", nz.shot)] {
-            if imgs.len() != t_len {
-                return Err(CoreError::LengthMismatch {
-                    name,
-                    expected: t_len,
-                    got: imgs.len(),
-                });
-            }
+            check_len(name, imgs.len(), t_len)?;
             for d in imgs {
                 check_len(name, d.len(), npix)?;
             }

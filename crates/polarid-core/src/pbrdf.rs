@@ -35,6 +35,7 @@ use crate::dop::{self, BetaTerms};
 use crate::error::{CoreError, Result, ensure_finite};
 use crate::fresnel::Fresnel;
 use crate::geometry::ScatterGeometry;
+use crate::geometry::vec3::{cross, dot};
 
 /// A 3×3 linear-polarization Mueller matrix (row-major, `[row][column]`).
 pub type Mueller3 = [[f64; 3]; 3];
@@ -161,8 +162,8 @@ pub fn pbrdf_geometry(n: f64, k: f64, sigma: f64, g: &ScatterGeometry, out: &mut
 /// `cos η ∝ s_g·w`, `sin η ∝ s_g·(k × w) = −p_g·w`.
 #[inline]
 fn rot2(w: &[f64; 3], s_g: &[f64; 3], p_g: &[f64; 3]) -> (f64, f64) {
-    let c = dot(s_g, w);
-    let s = -dot(p_g, w);
+    let c = dot(*s_g, *w);
+    let s = -dot(*p_g, *w);
     let r2 = c * c + s * s;
     if r2 > 0.0 {
         ((c * c - s * s) / r2, 2.0 * c * s / r2)
@@ -171,28 +172,14 @@ fn rot2(w: &[f64; 3], s_g: &[f64; 3], p_g: &[f64; 3]) -> (f64, f64) {
     }
 }
 
-#[inline]
-fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-#[inline]
-fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
 /// Rotate a Mueller matrix from the local facet frame to the global s/p frame of
 /// [`ScatterGeometry`] `g` (see the module documentation).
 pub fn to_global(local: &Mueller3, g: &ScatterGeometry) -> Mueller3 {
     let (ui, ur) = (&g.u_i, &g.u_r);
     // Normal of the scattering plane (any vector ⊥ u_i when u_i ∥ u_r; (0, 1, 0) is
     // ⊥ u_i since the source is at azimuth 0).
-    let mut w = cross(ui, ur);
-    if dot(&w, &w) <= 1e-300 {
+    let mut w = cross(*ui, *ur);
+    if dot(w, w) <= 1e-300 {
         w = [0.0, 1.0, 0.0];
     }
     // Incident beam: k_i = −u_i, s = unit(z × k_i) = (0, −1, 0) (also the θi → 0

@@ -51,7 +51,9 @@
 
 use crate::CoreError;
 use crate::dop::{dop, dop_beta_derivs, dop_grad};
+use crate::error::check_len;
 use crate::film::thin_film;
+use crate::fit::inv2;
 
 /// Indices `(n, k)` of the surface layers of the error model: silica-like, high-index
 /// (TiO₂, NiO) and absorbing high-index oxides (Cu₂O, Fe₂O₃).
@@ -99,8 +101,8 @@ pub fn systematic_covariance(
     out: &mut [f64],
 ) -> Result<(), CoreError> {
     let t_len = betas.len();
-    check_len("angle_sd", t_len, angle_sd.len())?;
-    check_len("out", t_len * t_len, out.len())?;
+    check_len("angle_sd", angle_sd.len(), t_len)?;
+    check_len("out", out.len(), t_len * t_len)?;
     let u = pol.scale_sd();
     let f2 = pol.dolp_floor * pol.dolp_floor;
     // a_t = P'_t σ_t / 2: the β-error of row t is half its direction errors.
@@ -194,7 +196,7 @@ pub fn film_shifts(
 ) -> Result<Option<FilmShifts>, CoreError> {
     let t_len = betas.len();
     if let Some(se) = noise_se {
-        check_len("noise_se", t_len, se.len())?;
+        check_len("noise_se", se.len(), t_len)?;
     }
     if !(pol.film_sd_waves > 0.0) {
         return Ok(None);
@@ -307,10 +309,10 @@ pub fn propagate(
             got: t_len,
         });
     }
-    check_len("residual", t_len, residual.len())?;
-    check_len("sys", t_len * t_len, sys.len())?;
+    check_len("residual", residual.len(), t_len)?;
+    check_len("sys", sys.len(), t_len * t_len)?;
     if let Some(se) = noise_se {
-        check_len("noise_se", t_len, se.len())?;
+        check_len("noise_se", se.len(), t_len)?;
     }
     let w: Vec<f64> = match noise_se {
         Some(se) => se.iter().map(|s| 1.0 / (s * s)).collect(),
@@ -506,31 +508,6 @@ fn forward(l: &[f64], y: &[f64], m: usize) -> Vec<f64> {
         x[i] = s / l[i * m + i];
     }
     x
-}
-
-/// Inverse of the symmetric 2×2 `[[a, b], [b, c]]` (as in the core fit's covariance).
-#[allow(clippy::neg_cmp_op_on_partial_ord, clippy::nonminimal_bool)] // NaN-safe on purpose
-fn inv2(a: f64, b: f64, c: f64) -> Option<(f64, f64, f64)> {
-    if !(a > 0.0 && c > 0.0) || !(a.is_finite() && b.is_finite() && c.is_finite()) {
-        return None;
-    }
-    let det = a * c - b * b;
-    if !(det > 1e-12 * a * c) {
-        return None;
-    }
-    Some((c / det, -b / det, a / det))
-}
-
-fn check_len(name: &'static str, expected: usize, got: usize) -> Result<(), CoreError> {
-    if expected == got {
-        Ok(())
-    } else {
-        Err(CoreError::LengthMismatch {
-            name,
-            expected,
-            got,
-        })
-    }
 }
 
 /// The survival function of the χ² distribution with `dof` degrees of freedom,

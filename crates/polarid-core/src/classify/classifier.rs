@@ -279,13 +279,6 @@ impl Classifier {
         &self.profiles
     }
 
-    /// Whether some prototype has several bands or a band wavelength.
-    pub fn is_multi_band(&self) -> bool {
-        self.profiles
-            .iter()
-            .any(|p| p.bands.len() > 1 || p.bands.iter().any(|b| b.wavelength_nm.is_some()))
-    }
-
     /// The settings.
     pub fn config(&self) -> &ClassifierConfig {
         &self.config

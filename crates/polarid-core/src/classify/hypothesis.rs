@@ -134,7 +134,7 @@ use num_complex::Complex64;
 use super::decision::{Candidate, Decision, Neighbour, Status};
 use super::{AMBIGUOUS, MultiPrototype, UNKNOWN, same_band};
 use crate::dop::{BetaTerms, dop_beta_derivs, dop_terms};
-use crate::error::{CoreError, Result};
+use crate::error::{CoreError, Result, check_len};
 use crate::systematic::chi2_sf;
 
 /// The common angle offset's bound in standard deviations of its part of the error
@@ -871,13 +871,7 @@ fn check_candidate(cand: &CandidateModel, wavelengths: &[f64]) -> Result<()> {
             expected: "a finite index with n > 0, k >= 0 per band",
         })
     };
-    if cand.bulk.len() != wavelengths.len() {
-        return Err(CoreError::LengthMismatch {
-            name: "bulk",
-            expected: wavelengths.len(),
-            got: cand.bulk.len(),
-        });
-    }
+    check_len("bulk", cand.bulk.len(), wavelengths.len())?;
     for &(n, k) in &cand.bulk {
         if !(n.is_finite() && n > 0.0) {
             return bad("n", n);
@@ -887,13 +881,7 @@ fn check_candidate(cand: &CandidateModel, wavelengths: &[f64]) -> Result<()> {
         }
     }
     if let Some(l) = &cand.layer {
-        if l.index.len() != wavelengths.len() {
-            return Err(CoreError::LengthMismatch {
-                name: "layer index",
-                expected: wavelengths.len(),
-                got: l.index.len(),
-            });
-        }
+        check_len("layer index", l.index.len(), wavelengths.len())?;
         for &(n, k) in &l.index {
             if !(n.is_finite() && n > 0.0) {
                 return bad("layer n", n);
@@ -1547,13 +1535,7 @@ pub fn classify_rows(
 /// `priors` (if any) hold one finite weight ≥ 0 per each of `n` prototypes.
 fn check_priors(priors: Option<&[f64]>, n: usize) -> Result<()> {
     if let Some(p) = priors {
-        if p.len() != n {
-            return Err(CoreError::LengthMismatch {
-                name: "priors",
-                expected: n,
-                got: p.len(),
-            });
-        }
+        check_len("priors", p.len(), n)?;
         if let Some(&bad) = p.iter().find(|w| !(w.is_finite() && **w >= 0.0)) {
             return Err(CoreError::OutOfRange {
                 name: "prior",

@@ -49,7 +49,7 @@ use super::hypothesis::{
     CandidateModel, HypRow, HypothesisConfig, NuisanceFit, layered_dolp, test_hypothesis,
     test_statistic,
 };
-use crate::error::{CoreError, Result};
+use crate::error::{CoreError, Result, check_len};
 use crate::systematic::chi2_sf;
 
 use super::hypothesis::chi2_quantile_any;
@@ -276,13 +276,7 @@ pub fn worst_case(
     cfg: &HypothesisConfig,
     grid: &[TruthPoint],
 ) -> Result<(f64, f64, TruthPoint)> {
-    if truth.bulk.len() != wavelengths.len() {
-        return Err(CoreError::LengthMismatch {
-            name: "truth bands",
-            expected: wavelengths.len(),
-            got: truth.bulk.len(),
-        });
-    }
+    check_len("truth bands", truth.bulk.len(), wavelengths.len())?;
     let mut best: Option<(f64, f64, TruthPoint)> = None;
     for &at in grid {
         let hrows = truth_rows(rows, wavelengths, truth, at);
@@ -332,19 +326,9 @@ pub fn separation(
         });
     }
     if grid.is_empty() {
-        return Err(CoreError::LengthMismatch {
-            name: "truth grid",
-            expected: 1,
-            got: 0,
-        });
+        check_len("truth grid", 0, 1)?;
     }
-    if truth.bulk.len() != wavelengths.len() {
-        return Err(CoreError::LengthMismatch {
-            name: "truth bands",
-            expected: wavelengths.len(),
-            got: truth.bulk.len(),
-        });
-    }
+    check_len("truth bands", truth.bulk.len(), wavelengths.len())?;
     let (_, _, worst) = worst_case(rows, wavelengths, truth, alt, cfg, grid)?;
     let fit = test_hypothesis(
         &truth_rows(rows, wavelengths, truth, worst),

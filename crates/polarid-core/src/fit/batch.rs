@@ -5,7 +5,7 @@
 use rayon::prelude::*;
 
 use super::{FitPlan, NkFit};
-use crate::error::{CoreError, Result};
+use crate::error::{Result, check_len};
 
 /// Fit every pixel of a batch in parallel (rayon).
 ///
@@ -22,21 +22,9 @@ pub fn fit_batch(
     out: &mut [NkFit],
 ) -> Result<()> {
     let t_len = plan.len();
-    if dolp.len() != out.len() * t_len {
-        return Err(CoreError::LengthMismatch {
-            name: "dolp",
-            expected: out.len() * t_len,
-            got: dolp.len(),
-        });
-    }
-    if let Some(se) = dolp_se
-        && se.len() != dolp.len()
-    {
-        return Err(CoreError::LengthMismatch {
-            name: "dolp_se",
-            expected: dolp.len(),
-            got: se.len(),
-        });
+    check_len("dolp", dolp.len(), out.len() * t_len)?;
+    if let Some(se) = dolp_se {
+        check_len("dolp_se", se.len(), dolp.len())?;
     }
     const CHUNK: usize = 1024;
     match dolp_se {

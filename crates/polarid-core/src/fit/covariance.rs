@@ -130,7 +130,7 @@ impl Grid {
 
 /// Inverse of the symmetric 2×2 `[[a, b], [b, c]]` as `(i00, i01, i11)`, or `None`
 /// when it is singular (a zero diagonal or `1 − ρ² < 1e-12`).
-fn inv2(a: f64, b: f64, c: f64) -> Option<(f64, f64, f64)> {
+pub(crate) fn inv2(a: f64, b: f64, c: f64) -> Option<(f64, f64, f64)> {
     if !(a > 0.0 && c > 0.0) || !(a.is_finite() && b.is_finite() && c.is_finite()) {
         return None;
     }

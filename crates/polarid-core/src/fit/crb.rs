@@ -5,7 +5,7 @@
 //! estimator has covariance `≥ F⁻¹`.
 
 use crate::dop::{BetaTerms, dop_grad_terms};
-use crate::error::{CoreError, Result, ensure_finite};
+use crate::error::{CoreError, Result, check_len, ensure_finite};
 
 /// The Cramér–Rao bound (the inverse Fisher information) on `(n, k)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -76,13 +76,7 @@ pub fn crb(n: f64, k: f64, betas: &[f64], noise_sd: f64) -> Result<Crb> {
 /// `betas[t]`).
 pub fn crb_weighted(n: f64, k: f64, betas: &[f64], sds: &[f64]) -> Result<Crb> {
     check_nk(n, k)?;
-    if sds.len() != betas.len() {
-        return Err(CoreError::LengthMismatch {
-            name: "sds",
-            expected: betas.len(),
-            got: sds.len(),
-        });
-    }
+    check_len("sds", sds.len(), betas.len())?;
     for &s in sds {
         if !(s > 0.0) || !s.is_finite() {
             return Err(CoreError::OutOfRange {

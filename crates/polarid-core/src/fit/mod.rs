@@ -153,6 +153,7 @@ mod validate;
 pub use crate::status::FitStatus;
 pub use batch::fit_batch;
 pub use chunk::FitWorkspace;
+pub(crate) use covariance::inv2;
 pub use crb::{Crb, crb, crb_weighted};
 pub use options::{FitBounds, FitOptions};
 pub use pixel::{BETA_QUANTUM_DEG, PixelBetaPlan, fit_batch_pixel_beta};

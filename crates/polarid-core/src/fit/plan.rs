@@ -208,11 +208,6 @@ impl FitPlan {
         &self.grid.opts
     }
 
-    /// Number of grid nodes scanned per fit.
-    pub fn grid_nodes(&self) -> usize {
-        self.grid.nodes()
-    }
-
     /// The cost `Σ w_t (P(n, k, β_t) − y_t)²` (`w_t = 1/se_t²`, or 1).
     pub fn cost(&self, n: f64, k: f64, dolp: &[f64], dolp_se: Option<&[f64]>) -> f64 {
         let mut c = 0.0;

@@ -4,7 +4,7 @@
 
 use super::validate::check_pixel;
 use super::{FitPlan, FitWorkspace, NkFit};
-use crate::error::{CoreError, Result};
+use crate::error::{Result, check_len};
 
 impl FitPlan {
     /// Fit one target (allocates a workspace; see [`FitPlan::fit_with`]).
@@ -25,21 +25,9 @@ impl FitPlan {
         ws: &mut FitWorkspace,
     ) -> Result<NkFit> {
         let t_len = self.len();
-        if dolp.len() != t_len {
-            return Err(CoreError::LengthMismatch {
-                name: "dolp",
-                expected: t_len,
-                got: dolp.len(),
-            });
-        }
-        if let Some(se) = dolp_se
-            && se.len() != t_len
-        {
-            return Err(CoreError::LengthMismatch {
-                name: "dolp_se",
-                expected: t_len,
-                got: se.len(),
-            });
+        check_len("dolp", dolp.len(), t_len)?;
+        if let Some(se) = dolp_se {
+            check_len("dolp_se", se.len(), t_len)?;
         }
         check_pixel(dolp, dolp_se)?;
         let mut out = [NkFit::default()];
@@ -52,12 +40,6 @@ impl FitPlan {
 /// [`FitPlan::with_defaults`] + [`FitPlan::fit`] (builds the grid: for many targets
 /// with the same β set, build the plan once).
 pub fn fit_nk(betas: &[f64], dolp: &[f64], dolp_se: Option<&[f64]>) -> Result<NkFit> {
-    if dolp.len() != betas.len() {
-        return Err(CoreError::LengthMismatch {
-            name: "dolp",
-            expected: betas.len(),
-            got: dolp.len(),
-        });
-    }
+    check_len("dolp", dolp.len(), betas.len())?;
     FitPlan::with_defaults(betas)?.fit(dolp, dolp_se)
 }

@@ -20,7 +20,7 @@
 
 pub mod camera;
 pub mod scene_geometry;
-mod vec3;
+pub(crate) mod vec3;
 
 pub use camera::{Distortion, Intrinsics, PinholeCamera};
 pub use scene_geometry::{GeometryMaps, PixelGeometry, Plane, RayHit, Source, ViewGeometry};

@@ -25,7 +25,7 @@
 
 use rayon::prelude::*;
 
-use crate::error::{CoreError, Result};
+use crate::error::{CoreError, Result, check_len};
 use crate::region::Rect;
 
 use super::ScatterGeometry;
@@ -394,17 +394,7 @@ impl ViewGeometry {
             });
         }
         let n = w * h;
-        let check = |name: &'static str, len: usize| {
-            if len == n {
-                Ok(())
-            } else {
-                Err(CoreError::LengthMismatch {
-                    name,
-                    expected: n,
-                    got: len,
-                })
-            }
-        };
+        let check = |name, len| check_len(name, len, n);
         check("beta map", maps.beta.len())?;
         check("theta_i map", maps.theta_i.len())?;
         check("theta_r map", maps.theta_r.len())?;

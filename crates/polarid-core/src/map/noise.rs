@@ -53,7 +53,7 @@
 //! [`super::sets`] and `docs/ERRORS.md`).
 
 use crate::dop::dop_grad;
-use crate::error::{CoreError, Result};
+use crate::error::{CoreError, Result, check_len};
 use crate::fit::{FitStatus, NkFit, fit_batch, fit_batch_pixel_beta};
 use crate::stokes::StokesSolver;
 use crate::systematic::chi2_sf;
@@ -293,15 +293,9 @@ impl NoiseInputs<'_> {
             ("read", self.read),
             ("shot", self.shot),
         ] {
-            if imgs.len() != t_len {
-                return Err(CoreError::LengthMismatch {
-                    name,
-                    expected: t_len,
-                    got: imgs.len(),
-                });
-            }
+            check_len(name, imgs.len(), t_len)?;
             for d in imgs {
-                crate::stokes::check_len(name, d.len(), npix)?;
+                check_len(name, d.len(), npix)?;
             }
         }
         match self.betas {

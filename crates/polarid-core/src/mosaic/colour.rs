@@ -56,8 +56,8 @@ use super::colour_kernel::{self as ck, BandStrip, ColourJob, ColourScratch, MAX_
 use super::colour_pattern::check_colour_mosaic;
 use super::{DofpOutputs, ROWS_PER_TASK, split_strips};
 use crate::cpu::{Isa, cpu_features};
-use crate::error::{CoreError, Result};
-use crate::stokes::{PixelCounts, PixelRules, Sample, check_len};
+use crate::error::{CoreError, Result, check_len};
+use crate::stokes::{PixelCounts, PixelRules, Sample};
 
 pub use super::colour_pattern::ColourPattern;
 

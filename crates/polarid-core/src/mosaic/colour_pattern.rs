@@ -22,9 +22,6 @@ pub struct ColourPattern {
 }
 
 impl ColourPattern {
-    /// The colours of Sony IMX250MYR-type sensors: `RGGB`.
-    pub const IMX250MYR_COLOR: &'static str = "RGGB";
-
     /// Validate a colour pattern: exactly four ASCII letters (case-insensitive), the
     /// colour of each 2×2 polarizer block, block-row by block-row.
     ///

@@ -102,8 +102,8 @@ mod tests;
 use rayon::prelude::*;
 
 use crate::cpu::{Isa, cpu_features};
-use crate::error::Result;
-use crate::stokes::{PixelCounts, PixelRules, Sample, check_len};
+use crate::error::{Result, check_len};
+use crate::stokes::{PixelCounts, PixelRules, Sample};
 pub use colour::{ColourMethod, ColourPattern, colour_polar, crop_to_whole_periods};
 pub use kernel::IntSample;
 use kernel::{Bilinear, Scratch, StripOut, Superpixel};

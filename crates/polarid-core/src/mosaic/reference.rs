@@ -6,8 +6,8 @@ use rayon::prelude::*;
 
 use super::Pattern;
 use super::pattern::check_mosaic;
-use crate::error::Result;
-use crate::stokes::{PixelCounts, PixelRules, Sample, check_len, finish_mask_row};
+use crate::error::{Result, check_len};
+use crate::stokes::{PixelCounts, PixelRules, Sample, finish_mask_row};
 
 /// Super-pixel Stokes: one Stokes vector per 2×2 cell of `raw` (`width × height`, both
 /// even). Outputs are `(width/2) × (height/2)`. A cell is saturated / invalid when any of

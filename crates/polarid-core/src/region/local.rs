@@ -135,9 +135,9 @@ fn check_inputs(
 ) -> Result<()> {
     crate::stokes::check_image(width, s[0].len())?;
     let n_img = s[0].len();
-    crate::stokes::check_len("s1", s[1].len(), n_img)?;
-    crate::stokes::check_len("s2", s[2].len(), n_img)?;
-    crate::stokes::check_len("mask", mask.len(), n_img)?;
+    crate::error::check_len("s1", s[1].len(), n_img)?;
+    crate::error::check_len("s2", s[2].len(), n_img)?;
+    crate::error::check_len("mask", mask.len(), n_img)?;
     rect.check(width, n_img / width)?;
     let area = rect.width * rect.height;
     for (name, len) in [
@@ -147,7 +147,7 @@ fn check_inputs(
         ("phi map", geom.phi.len()),
         ("poi_angle map", geom.poi_angle.len()),
     ] {
-        crate::stokes::check_len(name, len, area)?;
+        crate::error::check_len(name, len, area)?;
     }
     Ok(())
 }

@@ -175,9 +175,9 @@ pub fn region_stats(
 ) -> Result<RegionStats> {
     crate::stokes::check_image(width, s0.len())?;
     let n = s0.len();
-    crate::stokes::check_len("s1", s1.len(), n)?;
-    crate::stokes::check_len("s2", s2.len(), n)?;
-    crate::stokes::check_len("mask", mask.len(), n)?;
+    crate::error::check_len("s1", s1.len(), n)?;
+    crate::error::check_len("s2", s2.len(), n)?;
+    crate::error::check_len("mask", mask.len(), n)?;
     let height = n / width;
     rect.check(width, height)?;
     let rows = rect.y..rect.y + rect.height;

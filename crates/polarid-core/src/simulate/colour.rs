@@ -28,7 +28,7 @@
 //! in [`super::render_frame`].
 
 use super::{Sensor, check_frame_size, check_rects, polarizer_intensity, sample_frame};
-use crate::error::{CoreError, Result, ensure_finite};
+use crate::error::{CoreError, Result, check_len, ensure_finite};
 use crate::mosaic::ColourPattern;
 
 /// A rectangle of a colour frame with uniform radiance in every band.
@@ -69,13 +69,7 @@ fn check_frame(
     check_frame_size(width, height, &[("out", out_len)])?;
     let nb = pattern.bands().len();
     for &(name, len) in per_band {
-        if len != nb {
-            return Err(CoreError::LengthMismatch {
-                name,
-                expected: nb,
-                got: len,
-            });
-        }
+        check_len(name, len, nb)?;
     }
     for &e in electrons_per_band {
         ensure_finite("electrons_per_unit", e)?;

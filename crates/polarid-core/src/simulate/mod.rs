@@ -40,7 +40,7 @@ use rand::rngs::Xoshiro256PlusPlus;
 use rand_distr::{Distribution, Normal, Poisson};
 use rayon::prelude::*;
 
-use crate::error::{CoreError, Result, ensure_finite, ensure_range};
+use crate::error::{CoreError, Result, check_len, ensure_finite, ensure_range};
 
 /// A linear sensor with shot and read noise.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -396,13 +396,7 @@ pub(crate) fn check_frame_size(
         });
     }
     for &(name, len) in buffers {
-        if len != width * height {
-            return Err(CoreError::LengthMismatch {
-                name,
-                expected: width * height,
-                got: len,
-            });
-        }
+        check_len(name, len, width * height)?;
     }
     Ok(())
 }

@@ -35,36 +35,16 @@
 
 use rayon::prelude::*;
 
-use crate::error::{CoreError, Result, ensure_range};
+use crate::error::{CoreError, Result, check_len, ensure_range};
+use crate::geometry::vec3::{V3, cross, dot, sub};
 use crate::geometry::{PinholeCamera, PixelGeometry, Plane, Source, ViewGeometry};
 use crate::pbrdf;
 
 use super::{PlateOptics, check_frame_size};
 
-type V3 = [f64; 3];
-
-#[inline]
-fn dot(a: V3, b: V3) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-#[inline]
-fn sub(a: V3, b: V3) -> V3 {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
 #[inline]
 fn axpy(a: V3, s: f64, b: V3) -> V3 {
     [a[0] + s * b[0], a[1] + s * b[1], a[2] + s * b[2]]
-}
-
-#[inline]
-fn cross(a: V3, b: V3) -> V3 {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
 }
 
 fn unit(name: &'static str, a: V3) -> Result<V3> {
@@ -421,13 +401,7 @@ impl PerspectiveScene {
                 .map(|o| ("band optics of a plate", nb, o.len())),
         );
         for (name, expected, got) in lens {
-            if expected != got {
-                return Err(CoreError::LengthMismatch {
-                    name,
-                    expected,
-                    got,
-                });
-            }
+            check_len(name, got, expected)?;
         }
         for o in optics.iter().flatten() {
             o.validate()?;

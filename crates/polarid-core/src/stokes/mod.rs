@@ -45,9 +45,9 @@ mod polar;
 mod quad;
 mod solver;
 
+pub(crate) use pixels::check_image;
 #[cfg(test)]
 pub(crate) use pixels::finish_mask_row;
 pub use pixels::{PixelCounts, PixelRules, Sample, mask_stokes};
-pub(crate) use pixels::{check_image, check_len};
 pub use polar::{atan2_fast, dolp_aolp, dolp_aolp_pixel};
 pub use solver::{ILL_CONDITIONED, SINGULAR, StokesSolver};

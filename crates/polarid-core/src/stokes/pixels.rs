@@ -6,7 +6,7 @@
 use rayon::prelude::*;
 
 use super::mask;
-use crate::error::{CoreError, Result};
+use crate::error::{CoreError, Result, check_len};
 
 /// A raw sample type that frames may hold (8/16-bit integer or 32-bit float).
 pub trait Sample: Copy + Send + Sync + 'static {
@@ -124,18 +124,6 @@ impl PixelCounts {
             invalid: h[3],
         }
     }
-}
-
-/// `got == expected`, or [`CoreError::LengthMismatch`] naming `name`.
-pub(crate) fn check_len(name: &'static str, got: usize, expected: usize) -> Result<()> {
-    if got != expected {
-        return Err(CoreError::LengthMismatch {
-            name,
-            expected,
-            got,
-        });
-    }
-    Ok(())
 }
 
 /// `len` pixels form whole rows of `width` (both non-zero), or

@@ -5,8 +5,8 @@
 use rayon::prelude::*;
 
 use super::mask;
-use super::pixels::{check_image, check_len};
-use crate::error::Result;
+use super::pixels::check_image;
+use crate::error::{Result, check_len};
 
 const ATAN_C: [f32; 8] = [
     0.999_999_34,

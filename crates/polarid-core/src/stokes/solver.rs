@@ -13,11 +13,11 @@
 
 use rayon::prelude::*;
 
-use super::pixels::{PixelCounts, PixelRules, Sample, check_image, check_len, finish_mask_row};
+use super::pixels::{PixelCounts, PixelRules, Sample, check_image, finish_mask_row};
 use super::polar::polar_row;
 use super::quad;
 use crate::cpu::cpu_features;
-use crate::error::{CoreError, Result};
+use crate::error::{CoreError, Result, check_len};
 
 /// Condition number of the design matrix above which [`StokesSolver::ill_conditioned`]
 /// is true. The best possible value, reached by any set of `N >= 3` angles equally
@@ -292,13 +292,7 @@ impl StokesSolver {
 
     /// Stokes vector of one pixel from its (dark-subtracted) intensities, in `f64`.
     pub fn solve(&self, intensities: &[f64]) -> Result<[f64; 3]> {
-        if intensities.len() != self.pinv.len() {
-            return Err(CoreError::LengthMismatch {
-                name: "intensities",
-                expected: self.pinv.len(),
-                got: intensities.len(),
-            });
-        }
+        check_len("intensities", intensities.len(), self.pinv.len())?;
         let mut s = [0.0; 3];
         for (p, &v) in self.pinv.iter().zip(intensities) {
             s[0] += p[0] * v;
@@ -356,13 +350,7 @@ impl StokesSolver {
         polar: Option<(&mut [f32], &mut [f32])>,
     ) -> Result<PixelCounts> {
         rules.validate()?;
-        if frames.len() != self.pinv.len() {
-            return Err(CoreError::LengthMismatch {
-                name: "frames",
-                expected: self.pinv.len(),
-                got: frames.len(),
-            });
-        }
+        check_len("frames", frames.len(), self.pinv.len())?;
         let n = s0.len();
         check_image(width, n)?;
         for f in frames {

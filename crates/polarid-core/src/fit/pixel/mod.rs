@@ -57,7 +57,7 @@ use rayon::prelude::*;
 use super::grid::Grid;
 use super::plan::check_beta;
 use super::{FitOptions, FitPlan, NkFit, fit_batch};
-use crate::error::{CoreError, Result};
+use crate::error::{CoreError, Result, check_len};
 use chunk::PixelWorkspace;
 use columns::{ColumnCache, ColumnView};
 
@@ -217,16 +217,8 @@ pub fn fit_batch_pixel_beta(
     out: &mut [NkFit],
 ) -> Result<()> {
     if out.is_empty() {
-        for (name, len) in [("dolp", dolp.len()), ("betas", betas.len())] {
-            if len != 0 {
-                return Err(CoreError::LengthMismatch {
-                    name,
-                    expected: 0,
-                    got: len,
-                });
-            }
-        }
-        return Ok(());
+        check_len("dolp", dolp.len(), 0)?;
+        return check_len("betas", betas.len(), 0);
     }
     let t_len = dolp.len() / out.len();
     if dolp.len() != out.len() * t_len || t_len == 0 {
@@ -247,14 +239,8 @@ pub fn fit_batch_pixel_beta(
         ("betas", Some(betas.len())),
         ("dolp_se", dolp_se.map(<[f64]>::len)),
     ] {
-        if let Some(len) = len
-            && len != dolp.len()
-        {
-            return Err(CoreError::LengthMismatch {
-                name,
-                expected: dolp.len(),
-                got: len,
-            });
+        if let Some(len) = len {
+            check_len(name, len, dolp.len())?;
         }
     }
     // Every pixel at the same angles: the shared-β fit of those angles.
