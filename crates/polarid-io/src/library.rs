@@ -61,7 +61,7 @@
 //! | 8 Retro | `(n² − 1)/(n² + 2) = C1 + C2 λ²/(λ² − C3) + C4 λ²` |
 //! | 9 Exotic | `n² = C1 + C2/(λ² − C3) + C4 (λ − C5)/((λ − C5)² + C6)` |
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use polarid_core::classify::{
     BandPoint, MultiPrototype, NativeLayer, Prototype, check_class_name, same_band,
@@ -72,6 +72,7 @@ use crate::surfaces::{builtin_surface, layer_index, layer_index_builtin_band};
 use crate::table::{CsvTable, fmt_f64, write_rows};
 
 pub use crate::rii::{Dispersion, RiiData, formula};
+use crate::rii::{ParsedOnce, parsed_once};
 
 /// The built-in 650 nm library (refractiveindex.info, CC0), as shipped.
 pub const BUILTIN_CSV: &str = include_str!("../data/library_650nm.csv");
@@ -622,21 +623,13 @@ pub const BUILTIN_SOURCES: [BuiltinSource; 39] = builtin_sources! {
 
 /// The parsed [`BUILTIN_SOURCES`] (parsed once per process).
 fn builtin_dispersion() -> Result<&'static [RiiData]> {
-    static DATA: std::sync::OnceLock<std::result::Result<Vec<RiiData>, String>> =
-        std::sync::OnceLock::new();
-    let parsed = DATA.get_or_init(|| {
+    static DATA: ParsedOnce<RiiData> = ParsedOnce::new();
+    parsed_once(&DATA, "builtin", || {
         BUILTIN_SOURCES
             .iter()
-            .map(|s| RiiData::parse(Path::new(s.file), s.text).map_err(|e| e.to_string()))
+            .map(|s| RiiData::parse(Path::new(s.file), s.text))
             .collect()
-    });
-    match parsed {
-        Ok(v) => Ok(v.as_slice()),
-        Err(e) => Err(IoError::Model {
-            path: PathBuf::from("builtin"),
-            reason: e.clone(),
-        }),
-    }
+    })
 }
 
 /// Built-in materials a wavelength could not be evaluated at ([`Library::at_wavelengths`]).

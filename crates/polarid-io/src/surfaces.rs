@@ -15,10 +15,10 @@
 //! index (the 80 nm band centred on the row's wavelength, sampled every nm, as in
 //! `library_650nm.csv`), so that the layer and the bulk are always at one wavelength.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use crate::error::{IoError, Result};
-use crate::rii::RiiData;
+use crate::error::Result;
+use crate::rii::{ParsedOnce, RiiData, parsed_once};
 
 /// Where a layer's optical constants come from.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -224,26 +224,18 @@ pub fn layer_source(name: &str) -> Option<&'static LayerSource> {
 
 /// The parsed data of [`LAYER_SOURCES`] (`None` for constants), parsed once per process.
 fn layer_data() -> Result<&'static [Option<RiiData>]> {
-    static DATA: std::sync::OnceLock<std::result::Result<Vec<Option<RiiData>>, String>> =
-        std::sync::OnceLock::new();
-    let parsed = DATA.get_or_init(|| {
+    static DATA: ParsedOnce<Option<RiiData>> = ParsedOnce::new();
+    parsed_once(&DATA, "builtin layers", || {
         LAYER_SOURCES
             .iter()
             .map(|s| match s.index {
-                LayerIndexSource::Data { file, text } => RiiData::parse(Path::new(file), text)
-                    .map(Some)
-                    .map_err(|e| e.to_string()),
+                LayerIndexSource::Data { file, text } => {
+                    RiiData::parse(Path::new(file), text).map(Some)
+                }
                 LayerIndexSource::Constant { .. } => Ok(None),
             })
             .collect()
-    });
-    match parsed {
-        Ok(v) => Ok(v.as_slice()),
-        Err(e) => Err(IoError::Model {
-            path: PathBuf::from("builtin layers"),
-            reason: e.clone(),
-        }),
-    }
+    })
 }
 
 /// The index `(n, k)` of layer `name` ([`LAYER_SOURCES`]) as the band mean over
