@@ -69,7 +69,7 @@ use polarid_core::classify::{
 
 use crate::error::{IoError, Result};
 use crate::surfaces::{builtin_surface, layer_index, layer_index_builtin_band};
-use crate::table::{CsvTable, fmt_f64, write_rows};
+use crate::table::{BandedRow, CsvTable, fmt_f64, fmt_opt, write_banded};
 
 pub use crate::rii::{Dispersion, RiiData, formula};
 use crate::rii::{ParsedOnce, parsed_once};
@@ -455,45 +455,26 @@ impl Library {
                 writeln!(w, "# {line}").map_err(|e| IoError::io(path, e))?;
             }
         }
-        let banded = self.materials.iter().any(|m| m.wavelength_nm.is_some());
-        let layered = self.materials.iter().any(|m| m.layer.is_some());
-        let mut headers: Vec<&str> = CSV_COLUMNS.to_vec();
-        if banded {
-            headers.insert(2, "wavelength_nm");
-        }
-        if layered {
-            headers.extend(LAYER_COLUMNS);
-        }
-        write_rows(
-            w,
-            path,
-            &headers,
-            self.materials.iter().map(|m| {
-                let mut cells = vec![
-                    m.name.clone(),
-                    m.category.clone().unwrap_or_default(),
-                    fmt_f64(m.n),
-                    fmt_f64(m.k),
-                    m.reference.clone().unwrap_or_default(),
-                ];
-                if banded {
-                    cells.insert(2, m.wavelength_nm.map(fmt_f64).unwrap_or_default());
-                }
-                if layered {
-                    match &m.layer {
-                        Some(l) => cells.extend([
-                            l.name.clone(),
-                            l.index.map(|x| fmt_f64(x.0)).unwrap_or_default(),
-                            l.index.map(|x| fmt_f64(x.1)).unwrap_or_default(),
-                            fmt_f64(l.min_nm),
-                            fmt_f64(l.max_nm),
-                        ]),
-                        None => cells.extend(std::iter::repeat_n(String::new(), 5)),
-                    }
-                }
-                cells
+        let rows = self.materials.iter().map(|m| BandedRow {
+            cells: vec![
+                m.name.clone(),
+                m.category.clone().unwrap_or_default(),
+                fmt_f64(m.n),
+                fmt_f64(m.k),
+                m.reference.clone().unwrap_or_default(),
+            ],
+            wavelength_nm: m.wavelength_nm,
+            extra: m.layer.as_ref().map(|l| {
+                vec![
+                    l.name.clone(),
+                    fmt_opt(l.index.map(|x| x.0)),
+                    fmt_opt(l.index.map(|x| x.1)),
+                    fmt_f64(l.min_nm),
+                    fmt_f64(l.max_nm),
+                ]
             }),
-        )
+        });
+        write_banded(w, path, &CSV_COLUMNS, &LAYER_COLUMNS, rows.collect())
     }
 
     /// The materials as classification prototypes with all their bands: the rows of one
