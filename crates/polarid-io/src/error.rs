@@ -153,6 +153,15 @@ impl IoError {
         }
     }
 
+    /// An [`IoError::Model`]: file `path` is not a valid model or optical-data file, or
+    /// its data cannot give what was asked, for `reason`.
+    pub fn model(path: impl Into<PathBuf>, reason: impl Into<String>) -> Self {
+        IoError::Model {
+            path: path.into(),
+            reason: reason.into(),
+        }
+    }
+
     /// Wrap a [`CoreError`] with the file whose data caused it.
     pub fn core(path: impl Into<PathBuf>, source: CoreError) -> Self {
         IoError::Core {

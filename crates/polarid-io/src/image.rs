@@ -252,18 +252,8 @@ fn read_png(path: &Path, bytes: &[u8], lim: Limits) -> Result<Frame> {
     let sbit = info.sbit.as_deref().and_then(|b| b.first().copied());
     match info.color_type {
         png::ColorType::Grayscale => {}
-        png::ColorType::GrayscaleAlpha => {
-            return Err(image_err(
-                path,
-                "is a grayscale image with an alpha channel; frames must be plain grayscale",
-            ));
-        }
-        other => {
-            return Err(image_err(
-                path,
-                format!("is a colour image ({other:?}); frames must be grayscale"),
-            ));
-        }
+        png::ColorType::GrayscaleAlpha => return Err(alpha_err(path)),
+        other => return Err(colour_err(path, other)),
     }
     if info.is_animated() {
         return Err(image_err(
@@ -300,24 +290,8 @@ fn read_png(path: &Path, bytes: &[u8], lim: Limits) -> Result<Frame> {
             .map(|c| u16::from_be_bytes([c[0], c[1]]) as f32) // ok: chunks of exactly 2
             .collect(),
     };
-    if data.len() != w * h || w == 0 || h == 0 {
-        return Err(image_err(
-            path,
-            format!(
-                "decoded {} samples for a {w}x{h} image (truncated or corrupt)",
-                data.len()
-            ),
-        ));
-    }
     let recorded_max = sbit.and_then(|b| recorded_max_of_bits(kind, b));
-    Ok(Frame {
-        path: path.to_path_buf(),
-        width: w,
-        height: h,
-        kind,
-        data,
-        recorded_max,
-    })
+    decoded_frame(path, w, h, kind, data, recorded_max)
 }
 
 fn read_tiff(path: &Path, bytes: &[u8], lim: Limits) -> Result<Frame> {
@@ -361,18 +335,8 @@ fn read_tiff(path: &Path, bytes: &[u8], lim: Limits) -> Result<Frame> {
                 ),
             ));
         }
-        tiff::ColorType::GrayA(_) => {
-            return Err(image_err(
-                path,
-                "is a grayscale image with an alpha channel; frames must be plain grayscale",
-            ));
-        }
-        other => {
-            return Err(image_err(
-                path,
-                format!("is a colour image ({other:?}); frames must be grayscale"),
-            ));
-        }
+        tiff::ColorType::GrayA(_) => return Err(alpha_err(path)),
+        other => return Err(colour_err(path, other)),
     }
     if dec.more_images() {
         let mut pages = 1usize;
@@ -404,7 +368,38 @@ fn read_tiff(path: &Path, bytes: &[u8], lim: Limits) -> Result<Frame> {
             ));
         }
     };
-    let data: Vec<f32> = data;
+    let recorded_max = max_sample
+        .filter(|_| kind.is_integer())
+        .map(|v| v as f32)
+        .filter(|&v| v > 0.0 && v < kind.type_max());
+    decoded_frame(path, w, h, kind, data, recorded_max)
+}
+
+/// The error for a frame with an alpha channel.
+fn alpha_err(path: &Path) -> IoError {
+    image_err(
+        path,
+        "is a grayscale image with an alpha channel; frames must be plain grayscale",
+    )
+}
+
+/// The error for a colour frame (`color`: the decoder's colour type).
+fn colour_err(path: &Path, color: impl std::fmt::Debug) -> IoError {
+    image_err(
+        path,
+        format!("is a colour image ({color:?}); frames must be grayscale"),
+    )
+}
+
+/// The decoded frame, or an error unless `data` holds `w × h` samples.
+fn decoded_frame(
+    path: &Path,
+    w: usize,
+    h: usize,
+    kind: SampleKind,
+    data: Vec<f32>,
+    recorded_max: Option<f32>,
+) -> Result<Frame> {
     if data.len() != w * h || w == 0 || h == 0 {
         return Err(image_err(
             path,
@@ -414,10 +409,6 @@ fn read_tiff(path: &Path, bytes: &[u8], lim: Limits) -> Result<Frame> {
             ),
         ));
     }
-    let recorded_max = max_sample
-        .filter(|_| kind.is_integer())
-        .map(|v| v as f32)
-        .filter(|&v| v > 0.0 && v < kind.type_max());
     Ok(Frame {
         path: path.to_path_buf(),
         width: w,

@@ -61,7 +61,7 @@
 //! | 8 Retro | `(n² − 1)/(n² + 2) = C1 + C2 λ²/(λ² − C3) + C4 λ²` |
 //! | 9 Exotic | `n² = C1 + C2/(λ² − C3) + C4 (λ − C5)/((λ − C5)² + C6)` |
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use polarid_core::classify::{
     BandPoint, MultiPrototype, NativeLayer, Prototype, check_class_name, same_band,
@@ -69,9 +69,10 @@ use polarid_core::classify::{
 
 use crate::error::{IoError, Result};
 use crate::surfaces::{builtin_surface, layer_index, layer_index_builtin_band};
-use crate::table::{CsvTable, fmt_f64, write_rows};
+use crate::table::{BandedRow, CsvTable, fmt_f64, fmt_opt, write_banded};
 
 pub use crate::rii::{Dispersion, RiiData, formula};
+use crate::rii::{ParsedOnce, parsed_once};
 
 /// The built-in 650 nm library (refractiveindex.info, CC0), as shipped.
 pub const BUILTIN_CSV: &str = include_str!("../data/library_650nm.csv");
@@ -454,45 +455,26 @@ impl Library {
                 writeln!(w, "# {line}").map_err(|e| IoError::io(path, e))?;
             }
         }
-        let banded = self.materials.iter().any(|m| m.wavelength_nm.is_some());
-        let layered = self.materials.iter().any(|m| m.layer.is_some());
-        let mut headers: Vec<&str> = CSV_COLUMNS.to_vec();
-        if banded {
-            headers.insert(2, "wavelength_nm");
-        }
-        if layered {
-            headers.extend(LAYER_COLUMNS);
-        }
-        write_rows(
-            w,
-            path,
-            &headers,
-            self.materials.iter().map(|m| {
-                let mut cells = vec![
-                    m.name.clone(),
-                    m.category.clone().unwrap_or_default(),
-                    fmt_f64(m.n),
-                    fmt_f64(m.k),
-                    m.reference.clone().unwrap_or_default(),
-                ];
-                if banded {
-                    cells.insert(2, m.wavelength_nm.map(fmt_f64).unwrap_or_default());
-                }
-                if layered {
-                    match &m.layer {
-                        Some(l) => cells.extend([
-                            l.name.clone(),
-                            l.index.map(|x| fmt_f64(x.0)).unwrap_or_default(),
-                            l.index.map(|x| fmt_f64(x.1)).unwrap_or_default(),
-                            fmt_f64(l.min_nm),
-                            fmt_f64(l.max_nm),
-                        ]),
-                        None => cells.extend(std::iter::repeat_n(String::new(), 5)),
-                    }
-                }
-                cells
+        let rows = self.materials.iter().map(|m| BandedRow {
+            cells: vec![
+                m.name.clone(),
+                m.category.clone().unwrap_or_default(),
+                fmt_f64(m.n),
+                fmt_f64(m.k),
+                m.reference.clone().unwrap_or_default(),
+            ],
+            wavelength_nm: m.wavelength_nm,
+            extra: m.layer.as_ref().map(|l| {
+                vec![
+                    l.name.clone(),
+                    fmt_opt(l.index.map(|x| x.0)),
+                    fmt_opt(l.index.map(|x| x.1)),
+                    fmt_f64(l.min_nm),
+                    fmt_f64(l.max_nm),
+                ]
             }),
-        )
+        });
+        write_banded(w, path, &CSV_COLUMNS, &LAYER_COLUMNS, rows.collect())
     }
 
     /// The materials as classification prototypes with all their bands: the rows of one
@@ -563,251 +545,72 @@ pub struct BuiltinSource {
     pub text: &'static str,
 }
 
+/// The [`BuiltinSource`]s of `name => file` pairs, `file` a file of
+/// `data/materials/refractiveindex` (embedded).
+macro_rules! builtin_sources {
+    ($($name:literal => $file:literal,)*) => {
+        [$(BuiltinSource {
+            name: $name,
+            file: $file,
+            text: include_str!(concat!("../../../data/materials/refractiveindex/", $file)),
+        },)*]
+    };
+}
+
 /// The files behind the built-in libraries, in library order: [`Library::at_wavelengths`]
 /// evaluates the built-in materials at any wavelength their data cover.
-pub const BUILTIN_SOURCES: [BuiltinSource; 39] = [
-    BuiltinSource {
-        name: "aluminum",
-        file: "main/Al/nk/Rakic.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/Al/nk/Rakic.yml"),
-    },
-    BuiltinSource {
-        name: "copper",
-        file: "main/Cu/nk/Johnson.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/Cu/nk/Johnson.yml"),
-    },
-    BuiltinSource {
-        name: "gold",
-        file: "main/Au/nk/Johnson.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/Au/nk/Johnson.yml"),
-    },
-    BuiltinSource {
-        name: "silver",
-        file: "main/Ag/nk/Johnson.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/Ag/nk/Johnson.yml"),
-    },
-    BuiltinSource {
-        name: "iron",
-        file: "main/Fe/nk/Johnson.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/Fe/nk/Johnson.yml"),
-    },
-    BuiltinSource {
-        name: "nickel",
-        file: "main/Ni/nk/Johnson.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/Ni/nk/Johnson.yml"),
-    },
-    BuiltinSource {
-        name: "chromium",
-        file: "main/Cr/nk/Johnson.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/Cr/nk/Johnson.yml"),
-    },
-    BuiltinSource {
-        name: "titanium",
-        file: "main/Ti/nk/Johnson.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/Ti/nk/Johnson.yml"),
-    },
-    BuiltinSource {
-        name: "tungsten",
-        file: "main/W/nk/Weaver.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/W/nk/Weaver.yml"),
-    },
-    BuiltinSource {
-        name: "zinc",
-        file: "main/Zn/nk/Werner.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/Zn/nk/Werner.yml"),
-    },
-    BuiltinSource {
-        name: "lead",
-        file: "main/Pb/nk/Golovashkin-293K.yml",
-        text: include_str!(
-            "../../../data/materials/refractiveindex/main/Pb/nk/Golovashkin-293K.yml"
-        ),
-    },
-    BuiltinSource {
-        name: "magnesium",
-        file: "main/Mg/nk/Hagemann.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/Mg/nk/Hagemann.yml"),
-    },
-    BuiltinSource {
-        name: "platinum",
-        file: "main/Pt/nk/Rakic-BB.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/Pt/nk/Rakic-BB.yml"),
-    },
-    BuiltinSource {
-        name: "brass_Cu70Zn30",
-        file: "other/alloys/Cu-Zn/nk/Querry-Cu70Zn30.yml",
-        text: include_str!(
-            "../../../data/materials/refractiveindex/other/alloys/Cu-Zn/nk/Querry-Cu70Zn30.yml"
-        ),
-    },
-    BuiltinSource {
-        name: "stainless_steel_austenitic",
-        file: "other/alloys/stainless steel/nk/Karlsson-austenitic.yml",
-        text: include_str!(
-            "../../../data/materials/refractiveindex/other/alloys/stainless steel/nk/Karlsson-austenitic.yml"
-        ),
-    },
-    BuiltinSource {
-        name: "silicon",
-        file: "main/Si/nk/Aspnes.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/Si/nk/Aspnes.yml"),
-    },
-    BuiltinSource {
-        name: "germanium",
-        file: "main/Ge/nk/Aspnes.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/Ge/nk/Aspnes.yml"),
-    },
-    BuiltinSource {
-        name: "gallium_arsenide",
-        file: "main/GaAs/nk/Aspnes.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/GaAs/nk/Aspnes.yml"),
-    },
-    BuiltinSource {
-        name: "graphite_o",
-        file: "main/C/nk/Djurisic-o.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/C/nk/Djurisic-o.yml"),
-    },
-    BuiltinSource {
-        name: "carbon_soot_acetylene",
-        file: "other/soots/acetylene soot/nk/Dalzell.yml",
-        text: include_str!(
-            "../../../data/materials/refractiveindex/other/soots/acetylene soot/nk/Dalzell.yml"
-        ),
-    },
-    BuiltinSource {
-        name: "hematite_Fe2O3_o",
-        file: "main/Fe2O3/nk/Querry-o.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/Fe2O3/nk/Querry-o.yml"),
-    },
-    BuiltinSource {
-        name: "magnetite_Fe3O4",
-        file: "main/Fe3O4/nk/Querry.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/Fe3O4/nk/Querry.yml"),
-    },
-    BuiltinSource {
-        name: "N-BK7",
-        file: "specs/schott/optical/N-BK7.yml",
-        text: include_str!(
-            "../../../data/materials/refractiveindex/specs/schott/optical/N-BK7.yml"
-        ),
-    },
-    BuiltinSource {
-        name: "fused_silica",
-        file: "main/SiO2/nk/Malitson.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/SiO2/nk/Malitson.yml"),
-    },
-    BuiltinSource {
-        name: "soda_lime_glass_clear",
-        file: "glass/misc/soda-lime/nk/Rubin-clear.yml",
-        text: include_str!(
-            "../../../data/materials/refractiveindex/glass/misc/soda-lime/nk/Rubin-clear.yml"
-        ),
-    },
-    BuiltinSource {
-        name: "sapphire_o",
-        file: "main/Al2O3/nk/Malitson-o.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/Al2O3/nk/Malitson-o.yml"),
-    },
-    BuiltinSource {
-        name: "water",
-        file: "main/H2O/nk/Hale.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/H2O/nk/Hale.yml"),
-    },
-    BuiltinSource {
-        name: "ice",
-        file: "main/H2O/nk/Warren-2008.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/H2O/nk/Warren-2008.yml"),
-    },
-    BuiltinSource {
-        name: "PMMA",
-        file: "organic/(C5H8O2)n - poly(methyl methacrylate)/nk/Sultanova.yml",
-        text: include_str!(
-            "../../../data/materials/refractiveindex/organic/(C5H8O2)n - poly(methyl methacrylate)/nk/Sultanova.yml"
-        ),
-    },
-    BuiltinSource {
-        name: "polycarbonate",
-        file: "organic/(C16H14O3)n - polycarbonate/nk/Sultanova.yml",
-        text: include_str!(
-            "../../../data/materials/refractiveindex/organic/(C16H14O3)n - polycarbonate/nk/Sultanova.yml"
-        ),
-    },
-    BuiltinSource {
-        name: "polystyrene",
-        file: "organic/(C8H8)n - polystyrene/nk/Sultanova.yml",
-        text: include_str!(
-            "../../../data/materials/refractiveindex/organic/(C8H8)n - polystyrene/nk/Sultanova.yml"
-        ),
-    },
-    BuiltinSource {
-        name: "PET",
-        file: "organic/(C10H8O4)n - polyethylene terephthalate/nk/Zhang.yml",
-        text: include_str!(
-            "../../../data/materials/refractiveindex/organic/(C10H8O4)n - polyethylene terephthalate/nk/Zhang.yml"
-        ),
-    },
-    BuiltinSource {
-        name: "PVC",
-        file: "organic/(C2H3Cl)n - polyvinyl chloride/nk/Zhang.yml",
-        text: include_str!(
-            "../../../data/materials/refractiveindex/organic/(C2H3Cl)n - polyvinyl chloride/nk/Zhang.yml"
-        ),
-    },
-    BuiltinSource {
-        name: "PDMS_silicone_Sylgard184",
-        file: "organic/(C2H6OSi)n - polydimethylsiloxane/nk/Schneider-Sylgard184.yml",
-        text: include_str!(
-            "../../../data/materials/refractiveindex/organic/(C2H6OSi)n - polydimethylsiloxane/nk/Schneider-Sylgard184.yml"
-        ),
-    },
-    BuiltinSource {
-        name: "cellulose",
-        file: "organic/(C6H10O5)n - cellulose/nk/Sultanova.yml",
-        text: include_str!(
-            "../../../data/materials/refractiveindex/organic/(C6H10O5)n - cellulose/nk/Sultanova.yml"
-        ),
-    },
-    BuiltinSource {
-        name: "polyimide_Kapton_HN",
-        file: "other/commercial polymers/Kapton/nk/French.yml",
-        text: include_str!(
-            "../../../data/materials/refractiveindex/other/commercial polymers/Kapton/nk/French.yml"
-        ),
-    },
-    BuiltinSource {
-        name: "TiO2_rutile_o",
-        file: "main/TiO2/nk/Devore-o.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/TiO2/nk/Devore-o.yml"),
-    },
-    BuiltinSource {
-        name: "ZnO_o",
-        file: "main/ZnO/nk/Bond-o.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/ZnO/nk/Bond-o.yml"),
-    },
-    BuiltinSource {
-        name: "CaCO3_calcite_o",
-        file: "main/CaCO3/nk/Ghosh-o.yml",
-        text: include_str!("../../../data/materials/refractiveindex/main/CaCO3/nk/Ghosh-o.yml"),
-    },
-];
+pub const BUILTIN_SOURCES: [BuiltinSource; 39] = builtin_sources! {
+    "aluminum" => "main/Al/nk/Rakic.yml",
+    "copper" => "main/Cu/nk/Johnson.yml",
+    "gold" => "main/Au/nk/Johnson.yml",
+    "silver" => "main/Ag/nk/Johnson.yml",
+    "iron" => "main/Fe/nk/Johnson.yml",
+    "nickel" => "main/Ni/nk/Johnson.yml",
+    "chromium" => "main/Cr/nk/Johnson.yml",
+    "titanium" => "main/Ti/nk/Johnson.yml",
+    "tungsten" => "main/W/nk/Weaver.yml",
+    "zinc" => "main/Zn/nk/Werner.yml",
+    "lead" => "main/Pb/nk/Golovashkin-293K.yml",
+    "magnesium" => "main/Mg/nk/Hagemann.yml",
+    "platinum" => "main/Pt/nk/Rakic-BB.yml",
+    "brass_Cu70Zn30" => "other/alloys/Cu-Zn/nk/Querry-Cu70Zn30.yml",
+    "stainless_steel_austenitic" => "other/alloys/stainless steel/nk/Karlsson-austenitic.yml",
+    "silicon" => "main/Si/nk/Aspnes.yml",
+    "germanium" => "main/Ge/nk/Aspnes.yml",
+    "gallium_arsenide" => "main/GaAs/nk/Aspnes.yml",
+    "graphite_o" => "main/C/nk/Djurisic-o.yml",
+    "carbon_soot_acetylene" => "other/soots/acetylene soot/nk/Dalzell.yml",
+    "hematite_Fe2O3_o" => "main/Fe2O3/nk/Querry-o.yml",
+    "magnetite_Fe3O4" => "main/Fe3O4/nk/Querry.yml",
+    "N-BK7" => "specs/schott/optical/N-BK7.yml",
+    "fused_silica" => "main/SiO2/nk/Malitson.yml",
+    "soda_lime_glass_clear" => "glass/misc/soda-lime/nk/Rubin-clear.yml",
+    "sapphire_o" => "main/Al2O3/nk/Malitson-o.yml",
+    "water" => "main/H2O/nk/Hale.yml",
+    "ice" => "main/H2O/nk/Warren-2008.yml",
+    "PMMA" => "organic/(C5H8O2)n - poly(methyl methacrylate)/nk/Sultanova.yml",
+    "polycarbonate" => "organic/(C16H14O3)n - polycarbonate/nk/Sultanova.yml",
+    "polystyrene" => "organic/(C8H8)n - polystyrene/nk/Sultanova.yml",
+    "PET" => "organic/(C10H8O4)n - polyethylene terephthalate/nk/Zhang.yml",
+    "PVC" => "organic/(C2H3Cl)n - polyvinyl chloride/nk/Zhang.yml",
+    "PDMS_silicone_Sylgard184" =>
+        "organic/(C2H6OSi)n - polydimethylsiloxane/nk/Schneider-Sylgard184.yml",
+    "cellulose" => "organic/(C6H10O5)n - cellulose/nk/Sultanova.yml",
+    "polyimide_Kapton_HN" => "other/commercial polymers/Kapton/nk/French.yml",
+    "TiO2_rutile_o" => "main/TiO2/nk/Devore-o.yml",
+    "ZnO_o" => "main/ZnO/nk/Bond-o.yml",
+    "CaCO3_calcite_o" => "main/CaCO3/nk/Ghosh-o.yml",
+};
 
 /// The parsed [`BUILTIN_SOURCES`] (parsed once per process).
 fn builtin_dispersion() -> Result<&'static [RiiData]> {
-    static DATA: std::sync::OnceLock<std::result::Result<Vec<RiiData>, String>> =
-        std::sync::OnceLock::new();
-    let parsed = DATA.get_or_init(|| {
+    static DATA: ParsedOnce<RiiData> = ParsedOnce::new();
+    parsed_once(&DATA, "builtin", || {
         BUILTIN_SOURCES
             .iter()
-            .map(|s| RiiData::parse(Path::new(s.file), s.text).map_err(|e| e.to_string()))
+            .map(|s| RiiData::parse(Path::new(s.file), s.text))
             .collect()
-    });
-    match parsed {
-        Ok(v) => Ok(v.as_slice()),
-        Err(e) => Err(IoError::Model {
-            path: PathBuf::from("builtin"),
-            reason: e.clone(),
-        }),
-    }
+    })
 }
 
 /// Built-in materials a wavelength could not be evaluated at ([`Library::at_wavelengths`]).

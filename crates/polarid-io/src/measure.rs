@@ -127,11 +127,7 @@ pub fn measure_images_with(
             ),
         )
     };
-    let rows = if let Some(spec) = &c.illumination {
-        calibrated_rows(m, c, spec, img, &rect_err)?
-    } else {
-        far_field_rows(m, c, img, &rect_err)?
-    };
+    let rows = region_rows(m, c, img, &rect_err)?;
     if strict && let Some((r, row)) = m.regions.iter().zip(&rows).find(|(_, x)| !x.status.is_ok()) {
         return Err(rect_err(r, format!("{}: {}", row.status, row.reason)));
     }
@@ -240,41 +236,6 @@ fn region_row(
     }
 }
 
-/// The rows of a far-field capture.
-fn far_field_rows(
-    m: &Manifest,
-    c: &Capture,
-    img: &StokesImages,
-    rect_err: &dyn Fn(&Region, String) -> IoError,
-) -> Result<Vec<Measurement>> {
-    let beta_deg = beta_deg(c);
-    let mut rows = Vec::with_capacity(m.regions.len());
-    for r in &m.regions {
-        r.rect
-            .check(img.width, img.height)
-            .map_err(|e| rect_err(r, e.to_string()))?;
-        let cnt = rect_counts(img, r.rect);
-        if cnt[0] == 0 {
-            let st = row_status(c, img, cnt, f64::NAN);
-            rows.push(region_row(r, c, None, cnt, st, beta_deg));
-            continue;
-        }
-        let st = region_stats(
-            img.width,
-            &img.s0,
-            &img.s1,
-            &img.s2,
-            &img.mask,
-            r.rect,
-            img.sampling,
-        )
-        .map_err(|e| rect_err(r, e.to_string()))?;
-        let status = row_status(c, img, cnt, st.s0());
-        rows.push(region_row(r, c, Some(&st), cnt, status, beta_deg));
-    }
-    Ok(rows)
-}
-
 /// The source of a capture as written in the manifest (`{ position = [..] }`, ...).
 fn source_text(s: &SourceSpec) -> String {
     match s {
@@ -366,14 +327,7 @@ pub fn beta_map(
         return Ok(None);
     };
     let err = |reason: String| c.field_error(&m.path, "source", source_text(spec), reason);
-    let camera = m
-        .camera
-        .as_ref()
-        .ok_or_else(|| err("a source needs a [camera] table".into()))?
-        .to_camera();
-    let source = spec
-        .to_source()
-        .ok_or_else(|| err("the source could not be resolved".into()))?;
+    let (camera, source) = camera_and_source(m, c, spec)?;
     let vg = m
         .planes
         .get(plane)
@@ -392,64 +346,88 @@ pub fn beta_map(
     Ok(Some(out))
 }
 
-/// The rows of a capture with calibrated geometry ([`region_stats_local`] per region).
-fn calibrated_rows(
+/// The camera of `m` and the resolved source `spec` of capture `c`; an error names the
+/// capture's `source`.
+fn camera_and_source(
     m: &Manifest,
     c: &Capture,
     spec: &SourceSpec,
-    img: &StokesImages,
-    rect_err: &dyn Fn(&Region, String) -> IoError,
-) -> Result<Vec<Measurement>> {
-    let no_geometry = |reason: &str| c.field_error(&m.path, "source", source_text(spec), reason);
+) -> Result<(PinholeCamera, Source)> {
+    let err = |reason: &str| c.field_error(&m.path, "source", source_text(spec), reason);
     let camera = m
         .camera
         .as_ref()
-        .ok_or_else(|| no_geometry("a source needs a [camera] table"))?
+        .ok_or_else(|| err("a source needs a [camera] table"))?
         .to_camera();
     let source = spec
         .to_source()
-        .ok_or_else(|| no_geometry("the source could not be resolved"))?;
+        .ok_or_else(|| err("the source could not be resolved"))?;
+    Ok((camera, source))
+}
+
+/// The rows of capture `c`, region by region: in the far field the region's statistics
+/// at the capture's β; with a `source` (calibrated geometry), [`region_stats_local`] over
+/// every pixel's own geometry ([`region_geometry`]).
+fn region_rows(
+    m: &Manifest,
+    c: &Capture,
+    img: &StokesImages,
+    rect_err: &dyn Fn(&Region, String) -> IoError,
+) -> Result<Vec<Measurement>> {
+    let lit = match &c.illumination {
+        Some(spec) => Some((spec, camera_and_source(m, c, spec)?)),
+        None => None,
+    };
+    let far_beta_deg = if lit.is_some() { f64::NAN } else { beta_deg(c) };
+    let (s0, s1, s2, mask) = (&img.s0, &img.s1, &img.s2, &img.mask);
     let mut rows = Vec::with_capacity(m.regions.len());
     for r in &m.regions {
         r.rect
             .check(img.width, img.height)
             .map_err(|e| rect_err(r, e.to_string()))?;
-        let maps = region_geometry(m, c, spec, camera, &source, r, rect_err)?;
-        let cnt = rect_counts(img, r.rect);
-        if cnt[0] == 0 {
-            let st = row_status(c, img, cnt, f64::NAN);
-            rows.push(region_row(r, c, None, cnt, st, f64::NAN));
-            continue;
-        }
-        let area = r.rect.width * r.rect.height;
-        let geom = RegionGeometry {
-            beta: &maps[..area],
-            theta_i: &maps[area..2 * area],
-            theta_r: &maps[2 * area..3 * area],
-            phi: &maps[3 * area..4 * area],
-            poi_angle: &maps[4 * area..],
+        let maps = match &lit {
+            Some((spec, (camera, source))) => {
+                Some(region_geometry(m, c, spec, *camera, source, r, rect_err)?)
+            }
+            None => None,
         };
-        let st = region_stats_local(
-            img.width,
-            &img.s0,
-            &img.s1,
-            &img.s2,
-            &img.mask,
-            r.rect,
-            img.sampling,
-            &geom,
-        )
-        .map_err(|e| rect_err(r, e.to_string()))?;
-        let finite_deg = |x: f64| x.is_finite().then(|| x.to_degrees());
-        let status = row_status(c, img, cnt, st.stats.s0());
-        rows.push(Measurement {
-            theta_i_deg: Some(st.theta_i.to_degrees()),
-            theta_r_deg: Some(st.theta_r.to_degrees()),
-            phi_deg: st.phi.to_degrees(),
-            beta_sd_deg: Some(st.beta_sd.to_degrees()),
-            aolp_deg: finite_deg(st.aolp),
-            aolp_poi_deg: finite_deg(st.aolp_poi),
-            ..region_row(r, c, Some(&st.stats), cnt, status, st.beta.to_degrees())
+        let cnt = rect_counts(img, r.rect);
+        let stats_err = |e: CoreError| rect_err(r, e.to_string());
+        rows.push(match maps {
+            _ if cnt[0] == 0 => {
+                let status = row_status(c, img, cnt, f64::NAN);
+                region_row(r, c, None, cnt, status, far_beta_deg)
+            }
+            None => {
+                let st = region_stats(img.width, s0, s1, s2, mask, r.rect, img.sampling)
+                    .map_err(stats_err)?;
+                let status = row_status(c, img, cnt, st.s0());
+                region_row(r, c, Some(&st), cnt, status, far_beta_deg)
+            }
+            Some(maps) => {
+                let area = r.rect.width * r.rect.height;
+                let geom = RegionGeometry {
+                    beta: &maps[..area],
+                    theta_i: &maps[area..2 * area],
+                    theta_r: &maps[2 * area..3 * area],
+                    phi: &maps[3 * area..4 * area],
+                    poi_angle: &maps[4 * area..],
+                };
+                let (w, sampling) = (img.width, img.sampling);
+                let st = region_stats_local(w, s0, s1, s2, mask, r.rect, sampling, &geom)
+                    .map_err(stats_err)?;
+                let finite_deg = |x: f64| x.is_finite().then(|| x.to_degrees());
+                let status = row_status(c, img, cnt, st.stats.s0());
+                Measurement {
+                    theta_i_deg: Some(st.theta_i.to_degrees()),
+                    theta_r_deg: Some(st.theta_r.to_degrees()),
+                    phi_deg: st.phi.to_degrees(),
+                    beta_sd_deg: Some(st.beta_sd.to_degrees()),
+                    aolp_deg: finite_deg(st.aolp),
+                    aolp_poi_deg: finite_deg(st.aolp_poi),
+                    ..region_row(r, c, Some(&st.stats), cnt, status, st.beta.to_degrees())
+                }
+            }
         });
     }
     Ok(rows)

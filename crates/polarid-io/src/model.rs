@@ -122,10 +122,7 @@ impl Model {
 
     /// Parse and check model JSON; `path` labels errors.
     pub fn parse(path: &Path, text: &str) -> Result<Self> {
-        let bad = |reason: String| IoError::Model {
-            path: path.to_path_buf(),
-            reason,
-        };
+        let bad = |reason: String| IoError::model(path, reason);
         let v: serde_json::Value =
             serde_json::from_str(text).map_err(|e| bad(format!("not valid JSON: {e}")))?;
         match v.get("format").and_then(|f| f.as_str()) {

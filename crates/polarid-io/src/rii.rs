@@ -8,6 +8,23 @@ use saphyr::{LoadableYamlNode, Yaml};
 
 use crate::error::{IoError, Result};
 
+/// Embedded data files parsed once per process ([`parsed_once`]): the parsed values, or
+/// the first error's text.
+pub(crate) type ParsedOnce<T> = std::sync::OnceLock<std::result::Result<Vec<T>, String>>;
+
+/// The values `parse` gives, parsed on the first call into `cell`; an error is an
+/// [`IoError::Model`] naming `label` (the same one on every call).
+pub(crate) fn parsed_once<T>(
+    cell: &'static ParsedOnce<T>,
+    label: &str,
+    parse: impl FnOnce() -> Result<Vec<T>>,
+) -> Result<&'static [T]> {
+    match cell.get_or_init(|| parse().map_err(|e| e.to_string())) {
+        Ok(v) => Ok(v),
+        Err(e) => Err(IoError::model(label, e.clone())),
+    }
+}
+
 /// How a refractiveindex.info file gives `n` or `k` as a function of wavelength.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Dispersion {
@@ -155,10 +172,7 @@ struct DataEntry<'a, 'y> {
 
 impl DataEntry<'_, '_> {
     fn bad(&self, reason: String) -> IoError {
-        IoError::Model {
-            path: self.path.to_path_buf(),
-            reason,
-        }
+        IoError::model(self.path, reason)
     }
 
     fn field(&self, name: &str) -> Result<String> {
@@ -283,10 +297,7 @@ impl RiiData {
 
     /// Parse refractiveindex.info YAML text; `path` labels errors.
     pub fn parse(path: &Path, text: &str) -> Result<Self> {
-        let bad = |reason: String| IoError::Model {
-            path: path.to_path_buf(),
-            reason,
-        };
+        let bad = |reason: String| IoError::model(path, reason);
         let docs = Yaml::load_from_str(text).map_err(|e| bad(format!("not valid YAML: {e}")))?;
         let doc = docs
             .first()
@@ -355,27 +366,27 @@ impl RiiData {
     pub fn nk(&self, wl: f64) -> Result<(f64, f64)> {
         let (lo, hi) = self.range_um();
         if !(wl >= lo && wl <= hi) {
-            return Err(IoError::Model {
-                path: self.path.clone(),
-                reason: format!(
+            return Err(IoError::model(
+                &self.path,
+                format!(
                     "wavelength {:.1} nm is outside the data's range {:.1}–{:.1} nm \
                      (no extrapolation)",
                     wl * 1e3,
                     lo * 1e3,
                     hi * 1e3
                 ),
-            });
+            ));
         }
         let n = self.n.eval(wl);
         let k = self.k.as_ref().map_or(0.0, |k| k.eval(wl));
         if !(n.is_finite() && k.is_finite()) {
-            return Err(IoError::Model {
-                path: self.path.clone(),
-                reason: format!(
+            return Err(IoError::model(
+                &self.path,
+                format!(
                     "no real optical constants at {:.1} nm (n = {n}, k = {k})",
                     wl * 1e3
                 ),
-            });
+            ));
         }
         Ok((n, k))
     }
@@ -385,12 +396,12 @@ impl RiiData {
     /// at that wavelength.
     pub fn band_mean(&self, lo_nm: f64, hi_nm: f64, step_nm: f64) -> Result<(f64, f64)> {
         if !(lo_nm > 0.0 && hi_nm >= lo_nm && step_nm > 0.0 && hi_nm.is_finite()) {
-            return Err(IoError::Model {
-                path: self.path.clone(),
-                reason: format!(
+            return Err(IoError::model(
+                &self.path,
+                format!(
                     "bad band {lo_nm}–{hi_nm} nm, step {step_nm} nm (need 0 < low <= high, step > 0)"
                 ),
-            });
+            ));
         }
         let count = ((hi_nm - lo_nm) / step_nm + 1e-9).floor() as usize + 1;
         let (mut sn, mut sk) = (0.0, 0.0);

@@ -15,10 +15,10 @@
 //! index (the 80 nm band centred on the row's wavelength, sampled every nm, as in
 //! `library_650nm.csv`), so that the layer and the bulk are always at one wavelength.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use crate::error::{IoError, Result};
-use crate::rii::RiiData;
+use crate::error::Result;
+use crate::rii::{ParsedOnce, RiiData, parsed_once};
 
 /// Where a layer's optical constants come from.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -50,14 +50,22 @@ pub struct LayerSource {
     pub reference: &'static str,
 }
 
+/// The [`LayerIndexSource::Data`] of the refractiveindex.info file `file`
+/// (`shelf/book/nk/page.yml`) of `data/materials/<dir>`, embedded.
+macro_rules! data {
+    ($dir:literal, $file:literal) => {
+        LayerIndexSource::Data {
+            file: $file,
+            text: include_str!(concat!("../../../data/materials/", $dir, "/", $file)),
+        }
+    };
+}
+
 /// The layer materials of the built-in surfaces.
 pub const LAYER_SOURCES: [LayerSource; 14] = [
     LayerSource {
         name: "Al2O3",
-        index: LayerIndexSource::Data {
-            file: "main/Al2O3/nk/Franta.yml",
-            text: include_str!("../../../data/materials/layers/main/Al2O3/nk/Franta.yml"),
-        },
+        index: data!("layers", "main/Al2O3/nk/Franta.yml"),
         reference: "Franta et al. 2015 (amorphous e-beam Al2O3 film, 121.5 nm)",
     },
     LayerSource {
@@ -72,10 +80,7 @@ pub const LAYER_SOURCES: [LayerSource; 14] = [
     },
     LayerSource {
         name: "SiO2",
-        index: LayerIndexSource::Data {
-            file: "main/SiO2/nk/Malitson.yml",
-            text: include_str!("../../../data/materials/refractiveindex/main/SiO2/nk/Malitson.yml"),
-        },
+        index: data!("refractiveindex", "main/SiO2/nk/Malitson.yml"),
         reference: "Malitson 1965 (fused silica)",
     },
     LayerSource {
@@ -90,26 +95,17 @@ pub const LAYER_SOURCES: [LayerSource; 14] = [
     },
     LayerSource {
         name: "TiO2",
-        index: LayerIndexSource::Data {
-            file: "main/TiO2/nk/Jolivet-amorphous.yml",
-            text: include_str!("../../../data/materials/layers/main/TiO2/nk/Jolivet-amorphous.yml"),
-        },
+        index: data!("layers", "main/TiO2/nk/Jolivet-amorphous.yml"),
         reference: "Jolivet et al. 2023 (amorphous TiO2 film)",
     },
     LayerSource {
         name: "WO3",
-        index: LayerIndexSource::Data {
-            file: "main/WO3/nk/Kulikova.yml",
-            text: include_str!("../../../data/materials/layers/main/WO3/nk/Kulikova.yml"),
-        },
+        index: data!("layers", "main/WO3/nk/Kulikova.yml"),
         reference: "Kulikova et al. 2020 (WO3 film)",
     },
     LayerSource {
         name: "ZnO",
-        index: LayerIndexSource::Data {
-            file: "main/ZnO/nk/Aguilar.yml",
-            text: include_str!("../../../data/materials/layers/main/ZnO/nk/Aguilar.yml"),
-        },
+        index: data!("layers", "main/ZnO/nk/Aguilar.yml"),
         reference: "Aguilar et al. 2019 (ZnO thin film, from a Zn(1-x)Cd(x)O study)",
     },
     LayerSource {
@@ -119,26 +115,17 @@ pub const LAYER_SOURCES: [LayerSource; 14] = [
     },
     LayerSource {
         name: "MgO",
-        index: LayerIndexSource::Data {
-            file: "main/MgO/nk/Stephens.yml",
-            text: include_str!("../../../data/materials/layers/main/MgO/nk/Stephens.yml"),
-        },
+        index: data!("layers", "main/MgO/nk/Stephens.yml"),
         reference: "Stephens and Malitson 1952 (MgO, 0.36-5.4 um formula)",
     },
     LayerSource {
         name: "Fe3O4",
-        index: LayerIndexSource::Data {
-            file: "main/Fe3O4/nk/Querry.yml",
-            text: include_str!("../../../data/materials/refractiveindex/main/Fe3O4/nk/Querry.yml"),
-        },
+        index: data!("refractiveindex", "main/Fe3O4/nk/Querry.yml"),
         reference: "Querry 1985 (magnetite)",
     },
     LayerSource {
         name: "GeO2",
-        index: LayerIndexSource::Data {
-            file: "main/GeO2/nk/Nunley.yml",
-            text: include_str!("../../../data/materials/layers/main/GeO2/nk/Nunley.yml"),
-        },
+        index: data!("layers", "main/GeO2/nk/Nunley.yml"),
         reference: "Nunley et al. 2016 (thermally grown GeO2)",
     },
     LayerSource {
@@ -237,26 +224,18 @@ pub fn layer_source(name: &str) -> Option<&'static LayerSource> {
 
 /// The parsed data of [`LAYER_SOURCES`] (`None` for constants), parsed once per process.
 fn layer_data() -> Result<&'static [Option<RiiData>]> {
-    static DATA: std::sync::OnceLock<std::result::Result<Vec<Option<RiiData>>, String>> =
-        std::sync::OnceLock::new();
-    let parsed = DATA.get_or_init(|| {
+    static DATA: ParsedOnce<Option<RiiData>> = ParsedOnce::new();
+    parsed_once(&DATA, "builtin layers", || {
         LAYER_SOURCES
             .iter()
             .map(|s| match s.index {
-                LayerIndexSource::Data { file, text } => RiiData::parse(Path::new(file), text)
-                    .map(Some)
-                    .map_err(|e| e.to_string()),
+                LayerIndexSource::Data { file, text } => {
+                    RiiData::parse(Path::new(file), text).map(Some)
+                }
                 LayerIndexSource::Constant { .. } => Ok(None),
             })
             .collect()
-    });
-    match parsed {
-        Ok(v) => Ok(v.as_slice()),
-        Err(e) => Err(IoError::Model {
-            path: PathBuf::from("builtin layers"),
-            reason: e.clone(),
-        }),
-    }
+    })
 }
 
 /// The index `(n, k)` of layer `name` ([`LAYER_SOURCES`]) as the band mean over

@@ -351,18 +351,7 @@ pub fn parse_in_memory(path: &Path, text: &str) -> Result<Manifest> {
 }
 
 fn parse_with(path: &Path, text: &str, files: bool) -> Result<Manifest> {
-    let p = Parser {
-        files,
-        path,
-        text,
-        dir: path
-            .parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .map(Path::to_path_buf)
-            .unwrap_or_else(|| PathBuf::from(".")),
-        warnings: std::cell::RefCell::new(Vec::new()),
-    };
-    p.manifest()
+    Parser::new(path, text, files).manifest()
 }
 
 /// True when `text` is a capture-set manifest: TOML with `[[capture]]` or
@@ -410,6 +399,22 @@ struct Parser<'a> {
 }
 
 impl<'a> Parser<'a> {
+    /// A parser of `text`: `path` labels errors and anchors relative file paths, which
+    /// must exist when `files`.
+    fn new(path: &'a Path, text: &'a str, files: bool) -> Self {
+        Parser {
+            files,
+            path,
+            text,
+            dir: path
+                .parent()
+                .filter(|d| !d.as_os_str().is_empty())
+                .map(Path::to_path_buf)
+                .unwrap_or_else(|| PathBuf::from(".")),
+            warnings: std::cell::RefCell::new(Vec::new()),
+        }
+    }
+
     fn toml(&self) -> TomlText<'_> {
         TomlText {
             path: self.path,

@@ -4,9 +4,7 @@
 //! `direction` or `sun` (as a manifest capture's `source`). One parser, one set of
 //! rules and error messages for both files.
 
-use std::path::{Path, PathBuf};
-
-use toml::de::DeTable;
+use std::path::Path;
 
 use super::calibration::{CameraSpec, PlaneSpec, SiteSpec, SourceSpec};
 use super::{Parser, Result};
@@ -32,27 +30,6 @@ pub struct SourceEntry {
     pub line: usize,
 }
 
-fn parser<'a>(path: &'a Path, text: &'a str) -> Parser<'a> {
-    Parser {
-        files: true,
-        path,
-        text,
-        dir: path
-            .parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .map(Path::to_path_buf)
-            .unwrap_or_else(|| PathBuf::from(".")),
-        warnings: std::cell::RefCell::new(Vec::new()),
-    }
-}
-
-fn root<'i>(p: &Parser<'_>, text: &'i str) -> Result<toml::Spanned<DeTable<'i>>> {
-    DeTable::parse(text).map_err(|e| {
-        let span = e.span().unwrap_or(0..0);
-        p.err(&span, "-", format!("invalid TOML: {}", e.message()))
-    })
-}
-
 /// Parse the `[camera]`, `[[plane]]` and `[site]` tables of `text` (`path` labels
 /// errors) with the manifest's rules and messages (docs/FORMATS.md, "Calibrated
 /// geometry"). Unknown keys inside them are ignored here (the caller decides).
@@ -60,8 +37,8 @@ fn root<'i>(p: &Parser<'_>, text: &'i str) -> Result<toml::Spanned<DeTable<'i>>>
 /// Errors: [`IoError::Manifest`](crate::IoError::Manifest) naming the line and the field (`camera.up`,
 /// `plane[2].normal`, `site.latitude_deg`, ...).
 pub fn parse_geometry_tables(path: &Path, text: &str) -> Result<GeometryTables> {
-    let p = parser(path, text);
-    let root = root(&p, text)?;
+    let p = Parser::new(path, text, true);
+    let root = p.parse_root()?;
     let root = root.get_ref();
     let camera = p.camera(root)?;
     let planes = p.planes(root, camera.as_ref())?;
@@ -86,8 +63,8 @@ pub fn parse_sources(
     key: &str,
     site: Option<&SiteSpec>,
 ) -> Result<Vec<SourceEntry>> {
-    let p = parser(path, text);
-    let root = root(&p, text)?;
+    let p = Parser::new(path, text, true);
+    let root = p.parse_root()?;
     let Some(av) = p.get(root.get_ref(), key) else {
         return Ok(Vec::new());
     };

@@ -199,15 +199,7 @@ impl Ctx<'_> {
         planes: &[crate::manifest::PlaneSpec],
         cx: &PlateContext<'_>,
     ) -> Result<Vec<(Plate, PlanarPlate)>> {
-        if raw.is_empty() {
-            return Err(self.missing(None, "plate", "[[plate]]: at least one plate is needed"));
-        }
-        let mut names = HashSet::new();
-        let mut out = Vec::with_capacity(raw.len());
-        for (i, p) in raw.iter().enumerate() {
-            let pre = format!("plate[{}].", i + 1);
-            let f = |k: &str| format!("{pre}{k}");
-            let b = self.plate_basics(p, i, &mut names, cx)?;
+        self.each_plate(raw, cx, |_, p, b, f| {
             let near = Some(b.name_span.clone());
             let near = near.as_ref();
             if let Some(v) = &p.rect {
@@ -269,37 +261,21 @@ impl Ctx<'_> {
                     None => self.err(&sv.span(), &f("size"), e.to_string()),
                 })?;
             let [u, _] = planar.axes();
-            out.push((
-                Plate {
-                    name: b.name,
-                    class: b.class,
-                    optics: b.optics,
-                    bands: b.bands,
-                    material: b.material,
-                    rect: Rect {
-                        x: 0,
-                        y: 0,
-                        width: 1,
-                        height: 1,
-                    },
-                    region: Rect {
-                        x: 0,
-                        y: 0,
-                        width: 1,
-                        height: 1,
-                    },
-                    placement: Some(Placement {
-                        plane,
-                        center: planar.center(),
-                        axis: u,
-                        size,
-                    }),
-                    line: b.line,
-                },
-                planar,
-            ));
-        }
-        Ok(out)
+            let placement = Placement {
+                plane,
+                center: planar.center(),
+                axis: u,
+                size,
+            };
+            // The box and the region are found in the image later (`locate_plates`).
+            let unit = Rect {
+                x: 0,
+                y: 0,
+                width: 1,
+                height: 1,
+            };
+            Ok((b.into_plate(unit, unit, Some(placement)), planar))
+        })
     }
 
     /// Trace every pixel: each plate's bounding box and measured region; check that every

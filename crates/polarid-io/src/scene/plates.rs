@@ -11,7 +11,7 @@ use toml::Spanned;
 use super::colour::MaterialSource;
 use super::context::Ctx;
 use super::raw::RawPlate;
-use super::{Plate, SceneBand};
+use super::{Placement, Plate, SceneBand};
 use crate::error::Result;
 
 /// The default measured region of a plate: the plate inset by an eighth of its smaller
@@ -50,6 +50,29 @@ pub(super) struct PlateBasics {
     pub(super) material: Option<String>,
     pub(super) line: usize,
     pub(super) name_span: std::ops::Range<usize>,
+}
+
+impl PlateBasics {
+    /// The plate of these basics with its bounding box `rect`, measured `region` and
+    /// (calibrated scenes) `placement`.
+    pub(super) fn into_plate(
+        self,
+        rect: Rect,
+        region: Rect,
+        placement: Option<Placement>,
+    ) -> Plate {
+        Plate {
+            name: self.name,
+            class: self.class,
+            optics: self.optics,
+            bands: self.bands,
+            material: self.material,
+            rect,
+            region,
+            placement,
+            line: self.line,
+        }
+    }
 }
 
 impl Ctx<'_> {
@@ -162,6 +185,29 @@ impl Ctx<'_> {
         })
     }
 
+    /// The plates of `raw` (at least one): each one is what `plate` makes of its table
+    /// and its [`PlateBasics`], given the plates made before it and the table's field
+    /// names (`plate[2].rect`).
+    pub(super) fn each_plate<T>(
+        &self,
+        raw: &[RawPlate],
+        cx: &PlateContext<'_>,
+        mut plate: impl FnMut(&[T], &RawPlate, PlateBasics, &dyn Fn(&str) -> String) -> Result<T>,
+    ) -> Result<Vec<T>> {
+        if raw.is_empty() {
+            return Err(self.missing(None, "plate", "[[plate]]: at least one plate is needed"));
+        }
+        let mut names = HashSet::new();
+        let mut out = Vec::with_capacity(raw.len());
+        for (i, p) in raw.iter().enumerate() {
+            let f = |k: &str| format!("plate[{}].{k}", i + 1);
+            let b = self.plate_basics(p, i, &mut names, cx)?;
+            out.push(plate(&out, p, b, &f)?);
+        }
+        Ok(out)
+    }
+
+    /// The far-field plates: each one in its `rect`, overlapping no other.
     pub(super) fn plates(
         &self,
         raw: &[RawPlate],
@@ -169,15 +215,7 @@ impl Ctx<'_> {
         height: usize,
         cx: &PlateContext<'_>,
     ) -> Result<Vec<Plate>> {
-        if raw.is_empty() {
-            return Err(self.missing(None, "plate", "[[plate]]: at least one plate is needed"));
-        }
-        let mut plates: Vec<Plate> = Vec::with_capacity(raw.len());
-        let mut names = HashSet::new();
-        for (i, p) in raw.iter().enumerate() {
-            let pre = format!("plate[{}].", i + 1);
-            let f = |k: &str| format!("{pre}{k}");
-            let b = self.plate_basics(p, i, &mut names, cx)?;
+        self.each_plate(raw, cx, |plates: &[Plate], p, b, f| {
             let near = Some(b.name_span.clone());
             let near = near.as_ref();
             let placement_keys = [
@@ -202,7 +240,7 @@ impl Ctx<'_> {
             if let Err(e) = rect.check(width, height) {
                 return Err(self.err(&rect_v.span(), &f("rect"), e.to_string()));
             }
-            for q in &plates {
+            for q in plates {
                 let overlap = rect.x < q.rect.x + q.rect.width
                     && q.rect.x < rect.x + rect.width
                     && rect.y < q.rect.y + q.rect.height
@@ -242,18 +280,7 @@ impl Ctx<'_> {
                     )
                 })?,
             };
-            plates.push(Plate {
-                name: b.name,
-                class: b.class,
-                optics: b.optics,
-                bands: b.bands,
-                material: b.material,
-                rect,
-                region,
-                placement: None,
-                line: b.line,
-            });
-        }
-        Ok(plates)
+            Ok(b.into_plate(rect, region, None))
+        })
     }
 }

@@ -22,7 +22,7 @@
 use std::io::Write;
 use std::path::Path;
 
-use super::{CsvTable, fmt_f64, fmt_opt, write_rows};
+use super::{BandedRow, CsvTable, fmt_f64, fmt_opt, write_banded};
 use crate::error::Result;
 use polarid_core::FitStatus;
 use polarid_core::systematic::FilmShifts;
@@ -291,57 +291,39 @@ fn fmt_se(f: &FitRow, x: f64) -> String {
 /// Write fits in the documented column order ([`COLUMNS`], with `wavelength_nm` after
 /// `class` when some row has a wavelength).
 pub fn write<W: Write + ?Sized>(w: &mut W, path: &Path, rows: &[FitRow]) -> Result<()> {
-    let banded = rows.iter().any(|f| f.wavelength_nm.is_some());
-    let filmed = rows.iter().any(|f| f.film.is_some());
-    let mut headers: Vec<&str> = COLUMNS.to_vec();
-    if banded {
-        headers.insert(2, "wavelength_nm");
-    }
-    if filmed {
-        headers.extend(FILM_COLUMNS);
-    }
-    write_rows(
-        w,
-        path,
-        &headers,
-        rows.iter().map(|f| {
-            let mut cells = vec![
-                f.target.clone(),
-                f.class.clone().unwrap_or_default(),
-                fmt_f64(f.n),
-                fmt_f64(f.k),
-                fmt_se(f, f.n_se),
-                fmt_se(f, f.k_se),
-                fmt_se(f, f.nk_corr),
-                fmt_f64(f.rms_residual),
-                f.measurements.to_string(),
-                f.status.as_str().to_string(),
-                f.reason.clone(),
-                f.model.clone(),
-                fmt_opt(f.sigma),
-                fmt_opt(f.rho_d),
-                fmt_opt(f.theta_r_deg),
-                fmt_opt(f.n_se_noise),
-                fmt_opt(f.k_se_noise),
-                fmt_opt(f.nk_corr_noise),
-                fmt_opt(f.gof_p),
-                fmt_opt(f.aolp_p),
-                fmt_opt(f.n_se_sample),
-                fmt_opt(f.k_se_sample),
-                fmt_opt(f.nk_corr_sample),
-            ];
-            if banded {
-                cells.insert(2, fmt_opt(f.wavelength_nm));
-            }
-            if filmed {
-                match &f.film {
-                    Some(h) => cells.extend(h.0.iter().flatten().map(|&x| fmt_f64(x))),
-                    None => cells.extend(std::iter::repeat_n(String::new(), 6)),
-                }
-            }
-            cells
-        }),
-    )
+    let rows = rows.iter().map(|f| BandedRow {
+        cells: vec![
+            f.target.clone(),
+            f.class.clone().unwrap_or_default(),
+            fmt_f64(f.n),
+            fmt_f64(f.k),
+            fmt_se(f, f.n_se),
+            fmt_se(f, f.k_se),
+            fmt_se(f, f.nk_corr),
+            fmt_f64(f.rms_residual),
+            f.measurements.to_string(),
+            f.status.as_str().to_string(),
+            f.reason.clone(),
+            f.model.clone(),
+            fmt_opt(f.sigma),
+            fmt_opt(f.rho_d),
+            fmt_opt(f.theta_r_deg),
+            fmt_opt(f.n_se_noise),
+            fmt_opt(f.k_se_noise),
+            fmt_opt(f.nk_corr_noise),
+            fmt_opt(f.gof_p),
+            fmt_opt(f.aolp_p),
+            fmt_opt(f.n_se_sample),
+            fmt_opt(f.k_se_sample),
+            fmt_opt(f.nk_corr_sample),
+        ],
+        wavelength_nm: f.wavelength_nm,
+        extra: f
+            .film
+            .as_ref()
+            .map(|h| h.0.iter().flatten().map(|&x| fmt_f64(x)).collect()),
+    });
+    write_banded(w, path, &COLUMNS, &FILM_COLUMNS, rows.collect())
 }
 
 #[cfg(test)]

@@ -350,6 +350,48 @@ pub fn fmt_opt(x: Option<f64>) -> String {
     x.map(fmt_f64).unwrap_or_default()
 }
 
+/// A row of [`write_banded`]: its cells, its wavelength and its optional trailing cells.
+pub struct BandedRow {
+    /// The cells of the table's fixed columns.
+    pub cells: Vec<String>,
+    /// The row's wavelength, nm, if any.
+    pub wavelength_nm: Option<f64>,
+    /// The cells of the optional trailing columns, if the row has them.
+    pub extra: Option<Vec<String>>,
+}
+
+/// Write `rows` under `columns` ([`write_rows`]), with a `wavelength_nm` column third when
+/// some row has a wavelength, and the columns `extra` last when some row has their cells
+/// (empty cells in the rows without).
+pub fn write_banded<W: Write + ?Sized>(
+    w: &mut W,
+    path: &Path,
+    columns: &[&str],
+    extra: &[&str],
+    rows: Vec<BandedRow>,
+) -> Result<()> {
+    let banded = rows.iter().any(|r| r.wavelength_nm.is_some());
+    let extended = rows.iter().any(|r| r.extra.is_some());
+    let mut headers = columns.to_vec();
+    if banded {
+        headers.insert(2, "wavelength_nm");
+    }
+    if extended {
+        headers.extend(extra);
+    }
+    let rows = rows.into_iter().map(|r| {
+        let mut cells = r.cells;
+        if banded {
+            cells.insert(2, fmt_opt(r.wavelength_nm));
+        }
+        if extended {
+            cells.extend(r.extra.unwrap_or_else(|| vec![String::new(); extra.len()]));
+        }
+        cells
+    });
+    write_rows(w, path, &headers, rows)
+}
+
 /// A `Write` shared by the two CSV writers of [`write_rows`].
 struct Shared<'a, W: Write + ?Sized>(&'a std::cell::RefCell<&'a mut W>);
 
