@@ -37,6 +37,7 @@ use polarid_io::table::measurements::Measurement;
 use rayon::prelude::*;
 
 use crate::classify::PrototypeSource;
+use crate::error::ensure;
 use crate::fit::FitConfig;
 use crate::{PipelineError, Result, Warning};
 
@@ -114,62 +115,40 @@ impl Default for PlanConfig {
 
 impl PlanConfig {
     /// Check every value (errors name the option and the value).
-    #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN-safe on purpose
     pub fn validate(&self) -> Result<()> {
-        if !(2..=64).contains(&self.positions) {
-            return Err(PipelineError::config(
-                "positions",
-                self.positions,
-                "must be 2 to 64",
-            ));
-        }
-        if !(self.confidence > 0.0 && self.confidence < 1.0) {
-            return Err(PipelineError::config(
-                "confidence",
-                self.confidence,
-                "must be in (0, 1)",
-            ));
-        }
-        if !(self.power > 0.0 && self.power < 1.0) {
-            return Err(PipelineError::config(
-                "power",
-                self.power,
-                "must be in (0, 1)",
-            ));
-        }
+        let n = self.positions;
+        ensure((2..=64).contains(&n), "positions", n, "must be 2 to 64")?;
+        let c = self.confidence;
+        ensure(c > 0.0 && c < 1.0, "confidence", c, "must be in (0, 1)")?;
+        let p = self.power;
+        ensure(p > 0.0 && p < 1.0, "power", p, "must be in (0, 1)")?;
         let r = &self.region;
-        if let Some(d) = r.distance
-            && !(d > 0.0 && d.is_finite())
-        {
-            return Err(PipelineError::config("distance", d, "must be > 0"));
+        if let Some(d) = r.distance {
+            ensure(d > 0.0 && d.is_finite(), "distance", d, "must be > 0")?;
         }
         let (z0, z1) = r.zenith_deg;
-        if !(z0 >= 0.0 && z1 < 90.0 && z0 <= z1) {
-            return Err(PipelineError::config(
-                "zenith-deg",
-                format!("{z0}:{z1}"),
-                "must be LO:HI with 0 <= LO <= HI < 90",
-            ));
-        }
+        ensure(
+            z0 >= 0.0 && z1 < 90.0 && z0 <= z1,
+            "zenith-deg",
+            format!("{z0}:{z1}"),
+            "must be LO:HI with 0 <= LO <= HI < 90",
+        )?;
         let (a0, a1) = r.azimuth_deg;
-        if !(a0 >= -180.0 && a1 <= 180.0 && a0 <= a1) {
-            return Err(PipelineError::config(
-                "azimuth-deg",
-                format!("{a0}:{a1}"),
-                "must be LO:HI with -180 <= LO <= HI <= 180",
-            ));
-        }
-        if !(r.step_deg >= 0.5 && r.step_deg <= 45.0) {
-            return Err(PipelineError::config(
-                "step-deg",
-                r.step_deg,
-                "must be 0.5 to 45",
-            ));
-        }
-        if let Some(s) = self.dolp_se
-            && !(s >= 0.0 && s < 1.0)
-        {
-            return Err(PipelineError::config("dolp-se", s, "must be in [0, 1)"));
+        ensure(
+            a0 >= -180.0 && a1 <= 180.0 && a0 <= a1,
+            "azimuth-deg",
+            format!("{a0}:{a1}"),
+            "must be LO:HI with -180 <= LO <= HI <= 180",
+        )?;
+        let step = r.step_deg;
+        ensure(
+            (0.5..=45.0).contains(&step),
+            "step-deg",
+            step,
+            "must be 0.5 to 45",
+        )?;
+        if let Some(s) = self.dolp_se {
+            ensure((0.0..1.0).contains(&s), "dolp-se", s, "must be in [0, 1)")?;
         }
         self.fit.validate()?;
         Ok(())

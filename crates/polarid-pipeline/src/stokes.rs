@@ -25,7 +25,7 @@ use polarid_io::image::{self, Frame};
 use polarid_io::manifest::colour::{band_table, pattern_wavelengths};
 use polarid_io::measure::{Demosaic, StokesImages, frames_stokes, rules_for};
 
-use crate::error::{PipelineError, Result};
+use crate::error::{PipelineError, Result, ensure};
 use crate::map::rules::check_levels;
 use crate::progress::Warning;
 
@@ -104,20 +104,14 @@ impl StokesConfig {
         check_levels(self.dark_level, self.saturation)?;
         match &self.source {
             StokesSource::Frames { files, angles_deg } => {
-                if files.is_empty() {
-                    return Err(PipelineError::config(
-                        "--frames",
-                        "no file",
-                        "needs one frame per polarizer angle",
-                    ));
-                }
-                if angles_deg.len() != files.len() {
-                    return Err(PipelineError::config(
-                        "--angles",
-                        format!("{} angle(s) for {} frame(s)", angles_deg.len(), files.len()),
-                        "needs one angle per frame",
-                    ));
-                }
+                let why = "needs one frame per polarizer angle";
+                ensure(!files.is_empty(), "--frames", "no file", why)?;
+                ensure(
+                    angles_deg.len() == files.len(),
+                    "--angles",
+                    format!("{} angle(s) for {} frame(s)", angles_deg.len(), files.len()),
+                    "needs one angle per frame",
+                )?;
                 if let Some(a) = angles_deg.iter().find(|a| !(a.abs() <= 3600.0)) {
                     return Err(PipelineError::config(
                         "--angles",

@@ -34,6 +34,7 @@ pub use explain::{
 };
 pub use wolff::{WolffData, WolffSettings};
 
+use crate::error::ensure;
 use crate::{PipelineError, Result, Warning};
 
 /// The estimate of a fit row: covariance from `n_se`, `k_se`, `nk_corr` when usable (a
@@ -325,26 +326,17 @@ impl ClassifyConfig {
     /// Check every value ([`PipelineError::Config`] naming it).
     pub fn validate(&self) -> Result<()> {
         check_classifier(&self.classifier)?;
-        if let Some(w) = self.wavelength_nm
-            && !(w.is_finite() && (100.0..100_000.0).contains(&w))
-        {
-            return Err(PipelineError::config(
-                "wavelength_nm",
-                w.to_string(),
-                "must be a wavelength in [100, 100000) nm",
-            ));
+        if let Some(w) = self.wavelength_nm {
+            let why = "must be a wavelength in [100, 100000) nm";
+            ensure((100.0..100_000.0).contains(&w), "wavelength_nm", w, why)?;
         }
         if let Some(w) = &self.wolff {
             w.settings.validate()?;
         }
         for (name, w) in &self.priors {
-            if !(w.is_finite() && *w >= 0.0) {
-                return Err(PipelineError::config(
-                    "prior",
-                    format!("{name}={w}"),
-                    "weights must be finite and >= 0",
-                ));
-            }
+            let ok = w.is_finite() && *w >= 0.0;
+            let why = "weights must be finite and >= 0";
+            ensure(ok, "prior", format!("{name}={w}"), why)?;
         }
         Ok(())
     }

@@ -676,13 +676,7 @@ pub struct ColourDemoOutput {
 /// Run the colour demo into `staged` with `seeds` seeds for the accuracy table (module
 /// documentation). Progress stages: `simulating` (seed 0's plates), `seeds`.
 pub fn run_colour(staged: &StagedDir, seeds: u64, progress: Progress) -> Result<ColourDemoOutput> {
-    if seeds == 0 {
-        return Err(PipelineError::config(
-            "--seeds",
-            seeds,
-            "must be at least 1",
-        ));
-    }
+    crate::error::ensure(seeds > 0, "--seeds", seeds, "must be at least 1")?;
     let materials = colour_materials()?;
     let plates = colour_plates(&materials, 0);
     let mut warnings = Vec::new();

@@ -70,7 +70,7 @@ pub use frames::{Frames, FramesSource, band_order, frames_bands, frames_class_na
 pub use polarid_core::map::reason::NAMES as REASON_NAMES;
 pub use summary::RegionSummary;
 
-use crate::error::{PipelineError, Result};
+use crate::error::{PipelineError, Result, ensure};
 use crate::progress::{Progress, Warning};
 
 /// Distance to the prototypes: the classifier's metric (Euclidean in `(n, k)`, the
@@ -178,30 +178,15 @@ impl MapConfig {
         metric: Metric,
         tile: usize,
     ) -> Result<Self> {
-        if bin == 0 || bin > 64 {
-            return Err(PipelineError::config("--bin", bin, "must be in 1..=64"));
+        ensure((1..=64).contains(&bin), "--bin", bin, "must be in 1..=64")?;
+        if let Some(v) = min_s0 {
+            ensure(v.is_finite(), "--min-s0", v, "must be a finite number")?;
         }
-        if let Some(v) = min_s0
-            && !v.is_finite()
-        {
-            return Err(PipelineError::config(
-                "--min-s0",
-                v,
-                "must be a finite number",
-            ));
+        if let Some(d) = max_distance {
+            let ok = d.is_finite() && d > 0.0;
+            ensure(ok, "--max-distance", d, "must be finite and > 0")?;
         }
-        if let Some(d) = max_distance
-            && !(d.is_finite() && d > 0.0)
-        {
-            return Err(PipelineError::config(
-                "--max-distance",
-                d,
-                "must be finite and > 0",
-            ));
-        }
-        if tile == 0 {
-            return Err(PipelineError::config("--tile", tile, "must be at least 1"));
-        }
+        ensure(tile > 0, "--tile", tile, "must be at least 1")?;
         Ok(Self {
             bin,
             min_s0,
@@ -219,13 +204,8 @@ impl MapConfig {
     /// The decision rule and the set's confidence (in `(0, 1)`; error naming
     /// `--confidence`). The set rule ignores `max_distance` and `metric`.
     pub fn with_rule(mut self, rule: Rule, confidence: f64) -> Result<Self> {
-        if !(confidence > 0.0 && confidence < 1.0) {
-            return Err(PipelineError::config(
-                "--confidence",
-                confidence,
-                "must be in (0, 1)",
-            ));
-        }
+        let ok = confidence > 0.0 && confidence < 1.0;
+        ensure(ok, "--confidence", confidence, "must be in (0, 1)")?;
         self.rule = rule;
         self.confidence = confidence;
         Ok(self)
