@@ -243,13 +243,10 @@ impl SunFile<'_> {
         sun_span: &std::ops::Range<usize>,
     ) -> Result<(String, f64, i32)> {
         let Some(v) = v else {
-            return Err(PipelineError::config(
-                format!(
-                    "{}, line {}: plan.sun.{key}",
-                    self.file,
-                    self.line_of(sun_span)
-                ),
-                "(missing)",
+            return Err(self.err(
+                sun_span,
+                key,
+                &"(missing)",
                 "is needed: an RFC 3339 time with its offset, e.g. \"2026-06-21T09:00:00-06:00\"",
             ));
         };
@@ -1011,18 +1008,20 @@ impl Models {
             offset: 0.0,
         };
         let (n, k) = truth.bulk[b];
+        let check = |status, reason, n_se, k_se| FitCheck {
+            wavelength_nm: self.wavelengths[b],
+            status,
+            reason,
+            n,
+            k,
+            box_max: (self.fit.n_range.1, self.fit.k_range.1),
+            n_se,
+            k_se,
+        };
         if positions.len() < 3 {
             // `fit` needs three rows of a target and band.
-            return Ok(FitCheck {
-                wavelength_nm: self.wavelengths[b],
-                n,
-                k,
-                box_max: (self.fit.n_range.1, self.fit.k_range.1),
-                status: FitStatus::IllConditioned,
-                reason: format!("{} rows: fit needs at least 3", positions.len()),
-                n_se: f64::NAN,
-                k_se: f64::NAN,
-            });
+            let why = format!("{} rows: fit needs at least 3", positions.len());
+            return Ok(check(FitStatus::IllConditioned, why, f64::NAN, f64::NAN));
         }
         let plan_rows = self.rows_of(positions, t, Some(b));
         let clean = polarid_core::classify::separability::truth_rows(
@@ -1051,28 +1050,14 @@ impl Models {
             })
             .collect();
         let out = crate::fit::fit(Path::new("plan"), &rows, &self.fit, &|_, _, _| {})?;
-        let f = out.rows().into_iter().next();
-        Ok(match f {
-            Some(f) => FitCheck {
-                wavelength_nm: self.wavelengths[b],
-                n,
-                k,
-                box_max: (self.fit.n_range.1, self.fit.k_range.1),
-                status: f.status,
-                reason: f.reason.clone(),
-                n_se: f.n_se,
-                k_se: f.k_se,
-            },
-            None => FitCheck {
-                wavelength_nm: self.wavelengths[b],
-                n,
-                k,
-                box_max: (self.fit.n_range.1, self.fit.k_range.1),
-                status: FitStatus::IllConditioned,
-                reason: "no fit".into(),
-                n_se: f64::NAN,
-                k_se: f64::NAN,
-            },
+        Ok(match out.targets.into_iter().next() {
+            Some(f) => check(f.row.status, f.row.reason, f.row.n_se, f.row.k_se),
+            None => check(
+                FitStatus::IllConditioned,
+                "no fit".into(),
+                f64::NAN,
+                f64::NAN,
+            ),
         })
     }
 }

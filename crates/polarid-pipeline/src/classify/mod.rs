@@ -205,24 +205,15 @@ impl PrototypeSource {
                     })
                 })
                 .collect();
-            let evaluated: Vec<f64> = wavelengths
-                .iter()
-                .copied()
-                .filter(|&w| {
-                    !own.iter()
-                        .any(|&o| polarid_core::classify::same_band(Some(o), Some(w)))
-                })
-                .collect();
-            if !evaluated.is_empty() {
-                let mut e: Vec<f64> = Vec::new();
-                for w in evaluated {
-                    if !e
-                        .iter()
-                        .any(|&x| polarid_core::classify::same_band(Some(x), Some(w)))
-                    {
-                        e.push(w);
-                    }
+            // The fits' wavelengths outside the library's own bands, each band once.
+            let mut e: Vec<f64> = Vec::new();
+            for &w in wavelengths {
+                let same = |x: &f64| polarid_core::classify::same_band(Some(*x), Some(w));
+                if !own.iter().any(same) && !e.iter().any(same) {
+                    e.push(w);
                 }
+            }
+            if !e.is_empty() {
                 warnings.push(Warning(format!(
                     "library {spec} evaluated at {} nm from its refractiveindex.info data \
                      (n and k at that wavelength; its own bands are kept where the fits are in \

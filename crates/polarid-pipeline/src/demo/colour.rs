@@ -46,13 +46,13 @@ use polarid_io::image::{Frame, SampleKind};
 use polarid_io::library::Library;
 use polarid_io::manifest;
 use polarid_io::model::Model;
-use polarid_io::scene::Scene;
 use polarid_io::table::classification::{self, ClassificationRow};
-use polarid_io::table::fits::{self, FitRow};
-use polarid_io::table::measurements::{self, Measurement};
+use polarid_io::table::fits::FitRow;
+use polarid_io::table::measurements::Measurement;
 use rayon::prelude::*;
 
 use super::stage;
+use super::steps::{self, parse_scene};
 use crate::classify::{
     Comparison, classification_row, group_fits, multi_classifier, multi_estimate_for,
 };
@@ -322,17 +322,6 @@ pub fn colour_plates_with(
         }
     }
     out
-}
-
-/// Parse a demo scene (an internal error when it is invalid).
-fn parse_scene(path: &Path, text: &str) -> Result<Scene> {
-    polarid_io::scene::parse(path, text).map_err(|e| PipelineError::Data {
-        path: path.display().to_string(),
-        reason: format!(
-            "internal error: a demo scene is invalid: {}",
-            polarid_io::error::chain_message(&e)
-        ),
-    })
 }
 
 /// Give the captures of a plate's manifest (as `polarid simulate` writes it, with the
@@ -701,28 +690,14 @@ pub fn run_colour(staged: &StagedDir, seeds: u64, progress: Progress) -> Result<
     }
     progress("simulating", plates.len() as u64, plates.len() as u64);
     // Rows in measurement order: by capture set, band, capture.
-    let meas_path = stage(staged, "measurements.csv", |w| {
-        measurements::write(w, Path::new("measurements.csv"), &rows)
-    })?;
-    let meas = crate::fit::read_measurements(&meas_path)?;
-    let cfg = FitConfig::default();
-    let fit_rows = fit(Path::new("measurements.csv"), &meas, &cfg, progress)?.rows();
-    let fits_path = stage(staged, "fits.csv", |w| {
-        fits::write(w, Path::new("fits.csv"), &fit_rows)
-    })?;
-    let all_fits = crate::classify::read_fits(&fits_path)?;
+    let (meas, all_fits) = steps::fit_staged(staged, &rows, progress)?;
     let is_training = |t: &str| plates.iter().any(|p| p.training && p.target == t);
     type Fits = Vec<(u64, FitRow)>;
     let (train, test): (Fits, Fits) = all_fits
         .iter()
         .cloned()
         .partition(|(_, f)| is_training(&f.target));
-    let trained = crate::train::train(&train, Path::new("fits.csv"), "fits.csv")?;
-    warnings.extend(trained.warnings);
-    let model = trained.model;
-    stage(staged, "model.json", |w| {
-        model.write(w, Path::new("model.json"))
-    })?;
+    let model = steps::train_staged(staged, &train, &mut warnings)?;
     let classify_rows = |fits: &[(u64, FitRow)],
                          (protos, cmp): (Vec<MultiPrototype>, Comparison)|
      -> Result<Vec<ClassificationRow>> {
