@@ -433,13 +433,7 @@ pub fn map_manifest_from(
     let wavelengths: Vec<Option<f64>> = bands.iter().map(|b| b.wavelength()).collect();
     let decision = decide::decision(cfg, src, &wavelengths)?;
     let colour = is_colour(m);
-    let answer = match (colour, cfg.rule, src) {
-        (false, Rule::Nearest, MapPrototypes::Model { model, path }) => {
-            Some(pixel_classifier(cfg, model, path)?)
-        }
-        (false, Rule::Nearest, _) => Some(nearest_classifier(cfg, &decision, &src.label())?),
-        _ => None,
-    };
+    let answer = answer(cfg, src, &decision, colour)?;
     let calibrated = m.camera.is_some();
     let weighted = decide::weighted(cfg, calibrated, src.tests_rows(cfg));
     let far_betas: Vec<f64> = m
@@ -570,6 +564,23 @@ fn dolp_stage(
     };
     bands.iter_mut().for_each(|b| b.finish(calibrated));
     Ok((d, thresholds))
+}
+
+/// The classifier that answers in the fit: a single-band map's under `--rule nearest`
+/// (`map_manifest_from`, `map_frames`).
+fn answer(
+    cfg: &MapConfig,
+    src: MapPrototypes<'_>,
+    decision: &decide::Decision,
+    colour: bool,
+) -> Result<Option<PixelClassifier>> {
+    Ok(match (colour, cfg.rule, src) {
+        (false, Rule::Nearest, MapPrototypes::Model { model, path }) => {
+            Some(pixel_classifier(cfg, model, path)?)
+        }
+        (false, Rule::Nearest, _) => Some(nearest_classifier(cfg, decision, &src.label())?),
+        _ => None,
+    })
 }
 
 /// The paper's nearest prototype among the first band of `decision`'s prototypes (a
