@@ -28,7 +28,7 @@ use polarid_core::FitStatus;
 use polarid_core::classify::separability::{
     PlanRow, Separation, TruthPoint, margin_of, separation, truth_grid, worst_case,
 };
-use polarid_core::classify::{CandidateModel, HypothesisConfig, MultiPrototype, Nuisances};
+use polarid_core::classify::{CandidateModel, HypothesisConfig, MultiPrototype};
 use polarid_core::pbrdf::pbrdf;
 use polarid_core::simulate::{Exposure, Sensor};
 use polarid_io::manifest::SourceSpec;
@@ -835,11 +835,7 @@ impl Models {
             truth,
             cfg: HypothesisConfig {
                 confidence: cfg.confidence,
-                nuisances: Nuisances::from_error_model(
-                    fit.extinction_ratio,
-                    fit.retardance_deg.to_radians(),
-                    angle_sd,
-                ),
+                nuisances: fit.nuisances(angle_sd),
             },
             wavelengths: wavelengths.to_vec(),
             angle_sd,
@@ -1232,13 +1228,8 @@ fn candidate_models(
         protos
     } else {
         for m in &cfg.materials {
-            if !protos.iter().any(|p| &p.class == m) {
-                return Err(PipelineError::config(
-                    "materials",
-                    m,
-                    format!("no material of that name in {label} (see `polarid library --list`)"),
-                ));
-            }
+            let why = format!("no material of that name in {label} (see `polarid library --list`)");
+            ensure(protos.iter().any(|p| &p.class == m), "materials", m, why)?;
         }
         protos
             .into_iter()
@@ -1346,16 +1337,15 @@ fn target_plates(
             sigma: p.optics.sigma,
         });
     }
-    if out.targets.is_empty() {
-        return Err(PipelineError::config(
-            "scene",
-            scene.path.display(),
-            format!(
-                "no plate has a class that is a material of {label}: give each plate the \
-                 `class` of its material"
-            ),
-        ));
-    }
+    ensure(
+        !out.targets.is_empty(),
+        "scene",
+        scene.path.display(),
+        format!(
+            "no plate has a class that is a material of {label}: give each plate the \
+             `class` of its material"
+        ),
+    )?;
     Ok(out)
 }
 
@@ -1699,21 +1689,20 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
         }
         _ => region_candidates(&light, &own, &cfg.region),
     };
-    if cands.len() < cfg.positions {
-        let r = &cfg.region;
-        return Err(PipelineError::config(
-            "positions",
-            cfg.positions,
-            format!(
-                "the region gives only {} lit positions (zenith {:?}, azimuth {:?}, step {}): \
-                 widen it or ask for fewer",
-                cands.len(),
-                r.zenith_deg,
-                r.azimuth_deg,
-                r.step_deg
-            ),
-        ));
-    }
+    let r = &cfg.region;
+    ensure(
+        cands.len() >= cfg.positions,
+        "positions",
+        cfg.positions,
+        format!(
+            "the region gives only {} lit positions (zenith {:?}, azimuth {:?}, step {}): \
+             widen it or ask for fewer",
+            cands.len(),
+            r.zenith_deg,
+            r.azimuth_deg,
+            r.step_deg
+        ),
+    )?;
     let grids = models.grids();
     let mut active = active_pairs(&models, &cands, &grids)?;
     let mut idx = start_design(&cands, cfg.positions);

@@ -1,6 +1,7 @@
 //! The configuration of the fit: reflectance model, search boxes and the mixed fit's
 //! options, with the checks shared by the CLI and Python.
 
+use polarid_core::classify::Nuisances;
 use polarid_core::fit::{FitBounds, FitOptions};
 use polarid_core::mixed::{DEPOLARIZED_MAX_DOLP, MixedOptions, Shadowing};
 use polarid_core::systematic::Polarimetric;
@@ -274,6 +275,13 @@ impl FitConfig {
             retardance: self.retardance_deg.to_radians(),
             film_sd_waves: self.film_sd_nm / wl,
         }
+    }
+
+    /// The hypothesis tests' nuisance bounds of this error model (the analyzer's
+    /// extinction ratio and retardance) with a direction uncertainty `angle_sd` (radians).
+    pub fn nuisances(&self, angle_sd: f64) -> Nuisances {
+        let retardance = self.retardance_deg.to_radians();
+        Nuisances::from_error_model(self.extinction_ratio, retardance, angle_sd)
     }
 
     fn bounds(&self) -> FitBounds {

@@ -397,10 +397,10 @@ pub fn build_library(
         let reference = m.reference.or_else(|| Some(s.rel.display().to_string()));
         let layer = surface_layer(m.layer, s, &name);
         for (band, n, k) in rows {
-            let layer = match &layer {
-                None => None,
-                Some(l) => Some(layer_in_band(l, band, cfg, s, &mut out.warnings)?),
-            };
+            let layer = layer
+                .as_ref()
+                .map(|l| layer_in_band(l, band, cfg, s, &mut out.warnings))
+                .transpose()?;
             out.materials.push(Material {
                 name: name.clone(),
                 category: category.clone(),
@@ -414,13 +414,8 @@ pub fn build_library(
         }
     }
     progress("files", srcs.len() as u64, srcs.len() as u64);
-    if out.materials.is_empty() {
-        return Err(PipelineError::config(
-            "--band",
-            cfg.band(),
-            "is covered by no input file (every file was skipped)",
-        ));
-    }
+    let why = "is covered by no input file (every file was skipped)";
+    ensure(!out.materials.is_empty(), "--band", cfg.band(), why)?;
     out.files = srcs.into_iter().map(|s| s.path).collect();
     Ok(out)
 }
