@@ -7,7 +7,7 @@
 //! `polarid_core::classify::bands`); the row says which bands were compared
 //! (`bands_used`).
 
-mod bench;
+pub(crate) mod bench;
 mod explain;
 pub mod reference;
 pub mod rows;
@@ -26,7 +26,7 @@ use polarid_io::table::classification::ClassificationRow;
 use polarid_io::table::fits::{self, FitRow};
 
 pub use bench::{
-    Comparison, estimate_for, multi_estimate_for, noise_cov, prototypes_for, sample_cov,
+    Comparison, estimate_for, multi_estimate_for, noise_cov, prototypes_for, same_bench, sample_cov,
 };
 pub use explain::{
     ConfidenceRegion, DecisionRegion, RegionPlane, confidence_region, decision_regions, explain,

@@ -40,7 +40,7 @@
 
 use std::path::Path;
 
-use polarid_core::classify::{Bench, ClassifierConfig, Metric, MultiPrototype};
+use polarid_core::classify::{ClassifierConfig, Metric, MultiPrototype};
 use polarid_io::atomic::StagedDir;
 use polarid_io::image::{Frame, SampleKind};
 use polarid_io::library::Library;
@@ -54,7 +54,7 @@ use rayon::prelude::*;
 use super::stage;
 use super::steps::{self, parse_scene};
 use crate::classify::{
-    Comparison, classification_row, group_fits, multi_classifier, multi_estimate_for,
+    Comparison, classification_row, group_fits, multi_classifier, multi_estimate_for, same_bench,
 };
 use crate::fit::{FitConfig, fit};
 use crate::progress::{Progress, Warning};
@@ -431,26 +431,6 @@ fn prototypes(train: &[(u64, FitRow)]) -> Result<(Model, Vec<MultiPrototype>, Co
     let t = crate::train::train(train, Path::new("fits.csv"), "fits.csv")?;
     let (protos, cmp) = same_bench(&t.model);
     Ok((t.model, protos, cmp))
-}
-
-/// A model's prototypes and the comparison `polarid classify --model` makes by default
-/// (`--bench same`, [`crate::classify::bench`]): the prototypes on their sample
-/// covariances and the estimates on their noise when the model has sample covariances,
-/// else both on their totals.
-fn same_bench(model: &Model) -> (Vec<MultiPrototype>, Comparison) {
-    let same = model.has_sample_covariances();
-    let protos = if same {
-        model.multi_prototypes_on(Bench::Same)
-    } else {
-        model.multi_prototypes()
-    };
-    (
-        protos,
-        Comparison {
-            bench: Bench::Same,
-            same,
-        },
-    )
 }
 
 /// Per (bands, fit, rule), per test plate: `(class, predicted)`.

@@ -14,7 +14,9 @@ use polarid_io::table::fits::{self, FitRow};
 use polarid_io::table::measurements::{self, Measurement};
 
 use super::stage;
-use crate::classify::{Comparison, classification_row, estimate_for, explain, read_fits};
+use crate::classify::{
+    Comparison, classification_row, estimate_for, explain, read_fits, same_bench,
+};
 use crate::fit::{FitConfig, fit, read_measurements};
 use crate::measure::measure;
 use crate::progress::{Progress, Warning};
@@ -152,13 +154,8 @@ pub(super) fn train_and_classify(
 /// The classifier `polarid classify --model` uses by default: the set rule at 95% over
 /// the model's prototypes with their same-bench (sample) covariances.
 pub fn same_bench_classifier(model: &Model) -> Result<Classifier> {
-    let bench = if model.has_sample_covariances() {
-        Bench::Same
-    } else {
-        Bench::Other
-    };
     Classifier::multi(
-        model.multi_prototypes_on(bench),
+        same_bench(model).0,
         ClassifierConfig::set(DEFAULT_CONFIDENCE),
     )
     .map_err(|e| PipelineError::Data {
