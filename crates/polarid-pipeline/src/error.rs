@@ -74,6 +74,21 @@ impl PipelineError {
     }
 }
 
+/// `Ok(())` when `ok`, else the [`PipelineError::Config`] error of `option`, `value` and
+/// `reason` (a check of a configuration value: write the condition that must hold).
+pub fn ensure(
+    ok: bool,
+    option: impl Into<String>,
+    value: impl ToString,
+    reason: impl Into<String>,
+) -> Result<()> {
+    if ok {
+        Ok(())
+    } else {
+        Err(PipelineError::config(option, value, reason))
+    }
+}
+
 /// Result alias of the pipeline crate.
 pub type Result<T> = std::result::Result<T, PipelineError>;
 

@@ -10,7 +10,7 @@
 
 use polarid_core::classify::{ClassifierConfig, Metric, Reject, Rule};
 
-use crate::error::{PipelineError, Result};
+use crate::error::{PipelineError, Result, ensure};
 
 /// The decision options, unchecked. The defaults are the command line's.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -75,15 +75,9 @@ impl ClassifierOptions {
     /// Errors ([`PipelineError::Config`]): a confidence outside `(0, 1)`; a nearest-rule
     /// option (`--metric euclidean`, `--k` ≠ 1, `--reject`, `--max-distance`) with the set
     /// rule; both reject options; any value the core refuses.
-    #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN-safe on purpose
     pub fn config(&self) -> Result<ClassifierConfig> {
-        if !(self.confidence > 0.0 && self.confidence < 1.0) {
-            return Err(PipelineError::config(
-                "--confidence",
-                self.confidence,
-                "must be in (0, 1)",
-            ));
-        }
+        let c = self.confidence;
+        ensure(c > 0.0 && c < 1.0, "--confidence", c, "must be in (0, 1)")?;
         if self.rule == Rule::Set {
             let bad = match (self.metric, self.neighbours, self.reject, self.max_distance) {
                 (Some(Metric::Euclidean), ..) => Some(("--metric", "euclidean".to_string())),

@@ -28,7 +28,7 @@ use polarid_core::FitStatus;
 use polarid_core::classify::separability::{
     PlanRow, Separation, TruthPoint, margin_of, separation, truth_grid, worst_case,
 };
-use polarid_core::classify::{CandidateModel, HypothesisConfig, MultiPrototype, Nuisances};
+use polarid_core::classify::{CandidateModel, HypothesisConfig, MultiPrototype};
 use polarid_core::pbrdf::pbrdf;
 use polarid_core::simulate::{Exposure, Sensor};
 use polarid_io::manifest::SourceSpec;
@@ -37,6 +37,7 @@ use polarid_io::table::measurements::Measurement;
 use rayon::prelude::*;
 
 use crate::classify::PrototypeSource;
+use crate::error::ensure;
 use crate::fit::FitConfig;
 use crate::{PipelineError, Result, Warning};
 
@@ -114,62 +115,40 @@ impl Default for PlanConfig {
 
 impl PlanConfig {
     /// Check every value (errors name the option and the value).
-    #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN-safe on purpose
     pub fn validate(&self) -> Result<()> {
-        if !(2..=64).contains(&self.positions) {
-            return Err(PipelineError::config(
-                "positions",
-                self.positions,
-                "must be 2 to 64",
-            ));
-        }
-        if !(self.confidence > 0.0 && self.confidence < 1.0) {
-            return Err(PipelineError::config(
-                "confidence",
-                self.confidence,
-                "must be in (0, 1)",
-            ));
-        }
-        if !(self.power > 0.0 && self.power < 1.0) {
-            return Err(PipelineError::config(
-                "power",
-                self.power,
-                "must be in (0, 1)",
-            ));
-        }
+        let n = self.positions;
+        ensure((2..=64).contains(&n), "positions", n, "must be 2 to 64")?;
+        let c = self.confidence;
+        ensure(c > 0.0 && c < 1.0, "confidence", c, "must be in (0, 1)")?;
+        let p = self.power;
+        ensure(p > 0.0 && p < 1.0, "power", p, "must be in (0, 1)")?;
         let r = &self.region;
-        if let Some(d) = r.distance
-            && !(d > 0.0 && d.is_finite())
-        {
-            return Err(PipelineError::config("distance", d, "must be > 0"));
+        if let Some(d) = r.distance {
+            ensure(d > 0.0 && d.is_finite(), "distance", d, "must be > 0")?;
         }
         let (z0, z1) = r.zenith_deg;
-        if !(z0 >= 0.0 && z1 < 90.0 && z0 <= z1) {
-            return Err(PipelineError::config(
-                "zenith-deg",
-                format!("{z0}:{z1}"),
-                "must be LO:HI with 0 <= LO <= HI < 90",
-            ));
-        }
+        ensure(
+            z0 >= 0.0 && z1 < 90.0 && z0 <= z1,
+            "zenith-deg",
+            format!("{z0}:{z1}"),
+            "must be LO:HI with 0 <= LO <= HI < 90",
+        )?;
         let (a0, a1) = r.azimuth_deg;
-        if !(a0 >= -180.0 && a1 <= 180.0 && a0 <= a1) {
-            return Err(PipelineError::config(
-                "azimuth-deg",
-                format!("{a0}:{a1}"),
-                "must be LO:HI with -180 <= LO <= HI <= 180",
-            ));
-        }
-        if !(r.step_deg >= 0.5 && r.step_deg <= 45.0) {
-            return Err(PipelineError::config(
-                "step-deg",
-                r.step_deg,
-                "must be 0.5 to 45",
-            ));
-        }
-        if let Some(s) = self.dolp_se
-            && !(s >= 0.0 && s < 1.0)
-        {
-            return Err(PipelineError::config("dolp-se", s, "must be in [0, 1)"));
+        ensure(
+            a0 >= -180.0 && a1 <= 180.0 && a0 <= a1,
+            "azimuth-deg",
+            format!("{a0}:{a1}"),
+            "must be LO:HI with -180 <= LO <= HI <= 180",
+        )?;
+        let step = r.step_deg;
+        ensure(
+            (0.5..=45.0).contains(&step),
+            "step-deg",
+            step,
+            "must be 0.5 to 45",
+        )?;
+        if let Some(s) = self.dolp_se {
+            ensure((0.0..1.0).contains(&s), "dolp-se", s, "must be in [0, 1)")?;
         }
         self.fit.validate()?;
         Ok(())
@@ -264,13 +243,10 @@ impl SunFile<'_> {
         sun_span: &std::ops::Range<usize>,
     ) -> Result<(String, f64, i32)> {
         let Some(v) = v else {
-            return Err(PipelineError::config(
-                format!(
-                    "{}, line {}: plan.sun.{key}",
-                    self.file,
-                    self.line_of(sun_span)
-                ),
-                "(missing)",
+            return Err(self.err(
+                sun_span,
+                key,
+                &"(missing)",
                 "is needed: an RFC 3339 time with its offset, e.g. \"2026-06-21T09:00:00-06:00\"",
             ));
         };
@@ -859,11 +835,7 @@ impl Models {
             truth,
             cfg: HypothesisConfig {
                 confidence: cfg.confidence,
-                nuisances: Nuisances::from_error_model(
-                    fit.extinction_ratio,
-                    fit.retardance_deg.to_radians(),
-                    angle_sd,
-                ),
+                nuisances: fit.nuisances(angle_sd),
             },
             wavelengths: wavelengths.to_vec(),
             angle_sd,
@@ -1032,18 +1004,20 @@ impl Models {
             offset: 0.0,
         };
         let (n, k) = truth.bulk[b];
+        let check = |status, reason, n_se, k_se| FitCheck {
+            wavelength_nm: self.wavelengths[b],
+            status,
+            reason,
+            n,
+            k,
+            box_max: (self.fit.n_range.1, self.fit.k_range.1),
+            n_se,
+            k_se,
+        };
         if positions.len() < 3 {
             // `fit` needs three rows of a target and band.
-            return Ok(FitCheck {
-                wavelength_nm: self.wavelengths[b],
-                n,
-                k,
-                box_max: (self.fit.n_range.1, self.fit.k_range.1),
-                status: FitStatus::IllConditioned,
-                reason: format!("{} rows: fit needs at least 3", positions.len()),
-                n_se: f64::NAN,
-                k_se: f64::NAN,
-            });
+            let why = format!("{} rows: fit needs at least 3", positions.len());
+            return Ok(check(FitStatus::IllConditioned, why, f64::NAN, f64::NAN));
         }
         let plan_rows = self.rows_of(positions, t, Some(b));
         let clean = polarid_core::classify::separability::truth_rows(
@@ -1072,28 +1046,14 @@ impl Models {
             })
             .collect();
         let out = crate::fit::fit(Path::new("plan"), &rows, &self.fit, &|_, _, _| {})?;
-        let f = out.rows().into_iter().next();
-        Ok(match f {
-            Some(f) => FitCheck {
-                wavelength_nm: self.wavelengths[b],
-                n,
-                k,
-                box_max: (self.fit.n_range.1, self.fit.k_range.1),
-                status: f.status,
-                reason: f.reason.clone(),
-                n_se: f.n_se,
-                k_se: f.k_se,
-            },
-            None => FitCheck {
-                wavelength_nm: self.wavelengths[b],
-                n,
-                k,
-                box_max: (self.fit.n_range.1, self.fit.k_range.1),
-                status: FitStatus::IllConditioned,
-                reason: "no fit".into(),
-                n_se: f64::NAN,
-                k_se: f64::NAN,
-            },
+        Ok(match out.targets.into_iter().next() {
+            Some(f) => check(f.row.status, f.row.reason, f.row.n_se, f.row.k_se),
+            None => check(
+                FitStatus::IllConditioned,
+                "no fit".into(),
+                f64::NAN,
+                f64::NAN,
+            ),
         })
     }
 }
@@ -1268,13 +1228,8 @@ fn candidate_models(
         protos
     } else {
         for m in &cfg.materials {
-            if !protos.iter().any(|p| &p.class == m) {
-                return Err(PipelineError::config(
-                    "materials",
-                    m,
-                    format!("no material of that name in {label} (see `polarid library --list`)"),
-                ));
-            }
+            let why = format!("no material of that name in {label} (see `polarid library --list`)");
+            ensure(protos.iter().any(|p| &p.class == m), "materials", m, why)?;
         }
         protos
             .into_iter()
@@ -1382,16 +1337,15 @@ fn target_plates(
             sigma: p.optics.sigma,
         });
     }
-    if out.targets.is_empty() {
-        return Err(PipelineError::config(
-            "scene",
-            scene.path.display(),
-            format!(
-                "no plate has a class that is a material of {label}: give each plate the \
-                 `class` of its material"
-            ),
-        ));
-    }
+    ensure(
+        !out.targets.is_empty(),
+        "scene",
+        scene.path.display(),
+        format!(
+            "no plate has a class that is a material of {label}: give each plate the \
+             `class` of its material"
+        ),
+    )?;
     Ok(out)
 }
 
@@ -1735,21 +1689,20 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
         }
         _ => region_candidates(&light, &own, &cfg.region),
     };
-    if cands.len() < cfg.positions {
-        let r = &cfg.region;
-        return Err(PipelineError::config(
-            "positions",
-            cfg.positions,
-            format!(
-                "the region gives only {} lit positions (zenith {:?}, azimuth {:?}, step {}): \
-                 widen it or ask for fewer",
-                cands.len(),
-                r.zenith_deg,
-                r.azimuth_deg,
-                r.step_deg
-            ),
-        ));
-    }
+    let r = &cfg.region;
+    ensure(
+        cands.len() >= cfg.positions,
+        "positions",
+        cfg.positions,
+        format!(
+            "the region gives only {} lit positions (zenith {:?}, azimuth {:?}, step {}): \
+             widen it or ask for fewer",
+            cands.len(),
+            r.zenith_deg,
+            r.azimuth_deg,
+            r.step_deg
+        ),
+    )?;
     let grids = models.grids();
     let mut active = active_pairs(&models, &cands, &grids)?;
     let mut idx = start_design(&cands, cfg.positions);

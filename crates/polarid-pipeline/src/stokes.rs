@@ -25,7 +25,7 @@ use polarid_io::image::{self, Frame};
 use polarid_io::manifest::colour::{band_table, pattern_wavelengths};
 use polarid_io::measure::{Demosaic, StokesImages, frames_stokes, rules_for};
 
-use crate::error::{PipelineError, Result};
+use crate::error::{PipelineError, Result, ensure};
 use crate::map::rules::check_levels;
 use crate::progress::Warning;
 
@@ -81,6 +81,32 @@ pub struct StokesBand {
     pub aolp: Vec<f32>,
 }
 
+impl StokesBand {
+    /// A band of `images` with its DoLP and AoLP images to be filled.
+    fn new(letter: Option<char>, wavelength_nm: Option<f64>, images: StokesImages) -> Self {
+        let n = images.width * images.height;
+        Self {
+            letter,
+            wavelength_nm,
+            images,
+            dolp: vec![0f32; n],
+            aolp: vec![0f32; n],
+        }
+    }
+
+    /// Every image of the band as the outputs of a fused mosaic kernel.
+    fn outputs(&mut self) -> DofpOutputs<'_> {
+        DofpOutputs {
+            s0: Some(&mut self.images.s0),
+            s1: Some(&mut self.images.s1),
+            s2: Some(&mut self.images.s2),
+            mask: Some(&mut self.images.mask),
+            dolp: Some(&mut self.dolp),
+            aolp: Some(&mut self.aolp),
+        }
+    }
+}
+
 /// What the Stokes workflow returns.
 #[derive(Debug, Clone)]
 pub struct StokesResult {
@@ -104,20 +130,14 @@ impl StokesConfig {
         check_levels(self.dark_level, self.saturation)?;
         match &self.source {
             StokesSource::Frames { files, angles_deg } => {
-                if files.is_empty() {
-                    return Err(PipelineError::config(
-                        "--frames",
-                        "no file",
-                        "needs one frame per polarizer angle",
-                    ));
-                }
-                if angles_deg.len() != files.len() {
-                    return Err(PipelineError::config(
-                        "--angles",
-                        format!("{} angle(s) for {} frame(s)", angles_deg.len(), files.len()),
-                        "needs one angle per frame",
-                    ));
-                }
+                let why = "needs one frame per polarizer angle";
+                ensure(!files.is_empty(), "--frames", "no file", why)?;
+                ensure(
+                    angles_deg.len() == files.len(),
+                    "--angles",
+                    format!("{} angle(s) for {} frame(s)", angles_deg.len(), files.len()),
+                    "needs one angle per frame",
+                )?;
                 if let Some(a) = angles_deg.iter().find(|a| !(a.abs() <= 3600.0)) {
                     return Err(PipelineError::config(
                         "--angles",
@@ -181,25 +201,12 @@ fn dofp_band(
         Demosaic::Superpixel => (DofpMethod::Superpixel, Sampling::Independent),
     };
     let (w, h) = method.output_size(raw.width, raw.height);
-    let mut images = StokesImages::alloc(w, h, sampling);
-    let (mut dolp, mut aolp) = (vec![0f32; w * h], vec![0f32; w * h]);
-    let out = DofpOutputs {
-        s0: Some(&mut images.s0),
-        s1: Some(&mut images.s1),
-        s2: Some(&mut images.s2),
-        mask: Some(&mut images.mask),
-        dolp: Some(&mut dolp),
-        aolp: Some(&mut aolp),
-    };
-    images.counts = mosaic::dofp_polar(&raw.data, raw.width, pattern, method, rules, out)
+    let mut band = StokesBand::new(None, None, StokesImages::alloc(w, h, sampling));
+    let out = band.outputs();
+    let counts = mosaic::dofp_polar(&raw.data, raw.width, pattern, method, rules, out)
         .map_err(on_file(raw))?;
-    Ok(StokesBand {
-        letter: None,
-        wavelength_nm: None,
-        images,
-        dolp,
-        aolp,
-    })
+    band.images.counts = counts;
+    Ok(band)
 }
 
 /// Every band of a colour polarization mosaic in one pass.
@@ -219,25 +226,11 @@ fn colour_bands_images(
         .bands()
         .iter()
         .zip(nms)
-        .map(|(&letter, &nm)| StokesBand {
-            letter: Some(letter),
-            wavelength_nm: Some(nm),
-            images: StokesImages::alloc(w, h, sampling),
-            dolp: vec![0f32; w * h],
-            aolp: vec![0f32; w * h],
+        .map(|(&letter, &nm)| {
+            StokesBand::new(Some(letter), Some(nm), StokesImages::alloc(w, h, sampling))
         })
         .collect();
-    let outs = bands
-        .iter_mut()
-        .map(|b| DofpOutputs {
-            s0: Some(&mut b.images.s0),
-            s1: Some(&mut b.images.s1),
-            s2: Some(&mut b.images.s2),
-            mask: Some(&mut b.images.mask),
-            dolp: Some(&mut b.dolp),
-            aolp: Some(&mut b.aolp),
-        })
-        .collect();
+    let outs = bands.iter_mut().map(StokesBand::outputs).collect();
     let counts =
         colour_polar(&raw.data, raw.width, cp, method, rules, outs).map_err(on_file(raw))?;
     for (b, c) in bands.iter_mut().zip(counts) {
@@ -266,25 +259,10 @@ pub fn stokes(cfg: &StokesConfig) -> Result<StokesResult> {
             let rules = rules_for(&frames[0], cfg.dark_level, cfg.saturation);
             let images = frames_stokes(&frames, &solver, &rules)?;
             drop(frames);
-            let n = images.width * images.height;
-            let (mut dolp, mut aolp) = (vec![0f32; n], vec![0f32; n]);
-            let (s0, s1, s2) = (&images.s0, &images.s1, &images.s2);
-            stokes::dolp_aolp(
-                images.width,
-                s0,
-                s1,
-                s2,
-                Some(&images.mask),
-                &mut dolp,
-                &mut aolp,
-            )?;
-            let band = StokesBand {
-                letter: None,
-                wavelength_nm: None,
-                images,
-                dolp,
-                aolp,
-            };
+            let mut band = StokesBand::new(None, None, images);
+            let (im, dolp, aolp) = (&band.images, &mut band.dolp, &mut band.aolp);
+            let (s0, s1, s2) = (&im.s0, &im.s1, &im.s2);
+            stokes::dolp_aolp(im.width, s0, s1, s2, Some(&im.mask), dolp, aolp)?;
             (vec![band], files.clone())
         }
         StokesSource::Dofp {

@@ -11,6 +11,8 @@
 //! shared errors (angles, DoLP floor, extinction, the layer's unknown mean) twice.
 
 use polarid_core::classify::{Bench, Estimate, EstimateBand, MultiEstimate, MultiPrototype};
+use std::path::Path;
+
 use polarid_io::model::Model;
 use polarid_io::table::fits::FitRow;
 
@@ -76,6 +78,31 @@ pub fn multi_estimate_for<'a>(
     }
 }
 
+/// A model's prototypes and the comparison `polarid classify --model` makes by default
+/// (`--bench same`): the prototypes on their sample covariances and the estimates on
+/// their noise when the model has sample covariances, else both on their totals.
+pub fn same_bench(model: &Model) -> (Vec<MultiPrototype>, Comparison) {
+    let same = model.has_sample_covariances();
+    let bench = if same { Bench::Same } else { Bench::Other };
+    let cmp = Comparison {
+        bench: Bench::Same,
+        same,
+    };
+    (model.multi_prototypes_on(bench), cmp)
+}
+
+/// The warning when the same bench is asked for a model at `path` without sample
+/// covariances (it is then compared as a model from another bench).
+pub(crate) fn no_sample_covariances(path: &Path) -> Warning {
+    Warning(format!(
+        "model {} has no sample covariances (trained on fits without n_se_sample, \
+         k_se_sample, nk_corr_sample): compared as a model from another bench, with the \
+         systematic errors on both sides; retrain it on fits from this polarid for the \
+         same-bench comparison",
+        path.display()
+    ))
+}
+
 /// The prototypes of `source` for `bench`: a model's on the same bench with their sample
 /// covariances ([`Model::multi_prototypes_on`]) when every prototype has one; otherwise
 /// `protos` as loaded, with a warning when the same bench was asked for a model that
@@ -97,13 +124,7 @@ pub fn prototypes_for(
     }
     let model = Model::read(path)?;
     if !model.has_sample_covariances() {
-        warnings.push(Warning(format!(
-            "model {} has no sample covariances (trained on fits without n_se_sample, \
-             k_se_sample, nk_corr_sample): compared as a model from another bench, with the \
-             systematic errors on both sides; retrain it on fits from this polarid for the \
-             same-bench comparison",
-            path.display()
-        )));
+        warnings.push(no_sample_covariances(path));
         return Ok((protos, other));
     }
     let without: Vec<&str> = fits

@@ -7,7 +7,7 @@
 //! `polarid_core::classify::bands`); the row says which bands were compared
 //! (`bands_used`).
 
-mod bench;
+pub(crate) mod bench;
 mod explain;
 pub mod reference;
 pub mod rows;
@@ -26,7 +26,7 @@ use polarid_io::table::classification::ClassificationRow;
 use polarid_io::table::fits::{self, FitRow};
 
 pub use bench::{
-    Comparison, estimate_for, multi_estimate_for, noise_cov, prototypes_for, sample_cov,
+    Comparison, estimate_for, multi_estimate_for, noise_cov, prototypes_for, same_bench, sample_cov,
 };
 pub use explain::{
     ConfidenceRegion, DecisionRegion, RegionPlane, confidence_region, decision_regions, explain,
@@ -34,6 +34,7 @@ pub use explain::{
 };
 pub use wolff::{WolffData, WolffSettings};
 
+use crate::error::ensure;
 use crate::{PipelineError, Result, Warning};
 
 /// The estimate of a fit row: covariance from `n_se`, `k_se`, `nk_corr` when usable (a
@@ -204,24 +205,15 @@ impl PrototypeSource {
                     })
                 })
                 .collect();
-            let evaluated: Vec<f64> = wavelengths
-                .iter()
-                .copied()
-                .filter(|&w| {
-                    !own.iter()
-                        .any(|&o| polarid_core::classify::same_band(Some(o), Some(w)))
-                })
-                .collect();
-            if !evaluated.is_empty() {
-                let mut e: Vec<f64> = Vec::new();
-                for w in evaluated {
-                    if !e
-                        .iter()
-                        .any(|&x| polarid_core::classify::same_band(Some(x), Some(w)))
-                    {
-                        e.push(w);
-                    }
+            // The fits' wavelengths outside the library's own bands, each band once.
+            let mut e: Vec<f64> = Vec::new();
+            for &w in wavelengths {
+                let same = |x: &f64| polarid_core::classify::same_band(Some(*x), Some(w));
+                if !own.iter().any(same) && !e.iter().any(same) {
+                    e.push(w);
                 }
+            }
+            if !e.is_empty() {
                 warnings.push(Warning(format!(
                     "library {spec} evaluated at {} nm from its refractiveindex.info data \
                      (n and k at that wavelength; its own bands are kept where the fits are in \
@@ -325,26 +317,17 @@ impl ClassifyConfig {
     /// Check every value ([`PipelineError::Config`] naming it).
     pub fn validate(&self) -> Result<()> {
         check_classifier(&self.classifier)?;
-        if let Some(w) = self.wavelength_nm
-            && !(w.is_finite() && (100.0..100_000.0).contains(&w))
-        {
-            return Err(PipelineError::config(
-                "wavelength_nm",
-                w.to_string(),
-                "must be a wavelength in [100, 100000) nm",
-            ));
+        if let Some(w) = self.wavelength_nm {
+            let why = "must be a wavelength in [100, 100000) nm";
+            ensure((100.0..100_000.0).contains(&w), "wavelength_nm", w, why)?;
         }
         if let Some(w) = &self.wolff {
             w.settings.validate()?;
         }
         for (name, w) in &self.priors {
-            if !(w.is_finite() && *w >= 0.0) {
-                return Err(PipelineError::config(
-                    "prior",
-                    format!("{name}={w}"),
-                    "weights must be finite and >= 0",
-                ));
-            }
+            let ok = w.is_finite() && *w >= 0.0;
+            let why = "weights must be finite and >= 0";
+            ensure(ok, "prior", format!("{name}={w}"), why)?;
         }
         Ok(())
     }

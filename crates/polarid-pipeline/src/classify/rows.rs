@@ -22,8 +22,8 @@ use std::path::Path;
 
 use polarid_core::FitStatus;
 use polarid_core::classify::{
-    Decision, HypRow, HypothesisConfig, HypothesisOutcome, MultiPrototype, Nuisances, Status,
-    classify_rows, reference::classify_rows_within,
+    Decision, HypRow, HypothesisConfig, HypothesisOutcome, MultiPrototype, Status, classify_rows,
+    reference::classify_rows_within,
 };
 use polarid_io::table::CsvTable;
 use polarid_io::table::classification::ClassificationRow;
@@ -32,6 +32,7 @@ use polarid_io::table::measurements::Measurement;
 
 use super::reference::SceneCalibration;
 use super::{ClassifyConfig, ClassifyOutput, PrototypeSource};
+use crate::error::ensure;
 use crate::fit::{FitConfig, fit};
 use crate::{PipelineError, Result};
 
@@ -53,27 +54,17 @@ pub fn prior_weights(priors: &[(String, f64)], protos: &[MultiPrototype]) -> Res
     let mut w = vec![1.0; protos.len()];
     for (name, v) in priors {
         let mut found = false;
-        for (i, p) in protos.iter().enumerate() {
+        for (wi, p) in w.iter_mut().zip(protos) {
             if &p.class == name {
-                w[i] = *v;
+                *wi = *v;
                 found = true;
             }
         }
-        if !found {
-            return Err(PipelineError::config(
-                "prior",
-                format!("{name}={v}"),
-                "names no material of the library or model",
-            ));
-        }
+        let why = "names no material of the library or model";
+        ensure(found, "prior", format!("{name}={v}"), why)?;
     }
-    if w.iter().all(|&x| x == 0.0) {
-        return Err(PipelineError::config(
-            "prior",
-            "all 0",
-            "at least one material needs a weight > 0",
-        ));
-    }
+    let why = "at least one material needs a weight > 0";
+    ensure(!w.iter().all(|&x| x == 0.0), "prior", "all 0", why)?;
     Ok(w)
 }
 
@@ -258,16 +249,11 @@ fn calibrate_references(
             });
         }
     }
-    let prior = Nuisances::from_error_model(
-        fit_cfg.extinction_ratio,
-        fit_cfg.retardance_deg.to_radians(),
-        angle_all,
-    );
     super::reference::calibrate_scene(
         &path.display().to_string(),
         &refs,
         protos,
-        prior,
+        fit_cfg.nuisances(angle_all),
         cfg.classifier.confidence,
     )
 }
@@ -340,11 +326,7 @@ impl TargetClassifier<'_> {
         let (hrows, bands, angle_max) = hyp_rows(&g.rows, self.fit_cfg);
         let hcfg = HypothesisConfig {
             confidence,
-            nuisances: Nuisances::from_error_model(
-                self.fit_cfg.extinction_ratio,
-                self.fit_cfg.retardance_deg.to_radians(),
-                angle_max,
-            ),
+            nuisances: self.fit_cfg.nuisances(angle_max),
         };
         let priors = Some(self.priors);
         let bounds = self.scene.and_then(|c| c.bounds.as_ref());
@@ -378,7 +360,7 @@ impl TargetClassifier<'_> {
 
 /// Classify every target of a measurements table (each row with its line in `path`)
 /// against `source` by the hypothesis tests, with the error model of `fit_cfg`
-/// (docs/ERRORS.md; nuisance bounds [`Nuisances::from_error_model`], the independent
+/// (docs/ERRORS.md; nuisance bounds [`FitConfig::nuisances`], the independent
 /// parts in each row's `σ`). Rows without `wavelength_nm` take `cfg.wavelength_nm`, else
 /// 650 nm (the built-in library's band; a warning says so). One classification row per
 /// target, in first-appearance order, with its fit's columns kept in `fits`.

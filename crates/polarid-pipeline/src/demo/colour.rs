@@ -40,21 +40,21 @@
 
 use std::path::Path;
 
-use polarid_core::classify::{Bench, ClassifierConfig, Metric, MultiPrototype};
+use polarid_core::classify::{ClassifierConfig, Metric, MultiPrototype};
 use polarid_io::atomic::StagedDir;
 use polarid_io::image::{Frame, SampleKind};
 use polarid_io::library::Library;
 use polarid_io::manifest;
 use polarid_io::model::Model;
-use polarid_io::scene::Scene;
 use polarid_io::table::classification::{self, ClassificationRow};
-use polarid_io::table::fits::{self, FitRow};
-use polarid_io::table::measurements::{self, Measurement};
+use polarid_io::table::fits::FitRow;
+use polarid_io::table::measurements::Measurement;
 use rayon::prelude::*;
 
 use super::stage;
+use super::steps::{self, parse_scene};
 use crate::classify::{
-    Comparison, classification_row, group_fits, multi_classifier, multi_estimate_for,
+    Comparison, classification_row, group_fits, multi_classifier, multi_estimate_for, same_bench,
 };
 use crate::fit::{FitConfig, fit};
 use crate::progress::{Progress, Warning};
@@ -324,17 +324,6 @@ pub fn colour_plates_with(
     out
 }
 
-/// Parse a demo scene (an internal error when it is invalid).
-fn parse_scene(path: &Path, text: &str) -> Result<Scene> {
-    polarid_io::scene::parse(path, text).map_err(|e| PipelineError::Data {
-        path: path.display().to_string(),
-        reason: format!(
-            "internal error: a demo scene is invalid: {}",
-            polarid_io::error::chain_message(&e)
-        ),
-    })
-}
-
 /// Give the captures of a plate's manifest (as `polarid simulate` writes it, with the
 /// scene's true angles) the nominal angles the demo measures with: θr =
 /// [`COLOUR_THETA_R`], θi = [`COLOUR_THETA_I`].
@@ -442,26 +431,6 @@ fn prototypes(train: &[(u64, FitRow)]) -> Result<(Model, Vec<MultiPrototype>, Co
     let t = crate::train::train(train, Path::new("fits.csv"), "fits.csv")?;
     let (protos, cmp) = same_bench(&t.model);
     Ok((t.model, protos, cmp))
-}
-
-/// A model's prototypes and the comparison `polarid classify --model` makes by default
-/// (`--bench same`, [`crate::classify::bench`]): the prototypes on their sample
-/// covariances and the estimates on their noise when the model has sample covariances,
-/// else both on their totals.
-fn same_bench(model: &Model) -> (Vec<MultiPrototype>, Comparison) {
-    let same = model.has_sample_covariances();
-    let protos = if same {
-        model.multi_prototypes_on(Bench::Same)
-    } else {
-        model.multi_prototypes()
-    };
-    (
-        protos,
-        Comparison {
-            bench: Bench::Same,
-            same,
-        },
-    )
 }
 
 /// Per (bands, fit, rule), per test plate: `(class, predicted)`.
@@ -676,13 +645,7 @@ pub struct ColourDemoOutput {
 /// Run the colour demo into `staged` with `seeds` seeds for the accuracy table (module
 /// documentation). Progress stages: `simulating` (seed 0's plates), `seeds`.
 pub fn run_colour(staged: &StagedDir, seeds: u64, progress: Progress) -> Result<ColourDemoOutput> {
-    if seeds == 0 {
-        return Err(PipelineError::config(
-            "--seeds",
-            seeds,
-            "must be at least 1",
-        ));
-    }
+    crate::error::ensure(seeds > 0, "--seeds", seeds, "must be at least 1")?;
     let materials = colour_materials()?;
     let plates = colour_plates(&materials, 0);
     let mut warnings = Vec::new();
@@ -707,28 +670,14 @@ pub fn run_colour(staged: &StagedDir, seeds: u64, progress: Progress) -> Result<
     }
     progress("simulating", plates.len() as u64, plates.len() as u64);
     // Rows in measurement order: by capture set, band, capture.
-    let meas_path = stage(staged, "measurements.csv", |w| {
-        measurements::write(w, Path::new("measurements.csv"), &rows)
-    })?;
-    let meas = crate::fit::read_measurements(&meas_path)?;
-    let cfg = FitConfig::default();
-    let fit_rows = fit(Path::new("measurements.csv"), &meas, &cfg, progress)?.rows();
-    let fits_path = stage(staged, "fits.csv", |w| {
-        fits::write(w, Path::new("fits.csv"), &fit_rows)
-    })?;
-    let all_fits = crate::classify::read_fits(&fits_path)?;
+    let (meas, all_fits) = steps::fit_staged(staged, &rows, progress)?;
     let is_training = |t: &str| plates.iter().any(|p| p.training && p.target == t);
     type Fits = Vec<(u64, FitRow)>;
     let (train, test): (Fits, Fits) = all_fits
         .iter()
         .cloned()
         .partition(|(_, f)| is_training(&f.target));
-    let trained = crate::train::train(&train, Path::new("fits.csv"), "fits.csv")?;
-    warnings.extend(trained.warnings);
-    let model = trained.model;
-    stage(staged, "model.json", |w| {
-        model.write(w, Path::new("model.json"))
-    })?;
+    let model = steps::train_staged(staged, &train, &mut warnings)?;
     let classify_rows = |fits: &[(u64, FitRow)],
                          (protos, cmp): (Vec<MultiPrototype>, Comparison)|
      -> Result<Vec<ClassificationRow>> {

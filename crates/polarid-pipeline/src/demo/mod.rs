@@ -43,8 +43,8 @@ pub use plates::{
 pub use steps::same_bench_classifier;
 pub use tables::{paper_tables, pm, text_table};
 
+use crate::Result;
 use crate::progress::{Progress, Warning};
-use crate::{PipelineError, Result};
 
 /// Everything the demo produced, besides the files in the staging directory.
 #[derive(Debug, Clone)]
@@ -95,14 +95,7 @@ pub fn run(staged: &StagedDir, progress: Progress) -> Result<DemoOutput> {
         let dir = format!("captures/{}/", p.target);
         let text = scene_text(p, 2007 + i as u64);
         let scene_path = staged.final_path(&format!("{dir}scene.toml"));
-        let scene =
-            polarid_io::scene::parse(&scene_path, &text).map_err(|e| PipelineError::Data {
-                path: scene_path.display().to_string(),
-                reason: format!(
-                    "internal error: a demo scene is invalid: {}",
-                    polarid_io::error::chain_message(&e)
-                ),
-            })?;
+        let scene = steps::parse_scene(&scene_path, &text)?;
         let sim = crate::simulate::simulate_into(&scene, staged, &dir, progress)?;
         warnings.extend(sim.warnings);
         manifests.push(sim.manifest);

@@ -8,12 +8,15 @@ use polarid_core::classify::{Bench, Classifier, ClassifierConfig, DEFAULT_CONFID
 use polarid_io::atomic::StagedDir;
 use polarid_io::manifest::{self, Manifest};
 use polarid_io::model::Model;
+use polarid_io::scene::Scene;
 use polarid_io::table::classification::{self, ClassificationRow};
 use polarid_io::table::fits::{self, FitRow};
 use polarid_io::table::measurements::{self, Measurement};
 
 use super::stage;
-use crate::classify::{Comparison, classification_row, estimate_for, explain, read_fits};
+use crate::classify::{
+    Comparison, classification_row, estimate_for, explain, read_fits, same_bench,
+};
 use crate::fit::{FitConfig, fit, read_measurements};
 use crate::measure::measure;
 use crate::progress::{Progress, Warning};
@@ -48,10 +51,25 @@ pub(super) fn measure_and_fit(
         rows.extend(got.rows);
         loaded.push(man);
     }
-    let meas_path = stage(staged, "measurements.csv", |w| {
-        measurements::write(w, Path::new("measurements.csv"), &rows)
-    })?;
+    let (measurements, fits) = fit_staged(staged, &rows, progress)?;
+    Ok(Fitted {
+        manifests: loaded,
+        measurements,
+        fits,
+    })
+}
 
+/// Write `rows` to `measurements.csv`, fit that file as `polarid fit` reads it (default
+/// settings) into `fits.csv`, and re-read both: the measurements and the fits with
+/// their line numbers.
+pub(super) fn fit_staged(
+    staged: &StagedDir,
+    rows: &[Measurement],
+    progress: Progress,
+) -> Result<(Vec<(u64, Measurement)>, Vec<(u64, FitRow)>)> {
+    let meas_path = stage(staged, "measurements.csv", |w| {
+        measurements::write(w, Path::new("measurements.csv"), rows)
+    })?;
     let meas = read_measurements(&meas_path)?;
     let fit_rows = fit(
         Path::new("measurements.csv"),
@@ -63,10 +81,33 @@ pub(super) fn measure_and_fit(
     let fits_path = stage(staged, "fits.csv", |w| {
         fits::write(w, Path::new("fits.csv"), &fit_rows)
     })?;
-    Ok(Fitted {
-        manifests: loaded,
-        measurements: meas,
-        fits: read_fits(&fits_path)?,
+    Ok((meas, read_fits(&fits_path)?))
+}
+
+/// Train a model on `training` (`polarid train`) into `model.json`; the training
+/// warnings are appended to `warnings`.
+pub(super) fn train_staged(
+    staged: &StagedDir,
+    training: &[(u64, FitRow)],
+    warnings: &mut Vec<Warning>,
+) -> Result<Model> {
+    let trained = train(training, Path::new("fits.csv"), "fits.csv")?;
+    warnings.extend(trained.warnings);
+    let model = trained.model;
+    stage(staged, "model.json", |w| {
+        model.write(w, Path::new("model.json"))
+    })?;
+    Ok(model)
+}
+
+/// Parse the demo scene `text` (at `path`; an internal error when it is invalid).
+pub(super) fn parse_scene(path: &Path, text: &str) -> Result<Scene> {
+    polarid_io::scene::parse(path, text).map_err(|e| PipelineError::Data {
+        path: path.display().to_string(),
+        reason: format!(
+            "internal error: a demo scene is invalid: {}",
+            polarid_io::error::chain_message(&e)
+        ),
     })
 }
 
@@ -90,13 +131,7 @@ pub(super) fn train_and_classify(
     tests: &[(u64, FitRow)],
     warnings: &mut Vec<Warning>,
 ) -> Result<Classified> {
-    let trained = train(training, Path::new("fits.csv"), "fits.csv")?;
-    warnings.extend(trained.warnings);
-    let model = trained.model;
-    stage(staged, "model.json", |w| {
-        model.write(w, Path::new("model.json"))
-    })?;
-
+    let model = train_staged(staged, training, warnings)?;
     let clf = same_bench_classifier(&model)?;
     let cmp = Comparison {
         bench: Bench::Same,
@@ -119,13 +154,8 @@ pub(super) fn train_and_classify(
 /// The classifier `polarid classify --model` uses by default: the set rule at 95% over
 /// the model's prototypes with their same-bench (sample) covariances.
 pub fn same_bench_classifier(model: &Model) -> Result<Classifier> {
-    let bench = if model.has_sample_covariances() {
-        Bench::Same
-    } else {
-        Bench::Other
-    };
     Classifier::multi(
-        model.multi_prototypes_on(bench),
+        same_bench(model).0,
         ClassifierConfig::set(DEFAULT_CONFIDENCE),
     )
     .map_err(|e| PipelineError::Data {

@@ -39,6 +39,7 @@ use polarid_io::table::fits::FitRow;
 pub use wolff::{CATEGORIES, WolffEval, WolffItem, ratio};
 
 use crate::classify::{WolffSettings, check_classifier, group_fits, multi_estimate_of};
+use crate::error::ensure;
 use crate::{PipelineError, Result, Warning};
 
 /// Wolff's baseline as requested for an evaluation.
@@ -80,17 +81,13 @@ impl EvaluateConfig {
         check_classifier(&self.classifier)?;
         if let Some(w) = &self.wolff {
             w.settings.validate()?;
+            let why = format!(
+                "expected CLASS=CATEGORY with CATEGORY one of {}",
+                CATEGORIES.join(", ")
+            );
             for (class, cat) in &w.categories {
-                if class.trim().is_empty() || !CATEGORIES.contains(&cat.as_str()) {
-                    return Err(PipelineError::config(
-                        "wolff_category",
-                        format!("{class}={cat}"),
-                        format!(
-                            "expected CLASS=CATEGORY with CATEGORY one of {}",
-                            CATEGORIES.join(", ")
-                        ),
-                    ));
-                }
+                let ok = !class.trim().is_empty() && CATEGORIES.contains(&cat.as_str());
+                ensure(ok, "wolff_category", format!("{class}={cat}"), &why)?;
             }
         }
         Ok(())

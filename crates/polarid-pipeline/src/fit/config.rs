@@ -1,10 +1,12 @@
 //! The configuration of the fit: reflectance model, search boxes and the mixed fit's
 //! options, with the checks shared by the CLI and Python.
 
+use polarid_core::classify::Nuisances;
 use polarid_core::fit::{FitBounds, FitOptions};
 use polarid_core::mixed::{DEPOLARIZED_MAX_DOLP, MixedOptions, Shadowing};
 use polarid_core::systematic::Polarimetric;
 
+use crate::error::ensure;
 use crate::{PipelineError, Result};
 
 /// Reflectance model of the fit.
@@ -88,11 +90,7 @@ pub fn check_range(option: &str, range: (f64, f64)) -> Result<()> {
 
 /// Check a fraction in (0, 1].
 fn check_unit(option: &str, v: f64) -> Result<()> {
-    if v > 0.0 && v <= 1.0 {
-        Ok(())
-    } else {
-        Err(PipelineError::config(option, v, "must be in (0, 1]"))
-    }
+    ensure(v > 0.0 && v <= 1.0, option, v, "must be in (0, 1]")
 }
 
 /// How [`fit`](super::fit()) models the reflection; the defaults are those of `polarid fit`.
@@ -194,21 +192,17 @@ impl Default for FitConfig {
 /// Check `lo <= v < hi` (or `<= hi` when `closed`), finite.
 fn check_in(option: &str, v: f64, lo: f64, hi: f64, closed: bool) -> Result<()> {
     let ok = v.is_finite() && v >= lo && (v < hi || (closed && v == hi));
-    if ok {
-        Ok(())
-    } else {
-        let close = if closed { ']' } else { ')' };
-        Err(PipelineError::config(
-            option,
-            v,
-            format!("must be finite and in [{lo}, {hi}{close}"),
-        ))
-    }
+    let close = if closed { ']' } else { ')' };
+    ensure(
+        ok,
+        option,
+        v,
+        format!("must be finite and in [{lo}, {hi}{close}"),
+    )
 }
 
 impl FitConfig {
     /// Check every value ([`PipelineError::Config`] naming the field and value).
-    #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN-safe on purpose
     pub fn validate(&self) -> Result<()> {
         check_range("n_range", self.n_range)?;
         check_range("k_range", self.k_range)?;
@@ -221,28 +215,22 @@ impl FitConfig {
         check_in("mismatch_p", self.mismatch_p, 0.0, 1.0, false)?;
         check_in("film_sd_nm", self.film_sd_nm, 0.0, 1000.0, false)?;
         check_in("wavelength_nm", self.wavelength_nm, 100.0, 100_000.0, false)?;
-        if !(self.extinction_ratio > 1.0) {
-            return Err(PipelineError::config(
-                "extinction_ratio",
-                self.extinction_ratio,
-                "must be > 1 (inf: an ideal polarizer)",
-            ));
-        }
+        ensure(
+            self.extinction_ratio > 1.0,
+            "extinction_ratio",
+            self.extinction_ratio,
+            "must be > 1 (inf: an ideal polarizer)",
+        )?;
         if self.reflectance != Reflectance::Mixed {
-            if self.estimate_theta_r {
-                return Err(PipelineError::config(
-                    "estimate_theta_r",
-                    true,
-                    "needs reflectance mixed",
-                ));
-            }
-            if self.shadowing != Shadowing::None {
-                return Err(PipelineError::config(
-                    "shadowing",
-                    shadowing_name(self.shadowing),
-                    "needs reflectance mixed",
-                ));
-            }
+            let why = "needs reflectance mixed";
+            ensure(!self.estimate_theta_r, "estimate_theta_r", true, why)?;
+            let shadowing = shadowing_name(self.shadowing);
+            ensure(
+                self.shadowing == Shadowing::None,
+                "shadowing",
+                shadowing,
+                why,
+            )?;
         }
         Ok(())
     }
@@ -287,6 +275,13 @@ impl FitConfig {
             retardance: self.retardance_deg.to_radians(),
             film_sd_waves: self.film_sd_nm / wl,
         }
+    }
+
+    /// The hypothesis tests' nuisance bounds of this error model (the analyzer's
+    /// extinction ratio and retardance) with a direction uncertainty `angle_sd` (radians).
+    pub fn nuisances(&self, angle_sd: f64) -> Nuisances {
+        let retardance = self.retardance_deg.to_radians();
+        Nuisances::from_error_model(self.extinction_ratio, retardance, angle_sd)
     }
 
     fn bounds(&self) -> FitBounds {

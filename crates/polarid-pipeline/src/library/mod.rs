@@ -45,7 +45,7 @@ use polarid_io::surfaces::{builtin_surface, layer_index};
 
 pub use sources::default_name;
 
-use crate::error::{PipelineError, Result};
+use crate::error::{PipelineError, Result, ensure};
 use crate::progress::{Progress, Warning};
 
 /// Largest number of samples of one band mean (guards against `step = 1e-9`).
@@ -138,57 +138,43 @@ impl LibraryConfig {
         skip_missing: bool,
     ) -> Result<Self> {
         let ok = |x: f64| x.is_finite() && x > 0.0;
-        if bands.is_empty() {
-            return Err(PipelineError::config(
-                "--band",
-                "none",
-                "is needed at least once",
-            ));
-        }
+        ensure(
+            !bands.is_empty(),
+            "--band",
+            "none",
+            "is needed at least once",
+        )?;
         for (i, band) in bands.iter().enumerate() {
-            if !(ok(band.lo) && ok(band.hi) && band.lo <= band.hi) {
-                return Err(PipelineError::config(
-                    "--band",
-                    format!("{}:{}", band.lo, band.hi),
-                    "must be LO:HI with finite wavelengths 0 < LO <= HI nm",
-                ));
-            }
-            if bands[..i]
+            ensure(
+                ok(band.lo) && ok(band.hi) && band.lo <= band.hi,
+                "--band",
+                format!("{}:{}", band.lo, band.hi),
+                "must be LO:HI with finite wavelengths 0 < LO <= HI nm",
+            )?;
+            let centre = Some(band.centre());
+            let earlier = bands[..i]
                 .iter()
-                .any(|b| polarid_core::classify::same_band(Some(b.centre()), Some(band.centre())))
-            {
-                return Err(PipelineError::config(
-                    "--band",
-                    band,
-                    "has the same centre as an earlier --band",
-                ));
-            }
+                .any(|b| polarid_core::classify::same_band(Some(b.centre()), centre));
+            ensure(
+                !earlier,
+                "--band",
+                band,
+                "has the same centre as an earlier --band",
+            )?;
         }
-        if !ok(step) {
-            return Err(PipelineError::config(
-                "--step",
-                step,
-                "must be a step > 0 nm",
-            ));
-        }
+        ensure(ok(step), "--step", step, "must be a step > 0 nm")?;
         for &band in &bands {
             let (_, _, count) = samples(band, step);
-            if count as f64 > MAX_SAMPLES {
-                return Err(PipelineError::config(
-                    "--step",
-                    step,
-                    format!("gives {count} samples over the band {band} (at most {MAX_SAMPLES})"),
-                ));
-            }
+            ensure(
+                count as f64 <= MAX_SAMPLES,
+                "--step",
+                step,
+                format!("gives {count} samples over the band {band} (at most {MAX_SAMPLES})"),
+            )?;
         }
-        if let Some(c) = &category
-            && c.trim().is_empty()
-        {
-            return Err(PipelineError::config(
-                "--category",
-                format!("{c:?}"),
-                "must be a non-empty category name",
-            ));
+        if let Some(c) = &category {
+            let why = "must be a non-empty category name";
+            ensure(!c.trim().is_empty(), "--category", format!("{c:?}"), why)?;
         }
         Ok(Self {
             bands,
@@ -411,10 +397,10 @@ pub fn build_library(
         let reference = m.reference.or_else(|| Some(s.rel.display().to_string()));
         let layer = surface_layer(m.layer, s, &name);
         for (band, n, k) in rows {
-            let layer = match &layer {
-                None => None,
-                Some(l) => Some(layer_in_band(l, band, cfg, s, &mut out.warnings)?),
-            };
+            let layer = layer
+                .as_ref()
+                .map(|l| layer_in_band(l, band, cfg, s, &mut out.warnings))
+                .transpose()?;
             out.materials.push(Material {
                 name: name.clone(),
                 category: category.clone(),
@@ -428,13 +414,8 @@ pub fn build_library(
         }
     }
     progress("files", srcs.len() as u64, srcs.len() as u64);
-    if out.materials.is_empty() {
-        return Err(PipelineError::config(
-            "--band",
-            cfg.band(),
-            "is covered by no input file (every file was skipped)",
-        ));
-    }
+    let why = "is covered by no input file (every file was skipped)";
+    ensure(!out.materials.is_empty(), "--band", cfg.band(), why)?;
     out.files = srcs.into_iter().map(|s| s.path).collect();
     Ok(out)
 }

@@ -39,7 +39,8 @@ use polarid_io::model::Model;
 use rayon::prelude::*;
 
 use super::{MapConfig, Rule};
-use crate::classify::PrototypeSource;
+use crate::classify::bench::no_sample_covariances;
+use crate::classify::{PrototypeSource, same_bench};
 use crate::error::{PipelineError, Result};
 use crate::progress::Warning;
 
@@ -133,18 +134,11 @@ pub(crate) fn decision(
         MapPrototypes::Model { model, path } => {
             // `classify`'s choice (`prototypes_for`), on the model in memory.
             if cfg.rule == Rule::Set && cfg.bench == Bench::Same {
-                if model.has_sample_covariances() {
-                    (model.multi_prototypes_on(Bench::Same), true)
-                } else {
-                    warnings.push(Warning(format!(
-                        "model {} has no sample covariances (trained on fits without \
-                         n_se_sample, k_se_sample, nk_corr_sample): compared as a model from \
-                         another bench, with the systematic errors on both sides; retrain it \
-                         on fits from this polarid for the same-bench comparison",
-                        path.display()
-                    )));
-                    (model.multi_prototypes(), false)
+                let (protos, cmp) = same_bench(model);
+                if !cmp.same {
+                    warnings.push(no_sample_covariances(path));
                 }
+                (protos, cmp.same)
             } else {
                 (model.multi_prototypes(), false)
             }

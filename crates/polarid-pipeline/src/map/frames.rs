@@ -20,9 +20,7 @@ use polarid_io::IoError;
 
 use super::bands::{self, BandDolp, BandsFit, FitGeometry};
 use super::rules::min_s0_for;
-use super::{
-    MapConfig, MapPrototypes, Rule, Weights, decide, nearest_classifier, pixel_classifier,
-};
+use super::{MapConfig, MapPrototypes, Weights, answer, decide};
 use crate::error::{PipelineError, Result};
 
 /// How a block's captures were taken.
@@ -230,22 +228,6 @@ pub fn frames_class_names(
     Ok(match answer(cfg, src, &decision, colour)? {
         Some(pc) => pc.names().to_vec(),
         None => decision.class_names,
-    })
-}
-
-/// A single-band map under `--rule nearest` answers in the fit (as `map_manifest_from`).
-fn answer(
-    cfg: &MapConfig,
-    src: MapPrototypes<'_>,
-    decision: &decide::Decision,
-    colour: bool,
-) -> Result<Option<polarid_core::map::PixelClassifier>> {
-    Ok(match (colour, cfg.rule, src) {
-        (false, Rule::Nearest, MapPrototypes::Model { model, path }) => {
-            Some(pixel_classifier(cfg, model, path)?)
-        }
-        (false, Rule::Nearest, _) => Some(nearest_classifier(cfg, decision, &src.label())?),
-        _ => None,
     })
 }
 

@@ -70,7 +70,7 @@ pub use frames::{Frames, FramesSource, band_order, frames_bands, frames_class_na
 pub use polarid_core::map::reason::NAMES as REASON_NAMES;
 pub use summary::RegionSummary;
 
-use crate::error::{PipelineError, Result};
+use crate::error::{PipelineError, Result, ensure};
 use crate::progress::{Progress, Warning};
 
 /// Distance to the prototypes: the classifier's metric (Euclidean in `(n, k)`, the
@@ -178,30 +178,15 @@ impl MapConfig {
         metric: Metric,
         tile: usize,
     ) -> Result<Self> {
-        if bin == 0 || bin > 64 {
-            return Err(PipelineError::config("--bin", bin, "must be in 1..=64"));
+        ensure((1..=64).contains(&bin), "--bin", bin, "must be in 1..=64")?;
+        if let Some(v) = min_s0 {
+            ensure(v.is_finite(), "--min-s0", v, "must be a finite number")?;
         }
-        if let Some(v) = min_s0
-            && !v.is_finite()
-        {
-            return Err(PipelineError::config(
-                "--min-s0",
-                v,
-                "must be a finite number",
-            ));
+        if let Some(d) = max_distance {
+            let ok = d.is_finite() && d > 0.0;
+            ensure(ok, "--max-distance", d, "must be finite and > 0")?;
         }
-        if let Some(d) = max_distance
-            && !(d.is_finite() && d > 0.0)
-        {
-            return Err(PipelineError::config(
-                "--max-distance",
-                d,
-                "must be finite and > 0",
-            ));
-        }
-        if tile == 0 {
-            return Err(PipelineError::config("--tile", tile, "must be at least 1"));
-        }
+        ensure(tile > 0, "--tile", tile, "must be at least 1")?;
         Ok(Self {
             bin,
             min_s0,
@@ -219,13 +204,8 @@ impl MapConfig {
     /// The decision rule and the set's confidence (in `(0, 1)`; error naming
     /// `--confidence`). The set rule ignores `max_distance` and `metric`.
     pub fn with_rule(mut self, rule: Rule, confidence: f64) -> Result<Self> {
-        if !(confidence > 0.0 && confidence < 1.0) {
-            return Err(PipelineError::config(
-                "--confidence",
-                confidence,
-                "must be in (0, 1)",
-            ));
-        }
+        let ok = confidence > 0.0 && confidence < 1.0;
+        ensure(ok, "--confidence", confidence, "must be in (0, 1)")?;
         self.rule = rule;
         self.confidence = confidence;
         Ok(self)
@@ -453,13 +433,7 @@ pub fn map_manifest_from(
     let wavelengths: Vec<Option<f64>> = bands.iter().map(|b| b.wavelength()).collect();
     let decision = decide::decision(cfg, src, &wavelengths)?;
     let colour = is_colour(m);
-    let answer = match (colour, cfg.rule, src) {
-        (false, Rule::Nearest, MapPrototypes::Model { model, path }) => {
-            Some(pixel_classifier(cfg, model, path)?)
-        }
-        (false, Rule::Nearest, _) => Some(nearest_classifier(cfg, &decision, &src.label())?),
-        _ => None,
-    };
+    let answer = answer(cfg, src, &decision, colour)?;
     let calibrated = m.camera.is_some();
     let weighted = decide::weighted(cfg, calibrated, src.tests_rows(cfg));
     let far_betas: Vec<f64> = m
@@ -590,6 +564,23 @@ fn dolp_stage(
     };
     bands.iter_mut().for_each(|b| b.finish(calibrated));
     Ok((d, thresholds))
+}
+
+/// The classifier that answers in the fit: a single-band map's under `--rule nearest`
+/// (`map_manifest_from`, `map_frames`).
+fn answer(
+    cfg: &MapConfig,
+    src: MapPrototypes<'_>,
+    decision: &decide::Decision,
+    colour: bool,
+) -> Result<Option<PixelClassifier>> {
+    Ok(match (colour, cfg.rule, src) {
+        (false, Rule::Nearest, MapPrototypes::Model { model, path }) => {
+            Some(pixel_classifier(cfg, model, path)?)
+        }
+        (false, Rule::Nearest, _) => Some(nearest_classifier(cfg, decision, &src.label())?),
+        _ => None,
+    })
 }
 
 /// The paper's nearest prototype among the first band of `decision`'s prototypes (a

@@ -3,30 +3,27 @@
 
 use polarid_core::stokes::PixelRules;
 
-use crate::error::{PipelineError, Result};
+use crate::error::{Result, ensure};
 
 /// Check a dark level (DN, finite and `>= 0`) and an optional saturation level (finite
 /// and above the dark level). Errors are [`PipelineError::Config`] naming
 /// `--dark-level` or `--saturation` (the Python bindings show them as `dark_level`,
 /// `saturation`).
 pub fn check_levels(dark_level: f64, saturation: Option<f64>) -> Result<()> {
-    if !(0.0..=f32::MAX as f64).contains(&dark_level) {
-        return Err(PipelineError::config(
-            "--dark-level",
-            dark_level,
-            "must be a finite number >= 0 within the float32 range",
-        ));
-    }
-    if let Some(s) = saturation
-        && (!s.is_finite() || s <= dark_level || s > f32::MAX as f64)
-    {
-        return Err(PipelineError::config(
-            "--saturation",
-            s,
-            "must be a finite number above the dark level",
-        ));
-    }
-    Ok(())
+    ensure(
+        (0.0..=f32::MAX as f64).contains(&dark_level),
+        "--dark-level",
+        dark_level,
+        "must be a finite number >= 0 within the float32 range",
+    )?;
+    let Some(s) = saturation else { return Ok(()) };
+    let ok = s.is_finite() && s > dark_level && s <= f32::MAX as f64;
+    ensure(
+        ok,
+        "--saturation",
+        s,
+        "must be a finite number above the dark level",
+    )
 }
 
 /// The map's dark threshold (DN) for a capture's frames: `min_s0` when given, else 1 %
