@@ -6,13 +6,13 @@
 //!    any real dtype, converted to float64 by numpy only when needed);
 //! 2. compute the common shape with [`broadcast_shape`] and get zero-copy broadcast views
 //!    with [`broadcast_to`] while still attached to the interpreter;
-//! 3. inside `py.detach(|| ...)` (the GIL released): validate the inputs, allocate the
-//!    outputs as owned `ndarray` arrays and fill them with an `ndarray::Zip`, in parallel
-//!    (`par_for_each`) when the output has at least [`PAR_MIN_LEN`] elements;
+//! 3. inside `py.detach(|| ...)` (the GIL released): validate the inputs, then compute
+//!    the outputs as owned `ndarray` arrays with [`map3`] (an `ndarray::Zip`, in parallel
+//!    (`par_for_each`) when the output has at least [`PAR_MIN_LEN`] elements);
 //! 4. convert the `CoreError` with `errors::PyResultExt::py_err` and hand the outputs to
 //!    numpy without a copy with [`to_python`] (a Python `float` when the result is 0-d).
 
-use ndarray::{ArrayD, ArrayViewD, IxDyn};
+use ndarray::{ArrayD, ArrayViewD, IxDyn, Zip};
 use numpy::{
     AllowTypeChange, IntoPyArray, PyArrayLikeDyn, PyReadonlyArrayDyn, PyUntypedArrayMethods,
 };
@@ -72,6 +72,25 @@ pub fn broadcast_all<'a>(
     let views = args.iter().map(|(n, v)| broadcast_to(n, v, &shape));
     let views = views.collect::<PyResult<_>>()?;
     Ok((shape, views))
+}
+
+/// `f(a, b, c)` of every element of three views of `shape`: its `M` results as `M` new
+/// arrays, computed in parallel when they have at least [`PAR_MIN_LEN`] elements.
+pub fn map3<const M: usize>(
+    shape: &[usize],
+    [a, b, c]: [&ArrayViewD<'_, f64>; 3],
+    f: impl Fn(f64, f64, f64) -> [f64; M] + Sync + Send,
+) -> [ArrayD<f64>; M] {
+    let mut out = ArrayD::from_elem(IxDyn(shape), [0.0; M]);
+    let len = out.len();
+    let z = Zip::from(&mut out).and(a).and(b).and(c);
+    let g = |o: &mut [f64; M], &a: &f64, &b: &f64, &c: &f64| *o = f(a, b, c);
+    if len >= PAR_MIN_LEN {
+        z.par_for_each(g);
+    } else {
+        z.for_each(g);
+    }
+    std::array::from_fn(|j| out.map(|o| o[j]))
 }
 
 /// Apply a check (e.g. `polarid_core::error::ensure_range`) to every element; the first

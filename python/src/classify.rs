@@ -88,18 +88,19 @@ fn prototype_source(obj: Option<&Bound<'_, PyAny>>) -> PyResult<PrototypeSource>
     Ok(PrototypeSource::List(out, "the prototypes".into()))
 }
 
-/// The classifier settings of `rule` (`set_rule`) and the nearest rule's options,
-/// checked as `polarid classify` checks them (errors name the option).
+/// The nearest rule's options as Python names them: `metric`, `neighbours`, `reject`,
+/// `max_distance`.
+type NearestArgs<'a> = (Option<&'a str>, usize, Option<f64>, Option<f64>);
+
+/// The classifier settings of `rule` and the nearest rule's options, checked as
+/// `polarid classify` checks them (errors name the option).
 fn classifier_config(
-    set_rule: bool,
+    rule: Rule,
     confidence: f64,
-    metric: Option<&str>,
-    neighbours: usize,
-    reject: Option<f64>,
-    max_distance: Option<f64>,
+    (metric, neighbours, reject, max_distance): NearestArgs<'_>,
 ) -> PyResult<ClassifierConfig> {
     ClassifierOptions {
-        rule: if set_rule { Rule::Set } else { Rule::Nearest },
+        rule,
         confidence,
         metric: metric.map(options::parse_metric).transpose().py_err()?,
         neighbours,
@@ -108,11 +109,6 @@ fn classifier_config(
     }
     .config()
     .py_err()
-}
-
-/// `rule` as the set rule (`true`) or the nearest rule.
-fn parse_rule(rule: &str) -> PyResult<bool> {
-    Ok(options::parse_rule(rule).py_err()? == Rule::Set)
 }
 
 /// A wavelength checked as `polarid classify --wavelength-nm` checks it.
@@ -324,25 +320,14 @@ pub fn classify<'py>(
     max_distance: Option<f64>,
     strings: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let set_rule = match rule {
-        Some(r) => parse_rule(r)?,
-        None => {
-            n_se.is_some()
-                && k_se.is_some()
-                && metric.is_none()
-                && neighbours == 1
-                && reject.is_none()
-                && max_distance.is_none()
-        }
+    let nearest = (metric, neighbours, reject, max_distance);
+    let rule = match rule {
+        Some(r) => options::parse_rule(r).py_err()?,
+        // The set rule needs standard errors and takes no nearest-rule option.
+        None if n_se.is_some() && k_se.is_some() && nearest == (None, 1, None, None) => Rule::Set,
+        None => Rule::Nearest,
     };
-    let cfg = classifier_config(
-        set_rule,
-        confidence,
-        metric,
-        neighbours,
-        reject,
-        max_distance,
-    )?;
+    let cfg = classifier_config(rule, confidence, nearest)?;
     let source = prototype_source(library_or_model)?;
     let (nv, kv) = (n.as_array(), k.as_array());
     let sn = n_se.as_ref().map(|x| x.as_array());
@@ -790,14 +775,8 @@ pub fn classify_table<'py>(
     reject: Option<f64>,
     max_distance: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let classifier = classifier_config(
-        parse_rule(rule)?,
-        confidence,
-        metric,
-        neighbours,
-        reject,
-        max_distance,
-    )?;
+    let nearest = (metric, neighbours, reject, max_distance);
+    let classifier = classifier_config(options::parse_rule(rule).py_err()?, confidence, nearest)?;
     let cfg = ClassifyConfig {
         classifier,
         wavelength_nm,

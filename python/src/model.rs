@@ -1,14 +1,13 @@
 //! The forward model: degree of linear polarization of specular reflection, paper
 //! eq. (9), and its gradient, on numpy arrays with broadcasting.
 
-use ndarray::{ArrayD, ArrayViewD, IxDyn, Zip};
+use ndarray::{ArrayD, ArrayViewD};
 use polarid_core::CoreError;
-use polarid_core::dop::{BetaTerms, DopGrad, dop_grad_terms, dop_terms};
+use polarid_core::dop::{BetaTerms, dop_grad_terms, dop_terms};
 use polarid_core::error::{ensure_finite, ensure_range};
 use pyo3::prelude::*;
-use pyo3::types::PyTuple;
 
-use crate::arrays::{F64Like, PAR_MIN_LEN, broadcast_all, check_each, to_python};
+use crate::arrays::{F64Like, broadcast_all, check_each, map3, to_python};
 use crate::errors::PyResultExt;
 
 /// Register this module's functions.
@@ -78,31 +77,32 @@ fn check_inputs(
 /// The GIL is released during the computation; large arrays use all cores.
 #[pyfunction]
 pub fn dolp_model<'py>(
-    py: Python<'py>,
     n: F64Like<'py>,
     k: F64Like<'py>,
     beta_deg: F64Like<'py>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    let [p] = eval(&n, &k, &beta_deg, |n, k, b| [dop_terms(n, k, b)])?;
+    to_python(n.py(), p)
+}
+
+/// `f(n, k, β)` of every element of the broadcast inputs (checked by [`check_inputs`]),
+/// the GIL released.
+fn eval<const M: usize>(
+    n: &F64Like<'_>,
+    k: &F64Like<'_>,
+    beta_deg: &F64Like<'_>,
+    f: fn(f64, f64, &BetaTerms) -> [f64; M],
+) -> PyResult<[ArrayD<f64>; M]> {
     let (nv, kv, bv) = (n.as_array(), k.as_array(), beta_deg.as_array());
     let (shape, b) = broadcast_all(&[("n", &nv), ("k", &kv), ("beta_deg", &bv)])?;
-    let out = py
-        .detach(|| -> Result<ArrayD<f64>, CoreError> {
+    n.py()
+        .detach(|| -> Result<_, CoreError> {
             check_inputs(&nv, &kv, &bv)?;
-            let mut p = ArrayD::<f64>::zeros(IxDyn(&shape));
-            let len = p.len();
-            let z = Zip::from(&mut p).and(&b[0]).and(&b[1]).and(&b[2]);
-            let f = |p: &mut f64, &n: &f64, &k: &f64, &b: &f64| {
-                *p = dop_terms(n, k, &BetaTerms::new(b.to_radians()));
-            };
-            if len >= PAR_MIN_LEN {
-                z.par_for_each(f);
-            } else {
-                z.for_each(f);
-            }
-            Ok(p)
+            Ok(map3(&shape, [&b[0], &b[1], &b[2]], |n, k, b| {
+                f(n, k, &BetaTerms::new(b.to_radians()))
+            }))
         })
-        .py_err()?;
-    to_python(py, out)
+        .py_err()
 }
 
 /// Eq. (9) and its analytic gradient: returns (P, dP/dn, dP/dk).
@@ -119,39 +119,14 @@ pub fn dolp_model<'py>(
 ///     P, dP/dn, dP/dk, each of the broadcast shape.
 #[pyfunction]
 pub fn dolp_model_grad<'py>(
-    py: Python<'py>,
     n: F64Like<'py>,
     k: F64Like<'py>,
     beta_deg: F64Like<'py>,
-) -> PyResult<Bound<'py, PyTuple>> {
-    let (nv, kv, bv) = (n.as_array(), k.as_array(), beta_deg.as_array());
-    let (shape, b) = broadcast_all(&[("n", &nv), ("k", &kv), ("beta_deg", &bv)])?;
-    let [p, dn, dk] = py
-        .detach(|| -> Result<[ArrayD<f64>; 3], CoreError> {
-            check_inputs(&nv, &kv, &bv)?;
-            let dim = IxDyn(&shape);
-            let mut p = ArrayD::<f64>::zeros(dim.clone());
-            let mut dn = ArrayD::<f64>::zeros(dim.clone());
-            let mut dk = ArrayD::<f64>::zeros(dim);
-            let len = p.len();
-            let z = Zip::from(&mut p)
-                .and(&mut dn)
-                .and(&mut dk)
-                .and(&b[0])
-                .and(&b[1])
-                .and(&b[2]);
-            let f = |p: &mut f64, dn: &mut f64, dk: &mut f64, &n: &f64, &k: &f64, &b: &f64| {
-                let DopGrad { p: v, dp_dn, dp_dk } =
-                    dop_grad_terms(n, k, &BetaTerms::new(b.to_radians()));
-                (*p, *dn, *dk) = (v, dp_dn, dp_dk);
-            };
-            if len >= PAR_MIN_LEN {
-                z.par_for_each(f);
-            } else {
-                z.for_each(f);
-            }
-            Ok([p, dn, dk])
-        })
-        .py_err()?;
-    (to_python(py, p)?, to_python(py, dn)?, to_python(py, dk)?).into_pyobject(py)
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let [p, dn, dk] = eval(&n, &k, &beta_deg, |n, k, b| {
+        let g = dop_grad_terms(n, k, b);
+        [g.p, g.dp_dn, g.dp_dk]
+    })?;
+    let py = n.py();
+    Ok((to_python(py, p)?, to_python(py, dn)?, to_python(py, dk)?))
 }

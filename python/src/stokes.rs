@@ -1,7 +1,7 @@
 //! Stokes images from polarizer frames and DoFP mosaics, and the DoLP / AoLP images
 //! (`polarid_core::stokes`, `polarid_core::mosaic`), on numpy arrays.
 
-use ndarray::{ArrayD, Axis, IxDyn, Zip};
+use ndarray::{Axis, IxDyn};
 use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
 use polarid_core::CoreError;
 use polarid_core::mosaic::{self, DofpMethod, DofpOutputs, IntSample, Pattern};
@@ -10,9 +10,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 use rayon::prelude::*;
 
-use crate::arrays::{
-    FloatArray, PAR_MIN_LEN, RawArray, float_array, fmt_shape, raw_array, to_numpy,
-};
+use crate::arrays::{FloatArray, RawArray, float_array, fmt_shape, map3, raw_array, to_numpy};
 use crate::errors::{PyResultExt, value_error};
 use crate::with_raw;
 use polarid_pipeline::map::rules::check_levels;
@@ -703,25 +701,13 @@ fn polar<'py>(
         FloatArray::F64(a) => {
             let shape = shape_of!(a);
             let v = a.as_array();
-            let (d, g) = py.detach(|| {
-                let mut d = ArrayD::<f64>::zeros(IxDyn(&shape));
-                let mut g = ArrayD::<f64>::zeros(IxDyn(&shape));
-                let (s0, s1, s2) = (
-                    v.index_axis(Axis(0), 0),
-                    v.index_axis(Axis(0), 1),
-                    v.index_axis(Axis(0), 2),
-                );
-                let len = d.len();
-                let z = Zip::from(&mut d).and(&mut g).and(&s0).and(&s1).and(&s2);
-                let f = |d: &mut f64, g: &mut f64, &s0: &f64, &s1: &f64, &s2: &f64| {
-                    (*d, *g) = dolp_aolp_f64(s0, s1, s2);
-                };
-                if len >= PAR_MIN_LEN {
-                    z.par_for_each(f);
-                } else {
-                    z.for_each(f);
-                }
-                (d, g)
+            let [d, g] = py.detach(|| {
+                let s = |i| v.index_axis(Axis(0), i);
+                let (s0, s1, s2) = (s(0), s(1), s(2));
+                map3(&shape, [&s0, &s1, &s2], |s0, s1, s2| {
+                    let (d, g) = dolp_aolp_f64(s0, s1, s2);
+                    [d, g]
+                })
             });
             Ok((to_numpy(py, d), to_numpy(py, g)))
         }
