@@ -356,16 +356,8 @@ impl<'a> Drawn<'a> {
                     .t
                     .fits
                     .iter()
-                    .filter(|f| f.target == *name)
-                    .filter_map(|f| {
-                        Some(SpectrumPoint {
-                            wavelength_nm: f.wavelength_nm?,
-                            n: f.n,
-                            k: f.k,
-                            n_se: Some(f.n_se),
-                            k_se: Some(f.k_se),
-                        })
-                    })
+                    .filter(|f| f.target == *name && f.wavelength_nm.is_some())
+                    .map(SpectrumPoint::of_fit)
                     .collect(),
                 curve: Vec::new(),
             })
@@ -382,13 +374,11 @@ impl<'a> Drawn<'a> {
                     .filter_map(|&w| {
                         let v: Vec<(f64, f64)> =
                             members.iter().filter_map(|p| band_nk(p, Some(w))).collect();
-                        (!v.is_empty()).then(|| SpectrumPoint {
-                            wavelength_nm: w,
-                            n: v.iter().map(|x| x.0).sum::<f64>() / v.len() as f64,
-                            k: v.iter().map(|x| x.1).sum::<f64>() / v.len() as f64,
-                            n_se: None,
-                            k_se: None,
-                        })
+                        let mean = |x: fn(&(f64, f64)) -> f64| {
+                            v.iter().map(x).sum::<f64>() / v.len() as f64
+                        };
+                        (!v.is_empty())
+                            .then(|| SpectrumPoint::bare(w, mean(|x| x.0), mean(|x| x.1)))
                     })
                     .collect();
                 let curve = match refs {
@@ -427,14 +417,14 @@ impl<'a> Drawn<'a> {
     }
 }
 
-/// A report of the tables with `figs` (files under `plots/`).
+/// The report of `polarid COMMAND INPUT`: the tables with `figs` (files under `plots/`)
+/// and the `inputs`.
 pub fn report(
-    title: String,
-    summary: Vec<String>,
+    command: &str,
+    input: &Path,
     inputs: Vec<report::InputItem>,
     t: &Tables,
     figs: &[ColourFigure],
-    generator: String,
 ) -> Report {
     let estimates = t
         .fits
@@ -449,22 +439,28 @@ pub fn report(
         .collect();
     let numbered: Vec<(u64, FitRow)> = t.fits.iter().map(|f| (0, f.clone())).collect();
     Report {
-        title,
-        summary,
+        title: format!("polarid {command}: {}", input.display()),
+        summary: vec![describe(t.fits)],
         inputs,
         estimates,
         classification: super::demo::report_classification(&numbered, t.classification, None),
         figures: super::colour_demo::report_figures(figs),
-        generator,
+        generator: format!("polarid {} {command}", env!("CARGO_PKG_VERSION")),
         ..Default::default()
     }
 }
 
 /// Write `dir/report.html`, `dir/report.md` and `dir/plots/STEM.{png,svg}`, staged (a
-/// failure leaves nothing behind; existing files are replaced only with `force`).
-/// Returns the written files.
-pub fn write(dir: &Path, force: bool, rep: &Report, figs: &[ColourFigure]) -> Result<Vec<PathBuf>> {
-    let staged = polarid_io::atomic::StagedDir::new(dir, force)?;
+/// failure leaves nothing behind; existing files are replaced only with `--force`), and
+/// say so (`polarid COMMAND: report written to DIR`).
+pub fn write(
+    dir: &Path,
+    ctx: &crate::Ctx,
+    command: &str,
+    rep: &Report,
+    figs: &[ColourFigure],
+) -> Result<()> {
+    let staged = polarid_io::atomic::StagedDir::new(dir, ctx.force)?;
     for f in figs {
         let png = staged.path(&format!("plots/{}.png", f.stem))?;
         let sub = png.parent().map(Path::to_path_buf).unwrap_or_default();
@@ -473,7 +469,12 @@ pub fn write(dir: &Path, force: bool, rep: &Report, figs: &[ColourFigure]) -> Re
     let html = staged.path("report.html")?;
     let root = html.parent().map(Path::to_path_buf).unwrap_or_default();
     rep.write(&root, "report")?;
-    Ok(staged.commit()?)
+    staged.commit()?;
+    ctx.info(format!(
+        "polarid {command}: report written to {}",
+        dir.display()
+    ));
+    Ok(())
 }
 
 /// `--report DIR` of `classify` (docs/BANDS.md, "Per-band plots of your data").
@@ -601,17 +602,8 @@ pub fn write_fit_report(
         input.display().to_string(),
         format!("{} row(s)", meas.len()),
     )];
-    let rep = report(
-        format!("polarid fit: {}", input.display()),
-        vec![describe(fits)],
-        inputs,
-        &t,
-        &figs,
-        format!("polarid {} fit", env!("CARGO_PKG_VERSION")),
-    );
-    write(dir, ctx.force, &rep, &figs)?;
-    ctx.info(format!("polarid fit: report written to {}", dir.display()));
-    Ok(())
+    let rep = report("fit", input, inputs, &t, &figs);
+    write(dir, ctx, "fit", &rep, &figs)
 }
 
 /// The hypothesis tests' tables of `classify MEASUREMENTS.csv`: the in-scene
@@ -756,22 +748,10 @@ pub fn write_classify_report(
             format!("{} prototype(s)", refs.profiles.len()),
         ),
     ];
-    let mut rep = report(
-        format!("polarid classify: {}", input.display()),
-        vec![describe(fits)],
-        inputs,
-        &t,
-        &figs,
-        format!("polarid {} classify", env!("CARGO_PKG_VERSION")),
-    );
+    let mut rep = report("classify", input, inputs, &t, &figs);
     rep.tables
         .extend(hypothesis_tables(&out.hypotheses, out.calibration.as_ref()));
-    write(dir, ctx.force, &rep, &figs)?;
-    ctx.info(format!(
-        "polarid classify: report written to {}",
-        dir.display()
-    ));
-    Ok(())
+    write(dir, ctx, "classify", &rep, &figs)
 }
 
 #[cfg(test)]
@@ -817,16 +797,23 @@ mod tests {
         figs.iter().map(|f| f.stem.as_str()).collect()
     }
 
+    /// The figures of measurements and fits (no classification) against `builtin-rgb`,
+    /// and those references.
+    fn figures_of(ms: &[Measurement], fs: &[FitRow]) -> (References, Vec<ColourFigure>) {
+        let t = Tables {
+            measurements: ms,
+            fits: fs,
+            classification: &[],
+        };
+        let refs = library_references("builtin-rgb", fs).unwrap();
+        let figs = figures(&t, Some(&refs), "test").unwrap();
+        (refs, figs)
+    }
+
     #[test]
     fn multi_band_tables_draw_one_panel_per_band() {
         let (ms, fs) = tables(&[Some(650.0), Some(450.0), Some(550.0)]);
-        let t = Tables {
-            measurements: &ms,
-            fits: &fs,
-            classification: &[],
-        };
-        let refs = library_references("builtin-rgb", &fs).unwrap();
-        let figs = figures(&t, Some(&refs), "test").unwrap();
+        let (refs, figs) = figures_of(&ms, &fs);
         assert_eq!(stems(&figs), ["dolp_bands", "nk_bands", "nk_spectra"]);
         for f in &figs[..2] {
             for w in ["450", "550", "650"] {
@@ -847,6 +834,11 @@ mod tests {
             assert!(f.plot.svg.contains("plate_cu") && f.plot.svg.contains("plate_au"));
         }
         // The nearest built-in materials are the references, with their curves.
+        let t = Tables {
+            measurements: &ms,
+            fits: &fs,
+            classification: &[],
+        };
         let classes = relevant_classes(&t, &refs);
         assert!(classes.contains(&"copper".to_string()), "{classes:?}");
         assert!(figs[2].plot.svg.contains("copper"));
@@ -864,13 +856,7 @@ mod tests {
     fn single_band_tables_draw_the_single_band_figures() {
         for band in [None, Some(650.0)] {
             let (ms, fs) = tables(&[band]);
-            let t = Tables {
-                measurements: &ms,
-                fits: &fs,
-                classification: &[],
-            };
-            let refs = library_references("builtin-rgb", &fs).unwrap();
-            let figs = figures(&t, Some(&refs), "test").unwrap();
+            let (refs, figs) = figures_of(&ms, &fs);
             assert_eq!(stems(&figs), ["dolp_vs_beta", "nk_plane"]);
             assert!(figs.iter().all(|f| !f.plot.svg.contains("λ = ")));
             // Fits without a wavelength are compared with the 650 nm values.
