@@ -83,7 +83,7 @@ pub(crate) struct CaptureBand {
 }
 
 impl CaptureBand {
-    fn new(wavelength_nm: Option<f64>, d: Dims, weighted: bool) -> Self {
+    pub(super) fn new(wavelength_nm: Option<f64>, d: Dims, weighted: bool) -> Self {
         let n = d.out_w * d.out_h;
         Self {
             wavelength_nm,
@@ -94,7 +94,7 @@ impl CaptureBand {
     }
 
     /// The outputs of a DoLP kernel; `scale` converts the capture's signal to DN.
-    fn outputs<'a>(
+    pub(super) fn outputs<'a>(
         &'a mut self,
         analyzer: &'a NoiseAnalyzer,
         scale: f64,
@@ -138,18 +138,18 @@ fn read_mosaic(
 /// the block mean at `min_s0`, `scale` converting the signal to DN for the noise model,
 /// the binning, and whether the noise terms are kept.
 #[derive(Debug, Clone, Copy)]
-struct StokesBinning {
-    d: Dims,
-    min_s0: f32,
-    scale: f64,
-    bin: usize,
-    weighted: bool,
+pub(super) struct StokesBinning {
+    pub d: Dims,
+    pub min_s0: f32,
+    pub scale: f64,
+    pub bin: usize,
+    pub weighted: bool,
 }
 
 impl StokesBinning {
     /// One band's binned DoLP from its Stokes images `s` (`mask`: the mosaic's per-pixel
     /// flags).
-    fn band(
+    pub(super) fn band(
         &self,
         wavelength_nm: Option<f64>,
         s: [&[f32]; 3],
