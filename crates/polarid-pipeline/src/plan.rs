@@ -671,8 +671,7 @@ fn angles(bench: &Bench, p: &PlateView, src: &SourceSpec) -> Option<(f64, f64, f
                     let r2 = dot(d, d);
                     (unit(d), 1.0 / r2)
                 }
-                SourceSpec::Direction(d) => (unit(*d), 1.0),
-                SourceSpec::Sun { direction, .. } => (unit(*direction), 1.0),
+                SourceSpec::Direction(d) | SourceSpec::Sun { direction: d, .. } => (unit(*d), 1.0),
             };
             let ci = dot(l, p.normal);
             let cr = dot(v, p.normal);

@@ -520,9 +520,6 @@ fn specular(
             status,
             reason,
             model: "specular".into(),
-            sigma: None,
-            rho_d: None,
-            theta_r_deg: None,
             n_se_noise: Some(f.n_se),
             k_se_noise: Some(f.k_se),
             nk_corr_noise: Some(f.nk_corr),
@@ -532,6 +529,7 @@ fn specular(
             k_se_sample: err.sample.map(|c| c.1),
             nk_corr_sample: err.sample.map(|c| c.2),
             film: err.film,
+            ..FitRow::default()
         },
         report: None,
     })

@@ -257,6 +257,10 @@ fn band_means(
     out: &mut LibraryBuild,
 ) -> Result<Vec<(Band, f64, f64)>> {
     let (lo_um, hi_um) = data.range_um();
+    let model_err = |reason| -> PipelineError {
+        let path = s.path.clone();
+        IoError::Model { path, reason }.into()
+    };
     let mut rows: Vec<(Band, f64, f64)> = Vec::new();
     for &band in &cfg.bands {
         let (first, last, _) = samples(band, cfg.step);
@@ -273,22 +277,16 @@ fn band_means(
                 out.skipped += 1;
                 continue;
             }
-            return Err(IoError::Model {
-                path: s.path.clone(),
-                reason: format!("{what}; choose another band or pass --skip-missing"),
-            }
-            .into());
+            return Err(model_err(format!(
+                "{what}; choose another band or pass --skip-missing"
+            )));
         }
         let (n, k) = data.band_mean(band.lo, band.hi, cfg.step)?;
         if !(n > 0.0 && k >= 0.0) {
-            return Err(IoError::Model {
-                path: s.path.clone(),
-                reason: format!(
-                    "band mean n = {n}, k = {k} over {band} is not a usable index \
-                     (need n > 0, k >= 0)"
-                ),
-            }
-            .into());
+            return Err(model_err(format!(
+                "band mean n = {n}, k = {k} over {band} is not a usable index \
+                 (need n > 0, k >= 0)"
+            )));
         }
         rows.push((band, n, k));
     }
