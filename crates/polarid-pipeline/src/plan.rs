@@ -873,11 +873,6 @@ impl Models {
             .collect()
     }
 
-    /// Target `t`'s rows at `positions`, every band.
-    fn rows(&self, positions: &[&Position], t: usize) -> Vec<PlanRow> {
-        self.rows_of(positions, t, None)
-    }
-
     fn pair(
         &self,
         positions: &[&Position],
@@ -909,7 +904,7 @@ impl Models {
         alt: usize,
         grid: &[TruthPoint],
     ) -> Result<(f64, TruthPoint)> {
-        let rows = self.rows(positions, t);
+        let rows = self.rows_of(positions, t, None);
         let (lambda, dof, at) = worst_case(
             &rows,
             &self.wavelengths,

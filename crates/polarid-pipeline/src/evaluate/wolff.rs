@@ -28,11 +28,9 @@ impl Categories {
     fn new(req: &WolffEvalRequest, model: Option<(&Path, &[Prototype])>) -> Result<Self> {
         let mut sources = Vec::new();
         if !req.categories.is_empty() {
-            let mut m = BTreeMap::new();
-            for (class, cat) in &req.categories {
-                m.insert(name_key(class), cat.trim().to_string());
-            }
-            sources.push(("--wolff-category".to_string(), m));
+            let given = req.categories.iter();
+            let m = given.map(|(class, cat)| (name_key(class), cat.trim().to_string()));
+            sources.push(("--wolff-category".to_string(), m.collect()));
         }
         let keyed = |protos: &[Prototype]| {
             let mut m = BTreeMap::new();
@@ -150,10 +148,7 @@ pub(super) fn score(
         }
         let decision = data.decide(&it.target, &format!("target {}", it.target))?;
         let predicted = it.decision.predicted.clone();
-        let predicted_category = match cats.of(&predicted) {
-            Some((c, _)) => c.to_string(),
-            None => UNKNOWN.to_string(),
-        };
+        let predicted_category = cats.of(&predicted).map_or(UNKNOWN, |(c, _)| c).to_string();
         items.push(WolffItem {
             target: it.target.clone(),
             class: it.class.clone(),
