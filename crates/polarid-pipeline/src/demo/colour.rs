@@ -361,7 +361,7 @@ fn plate_rows(plate: &ColourPlate) -> Result<Vec<Measurement>> {
 
 /// One line of the accuracy table: a classifier (bands, fit error model, rule) over the
 /// test plates of every seed.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct AccuracyRow {
     /// `three bands (450, 550, 650 nm)` or `one band (650 nm)`.
     pub bands: String,
@@ -405,25 +405,18 @@ fn rules() -> [(&'static str, ClassifierConfig); 3] {
 
 /// The fits of `rows` (lines from 2) under `cfg`, keeping only the bands in `keep`.
 fn fits_of(rows: &[Measurement], keep: &[f64], cfg: &FitConfig) -> Result<Vec<(u64, FitRow)>> {
-    let rows: Vec<(u64, Measurement)> = rows
+    let kept = rows
         .iter()
-        .filter(|m| m.wavelength_nm.is_some_and(|w| keep.contains(&w)))
-        .cloned()
-        .enumerate()
-        .map(|(i, m)| (i as u64 + 2, m))
-        .collect();
-    let out = fit(
-        Path::new("measurements.csv"),
-        &rows,
-        cfg,
-        &crate::progress::no_progress,
-    )?;
-    Ok(out
-        .rows()
-        .into_iter()
-        .enumerate()
-        .map(|(i, r)| (i as u64 + 2, r))
-        .collect())
+        .filter(|m| m.wavelength_nm.is_some_and(|w| keep.contains(&w)));
+    let rows = from_line_2(kept.cloned());
+    let no_progress = &crate::progress::no_progress;
+    let out = fit(Path::new("measurements.csv"), &rows, cfg, no_progress)?;
+    Ok(from_line_2(out.rows()))
+}
+
+/// `items` numbered as the lines of a CSV file, from line 2.
+fn from_line_2<T>(items: impl IntoIterator<Item = T>) -> Vec<(u64, T)> {
+    (2..).zip(items).collect()
 }
 
 /// The multi-band prototypes trained on `train` (three-band or one-band fits).
@@ -461,11 +454,11 @@ const BAND_SETS: [(&str, &[f64]); 2] = [
 /// Every (target, band) is fitted on its own rows alone (`fit`), so these are the fits
 /// [`fits_of`] makes of the same rows restricted to `keep`, without fitting again.
 fn fits_in(fits: &[(u64, FitRow)], keep: &[f64]) -> Vec<(u64, FitRow)> {
-    fits.iter()
-        .filter(|(_, f)| f.wavelength_nm.is_some_and(|w| keep.contains(&w)))
-        .enumerate()
-        .map(|(i, (_, f))| (i as u64 + 2, f.clone()))
-        .collect()
+    let kept = fits.iter().map(|(_, f)| f);
+    from_line_2(
+        kept.filter(|f| f.wavelength_nm.is_some_and(|w| keep.contains(&w)))
+            .cloned(),
+    )
 }
 
 /// Classify the test plates of one seed's rows under every (bands, fit, rule). Each
@@ -550,11 +543,7 @@ fn tally(per_seed: &[Outcomes]) -> Vec<AccuracyRow> {
                     bands: bl.to_string(),
                     fit: fl.to_string(),
                     rule: rl.to_string(),
-                    copper: (0, 0),
-                    gold: (0, 0),
-                    ambiguous: 0,
-                    unknown: 0,
-                    all: (0, 0),
+                    ..AccuracyRow::default()
                 };
                 for o in per_seed {
                     let Some((_, v)) = o.iter().find(|(k, _)| *k == (bi, fi, ri)) else {

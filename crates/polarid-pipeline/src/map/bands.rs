@@ -585,7 +585,7 @@ impl BandFitter<'_> {
 }
 
 /// Every image of `v` as a slice.
-fn slices(v: &[Vec<f32>]) -> Vec<&[f32]> {
+pub(super) fn slices(v: &[Vec<f32>]) -> Vec<&[f32]> {
     v.iter().map(Vec::as_slice).collect()
 }
 
