@@ -1703,11 +1703,9 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
     let progress = search(&models, &cands, &grids, &mut idx, &mut active)?;
     sort_by_beta(&mut idx, &cands);
     let recommended = models.evaluate(idx.iter().map(|&i| cands[i].clone()).collect())?;
-    let current = if current_positions.len() >= 2 {
-        Some(models.evaluate(current_positions)?)
-    } else {
-        None
-    };
+    let current = (current_positions.len() >= 2)
+        .then(|| models.evaluate(current_positions))
+        .transpose()?;
     Ok(PlanOutput {
         scene: scene.path.clone(),
         targets,
@@ -1720,11 +1718,7 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
         recommended,
         progress,
         candidates: cands.len(),
-        sun_positions: if sun.is_some() {
-            cands.clone()
-        } else {
-            Vec::new()
-        },
+        sun_positions: sun.as_ref().map_or_else(Vec::new, |_| cands.clone()),
         sun,
         config: cfg.clone(),
         warnings,

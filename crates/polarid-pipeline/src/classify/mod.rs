@@ -470,12 +470,8 @@ pub fn classify(
         None => fits,
     };
     let mut wavelengths: Vec<f64> = Vec::new();
-    for (_, f) in fits {
-        if let Some(w) = f.wavelength_nm
-            && !wavelengths.contains(&w)
-        {
-            wavelengths.push(w);
-        }
+    for w in fits.iter().filter_map(|(_, f)| f.wavelength_nm) {
+        crate::fit::index_or_push(&mut wavelengths, |&x| x == w, || w);
     }
     let without = fits
         .iter()

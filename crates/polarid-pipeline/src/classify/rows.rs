@@ -376,12 +376,8 @@ pub fn classify_measurements(
     let fitted = fit(path, &assigned, fit_cfg, &|_, _, _| {})?;
     let fits = fitted.rows();
     let mut wavelengths: Vec<f64> = Vec::new();
-    for (_, m) in &assigned {
-        if let Some(w) = m.wavelength_nm
-            && !wavelengths.contains(&w)
-        {
-            wavelengths.push(w);
-        }
+    for w in assigned.iter().filter_map(|(_, m)| m.wavelength_nm) {
+        index_or_push(&mut wavelengths, |&x| x == w, || w);
     }
     let without = fits.iter().filter(|f| f.wavelength_nm.is_none()).count();
     let (protos, label, mut warnings) = source.load_multi_for(&wavelengths, without)?;
