@@ -1246,6 +1246,7 @@ fn candidate_models(
 
 /// The plates planned for (those whose class is a candidate), as the report names them,
 /// as indices into the candidates, and as the planner sees them.
+#[derive(Default)]
 struct TargetPlates {
     targets: Vec<Target>,
     truth: Vec<usize>,
@@ -1281,11 +1282,7 @@ fn target_plates(
         Some(bands) => bands.iter().map(|b| b.response).collect(),
         None => vec![1.0],
     };
-    let mut out = TargetPlates {
-        targets: Vec::new(),
-        truth: Vec::new(),
-        plates: Vec::new(),
-    };
+    let mut out = TargetPlates::default();
     for p in &scene.plates {
         let Some(class) = &p.class else {
             warnings.push(Warning(format!(

@@ -230,7 +230,7 @@ impl LibraryConfig {
 }
 
 /// The result of [`build_library`].
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct LibraryBuild {
     /// The materials, in input order.
     pub materials: Vec<Material>,
@@ -360,12 +360,7 @@ pub fn build_library(
         None => BTreeMap::new(),
     };
     let multi = cfg.bands.len() > 1;
-    let mut out = LibraryBuild {
-        materials: Vec::new(),
-        files: Vec::new(),
-        warnings: Vec::new(),
-        skipped: 0,
-    };
+    let mut out = LibraryBuild::default();
     let mut names: BTreeMap<String, PathBuf> = BTreeMap::new();
     for (i, s) in srcs.iter().enumerate() {
         progress("files", i as u64, srcs.len() as u64);
