@@ -1360,20 +1360,19 @@ fn own_sources(geometry: &Geometry) -> (Vec<(String, SourceSpec)>, f64) {
                 c.sources.iter().map(|s| s.intensity).sum::<f64>() / c.sources.len() as f64
             },
         ),
-        Geometry::FarField { theta_i_deg, .. } => (
-            theta_i_deg
-                .iter()
-                .map(|t| {
-                    let r = t.to_radians();
-                    (
-                        format!("t {t}"),
-                        SourceSpec::Direction([r.sin(), 0.0, r.cos()]),
-                    )
-                })
-                .collect(),
-            1.0,
-        ),
+        Geometry::FarField { theta_i_deg, .. } => {
+            (theta_i_deg.iter().map(|&t| far_source(t)).collect(), 1.0)
+        }
     }
+}
+
+/// A distant source at zenith `t` degrees in the camera's plane of incidence: `t 35`.
+fn far_source(t: f64) -> (String, SourceSpec) {
+    let r = t.to_radians();
+    (
+        format!("t {t}"),
+        SourceSpec::Direction([r.sin(), 0.0, r.cos()]),
+    )
 }
 
 /// The sun over the window `w`: one candidate per time the sun is up and lights every
@@ -1459,16 +1458,10 @@ fn region_candidates(light: &Lighting, own: &[(String, SourceSpec)], r: &Region)
     let zeniths = steps_of(r.zenith_deg, r.step_deg);
     let mut cands = Vec::new();
     let Bench::Calibrated { camera } = &light.bench else {
-        for &t in &zeniths {
-            let tr = t.to_radians();
-            if let Some(p) = light.position(
-                format!("t {t}"),
-                SourceSpec::Direction([tr.sin(), 0.0, tr.cos()]),
-            ) {
-                cands.push(p);
-            }
-        }
-        return cands;
+        let far = zeniths.iter().map(|&t| far_source(t));
+        return far
+            .filter_map(|(label, spec)| light.position(label, spec))
+            .collect();
     };
     let plates = &light.plates;
     let n_p = plates.len() as f64;

@@ -165,18 +165,12 @@ pub(super) fn score(
             .map(|i| (i.category.as_str(), i.decision.class.name())),
     );
     let accuracy = confusion.accuracy();
-    let total = items.len() as u64;
-    let nn_material = (
-        items.iter().filter(|i| i.predicted == i.class).count() as u64,
-        total,
-    );
-    let nn_binary = (
-        items
-            .iter()
-            .filter(|i| i.predicted_category == i.category)
-            .count() as u64,
-        total,
-    );
+    let right = |f: fn(&WolffItem) -> bool| {
+        let n = items.iter().filter(|i| f(i)).count() as u64;
+        (n, items.len() as u64)
+    };
+    let nn_material = right(|i| i.predicted == i.class);
+    let nn_binary = right(|i| i.predicted_category == i.category);
     Ok(WolffEval {
         settings: req.settings.describe(),
         measurements: req.measurements.clone(),
