@@ -46,12 +46,11 @@ use polarid_io::image::{Frame, SampleKind};
 use polarid_io::library::Library;
 use polarid_io::manifest;
 use polarid_io::model::Model;
-use polarid_io::table::classification::{self, ClassificationRow};
+use polarid_io::table::classification::ClassificationRow;
 use polarid_io::table::fits::FitRow;
 use polarid_io::table::measurements::Measurement;
 use rayon::prelude::*;
 
-use super::stage;
 use super::steps::{self, parse_scene};
 use crate::classify::{
     Comparison, classification_row, group_fits, multi_classifier, multi_estimate_for, same_bench,
@@ -680,9 +679,7 @@ pub fn run_colour(staged: &StagedDir, seeds: u64, progress: Progress) -> Result<
             .collect())
     };
     let classification = classify_rows(&test, same_bench(&model))?;
-    stage(staged, "classification.csv", |w| {
-        classification::write(w, Path::new("classification.csv"), &classification)
-    })?;
+    steps::stage_classification(staged, "classification.csv", &classification)?;
     let only = |f: &[(u64, FitRow)]| -> Vec<(u64, FitRow)> {
         f.iter()
             .filter(|(_, r)| r.wavelength_nm == Some(650.0))
@@ -691,13 +688,7 @@ pub fn run_colour(staged: &StagedDir, seeds: u64, progress: Progress) -> Result<
     };
     let (_, protos650, cmp650) = prototypes(&only(&train))?;
     let classification_650 = classify_rows(&only(&test), (protos650, cmp650))?;
-    stage(staged, "classification_650nm.csv", |w| {
-        classification::write(
-            w,
-            Path::new("classification_650nm.csv"),
-            &classification_650,
-        )
-    })?;
+    steps::stage_classification(staged, "classification_650nm.csv", &classification_650)?;
 
     let accuracy = colour_accuracy(0, seeds, progress)?;
     let table = accuracy_table(&accuracy, seeds);
