@@ -288,8 +288,7 @@ impl TargetClassifier<'_> {
         }
         let not_ok = fits
             .iter()
-            .filter(|f| f.target == g.target)
-            .find(|f| f.status != FitStatus::Ok);
+            .find(|f| f.target == g.target && f.status != FitStatus::Ok);
         if let Some(bad) = not_ok {
             let d = Decision::unclassified(
                 Status::FitNotOk(bad.status),

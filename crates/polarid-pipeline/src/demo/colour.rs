@@ -157,8 +157,7 @@ impl Rng {
         ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
     }
     fn normal(&mut self) -> f64 {
-        let u = ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
-        let v = ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
+        let (u, v) = (self.uniform(), self.uniform());
         (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
     }
 }
@@ -419,10 +418,9 @@ fn from_line_2<T>(items: impl IntoIterator<Item = T>) -> Vec<(u64, T)> {
 }
 
 /// The multi-band prototypes trained on `train` (three-band or one-band fits).
-fn prototypes(train: &[(u64, FitRow)]) -> Result<(Model, Vec<MultiPrototype>, Comparison)> {
+fn prototypes(train: &[(u64, FitRow)]) -> Result<(Vec<MultiPrototype>, Comparison)> {
     let t = crate::train::train(train, Path::new("fits.csv"), "fits.csv")?;
-    let (protos, cmp) = same_bench(&t.model);
-    Ok((t.model, protos, cmp))
+    Ok(same_bench(&t.model))
 }
 
 /// Per (bands, fit, rule), per test plate: `(class, predicted)`.
@@ -475,7 +473,7 @@ fn seed_outcomes(train: &[Measurement], test: &[Measurement]) -> Result<Outcomes
     for (bi, (_, keep)) in BAND_SETS.iter().enumerate() {
         for (fi, (tr, te)) in fitted.iter().enumerate() {
             let (tr, te) = (fits_in(tr, keep), fits_in(te, keep));
-            let (_, protos, cmp) = prototypes(&tr)?;
+            let (protos, cmp) = prototypes(&tr)?;
             for (ri, (_, rcfg)) in rules().iter().enumerate() {
                 let clf = multi_classifier(protos.clone(), "the trained prototypes", *rcfg)?;
                 let mut v = Vec::new();
@@ -686,8 +684,7 @@ pub fn run_colour(staged: &StagedDir, seeds: u64, progress: Progress) -> Result<
             .cloned()
             .collect()
     };
-    let (_, protos650, cmp650) = prototypes(&only(&train))?;
-    let classification_650 = classify_rows(&only(&test), (protos650, cmp650))?;
+    let classification_650 = classify_rows(&only(&test), prototypes(&only(&train))?)?;
     steps::stage_classification(staged, "classification_650nm.csv", &classification_650)?;
 
     let accuracy = colour_accuracy(0, seeds, progress)?;
