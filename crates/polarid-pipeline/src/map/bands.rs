@@ -137,7 +137,7 @@ pub use polarid_io::measure::has_colour as is_colour;
 /// One band's binned DoLP images over its captures (stage 1 of a map), the input of
 /// [`fit_bands`]: built by [`super::map_manifest_from`] from the manifest's files, or
 /// from frames in memory by the blocks of `polarid.dask.material_map`.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct BandDolp {
     wavelength_nm: Option<f64>,
     /// Named by its wavelength in file names, progress and messages (a colour map's
@@ -173,14 +173,8 @@ impl BandDolp {
     pub(crate) fn unnamed(wavelength_nm: Option<f64>, captures: Vec<usize>) -> Self {
         Self {
             wavelength_nm,
-            named: false,
             captures,
-            dolp: Vec::new(),
-            flags: Vec::new(),
-            dropped: Vec::new(),
-            read: Vec::new(),
-            shot: Vec::new(),
-            noise_model: None,
+            ..Self::default()
         }
     }
 
@@ -588,7 +582,7 @@ impl BandFitter<'_> {
 }
 
 /// Every image of `v` as a slice.
-fn slices(v: &[Vec<f32>]) -> Vec<&[f32]> {
+pub(super) fn slices(v: &[Vec<f32>]) -> Vec<&[f32]> {
     v.iter().map(Vec::as_slice).collect()
 }
 
