@@ -166,10 +166,7 @@ impl Library {
     /// wavelength are the 650 nm band), the band of the built-in bulk values.
     pub fn with_builtin_surfaces(mut self) -> Result<Self> {
         for m in &mut self.materials {
-            if m.layer.is_some() {
-                continue;
-            }
-            let Some(s) = builtin_surface(&m.name) else {
+            let Some(s) = builtin_surface(&m.name).filter(|_| m.layer.is_none()) else {
                 continue;
             };
             let wl = m.wavelength_nm.unwrap_or(BUILTIN_WAVELENGTH_NM);

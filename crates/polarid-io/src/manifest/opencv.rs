@@ -185,38 +185,27 @@ fn camera_matrix(path: &Path, ck: &str, k: &Matrix) -> Result<[f64; 4]> {
     let (fx, skew, cx, fy, cy) = (at(0), at(1), at(2), at(4), at(5));
     for (i, name) in [(0usize, "fx"), (4, "fy")] {
         if at(i).is_nan() || at(i) <= 0.0 {
-            return Err(err(
-                path,
-                k.lines[i],
-                &format!("{ck}.data[{}]", i + 1),
-                fmt(at(i)),
-                format!("the focal length {name} must be > 0 pixels"),
-            ));
+            let why = format!("the focal length {name} must be > 0 pixels");
+            return Err(k.element_err(path, ck, i, why));
         }
     }
     if skew.abs() > 1e-9 * fx.max(fy) {
-        return Err(err(
+        return Err(k.element_err(
             path,
-            k.lines[1],
-            &format!("{ck}.data[2]"),
-            fmt(skew),
+            ck,
+            1,
             "the camera matrix has a skew term; polarid's pinhole model has none (as \
              cv::calibrateCamera, which always gives 0)",
         ));
     }
     for (i, want) in [(3usize, 0.0), (6, 0.0), (7, 0.0), (8, 1.0)] {
         if (at(i) - want).abs() > 1e-9 {
-            return Err(err(
-                path,
-                k.lines[i],
-                &format!("{ck}.data[{}]", i + 1),
-                fmt(at(i)),
-                format!(
-                    "not a camera matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]: element {} must \
-                     be {want}",
-                    i + 1
-                ),
-            ));
+            let why = format!(
+                "not a camera matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]: element {} must be \
+                 {want}",
+                i + 1
+            );
+            return Err(k.element_err(path, ck, i, why));
         }
     }
     Ok([fx, fy, cx, cy])
@@ -245,21 +234,33 @@ fn distortion(path: &Path, dk: &str, d: &Matrix) -> Result<[f64; 5]> {
         ));
     }
     if let Some(i) = (5..n).find(|&i| d.values[i] != 0.0) {
-        return Err(err(
+        return Err(d.element_err(
             path,
-            d.lines[i],
-            &format!("{dk}.data[{}]", i + 1),
-            fmt(d.values[i]),
+            dk,
+            i,
             "only k1, k2, p1, p2, k3 are modelled: the rational (k4, k5, k6), thin-prism and \
              tilt coefficients must be 0 (calibrate without CALIB_RATIONAL_MODEL, \
              CALIB_THIN_PRISM_MODEL and CALIB_TILTED_MODEL)",
         ));
     }
-    let mut distortion = [0.0; 5];
-    for (o, x) in distortion.iter_mut().zip(&d.values) {
-        *o = *x;
+    Ok(std::array::from_fn(|i| {
+        d.values.get(i).copied().unwrap_or(0.0)
+    }))
+}
+
+impl Matrix {
+    /// The error for element `i` (0-based) of this matrix, entry `key`: its line, field
+    /// `KEY.data[i + 1]` and value.
+    fn element_err(&self, path: &Path, key: &str, i: usize, reason: impl Into<String>) -> IoError {
+        let value = self.values.get(i).copied().unwrap_or(f64::NAN);
+        err(
+            path,
+            self.lines[i],
+            &format!("{key}.data[{}]", i + 1),
+            fmt(value),
+            reason,
+        )
     }
-    Ok(distortion)
 }
 
 impl Parser<'_> {
