@@ -29,14 +29,9 @@ impl Ctx {
         }
     }
 
-    /// True when progress bars should be drawn.
-    pub fn show_progress(&self) -> bool {
-        !self.quiet && self.stderr_is_tty
-    }
-
     /// A progress bar of `len` steps, hidden unless standard error is a terminal.
     pub fn progress(&self, len: u64, what: &str) -> indicatif::ProgressBar {
-        if !self.show_progress() {
+        if self.quiet || !self.stderr_is_tty {
             return indicatif::ProgressBar::hidden();
         }
         let pb = indicatif::ProgressBar::new(len);
@@ -121,10 +116,4 @@ pub fn exit_status(e: &anyhow::Error) -> u8 {
         }
     }
     1
-}
-
-/// The error and its causes, joined by `: ` ([`polarid_io::error::chain_message`], the
-/// text the Python package raises too): each level is printed once.
-pub fn error_message(e: &anyhow::Error) -> String {
-    polarid_io::error::chain_message(e.as_ref())
 }

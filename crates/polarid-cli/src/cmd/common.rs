@@ -2,10 +2,12 @@
 //! the CLI's (exit statuses and messages), its progress reports as progress bars, its
 //! warnings on standard error, and the classifier options of `classify` and `evaluate`.
 
+use std::path::Path;
 use std::sync::{Mutex, OnceLock};
 
 use clap::ValueEnum;
 use polarid_core::classify::{ClassifierConfig, Confusion, Metric, Rule};
+use polarid_io::atomic::StagedDir;
 use polarid_pipeline::options::ClassifierOptions;
 use polarid_pipeline::{PipelineError, Progress};
 
@@ -52,6 +54,18 @@ pub fn with_progress<T>(ctx: &Ctx, what: &str, f: impl FnOnce(Progress) -> T) ->
         pb.finish_and_clear();
     }
     out
+}
+
+/// The staging of the output directory `dir` (an existing file there is a usage error).
+pub fn output_dir(dir: &Path, ctx: &Ctx) -> anyhow::Result<StagedDir> {
+    if dir.is_file() {
+        return Err(BadInput(format!(
+            "{}: the output must be a directory, and this is a file",
+            dir.display()
+        ))
+        .into());
+    }
+    Ok(StagedDir::new(dir, ctx.force)?)
 }
 
 /// Print warnings (`polarid: warning: ...`) unless `--quiet`.

@@ -14,11 +14,11 @@ use std::path::{Path, PathBuf};
 use polarid_io::atomic::{StagedDir, write_atomic};
 use polarid_pipeline::demo::{self, PLATES, SIDE, bench};
 
-use super::common::{Bars, PipeResult, warn_all};
+use super::common::{Bars, PipeResult, output_dir, warn_all};
+use crate::Ctx;
 use crate::render::bench as bench_render;
 use crate::render::colour_demo as colour_render;
 use crate::render::demo::{figures, report};
-use crate::{BadInput, Ctx};
 
 /// Arguments of `polarid demo`.
 #[derive(Debug, clap::Args)]
@@ -42,20 +42,13 @@ pub struct Args {
 
 /// The staging directory of a demo writing `DIR/report.html`.
 fn staging(out: &Path, ctx: &Ctx) -> anyhow::Result<StagedDir> {
-    if out.is_file() {
-        return Err(BadInput(format!(
-            "{}: the output must be a directory, and this is a file",
-            out.display()
-        ))
-        .into());
-    }
     if !ctx.force && out.join("report.html").exists() {
         return Err(polarid_io::IoError::OutputExists {
             path: out.join("report.html"),
         }
         .into());
     }
-    Ok(StagedDir::new(out, ctx.force)?)
+    output_dir(out, ctx)
 }
 
 /// The staged directory `sub` (created), for writers that take a directory.
@@ -69,6 +62,22 @@ fn staged_dir(staged: &StagedDir, sub: &str) -> anyhow::Result<PathBuf> {
 /// Write `text` to standard output (a closed pipe is not an error).
 fn print(text: &str) -> anyhow::Result<()> {
     crate::ctx::print_stdout(text.as_bytes())
+}
+
+/// Write `text` to the staged `tables.txt`.
+fn write_tables(staged: &StagedDir, text: &str) -> anyhow::Result<()> {
+    let path = staged.path("tables.txt")?;
+    Ok(write_atomic(&path, false, |w| {
+        w.write_all(text.as_bytes())
+            .map_err(|e| polarid_io::IoError::io(&path, e))
+    })?)
+}
+
+/// Say how long the demo `what` took since `start`.
+fn done(ctx: &Ctx, what: &str, start: std::time::Instant) -> anyhow::Result<()> {
+    let secs = start.elapsed().as_secs_f64();
+    ctx.info(format!("polarid {what}: done in {secs:.1} s"));
+    Ok(())
 }
 
 /// Run `polarid demo`.
@@ -103,11 +112,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     let stage_dir = plot_dir.parent().map(Path::to_path_buf).unwrap_or_default();
     report(&res, &figs).write(&stage_dir, "report")?;
     let tables = format!("{}\n{}\n{}\n", res.table1, res.table2, res.notes.join("\n"));
-    let tables_path = staged.path("tables.txt")?;
-    write_atomic(&tables_path, false, |w| {
-        w.write_all(tables.as_bytes())
-            .map_err(|e| polarid_io::IoError::io(&tables_path, e))
-    })?;
+    write_tables(&staged, &tables)?;
     staged.commit()?;
 
     // stdout: the tables and the decisions.
@@ -124,11 +129,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         out.display()
     );
     print(&so)?;
-    ctx.info(format!(
-        "polarid demo: done in {:.1} s",
-        start.elapsed().as_secs_f64()
-    ));
-    Ok(())
+    done(ctx, "demo", start)
 }
 
 /// Run `polarid demo --bench`.
@@ -165,22 +166,14 @@ fn run_bench(output: Option<&Path>, ctx: &Ctx) -> anyhow::Result<()> {
         res.tables,
         res.notes.join("\n")
     );
-    let tables_path = staged.path("tables.txt")?;
-    write_atomic(&tables_path, false, |w| {
-        w.write_all(text.as_bytes())
-            .map_err(|e| polarid_io::IoError::io(&tables_path, e))
-    })?;
+    write_tables(&staged, &text)?;
     staged.commit()?;
     print(&format!(
         "{text}\nReport: {}  (also report.md; CSVs, model.json, map/ and the captures in {})\n",
         out.join("report.html").display(),
         out.display()
     ))?;
-    ctx.info(format!(
-        "polarid demo --bench: done in {:.1} s",
-        start.elapsed().as_secs_f64()
-    ));
-    Ok(())
+    done(ctx, "demo --bench", start)
 }
 
 /// Run `polarid demo --color`.
@@ -213,9 +206,5 @@ fn run_colour(output: Option<&Path>, seeds: u64, ctx: &Ctx) -> anyhow::Result<()
         out.join("report.html").display(),
         out.display()
     ))?;
-    ctx.info(format!(
-        "polarid demo --color: done in {:.1} s",
-        start.elapsed().as_secs_f64()
-    ));
-    Ok(())
+    done(ctx, "demo --color", start)
 }

@@ -9,11 +9,10 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use polarid_io::atomic::StagedDir;
 use polarid_io::scene::{self, CaptureKind, ImageFormat};
 use polarid_pipeline::simulate as pipeline;
 
-use super::common::{Bars, PipeResult, warn_all};
+use super::common::{Bars, PipeResult, output_dir, warn_all};
 use crate::Ctx;
 
 /// Arguments of `polarid simulate`.
@@ -29,14 +28,7 @@ pub struct Args {
 /// Run `polarid simulate`.
 pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     let scene = scene::load(&args.scene)?;
-    if args.output.is_file() {
-        return Err(crate::BadInput(format!(
-            "{}: the output must be a directory, and this is a file",
-            args.output.display()
-        ))
-        .into());
-    }
-    let staged = StagedDir::new(&args.output, ctx.force)?;
+    let staged = output_dir(&args.output, ctx)?;
     // A progress bar over the frames.
     let sim = {
         let bars = Bars::new(ctx);

@@ -427,14 +427,13 @@ impl<'a> Drawn<'a> {
     }
 }
 
-/// A report of the tables with `figs` (files under `plots/`).
+/// The report of `polarid CMD INPUT`: its tables with `figs` (files under `plots/`).
 pub fn report(
-    title: String,
-    summary: Vec<String>,
+    cmd: &str,
+    input: &Path,
     inputs: Vec<report::InputItem>,
     t: &Tables,
     figs: &[ColourFigure],
-    generator: String,
 ) -> Report {
     let estimates = t
         .fits
@@ -449,22 +448,28 @@ pub fn report(
         .collect();
     let numbered: Vec<(u64, FitRow)> = t.fits.iter().map(|f| (0, f.clone())).collect();
     Report {
-        title,
-        summary,
+        title: format!("polarid {cmd}: {}", input.display()),
+        summary: vec![describe(t.fits)],
         inputs,
         estimates,
-        classification: super::demo::report_classification(&numbered, t.classification, None),
+        classification: super::demo::report_classification(&numbered, t.classification, None, None),
         figures: super::colour_demo::report_figures(figs),
-        generator,
+        generator: format!("polarid {} {cmd}", env!("CARGO_PKG_VERSION")),
         ..Default::default()
     }
 }
 
 /// Write `dir/report.html`, `dir/report.md` and `dir/plots/STEM.{png,svg}`, staged (a
-/// failure leaves nothing behind; existing files are replaced only with `force`).
-/// Returns the written files.
-pub fn write(dir: &Path, force: bool, rep: &Report, figs: &[ColourFigure]) -> Result<Vec<PathBuf>> {
-    let staged = polarid_io::atomic::StagedDir::new(dir, force)?;
+/// failure leaves nothing behind; existing files are replaced only with `--force`), and
+/// say so (`polarid CMD: report written to DIR`).
+pub fn write(
+    dir: &Path,
+    ctx: &crate::Ctx,
+    cmd: &str,
+    rep: &Report,
+    figs: &[ColourFigure],
+) -> Result<()> {
+    let staged = polarid_io::atomic::StagedDir::new(dir, ctx.force)?;
     for f in figs {
         let png = staged.path(&format!("plots/{}.png", f.stem))?;
         let sub = png.parent().map(Path::to_path_buf).unwrap_or_default();
@@ -473,7 +478,12 @@ pub fn write(dir: &Path, force: bool, rep: &Report, figs: &[ColourFigure]) -> Re
     let html = staged.path("report.html")?;
     let root = html.parent().map(Path::to_path_buf).unwrap_or_default();
     rep.write(&root, "report")?;
-    Ok(staged.commit()?)
+    staged.commit()?;
+    ctx.info(format!(
+        "polarid {cmd}: report written to {}",
+        dir.display()
+    ));
+    Ok(())
 }
 
 /// `--report DIR` of `classify` (docs/BANDS.md, "Per-band plots of your data").
@@ -601,17 +611,8 @@ pub fn write_fit_report(
         input.display().to_string(),
         format!("{} row(s)", meas.len()),
     )];
-    let rep = report(
-        format!("polarid fit: {}", input.display()),
-        vec![describe(fits)],
-        inputs,
-        &t,
-        &figs,
-        format!("polarid {} fit", env!("CARGO_PKG_VERSION")),
-    );
-    write(dir, ctx.force, &rep, &figs)?;
-    ctx.info(format!("polarid fit: report written to {}", dir.display()));
-    Ok(())
+    let rep = report("fit", input, inputs, &t, &figs);
+    write(dir, ctx, "fit", &rep, &figs)
 }
 
 /// The hypothesis tests' tables of `classify MEASUREMENTS.csv`: the in-scene
@@ -756,22 +757,10 @@ pub fn write_classify_report(
             format!("{} prototype(s)", refs.profiles.len()),
         ),
     ];
-    let mut rep = report(
-        format!("polarid classify: {}", input.display()),
-        vec![describe(fits)],
-        inputs,
-        &t,
-        &figs,
-        format!("polarid {} classify", env!("CARGO_PKG_VERSION")),
-    );
+    let mut rep = report("classify", input, inputs, &t, &figs);
     rep.tables
         .extend(hypothesis_tables(&out.hypotheses, out.calibration.as_ref()));
-    write(dir, ctx.force, &rep, &figs)?;
-    ctx.info(format!(
-        "polarid classify: report written to {}",
-        dir.display()
-    ));
-    Ok(())
+    write(dir, ctx, "classify", &rep, &figs)
 }
 
 #[cfg(test)]
