@@ -52,22 +52,23 @@ impl Ctx {
     }
 
     /// Write a text output to `path` atomically, or to standard output when `path` is
-    /// `None` or `-`. `inputs` are never overwritten.
+    /// `None` or `-`. `inputs` are never overwritten. `write` gets the output's name for
+    /// its messages (`<stdout>` for standard output).
     pub fn write_output(
         &self,
         path: Option<&Path>,
         inputs: &[&Path],
-        write: impl FnOnce(&mut dyn Write) -> polarid_io::Result<()>,
+        write: impl FnOnce(&mut dyn Write, &Path) -> polarid_io::Result<()>,
     ) -> anyhow::Result<()> {
         match path.filter(|p| !polarid_io::limits::is_stdin(p)) {
             Some(p) => {
                 polarid_io::atomic::check_output(p, self.force, inputs)?;
-                polarid_io::atomic::write_atomic(p, self.force, write)?;
+                polarid_io::atomic::write_atomic(p, self.force, |w| write(w, p))?;
             }
             None => {
                 // Build the whole output first so that a failure prints nothing.
                 let mut buf: Vec<u8> = Vec::new();
-                write(&mut buf)?;
+                write(&mut buf, Path::new("<stdout>"))?;
                 print_stdout(&buf)?;
             }
         }

@@ -243,13 +243,8 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         ctx.info(w.to_string());
     }
     let rows = out.rows();
-    let out_path = args
-        .output
-        .clone()
-        .filter(|p| !polarid_io::limits::is_stdin(p))
-        .unwrap_or_else(|| PathBuf::from("<stdout>"));
-    ctx.write_output(args.output.as_deref(), &[path.as_path()], |w| {
-        fits::write(w, &out_path, &rows)
+    ctx.write_output(args.output.as_deref(), &[path.as_path()], |w, p| {
+        fits::write(w, p, &rows)
     })?;
     if let Some(mp) = &args.models {
         polarid_io::atomic::write_atomic(mp, ctx.force, |w| {

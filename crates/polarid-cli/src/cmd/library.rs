@@ -198,13 +198,9 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     if let Some(m) = &args.names {
         inputs.push(m.as_path());
     }
-    let label = args
-        .output
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("<stdout>"));
     let comment = cfg.comment();
-    ctx.write_output(args.output.as_deref(), &inputs, |w| {
-        lib.write_csv(w, &label, Some(&comment))
+    ctx.write_output(args.output.as_deref(), &inputs, |w, p| {
+        lib.write_csv(w, p, Some(&comment))
     })?;
     let mut names: Vec<&str> = lib.materials.iter().map(|m| m.name.as_str()).collect();
     names.dedup();
