@@ -38,6 +38,7 @@ use polarid_pipeline::library::{Band, LibraryConfig, build_library, parse_band};
 use super::common::{Bars, PipeResult, warn_all};
 use crate::Ctx;
 use crate::ctx::print_stdout;
+use crate::render::join;
 
 fn parse_step(s: &str) -> Result<f64, String> {
     match s.trim().parse::<f64>() {
@@ -208,11 +209,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         "polarid library: {} materials, band{} {}{}",
         names.len(),
         if args.band.len() > 1 { "s" } else { "" },
-        args.band
-            .iter()
-            .map(|b| b.to_string())
-            .collect::<Vec<_>>()
-            .join(", "),
+        join(&args.band, ", "),
         if built.skipped == 0 {
             String::new()
         } else {

@@ -22,6 +22,7 @@ use polarid_pipeline::plan::{
 
 use super::common::{PipeResult, output_dir, warn_all};
 use crate::Ctx;
+use crate::render::join;
 use crate::render::plots::{DolpPoint, PlanAxes, PlanPlate, PlotSize, plan_dolp};
 
 /// Arguments of `polarid plan`.
@@ -101,12 +102,8 @@ fn design_text(out: &PlanOutput, ev: &Evaluation, title: &str) -> String {
         .collect();
     let _ = writeln!(s, "  beta span (deg): {}", betas.join(", "));
     for q in &ev.positions {
-        let b: Vec<String> = q
-            .rows
-            .iter()
-            .map(|r| format!("{:.1}", r.beta_deg))
-            .collect();
-        let _ = writeln!(s, "  {:<24} beta {}", q.label, b.join(" / "));
+        let b = join(q.rows.iter().map(|r| format!("{:.1}", r.beta_deg)), " / ");
+        let _ = writeln!(s, "  {:<24} beta {b}", q.label);
     }
     // A colour scene: the power of each band's rows alone after the overall one.
     let band_heads: String = band_names(out)
@@ -183,16 +180,16 @@ fn design_text(out: &PlanOutput, ev: &Evaluation, title: &str) -> String {
                 tg.name, tg.material, w
             );
         } else {
-            let names: Vec<String> = confused
-                .iter()
-                .map(|c| format!("{} ({:.2})", c.alternative, c.sep.power))
-                .collect();
+            let names = join(
+                confused
+                    .iter()
+                    .map(|c| format!("{} ({:.2})", c.alternative, c.sep.power)),
+                ", ",
+            );
             let _ = writeln!(
                 s,
                 "  {}: {} NOT identifiable: not rejected with power {p}: {}",
-                tg.name,
-                tg.material,
-                names.join(", ")
+                tg.name, tg.material, names
             );
         }
     }
@@ -508,11 +505,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         args.scene.display(),
         out.materials.len(),
         out.library,
-        out.wavelengths_nm
-            .iter()
-            .map(|w| w.to_string())
-            .collect::<Vec<_>>()
-            .join(", "),
+        join(&out.wavelengths_nm, ", "),
         out.config.confidence * 100.0,
         out.config.power,
         out.candidates

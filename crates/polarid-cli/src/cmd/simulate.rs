@@ -14,6 +14,7 @@ use polarid_pipeline::simulate as pipeline;
 
 use super::common::{Bars, PipeResult, output_dir, warn_all};
 use crate::Ctx;
+use crate::render::join;
 
 /// Arguments of `polarid simulate`.
 #[derive(Debug, clap::Args)]
@@ -43,11 +44,12 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         CaptureKind::ColourDofp { pattern, bands } => format!(
             "colour DoFP mosaics ({}, bands {})",
             pattern.color(),
-            bands
-                .iter()
-                .map(|b| format!("{} {} nm", b.letter, b.wavelength_nm))
-                .collect::<Vec<_>>()
-                .join(", ")
+            join(
+                bands
+                    .iter()
+                    .map(|b| format!("{} {} nm", b.letter, b.wavelength_nm)),
+                ", "
+            )
         ),
     };
     ctx.info(format!(

@@ -577,11 +577,7 @@ fn describe(fits: &[FitRow]) -> String {
         _ => format!(
             "{} band(s): {} nm",
             bands.len(),
-            bands
-                .iter()
-                .map(|w| band_label(*w))
-                .collect::<Vec<_>>()
-                .join(", ")
+            super::join(bands.iter().map(|w| band_label(*w)), ", ")
         ),
     };
     format!("{} target(s), {b}.", targets_of(fits).len())
