@@ -59,11 +59,6 @@ fn staged_dir(staged: &StagedDir, sub: &str) -> anyhow::Result<PathBuf> {
     Ok(dir)
 }
 
-/// Write `text` to standard output (a closed pipe is not an error).
-fn print(text: &str) -> anyhow::Result<()> {
-    crate::ctx::print_stdout(text.as_bytes())
-}
-
 /// Write `text` to the staged `tables.txt`.
 fn write_tables(staged: &StagedDir, text: &str) -> anyhow::Result<()> {
     let path = staged.path("tables.txt")?;
@@ -73,8 +68,10 @@ fn write_tables(staged: &StagedDir, text: &str) -> anyhow::Result<()> {
     })?)
 }
 
-/// Say how long the demo `what` took since `start`.
-fn done(ctx: &Ctx, what: &str, start: std::time::Instant) -> anyhow::Result<()> {
+/// Write `text` to standard output (a closed pipe is not an error), then say how long
+/// the demo `what` took since `start`.
+fn done(ctx: &Ctx, what: &str, start: std::time::Instant, text: &str) -> anyhow::Result<()> {
+    crate::ctx::print_stdout(text.as_bytes())?;
     let secs = start.elapsed().as_secs_f64();
     ctx.info(format!("polarid {what}: done in {secs:.1} s"));
     Ok(())
@@ -109,8 +106,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     for (fig, stem) in figs.iter().zip(["dolp_training", "dolp_test", "nk_plane"]) {
         fig.write(&plot_dir, stem)?;
     }
-    let stage_dir = plot_dir.parent().map(Path::to_path_buf).unwrap_or_default();
-    report(&res, &figs).write(&stage_dir, "report")?;
+    report(&res, &figs).write(&staged.path("")?, "report")?;
     let tables = format!("{}\n{}\n{}\n", res.table1, res.table2, res.notes.join("\n"));
     write_tables(&staged, &tables)?;
     staged.commit()?;
@@ -128,8 +124,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         out.join("report.html").display(),
         out.display()
     );
-    print(&so)?;
-    done(ctx, "demo", start)
+    done(ctx, "demo", start, &so)
 }
 
 /// Run `polarid demo --bench`.
@@ -157,8 +152,7 @@ fn run_bench(output: Option<&Path>, ctx: &Ctx) -> anyhow::Result<()> {
     if let Some(f) = figs.iter().find(|f| f.stem == "class_map") {
         f.plot.write(&map_dir, "class")?;
     }
-    let stage_dir = plot_dir.parent().map(Path::to_path_buf).unwrap_or_default();
-    bench_render::report(&res, &figs).write(&stage_dir, "report")?;
+    bench_render::report(&res, &figs).write(&staged.path("")?, "report")?;
     let text = format!(
         "{}
 {}
@@ -168,12 +162,12 @@ fn run_bench(output: Option<&Path>, ctx: &Ctx) -> anyhow::Result<()> {
     );
     write_tables(&staged, &text)?;
     staged.commit()?;
-    print(&format!(
+    let report = format!(
         "{text}\nReport: {}  (also report.md; CSVs, model.json, map/ and the captures in {})\n",
         out.join("report.html").display(),
         out.display()
-    ))?;
-    done(ctx, "demo --bench", start)
+    );
+    done(ctx, "demo --bench", start, &report)
 }
 
 /// Run `polarid demo --color`.
@@ -196,15 +190,14 @@ fn run_colour(output: Option<&Path>, seeds: u64, ctx: &Ctx) -> anyhow::Result<()
     for f in &figs {
         f.plot.write(&plot_dir, &f.stem)?;
     }
-    let stage_dir = plot_dir.parent().map(Path::to_path_buf).unwrap_or_default();
-    colour_render::report(&res, &figs).write(&stage_dir, "report")?;
+    colour_render::report(&res, &figs).write(&staged.path("")?, "report")?;
     staged.commit()?;
-    print(&format!(
+    let report = format!(
         "{}\nReport: {}  (also report.md; CSVs, model.json, accuracy.md and seed 0's \
          captures in {})\n",
         res.table,
         out.join("report.html").display(),
         out.display()
-    ))?;
-    done(ctx, "demo --color", start)
+    );
+    done(ctx, "demo --color", start, &report)
 }
