@@ -386,70 +386,64 @@ def map_manifest(
     classification of every pixel on all its bands."""
 
 # --- one block of a map (private: polarid.dask.material_map) ----------------------------
+class _MapOptions(TypedDict):
+    """The options of a map (``_map_names``, ``_map_block``): the prototypes (a model's
+    text named by ``label``, or a library), ``polarid map``'s options and the set rule's
+    error model (``angle_sd_deg``: one per capture)."""
+
+    model_json: str | None
+    library: str | None
+    label: str
+    max_distance: float | None
+    metric: Literal["euclidean", "mahalanobis"]
+    tile: int
+    rule: Literal["set", "nearest"]
+    confidence: float
+    angle_sd_deg: Sequence[float]
+    dolp_floor: float
+    extinction_ratio: float
+    retardance_deg: float
+    bench: Literal["same", "other"]
+
 def _map_names(
-    model_json: str | None = None,
+    options: _MapOptions,
     *,
-    library: str | None = None,
-    label: str = "<model>",
     color: str | None = None,
     pattern: Sequence[float] | None = None,
     bands: Mapping[str, float] | None = None,
     bin: int = 1,
     min_s0: float | None = None,
-    max_distance: float | None = None,
-    metric: Literal["euclidean", "mahalanobis"] = "euclidean",
-    tile: int = 65536,
-    rule: Literal["set", "nearest"] = "set",
-    confidence: float = 0.95,
-    angle_sd_deg: Sequence[float] = (0.2,),
-    dolp_floor: float = 0.002,
-    extinction_ratio: float = 100.0,
-    retardance_deg: float = 0.0,
-    bench: Literal["same", "other"] = "same",
 ) -> tuple[list[str], list[str], list[float]]: ...
+class _BlockArgs(TypedDict):
+    """One block's frames and the options of its DoLP stage (``_map_block``,
+    ``_noise_block``)."""
+
+    frames: ArrayLike
+    angles_deg: Sequence[float] | None
+    beta_deg: ArrayLike
+    pattern: Sequence[float] | None
+    color: str | None
+    bands: Mapping[str, float] | None
+    halo: tuple[int, int, int, int]
+    bin: int
+    dark_level: Sequence[float] | None
+    saturation: Sequence[float | None] | None
+    min_s0: float | None
+
 def _map_block(
-    frames: ArrayLike,
-    angles_deg: Sequence[float] | None,
-    beta_deg: ArrayLike,
-    model_json: str | None = None,
+    block: _BlockArgs,
+    options: _MapOptions,
     *,
-    library: str | None = None,
-    label: str = "<model>",
-    pattern: Sequence[float] | None = None,
-    color: str | None = None,
-    bands: Mapping[str, float] | None = None,
-    halo: tuple[int, int, int, int] = (0, 0, 0, 0),
-    bin: int = 1,
-    dark_level: Sequence[float] | None = None,
-    saturation: Sequence[float | None] | None = None,
-    min_s0: float | None = None,
-    max_distance: float | None = None,
-    metric: Literal["euclidean", "mahalanobis"] = "euclidean",
-    tile: int = 65536,
-    rule: Literal["set", "nearest"] = "set",
-    confidence: float = 0.95,
-    angle_sd_deg: Sequence[float] | None = None,
-    dolp_floor: float = 0.002,
-    extinction_ratio: float = 100.0,
-    retardance_deg: float = 0.0,
-    noise: tuple[float, float] | None = None,
-    bench: Literal["same", "other"] = "same",
+    noise: list[tuple[float, float] | None] | None = None,
 ) -> NDArray[np.float32]: ...
 
 _NOISE_SAMPLE: int
 _MAP_DEFAULTS: dict[str, float | int]
 
 def _noise_block(
-    frames: ArrayLike,
-    angles_deg: Sequence[float] | None,
-    beta_deg: ArrayLike,
+    block: _BlockArgs,
     *,
-    pattern: Sequence[float] | None = None,
-    halo: tuple[int, int, int, int] = (0, 0, 0, 0),
-    bin: int = 1,
-    dark_level: Sequence[float] | None = None,
-    saturation: Sequence[float | None] | None = None,
-    min_s0: float | None = None,
+    band: int = 0,
     row_offsets: Sequence[int] | None = None,
     stride: int = 1,
 ) -> list[int] | tuple[list[int], list[list[list[float]]]]: ...

@@ -147,8 +147,10 @@ def _per_capture(name: str, value: Any, t: int) -> list:
 
 
 def _block_inputs(x, beta, block_id, nblocks, kw, per_capture_beta, t, a):
-    """The frames, β and halo of one block: ``x`` (L, h, w) frames (L = T·A) or DoFP
-    mosaics with their halo (``kw["depth"]`` raw pixels on inner sides)."""
+    """One block's frames, β and halo and the options of its DoLP stage (shared by the map
+    and the noise passes), the first argument of ``_map_block`` and ``_noise_block``:
+    ``x`` (L, h, w) frames (L = T·A) or DoFP mosaics with their halo (``kw["depth"]`` raw
+    pixels on inner sides)."""
     i, j = block_id[1], block_id[2]
     depth = kw["depth"]
     if depth:
@@ -167,38 +169,31 @@ def _block_inputs(x, beta, block_id, nblocks, kw, per_capture_beta, t, a):
     # kernels need C-contiguous, aligned arrays (np.require copies only when needed).
     frames = np.require(frames, requirements=("C", "A"))
     b = np.require(b, dtype=np.float64, requirements=("C", "A"))
-    return frames, b, halo
-
-
-def _stage1_kw(kw):
-    """The options of a block's DoLP stage (shared by the map and the noise passes)."""
-    return dict(pattern=kw["pattern"], color=kw["color"], bands=kw["bands"], bin=kw["bin"],
+    return dict(frames=frames, angles_deg=kw["angles_deg"], beta_deg=b, halo=halo,
+                pattern=kw["pattern"], color=kw["color"], bands=kw["bands"], bin=kw["bin"],
                 dark_level=kw["dark_level"], saturation=kw["saturation"], min_s0=kw["min_s0"])
 
 
 def _block(x, beta=None, *, block_id, nblocks, per_capture_beta, t, a, kw):
     """One map block: float32 (6 B + 2, h/bin, w/bin), every band's n, k, n_se, k_se,
     rms_residual and reason, then the map's class and reason (``_map_block``)."""
-    frames, b, halo = _block_inputs(x, beta, block_id, nblocks, kw, per_capture_beta, t, a)
-    return _map_block(frames, kw["angles_deg"], b, kw["model_json"], library=kw["library"],
-                      label=kw["label"], halo=halo, **_stage1_kw(kw),
-                      max_distance=kw["max_distance"], metric=kw["metric"], tile=kw["tile"],
-                      noise=kw["noise"], bench=kw["bench"], **kw["rule"])
+    block = _block_inputs(x, beta, block_id, nblocks, kw, per_capture_beta, t, a)
+    return _map_block(block, kw["options"], noise=kw["noise"])
 
 
 def _count_block(x, beta=None, *, block_id, nblocks, per_capture_beta, t, a, kw):
     """Noise pass 1: the usable pixels of every map row of a block, (1, h/bin, 1)."""
-    frames, b, halo = _block_inputs(x, beta, block_id, nblocks, kw, per_capture_beta, t, a)
-    counts = _noise_block(frames, kw["angles_deg"], b, halo=halo, **_stage1_kw(kw), band=kw["band"])
+    block = _block_inputs(x, beta, block_id, nblocks, kw, per_capture_beta, t, a)
+    counts = _noise_block(block, band=kw["band"])
     return np.asarray(counts, dtype=np.int64).reshape(1, -1, 1)
 
 
 def _sample_block(x, beta, offsets, stride, block_id, nblocks, per_capture_beta, t, a, kw):
     """Noise pass 2: the block's pixels of the map's noise sample, ``(index, images)``
     (``_noise_block``)."""
-    frames, b, halo = _block_inputs(x, beta, block_id, nblocks, kw, per_capture_beta, t, a)
-    return _noise_block(frames, kw["angles_deg"], b, halo=halo, **_stage1_kw(kw), band=kw["band"],
-                        row_offsets=[int(v) for v in offsets], stride=int(stride))
+    block = _block_inputs(x, beta, block_id, nblocks, kw, per_capture_beta, t, a)
+    return _noise_block(block, band=kw["band"], row_offsets=[int(v) for v in offsets],
+                        stride=int(stride))
 
 
 def _noise_arg(noise: Any) -> tuple[float, float]:
@@ -487,24 +482,24 @@ def material_map(
         model_json, label = _model_json(model)
     else:
         model_json, label = None, f"library {library}"
-    rule_kw = dict(rule=rule, confidence=float(confidence),
+    # The map's options (``_map_names``, ``_map_block``).
+    options = dict(model_json=model_json, library=None if library is None else str(library),
+                   label=label, max_distance=max_distance, metric=metric, tile=int(tile),
+                   rule=rule, confidence=float(confidence),
                    angle_sd_deg=[float(v) for v in _per_capture("angle_sd_deg", angle_sd_deg, t)],
                    dolp_floor=float(dolp_floor), extinction_ratio=float(extinction_ratio),
-                   retardance_deg=float(retardance_deg))
+                   retardance_deg=float(retardance_deg), bench=bench)
     kw = dict(
         angles_deg=None if mosaic else [float(v) for v in angles_deg],
         pattern=None if pattern is None else [float(v) for v in pattern],
         color=None if color is None else str(color),
         bands=None if bands is None else {str(k): float(v) for k, v in bands.items()},
-        model_json=model_json, library=None if library is None else str(library), label=label,
-        bin=bin, min_s0=min_s0, max_distance=max_distance, metric=metric, tile=int(tile),
-        rule=rule_kw, noise=None, bench=bench, band=0,
+        bin=bin, min_s0=min_s0, options=options, noise=None, band=0,
         depth=COLOUR_HALO if colour else DOFP_HALO if mosaic else 0,
     )
     class_names, reason_names, wavelengths = _map_names(
-        model_json, library=kw["library"], label=label, color=kw["color"], pattern=kw["pattern"],
-        bands=kw["bands"], bin=bin, min_s0=min_s0, max_distance=max_distance, metric=metric,
-        tile=kw["tile"], bench=bench, **rule_kw)
+        options, color=kw["color"], pattern=kw["pattern"], bands=kw["bands"], bin=bin,
+        min_s0=min_s0)
     nb = max(len(wavelengths), 1)
     if bin > height or bin > width:
         raise ValueError(f"bin {bin} does not fit the {width}x{height} frames")

@@ -12,6 +12,8 @@
 //! 4. convert the `CoreError` with `errors::PyResultExt::py_err` and hand the outputs to
 //!    numpy without a copy with [`to_python`] (a Python `float` when the result is 0-d).
 
+use std::collections::HashMap;
+
 use ndarray::{ArrayD, ArrayViewD, IxDyn, Zip};
 use numpy::{
     AllowTypeChange, IntoPyArray, PyArrayLikeDyn, PyReadonlyArrayDyn, PyUntypedArrayMethods,
@@ -286,4 +288,38 @@ pub fn str_array<'py>(
         return np.call_method1("full", (codes.shape().to_vec(), ""));
     }
     table.call_method1("take", (codes.into_pyarray(py),))
+}
+
+/// Distinct strings and their codes (`""` is code 0).
+#[derive(Debug)]
+pub struct NameTable {
+    names: Vec<String>,
+    index: HashMap<String, u32>,
+}
+
+impl Default for NameTable {
+    fn default() -> Self {
+        Self {
+            names: vec![String::new()],
+            index: HashMap::from([(String::new(), 0)]),
+        }
+    }
+}
+
+impl NameTable {
+    /// The code of `s`, added when new.
+    pub fn code(&mut self, s: &str) -> u32 {
+        if let Some(&i) = self.index.get(s) {
+            return i;
+        }
+        self.names.push(s.to_string());
+        let i = (self.names.len() - 1) as u32;
+        self.index.insert(s.to_string(), i);
+        i
+    }
+
+    /// The names, code order.
+    pub fn refs(&self) -> Vec<&str> {
+        self.names.iter().map(String::as_str).collect()
+    }
 }

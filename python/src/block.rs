@@ -40,7 +40,7 @@ use pyo3::prelude::*;
 
 use crate::arrays::{f64_contiguous, fmt_shape, raw_array, shaped};
 use crate::colour::wavelengths;
-use crate::errors::{IntoPyErr, PyResultExt, value_error};
+use crate::errors::{PyResultExt, value_error};
 use crate::map::map_config;
 use crate::stokes::pixel_rules;
 use crate::with_raw;
@@ -60,37 +60,85 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
 /// the band's reason.
 const BAND_PLANES: usize = 6;
 
-/// The set rule's systematic error model as the Python side passes it: one angle
-/// uncertainty per capture (degrees) and the analyzer's terms.
-struct ErrorArgs {
+/// The options of a map as ``polarid.dask.material_map`` passes them (a dict): the
+/// prototypes (`model_json`, a model's text that `label` names, or `library`: `builtin`,
+/// `builtin-rgb`, a library CSV), the options of `polarid map` and the set rule's
+/// systematic error model (one angle uncertainty per capture, degrees, and the
+/// analyzer's terms).
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct MapOptions {
+    model_json: Option<String>,
+    library: Option<String>,
+    label: String,
+    max_distance: Option<f64>,
+    metric: String,
+    tile: usize,
+    rule: String,
+    confidence: f64,
     angle_sd_deg: Vec<f64>,
     dolp_floor: f64,
     extinction_ratio: f64,
     retardance_deg: f64,
+    bench: String,
 }
 
-impl ErrorArgs {
-    /// The map's error options, every capture's angle uncertainty checked as
-    /// `--angle-sd-deg` is (the first one in the options).
-    fn options(&self) -> PyResult<MapErrors> {
+/// The prototypes of a map: a model JSON's text (and the path `label` names it by) or a
+/// library.
+enum Protos {
+    Model(Model, PathBuf),
+    Library(String),
+}
+
+impl MapOptions {
+    /// The map's configuration with `bin` and `min_s0`, checked as `polarid map` checks
+    /// it (errors name the option; every capture's angle uncertainty is checked as
+    /// `--angle-sd-deg` is, the first one in the options), and its prototypes.
+    fn setup(&self, bin: usize, min_s0: Option<f64>) -> PyResult<(MapConfig, Protos)> {
         let bad = |a: &&f64| !(a.is_finite() && (0.0..90.0).contains(*a));
         if let Some(a) = self.angle_sd_deg.iter().find(bad) {
             return Err(value_error(format!(
                 "angle_sd_deg must be in [0, 90), got {a}"
             )));
         }
-        let first = self.angle_sd_deg.first().copied();
-        Ok(MapErrors {
-            angle_sd_deg: first.unwrap_or(MapErrors::default().angle_sd_deg),
+        let errors = MapErrors {
+            angle_sd_deg: self
+                .angle_sd_deg
+                .first()
+                .copied()
+                .unwrap_or(MapErrors::default().angle_sd_deg),
             dolp_floor: self.dolp_floor,
             extinction_ratio: self.extinction_ratio,
             retardance_deg: self.retardance_deg,
-        })
+        };
+        let rule = (self.rule.as_str(), self.confidence);
+        let opts = (
+            bin,
+            min_s0,
+            self.max_distance,
+            self.metric.as_str(),
+            self.tile,
+        );
+        let cfg = map_config(opts, rule, errors, &self.bench)?;
+        let protos = match (&self.model_json, &self.library) {
+            (Some(j), None) => {
+                let path = PathBuf::from(&self.label);
+                let m = Model::parse(&path, j).py_err()?;
+                Protos::Model(m, path)
+            }
+            (None, Some(spec)) => Protos::Library(spec.clone()),
+            _ => {
+                return Err(value_error(
+                    "give model_json or library, not both or neither",
+                ));
+            }
+        };
+        Ok((cfg, protos))
     }
 
     /// The core error model (as `polarid_pipeline::map`'s `error_model`: radians, no
     /// surface-film term in maps).
-    fn model(&self) -> MapErrorModel {
+    fn error_model(&self) -> MapErrorModel {
         MapErrorModel {
             polarimetric: Polarimetric {
                 dolp_floor: self.dolp_floor,
@@ -103,28 +151,7 @@ impl ErrorArgs {
     }
 }
 
-/// The prototypes of a map: a model JSON's text (`label` names it) or a library
-/// (`builtin`, `builtin-rgb`, a library CSV).
-enum Protos {
-    Model(Model, PathBuf),
-    Library(String),
-}
-
 impl Protos {
-    fn new(model_json: Option<&str>, library: Option<String>, label: &str) -> PyResult<Self> {
-        match (model_json, library) {
-            (Some(j), None) => {
-                let path = PathBuf::from(label);
-                let m = Model::parse(&path, j).map_err(IntoPyErr::into_py_err)?;
-                Ok(Protos::Model(m, path))
-            }
-            (None, Some(spec)) => Ok(Protos::Library(spec)),
-            _ => Err(value_error(
-                "give model_json or library, not both or neither",
-            )),
-        }
-    }
-
     fn src(&self) -> MapPrototypes<'_> {
         match self {
             Protos::Model(model, path) => MapPrototypes::Model { model, path },
@@ -150,48 +177,18 @@ fn colour_pattern(
 /// ``"ambiguous"`` with the set rule: index = class code of a map), the reason names
 /// (index = reason code, as ``map_summary.json`` lists them) and the bands' wavelengths
 /// (increasing; empty for single-band frames) of a map. Checks the options as
-/// ``_map_block`` does (errors name the option).
+/// ``_map_block`` does (errors name the option). ``options``: as ``_map_block``'s.
 #[pyfunction]
-#[pyo3(signature = (model_json = None, *, library = None, label = "<model>", color = None, pattern = None, bands = None, bin = 1, min_s0 = None, max_distance = None, metric = "euclidean", tile = map::DEFAULT_TILE, rule = "set", confidence = polarid_core::classify::DEFAULT_CONFIDENCE, angle_sd_deg = vec![MapErrors::default().angle_sd_deg], dolp_floor = MapErrors::default().dolp_floor, extinction_ratio = MapErrors::default().extinction_ratio, retardance_deg = MapErrors::default().retardance_deg, bench = "same"))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (options, *, color = None, pattern = None, bands = None, bin = 1, min_s0 = None))]
 fn _map_names(
-    model_json: Option<&str>,
-    library: Option<String>,
-    label: &str,
+    options: MapOptions,
     color: Option<&str>,
     pattern: Option<Vec<f64>>,
     bands: Option<HashMap<String, f64>>,
     bin: usize,
     min_s0: Option<f64>,
-    max_distance: Option<f64>,
-    metric: &str,
-    tile: usize,
-    rule: &str,
-    confidence: f64,
-    angle_sd_deg: Vec<f64>,
-    dolp_floor: f64,
-    extinction_ratio: f64,
-    retardance_deg: f64,
-    bench: &str,
 ) -> PyResult<(Vec<String>, Vec<String>, Vec<f64>)> {
-    let errors = ErrorArgs {
-        angle_sd_deg,
-        dolp_floor,
-        extinction_ratio,
-        retardance_deg,
-    };
-    let errs = errors.options()?;
-    let cfg = map_config(
-        bin,
-        min_s0,
-        max_distance,
-        metric,
-        tile,
-        (rule, confidence),
-        errs,
-        bench,
-    )?;
-    let protos = Protos::new(model_json, library, label)?;
+    let (cfg, protos) = options.setup(bin, min_s0)?;
     let wls = match color {
         Some(c) => band_order(&colour_pattern(c, pattern, bands)?.1).0,
         None => Vec::new(),
@@ -231,19 +228,29 @@ enum Kind {
     Colour(ColourPattern, Vec<f64>),
 }
 
-#[allow(clippy::too_many_arguments)]
-fn inputs<'py>(
-    frames: &Bound<'py, PyAny>,
+/// A block's frames and how they were taken, as ``polarid.dask`` passes them (a dict,
+/// the first argument of `_map_block` and `_noise_block`).
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct BlockArgs<'py> {
+    frames: Bound<'py, PyAny>,
     angles_deg: Option<Vec<f64>>,
-    beta_deg: &Bound<'py, PyAny>,
+    beta_deg: Bound<'py, PyAny>,
     pattern: Option<Vec<f64>>,
-    colour: Option<(&str, Option<HashMap<String, f64>>)>,
+    color: Option<String>,
+    bands: Option<HashMap<String, f64>>,
     halo: (usize, usize, usize, usize),
     bin: usize,
     dark_level: Option<Vec<f64>>,
     saturation: Option<Vec<Option<f64>>>,
-) -> PyResult<Inputs<'py>> {
-    let raw = raw_array("frames", frames)?;
+    min_s0: Option<f64>,
+}
+
+/// The checked inputs of block `a`.
+fn inputs<'py>(a: &BlockArgs<'py>) -> PyResult<Inputs<'py>> {
+    let (pattern, angles_deg, halo) = (a.pattern.clone(), &a.angles_deg, a.halo);
+    let colour = a.color.as_deref().map(|c| (c, a.bands.clone()));
+    let raw = raw_array("frames", &a.frames)?;
     let shape = raw.shape();
     let mosaic = pattern.is_some() || colour.is_some();
     let (t_len, a_len, hh, ww) = match (&shape[..], mosaic) {
@@ -271,9 +278,9 @@ fn inputs<'py>(
         )));
     }
     let (h, w) = (hh - halo[0] - halo[1], ww - halo[2] - halo[3]);
-    let (ow, oh) = cmap::binned_size(w, h, bin).py_err()?;
-    let dark = dark_level.unwrap_or_else(|| vec![0.0; t_len]);
-    let sat = saturation.unwrap_or_else(|| vec![None; t_len]);
+    let (ow, oh) = cmap::binned_size(w, h, a.bin).py_err()?;
+    let dark = a.dark_level.clone().unwrap_or_else(|| vec![0.0; t_len]);
+    let sat = a.saturation.clone().unwrap_or_else(|| vec![None; t_len]);
     if dark.len() != t_len || sat.len() != t_len {
         return Err(value_error(format!(
             "dark_level and saturation need one value per capture ({t_len}), got {} and {}",
@@ -282,7 +289,7 @@ fn inputs<'py>(
         )));
     }
     // β: one per capture (far field) or one per pixel and capture (calibrated rules).
-    let beta_arr = f64_contiguous("beta_deg", beta_deg)?;
+    let beta_arr = f64_contiguous("beta_deg", &a.beta_deg)?;
     let bshape = beta_arr.shape().to_vec();
     let beta = beta_arr.as_slice()?.to_vec();
     let per_pixel = match &bshape[..] {
@@ -295,7 +302,7 @@ fn inputs<'py>(
             )));
         }
     };
-    let kind = match (colour, pattern, &angles_deg) {
+    let kind = match (colour, pattern, angles_deg) {
         (Some((c, bands)), p, _) => {
             let (cp, nms) = colour_pattern(c, p, bands)?;
             Kind::Colour(cp, nms)
@@ -365,82 +372,39 @@ impl Inputs<'_> {
 
 /// One block of a material map (private: called by ``polarid.dask.material_map``).
 ///
-/// ``frames``: (T, A, h, w) polarizer frames (``angles_deg`` the A angles), or with
-/// ``pattern`` (and, for colour mosaics, ``color`` and ``bands``) a (T, h, w) DoFP
-/// mosaic stack whose first ``halo = (top, bottom, left, right)`` rows/columns are
-/// neighbours of the block (read by the bilinear interpolation, not mapped).
-/// ``beta_deg``: (T,) one β per capture, or (T, h/bin, w/bin) per pixel (NaN: no
-/// geometry). The prototypes: ``model_json`` (a model's text) or ``library``.
-/// ``dark_level`` (T,), ``saturation`` (T,) or None. ``rule``, ``confidence``,
-/// ``angle_sd_deg`` (one per capture), ``dolp_floor``, ``extinction_ratio``,
-/// ``retardance_deg``, ``bench``: the answer rule and its error model, as ``polarid
-/// map``. ``noise``: weighted fits with the map's noise model of every band (a list,
+/// ``block``: a dict of ``frames``: (T, A, h, w) polarizer frames (``angles_deg`` the A
+/// angles), or with ``pattern`` (and, for colour mosaics, ``color`` and ``bands``) a
+/// (T, h, w) DoFP mosaic stack whose first ``halo = (top, bottom, left, right)``
+/// rows/columns are neighbours of the block (read by the bilinear interpolation, not
+/// mapped); ``beta_deg``: (T,) one β per capture, or (T, h/bin, w/bin) per pixel (NaN:
+/// no geometry); ``bin``, ``min_s0``; ``dark_level`` (T,), ``saturation`` (T,) or None.
+/// ``options``: a dict of the prototypes (``model_json``, a model's text that ``label``
+/// names, or ``library``; the other None), ``max_distance``, ``metric``, ``tile`` and
+/// ``rule``, ``confidence``, ``angle_sd_deg`` (one per capture), ``dolp_floor``,
+/// ``extinction_ratio``, ``retardance_deg``, ``bench``: the answer rule and its error
+/// model, as ``polarid map``. ``noise``: weighted fits with the map's noise model of every band (a list,
 /// increasing wavelength, of ``(read_var_dn2, inv_gain)`` or None: that band unweighted),
 /// or None (unweighted). Returns float32 (6 B + 2, h/bin, w/bin): for each band
 /// (one for single-band frames, else in increasing wavelength) n, k, n_se, k_se,
 /// rms_residual and the band's reason code, then the map's class and reason codes
 /// (see ``_map_names``).
 #[pyfunction]
-#[pyo3(signature = (frames, angles_deg, beta_deg, model_json = None, *, library = None, label = "<model>", pattern = None, color = None, bands = None, halo = (0, 0, 0, 0), bin = 1, dark_level = None, saturation = None, min_s0 = None, max_distance = None, metric = "euclidean", tile = map::DEFAULT_TILE, rule = "set", confidence = polarid_core::classify::DEFAULT_CONFIDENCE, angle_sd_deg = None, dolp_floor = MapErrors::default().dolp_floor, extinction_ratio = MapErrors::default().extinction_ratio, retardance_deg = MapErrors::default().retardance_deg, noise = None, bench = "same"))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (block, options, *, noise = None))]
 fn _map_block<'py>(
     py: Python<'py>,
-    frames: &Bound<'py, PyAny>,
-    angles_deg: Option<Vec<f64>>,
-    beta_deg: &Bound<'py, PyAny>,
-    model_json: Option<&str>,
-    library: Option<String>,
-    label: &str,
-    pattern: Option<Vec<f64>>,
-    color: Option<&str>,
-    bands: Option<HashMap<String, f64>>,
-    halo: (usize, usize, usize, usize),
-    bin: usize,
-    dark_level: Option<Vec<f64>>,
-    saturation: Option<Vec<Option<f64>>>,
-    min_s0: Option<f64>,
-    max_distance: Option<f64>,
-    metric: &str,
-    tile: usize,
-    rule: &str,
-    confidence: f64,
-    angle_sd_deg: Option<Vec<f64>>,
-    dolp_floor: f64,
-    extinction_ratio: f64,
-    retardance_deg: f64,
+    block: BlockArgs<'py>,
+    options: MapOptions,
     noise: Option<Vec<Option<(f64, f64)>>>,
-    bench: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let colour = color.map(|c| (c, bands));
-    let inp = inputs(
-        frames, angles_deg, beta_deg, pattern, colour, halo, bin, dark_level, saturation,
-    )?;
-    let errors = ErrorArgs {
-        angle_sd_deg: angle_sd_deg
-            .unwrap_or_else(|| vec![MapErrors::default().angle_sd_deg; inp.t_len]),
-        dolp_floor,
-        extinction_ratio,
-        retardance_deg,
-    };
-    if errors.angle_sd_deg.len() != inp.t_len {
+    let inp = inputs(&block)?;
+    if options.angle_sd_deg.len() != inp.t_len {
         return Err(value_error(format!(
             "angle_sd_deg needs one value per capture ({}), got {}",
             inp.t_len,
-            errors.angle_sd_deg.len()
+            options.angle_sd_deg.len()
         )));
     }
-    let errs = errors.options()?;
-    let cfg = map_config(
-        bin,
-        min_s0,
-        max_distance,
-        metric,
-        tile,
-        (rule, confidence),
-        errs,
-        bench,
-    )?;
-    let protos = Protos::new(model_json, library, label)?;
+    let (cfg, protos) = options.setup(block.bin, block.min_s0)?;
     let bad = |&(r2, ig): &(f64, f64)| {
         !(r2.is_finite() && ig.is_finite() && r2 >= 0.0 && ig >= 0.0 && r2 + ig > 0.0)
     };
@@ -457,15 +421,15 @@ fn _map_block<'py>(
         v.into_iter().map(|m| m.map(model)).collect()
     });
     let noise = models.as_deref();
-    let model = errors.model();
+    let model = options.error_model();
     let (far, beta): (Vec<f64>, Vec<Vec<f32>>) = match inp.beta_rad() {
         BlockBeta::Shared(b) => (b, Vec::new()),
         BlockBeta::PerPixel(m) => (vec![f64::NAN; inp.t_len], m),
     };
-    let src = protos.src();
+    let (src, label) = (protos.src(), Path::new(&options.label));
     let fit = with_raw!(&inp.raw, |data| {
         let f = inp.frames(data);
-        py.detach(|| map_frames(&cfg, src, &f, &far, &beta, &model, noise, Path::new(label)))
+        py.detach(|| map_frames(&cfg, src, &f, &far, &beta, &model, noise, label))
     });
     let fit = fit.py_err()?;
     let (ow, oh) = (inp.ow, inp.oh);
@@ -487,7 +451,7 @@ fn _map_block<'py>(
 /// ``polarid.dask.material_map``'s weighted fits,
 /// ``polarid_pipeline::map::noise_sample``).
 ///
-/// Inputs as ``_map_block``; ``band``: the band sampled (index in increasing
+/// ``block`` as ``_map_block``'s; ``band``: the band sampled (index in increasing
 /// wavelength; 0 for single-band frames). Without ``row_offsets``: the number of usable
 /// pixels of every map row of the block (list, h/bin). With ``row_offsets`` (the usable
 /// pixels of the whole map before each row of the block, row-major) and ``stride``:
@@ -495,30 +459,16 @@ fn _map_block<'py>(
 /// ``stride`` (``index`` row-major within the block's map pixels) and their images per
 /// capture: DoLP, read and shot terms and, with a β per pixel, β in radians.
 #[pyfunction]
-#[pyo3(signature = (frames, angles_deg, beta_deg, *, pattern = None, color = None, bands = None, band = 0, halo = (0, 0, 0, 0), bin = 1, dark_level = None, saturation = None, min_s0 = None, row_offsets = None, stride = 1))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (block, *, band = 0, row_offsets = None, stride = 1))]
 fn _noise_block<'py>(
     py: Python<'py>,
-    frames: &Bound<'py, PyAny>,
-    angles_deg: Option<Vec<f64>>,
-    beta_deg: &Bound<'py, PyAny>,
-    pattern: Option<Vec<f64>>,
-    color: Option<&str>,
-    bands: Option<HashMap<String, f64>>,
+    block: BlockArgs<'py>,
     band: usize,
-    halo: (usize, usize, usize, usize),
-    bin: usize,
-    dark_level: Option<Vec<f64>>,
-    saturation: Option<Vec<Option<f64>>>,
-    min_s0: Option<f64>,
     row_offsets: Option<Vec<usize>>,
     stride: usize,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let cfg = MapConfig::new(bin, min_s0, None, map::Metric::Euclidean, 1).py_err()?;
-    let colour = color.map(|c| (c, bands));
-    let inp = inputs(
-        frames, angles_deg, beta_deg, pattern, colour, halo, bin, dark_level, saturation,
-    )?;
+    let cfg = MapConfig::new(block.bin, block.min_s0, None, map::Metric::Euclidean, 1).py_err()?;
+    let inp = inputs(&block)?;
     let per_pixel = inp.per_pixel;
     let bands = with_raw!(&inp.raw, |data| {
         let f = inp.frames(data);

@@ -9,7 +9,7 @@
 //! wavelengths) and classify with the multi-band classifier of the pipeline
 //! (`multi_classifier`, `Classifier::classify_multi`).
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashSet;
 use std::path::Path;
 
 use ndarray::{ArrayD, ArrayViewD, IxDyn};
@@ -28,7 +28,7 @@ use pyo3::types::{PyDict, PyList, PyString};
 use rayon::prelude::*;
 
 use crate::arrays::{
-    F64Like, broadcast_shape, broadcast_to, fmt_shape, shaped, str_array, to_numpy,
+    F64Like, NameTable, broadcast_shape, broadcast_to, fmt_shape, shaped, str_array, to_numpy,
 };
 use crate::errors::{PyResultExt, value_error};
 use crate::files::{path_arg, warn_texts};
@@ -676,39 +676,6 @@ fn array_result<'py>(
 /// One estimate's numbers: predicted code, distance, runner-up code, runner-up
 /// distance, margin, status code.
 type Row = (u32, f64, u32, f64, f64, u32);
-
-/// Distinct strings and their codes (`""` is code 0).
-#[derive(Debug)]
-struct NameTable {
-    names: Vec<String>,
-    index: HashMap<String, u32>,
-}
-
-impl Default for NameTable {
-    fn default() -> Self {
-        Self {
-            names: vec![String::new()],
-            index: HashMap::from([(String::new(), 0)]),
-        }
-    }
-}
-
-impl NameTable {
-    /// The code of `s`, added when new.
-    fn code(&mut self, s: &str) -> u32 {
-        if let Some(&i) = self.index.get(s) {
-            return i;
-        }
-        self.names.push(s.to_string());
-        let i = (self.names.len() - 1) as u32;
-        self.index.insert(s.to_string(), i);
-        i
-    }
-
-    fn refs(&self) -> Vec<&str> {
-        self.names.iter().map(String::as_str).collect()
-    }
-}
 
 /// Classify every target of a fits CSV exactly as ``polarid classify`` does.
 ///

@@ -21,7 +21,7 @@ use pyo3::exceptions::PyUserWarning;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use crate::arrays::{shaped, str_array};
+use crate::arrays::{NameTable, shaped, str_array};
 use crate::errors::{PyResultExt, value_error};
 use crate::set_fields;
 
@@ -374,17 +374,9 @@ pub fn measurements_dict<'py>(
         shaped(py, &dim, v)
     };
     let strs = |g: &dyn Fn(&Measurement) -> &str| -> PyResult<Bound<'py, PyAny>> {
-        let mut names: Vec<&str> = Vec::new();
-        let mut codes = Vec::with_capacity(rows.len());
-        for r in rows {
-            let s = g(r);
-            let idx = names.iter().position(|n| *n == s).unwrap_or_else(|| {
-                names.push(s);
-                names.len() - 1
-            });
-            codes.push(idx as u32);
-        }
-        str_array(py, &names, Array1::from(codes).into_dyn())
+        let mut names = NameTable::default();
+        let codes: Vec<u32> = rows.iter().map(|r| names.code(g(r))).collect();
+        str_array(py, &names.refs(), Array1::from(codes).into_dyn())
     };
     let nan = f64::NAN;
     let d = PyDict::new(py);

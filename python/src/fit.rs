@@ -282,23 +282,27 @@ fn broadcast_f64<'py>(
 /// Pixels per parallel task of [`batch`].
 const CHUNK: usize = 1024;
 
+/// The float64 columns of a batch fit, in the order of its dict.
+const F64_COLUMNS: [&str; 7] = ["n", "k", "n_se", "k_se", "nk_corr", "rms_residual", "cost"];
+/// The integer columns of a batch fit, in the order of its dict.
+const U32_COLUMNS: [&str; 3] = ["iterations", "evaluations", "starts"];
+
 /// The columns of a batch fit (struct of arrays).
-#[derive(Default)]
 struct BatchOut {
-    n: Column<f64>,
-    k: Column<f64>,
-    n_se: Column<f64>,
-    k_se: Column<f64>,
-    nk_corr: Column<f64>,
-    rms: Column<f64>,
-    cost: Column<f64>,
-    iterations: Column<u32>,
-    evaluations: Column<u32>,
-    starts: Column<u32>,
+    /// [`F64_COLUMNS`].
+    f64s: [Column<f64>; 7],
+    /// [`U32_COLUMNS`].
+    u32s: [Column<u32>; 3],
     status: Column<u8>,
     reason: Column<u8>,
     /// `reason` codes index this table; 0 is "".
     reasons: Vec<&'static str>,
+}
+
+/// One pixel's values of the [`F64_COLUMNS`] and [`U32_COLUMNS`].
+fn columns_of(f: &NkFit) -> ([f64; 7], [u32; 3]) {
+    let floats = [f.n, f.k, f.n_se, f.k_se, f.nk_corr, f.rms_residual, f.cost];
+    (floats, [f.iterations, f.evaluations, f.starts])
 }
 
 /// A batch fit of `out.len()` pixels starting at pixel `first` of the stack, `y` (and
@@ -384,42 +388,35 @@ fn batch<Y: DolpSample>(
         });
     }
     let mut o = BatchOut {
-        n: Column::new(pixels),
-        k: Column::new(pixels),
-        n_se: Column::new(pixels),
-        k_se: Column::new(pixels),
-        nk_corr: Column::new(pixels),
-        rms: Column::new(pixels),
-        cost: Column::new(pixels),
-        iterations: Column::new(pixels),
-        evaluations: Column::new(pixels),
-        starts: Column::new(pixels),
+        f64s: std::array::from_fn(|_| Column::new(pixels)),
+        u32s: std::array::from_fn(|_| Column::new(pixels)),
         status: Column::new(pixels),
         reason: Column::new(pixels),
         reasons: Vec::new(),
     };
     let c = CHUNK;
+    // Every column cut into chunks of `c` pixels, gathered per chunk.
+    let mut f64s = o.f64s.each_mut().map(|v| v.as_mut_slice().chunks_mut(c));
+    let mut u32s = o.u32s.each_mut().map(|v| v.as_mut_slice().chunks_mut(c));
+    let status = o.status.as_mut_slice().chunks_mut(c);
+    let reason = o.reason.as_mut_slice().chunks_mut(c);
+    // ok (`next()`): every column has as many chunks as `status`.
+    let chunks: Vec<_> = status
+        .zip(reason)
+        .map(|(st, rc)| {
+            let f: [&mut [f64]; 7] = std::array::from_fn(|j| f64s[j].next().unwrap());
+            let u: [&mut [u32]; 3] = std::array::from_fn(|j| u32s[j].next().unwrap());
+            (f, u, st, rc)
+        })
+        .collect();
     // Per chunk: its reasons; local code i + 1 is `table[i]` (0 is "").
-    let tables: Vec<Vec<&'static str>> = (
-        o.n.as_mut_slice().par_chunks_mut(c),
-        o.k.as_mut_slice().par_chunks_mut(c),
-        o.n_se.as_mut_slice().par_chunks_mut(c),
-        o.k_se.as_mut_slice().par_chunks_mut(c),
-        o.nk_corr.as_mut_slice().par_chunks_mut(c),
-        o.rms.as_mut_slice().par_chunks_mut(c),
-        o.cost.as_mut_slice().par_chunks_mut(c),
-        o.iterations.as_mut_slice().par_chunks_mut(c),
-        o.evaluations.as_mut_slice().par_chunks_mut(c),
-        o.starts.as_mut_slice().par_chunks_mut(c),
-        o.status.as_mut_slice().par_chunks_mut(c),
-        o.reason.as_mut_slice().par_chunks_mut(c),
-    )
+    let tables: Vec<Vec<&'static str>> = chunks
         .into_par_iter()
         .enumerate()
         .map_init(
             || (vec![NkFit::default(); c], Vec::new()),
-            |(buf, ybuf), (i, (n, k, nse, kse, corr, rms, cost, it, ev, st, code, rc))| {
-                let len = n.len();
+            |(buf, ybuf), (i, (mut fc, mut uc, code, rc))| {
+                let len = code.len();
                 let y = Y::as_f64(&ys[i * c * t..(i * c + len) * t], ybuf);
                 let se = ses.map(|s| &s[i * c * t..(i * c + len) * t]);
                 let buf = &mut buf[..len];
@@ -428,16 +425,13 @@ fn batch<Y: DolpSample>(
                 // The last reason seen and its code (runs of one reason are common).
                 let mut last: (&'static str, u8) = ("", 0);
                 for (j, f) in buf.iter().enumerate() {
-                    n[j] = f.n;
-                    k[j] = f.k;
-                    nse[j] = f.n_se;
-                    kse[j] = f.k_se;
-                    corr[j] = f.nk_corr;
-                    rms[j] = f.rms_residual;
-                    cost[j] = f.cost;
-                    it[j] = f.iterations;
-                    ev[j] = f.evaluations;
-                    st[j] = f.starts;
+                    let (floats, ints) = columns_of(f);
+                    for (col, v) in fc.iter_mut().zip(floats) {
+                        col[j] = v;
+                    }
+                    for (col, v) in uc.iter_mut().zip(ints) {
+                        col[j] = v;
+                    }
                     code[j] = f.status.code();
                     rc[j] = if f.reason.is_empty() {
                         0
@@ -500,7 +494,6 @@ const HUGE_PAGE: usize = 2 << 20;
 /// per 4 KiB. Only a hint: where the kernel declines (THP disabled, no huge page free)
 /// or elsewhere than Linux nothing changes but the alignment. numpy receives the
 /// column as an array over `vec` at offset `off` (no copy).
-#[derive(Default)]
 struct Column<T> {
     vec: Vec<T>,
     off: usize,
@@ -576,16 +569,12 @@ fn batch_dict<'py>(
         Ok(to_numpy(py, a))
     }
     let d = PyDict::new(py);
-    d.set_item("n", arr(py, lead, o.n)?)?;
-    d.set_item("k", arr(py, lead, o.k)?)?;
-    d.set_item("n_se", arr(py, lead, o.n_se)?)?;
-    d.set_item("k_se", arr(py, lead, o.k_se)?)?;
-    d.set_item("nk_corr", arr(py, lead, o.nk_corr)?)?;
-    d.set_item("rms_residual", arr(py, lead, o.rms)?)?;
-    d.set_item("cost", arr(py, lead, o.cost)?)?;
-    d.set_item("iterations", arr(py, lead, o.iterations)?)?;
-    d.set_item("evaluations", arr(py, lead, o.evaluations)?)?;
-    d.set_item("starts", arr(py, lead, o.starts)?)?;
+    for (name, v) in F64_COLUMNS.iter().zip(o.f64s) {
+        d.set_item(*name, arr(py, lead, v)?)?;
+    }
+    for (name, v) in U32_COLUMNS.iter().zip(o.u32s) {
+        d.set_item(*name, arr(py, lead, v)?)?;
+    }
     let codes = arr(py, lead, o.status)?;
     let words: Vec<&str> = FitStatus::ALL.iter().map(|s| s.as_str()).collect();
     if status_strings {

@@ -13,7 +13,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::arrays::shaped;
-use crate::errors::{IntoPyErr, PyResultExt, value_error};
+use crate::errors::{PyResultExt, value_error};
 use crate::files::{path_arg, warn_all, warn_texts};
 
 /// Register this module's functions.
@@ -129,7 +129,7 @@ pub fn map_manifest<'py>(
     py: Python<'py>,
     manifest_path: &Bound<'py, PyAny>,
     model: Option<&Bound<'py, PyAny>>,
-    library: Option<String>,
+    library: Option<&str>,
     bin: usize,
     min_s0: Option<f64>,
     max_distance: Option<f64>,
@@ -150,17 +150,9 @@ pub fn map_manifest<'py>(
         extinction_ratio,
         retardance_deg,
     };
-    let cfg = map_config(
-        bin,
-        min_s0,
-        max_distance,
-        metric,
-        tile,
-        (rule, confidence),
-        errors,
-        bench,
-    )?
-    .with_weights(map::parse_weights(weights).py_err()?);
+    let opts = (bin, min_s0, max_distance, metric, tile);
+    let cfg = map_config(opts, (rule, confidence), errors, bench)?
+        .with_weights(map::parse_weights(weights).py_err()?);
     let mpath = path_arg(manifest_path)?;
     let model_path = model.map(path_arg).transpose()?;
     if model_path.is_some() == library.is_some() {
@@ -169,21 +161,17 @@ pub fn map_manifest<'py>(
              \"builtin-rgb\" or a library CSV), not both or neither",
         ));
     }
-    let m = py
-        .detach(|| manifest::load(&mpath))
-        .map_err(IntoPyErr::into_py_err)?;
+    let m = py.detach(|| manifest::load(&mpath)).py_err()?;
     warn_all(py, &m)?;
     let r = match (&model_path, &library) {
         (Some(p), _) => {
-            let mdl = py
-                .detach(|| Model::read(p))
-                .map_err(IntoPyErr::into_py_err)?;
+            let mdl = py.detach(|| Model::read(p)).py_err()?;
             py.detach(|| map::map_manifest(&cfg, &m, &mdl, p, &no_progress))
         }
         (None, spec) => {
-            let spec = spec.clone().unwrap_or_default();
+            let spec = spec.unwrap_or_default();
             py.detach(|| {
-                map::map_manifest_from(&cfg, &m, map::MapPrototypes::Library(&spec), &no_progress)
+                map::map_manifest_from(&cfg, &m, map::MapPrototypes::Library(spec), &no_progress)
             })
         }
     }
@@ -198,14 +186,13 @@ pub fn map_manifest<'py>(
     result(py, r)
 }
 
+/// The options of `polarid map` as Python names them: `bin`, `min_s0`, `max_distance`,
+/// `metric`, `tile`.
+pub type MapArgs<'a> = (usize, Option<f64>, Option<f64>, &'a str, usize);
+
 /// The map's options, checked as `polarid map` checks them (errors name the option).
-#[allow(clippy::too_many_arguments)]
 pub fn map_config(
-    bin: usize,
-    min_s0: Option<f64>,
-    max_distance: Option<f64>,
-    metric: &str,
-    tile: usize,
+    (bin, min_s0, max_distance, metric, tile): MapArgs<'_>,
     (rule, confidence): (&str, f64),
     errors: map::MapErrors,
     bench: &str,

@@ -110,25 +110,11 @@ pub fn validate(n: f64, k: f64, sigma: f64, theta_i: f64, theta_r: f64, phi: f64
 /// zenith `theta_r` and azimuth difference `phi = φr − φi` (radians; `φ = π` is the
 /// forward in-plane geometry). Validates the arguments (see [`validate`]).
 pub fn pbrdf(n: f64, k: f64, sigma: f64, theta_i: f64, theta_r: f64, phi: f64) -> Result<Pbrdf> {
-    let mut out = Pbrdf::default();
-    pbrdf_into(n, k, sigma, theta_i, theta_r, phi, &mut out)?;
-    Ok(out)
-}
-
-/// Same as [`pbrdf`], writing into a caller-owned value.
-pub fn pbrdf_into(
-    n: f64,
-    k: f64,
-    sigma: f64,
-    theta_i: f64,
-    theta_r: f64,
-    phi: f64,
-    out: &mut Pbrdf,
-) -> Result<()> {
     validate(n, k, sigma, theta_i, theta_r, phi)?;
     let g = ScatterGeometry::new(theta_i, theta_r, phi);
-    pbrdf_geometry(n, k, sigma, &g, out);
-    Ok(())
+    let mut out = Pbrdf::default();
+    pbrdf_geometry(n, k, sigma, &g, &mut out);
+    Ok(out)
 }
 
 /// Eq. (3) at a precomputed geometry, without argument checks (for simulators that
@@ -137,13 +123,7 @@ pub fn pbrdf_into(
 pub fn pbrdf_geometry(n: f64, k: f64, sigma: f64, g: &ScatterGeometry, out: &mut Pbrdf) {
     let fr = Fresnel::from_sin_cos(n, k, g.sin2_beta, g.cos_beta);
     let scale = facet_factor(sigma, g);
-    let m = fr.mueller3();
-    let mut local = [[0.0; 3]; 3];
-    for (lr, mr) in local.iter_mut().zip(m.iter()) {
-        for (l, v) in lr.iter_mut().zip(mr.iter()) {
-            *l = v * scale;
-        }
-    }
+    let local = fr.mueller3().map(|r| r.map(|v| v * scale));
     out.local = local;
     out.global = to_global(&local, g);
     out.beta = g.beta();

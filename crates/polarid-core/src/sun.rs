@@ -72,6 +72,7 @@
 //! captures where the sun's specular reflection dominates).
 
 use crate::error::{CoreError, Result, ensure_finite, ensure_range};
+use crate::geometry::vec3::dot;
 use solar_positioning::{
     Location, RefractionCorrection, SolarPositions, delta_t as sp_delta_t, time::JulianDate,
 };
@@ -420,20 +421,27 @@ pub fn sun_direction(pos: &SolarPosition) -> [f64; 3] {
 /// [`CoreError::NonFinite`] for a non-finite component, [`CoreError::OutOfRange`] for a
 /// zero normal (both named `normal`).
 pub fn incidence_angle_deg(pos: &SolarPosition, normal: [f64; 3]) -> Result<f64> {
-    for c in normal {
-        ensure_finite("normal", c)?;
+    Ok(cos_to_sun(pos, "normal", normal)?.acos().to_degrees())
+}
+
+/// Cosine of the angle between the sun's apparent direction and `v` (scene frame, any
+/// length), clamped to [-1, 1].
+///
+/// Errors: [`CoreError::NonFinite`] for a non-finite component, [`CoreError::OutOfRange`]
+/// for a zero (or overflowing) length, both named `name`.
+fn cos_to_sun(pos: &SolarPosition, name: &'static str, v: [f64; 3]) -> Result<f64> {
+    for c in v {
+        ensure_finite(name, c)?;
     }
-    let len = (normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]).sqrt();
+    let len = dot(v, v).sqrt();
     if !(len > 0.0 && len.is_finite()) {
         return Err(CoreError::OutOfRange {
-            name: "normal",
+            name,
             value: len,
             expected: "a non-zero, finite length",
         });
     }
-    let s = sun_direction(pos);
-    let c = (s[0] * normal[0] + s[1] * normal[1] + s[2] * normal[2]) / len;
-    Ok(c.clamp(-1.0, 1.0).acos().to_degrees())
+    Ok((dot(sun_direction(pos), v) / len).clamp(-1.0, 1.0))
 }
 
 /// A typical maximum degree of linear polarization of a clear, blue sky (at 90° from
@@ -461,20 +469,7 @@ pub fn rayleigh_sky_dolp(
     max_dolp: f64,
 ) -> Result<f64> {
     ensure_range("max_dolp", max_dolp, 0.0, 1.0, "0 to 1")?;
-    for c in sky_direction {
-        ensure_finite("sky_direction", c)?;
-    }
-    let v = sky_direction;
-    let len2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
-    if !(len2 > 0.0 && len2.is_finite()) {
-        return Err(CoreError::OutOfRange {
-            name: "sky_direction",
-            value: len2.sqrt(),
-            expected: "a non-zero, finite length",
-        });
-    }
-    let s = sun_direction(pos);
-    let cos_g = ((s[0] * v[0] + s[1] * v[1] + s[2] * v[2]) / len2.sqrt()).clamp(-1.0, 1.0);
+    let cos_g = cos_to_sun(pos, "sky_direction", sky_direction)?;
     let cos2 = cos_g * cos_g;
     Ok(max_dolp * (1.0 - cos2) / (1.0 + cos2))
 }

@@ -476,7 +476,8 @@ fn gls_gof(v: &[f64], j0: &[f64], j1: &[f64], r: &[f64]) -> Option<Gof> {
 /// Lower Cholesky factor of the symmetric `m × m` matrix `v` (row-major), or `None`
 /// when it is not positive definite.
 #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN-safe on purpose
-fn cholesky(v: &[f64], m: usize) -> Option<Vec<f64>> {
+#[inline]
+pub(crate) fn cholesky(v: &[f64], m: usize) -> Option<Vec<f64>> {
     let mut l = vec![0.0; m * m];
     for i in 0..m {
         for j in 0..=i {
@@ -498,7 +499,8 @@ fn cholesky(v: &[f64], m: usize) -> Option<Vec<f64>> {
 }
 
 /// Solve `L x = y` for lower-triangular `L`.
-fn forward(l: &[f64], y: &[f64], m: usize) -> Vec<f64> {
+#[inline]
+pub(crate) fn forward(l: &[f64], y: &[f64], m: usize) -> Vec<f64> {
     let mut x = vec![0.0; m];
     for i in 0..m {
         let mut s = y[i];

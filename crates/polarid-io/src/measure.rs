@@ -112,12 +112,7 @@ pub fn measure_images_with(
     img: &StokesImages,
     strict: bool,
 ) -> Result<Vec<Measurement>> {
-    let first_file = c
-        .source
-        .files()
-        .first()
-        .map(|p| p.display().to_string())
-        .unwrap_or_default();
+    let first_file = first_file(c);
     let rect_err = |r: &Region, reason: String| {
         r.rect_error(
             &m.path,
@@ -132,6 +127,15 @@ pub fn measure_images_with(
         return Err(rect_err(r, format!("{}: {}", row.status, row.reason)));
     }
     Ok(rows)
+}
+
+/// The first file of capture `c` as shown in errors (empty when it has none).
+fn first_file(c: &Capture) -> String {
+    c.source
+        .files()
+        .first()
+        .map(|p| p.display().to_string())
+        .unwrap_or_default()
 }
 
 /// Pixel counts of `rect` (inside the image): valid, saturated, dark, invalid.
@@ -612,12 +616,7 @@ fn band_rows(
             if !row.status.is_ok() {
                 row.reason = row.reason.replacen(&label, &format!("{label}{band}"), 1);
                 if strict {
-                    let file = c
-                        .source
-                        .files()
-                        .first()
-                        .map(|p| p.display().to_string())
-                        .unwrap_or_default();
+                    let file = first_file(c);
                     return Err(r.rect_error(
                         &m.path,
                         format!(

@@ -255,40 +255,22 @@ pub fn dofp_stokes(
     round: bool,
 ) -> Result<StokesImages> {
     let wrap = |e| IoError::core(&raw.path, e);
-    let out = match demosaic {
+    let (w, data) = (raw.width, &raw.data);
+    let mut o = match demosaic {
+        Demosaic::Bilinear => StokesImages::alloc(w, raw.height, Sampling::BilinearDofp),
+        Demosaic::Superpixel => StokesImages::alloc(w / 2, raw.height / 2, Sampling::Independent),
+    };
+    let (s0, s1, s2, mask) = (&mut o.s0, &mut o.s1, &mut o.s2, &mut o.mask);
+    o.counts = match demosaic {
         Demosaic::Bilinear => {
-            let mut o = StokesImages::alloc(raw.width, raw.height, Sampling::BilinearDofp);
-            o.counts = mosaic::bilinear_stokes(
-                &raw.data,
-                raw.width,
-                pattern,
-                rules,
-                round,
-                &mut o.s0,
-                &mut o.s1,
-                &mut o.s2,
-                &mut o.mask,
-            )
-            .map_err(wrap)?;
-            o
+            mosaic::bilinear_stokes(data, w, pattern, rules, round, s0, s1, s2, mask)
         }
         Demosaic::Superpixel => {
-            let mut o = StokesImages::alloc(raw.width / 2, raw.height / 2, Sampling::Independent);
-            o.counts = mosaic::superpixel_stokes(
-                &raw.data,
-                raw.width,
-                pattern,
-                rules,
-                &mut o.s0,
-                &mut o.s1,
-                &mut o.s2,
-                &mut o.mask,
-            )
-            .map_err(wrap)?;
-            o
+            mosaic::superpixel_stokes(data, w, pattern, rules, s0, s1, s2, mask)
         }
-    };
-    Ok(out)
+    }
+    .map_err(wrap)?;
+    Ok(o)
 }
 
 /// Stokes images read from three float TIFFs (S0, S1, S2 of the same size), masked by

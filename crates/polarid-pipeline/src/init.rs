@@ -156,14 +156,11 @@ fn find_captures(dir: &Path, warnings: &mut Vec<Warning>) -> Result<Layout> {
                 ),
             ));
         }
-        let mut out = Vec::new();
-        for (d, images) in &capture_dirs {
-            out.push(FoundCapture {
-                name: file_name(d),
-                data: one_capture(d, images)?,
-            });
-        }
-        out
+        let one = |(d, images): &(PathBuf, Vec<PathBuf>)| {
+            let (name, data) = (file_name(d), one_capture(d, images)?);
+            Ok(FoundCapture { name, data })
+        };
+        capture_dirs.iter().map(one).collect::<Result<_>>()?
     } else if loose.is_empty() {
         return Err(data_err(
             dir,
@@ -197,12 +194,10 @@ fn find_captures(dir: &Path, warnings: &mut Vec<Warning>) -> Result<Layout> {
 /// Read every frame of `captures` (sizes, types, values): their statistics, in order.
 /// Errors: frames of different sizes or types, DoFP raws of an odd size.
 fn read_frames(dir: &Path, captures: &[FoundCapture]) -> Result<Vec<FrameStats>> {
-    let mut stats: Vec<FrameStats> = Vec::new();
-    for c in captures {
-        for f in capture_files(&c.data) {
-            stats.push(frame_stats(&f)?);
-        }
-    }
+    let files = captures.iter().flat_map(|c| capture_files(&c.data));
+    let stats = files
+        .map(|f| frame_stats(&f))
+        .collect::<polarid_io::Result<Vec<_>>>()?;
     let first = stats
         .first()
         .ok_or_else(|| data_err(dir, "no frames found"))?;
@@ -276,14 +271,11 @@ fn sensor_depth(
     } else {
         &raw_stats
     });
-    let mut saturated = Vec::new();
-    if let Some(sat) = depth.saturation {
-        for s in &raw_stats {
-            if f64::from(s.max) >= sat && s.at_max > 0 {
-                saturated.push((s.path.clone(), s.at_max));
-            }
-        }
-    }
+    let saturated: Vec<_> = raw_stats
+        .iter()
+        .filter(|s| depth.saturation.is_some_and(|sat| f64::from(s.max) >= sat) && s.at_max > 0)
+        .map(|s| (s.path.clone(), s.at_max))
+        .collect();
     if !saturated.is_empty() {
         let total: usize = saturated.iter().map(|s| s.1).sum();
         warnings.push(Warning(format!(

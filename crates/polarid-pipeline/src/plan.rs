@@ -671,8 +671,7 @@ fn angles(bench: &Bench, p: &PlateView, src: &SourceSpec) -> Option<(f64, f64, f
                     let r2 = dot(d, d);
                     (unit(d), 1.0 / r2)
                 }
-                SourceSpec::Direction(d) => (unit(*d), 1.0),
-                SourceSpec::Sun { direction, .. } => (unit(*direction), 1.0),
+                SourceSpec::Direction(d) | SourceSpec::Sun { direction: d, .. } => (unit(*d), 1.0),
             };
             let ci = dot(l, p.normal);
             let cr = dot(v, p.normal);
@@ -874,11 +873,6 @@ impl Models {
             .collect()
     }
 
-    /// Target `t`'s rows at `positions`, every band.
-    fn rows(&self, positions: &[&Position], t: usize) -> Vec<PlanRow> {
-        self.rows_of(positions, t, None)
-    }
-
     fn pair(
         &self,
         positions: &[&Position],
@@ -910,7 +904,7 @@ impl Models {
         alt: usize,
         grid: &[TruthPoint],
     ) -> Result<(f64, TruthPoint)> {
-        let rows = self.rows(positions, t);
+        let rows = self.rows_of(positions, t, None);
         let (lambda, dof, at) = worst_case(
             &rows,
             &self.wavelengths,
@@ -1252,6 +1246,7 @@ fn candidate_models(
 
 /// The plates planned for (those whose class is a candidate), as the report names them,
 /// as indices into the candidates, and as the planner sees them.
+#[derive(Default)]
 struct TargetPlates {
     targets: Vec<Target>,
     truth: Vec<usize>,
@@ -1287,11 +1282,7 @@ fn target_plates(
         Some(bands) => bands.iter().map(|b| b.response).collect(),
         None => vec![1.0],
     };
-    let mut out = TargetPlates {
-        targets: Vec::new(),
-        truth: Vec::new(),
-        plates: Vec::new(),
-    };
+    let mut out = TargetPlates::default();
     for p in &scene.plates {
         let Some(class) = &p.class else {
             warnings.push(Warning(format!(
@@ -1369,20 +1360,19 @@ fn own_sources(geometry: &Geometry) -> (Vec<(String, SourceSpec)>, f64) {
                 c.sources.iter().map(|s| s.intensity).sum::<f64>() / c.sources.len() as f64
             },
         ),
-        Geometry::FarField { theta_i_deg, .. } => (
-            theta_i_deg
-                .iter()
-                .map(|t| {
-                    let r = t.to_radians();
-                    (
-                        format!("t {t}"),
-                        SourceSpec::Direction([r.sin(), 0.0, r.cos()]),
-                    )
-                })
-                .collect(),
-            1.0,
-        ),
+        Geometry::FarField { theta_i_deg, .. } => {
+            (theta_i_deg.iter().map(|&t| far_source(t)).collect(), 1.0)
+        }
     }
+}
+
+/// A distant source at zenith `t` degrees in the camera's plane of incidence: `t 35`.
+fn far_source(t: f64) -> (String, SourceSpec) {
+    let r = t.to_radians();
+    (
+        format!("t {t}"),
+        SourceSpec::Direction([r.sin(), 0.0, r.cos()]),
+    )
 }
 
 /// The sun over the window `w`: one candidate per time the sun is up and lights every
@@ -1468,16 +1458,10 @@ fn region_candidates(light: &Lighting, own: &[(String, SourceSpec)], r: &Region)
     let zeniths = steps_of(r.zenith_deg, r.step_deg);
     let mut cands = Vec::new();
     let Bench::Calibrated { camera } = &light.bench else {
-        for &t in &zeniths {
-            let tr = t.to_radians();
-            if let Some(p) = light.position(
-                format!("t {t}"),
-                SourceSpec::Direction([tr.sin(), 0.0, tr.cos()]),
-            ) {
-                cands.push(p);
-            }
-        }
-        return cands;
+        let far = zeniths.iter().map(|&t| far_source(t));
+        return far
+            .filter_map(|(label, spec)| light.position(label, spec))
+            .collect();
     };
     let plates = &light.plates;
     let n_p = plates.len() as f64;
@@ -1709,11 +1693,9 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
     let progress = search(&models, &cands, &grids, &mut idx, &mut active)?;
     sort_by_beta(&mut idx, &cands);
     let recommended = models.evaluate(idx.iter().map(|&i| cands[i].clone()).collect())?;
-    let current = if current_positions.len() >= 2 {
-        Some(models.evaluate(current_positions)?)
-    } else {
-        None
-    };
+    let current = (current_positions.len() >= 2)
+        .then(|| models.evaluate(current_positions))
+        .transpose()?;
     Ok(PlanOutput {
         scene: scene.path.clone(),
         targets,
@@ -1726,11 +1708,7 @@ pub fn plan(scene: &Scene, cfg: &PlanConfig) -> Result<PlanOutput> {
         recommended,
         progress,
         candidates: cands.len(),
-        sun_positions: if sun.is_some() {
-            cands.clone()
-        } else {
-            Vec::new()
-        },
+        sun_positions: sun.as_ref().map_or_else(Vec::new, |_| cands.clone()),
         sun,
         config: cfg.clone(),
         warnings,

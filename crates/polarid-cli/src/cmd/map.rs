@@ -105,13 +105,9 @@ pub struct Args {
     pub retardance_deg: f64,
 }
 
-/// The files `polarid map` writes.
-const FILES: [&str; 11] = [
-    "n.tif",
-    "k.tif",
-    "n_se.tif",
-    "k_se.tif",
-    "rms_residual.tif",
+/// The files `polarid map` writes besides the fit images (`n.tif` ...,
+/// [`map::output_files`]).
+const FILES: [&str; 6] = [
     "class.tif",
     "reason.tif",
     "classes.json",

@@ -77,9 +77,10 @@ pub struct Args {
         long,
         value_delimiter = ',',
         value_name = "L=NM,...",
+        value_parser = band_entry,
         requires = "color"
     )]
-    pub bands: Vec<String>,
+    pub bands: Vec<(String, f64)>,
     /// DoFP reconstruction. `bilinear` rounds interpolated values of integer frames to
     /// whole DN exactly as OpenCV does, so results match polanalyser's demosaicing.
     #[arg(long, value_enum, default_value_t = Demosaic::Bilinear)]
@@ -152,19 +153,11 @@ fn write_files(
     Ok(files.len())
 }
 
-/// `--bands L=NM,...` as (letter, nm) entries (the pipeline checks them).
-fn band_entries(spec: &[String]) -> anyhow::Result<Vec<(String, f64)>> {
-    spec.iter()
-        .map(|item| {
-            let bad = || {
-                BadInput(format!(
-                    "--bands: expected LETTER=NM (e.g. R=650), got {item:?}"
-                ))
-            };
-            let (k, v) = item.split_once('=').ok_or_else(bad)?;
-            Ok((k.to_string(), v.trim().parse().map_err(|_| bad())?))
-        })
-        .collect()
+/// An entry `L=NM` of `--bands` as (letter, nm) (the pipeline checks them).
+fn band_entry(item: &str) -> Result<(String, f64), String> {
+    let bad = || format!("expected LETTER=NM (e.g. R=650), got {item:?}");
+    let (k, v) = item.split_once('=').ok_or_else(bad)?;
+    Ok((k.to_string(), v.trim().parse().map_err(|_| bad())?))
 }
 
 /// The pipeline's configuration from the command line (names translated only).
@@ -174,10 +167,7 @@ fn config(args: &Args) -> anyhow::Result<StokesConfig> {
             file: file.clone(),
             pattern_deg: args.pattern.clone(),
             demosaic: args.demosaic.into(),
-            colour: match &args.color {
-                Some(c) => Some((c.clone(), band_entries(&args.bands)?)),
-                None => None,
-            },
+            colour: args.color.clone().map(|c| (c, args.bands.clone())),
         },
         (None, false) => StokesSource::Frames {
             files: args.frames.clone(),

@@ -138,13 +138,7 @@ fn band_figures(
 fn spectra_figure(out: &ColourDemoOutput, size: PlotSize) -> anyhow::Result<ColourFigure> {
     let mut targets: Vec<Spectrum> = Vec::new();
     for (_, f) in out.fits.iter().filter(|(_, f)| is_test(out, &f.target)) {
-        let p = SpectrumPoint {
-            wavelength_nm: f.wavelength_nm.unwrap_or(f64::NAN),
-            n: f.n,
-            k: f.k,
-            n_se: Some(f.n_se),
-            k_se: Some(f.k_se),
-        };
+        let p = SpectrumPoint::of_fit(f);
         match targets.iter_mut().find(|s| s.label == f.target) {
             Some(s) => s.points.push(p),
             None => targets.push(Spectrum {
@@ -162,13 +156,7 @@ fn spectra_figure(out: &ColourDemoOutput, size: PlotSize) -> anyhow::Result<Colo
             points: polarid_pipeline::demo::colour::COLOUR_BANDS_NM
                 .iter()
                 .zip(m.nk)
-                .map(|(&w, (n, k))| SpectrumPoint {
-                    wavelength_nm: w,
-                    n,
-                    k,
-                    n_se: None,
-                    k_se: None,
-                })
+                .map(|(&w, (n, k))| SpectrumPoint::bare(w, n, k))
                 .collect(),
             curve: Vec::new(),
         })

@@ -17,18 +17,20 @@ use super::plots::panels::band_label;
 use super::plots::{ClassMap, MapRegion, PlotSize, answer_map, scalar_map};
 use super::table_report::{References, Tables, figures};
 
+/// `, 2x2 binning` in the titles of a binned map's figures (empty at full resolution).
+fn binning(r: &MapResult) -> String {
+    if r.bin > 1 {
+        format!(", {0}x{0} binning", r.bin)
+    } else {
+        String::new()
+    }
+}
+
 /// `class.png`: the material map with its legend, the `unknown` pixels by reason and
 /// the manifest's regions outlined.
 pub fn class_figure(r: &MapResult) -> Result<Rendered> {
     let (w, h) = (r.width, r.height);
-    let title = format!(
-        "Material map ({w}x{h}{})",
-        if r.bin > 1 {
-            format!(", {0}x{0} binning", r.bin)
-        } else {
-            String::new()
-        }
-    );
+    let title = format!("Material map ({w}x{h}{})", binning(r));
     answer_map(&title, &class_map(r), PlotSize::REPORT)
 }
 
@@ -188,11 +190,7 @@ pub fn band_figures(r: &MapResult, refs: &References) -> Result<Vec<(String, Ren
     if !r.is_colour() {
         return Ok(out);
     }
-    let bin = if r.bin > 1 {
-        format!(", {0}x{0} binning", r.bin)
-    } else {
-        String::new()
-    };
+    let bin = binning(r);
     for (q, get) in [
         (
             "n",

@@ -49,6 +49,7 @@
 use super::{Cov2, Estimate, Prototype};
 use crate::status::FitStatus;
 pub use crate::systematic::FilmShifts;
+use crate::systematic::{cholesky, forward};
 
 /// Two wavelengths closer than this (nm) are the same band.
 pub const BAND_TOLERANCE_NM: f64 = 0.5;
@@ -295,33 +296,8 @@ pub(super) fn joint_distance2(bands: &[JointBand]) -> Option<f64> {
         }
     }
     // Cholesky a = L Lᵀ, then d² = |L⁻¹ Δ|².
-    let mut l = vec![0.0; m * m];
-    for i in 0..m {
-        for j in 0..=i {
-            let mut s = a[i * m + j];
-            for p in 0..j {
-                s -= l[i * m + p] * l[j * m + p];
-            }
-            if i == j {
-                if !(s > 0.0 && s.is_finite()) {
-                    return None;
-                }
-                l[i * m + i] = s.sqrt();
-            } else {
-                l[i * m + j] = s / l[j * m + j];
-            }
-        }
-    }
-    let mut q = 0.0;
-    let mut x = vec![0.0; m];
-    for i in 0..m {
-        let mut s = d[i];
-        for p in 0..i {
-            s -= l[i * m + p] * x[p];
-        }
-        x[i] = s / l[i * m + i];
-        q += x[i] * x[i];
-    }
+    let l = cholesky(&a, m)?;
+    let q = forward(&l, &d, m).iter().fold(0.0, |q, x| q + x * x);
     q.is_finite().then_some(q)
 }
 

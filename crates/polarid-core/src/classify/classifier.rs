@@ -193,29 +193,8 @@ impl Classifier {
     /// prototype has a non-finite or negative index or a reserved/empty class name, or the
     /// settings are invalid.
     pub fn new(prototypes: Vec<Prototype>, config: ClassifierConfig) -> Result<Self> {
-        config.validate()?;
-        if prototypes.is_empty() {
-            return Err(CoreError::TooFew {
-                what: "prototypes",
-                needed: 1,
-                got: 0,
-            });
-        }
-        for p in &prototypes {
-            check_class_name(&p.class)?;
-            crate::error::ensure_finite("prototype n", p.n)?;
-            crate::error::ensure_range("prototype k", p.k, 0.0, f64::INFINITY, ">= 0")?;
-        }
-        let profiles = prototypes
-            .iter()
-            .cloned()
-            .map(MultiPrototype::from)
-            .collect();
-        Ok(Self {
-            prototypes,
-            profiles,
-            config,
-        })
+        let profiles = prototypes.into_iter().map(MultiPrototype::from).collect();
+        Self::multi(profiles, config)
     }
 
     /// A classifier over prototypes measured in one or several bands (see

@@ -725,11 +725,11 @@ impl Profile<'_> {
             let (d0, o0) = (d, o);
             if step_d > 0.0 {
                 let (lo, hi) = ((d - step_d).max(d_lo), (d + step_d).min(d_hi));
-                d = golden(lo, hi, |x| self.chi2_at(x, o)).0;
+                d = golden(lo, hi, GOLDEN, |x| self.chi2_at(x, o)).0;
             }
             if step_o > 0.0 {
                 let (lo, hi) = ((o - step_o).max(-off), (o + step_o).min(off));
-                o = golden(lo, hi, |x| self.chi2_at(d, x)).0;
+                o = golden(lo, hi, GOLDEN, |x| self.chi2_at(d, x)).0;
             }
             let (dd, dm) = (d - d0, o - o0);
             if step_d > 0.0 && step_o > 0.0 && (dd != 0.0 || dm != 0.0) {
@@ -747,7 +747,9 @@ impl Profile<'_> {
                     .min(reach(o0, dm, -off, off))
                     .min(4.0);
                 if tmax > 1.0 {
-                    let (t, c) = golden(0.0, tmax, |t| self.chi2_at(d0 + t * dd, o0 + t * dm));
+                    let (t, c) = golden(0.0, tmax, GOLDEN, |t| {
+                        self.chi2_at(d0 + t * dd, o0 + t * dm)
+                    });
                     let here = self.chi2_at(d, o);
                     if c < here {
                         d = (d0 + t * dd).clamp(d_lo, d_hi);
@@ -765,6 +767,9 @@ impl Profile<'_> {
     }
 }
 
+/// Rounds and relative tolerance of the golden sections of [`Profile::refine`].
+const GOLDEN: (usize, f64) = (30, 1e-9);
+
 /// Evaluate the exact model of row `t` at `(d, δ)` (nm, radians).
 fn exact(cand: &CandidateModel, wavelengths: &[f64], r: &HypRow, d: f64, o: f64) -> f64 {
     let beta = (r.beta + o).clamp(0.0, PI / 2.0 - 1e-9);
@@ -777,13 +782,19 @@ fn exact(cand: &CandidateModel, wavelengths: &[f64], r: &HypRow, d: f64, o: f64)
     }
 }
 
-/// Golden-section minimum of `f` on `[lo, hi]`.
-fn golden(mut lo: f64, mut hi: f64, mut f: impl FnMut(f64) -> f64) -> (f64, f64) {
+/// Golden-section minimum `(x, f(x))` of `f` on `[lo, hi]`: at most `rounds` rounds,
+/// until the bracket is narrower than `tol · (1 + |hi|)`.
+pub(super) fn golden(
+    mut lo: f64,
+    mut hi: f64,
+    (rounds, tol): (usize, f64),
+    mut f: impl FnMut(f64) -> f64,
+) -> (f64, f64) {
     let g = 0.5 * (5f64.sqrt() - 1.0);
     let mut x1 = hi - g * (hi - lo);
     let mut x2 = lo + g * (hi - lo);
     let (mut f1, mut f2) = (f(x1), f(x2));
-    for _ in 0..30 {
+    for _ in 0..rounds {
         if f1 <= f2 {
             hi = x2;
             x2 = x1;
@@ -797,7 +808,7 @@ fn golden(mut lo: f64, mut hi: f64, mut f: impl FnMut(f64) -> f64) -> (f64, f64)
             x2 = lo + g * (hi - lo);
             f2 = f(x2);
         }
-        if hi - lo < 1e-9 * (1.0 + hi.abs()) {
+        if hi - lo < tol * (1.0 + hi.abs()) {
             break;
         }
     }

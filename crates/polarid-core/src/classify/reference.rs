@@ -63,7 +63,7 @@
 use super::MultiPrototype;
 use super::hypothesis::{
     CandidateModel, HypRow, HypothesisConfig, HypothesisOutcome, Nuisances, angle_slope,
-    classify_rows, layered_dolp,
+    classify_rows, golden, layered_dolp,
 };
 use crate::error::{CoreError, Result};
 use crate::systematic::chi2_sf;
@@ -187,33 +187,6 @@ fn model(cand: &CandidateModel, wavelengths: &[f64], r: &HypRow, d: f64, o: f64)
         Some(l) if d > 0.0 => layered_dolp(bulk, l.index[r.band], d / wavelengths[r.band], beta),
         _ => crate::dop::dop(bulk.0, bulk.1, beta),
     }
-}
-
-/// Golden-section minimum of `f` on `[lo, hi]`.
-fn golden(mut lo: f64, mut hi: f64, mut f: impl FnMut(f64) -> f64) -> f64 {
-    let g = 0.5 * (5f64.sqrt() - 1.0);
-    let mut x1 = hi - g * (hi - lo);
-    let mut x2 = lo + g * (hi - lo);
-    let (mut f1, mut f2) = (f(x1), f(x2));
-    for _ in 0..60 {
-        if f1 <= f2 {
-            hi = x2;
-            x2 = x1;
-            f2 = f1;
-            x1 = hi - g * (hi - lo);
-            f1 = f(x1);
-        } else {
-            lo = x1;
-            x1 = x2;
-            f1 = f2;
-            x2 = lo + g * (hi - lo);
-            f2 = f(x2);
-        }
-        if hi - lo < 1e-10 * (1.0 + hi.abs()) {
-            break;
-        }
-    }
-    if f1 <= f2 { x1 } else { x2 }
 }
 
 /// Fit the reference `reference` (its bulk index and native layer at the rows' bands
@@ -361,10 +334,10 @@ impl RefFit<'_> {
         let step_o = 2.0 * win / (go - 1) as f64;
         for _ in 0..4 {
             let (lo, hi) = ((o - step_o).max(-win), (o + step_o).min(win));
-            o = golden(lo, hi, |x| self.profile(d, x).0);
+            o = golden(lo, hi, (60, 1e-10), |x| self.profile(d, x).0).0;
             if step_d > 0.0 {
                 let (lo, hi) = ((d - step_d).max(d_lo), (d + step_d).min(d_hi));
-                d = golden(lo, hi, |x| self.profile(x, o).0);
+                d = golden(lo, hi, (60, 1e-10), |x| self.profile(x, o).0).0;
             }
         }
         (d, o, step_o)

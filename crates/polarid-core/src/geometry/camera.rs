@@ -113,19 +113,8 @@ impl Distortion {
             return Some((xd, yd));
         }
         const TOL: f64 = 1e-13;
-        let (mut x, mut y) = (xd, yd);
         // Fixed-point steps (OpenCV): robust start for Newton.
-        for _ in 0..5 {
-            let r2 = x * x + y * y;
-            let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
-            let dx = 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x);
-            let dy = self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y;
-            let (nx, ny) = ((xd - dx) / radial, (yd - dy) / radial);
-            if !(nx.is_finite() && ny.is_finite()) {
-                break;
-            }
-            (x, y) = (nx, ny);
-        }
+        let (mut x, mut y) = self.fixed_point(xd, yd, 5);
         for _ in 0..50 {
             let (fx, fy) = self.distort(x, y);
             let (ex, ey) = (fx - xd, fy - yd);
@@ -321,7 +310,7 @@ impl PinholeCamera {
         let k = &self.intrinsics;
         let (xd, yd) = ((u - k.cx) / k.fx, (v - k.cy) / k.fy);
         self.distortion.undistort(xd, yd).ok_or_else(|| {
-            let (x, y) = self.distortion.undistort_best(xd, yd);
+            let (x, y) = self.distortion.fixed_point(xd, yd, 20);
             let [pu, pv] = self.pixel_of_normalized(x, y);
             CoreError::UndistortFailed {
                 u,
@@ -349,11 +338,12 @@ impl PinholeCamera {
 }
 
 impl Distortion {
-    /// The fixed-point estimate (for error messages when [`Distortion::undistort`]
-    /// fails).
-    fn undistort_best(&self, xd: f64, yd: f64) -> (f64, f64) {
+    /// The fixed-point estimate of the undistorted `(xd, yd)` after `steps` steps (or the
+    /// last finite one): the start of [`Distortion::undistort`]'s Newton steps, and with
+    /// 20 steps the estimate for error messages when it fails.
+    fn fixed_point(&self, xd: f64, yd: f64, steps: usize) -> (f64, f64) {
         let (mut x, mut y) = (xd, yd);
-        for _ in 0..20 {
+        for _ in 0..steps {
             let r2 = x * x + y * y;
             let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
             let dx = 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x);

@@ -445,10 +445,7 @@ impl ViewGeometry {
                 None
             })
             .min_by_key(|(row, _)| *row);
-        match first_error {
-            Some((_, e)) => Err(e),
-            None => Ok(()),
-        }
+        first_error.map_or(Ok(()), |(_, e)| Err(e))
     }
 }
 

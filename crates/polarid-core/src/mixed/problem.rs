@@ -11,8 +11,10 @@
 
 use std::f64::consts::PI;
 
-use super::model::{Prepared, point};
-use super::{K_FLOOR, MixedCapture, MixedOptions, ModelPoint, NPAR, P_LN_E, P_THETA_R};
+use super::model::{Prepared, point, prepare_one};
+use super::{
+    K_FLOOR, MixedCapture, MixedModel, MixedOptions, ModelPoint, NPAR, P_LN_E, P_RHO, P_THETA_R,
+};
 use crate::error::{CoreError, Result, ensure_finite};
 
 /// Grazing limit for the geometry (radians, 89.5°): `cos θ` stays away from 0.
@@ -126,7 +128,24 @@ pub(super) struct Problem<'a> {
     pub(super) inv_eps: f64,
 }
 
-impl Problem<'_> {
+impl<'a> Problem<'a> {
+    /// The problem of `model` for these captures: every parameter free but `ρd` for the
+    /// specular model and `θr` unless estimated, in the [`param_box`].
+    pub(super) fn new(caps: &[MixedCapture], opts: &'a MixedOptions, model: MixedModel) -> Self {
+        let (lo, hi) = param_box(caps, opts);
+        let mut free = [true; NPAR];
+        free[P_RHO] = model == MixedModel::Mixed;
+        free[P_THETA_R] = opts.estimate_theta_r;
+        Problem {
+            caps: caps.iter().map(|c| prepare_one(c, opts.dolp_sd)).collect(),
+            opts,
+            free,
+            lo,
+            hi,
+            inv_eps: 1.0 / opts.s0_rel_sd,
+        }
+    }
+
     pub(super) fn m(&self) -> usize {
         2 * self.caps.len()
     }

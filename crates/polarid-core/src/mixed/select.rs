@@ -11,8 +11,7 @@
 
 use super::finish::{finish, set_criteria};
 use super::lm::polish;
-use super::model::prepare_one;
-use super::problem::{Problem, param_box};
+use super::problem::Problem;
 use super::{
     K_FLOOR, MixedCapture, MixedFit, MixedModel, MixedOptions, MixedReport, NPAR, P_K, P_LN_E, P_N,
     P_RHO, P_SIGMA, P_THETA_R, fit_model,
@@ -53,17 +52,7 @@ pub fn fit_mixed(caps: &[MixedCapture], opts: &MixedOptions) -> Result<MixedRepo
         } else {
             0.0
         };
-        let (lo, hi) = param_box(caps, opts);
-        let mut free = [true; NPAR];
-        free[P_THETA_R] = opts.estimate_theta_r;
-        let pb = Problem {
-            caps: caps.iter().map(|c| prepare_one(c, opts.dolp_sd)).collect(),
-            opts,
-            free,
-            lo,
-            hi,
-            inv_eps: 1.0 / opts.s0_rel_sd,
-        };
+        let pb = Problem::new(caps, opts, MixedModel::Mixed);
         let p = polish(&pb, x0);
         if p.cost < mixed.chi2 {
             let it = mixed.iterations + p.iters;

@@ -4,12 +4,9 @@
 
 use super::finish::finish;
 use super::lm::{Polished, polish};
-use super::model::prepare_one;
-use super::problem::{Problem, param_box, validate};
+use super::problem::{Problem, validate};
 use super::start::grid_starts;
-use super::{
-    K_FLOOR, MixedCapture, MixedFit, MixedModel, MixedOptions, NPAR, P_K, P_RHO, P_THETA_R,
-};
+use super::{K_FLOOR, MixedCapture, MixedFit, MixedModel, MixedOptions, P_K};
 use crate::error::{CoreError, Result};
 
 /// Fit one model ([`MixedModel::Specular`]: `ρd = 0` fixed) to a target's captures.
@@ -22,18 +19,7 @@ pub fn fit_model(
     model: MixedModel,
 ) -> Result<MixedFit> {
     validate(caps, opts)?;
-    let (lo, hi) = param_box(caps, opts);
-    let mut free = [true; NPAR];
-    free[P_RHO] = model == MixedModel::Mixed;
-    free[P_THETA_R] = opts.estimate_theta_r;
-    let pb = Problem {
-        caps: caps.iter().map(|c| prepare_one(c, opts.dolp_sd)).collect(),
-        opts,
-        free,
-        lo,
-        hi,
-        inv_eps: 1.0 / opts.s0_rel_sd,
-    };
+    let pb = Problem::new(caps, opts, model);
     let mut best: Option<Polished> = None;
     let mut iters = 0;
     for x0 in grid_starts(&pb, model, 4) {

@@ -16,11 +16,10 @@
 //! `k_se` is one-sided) the covariance is formed in `(n, u = k²)` as the fit does.
 
 use super::linalg::spd_inverse;
-use super::model::prepare_one;
-use super::problem::{Problem, param_box};
+use super::problem::Problem;
 use super::{
-    K_FLOOR, MixedCapture, MixedFit, MixedModel, MixedOptions, NPAR, P_K, P_LN_E, P_N, P_RHO,
-    P_SIGMA, P_THETA_R,
+    K_FLOOR, MixedCapture, MixedFit, MixedOptions, NPAR, P_K, P_LN_E, P_N, P_RHO, P_SIGMA,
+    P_THETA_R,
 };
 use crate::dop::dop;
 use crate::systematic::{NkCov, Polarimetric, systematic_covariance};
@@ -39,18 +38,7 @@ pub fn total_nk_cov(
     if angle_sd.len() != t_len || !(fit.n_se.is_finite() && fit.k_se.is_finite()) {
         return None;
     }
-    let (lo, hi) = param_box(caps, opts);
-    let mut free = [true; NPAR];
-    free[P_RHO] = fit.model == MixedModel::Mixed;
-    free[P_THETA_R] = opts.estimate_theta_r;
-    let pb = Problem {
-        caps: caps.iter().map(|c| prepare_one(c, opts.dolp_sd)).collect(),
-        opts,
-        free,
-        lo,
-        hi,
-        inv_eps: 1.0 / opts.s0_rel_sd,
-    };
+    let pb = Problem::new(caps, opts, fit.model);
     let mut x = [0.0; NPAR];
     x[P_N] = fit.n;
     x[P_K] = fit.k.max(K_FLOOR);
@@ -69,7 +57,7 @@ pub fn total_nk_cov(
     } else {
         fit.chi2 / fit.dof as f64
     };
-    let idx: Vec<usize> = (0..NPAR).filter(|&a| free[a]).collect();
+    let idx: Vec<usize> = (0..NPAR).filter(|&a| pb.free[a]).collect();
     let (pn, pk) = (
         idx.iter().position(|&a| a == P_N)?,
         idx.iter().position(|&a| a == P_K)?,

@@ -307,10 +307,7 @@ impl PerspectiveScene {
                 None
             })
             .min_by_key(|(row, _)| *row);
-        match first_error {
-            Some((_, e)) => Err(e),
-            None => Ok(()),
-        }
+        first_error.map_or(Ok(()), |(_, e)| Err(e))
     }
 
     /// What pixel `(u, v)` sees under `light` (module documentation), or `None` for the
@@ -450,10 +447,7 @@ impl PerspectiveScene {
                 None
             })
             .min_by_key(|(row, _)| *row);
-        match first_error {
-            Some((_, e)) => Err(e),
-            None => Ok(()),
-        }
+        first_error.map_or(Ok(()), |(_, e)| Err(e))
     }
 }
 

@@ -584,19 +584,31 @@ impl Parser<'_> {
         }
         let st = self.table(sv, &field)?;
         self.warn_unknown(st, &["position", "direction", "sun"], &format!("{field}."));
+        Ok(Some(self.source_spec(st, &field, &sv.span(), site)?.0))
+    }
+
+    /// The source of table `t` (`field`, spanning `span`): exactly one of `position`,
+    /// `direction` (normalized) or `sun` (resolved at `site`), and the line of its key.
+    pub(super) fn source_spec(
+        &self,
+        t: &Table<'_>,
+        field: &str,
+        span: &Range<usize>,
+        site: Option<&SiteSpec>,
+    ) -> Result<(SourceSpec, usize)> {
         let kinds: Vec<(&str, &Val<'_>)> = ["position", "direction", "sun"]
             .into_iter()
-            .filter_map(|k| self.get(st, k).map(|v| (k, v)))
+            .filter_map(|k| self.get(t, k).map(|v| (k, v)))
             .collect();
         let [(kind, v)] = kinds[..] else {
             return Err(self.err(
-                &sv.span(),
-                &field,
+                span,
+                field,
                 "a source needs exactly one of `position`, `direction` or `sun`",
             ));
         };
         let kfield = format!("{field}.{kind}");
-        Ok(Some(match kind {
+        let spec = match kind {
             "position" => SourceSpec::Position(self.numbers::<3>(v, &kfield)?),
             "direction" => {
                 let d = self.numbers::<3>(v, &kfield)?;
@@ -620,7 +632,8 @@ impl Parser<'_> {
                 };
                 self.sun(s, site, v, &kfield)?
             }
-        }))
+        };
+        Ok((spec, self.line(v.span().start)))
     }
 
     /// A `sun` source: parse the time and resolve the sun's direction at `site`.

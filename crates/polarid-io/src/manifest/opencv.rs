@@ -1040,72 +1040,66 @@ impl<'a> Flow<'a> {
         self.blanks();
         let line = self.line();
         match self.peek() {
-            Some('[') => {
-                self.pos += 1;
-                let mut items = Vec::new();
-                loop {
-                    self.blanks();
-                    if self.peek() == Some(']') {
-                        self.pos += 1;
-                        break;
-                    }
-                    items.push(self.value()?);
-                    self.blanks();
-                    match self.peek() {
-                        Some(',') => self.pos += 1,
-                        Some(']') => {}
-                        _ => return Err(self.fail("expected `,` or `]`")),
-                    }
-                }
-                Ok(Item {
-                    node: Node::Seq(items),
-                    line,
-                })
-            }
-            Some('{') => {
-                self.pos += 1;
-                let mut map = Vec::new();
-                loop {
-                    self.blanks();
-                    if self.peek() == Some('}') {
-                        self.pos += 1;
-                        break;
-                    }
-                    let key = self.scalar(true)?;
-                    self.blanks();
-                    if self.peek() != Some(':') {
-                        return Err(self.fail("expected `:` after a key"));
-                    }
-                    self.pos += 1;
-                    let mut v = self.value()?;
-                    if let Node::Scalar(s) = &v.node
-                        && s.starts_with('!')
-                    {
-                        // A tag before a collection: `key: !!opencv-matrix { ... }`.
-                        self.blanks();
-                        if matches!(self.peek(), Some('[' | '{')) {
-                            v = self.value()?;
-                        }
-                    }
-                    map.push((key, v));
-                    self.blanks();
-                    match self.peek() {
-                        Some(',') => self.pos += 1,
-                        Some('}') => {}
-                        _ => return Err(self.fail("expected `,` or `}`")),
-                    }
-                }
-                Ok(Item {
-                    node: Node::Map(map),
-                    line,
-                })
-            }
+            Some('[') => Ok(Item {
+                node: Node::Seq(self.entries(']', Self::value)?),
+                line,
+            }),
+            Some('{') => Ok(Item {
+                node: Node::Map(self.entries('}', Self::map_entry)?),
+                line,
+            }),
             Some(_) => Ok(Item {
                 node: Node::Scalar(self.scalar(false)?),
                 line,
             }),
             None => Err(self.fail("unexpected end of the file")),
         }
+    }
+
+    /// The entries of a flow collection after its opening bracket, each read by `entry`,
+    /// separated by `,` and ending at `close`.
+    fn entries<T>(
+        &mut self,
+        close: char,
+        mut entry: impl FnMut(&mut Self) -> Result<T>,
+    ) -> Result<Vec<T>> {
+        self.pos += 1;
+        let mut out = Vec::new();
+        loop {
+            self.blanks();
+            if self.peek() == Some(close) {
+                self.pos += 1;
+                return Ok(out);
+            }
+            out.push(entry(self)?);
+            self.blanks();
+            match self.peek() {
+                Some(',') => self.pos += 1,
+                Some(c) if c == close => {}
+                _ => return Err(self.fail(&format!("expected `,` or `{close}`"))),
+            }
+        }
+    }
+
+    /// `key: value` in a flow mapping.
+    fn map_entry(&mut self) -> Result<(String, Item)> {
+        let key = self.scalar(true)?;
+        self.blanks();
+        if self.peek() != Some(':') {
+            return Err(self.fail("expected `:` after a key"));
+        }
+        self.pos += 1;
+        let mut v = self.value()?;
+        if let Node::Scalar(s) = &v.node
+            && s.starts_with('!')
+        {
+            // A tag before a collection: `key: !!opencv-matrix { ... }`.
+            self.blanks();
+            if matches!(self.peek(), Some('[' | '{')) {
+                v = self.value()?;
+            }
+        }
+        Ok((key, v))
     }
 
     /// A quoted or plain scalar; a plain key ends at `:`, a plain value at `,`, `]`,

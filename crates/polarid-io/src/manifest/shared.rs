@@ -72,47 +72,8 @@ pub fn parse_sources(
     for (i, it) in p.array(av, key)?.iter().enumerate() {
         let field = format!("{key}[{}]", i + 1);
         let t = p.table(it, &field)?;
-        let kinds: Vec<(&str, _)> = ["position", "direction", "sun"]
-            .into_iter()
-            .filter_map(|k| p.get(t, k).map(|v| (k, v)))
-            .collect();
-        let [(kind, v)] = kinds[..] else {
-            return Err(p.err(
-                &it.span(),
-                &field,
-                "a source needs exactly one of `position`, `direction` or `sun`",
-            ));
-        };
-        let kfield = format!("{field}.{kind}");
-        let spec = match kind {
-            "position" => SourceSpec::Position(p.numbers::<3>(v, &kfield)?),
-            "direction" => {
-                let d = p.numbers::<3>(v, &kfield)?;
-                let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-                if !(n.is_finite() && n > 0.0) {
-                    return Err(p.err(&v.span(), &kfield, "direction must be non-zero"));
-                }
-                SourceSpec::Direction([d[0] / n, d[1] / n, d[2] / n])
-            }
-            _ => {
-                let s = p.string(v, &kfield)?;
-                if s.trim().is_empty() {
-                    return Err(p.err(&v.span(), &kfield, "empty time"));
-                }
-                let Some(site) = site else {
-                    return Err(p.err(
-                        &v.span(),
-                        &kfield,
-                        "a `sun` source needs a [site] table (latitude_deg, longitude_deg, ...)",
-                    ));
-                };
-                p.sun(s, site, v, &kfield)?
-            }
-        };
-        out.push(SourceEntry {
-            spec,
-            line: p.line(v.span().start),
-        });
+        let (spec, line) = p.source_spec(t, &field, &it.span(), site)?;
+        out.push(SourceEntry { spec, line });
     }
     Ok(out)
 }

@@ -106,20 +106,16 @@ impl Ctx<'_> {
         height: usize,
         cx: &PlateContext<'_>,
     ) -> Result<(Calibrated, Vec<Plate>)> {
-        for (k, span) in [
-            ("theta_r_deg", raw.theta_r_deg.as_ref().map(|v| v.span())),
-            ("phi_deg", raw.phi_deg.as_ref().map(|v| v.span())),
-            ("theta_i_deg", raw.theta_i_deg.as_ref().map(|v| v.span())),
-        ] {
-            if let Some(span) = span {
-                return Err(self.err(
-                    &span,
-                    k,
-                    "with [camera], the angles come from the calibrated geometry: give the \
-                     light sources as [[source]] tables (position, direction or sun) instead",
-                ));
-            }
-        }
+        self.refuse(
+            [
+                ("theta_r_deg", raw.theta_r_deg.as_ref().map(|v| v.span())),
+                ("phi_deg", raw.phi_deg.as_ref().map(|v| v.span())),
+                ("theta_i_deg", raw.theta_i_deg.as_ref().map(|v| v.span())),
+            ],
+            &str::to_string,
+            "with [camera], the angles come from the calibrated geometry: give the light \
+             sources as [[source]] tables (position, direction or sun) instead",
+        )?;
         let tables = parse_geometry_tables(self.path, self.text)?;
         let Some(camera) = tables.camera else {
             return Err(self.missing(None, "camera", "[camera] table"));
@@ -364,11 +360,6 @@ impl Ctx<'_> {
                 .map_err(|e| self.err(&cam_span, "camera.position", e.to_string()))?;
             for (j, s) in cal.sources.iter().enumerate() {
                 if let Err(e) = view.check_rect(plate.region, &s.light().source) {
-                    let key = match s.spec {
-                        SourceSpec::Position(_) => "position",
-                        SourceSpec::Direction(_) => "direction",
-                        SourceSpec::Sun { .. } => "sun",
-                    };
                     let value = match &s.spec {
                         SourceSpec::Position(p) | SourceSpec::Direction(p) => format!("{p:?}"),
                         SourceSpec::Sun { time, .. } => format!("{time:?}"),
@@ -376,7 +367,7 @@ impl Ctx<'_> {
                     return Err(crate::IoError::Manifest {
                         path: self.path.to_path_buf(),
                         line: s.line,
-                        field: format!("source[{}].{key}", j + 1),
+                        field: format!("source[{}].{}", j + 1, s.spec.key()),
                         value,
                         reason: format!(
                             "for plate {:?} on plane {:?}: {e}",
@@ -449,6 +440,7 @@ mod scene_tests {
     use std::path::Path;
 
     use crate::manifest::SourceSpec;
+    use crate::scene::tests::parse_err as err;
     use crate::scene::{Geometry, parse};
 
     pub(crate) const BENCH: &str = r#"name = "bench"
@@ -496,10 +488,6 @@ sigma = 0.2
 center = [0.0, 0.15, 0.0]
 size = [0.1, 0.08]
 "#;
-
-    fn err(text: &str) -> String {
-        parse(Path::new("b.toml"), text).unwrap_err().to_string()
-    }
 
     #[test]
     fn parses_a_calibrated_scene() {

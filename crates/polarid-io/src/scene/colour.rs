@@ -331,6 +331,7 @@ impl Ctx<'_> {
 mod tests {
     use std::path::Path;
 
+    use crate::scene::tests::parse_err as err;
     use crate::scene::{CaptureKind, parse};
 
     const COLOUR: &str = r#"
@@ -362,10 +363,6 @@ rho_d = 0.1
 sigma = 0.3
 rect = [16, 0, 16, 32]
 "#;
-
-    fn err(text: &str) -> String {
-        parse(Path::new("s.toml"), text).unwrap_err().to_string()
-    }
 
     #[test]
     fn colour_scene_has_bands_and_per_band_optics() {

@@ -41,6 +41,20 @@ impl Ctx<'_> {
         self.toml().err(span, field, reason)
     }
 
+    /// An error at the first of `keys` (name, span when given) that is given: field
+    /// `field(name)`, `reason`.
+    pub(super) fn refuse<const N: usize>(
+        &self,
+        keys: [(&str, Option<Range<usize>>); N],
+        field: &dyn Fn(&str) -> String,
+        reason: &str,
+    ) -> Result<()> {
+        match keys.into_iter().find_map(|(k, s)| Some((k, s?))) {
+            Some((k, span)) => Err(self.err(&span, &field(k), reason)),
+            None => Ok(()),
+        }
+    }
+
     /// An error about a missing key (no span: line 0 unless `near` is given).
     pub(super) fn missing(&self, near: Option<&Range<usize>>, field: &str, what: &str) -> IoError {
         IoError::Manifest {

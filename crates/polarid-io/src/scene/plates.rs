@@ -218,20 +218,17 @@ impl Ctx<'_> {
         self.each_plate(raw, cx, |plates: &[Plate], p, b, f| {
             let near = Some(b.name_span.clone());
             let near = near.as_ref();
-            let placement_keys = [
-                ("plane", p.plane.as_ref().map(|v| v.span())),
-                ("center", p.center.as_ref().map(|v| v.span())),
-                ("size", p.size.as_ref().map(|v| v.span())),
-                ("axis", p.axis.as_ref().map(|v| v.span())),
-            ];
-            if let Some((k, Some(span))) = placement_keys.iter().find(|(_, s)| s.is_some()) {
-                return Err(self.err(
-                    span,
-                    &f(k),
-                    "plates are placed on planes only in calibrated scenes (with a [camera] \
-                     table); a far-field plate takes `rect`",
-                ));
-            }
+            self.refuse(
+                [
+                    ("plane", p.plane.as_ref().map(|v| v.span())),
+                    ("center", p.center.as_ref().map(|v| v.span())),
+                    ("size", p.size.as_ref().map(|v| v.span())),
+                    ("axis", p.axis.as_ref().map(|v| v.span())),
+                ],
+                f,
+                "plates are placed on planes only in calibrated scenes (with a [camera] \
+                 table); a far-field plate takes `rect`",
+            )?;
             let rect_v = p
                 .rect
                 .as_ref()

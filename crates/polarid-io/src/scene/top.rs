@@ -240,20 +240,16 @@ impl Ctx<'_> {
         height: usize,
         cx: &PlateContext<'_>,
     ) -> Result<(Geometry, Vec<Plate>)> {
-        for (k, span) in [
-            ("plane", raw.plane.as_ref().map(|v| v.span())),
-            ("site", raw.site.as_ref().map(|v| v.span())),
-            ("source", raw.source.as_ref().map(|v| v.span())),
-        ] {
-            if let Some(span) = span {
-                return Err(self.err(
-                    &span,
-                    k,
-                    "[[plane]], [site] and [[source]] describe a calibrated scene: add a \
-                     [camera] table, or give theta_r_deg and theta_i_deg instead",
-                ));
-            }
-        }
+        self.refuse(
+            [
+                ("plane", raw.plane.as_ref().map(|v| v.span())),
+                ("site", raw.site.as_ref().map(|v| v.span())),
+                ("source", raw.source.as_ref().map(|v| v.span())),
+            ],
+            &str::to_string,
+            "[[plane]], [site] and [[source]] describe a calibrated scene: add a [camera] \
+             table, or give theta_r_deg and theta_i_deg instead",
+        )?;
         let theta_r_deg = match &raw.theta_r_deg {
             Some(v) => self.zenith(v, "theta_r_deg")?,
             None => return Err(self.missing(None, "theta_r_deg", "camera zenith angle")),

@@ -348,6 +348,11 @@ pub fn regions_text(est: &Estimate, clf: &Classifier) -> Option<String> {
     ))
 }
 
+/// ` (metal)` for a category, nothing without one.
+fn in_parentheses(category: Option<&str>) -> String {
+    category.map(|c| format!(" ({c})")).unwrap_or_default()
+}
+
 /// A one-paragraph explanation of a decision: nearest prototypes (at most `top`), when
 /// categories are known the nearest prototype of another category, and the consistent
 /// set (every candidate with its Mahalanobis distance and the test's threshold) when it
@@ -358,13 +363,7 @@ pub fn explain(target: &str, est: &Estimate, d: &Decision, clf: &Classifier, top
     // prototypes, produced by `clf.classify`.
     let protos = clf.prototypes();
     let unit = clf.config().distance_metric().name();
-    let cat = |i: usize| {
-        protos[i]
-            .category
-            .as_deref()
-            .map(|c| format!(" ({c})"))
-            .unwrap_or_default()
-    };
+    let cat = |i: usize| in_parentheses(protos[i].category.as_deref());
     let mut s = format!("{target}: ");
     match (&d.nearest_class, d.nearest) {
         (Some(c), Some(nb)) => {
@@ -428,11 +427,7 @@ pub fn explain(target: &str, est: &Estimate, d: &Decision, clf: &Classifier, top
                     .candidates
                     .iter()
                     .map(|c| {
-                        let cat = c
-                            .category
-                            .as_deref()
-                            .map(|x| format!(" ({x})"))
-                            .unwrap_or_default();
+                        let cat = in_parentheses(c.category.as_deref());
                         format!("{}{cat} {:.3}", c.class, c.distance)
                     })
                     .collect();

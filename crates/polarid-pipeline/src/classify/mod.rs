@@ -106,31 +106,28 @@ impl PrototypeSource {
     /// SPEC`). A multi-band model or library (with `wavelength_nm`) is an error naming it:
     /// its bands are not separate prototypes; use [`PrototypeSource::load_multi`].
     pub fn load(&self) -> Result<(Vec<Prototype>, String)> {
-        let multi = |label: String| PipelineError::Data {
-            path: format!("cannot use {label}"),
-            reason: "it has several bands (wavelength_nm); classify multi-band fits against \
-                     it (polarid classify), or use a single-band model or library here"
-                .into(),
-        };
-        Ok(match self {
+        let (protos, label, bands) = match self {
             PrototypeSource::Model(m) => {
                 let model = Model::read(m)?;
-                let label = format!("model {}", m.display());
-                if model.prototypes.iter().any(|p| p.wavelength_nm.is_some()) {
-                    return Err(multi(label));
-                }
-                (model.prototypes(), label)
+                let bands = model.prototypes.iter().any(|p| p.wavelength_nm.is_some());
+                (model.prototypes(), format!("model {}", m.display()), bands)
             }
             PrototypeSource::Library(spec) => {
                 let lib = Library::load(spec)?;
-                let label = format!("library {spec}");
-                if lib.materials.iter().any(|m| m.wavelength_nm.is_some()) {
-                    return Err(multi(label));
-                }
-                (lib.prototypes(), label)
+                let bands = lib.materials.iter().any(|m| m.wavelength_nm.is_some());
+                (lib.prototypes(), format!("library {spec}"), bands)
             }
-            PrototypeSource::List(p, label) => (p.clone(), label.clone()),
-        })
+            PrototypeSource::List(p, label) => return Ok((p.clone(), label.clone())),
+        };
+        if bands {
+            return Err(PipelineError::Data {
+                path: format!("cannot use {label}"),
+                reason: "it has several bands (wavelength_nm); classify multi-band fits against \
+                         it (polarid classify), or use a single-band model or library here"
+                    .into(),
+            });
+        }
+        Ok((protos, label))
     }
 
     /// The prototypes with all their bands (a multi-band model or library) and a label
@@ -473,12 +470,8 @@ pub fn classify(
         None => fits,
     };
     let mut wavelengths: Vec<f64> = Vec::new();
-    for (_, f) in fits {
-        if let Some(w) = f.wavelength_nm
-            && !wavelengths.contains(&w)
-        {
-            wavelengths.push(w);
-        }
+    for w in fits.iter().filter_map(|(_, f)| f.wavelength_nm) {
+        crate::fit::index_or_push(&mut wavelengths, |&x| x == w, || w);
     }
     let without = fits
         .iter()

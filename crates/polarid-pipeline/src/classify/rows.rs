@@ -33,7 +33,7 @@ use polarid_io::table::measurements::Measurement;
 use super::reference::SceneCalibration;
 use super::{ClassifyConfig, ClassifyOutput, PrototypeSource};
 use crate::error::ensure;
-use crate::fit::{FitConfig, fit};
+use crate::fit::{FitConfig, fit, index_or_push};
 use crate::{PipelineError, Result};
 
 /// The rule's name in the classification CSV (`rule` column).
@@ -79,17 +79,12 @@ struct TargetRows<'a> {
 fn group<'a>(rows: &'a [(u64, Measurement)]) -> Vec<TargetRows<'a>> {
     let mut out: Vec<TargetRows> = Vec::new();
     for (_, m) in rows {
-        let i = match out.iter().position(|g| g.target == m.target) {
-            Some(i) => i,
-            None => {
-                out.push(TargetRows {
-                    target: &m.target,
-                    rows: Vec::new(),
-                    reference: None,
-                });
-                out.len() - 1
-            }
+        let new = || TargetRows {
+            target: &m.target,
+            rows: Vec::new(),
+            reference: None,
         };
+        let i = index_or_push(&mut out, |g| g.target == m.target, new);
         if m.reference.is_some() {
             out[i].reference.clone_from(&m.reference);
         }
@@ -111,13 +106,7 @@ fn hyp_rows(rows: &[&Measurement], fit_cfg: &FitConfig) -> (Vec<HypRow>, Vec<f64
         let w = m
             .wavelength_nm
             .unwrap_or(polarid_io::library::BUILTIN_WAVELENGTH_NM);
-        let band = match bands.iter().position(|&b| b == w) {
-            Some(b) => b,
-            None => {
-                bands.push(w);
-                bands.len() - 1
-            }
-        };
+        let band = index_or_push(&mut bands, |&b| b == w, || w);
         let angle_sd = m.angle_sd_deg.unwrap_or(fit_cfg.angle_sd_deg).to_radians();
         angle_max = angle_max.max(angle_sd);
         let se = m.dolp_se.unwrap_or(0.0);
@@ -299,8 +288,7 @@ impl TargetClassifier<'_> {
         }
         let not_ok = fits
             .iter()
-            .filter(|f| f.target == g.target)
-            .find(|f| f.status != FitStatus::Ok);
+            .find(|f| f.target == g.target && f.status != FitStatus::Ok);
         if let Some(bad) = not_ok {
             let d = Decision::unclassified(
                 Status::FitNotOk(bad.status),
@@ -387,12 +375,8 @@ pub fn classify_measurements(
     let fitted = fit(path, &assigned, fit_cfg, &|_, _, _| {})?;
     let fits = fitted.rows();
     let mut wavelengths: Vec<f64> = Vec::new();
-    for (_, m) in &assigned {
-        if let Some(w) = m.wavelength_nm
-            && !wavelengths.contains(&w)
-        {
-            wavelengths.push(w);
-        }
+    for w in assigned.iter().filter_map(|(_, m)| m.wavelength_nm) {
+        index_or_push(&mut wavelengths, |&x| x == w, || w);
     }
     let without = fits.iter().filter(|f| f.wavelength_nm.is_none()).count();
     let (protos, label, mut warnings) = source.load_multi_for(&wavelengths, without)?;

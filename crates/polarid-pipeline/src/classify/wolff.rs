@@ -96,10 +96,7 @@ impl WolffData {
 
     /// The observations of `target` (none when it has no row).
     pub fn of(&self, target: &str) -> &[WolffObservation] {
-        self.observations
-            .get(target)
-            .map(Vec::as_slice)
-            .unwrap_or(&[])
+        self.observations.get(target).map_or(&[], Vec::as_slice)
     }
 
     /// Wolff's decision on `target`; `context` is put before the rule's error (after the

@@ -124,16 +124,6 @@ pub struct BenchOutput {
     pub warnings: Vec<Warning>,
 }
 
-fn internal(path: &str, e: &polarid_io::IoError) -> PipelineError {
-    PipelineError::Data {
-        path: path.into(),
-        reason: format!(
-            "internal error: a bench demo scene is invalid: {}",
-            polarid_io::error::chain_message(e)
-        ),
-    }
-}
-
 /// Run the bench demo into `staged` (module documentation). Progress stages:
 /// `simulating`, `frames`, `captures`, `fitting`, `captures (DoLP)`, `pixels (fit)`.
 pub fn run_bench(staged: &StagedDir, progress: Progress) -> Result<BenchOutput> {
@@ -152,8 +142,7 @@ pub fn run_bench(staged: &StagedDir, progress: Progress) -> Result<BenchOutput> 
         progress("simulating", i as u64, sets.len() as u64);
         let dir = format!("captures/{set}/");
         let scene_path = staged.final_path(&format!("{dir}scene.toml"));
-        let scene = polarid_io::scene::parse(&scene_path, text)
-            .map_err(|e| internal(&scene_path.display().to_string(), &e))?;
+        let scene = steps::parse_scene(&scene_path, text)?;
         let sim = crate::simulate::simulate_into(&scene, staged, &dir, progress)?;
         if i == 0 {
             size = (scene.width, scene.height);

@@ -46,12 +46,11 @@ use polarid_io::image::{Frame, SampleKind};
 use polarid_io::library::Library;
 use polarid_io::manifest;
 use polarid_io::model::Model;
-use polarid_io::table::classification::{self, ClassificationRow};
+use polarid_io::table::classification::ClassificationRow;
 use polarid_io::table::fits::FitRow;
 use polarid_io::table::measurements::Measurement;
 use rayon::prelude::*;
 
-use super::stage;
 use super::steps::{self, parse_scene};
 use crate::classify::{
     Comparison, classification_row, group_fits, multi_classifier, multi_estimate_for, same_bench,
@@ -158,8 +157,7 @@ impl Rng {
         ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
     }
     fn normal(&mut self) -> f64 {
-        let u = ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
-        let v = ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
+        let (u, v) = (self.uniform(), self.uniform());
         (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
     }
 }
@@ -361,7 +359,7 @@ fn plate_rows(plate: &ColourPlate) -> Result<Vec<Measurement>> {
 
 /// One line of the accuracy table: a classifier (bands, fit error model, rule) over the
 /// test plates of every seed.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct AccuracyRow {
     /// `three bands (450, 550, 650 nm)` or `one band (650 nm)`.
     pub bands: String,
@@ -405,32 +403,24 @@ fn rules() -> [(&'static str, ClassifierConfig); 3] {
 
 /// The fits of `rows` (lines from 2) under `cfg`, keeping only the bands in `keep`.
 fn fits_of(rows: &[Measurement], keep: &[f64], cfg: &FitConfig) -> Result<Vec<(u64, FitRow)>> {
-    let rows: Vec<(u64, Measurement)> = rows
+    let kept = rows
         .iter()
-        .filter(|m| m.wavelength_nm.is_some_and(|w| keep.contains(&w)))
-        .cloned()
-        .enumerate()
-        .map(|(i, m)| (i as u64 + 2, m))
-        .collect();
-    let out = fit(
-        Path::new("measurements.csv"),
-        &rows,
-        cfg,
-        &crate::progress::no_progress,
-    )?;
-    Ok(out
-        .rows()
-        .into_iter()
-        .enumerate()
-        .map(|(i, r)| (i as u64 + 2, r))
-        .collect())
+        .filter(|m| m.wavelength_nm.is_some_and(|w| keep.contains(&w)));
+    let rows = from_line_2(kept.cloned());
+    let no_progress = &crate::progress::no_progress;
+    let out = fit(Path::new("measurements.csv"), &rows, cfg, no_progress)?;
+    Ok(from_line_2(out.rows()))
+}
+
+/// `items` numbered as the lines of a CSV file, from line 2.
+fn from_line_2<T>(items: impl IntoIterator<Item = T>) -> Vec<(u64, T)> {
+    (2..).zip(items).collect()
 }
 
 /// The multi-band prototypes trained on `train` (three-band or one-band fits).
-fn prototypes(train: &[(u64, FitRow)]) -> Result<(Model, Vec<MultiPrototype>, Comparison)> {
+fn prototypes(train: &[(u64, FitRow)]) -> Result<(Vec<MultiPrototype>, Comparison)> {
     let t = crate::train::train(train, Path::new("fits.csv"), "fits.csv")?;
-    let (protos, cmp) = same_bench(&t.model);
-    Ok((t.model, protos, cmp))
+    Ok(same_bench(&t.model))
 }
 
 /// Per (bands, fit, rule), per test plate: `(class, predicted)`.
@@ -461,11 +451,11 @@ const BAND_SETS: [(&str, &[f64]); 2] = [
 /// Every (target, band) is fitted on its own rows alone (`fit`), so these are the fits
 /// [`fits_of`] makes of the same rows restricted to `keep`, without fitting again.
 fn fits_in(fits: &[(u64, FitRow)], keep: &[f64]) -> Vec<(u64, FitRow)> {
-    fits.iter()
-        .filter(|(_, f)| f.wavelength_nm.is_some_and(|w| keep.contains(&w)))
-        .enumerate()
-        .map(|(i, (_, f))| (i as u64 + 2, f.clone()))
-        .collect()
+    let kept = fits.iter().map(|(_, f)| f);
+    from_line_2(
+        kept.filter(|f| f.wavelength_nm.is_some_and(|w| keep.contains(&w)))
+            .cloned(),
+    )
 }
 
 /// Classify the test plates of one seed's rows under every (bands, fit, rule). Each
@@ -483,7 +473,7 @@ fn seed_outcomes(train: &[Measurement], test: &[Measurement]) -> Result<Outcomes
     for (bi, (_, keep)) in BAND_SETS.iter().enumerate() {
         for (fi, (tr, te)) in fitted.iter().enumerate() {
             let (tr, te) = (fits_in(tr, keep), fits_in(te, keep));
-            let (_, protos, cmp) = prototypes(&tr)?;
+            let (protos, cmp) = prototypes(&tr)?;
             for (ri, (_, rcfg)) in rules().iter().enumerate() {
                 let clf = multi_classifier(protos.clone(), "the trained prototypes", *rcfg)?;
                 let mut v = Vec::new();
@@ -550,11 +540,7 @@ fn tally(per_seed: &[Outcomes]) -> Vec<AccuracyRow> {
                     bands: bl.to_string(),
                     fit: fl.to_string(),
                     rule: rl.to_string(),
-                    copper: (0, 0),
-                    gold: (0, 0),
-                    ambiguous: 0,
-                    unknown: 0,
-                    all: (0, 0),
+                    ..AccuracyRow::default()
                 };
                 for o in per_seed {
                     let Some((_, v)) = o.iter().find(|(k, _)| *k == (bi, fi, ri)) else {
@@ -691,24 +677,15 @@ pub fn run_colour(staged: &StagedDir, seeds: u64, progress: Progress) -> Result<
             .collect())
     };
     let classification = classify_rows(&test, same_bench(&model))?;
-    stage(staged, "classification.csv", |w| {
-        classification::write(w, Path::new("classification.csv"), &classification)
-    })?;
+    steps::stage_classification(staged, "classification.csv", &classification)?;
     let only = |f: &[(u64, FitRow)]| -> Vec<(u64, FitRow)> {
         f.iter()
             .filter(|(_, r)| r.wavelength_nm == Some(650.0))
             .cloned()
             .collect()
     };
-    let (_, protos650, cmp650) = prototypes(&only(&train))?;
-    let classification_650 = classify_rows(&only(&test), (protos650, cmp650))?;
-    stage(staged, "classification_650nm.csv", |w| {
-        classification::write(
-            w,
-            Path::new("classification_650nm.csv"),
-            &classification_650,
-        )
-    })?;
+    let classification_650 = classify_rows(&only(&test), prototypes(&only(&train))?)?;
+    steps::stage_classification(staged, "classification_650nm.csv", &classification_650)?;
 
     let accuracy = colour_accuracy(0, seeds, progress)?;
     let table = accuracy_table(&accuracy, seeds);

@@ -145,10 +145,20 @@ pub(super) fn train_and_classify(
         notes.push(explain(&f.target, &est, &d, &clf, 3));
         rows.push(classification_row(f, &d, &clf));
     }
-    stage(staged, "classification.csv", |w| {
-        classification::write(w, Path::new("classification.csv"), &rows)
-    })?;
+    stage_classification(staged, "classification.csv", &rows)?;
     Ok(Classified { model, rows, notes })
+}
+
+/// Write classification `rows` to the staged file `name`.
+pub(super) fn stage_classification(
+    staged: &StagedDir,
+    name: &str,
+    rows: &[ClassificationRow],
+) -> Result<()> {
+    stage(staged, name, |w| {
+        classification::write(w, Path::new(name), rows)
+    })?;
+    Ok(())
 }
 
 /// The classifier `polarid classify --model` uses by default: the set rule at 95% over

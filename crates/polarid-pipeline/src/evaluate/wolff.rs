@@ -28,11 +28,9 @@ impl Categories {
     fn new(req: &WolffEvalRequest, model: Option<(&Path, &[Prototype])>) -> Result<Self> {
         let mut sources = Vec::new();
         if !req.categories.is_empty() {
-            let mut m = BTreeMap::new();
-            for (class, cat) in &req.categories {
-                m.insert(name_key(class), cat.trim().to_string());
-            }
-            sources.push(("--wolff-category".to_string(), m));
+            let given = req.categories.iter();
+            let m = given.map(|(class, cat)| (name_key(class), cat.trim().to_string()));
+            sources.push(("--wolff-category".to_string(), m.collect()));
         }
         let keyed = |protos: &[Prototype]| {
             let mut m = BTreeMap::new();
@@ -150,10 +148,7 @@ pub(super) fn score(
         }
         let decision = data.decide(&it.target, &format!("target {}", it.target))?;
         let predicted = it.decision.predicted.clone();
-        let predicted_category = match cats.of(&predicted) {
-            Some((c, _)) => c.to_string(),
-            None => UNKNOWN.to_string(),
-        };
+        let predicted_category = cats.of(&predicted).map_or(UNKNOWN, |(c, _)| c).to_string();
         items.push(WolffItem {
             target: it.target.clone(),
             class: it.class.clone(),
@@ -170,18 +165,12 @@ pub(super) fn score(
             .map(|i| (i.category.as_str(), i.decision.class.name())),
     );
     let accuracy = confusion.accuracy();
-    let total = items.len() as u64;
-    let nn_material = (
-        items.iter().filter(|i| i.predicted == i.class).count() as u64,
-        total,
-    );
-    let nn_binary = (
-        items
-            .iter()
-            .filter(|i| i.predicted_category == i.category)
-            .count() as u64,
-        total,
-    );
+    let right = |f: fn(&WolffItem) -> bool| {
+        let n = items.iter().filter(|i| f(i)).count() as u64;
+        (n, items.len() as u64)
+    };
+    let nn_material = right(|i| i.predicted == i.class);
+    let nn_binary = right(|i| i.predicted_category == i.category);
     Ok(WolffEval {
         settings: req.settings.describe(),
         measurements: req.measurements.clone(),

@@ -174,23 +174,30 @@ fn group<'a>(path: &Path, rows: &'a [(u64, Measurement)]) -> Result<Vec<Group<'a
             ));
         }
         // Bands are the exact wavelengths written by `measure` (the manifest's values).
-        let gi = match bands
-            .iter()
-            .position(|g| g.wavelength_nm == m.wavelength_nm)
-        {
-            Some(gi) => gi,
-            None => {
-                bands.push(Group {
-                    target: m.target.as_str(),
-                    wavelength_nm: m.wavelength_nm,
-                    rows: Vec::new(),
-                });
-                bands.len() - 1
-            }
-        };
+        let gi = index_or_push(
+            bands,
+            |g| g.wavelength_nm == m.wavelength_nm,
+            || Group {
+                target: m.target.as_str(),
+                wavelength_nm: m.wavelength_nm,
+                rows: Vec::new(),
+            },
+        );
         bands[gi].rows.push((*line, m));
     }
     Ok(targets.into_iter().flatten().collect())
+}
+
+/// The index of the first item of `v` that is `found`, else of `new()` pushed.
+pub(crate) fn index_or_push<T>(
+    v: &mut Vec<T>,
+    found: impl FnMut(&T) -> bool,
+    new: impl FnOnce() -> T,
+) -> usize {
+    v.iter().position(found).unwrap_or_else(|| {
+        v.push(new());
+        v.len() - 1
+    })
 }
 
 /// A [`PipelineError::Data`] about `path`.
@@ -520,9 +527,6 @@ fn specular(
             status,
             reason,
             model: "specular".into(),
-            sigma: None,
-            rho_d: None,
-            theta_r_deg: None,
             n_se_noise: Some(f.n_se),
             k_se_noise: Some(f.k_se),
             nk_corr_noise: Some(f.nk_corr),
@@ -532,6 +536,7 @@ fn specular(
             k_se_sample: err.sample.map(|c| c.1),
             nk_corr_sample: err.sample.map(|c| c.2),
             film: err.film,
+            ..FitRow::default()
         },
         report: None,
     })

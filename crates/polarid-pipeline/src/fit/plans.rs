@@ -65,13 +65,10 @@ impl PlanCache {
 
     fn insert(&mut self, key: PlanKey, plan: Arc<FitPlan>) {
         if let Some(cap) = self.capacity {
-            while self.plans.len() >= cap {
-                match self.order.pop_front() {
-                    Some(old) => {
-                        self.plans.remove(&old);
-                    }
-                    None => break,
-                }
+            while self.plans.len() >= cap
+                && let Some(old) = self.order.pop_front()
+            {
+                self.plans.remove(&old);
             }
         }
         self.order.push_back(key.clone());

@@ -230,7 +230,7 @@ impl LibraryConfig {
 }
 
 /// The result of [`build_library`].
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct LibraryBuild {
     /// The materials, in input order.
     pub materials: Vec<Material>,
@@ -257,6 +257,10 @@ fn band_means(
     out: &mut LibraryBuild,
 ) -> Result<Vec<(Band, f64, f64)>> {
     let (lo_um, hi_um) = data.range_um();
+    let model_err = |reason| -> PipelineError {
+        let path = s.path.clone();
+        IoError::Model { path, reason }.into()
+    };
     let mut rows: Vec<(Band, f64, f64)> = Vec::new();
     for &band in &cfg.bands {
         let (first, last, _) = samples(band, cfg.step);
@@ -273,22 +277,16 @@ fn band_means(
                 out.skipped += 1;
                 continue;
             }
-            return Err(IoError::Model {
-                path: s.path.clone(),
-                reason: format!("{what}; choose another band or pass --skip-missing"),
-            }
-            .into());
+            return Err(model_err(format!(
+                "{what}; choose another band or pass --skip-missing"
+            )));
         }
         let (n, k) = data.band_mean(band.lo, band.hi, cfg.step)?;
         if !(n > 0.0 && k >= 0.0) {
-            return Err(IoError::Model {
-                path: s.path.clone(),
-                reason: format!(
-                    "band mean n = {n}, k = {k} over {band} is not a usable index \
-                     (need n > 0, k >= 0)"
-                ),
-            }
-            .into());
+            return Err(model_err(format!(
+                "band mean n = {n}, k = {k} over {band} is not a usable index \
+                 (need n > 0, k >= 0)"
+            )));
         }
         rows.push((band, n, k));
     }
@@ -362,12 +360,7 @@ pub fn build_library(
         None => BTreeMap::new(),
     };
     let multi = cfg.bands.len() > 1;
-    let mut out = LibraryBuild {
-        materials: Vec::new(),
-        files: Vec::new(),
-        warnings: Vec::new(),
-        skipped: 0,
-    };
+    let mut out = LibraryBuild::default();
     let mut names: BTreeMap<String, PathBuf> = BTreeMap::new();
     for (i, s) in srcs.iter().enumerate() {
         progress("files", i as u64, srcs.len() as u64);

@@ -36,10 +36,9 @@ fn is_yaml(p: &Path) -> bool {
 /// not followed).
 fn scan_dir(root: &Path, dir: &Path, out: &mut Vec<Source>) -> Result<()> {
     let rd = fs::read_dir(dir).map_err(|e| IoError::io(dir, e))?;
-    let mut entries: Vec<PathBuf> = Vec::new();
-    for e in rd {
-        entries.push(e.map_err(|e| IoError::io(dir, e))?.path());
-    }
+    let mut entries = rd
+        .map(|e| e.map(|e| e.path()).map_err(|e| IoError::io(dir, e)))
+        .collect::<std::result::Result<Vec<PathBuf>, _>>()?;
     entries.sort();
     for p in entries {
         let meta = fs::symlink_metadata(&p).map_err(|e| IoError::io(&p, e))?;

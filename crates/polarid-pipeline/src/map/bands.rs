@@ -67,19 +67,22 @@ pub fn band_tag(wavelength_nm: f64) -> String {
 /// `{name}_{tag}.tif` ([`band_tag`]) per band of a colour map: `n_450.tif`, ...
 pub const BAND_IMAGES: [&str; 5] = ["n", "k", "n_se", "k_se", "rms_residual"];
 
-/// The files a map of `m` writes: `single` (the single-band map's files, of which the
-/// first five are its fit images `n.tif` ... `rms_residual.tif`) as they are, or for a
-/// manifest with colour captures the [`BAND_IMAGES`] of every band instead of the first
-/// five.
-pub fn output_files(m: &Manifest, single: &[&str]) -> Vec<String> {
-    if !is_colour(m) {
-        return single.iter().map(|f| f.to_string()).collect();
-    }
-    let per_capture: Vec<Vec<f64>> = m.captures.iter().map(capture_wavelengths).collect();
-    wavelengths(&per_capture)
-        .into_iter()
-        .flat_map(|w| image_files(Some(band_tag(w))))
-        .chain(single.iter().skip(BAND_IMAGES.len()).map(|f| f.to_string()))
+/// The files a map of `m` writes: the fit images ([`BAND_IMAGES`]: `n.tif` ... of a
+/// single-band map, or `n_450.tif` ... of every band of a manifest with colour captures),
+/// then `others` (the map's other files).
+pub fn output_files(m: &Manifest, others: &[&str]) -> Vec<String> {
+    let tags = if is_colour(m) {
+        let per_capture: Vec<Vec<f64>> = m.captures.iter().map(capture_wavelengths).collect();
+        wavelengths(&per_capture)
+            .into_iter()
+            .map(|w| Some(band_tag(w)))
+            .collect()
+    } else {
+        vec![None]
+    };
+    tags.into_iter()
+        .flat_map(image_files)
+        .chain(others.iter().map(|f| f.to_string()))
         .collect()
 }
 
@@ -134,7 +137,7 @@ pub use polarid_io::measure::has_colour as is_colour;
 /// One band's binned DoLP images over its captures (stage 1 of a map), the input of
 /// [`fit_bands`]: built by [`super::map_manifest_from`] from the manifest's files, or
 /// from frames in memory by the blocks of `polarid.dask.material_map`.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct BandDolp {
     wavelength_nm: Option<f64>,
     /// Named by its wavelength in file names, progress and messages (a colour map's
@@ -170,14 +173,8 @@ impl BandDolp {
     pub(crate) fn unnamed(wavelength_nm: Option<f64>, captures: Vec<usize>) -> Self {
         Self {
             wavelength_nm,
-            named: false,
             captures,
-            dolp: Vec::new(),
-            flags: Vec::new(),
-            dropped: Vec::new(),
-            read: Vec::new(),
-            shot: Vec::new(),
-            noise_model: None,
+            ..Self::default()
         }
     }
 
@@ -585,7 +582,7 @@ impl BandFitter<'_> {
 }
 
 /// Every image of `v` as a slice.
-fn slices(v: &[Vec<f32>]) -> Vec<&[f32]> {
+pub(super) fn slices(v: &[Vec<f32>]) -> Vec<&[f32]> {
     v.iter().map(Vec::as_slice).collect()
 }
 

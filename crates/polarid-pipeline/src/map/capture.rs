@@ -33,43 +33,31 @@ pub(super) fn core_err(path: &Path) -> impl FnOnce(polarid_core::CoreError) -> I
 
 /// Check that a capture's frame has the map's size (set by the first capture).
 pub(crate) fn check_dims(dims: &mut Option<Dims>, f: &Frame, bin: usize) -> Result<Dims> {
-    match dims {
-        Some(d) => {
-            if (d.width, d.height) != (f.width, f.height) {
-                return Err(IoError::Image {
-                    path: f.path.clone(),
-                    reason: format!(
-                        "is {}x{} pixels but the first capture's frames are {}x{}: every capture of a map must have the same size",
-                        f.width, f.height, d.width, d.height
-                    ),
-                }
-                .into());
+    if let Some(d) = dims {
+        if (d.width, d.height) != (f.width, f.height) {
+            return Err(IoError::Image {
+                path: f.path.clone(),
+                reason: format!(
+                    "is {}x{} pixels but the first capture's frames are {}x{}: every capture of a map must have the same size",
+                    f.width, f.height, d.width, d.height
+                ),
             }
-            Ok(*d)
+            .into());
         }
-        None => {
-            let (out_w, out_h) = map::binned_size(f.width, f.height, bin).map_err(|e| {
-                PipelineError::config(
-                    "--bin",
-                    bin,
-                    format!(
-                        "does not fit the {}x{} frames of {}: {e}",
-                        f.width,
-                        f.height,
-                        f.path.display()
-                    ),
-                )
-            })?;
-            let d = Dims {
-                width: f.width,
-                height: f.height,
-                out_w,
-                out_h,
-            };
-            *dims = Some(d);
-            Ok(d)
-        }
+        return Ok(*d);
     }
+    let (out_w, out_h) = map::binned_size(f.width, f.height, bin).map_err(|e| {
+        let (w, h, file) = (f.width, f.height, f.path.display());
+        let why = format!("does not fit the {w}x{h} frames of {file}: {e}");
+        PipelineError::config("--bin", bin, why)
+    })?;
+    let (width, height) = (f.width, f.height);
+    Ok(*dims.insert(Dims {
+        width,
+        height,
+        out_w,
+        out_h,
+    }))
 }
 
 /// One band's binned DoLP image of a capture, its signal flags and, for weighted fits,
@@ -83,7 +71,7 @@ pub(crate) struct CaptureBand {
 }
 
 impl CaptureBand {
-    fn new(wavelength_nm: Option<f64>, d: Dims, weighted: bool) -> Self {
+    pub(super) fn new(wavelength_nm: Option<f64>, d: Dims, weighted: bool) -> Self {
         let n = d.out_w * d.out_h;
         Self {
             wavelength_nm,
@@ -94,7 +82,7 @@ impl CaptureBand {
     }
 
     /// The outputs of a DoLP kernel; `scale` converts the capture's signal to DN.
-    fn outputs<'a>(
+    pub(super) fn outputs<'a>(
         &'a mut self,
         analyzer: &'a NoiseAnalyzer,
         scale: f64,
@@ -138,18 +126,18 @@ fn read_mosaic(
 /// the block mean at `min_s0`, `scale` converting the signal to DN for the noise model,
 /// the binning, and whether the noise terms are kept.
 #[derive(Debug, Clone, Copy)]
-struct StokesBinning {
-    d: Dims,
-    min_s0: f32,
-    scale: f64,
-    bin: usize,
-    weighted: bool,
+pub(super) struct StokesBinning {
+    pub d: Dims,
+    pub min_s0: f32,
+    pub scale: f64,
+    pub bin: usize,
+    pub weighted: bool,
 }
 
 impl StokesBinning {
     /// One band's binned DoLP from its Stokes images `s` (`mask`: the mosaic's per-pixel
     /// flags).
-    fn band(
+    pub(super) fn band(
         &self,
         wavelength_nm: Option<f64>,
         s: [&[f32]; 3],

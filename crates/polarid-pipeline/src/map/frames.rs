@@ -11,14 +11,15 @@ use std::path::Path;
 
 use polarid_core::CoreError;
 use polarid_core::classify::same_band;
+use polarid_core::map as cmap;
 use polarid_core::map::noise::{NoiseAnalyzer, NoiseModel};
 use polarid_core::map::sets::MapErrorModel;
-use polarid_core::map::{self as cmap, NoiseOut};
 use polarid_core::mosaic::{self, ColourMethod, ColourPattern, DofpOutputs, Pattern};
 use polarid_core::stokes::{PixelRules, Sample, StokesSolver};
 use polarid_io::IoError;
 
 use super::bands::{self, BandDolp, BandsFit, FitGeometry};
+use super::capture::{CaptureBand, Dims, StokesBinning};
 use super::rules::min_s0_for;
 use super::{MapConfig, MapPrototypes, Weights, answer, decide};
 use crate::error::{PipelineError, Result};
@@ -109,10 +110,20 @@ pub fn frames_bands<T: Sample>(
     weighted: bool,
 ) -> std::result::Result<Vec<BandDolp>, CoreError> {
     let (hh, ww, halo, bin) = (f.rows, f.columns, f.halo, cfg.bin);
-    let w = ww - halo[2] - halo[3];
-    let (ow, oh) = f.binned_size(bin)?;
-    let npix = ow * oh;
+    let (out_w, out_h) = f.binned_size(bin)?;
     let plane = hh * ww;
+    let binning = StokesBinning {
+        d: Dims {
+            width: ww - halo[2] - halo[3],
+            height: hh - halo[0] - halo[1],
+            out_w,
+            out_h,
+        },
+        min_s0: 0.0,
+        scale: 1.0,
+        bin,
+        weighted,
+    };
     let all: Vec<usize> = (0..f.captures).collect();
     let (mut bands, band_of) = match f.source {
         FramesSource::Colour(_, nms) => {
@@ -124,33 +135,11 @@ pub fn frames_bands<T: Sample>(
             (vec![BandDolp::unnamed(wl, all.clone())], vec![0])
         }
     };
-    let quad = NoiseAnalyzer::quad();
     // One band's binned DoLP from its Stokes images, the dark test on the block mean.
-    let stokes = |s: [Vec<f32>; 3], m: Vec<u8>, th: f32| {
+    let stokes = |s: [Vec<f32>; 3], m: Vec<u8>, min_s0: f32| {
         let s = s.map(|x| crop(x, ww, hh, halo));
         let m = crop(m, ww, hh, halo);
-        let mut d = vec![0f32; npix];
-        let mut cf = vec![0u8; npix];
-        let mut nz = weighted.then(|| (vec![0f32; npix], vec![0f32; npix]));
-        let out = nz.as_mut().map(|(a, b)| NoiseOut {
-            analyzer: &quad,
-            scale: 1.0,
-            read: a.as_mut_slice(),
-            shot: b.as_mut_slice(),
-        });
-        cmap::stokes_dolp_noise(
-            w,
-            &s[0],
-            &s[1],
-            &s[2],
-            Some(&m),
-            th,
-            bin,
-            &mut d,
-            &mut cf,
-            out,
-        )?;
-        Ok::<_, CoreError>((d, cf, nz))
+        StokesBinning { min_s0, ..binning }.band(None, [&s[0], &s[1], &s[2]], Some(&m))
     };
     for (t, r) in f.rules.iter().enumerate() {
         let mut r = *r;
@@ -163,17 +152,10 @@ pub fn frames_bands<T: Sample>(
                 let an = NoiseAnalyzer::of_solver(solver);
                 let cap = &f.data[t * a * plane..(t + 1) * a * plane];
                 let views: Vec<&[T]> = cap.chunks_exact(plane).collect();
-                let mut d = vec![0f32; npix];
-                let mut cf = vec![0u8; npix];
-                let mut nz = weighted.then(|| (vec![0f32; npix], vec![0f32; npix]));
-                let out = nz.as_mut().map(|(a, b)| NoiseOut {
-                    analyzer: &an,
-                    scale: 1.0,
-                    read: a.as_mut_slice(),
-                    shot: b.as_mut_slice(),
-                });
-                cmap::frames_dolp_noise(solver, &views, ww, &r, bin, &mut d, &mut cf, out)?;
-                images.push((d, cf, nz));
+                let mut b = CaptureBand::new(None, binning.d, weighted);
+                let (d, cf, out) = b.outputs(&an, 1.0);
+                cmap::frames_dolp_noise(solver, &views, ww, &r, bin, d, cf, out)?;
+                images.push(b);
             }
             FramesSource::Dofp(p, _) => {
                 // The dark test is made on the block mean by stokes_dolp.
@@ -208,8 +190,8 @@ pub fn frames_bands<T: Sample>(
                 }
             }
         }
-        for ((d, cf, nz), &b) in images.into_iter().zip(&band_of) {
-            bands[b].push(calibrated, d, &cf, nz);
+        for (im, &b) in images.into_iter().zip(&band_of) {
+            bands[b].push(calibrated, im.dolp, &im.flags, im.noise);
         }
     }
     bands.iter_mut().for_each(|b| b.finish(calibrated));

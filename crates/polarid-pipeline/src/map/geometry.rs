@@ -41,11 +41,12 @@ pub(crate) fn beta_maps(
     progress: &dyn Fn(usize),
 ) -> Result<BetaMaps> {
     let core = |e| PipelineError::from(IoError::core(&m.path, e));
+    let data = |reason: String| PipelineError::Data {
+        path: m.path.display().to_string(),
+        reason,
+    };
     let Some(cam) = &m.camera else {
-        return Err(PipelineError::Data {
-            path: m.path.display().to_string(),
-            reason: "per-pixel angles need a [camera] table".into(),
-        });
+        return Err(data("per-pixel angles need a [camera] table".into()));
     };
     let camera = cam.to_camera();
     let views = m
@@ -71,13 +72,10 @@ pub(crate) fn beta_maps(
     let mut out = BetaMaps::default();
     for (i, c) in m.captures.iter().enumerate() {
         let Some(source) = c.illumination.as_ref().and_then(|s| s.to_source()) else {
-            return Err(PipelineError::Data {
-                path: m.path.display().to_string(),
-                reason: format!(
-                    "capture {} (line {}) has no source: a manifest with [camera] needs one per capture",
-                    c.index, c.line
-                ),
-            });
+            return Err(data(format!(
+                "capture {} (line {}) has no source: a manifest with [camera] needs one per capture",
+                c.index, c.line
+            )));
         };
         let mut beta = vec![f32::NAN; d.out_w * d.out_h];
         beta.par_chunks_mut(d.out_w)

@@ -15,6 +15,7 @@ use polarid_core::map::noise::{NoiseEstimate, estimate_noise};
 use polarid_core::map::{Betas, signal_reason};
 
 use super::BandDolp;
+use super::bands::slices;
 
 /// The β of a block's fits, radians: one per capture, or one image per capture (f32, as
 /// the map's geometry stage stores them).
@@ -139,11 +140,8 @@ pub fn estimate_sample(
     shot: &[Vec<f32>],
     beta: &BlockBeta,
 ) -> Result<Option<NoiseEstimate>, CoreError> {
-    fn views(x: &[Vec<f32>]) -> Vec<&[f32]> {
-        x.iter().map(Vec::as_slice).collect()
-    }
     let flags = vec![0u8; dolp.first().map_or(0, Vec::len)];
-    let (dv, rv, sv) = (views(dolp), views(read), views(shot));
+    let (dv, rv, sv) = (slices(dolp), slices(read), slices(shot));
     match beta {
         BlockBeta::Shared(b) => {
             let plan = FitPlan::new(b, FitOptions::default())?;
@@ -158,7 +156,7 @@ pub fn estimate_sample(
                 });
             }
             let plan = PixelBetaPlan::new(FitOptions::default())?;
-            let beta = views(m);
+            let beta = slices(m);
             let betas = Betas::PerPixel {
                 plan: &plan,
                 beta: &beta,

@@ -259,41 +259,42 @@ pub fn write_truth(
         path,
         &header,
         truth.iter().map(|t| {
-            let mut row = vec![
-                t.target.clone(),
-                t.class.clone().unwrap_or_default(),
-                fmt_f64(t.theta_i_deg),
-                fmt_f64(t.theta_r_deg),
-                fmt_f64(t.phi_deg),
-                fmt_f64(t.beta_deg),
-                fmt_f64(t.dolp),
-                fmt_f64(t.s0),
-                fmt_f64(t.dolp_eq9_specular),
-                fmt_f64(t.exposure),
-                fmt_f64(t.peak_electrons),
-            ];
+            let mut row = vec![t.target.clone(), t.class.clone().unwrap_or_default()];
+            row.extend(
+                [
+                    t.theta_i_deg,
+                    t.theta_r_deg,
+                    t.phi_deg,
+                    t.beta_deg,
+                    t.dolp,
+                    t.s0,
+                    t.dolp_eq9_specular,
+                    t.exposure,
+                    t.peak_electrons,
+                ]
+                .map(fmt_f64),
+            );
             if let (true, Some(b)) = (colour, &t.band) {
-                row.extend([
-                    b.letter.to_string(),
-                    fmt_f64(b.wavelength_nm),
-                    fmt_f64(b.n),
-                    fmt_f64(b.k),
-                ]);
+                row.push(b.letter.to_string());
+                row.extend([b.wavelength_nm, b.n, b.k].map(fmt_f64));
             }
             if let (true, Some(c)) = (calibrated, &t.calibrated) {
                 row.push(c.capture.clone());
                 if !colour {
-                    row.extend([fmt_f64(c.n), fmt_f64(c.k)]);
+                    row.extend([c.n, c.k].map(fmt_f64));
                 }
-                row.extend([
-                    fmt_f64(c.sigma),
-                    fmt_f64(c.rho_d),
-                    fmt_f64(c.beta_sd_deg),
-                    fmt_f64(c.beta_min_deg),
-                    fmt_f64(c.beta_max_deg),
-                    fmt_f64(c.dolp_eq9_mean),
-                    c.pixels.to_string(),
-                ]);
+                row.extend(
+                    [
+                        c.sigma,
+                        c.rho_d,
+                        c.beta_sd_deg,
+                        c.beta_min_deg,
+                        c.beta_max_deg,
+                        c.dolp_eq9_mean,
+                    ]
+                    .map(fmt_f64),
+                );
+                row.push(c.pixels.to_string());
             }
             row
         }),

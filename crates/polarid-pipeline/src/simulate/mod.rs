@@ -432,6 +432,7 @@ fn exposure_warning(
 }
 
 /// The radiance, exposure and truth of every capture of a far-field scene.
+#[derive(Default)]
 struct Plan {
     /// Per capture, the plates with their radiance in every band ([`plate_bands`]).
     rects: Vec<Vec<ColourRect>>,
@@ -469,13 +470,7 @@ fn plan(scene: &Scene) -> Result<Plan> {
     let bands = scene.capture.bands();
     let resp: Vec<f64> = bands.map_or(vec![1.0], |bs| bs.iter().map(|b| b.response).collect());
     let plates: Vec<_> = scene.plates.iter().map(|p| plate_bands(p, bands)).collect();
-    let mut out = Plan {
-        rects: Vec::new(),
-        epu: Vec::new(),
-        exposures: Vec::new(),
-        truth: Vec::new(),
-        warnings: Vec::new(),
-    };
+    let mut out = Plan::default();
     for &ti_deg in theta_i_deg {
         let ti = ti_deg.to_radians();
         let mut caps = Vec::with_capacity(scene.plates.len());

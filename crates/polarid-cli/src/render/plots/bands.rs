@@ -32,6 +32,29 @@ pub struct SpectrumPoint {
     pub k_se: Option<f64>,
 }
 
+impl SpectrumPoint {
+    /// A point without error bars (a curve sample, a material's band).
+    pub fn bare(wavelength_nm: f64, n: f64, k: f64) -> Self {
+        Self {
+            wavelength_nm,
+            n,
+            k,
+            n_se: None,
+            k_se: None,
+        }
+    }
+
+    /// A fit's band: its `(n, k)` with their standard errors at its wavelength (NaN
+    /// without one).
+    pub fn of_fit(f: &polarid_io::table::fits::FitRow) -> Self {
+        Self {
+            n_se: Some(f.n_se),
+            k_se: Some(f.k_se),
+            ..Self::bare(f.wavelength_nm.unwrap_or(f64::NAN), f.n, f.k)
+        }
+    }
+}
+
 /// A labelled spectrum: a target's per-band estimates or a library material's bands.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Spectrum {
@@ -92,17 +115,6 @@ fn ok(p: &SpectrumPoint) -> bool {
     p.wavelength_nm.is_finite() && p.n.is_finite() && p.k.is_finite()
 }
 
-/// A curve sample as a point without error bars.
-fn curve_point(wavelength_nm: f64, n: f64, k: f64) -> SpectrumPoint {
-    SpectrumPoint {
-        wavelength_nm,
-        n,
-        k,
-        n_se: None,
-        k_se: None,
-    }
-}
-
 fn bar(se: Option<f64>) -> f64 {
     se.filter(|s| s.is_finite() && *s > 0.0).unwrap_or(0.0)
 }
@@ -129,7 +141,7 @@ impl SpectraFigure<'_> {
             s.curve
                 .iter()
                 .filter(move |c| in_x(c.0))
-                .map(move |&(w, n, k)| value(&curve_point(w, n, k)).0)
+                .map(move |&(w, n, k)| value(&SpectrumPoint::bare(w, n, k)).0)
         });
         let ys = self
             .all()
@@ -160,7 +172,7 @@ impl SpectraFigure<'_> {
                 .curve
                 .iter()
                 .filter(|c| in_x(c.0))
-                .map(|&(w, n, k)| (w, value(&curve_point(w, n, k)).0))
+                .map(|&(w, n, k)| (w, value(&SpectrumPoint::bare(w, n, k)).0))
                 .filter(|p| p.1.is_finite())
                 .collect();
             line.sort_by(|a, b| a.0.total_cmp(&b.0));

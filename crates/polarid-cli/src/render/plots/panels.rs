@@ -80,24 +80,6 @@ pub fn nk_by_band(title: &str, bands: &[NkBand]) -> Result<Rendered> {
     render(&NkPanels { title, bands }, panel_size(bands.len()))
 }
 
-/// The panels of `main`, one per band, each titled `λ = … nm`.
-fn panels<DB: DrawingBackend>(
-    main: &DrawingArea<DB, Shift>,
-    wavelengths: &[f64],
-) -> Result<Vec<DrawingArea<DB, Shift>>> {
-    let cols = wavelengths.len().clamp(1, PER_ROW);
-    let rows = wavelengths.len().max(1).div_ceil(PER_ROW);
-    let cells = main.split_evenly((rows, cols));
-    cells
-        .into_iter()
-        .zip(wavelengths)
-        .map(|(c, w)| {
-            c.titled(&format!("λ = {} nm", band_label(*w)), font(LABEL_SIZE))
-                .dr()
-        })
-        .collect()
-}
-
 struct DolpPanels<'a> {
     title: &'a str,
     bands: &'a [DolpBand],
@@ -123,22 +105,50 @@ fn draw_dolp_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, b: &DolpBa
 
 impl Figure for DolpPanels<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<Option<Raster>> {
-        let (main, side) = layout(root, self.title)?;
-        if self.bands.is_empty() {
-            draw_notice(&main, "No bands to plot")?;
-            return Ok(None);
-        }
-        let wls: Vec<f64> = self.bands.iter().map(|b| b.wavelength_nm).collect();
-        for (area, b) in panels(&main, &wls)?.iter().zip(self.bands) {
-            draw_dolp_panel(area, b)?;
-        }
-        let mut legend = vec![LegendItem::Heading("targets (±1 SE)".into())];
-        // ok: `bands` is not empty (checked above).
-        legend.extend(class_markers(self.bands[0].series.iter().map(|s| &s.label)));
-        legend.push(LegendItem::Line(BLACK, "eq. (9) fit of the band".into()));
-        draw_legend(&side, &legend)?;
-        Ok(None)
+        let legend = || {
+            let mut legend = vec![LegendItem::Heading("targets (±1 SE)".into())];
+            // ok: `bands` is not empty (`draw_bands` checks it before the legend).
+            legend.extend(class_markers(self.bands[0].series.iter().map(|s| &s.label)));
+            legend.push(LegendItem::Line(BLACK, "eq. (9) fit of the band".into()));
+            legend
+        };
+        let wavelength = |b: &DolpBand| b.wavelength_nm;
+        draw_bands(
+            root,
+            self.title,
+            self.bands,
+            wavelength,
+            draw_dolp_panel,
+            legend,
+        )
     }
+}
+
+/// A figure of one panel per band: `title`, the panels (each titled `λ = … nm`, then drawn
+/// by `panel`) and the legend column, or a notice when there is no band.
+fn draw_bands<DB: DrawingBackend, B>(
+    root: &DrawingArea<DB, Shift>,
+    title: &str,
+    bands: &[B],
+    wavelength: impl Fn(&B) -> f64,
+    panel: impl Fn(&DrawingArea<DB, Shift>, &B) -> Result<()>,
+    legend: impl FnOnce() -> Vec<LegendItem>,
+) -> Result<Option<Raster>> {
+    let (main, side) = layout(root, title)?;
+    if bands.is_empty() {
+        draw_notice(&main, "No bands to plot")?;
+        return Ok(None);
+    }
+    let cells = main.split_evenly((bands.len().div_ceil(PER_ROW), bands.len().min(PER_ROW)));
+    let label = |b: &B| format!("λ = {} nm", band_label(wavelength(b)));
+    let titled = cells.into_iter().zip(bands);
+    let titled = titled.map(|(c, b)| c.titled(&label(b), font(LABEL_SIZE)).dr());
+    // Every panel titled first, then drawn (the order of the SVG's elements).
+    for (area, b) in titled.collect::<Result<Vec<_>>>()?.iter().zip(bands) {
+        panel(area, b)?;
+    }
+    draw_legend(&side, &legend())?;
+    Ok(None)
 }
 
 struct NkPanels<'a> {
@@ -222,19 +232,9 @@ impl NkPanels<'_> {
         }
         Ok(())
     }
-}
 
-impl Figure for NkPanels<'_> {
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<Option<Raster>> {
-        let (main, side) = layout(root, self.title)?;
-        if self.bands.is_empty() {
-            draw_notice(&main, "No bands to plot")?;
-            return Ok(None);
-        }
-        let wls: Vec<f64> = self.bands.iter().map(|b| b.wavelength_nm).collect();
-        for (area, b) in panels(&main, &wls)?.iter().zip(self.bands) {
-            self.panel(area, b)?;
-        }
+    /// The legend: the reference classes, then every target's marker and answer.
+    fn legend(&self) -> Vec<LegendItem> {
         let mut legend = Vec::new();
         let classes = self.classes();
         if !classes.is_empty() {
@@ -261,7 +261,16 @@ impl Figure for NkPanels<'_> {
                 text,
             ));
         }
-        draw_legend(&side, &legend)?;
-        Ok(None)
+        legend
+    }
+}
+
+impl Figure for NkPanels<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<Option<Raster>> {
+        let wavelength = |b: &NkBand| b.wavelength_nm;
+        let panel = |area: &DrawingArea<DB, Shift>, b: &NkBand| self.panel(area, b);
+        draw_bands(root, self.title, self.bands, wavelength, panel, || {
+            self.legend()
+        })
     }
 }

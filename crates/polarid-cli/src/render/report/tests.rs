@@ -65,10 +65,10 @@ pub(crate) fn sample_report(evil: bool) -> (Report, Vec<(String, crate::render::
         plots::dolp_vs_beta("DoLP against β, training plates (θr = 60°)", &series, size).unwrap();
     let protos: Vec<plots::Prototype> = train
         .iter()
-        .map(|t| plots::Prototype {
-            class: t.0.into(),
-            n: t.3,
-            k: t.4,
+        .map(|&(class, _, _, n, k, ..)| plots::Prototype {
+            class: class.into(),
+            n,
+            k,
         })
         .collect();
     let ests: Vec<plots::NkEstimate> = tests
