@@ -29,14 +29,9 @@ impl Ctx {
         }
     }
 
-    /// True when progress bars should be drawn.
-    pub fn show_progress(&self) -> bool {
-        !self.quiet && self.stderr_is_tty
-    }
-
     /// A progress bar of `len` steps, hidden unless standard error is a terminal.
     pub fn progress(&self, len: u64, what: &str) -> indicatif::ProgressBar {
-        if !self.show_progress() {
+        if self.quiet || !self.stderr_is_tty {
             return indicatif::ProgressBar::hidden();
         }
         let pb = indicatif::ProgressBar::new(len);
@@ -57,22 +52,23 @@ impl Ctx {
     }
 
     /// Write a text output to `path` atomically, or to standard output when `path` is
-    /// `None` or `-`. `inputs` are never overwritten.
+    /// `None` or `-`. `inputs` are never overwritten. `write` gets the output's name for
+    /// its messages (`<stdout>` for standard output).
     pub fn write_output(
         &self,
         path: Option<&Path>,
         inputs: &[&Path],
-        write: impl FnOnce(&mut dyn Write) -> polarid_io::Result<()>,
+        write: impl FnOnce(&mut dyn Write, &Path) -> polarid_io::Result<()>,
     ) -> anyhow::Result<()> {
         match path.filter(|p| !polarid_io::limits::is_stdin(p)) {
             Some(p) => {
                 polarid_io::atomic::check_output(p, self.force, inputs)?;
-                polarid_io::atomic::write_atomic(p, self.force, write)?;
+                polarid_io::atomic::write_atomic(p, self.force, |w| write(w, p))?;
             }
             None => {
                 // Build the whole output first so that a failure prints nothing.
                 let mut buf: Vec<u8> = Vec::new();
-                write(&mut buf)?;
+                write(&mut buf, Path::new("<stdout>"))?;
                 print_stdout(&buf)?;
             }
         }
@@ -121,10 +117,4 @@ pub fn exit_status(e: &anyhow::Error) -> u8 {
         }
     }
     1
-}
-
-/// The error and its causes, joined by `: ` ([`polarid_io::error::chain_message`], the
-/// text the Python package raises too): each level is printed once.
-pub fn error_message(e: &anyhow::Error) -> String {
-    polarid_io::error::chain_message(e.as_ref())
 }

@@ -27,7 +27,7 @@ struct Cli {
     /// Memory budget of the run, e.g. 8G or 512M (default 4G, or the environment
     /// variable POLARID_MEMORY_LIMIT): larger frames and inputs are refused before they
     /// are read (docs/RELIABILITY.md).
-    #[arg(long, global = true, value_name = "SIZE", value_parser = parse_memory_limit)]
+    #[arg(long, global = true, value_name = "SIZE", value_parser = polarid_io::limits::parse_size)]
     memory_limit: Option<u64>,
     #[command(subcommand)]
     command: Command,
@@ -62,10 +62,6 @@ enum Command {
     Plan(cmd::plan::Args),
     /// Reproduce the paper's experiment in simulation, end to end, with a report.
     Demo(cmd::demo::Args),
-}
-
-fn parse_memory_limit(s: &str) -> Result<u64, String> {
-    polarid_io::limits::parse_size(s)
 }
 
 /// Remove the run's staging, say so, and exit with 128 + the signal's number.
@@ -154,7 +150,10 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("polarid: error: {}", ctx::error_message(&e));
+            // The error and its causes, joined by `: ` (the text the Python package raises
+            // too): each level is printed once.
+            let msg = polarid_io::error::chain_message(e.as_ref());
+            eprintln!("polarid: error: {msg}");
             ExitCode::from(ctx::exit_status(&e))
         }
     }

@@ -214,8 +214,8 @@ fn finish(
     let mut inputs: Vec<&Path> = vec![&args.fits];
     inputs.extend(args.model.as_deref());
     inputs.extend(args.wolff.wolff.as_deref());
-    ctx.write_output(out_path, &inputs, |w| {
-        classification::write(w, out_path.unwrap_or(Path::new("-")), &out.rows)
+    ctx.write_output(out_path, &inputs, |w, p| {
+        classification::write(w, p, &out.rows)
     })?;
     let count = |s: &str| out.rows.iter().filter(|r| r.status == s).count();
     let (ok, amb, rej) = (count("ok"), count("ambiguous"), count("rejected"));

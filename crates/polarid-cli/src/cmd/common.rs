@@ -2,12 +2,14 @@
 //! the CLI's (exit statuses and messages), its progress reports as progress bars, its
 //! warnings on standard error, and the classifier options of `classify` and `evaluate`.
 
-use std::sync::{Mutex, OnceLock};
+use std::path::Path;
+use std::sync::Mutex;
 
 use clap::ValueEnum;
 use polarid_core::classify::{ClassifierConfig, Confusion, Metric, Rule};
+use polarid_io::atomic::StagedDir;
+use polarid_pipeline::PipelineError;
 use polarid_pipeline::options::ClassifierOptions;
-use polarid_pipeline::{PipelineError, Progress};
 
 use crate::{BadInput, Ctx};
 
@@ -36,22 +38,16 @@ impl<T> PipeResult<T> for polarid_pipeline::Result<T> {
     }
 }
 
-/// Run `f` with a progress callback drawing a bar labelled `what` (hidden unless
-/// standard error is a terminal and not `--quiet`); the bar is cleared at the end.
-pub fn with_progress<T>(ctx: &Ctx, what: &str, f: impl FnOnce(Progress) -> T) -> T {
-    let bar: OnceLock<indicatif::ProgressBar> = OnceLock::new();
-    let cb = |_stage: &str, done: u64, total: u64| {
-        let pb = bar.get_or_init(|| ctx.progress(total, what));
-        if pb.length() != Some(total) {
-            pb.set_length(total);
-        }
-        pb.set_position(done);
-    };
-    let out = f(&cb);
-    if let Some(pb) = bar.get() {
-        pb.finish_and_clear();
+/// The staging of the output directory `dir` (an existing file there is a usage error).
+pub fn output_dir(dir: &Path, ctx: &Ctx) -> anyhow::Result<StagedDir> {
+    if dir.is_file() {
+        return Err(BadInput(format!(
+            "{}: the output must be a directory, and this is a file",
+            dir.display()
+        ))
+        .into());
     }
-    out
+    Ok(StagedDir::new(dir, ctx.force)?)
 }
 
 /// Print warnings (`polarid: warning: ...`) unless `--quiet`.

@@ -139,7 +139,9 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         let mut inputs: Vec<&Path> = vec![&args.fits];
         inputs.extend(args.model.as_deref());
         inputs.extend(args.wolff.wolff.as_deref());
-        ctx.write_output(Some(out), &inputs, |w| write_file(w, out, format, &o, &cfg))?;
+        ctx.write_output(Some(out), &inputs, |w, _| {
+            write_file(w, out, format, &o, &cfg)
+        })?;
     }
     crate::ctx::print_stdout(text.as_bytes())
 }

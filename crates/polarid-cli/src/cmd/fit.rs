@@ -25,7 +25,7 @@ use polarid_pipeline::fit::{
     FitConfig, MODEL_COLUMNS, Reflectance, model_rows, range_problem, read_measurements,
 };
 
-use super::common::{PipeResult, with_progress};
+use super::common::{Bars, PipeResult};
 use crate::render::table_report;
 use crate::{BadInput, Ctx};
 
@@ -219,7 +219,10 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         let option = option.replace('_', "-");
         return Err(BadInput(format!("--{option} {reason}, got {value}")).into());
     }
-    let out = with_progress(ctx, "fitting", |p| pipe::fit(path, &meas, &cfg, p)).cli()?;
+    let out = {
+        let bars = Bars::new(ctx);
+        pipe::fit(path, &meas, &cfg, &|s, d, t| bars.report(s, d, t)).cli()?
+    };
     if let Some(mp) = &args.models {
         if args.output.as_deref() == Some(mp.as_path()) {
             return Err(
@@ -243,13 +246,8 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         ctx.info(w.to_string());
     }
     let rows = out.rows();
-    let out_path = args
-        .output
-        .clone()
-        .filter(|p| !polarid_io::limits::is_stdin(p))
-        .unwrap_or_else(|| PathBuf::from("<stdout>"));
-    ctx.write_output(args.output.as_deref(), &[path.as_path()], |w| {
-        fits::write(w, &out_path, &rows)
+    ctx.write_output(args.output.as_deref(), &[path.as_path()], |w, p| {
+        fits::write(w, p, &rows)
     })?;
     if let Some(mp) = &args.models {
         polarid_io::atomic::write_atomic(mp, ctx.force, |w| {

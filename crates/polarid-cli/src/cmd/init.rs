@@ -45,9 +45,9 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     .cli()?;
     super::common::warn_all(ctx, &out.warnings);
     let inputs: Vec<&std::path::Path> = out.inputs.iter().map(PathBuf::as_path).collect();
-    ctx.write_output(Some(&output), &inputs, |w| {
+    ctx.write_output(Some(&output), &inputs, |w, p| {
         w.write_all(out.text.as_bytes())
-            .map_err(|e| polarid_io::IoError::io(&output, e))
+            .map_err(|e| polarid_io::IoError::io(p, e))
     })?;
     let files: usize = out
         .captures

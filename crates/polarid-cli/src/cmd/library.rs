@@ -38,6 +38,7 @@ use polarid_pipeline::library::{Band, LibraryConfig, build_library, parse_band};
 use super::common::{Bars, PipeResult, warn_all};
 use crate::Ctx;
 use crate::ctx::print_stdout;
+use crate::render::join;
 
 fn parse_step(s: &str) -> Result<f64, String> {
     match s.trim().parse::<f64>() {
@@ -198,13 +199,9 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     if let Some(m) = &args.names {
         inputs.push(m.as_path());
     }
-    let label = args
-        .output
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("<stdout>"));
     let comment = cfg.comment();
-    ctx.write_output(args.output.as_deref(), &inputs, |w| {
-        lib.write_csv(w, &label, Some(&comment))
+    ctx.write_output(args.output.as_deref(), &inputs, |w, p| {
+        lib.write_csv(w, p, Some(&comment))
     })?;
     let mut names: Vec<&str> = lib.materials.iter().map(|m| m.name.as_str()).collect();
     names.dedup();
@@ -212,11 +209,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         "polarid library: {} materials, band{} {}{}",
         names.len(),
         if args.band.len() > 1 { "s" } else { "" },
-        args.band
-            .iter()
-            .map(|b| b.to_string())
-            .collect::<Vec<_>>()
-            .join(", "),
+        join(&args.band, ", "),
         if built.skipped == 0 {
             String::new()
         } else {

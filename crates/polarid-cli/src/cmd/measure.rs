@@ -88,9 +88,8 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     };
     warn_all(ctx, &out.warnings);
     let rows = out.rows;
-    let label = output.clone().unwrap_or_else(|| PathBuf::from("<stdout>"));
-    ctx.write_output(output.as_deref(), &inputs, |w| {
-        measurements::write(w, &label, &rows)
+    ctx.write_output(output.as_deref(), &inputs, |w, p| {
+        measurements::write(w, p, &rows)
     })?;
     if let Some(out) = &output {
         let bands = if measure::has_colour(&m) {

@@ -33,15 +33,14 @@ pub struct Args {
 pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     let input = model_rows::read(&args.input)?;
     let out_path = args.output.as_deref();
-    let label = out_path.unwrap_or(std::path::Path::new("<stdout>"));
     match &input.rows {
         ModelRows::Dop(rows) => {
             let p: Vec<f64> = rows
                 .par_iter()
                 .map(|r| dop::dop(r.n, r.k, r.beta_deg.to_radians()))
                 .collect();
-            ctx.write_output(out_path, &[&args.input], |w| {
-                model_rows::write_dop(w, label, &input, rows, &p)
+            ctx.write_output(out_path, &[&args.input], |w, path| {
+                model_rows::write_dop(w, path, &input, rows, &p)
             })?;
             info(ctx, out_path, rows.len(), "DoP");
         }
@@ -68,8 +67,8 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
                     })
                 })
                 .collect::<anyhow::Result<_>>()?;
-            ctx.write_output(out_path, &[&args.input], |w| {
-                model_rows::write_pbrdf(w, label, &input, rows, &results)
+            ctx.write_output(out_path, &[&args.input], |w, path| {
+                model_rows::write_pbrdf(w, path, &input, rows, &results)
             })?;
             info(ctx, out_path, rows.len(), "pBRDF");
         }

@@ -10,10 +10,9 @@
 //! `scene.toml` (the scene with the recommended sources, ready for `polarid simulate`).
 
 use std::fmt::Write as _;
-use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
-use polarid_io::atomic::StagedDir;
+use polarid_io::atomic::write_atomic;
 use polarid_io::manifest::SourceSpec;
 use polarid_io::table::{fmt_f64, write_rows};
 use polarid_pipeline::fit::FitConfig;
@@ -21,8 +20,9 @@ use polarid_pipeline::plan::{
     Evaluation, PlanConfig, PlanOutput, Position, Region, dolp_curve, plan_file,
 };
 
-use super::common::{PipeResult, warn_all};
+use super::common::{PipeResult, output_dir, warn_all};
 use crate::Ctx;
+use crate::render::join;
 use crate::render::plots::{DolpPoint, PlanAxes, PlanPlate, PlotSize, plan_dolp};
 
 /// Arguments of `polarid plan`.
@@ -102,12 +102,8 @@ fn design_text(out: &PlanOutput, ev: &Evaluation, title: &str) -> String {
         .collect();
     let _ = writeln!(s, "  beta span (deg): {}", betas.join(", "));
     for q in &ev.positions {
-        let b: Vec<String> = q
-            .rows
-            .iter()
-            .map(|r| format!("{:.1}", r.beta_deg))
-            .collect();
-        let _ = writeln!(s, "  {:<24} beta {}", q.label, b.join(" / "));
+        let b = join(q.rows.iter().map(|r| format!("{:.1}", r.beta_deg)), " / ");
+        let _ = writeln!(s, "  {:<24} beta {b}", q.label);
     }
     // A colour scene: the power of each band's rows alone after the overall one.
     let band_heads: String = band_names(out)
@@ -184,16 +180,16 @@ fn design_text(out: &PlanOutput, ev: &Evaluation, title: &str) -> String {
                 tg.name, tg.material, w
             );
         } else {
-            let names: Vec<String> = confused
-                .iter()
-                .map(|c| format!("{} ({:.2})", c.alternative, c.sep.power))
-                .collect();
+            let names = join(
+                confused
+                    .iter()
+                    .map(|c| format!("{} ({:.2})", c.alternative, c.sep.power)),
+                ", ",
+            );
             let _ = writeln!(
                 s,
                 "  {}: {} NOT identifiable: not rejected with power {p}: {}",
-                tg.name,
-                tg.material,
-                names.join(", ")
+                tg.name, tg.material, names
             );
         }
     }
@@ -269,10 +265,9 @@ fn write_pairs_csv(path: &Path, out: &PlanOutput) -> anyhow::Result<()> {
                 })
         })
     });
-    let mut f = std::io::BufWriter::new(std::fs::File::create(path)?);
-    write_rows(&mut f, path, &HEADERS, rows)?;
-    f.flush()?;
-    Ok(())
+    Ok(write_atomic(path, true, |w| {
+        write_rows(w, path, &HEADERS, rows)
+    })?)
 }
 
 /// `positions.csv`: one row per design, position and plate.
@@ -317,10 +312,29 @@ fn write_positions_csv(path: &Path, out: &PlanOutput) -> anyhow::Result<()> {
             })
         })
     });
-    let mut f = std::io::BufWriter::new(std::fs::File::create(path)?);
-    write_rows(&mut f, path, &HEADERS, rows)?;
-    f.flush()?;
-    Ok(())
+    Ok(write_atomic(path, true, |w| {
+        write_rows(w, path, &HEADERS, rows)
+    })?)
+}
+
+/// Plate `t`'s heading: its name and the recommended design's verdict.
+fn heading(out: &PlanOutput, t: usize) -> String {
+    let verdict = if out.recommended.identifiable(t, out.config.power) {
+        "identifiable"
+    } else {
+        "NOT identifiable"
+    };
+    format!("{}: {verdict}", out.targets[t].name)
+}
+
+/// A plate's points of the recommended and the current designs: `point` of each position.
+fn design_points(
+    out: &PlanOutput,
+    point: impl Fn(&Position) -> Option<DolpPoint>,
+) -> (Vec<DolpPoint>, Vec<DolpPoint>) {
+    let points = |ev: &Evaluation| ev.positions.iter().filter_map(&point).collect();
+    let current = out.current.as_ref().map(points).unwrap_or_default();
+    (points(&out.recommended), current)
 }
 
 /// DoLP against β, one colour per plate: its material's curve with the recommended rows
@@ -328,7 +342,6 @@ fn write_positions_csv(path: &Path, out: &PlanOutput) -> anyhow::Result<()> {
 /// legend gives each plate's verdict and the hardest alternative's power.
 fn plot(out: &PlanOutput) -> anyhow::Result<crate::render::Rendered> {
     let floor = out.config.fit.dolp_floor;
-    let p = out.config.power;
     let ev = &out.recommended;
     let mut plates = Vec::new();
     for (t, tg) in out.targets.iter().enumerate() {
@@ -339,25 +352,15 @@ fn plot(out: &PlanOutput) -> anyhow::Result<crate::render::Rendered> {
                 .min_by(|x, y| (x.0 - b).abs().total_cmp(&(y.0 - b).abs()))
                 .map_or(0.0, |c| c.1)
         };
-        let points = |ev: &Evaluation| -> Vec<DolpPoint> {
-            ev.positions
-                .iter()
-                .map(|q| {
-                    let r = &q.rows[t];
-                    let se = r.bands[0].dolp_se;
-                    DolpPoint {
-                        beta_deg: r.beta_deg,
-                        dolp: at(r.beta_deg),
-                        dolp_se: Some((se * se + floor * floor).sqrt()),
-                    }
-                })
-                .collect()
-        };
-        let verdict = if ev.identifiable(t, p) {
-            "identifiable"
-        } else {
-            "NOT identifiable"
-        };
+        let (recommended, current) = design_points(out, |q| {
+            let r = &q.rows[t];
+            let se = r.bands[0].dolp_se;
+            Some(DolpPoint {
+                beta_deg: r.beta_deg,
+                dolp: at(r.beta_deg),
+                dolp_se: Some((se * se + floor * floor).sqrt()),
+            })
+        });
         let (alt_curve, alt_label) = match ev.worst(t) {
             Some(w) => (
                 dolp_curve(out, &w.alternative).cli()?,
@@ -366,13 +369,13 @@ fn plot(out: &PlanOutput) -> anyhow::Result<crate::render::Rendered> {
             None => (Vec::new(), String::new()),
         };
         plates.push(PlanPlate {
-            heading: format!("{}: {verdict}", tg.name),
+            heading: heading(out, t),
             curve: curve.clone(),
             curve_label: tg.material.clone(),
             alt_curve,
             alt_label,
-            recommended: points(ev),
-            current: out.current.as_ref().map(points).unwrap_or_default(),
+            recommended,
+            current,
         });
     }
     let mut notes = vec![format!(
@@ -413,38 +416,27 @@ fn times_plot(out: &PlanOutput, all: &[Position]) -> anyhow::Result<crate::rende
         SourceSpec::Sun { unix_seconds, .. } => Some((unix_seconds - day0) / 3600.0),
         _ => None,
     };
-    let p = out.config.power;
     let mut plates = Vec::new();
     for (t, tg) in out.targets.iter().enumerate() {
         let curve: Vec<(f64, f64)> = all
             .iter()
             .filter_map(|q| hour(q).map(|h| (h, q.rows[t].beta_deg)))
             .collect();
-        let points = |ev: &Evaluation| -> Vec<DolpPoint> {
-            ev.positions
-                .iter()
-                .filter_map(|q| {
-                    hour(q).map(|h| DolpPoint {
-                        beta_deg: h,
-                        dolp: q.rows[t].beta_deg,
-                        dolp_se: None,
-                    })
-                })
-                .collect()
-        };
-        let verdict = if out.recommended.identifiable(t, p) {
-            "identifiable"
-        } else {
-            "NOT identifiable"
-        };
+        let (recommended, current) = design_points(out, |q| {
+            hour(q).map(|h| DolpPoint {
+                beta_deg: h,
+                dolp: q.rows[t].beta_deg,
+                dolp_se: None,
+            })
+        });
         plates.push(PlanPlate {
-            heading: format!("{}: {verdict}", tg.name),
+            heading: heading(out, t),
             curve,
             curve_label: format!("β of {}", tg.name),
             alt_curve: Vec::new(),
             alt_label: String::new(),
-            recommended: points(&out.recommended),
-            current: out.current.as_ref().map(points).unwrap_or_default(),
+            recommended,
+            current,
         });
     }
     let mut chosen: Vec<&Position> = out.recommended.positions.iter().collect();
@@ -498,17 +490,11 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         dolp_se: args.dolp_se,
         fit,
     };
-    let staged = match &args.output {
-        Some(dir) if dir.is_file() => {
-            return Err(crate::BadInput(format!(
-                "{}: the output must be a directory, and this is a file",
-                dir.display()
-            ))
-            .into());
-        }
-        Some(dir) => Some(StagedDir::new(dir, ctx.force)?),
-        None => None,
-    };
+    let staged = args
+        .output
+        .as_deref()
+        .map(|d| output_dir(d, ctx))
+        .transpose()?;
     let out = plan_file(&args.scene, &cfg).cli()?;
     warn_all(ctx, &out.warnings);
     let mut text = format!(
@@ -519,11 +505,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         args.scene.display(),
         out.materials.len(),
         out.library,
-        out.wavelengths_nm
-            .iter()
-            .map(|w| w.to_string())
-            .collect::<Vec<_>>()
-            .join(", "),
+        join(&out.wavelengths_nm, ", "),
         out.config.confidence * 100.0,
         out.config.power,
         out.candidates
@@ -572,13 +554,9 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
             staged.path("scene.toml")?,
             out.recommended_scene(&scene_text),
         )?;
-        let fig = plot(&out)?;
-        std::fs::write(staged.path("plan.png")?, &fig.png)?;
-        std::fs::write(staged.path("plan.svg")?, fig.svg.as_bytes())?;
+        plot(&out)?.write(&staged.path("")?, "plan")?;
         if out.sun.is_some() {
-            let fig = times_plot(&out, &out.sun_positions)?;
-            std::fs::write(staged.path("times.png")?, &fig.png)?;
-            std::fs::write(staged.path("times.svg")?, fig.svg.as_bytes())?;
+            times_plot(&out, &out.sun_positions)?.write(&staged.path("")?, "times")?;
         }
         staged.commit()?;
         ctx.info(format!(

@@ -9,12 +9,12 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use polarid_io::atomic::StagedDir;
 use polarid_io::scene::{self, CaptureKind, ImageFormat};
 use polarid_pipeline::simulate as pipeline;
 
-use super::common::{Bars, PipeResult, warn_all};
+use super::common::{Bars, PipeResult, output_dir, warn_all};
 use crate::Ctx;
+use crate::render::join;
 
 /// Arguments of `polarid simulate`.
 #[derive(Debug, clap::Args)]
@@ -29,14 +29,7 @@ pub struct Args {
 /// Run `polarid simulate`.
 pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
     let scene = scene::load(&args.scene)?;
-    if args.output.is_file() {
-        return Err(crate::BadInput(format!(
-            "{}: the output must be a directory, and this is a file",
-            args.output.display()
-        ))
-        .into());
-    }
-    let staged = StagedDir::new(&args.output, ctx.force)?;
+    let staged = output_dir(&args.output, ctx)?;
     // A progress bar over the frames.
     let sim = {
         let bars = Bars::new(ctx);
@@ -51,11 +44,12 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         CaptureKind::ColourDofp { pattern, bands } => format!(
             "colour DoFP mosaics ({}, bands {})",
             pattern.color(),
-            bands
-                .iter()
-                .map(|b| format!("{} {} nm", b.letter, b.wavelength_nm))
-                .collect::<Vec<_>>()
-                .join(", ")
+            join(
+                bands
+                    .iter()
+                    .map(|b| format!("{} {} nm", b.letter, b.wavelength_nm)),
+                ", "
+            )
         ),
     };
     ctx.info(format!(

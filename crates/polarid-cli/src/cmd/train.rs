@@ -38,9 +38,7 @@ pub fn run(args: Args, ctx: &Ctx) -> anyhow::Result<()> {
         ctx.info(w.to_string());
     }
     let model = &out.model;
-    ctx.write_output(Some(&args.output), &[&args.fits], |w| {
-        model.write(w, &args.output)
-    })?;
+    ctx.write_output(Some(&args.output), &[&args.fits], |w, p| model.write(w, p))?;
     let classes = classes(model);
     ctx.info(format!(
         "trained {} prototype(s) of {} class(es) ({}) -> {}",

@@ -93,14 +93,7 @@ pub fn figures(out: &BenchOutput) -> anyhow::Result<Vec<BenchFigure>> {
     figs.push(BenchFigure {
         plot: plots::answer_map(
             &format!("Material map of the test set ({MAP_BIN}x{MAP_BIN} binning)"),
-            &plots::ClassMap {
-                width: m.width,
-                height: m.height,
-                classes: &m.class,
-                names: &m.class_names,
-                reasons: Some(&m.reason),
-                regions: super::map_figures::map_regions(m),
-            },
+            &super::map_figures::class_map(m),
             size,
         )?,
         stem: "class_map".into(),
@@ -155,6 +148,7 @@ pub fn report(out: &BenchOutput, figs: &[BenchFigure]) -> Report {
             &out.fits,
             &out.classification,
             clf.as_ref(),
+            None,
         ),
         tables: vec![spread_table(out)],
         figures: report_figures(figs),

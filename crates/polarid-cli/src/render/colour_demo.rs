@@ -345,9 +345,9 @@ fn estimates(out: &ColourDemoOutput) -> Vec<report::EstimateRow> {
 /// The three-band classification rows, then the 650 nm ones.
 fn classification(out: &ColourDemoOutput) -> Vec<report::ClassificationRow> {
     let mut classification =
-        super::demo::report_classification(&out.fits, &out.classification, None);
+        super::demo::report_classification(&out.fits, &out.classification, None, None);
     classification.extend(
-        super::demo::report_classification(&out.fits, &out.classification_650, None)
+        super::demo::report_classification(&out.fits, &out.classification_650, None, None)
             .into_iter()
             .map(|mut c| {
                 c.target = format!("{} (650 nm only)", c.target);

@@ -135,18 +135,9 @@ pub fn decisive(f: &FitRow, model: &polarid_io::model::Model) -> FitRow {
 
 /// The report's classification rows: each classification row with its consistent set and
 /// the confidence region(s) that decide it (from the fit of the same target, under
-/// `clf`'s prototypes and confidence).
+/// `clf`'s prototypes and confidence), with the estimates' covariance for `model`'s
+/// comparison ([`decisive`]; `None`: the fit's total).
 pub fn report_classification(
-    fits: &[(u64, FitRow)],
-    class_rows: &[ClassificationRow],
-    clf: Option<&polarid_core::classify::Classifier>,
-) -> Vec<report::ClassificationRow> {
-    report_classification_on(fits, class_rows, clf, None)
-}
-
-/// [`report_classification`] with the estimates' covariance for `model`'s comparison
-/// ([`decisive`]; `None`: the fit's total).
-pub fn report_classification_on(
     fits: &[(u64, FitRow)],
     class_rows: &[ClassificationRow],
     clf: Option<&polarid_core::classify::Classifier>,
@@ -198,7 +189,7 @@ pub fn report(out: &DemoOutput, figs: &[Rendered; 3]) -> Report {
             .iter()
             .map(|(_, f)| common::estimate_row(f, plate(&f.target).map(|p| p.theta_r)))
             .collect(),
-        classification: report_classification_on(fits, class_rows, clf.as_ref(), Some(&out.model)),
+        classification: report_classification(fits, class_rows, clf.as_ref(), Some(&out.model)),
         tables: vec![paper_table(fits)],
         figures: figures_of(figs),
         generator: format!("polarid {} demo", env!("CARGO_PKG_VERSION")),

@@ -31,31 +31,25 @@ fn binning(r: &MapResult) -> String {
 pub fn class_figure(r: &MapResult) -> Result<Rendered> {
     let (w, h) = (r.width, r.height);
     let title = format!("Material map ({w}x{h}{})", binning(r));
-    answer_map(
-        &title,
-        &ClassMap {
-            width: w,
-            height: h,
-            classes: &r.class,
-            names: &r.class_names,
-            reasons: Some(&r.reason),
-            regions: map_regions(r),
-        },
-        PlotSize::REPORT,
-    )
+    answer_map(&title, &class_map(r), PlotSize::REPORT)
 }
 
-/// The manifest's regions in map pixels (their rectangles divided by the binning), to
-/// outline on the material map.
-pub fn map_regions(r: &MapResult) -> Vec<MapRegion> {
+/// The material map of `r` with the manifest's regions in map pixels (their rectangles
+/// divided by the binning), to outline.
+pub fn class_map(r: &MapResult) -> ClassMap<'_> {
     let b = r.bin.max(1) as f64;
-    r.regions
-        .iter()
-        .map(|g| MapRegion {
-            name: g.name.clone(),
-            rect: g.rect.map(|v| v as f64 / b),
-        })
-        .collect()
+    let regions = r.regions.iter().map(|g| MapRegion {
+        name: g.name.clone(),
+        rect: g.rect.map(|v| v as f64 / b),
+    });
+    ClassMap {
+        width: r.width,
+        height: r.height,
+        classes: &r.class,
+        names: &r.class_names,
+        reasons: Some(&r.reason),
+        regions: regions.collect(),
+    }
 }
 
 /// The references of a map: `profiles` (a model's or a library's), drawn with the

@@ -48,6 +48,15 @@ pub struct PlotFiles {
     pub svg: PathBuf,
 }
 
+/// `items` as text, separated by `sep`.
+pub fn join<T: std::fmt::Display>(items: impl IntoIterator<Item = T>, sep: &str) -> String {
+    items
+        .into_iter()
+        .map(|x| x.to_string())
+        .collect::<Vec<_>>()
+        .join(sep)
+}
+
 impl Rendered {
     /// Write `dir/stem.png` and `dir/stem.svg` (overwriting them: callers that must not
     /// overwrite write into a `polarid_io::atomic::StagedDir`).

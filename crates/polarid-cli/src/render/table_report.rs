@@ -356,8 +356,16 @@ impl<'a> Drawn<'a> {
                     .t
                     .fits
                     .iter()
-                    .filter(|f| f.target == *name && f.wavelength_nm.is_some())
-                    .map(SpectrumPoint::of_fit)
+                    .filter(|f| f.target == *name)
+                    .filter_map(|f| {
+                        Some(SpectrumPoint {
+                            wavelength_nm: f.wavelength_nm?,
+                            n: f.n,
+                            k: f.k,
+                            n_se: Some(f.n_se),
+                            k_se: Some(f.k_se),
+                        })
+                    })
                     .collect(),
                 curve: Vec::new(),
             })
@@ -374,11 +382,13 @@ impl<'a> Drawn<'a> {
                     .filter_map(|&w| {
                         let v: Vec<(f64, f64)> =
                             members.iter().filter_map(|p| band_nk(p, Some(w))).collect();
-                        let mean = |x: fn(&(f64, f64)) -> f64| {
-                            v.iter().map(x).sum::<f64>() / v.len() as f64
-                        };
-                        (!v.is_empty())
-                            .then(|| SpectrumPoint::bare(w, mean(|x| x.0), mean(|x| x.1)))
+                        (!v.is_empty()).then(|| SpectrumPoint {
+                            wavelength_nm: w,
+                            n: v.iter().map(|x| x.0).sum::<f64>() / v.len() as f64,
+                            k: v.iter().map(|x| x.1).sum::<f64>() / v.len() as f64,
+                            n_se: None,
+                            k_se: None,
+                        })
                     })
                     .collect();
                 let curve = match refs {
@@ -417,10 +427,9 @@ impl<'a> Drawn<'a> {
     }
 }
 
-/// The report of `polarid COMMAND INPUT`: the tables with `figs` (files under `plots/`)
-/// and the `inputs`.
+/// The report of `polarid CMD INPUT`: its tables with `figs` (files under `plots/`).
 pub fn report(
-    command: &str,
+    cmd: &str,
     input: &Path,
     inputs: Vec<report::InputItem>,
     t: &Tables,
@@ -439,24 +448,24 @@ pub fn report(
         .collect();
     let numbered: Vec<(u64, FitRow)> = t.fits.iter().map(|f| (0, f.clone())).collect();
     Report {
-        title: format!("polarid {command}: {}", input.display()),
+        title: format!("polarid {cmd}: {}", input.display()),
         summary: vec![describe(t.fits)],
         inputs,
         estimates,
-        classification: super::demo::report_classification(&numbered, t.classification, None),
+        classification: super::demo::report_classification(&numbered, t.classification, None, None),
         figures: super::colour_demo::report_figures(figs),
-        generator: format!("polarid {} {command}", env!("CARGO_PKG_VERSION")),
+        generator: format!("polarid {} {cmd}", env!("CARGO_PKG_VERSION")),
         ..Default::default()
     }
 }
 
 /// Write `dir/report.html`, `dir/report.md` and `dir/plots/STEM.{png,svg}`, staged (a
 /// failure leaves nothing behind; existing files are replaced only with `--force`), and
-/// say so (`polarid COMMAND: report written to DIR`).
+/// say so (`polarid CMD: report written to DIR`).
 pub fn write(
     dir: &Path,
     ctx: &crate::Ctx,
-    command: &str,
+    cmd: &str,
     rep: &Report,
     figs: &[ColourFigure],
 ) -> Result<()> {
@@ -471,7 +480,7 @@ pub fn write(
     rep.write(&root, "report")?;
     staged.commit()?;
     ctx.info(format!(
-        "polarid {command}: report written to {}",
+        "polarid {cmd}: report written to {}",
         dir.display()
     ));
     Ok(())
@@ -568,11 +577,7 @@ fn describe(fits: &[FitRow]) -> String {
         _ => format!(
             "{} band(s): {} nm",
             bands.len(),
-            bands
-                .iter()
-                .map(|w| band_label(*w))
-                .collect::<Vec<_>>()
-                .join(", ")
+            super::join(bands.iter().map(|w| band_label(*w)), ", ")
         ),
     };
     format!("{} target(s), {b}.", targets_of(fits).len())
@@ -797,23 +802,16 @@ mod tests {
         figs.iter().map(|f| f.stem.as_str()).collect()
     }
 
-    /// The figures of measurements and fits (no classification) against `builtin-rgb`,
-    /// and those references.
-    fn figures_of(ms: &[Measurement], fs: &[FitRow]) -> (References, Vec<ColourFigure>) {
-        let t = Tables {
-            measurements: ms,
-            fits: fs,
-            classification: &[],
-        };
-        let refs = library_references("builtin-rgb", fs).unwrap();
-        let figs = figures(&t, Some(&refs), "test").unwrap();
-        (refs, figs)
-    }
-
     #[test]
     fn multi_band_tables_draw_one_panel_per_band() {
         let (ms, fs) = tables(&[Some(650.0), Some(450.0), Some(550.0)]);
-        let (refs, figs) = figures_of(&ms, &fs);
+        let t = Tables {
+            measurements: &ms,
+            fits: &fs,
+            classification: &[],
+        };
+        let refs = library_references("builtin-rgb", &fs).unwrap();
+        let figs = figures(&t, Some(&refs), "test").unwrap();
         assert_eq!(stems(&figs), ["dolp_bands", "nk_bands", "nk_spectra"]);
         for f in &figs[..2] {
             for w in ["450", "550", "650"] {
@@ -834,11 +832,6 @@ mod tests {
             assert!(f.plot.svg.contains("plate_cu") && f.plot.svg.contains("plate_au"));
         }
         // The nearest built-in materials are the references, with their curves.
-        let t = Tables {
-            measurements: &ms,
-            fits: &fs,
-            classification: &[],
-        };
         let classes = relevant_classes(&t, &refs);
         assert!(classes.contains(&"copper".to_string()), "{classes:?}");
         assert!(figs[2].plot.svg.contains("copper"));
@@ -856,7 +849,13 @@ mod tests {
     fn single_band_tables_draw_the_single_band_figures() {
         for band in [None, Some(650.0)] {
             let (ms, fs) = tables(&[band]);
-            let (refs, figs) = figures_of(&ms, &fs);
+            let t = Tables {
+                measurements: &ms,
+                fits: &fs,
+                classification: &[],
+            };
+            let refs = library_references("builtin-rgb", &fs).unwrap();
+            let figs = figures(&t, Some(&refs), "test").unwrap();
             assert_eq!(stems(&figs), ["dolp_vs_beta", "nk_plane"]);
             assert!(figs.iter().all(|f| !f.plot.svg.contains("λ = ")));
             // Fits without a wavelength are compared with the 650 nm values.

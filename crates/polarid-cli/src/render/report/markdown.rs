@@ -5,6 +5,7 @@ use std::fmt::Write as _;
 use anyhow::Result;
 
 use super::{CONVENTIONS, Report, SECTIONS, Table};
+use crate::render::join;
 
 /// `s` as literal Markdown text on one line: Markdown punctuation backslash-escaped
 /// (so user strings cannot open tags, links, emphasis or table cells), newlines as
@@ -121,15 +122,7 @@ fn md_table(s: &mut String, t: &Table) {
     if t.headers.is_empty() {
         return;
     }
-    let _ = writeln!(
-        s,
-        "| {} |",
-        t.headers
-            .iter()
-            .map(|c| m(c))
-            .collect::<Vec<_>>()
-            .join(" | ")
-    );
+    let _ = writeln!(s, "| {} |", join(t.headers.iter().map(|c| m(c)), " | "));
     let _ = writeln!(s, "|{}", " --- |".repeat(t.headers.len()));
     if t.rows.is_empty() {
         let mut cells = vec!["None.".to_string()];
