@@ -164,12 +164,7 @@ struct Sums {
     /// `Σ S'` in the plane-of-incidence frames.
     sum_loc: [f64; 3],
     /// `Σ w`, `Σ w β`, `Σ w θi`, `Σ w θr`, `Σ w cos φ`, `Σ w sin φ` (`w = max(S0, 0)`).
-    sw: f64,
-    swb: f64,
-    swi: f64,
-    swr: f64,
-    swc: f64,
-    sws: f64,
+    w: [f64; 6],
 }
 
 impl Sums {
@@ -186,7 +181,7 @@ impl Sums {
         let mut px: Vec<([f64; 3], f64)> = Vec::with_capacity(rect.width * rect.height);
         let mut sum_img = [0.0f64; 3];
         let mut sum_loc = [0.0f64; 3];
-        let (mut sw, mut swb, mut swi, mut swr, mut swc, mut sws) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+        let mut ws = [0.0f64; 6];
         for row in 0..rect.height {
             let o = (rect.y + row) * width + rect.x;
             let go = row * rect.width;
@@ -216,12 +211,9 @@ impl Sums {
                     sum_loc[c] += l[c];
                 }
                 let w = s[0].max(0.0);
-                sw += w;
-                swb += w * b;
-                swi += w * ti;
-                swr += w * tr;
-                swc += w * ph.cos();
-                sws += w * ph.sin();
+                for (acc, v) in ws.iter_mut().zip([1.0, b, ti, tr, ph.cos(), ph.sin()]) {
+                    *acc += w * v;
+                }
                 px.push((l, b));
             }
         }
@@ -230,12 +222,7 @@ impl Sums {
             px,
             sum_img,
             sum_loc,
-            sw,
-            swb,
-            swi,
-            swr,
-            swc,
-            sws,
+            w: ws,
         })
     }
 }
@@ -281,13 +268,9 @@ pub fn region_stats_local(
         px,
         sum_img,
         sum_loc,
-        sw,
-        swb,
-        swi,
-        swr,
-        swc,
-        sws,
+        w,
     } = Sums::gather(width, [s0, s1, s2], mask, rect, geom)?;
+    let [sw, swb, swi, swr, swc, sws] = w;
     let pixels = cnt[0];
     let rejected = cnt[1] + cnt[2] + cnt[3];
     if px.is_empty() {
