@@ -835,6 +835,7 @@ impl Models {
             cfg: HypothesisConfig {
                 confidence: cfg.confidence,
                 nuisances: fit.nuisances(angle_sd),
+                open_world: true,
             },
             wavelengths: wavelengths.to_vec(),
             angle_sd,

@@ -134,6 +134,23 @@ impl From<Prototype> for MultiPrototype {
 }
 
 impl MultiPrototype {
+    /// Its bands at `wavelengths` (nm; a band without a wavelength is at every one).
+    pub fn bands_at<'a>(&'a self, wavelengths: &'a [f64]) -> impl Iterator<Item = &'a BandPoint> {
+        self.bands.iter().filter(|b| {
+            b.wavelength_nm.is_none()
+                || wavelengths
+                    .iter()
+                    .any(|&x| same_band(b.wavelength_nm, Some(x)))
+        })
+    }
+
+    /// Whether the material is transparent (`k <` [`TRANSPARENT_K`](super::TRANSPARENT_K))
+    /// in each of its bands at `wavelengths` ([`MultiPrototype::bands_at`]).
+    pub fn transparent_at(&self, wavelengths: &[f64]) -> bool {
+        self.bands_at(wavelengths)
+            .all(|b| b.k < super::TRANSPARENT_K)
+    }
+
     /// Band `i` as a single-band [`Prototype`] (class, category and source copied).
     /// `None` when there is no band `i`.
     pub fn band_prototype(&self, i: usize) -> Option<Prototype> {

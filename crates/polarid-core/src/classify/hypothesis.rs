@@ -116,6 +116,19 @@
 //! then [`AMBIGUOUS`] (the reason names the widened materials). Only a single answer is
 //! questioned: an ambiguous or empty set is left as it is, the probabilities are those of
 //! the declared ranges.
+//!
+//! # Transparent materials and the open world
+//!
+//! A material whose extinction coefficient is below [`TRANSPARENT_K`] in every band is
+//! seen by DoLP through its index alone: at `k < 0.01` the Fresnel DoLP moves by less
+//! than 10⁻⁴ from that of `k = 0`, far below any row's error. Every transparent material
+//! of the same index (and dispersion over the bands used) predicts the same rows, and a
+//! literature library holds only a few of the many transparent materials of any index
+//! from 1.3 to 2.7. So when the materials are a library ([`HypothesisConfig::open_world`]),
+//! a transparent material that passes alone is reported [`AMBIGUOUS`] with its category:
+//! the data say "a transparent material of this index", of which the library's one is an
+//! example (LSAT, `n ≈ 2.02`, is ZnO's index twin at 550 nm). A trained model is the
+//! user's own closed list of classes (`open_world` false): its single answers stand.
 
 // NaN-safe negated comparisons on purpose; index loops over 3×3 blocks read as the
 // equations.
@@ -145,6 +158,10 @@ pub const OFFSET_SIGMAS: f64 = 3.0;
 /// beyond its material's declared range (aged, heated, anodised or long-humid surfaces),
 /// nm.
 pub const EXTENDED_LAYER_NM: f64 = 20.0;
+
+/// The extinction coefficient below which a material is transparent: told by its index
+/// alone (module documentation, "Transparent materials and the open world").
+pub const TRANSPARENT_K: f64 = 0.01;
 
 /// One measured row of a target.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -197,6 +214,10 @@ pub struct HypothesisConfig {
     pub confidence: f64,
     /// The nuisances' bounds.
     pub nuisances: Nuisances,
+    /// The materials are a literature library, not every material the scene can hold: a
+    /// transparent material passing alone is [`AMBIGUOUS`] (module documentation,
+    /// "Transparent materials and the open world"). `false` for a trained model.
+    pub open_world: bool,
 }
 
 impl HypothesisConfig {
@@ -1515,7 +1536,12 @@ pub fn classify_rows(
         Some(cat) if candidates.iter().all(|c| c.category.as_ref() == Some(&cat)) => Some(cat),
         _ => None,
     };
-    let (predicted, status, reason) = verdict(&candidates, &tested, &widened, cfg.confidence);
+    let twins = cfg.open_world && candidates.len() == 1 && inp.transparent(&candidates[0].class);
+    let (predicted, status, reason) = if twins {
+        index_twins(&candidates[0], &inp, cfg.confidence)
+    } else {
+        verdict(&candidates, &tested, &widened, cfg.confidence)
+    };
     let best = &tested[0];
     let runner = tested.get(1);
     let runner_up_distance = runner.map_or(f64::NAN, |r| r.distance);
@@ -1593,6 +1619,14 @@ struct RowsTest<'a> {
 }
 
 impl RowsTest<'_> {
+    /// Whether every prototype of `class` is transparent in the rows' bands.
+    fn transparent(&self, class: &str) -> bool {
+        self.protos
+            .iter()
+            .filter(|p| p.class == class)
+            .all(|p| p.transparent_at(self.wavelengths))
+    }
+
     /// The category of the first prototype of `class` that has one.
     fn category_of(&self, class: &str) -> Option<String> {
         self.protos
@@ -1692,6 +1726,36 @@ impl RowsTest<'_> {
         }
         widened
     }
+}
+
+/// `(predicted, status, reason)` of a transparent material `c` passing alone in an open
+/// world: [`AMBIGUOUS`] (module documentation, "Transparent materials and the open
+/// world").
+fn index_twins(c: &Candidate, inp: &RowsTest<'_>, confidence: f64) -> (String, Status, String) {
+    let index = inp
+        .protos
+        .iter()
+        .filter(|p| p.class == c.class)
+        .flat_map(|p| p.bands_at(inp.wavelengths))
+        .map(|b| match b.wavelength_nm {
+            Some(w) => format!("n {:.3} at {w} nm", b.n),
+            None => format!("n {:.3}", b.n),
+        })
+        .collect::<Vec<_>>();
+    (
+        AMBIGUOUS.to_string(),
+        Status::Ambiguous,
+        format!(
+            "a transparent material of {}'s index ({}) explains the rows at {}% confidence \
+             (p {:.3}, chi2 {:.2}); DoLP tells a transparent surface by its index alone, and \
+             a material of the same index outside the library explains them as well",
+            c.class,
+            index.join(", "),
+            confidence * 100.0,
+            c.probability.unwrap_or(f64::NAN),
+            c.distance
+        ),
+    )
 }
 
 /// `(predicted, status, reason)` of [`classify_rows`] from the passing `candidates`,

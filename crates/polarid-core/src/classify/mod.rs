@@ -111,7 +111,7 @@ pub use decision::{Candidate, Decision, Neighbour, Status};
 pub use evaluate::{Confusion, EvalItem, Evaluation, Labelled, SetStats, evaluate, leave_one_out};
 pub use hypothesis::{
     CandidateModel, HypRow, HypothesisConfig, HypothesisOutcome, LayerModel, NuisanceFit,
-    Nuisances, OFFSET_SIGMAS, classify_rows, layered_dolp, test_hypothesis,
+    Nuisances, OFFSET_SIGMAS, TRANSPARENT_K, classify_rows, layered_dolp, test_hypothesis,
 };
 pub use points::{Estimate, Prototype, class_categories};
 pub use wolff::{

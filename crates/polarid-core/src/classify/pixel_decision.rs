@@ -286,6 +286,8 @@ pub struct HypothesisDecider {
     confidence: f64,
     scale_min: f64,
     tests: PixelTests,
+    /// Per prototype: its class index and the prototype (for the transparency test).
+    materials: Vec<(u16, MultiPrototype)>,
 }
 
 impl HypothesisDecider {
@@ -302,8 +304,16 @@ impl HypothesisDecider {
             });
         }
         let classes = class_names(protos)?;
+        let materials = protos
+            .iter()
+            .map(|p| {
+                let c = classes.iter().position(|n| *n == p.class).unwrap_or(0) as u16;
+                (c, p.clone())
+            })
+            .collect();
         let d = Self {
             tests: PixelTests::new(protos, &classes),
+            materials,
             classes,
             confidence,
             scale_min,
@@ -323,11 +333,13 @@ impl HypothesisDecider {
         HypothesisConfig {
             confidence: self.confidence,
             nuisances: n,
+            open_world: true,
         }
     }
 
     /// The answer for a pixel's rows (bands indexing `wavelengths`, nm): the materials
-    /// that pass ([`classify_rows`](super::classify_rows), uniform priors), without testing those that cannot
+    /// that pass ([`classify_rows`](super::classify_rows), uniform priors, an open world:
+    /// a transparent material alone is ambiguous), without testing those that cannot
     /// pass (`hypothesis::pixel`). Errors: bad rows (as [`classify_rows`](super::classify_rows)).
     pub fn decide(&self, rows: &[HypRow], wavelengths: &[f64]) -> Result<PixelAnswer> {
         let angle = rows.iter().map(|r| r.angle_sd).fold(0.0, f64::max);
@@ -335,6 +347,16 @@ impl HypothesisDecider {
             match self.tests.decide(rows, wavelengths, &self.config(angle))? {
                 Verdict::NoBand => PixelAnswer::NoBand,
                 Verdict::None => PixelAnswer::Unknown,
+                // A transparent material is told by its index alone (open world).
+                Verdict::One(c)
+                    if self
+                        .materials
+                        .iter()
+                        .filter(|(i, _)| *i == c)
+                        .all(|(_, p)| p.transparent_at(wavelengths)) =>
+                {
+                    PixelAnswer::Ambiguous
+                }
                 Verdict::One(c) => PixelAnswer::One(c),
                 Verdict::Several => PixelAnswer::Ambiguous,
             },

@@ -205,6 +205,7 @@ pub fn calibrate(
     let probe = HypothesisConfig {
         confidence: 0.95,
         nuisances: Nuisances::from_error_model(f64::INFINITY, 0.0, 0.0),
+        open_world: false,
     };
     super::hypothesis::test_hypothesis(rows, wavelengths, reference, &probe)?;
     let (d_lo, d_hi) = reference
@@ -469,6 +470,7 @@ pub fn classify_rows_within(
             scale_min: s_lo / s_hi,
             offset_max: half,
         },
+        open_world: cfg.open_world,
     };
     let mut out = classify_rows(&moved, wavelengths, protos, priors, &inner)?;
     let shift = rows.len() as f64 * s_hi.ln();
@@ -581,6 +583,7 @@ mod tests {
         let cfg = HypothesisConfig {
             confidence: 0.95,
             nuisances: Nuisances::from_error_model(10.0, 0.0, 0.01),
+            open_world: false,
         };
         let b = Bounds {
             scale: (0.88, 0.92),
@@ -620,6 +623,7 @@ mod tests {
                 scale_min: 0.5,
                 offset_max: 0.01,
             },
+            open_world: false,
         };
         let p = classify_rows(&r, &[WL], &protos, None, &plain).unwrap();
         // (Compared field by field: the decision's NaN distances are never `==`.)

@@ -366,6 +366,7 @@ mod tests {
         HypothesisConfig {
             confidence: 0.95,
             nuisances: Nuisances::from_error_model(100.0, 0.0, 0.2f64.to_radians()),
+            open_world: false,
         }
     }
 

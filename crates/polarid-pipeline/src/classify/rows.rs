@@ -265,6 +265,8 @@ struct TargetClassifier<'a> {
     priors: &'a [f64],
     /// The in-scene references' calibration.
     scene: Option<&'a SceneCalibration>,
+    /// The materials are a library (an open world), not a trained model.
+    open_world: bool,
 }
 
 impl TargetClassifier<'_> {
@@ -315,6 +317,7 @@ impl TargetClassifier<'_> {
         let hcfg = HypothesisConfig {
             confidence,
             nuisances: self.fit_cfg.nuisances(angle_max),
+            open_world: self.open_world,
         };
         let priors = Some(self.priors);
         let bounds = self.scene.and_then(|c| c.bounds.as_ref());
@@ -400,6 +403,7 @@ pub fn classify_measurements(
         protos: &protos,
         priors: &priors,
         scene: scene.as_ref(),
+        open_world: matches!(source, PrototypeSource::Library(_)),
     };
     let mut out = Classified::default();
     for g in &groups {

@@ -131,6 +131,7 @@ fn map_decisions_equal_classify_rows_against_the_builtin_libraries() {
                             DEFAULT_ANGLE_SD_DEG.to_radians(),
                         )
                     },
+                    open_world: true,
                 };
                 let rows = pixel(&mut rng, protos, wl, &cfg);
                 let got = decider.decide(&rows, wl).unwrap();

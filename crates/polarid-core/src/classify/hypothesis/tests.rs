@@ -20,6 +20,7 @@ fn cfg(p: f64) -> HypothesisConfig {
     HypothesisConfig {
         confidence: p,
         nuisances: Nuisances::from_error_model(100.0, 0.0, 0.2f64.to_radians()),
+        open_world: false,
     }
 }
 
@@ -498,4 +499,45 @@ fn halton_and_normal_quantile() {
             "{p}: {got} vs {z}"
         );
     }
+}
+
+/// A transparent material passing alone is an index, not a name, in an open world (a
+/// library): LSAT-like rows (n 2.02) against a list holding a material of n 2.0 are
+/// `ambiguous`, with that material the only candidate and its category; the same list
+/// as a closed world (a trained model) names it. An absorbing material alone stands.
+#[test]
+fn a_lone_transparent_answer_is_an_index_in_an_open_world() {
+    let mut zno = proto("ZnO", (2.0, 0.0), Some(((1.5, 0.0), 0.0, 2.0)));
+    zno.category = Some("dielectric".into());
+    let protos = vec![
+        proto("aluminum", AL, Some((AL2O3, 2.0, 5.0))),
+        proto("copper", CU, Some((CU2O, 0.5, 3.0))),
+        zno,
+    ];
+    let open = HypothesisConfig {
+        open_world: true,
+        ..cfg(0.95)
+    };
+    let mut rng = StdRng::seed_from_u64(11);
+    let rows = simulate(&mut rng, (2.02, 0.0), (1.5, 0.0), 1.0, 0.99, 0.0, 8, 0.003);
+    let closed = classify_rows(&rows, &[650.0], &protos, None, &cfg(0.95)).unwrap();
+    assert_eq!(closed.decision.predicted, "ZnO", "{:?}", closed.decision);
+    assert_eq!(closed.decision.status, Status::Ok);
+    let out = classify_rows(&rows, &[650.0], &protos, None, &open).unwrap();
+    let d = &out.decision;
+    assert_eq!(
+        (d.predicted.as_str(), &d.status),
+        (AMBIGUOUS, &Status::Ambiguous)
+    );
+    assert_eq!(d.candidates.len(), 1);
+    assert_eq!(d.candidates[0].class, "ZnO");
+    assert_eq!(d.set_category.as_deref(), Some("dielectric"));
+    assert!(d.reason.contains("n 2.000 at 650 nm"), "{}", d.reason);
+    // Aluminium passing alone is named in the open world too.
+    let rows = simulate(&mut rng, AL, AL2O3, 3.0, 0.99, 0.001, 8, 0.003);
+    let out = classify_rows(&rows, &[650.0], &protos, None, &open).unwrap();
+    assert_eq!(
+        (out.decision.predicted.as_str(), &out.decision.status),
+        ("aluminum", &Status::Ok)
+    );
 }

@@ -124,6 +124,7 @@ fn settings(rng: &mut StdRng) -> HypothesisConfig {
     HypothesisConfig {
         confidence: [0.9, 0.95, 0.99][rng.random_range(0..3)],
         nuisances,
+        open_world: false,
     }
 }
 
