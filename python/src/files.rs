@@ -151,39 +151,13 @@ pub fn beta_map<'py>(
         .first()
         .map(|f| f.to_path_buf())
         .ok_or_else(|| value_error(format!("capture {capture} has no file")))?;
-    let beta = py
-        .detach(
-            || -> Result<(usize, usize, Vec<f32>), polarid_io::IoError> {
-                let f = polarid_io::image::read_frame(&first)?;
-                let (w, h) = (f.width, f.height);
-                // The plane of every pixel: the first region containing it, else plane 0.
-                let mut plane = vec![0usize; w * h];
-                for r in m.regions.iter().rev() {
-                    for y in r.rect.y..(r.rect.y + r.rect.height).min(h) {
-                        for x in r.rect.x..(r.rect.x + r.rect.width).min(w) {
-                            plane[y * w + x] = r.plane;
-                        }
-                    }
-                }
-                let mut planes: Vec<usize> = plane.clone();
-                planes.sort_unstable();
-                planes.dedup();
-                let mut out = vec![f32::NAN; w * h];
-                for pi in planes {
-                    let Some(b) = polarid_io::measure::beta_map(&m, c, pi, w, h)? else {
-                        continue;
-                    };
-                    for ((o, &p), v) in out.iter_mut().zip(&plane).zip(b) {
-                        if p == pi {
-                            *o = v;
-                        }
-                    }
-                }
-                Ok((w, h, out))
-            },
-        )
+    let (w, h, data) = py
+        .detach(|| -> Result<_, polarid_io::IoError> {
+            let f = polarid_io::image::read_frame(&first)?;
+            let b = polarid_io::measure::beta_map(&m, c, f.width, f.height)?;
+            Ok((f.width, f.height, b.unwrap_or_default()))
+        })
         .py_err()?;
-    let (w, h, data) = beta;
     shaped(py, &[h, w], data)
 }
 

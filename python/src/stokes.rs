@@ -259,7 +259,6 @@ pub fn demosaic<'py>(
     if angles {
         let shape = [4, oh, ow];
         let name = out_dtype(dtype, out)?;
-        let keep_int = |want: &str| int_output(want, &raw, dark_level, !bilinear || round);
         return match name.as_str() {
             "float32" => with_raw!(&raw, |data| {
                 with_output::<f32>(py, "out", out, &shape, |buf| {
@@ -272,25 +271,15 @@ pub fn demosaic<'py>(
                     }
                 })
             }),
-            "uint16" => {
-                keep_int("uint16")?;
-                let RawArray::U16(a) = &raw else {
-                    unreachable!("checked by keep_int")
-                };
-                let data = a.as_slice()?;
-                with_output::<u16>(py, "out", out, &shape, |buf| {
-                    int_angles(data, w, h, bilinear, &pattern, split4(buf, npix))
-                })
-            }
-            "uint8" => {
-                keep_int("uint8")?;
-                let RawArray::U8(a) = &raw else {
-                    unreachable!("checked by keep_int")
-                };
-                let data = a.as_slice()?;
-                with_output::<u8>(py, "out", out, &shape, |buf| {
-                    int_angles(data, w, h, bilinear, &pattern, split4(buf, npix))
-                })
+            want @ ("uint8" | "uint16") => {
+                int_output(want, &raw, dark_level, !bilinear || round)?;
+                match &raw {
+                    RawArray::U8(a) => int_angles(py, out, a.as_slice()?, w, h, bilinear, &pattern),
+                    RawArray::U16(a) => {
+                        int_angles(py, out, a.as_slice()?, w, h, bilinear, &pattern)
+                    }
+                    RawArray::F32(_) => unreachable!("checked by int_output"),
+                }
             }
             other => Err(value_error(format!(
                 "dtype must be float32, or uint8 / uint16 for a raw mosaic of that dtype, got {other}"
@@ -613,21 +602,26 @@ fn split4<O>(buf: &mut [O], npix: usize) -> [&mut [O]; 4] {
     [a, b, c, d]
 }
 
-/// Per-angle images of integer data in its own type: bilinear (rounded as OpenCV) or
-/// super-pixel.
-fn int_angles<T: IntSample>(
+/// Per-angle images of integer data (`w × h`) in its own type, written to `out` as by
+/// [`with_output`]: bilinear (rounded as OpenCV) or super-pixel.
+fn int_angles<'py, T: IntSample + numpy::Element>(
+    py: Python<'py>,
+    out: Option<&Bound<'py, PyAny>>,
     raw: &[T],
     w: usize,
     h: usize,
     bilinear: bool,
     pattern: &Pattern,
-    out: [&mut [T]; 4],
-) -> Result<(), CoreError> {
-    if bilinear {
-        mosaic::demosaic_bilinear_int(raw, w, pattern, out)
-    } else {
-        superpixel_angles(raw, w, h, pattern, out, |v| v)
-    }
+) -> PyResult<Bound<'py, PyAny>> {
+    let (oh, ow) = if bilinear { (h, w) } else { (h / 2, w / 2) };
+    with_output::<T>(py, "out", out, &[4, oh, ow], |buf| {
+        let planes = split4(buf, oh * ow);
+        if bilinear {
+            mosaic::demosaic_bilinear_int(raw, w, pattern, planes)
+        } else {
+            superpixel_angles(raw, w, h, pattern, planes, |v| v)
+        }
+    })
 }
 
 /// Half-resolution per-angle images: channel `k` (k × 45°) is `conv` of the raw pixel

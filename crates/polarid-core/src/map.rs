@@ -27,15 +27,11 @@
 //!    ([`reason::NO_GEOMETRY`]).
 //! 4. **Class**: the nearest prototype in `(n, k)` (paper section 6, Euclidean
 //!    distance, [`Classifier::nearest_euclidean`]), optionally rejected beyond a maximum
-//!    distance; or, with [`PixelClassifier::with_set_rule`], the materials consistent
-//!    with the pixel's estimate at a confidence, with the systematic error model added
-//!    to its covariance ([`sets`]): one → that material, several → `ambiguous`, none →
-//!    not classified (reason `rejected`). Pixels whose fit status is not `ok` are not
-//!    classified.
+//!    distance. Pixels whose fit status is not `ok` are not classified. (The set rule's
+//!    covariance of a pixel, with the systematic error model, is [`sets`].)
 //!
 //! Class indices in the map are 1-based into [`PixelClassifier::names`] (sorted class
-//! names), and `names().len() + 1` is `ambiguous` under the set rule; 0 means "not
-//! classified" (or unknown), with the reason in the reason image.
+//! names); 0 means "not classified", with the reason in the reason image.
 
 pub mod noise;
 pub mod sets;
@@ -49,7 +45,6 @@ use crate::error::{CoreError, Result, check_len};
 use crate::fit::{FitPlan, FitStatus, NkFit, PixelBetaPlan, fit_batch, fit_batch_pixel_beta};
 use crate::stokes::{PixelRules, Sample, StokesSolver, check_image, mask};
 use noise::NoiseModel;
-use sets::{CovScratch, MapErrorModel, PixelRow};
 
 /// Signal flag bits accumulated per pixel over the captures (OR of every capture).
 pub mod flag {
@@ -457,14 +452,6 @@ pub struct PixelClassifier {
     proto_class: Vec<u16>,
     max_distance: Option<f64>,
     mahalanobis: bool,
-    set: Option<SetRule>,
-}
-
-/// The set rule of a [`PixelClassifier`].
-#[derive(Debug, Clone, PartialEq)]
-struct SetRule {
-    confidence: f64,
-    errors: MapErrorModel,
 }
 
 impl PixelClassifier {
@@ -511,63 +498,16 @@ impl PixelClassifier {
             proto_class,
             max_distance,
             mahalanobis: false,
-            set: None,
         })
     }
 
-    /// Answer with sets ([`sets`], `docs/CLASSIFY.md`): a pixel is the one material
-    /// consistent with its estimate at `confidence` (noise plus the systematic error
-    /// model `errors`, whose `angle_sd` has one entry per capture), [`Self::ambiguous`]
-    /// when several are, and not classified (reason [`reason::REJECTED`]) when none is.
-    /// The maximum distance and the metric are then not used. Errors: a confidence
-    /// outside `(0, 1)`, or an error model with a negative or non-finite term.
-    pub fn with_set_rule(mut self, confidence: f64, errors: MapErrorModel) -> Result<Self> {
-        if !(confidence > 0.0 && confidence < 1.0) {
-            return Err(CoreError::OutOfRange {
-                name: "confidence",
-                value: confidence,
-                expected: "in (0, 1)",
-            });
-        }
-        let p = &errors.polarimetric;
-        for (name, v) in [("dolp floor", p.dolp_floor), ("retardance", p.retardance)]
-            .into_iter()
-            .chain(errors.angle_sd.iter().map(|&a| ("angle sd", a)))
-        {
-            crate::error::ensure_range(name, v, 0.0, f64::MAX, "finite and >= 0")?;
-        }
-        if !(p.extinction_ratio > 1.0) {
-            return Err(CoreError::OutOfRange {
-                name: "extinction ratio",
-                value: p.extinction_ratio,
-                expected: "> 1",
-            });
-        }
-        self.set = Some(SetRule { confidence, errors });
-        Ok(self)
-    }
-
-    /// The map class of `ambiguous` pixels (set rule only): `names().len() + 1`.
-    pub fn ambiguous(&self) -> Option<u16> {
-        self.set.as_ref().map(|_| self.names.len() as u16 + 1)
-    }
-
-    /// Number of class indices of the map, including 0 (not classified) and the
-    /// `ambiguous` class of the set rule.
+    /// Number of class indices of the map, including 0 (not classified).
     pub fn class_count(&self) -> usize {
-        self.names.len() + 1 + usize::from(self.set.is_some())
+        self.names.len() + 1
     }
 
-    /// The class and reason of a pixel's fit, `rows` its rows (for the set rule's
-    /// covariance), `weighted` whether the fit used their `se`.
-    fn decide(
-        &self,
-        f: &NkFit,
-        rows: &[PixelRow],
-        weighted: bool,
-        k_can_be_zero: bool,
-        scratch: &mut CovScratch,
-    ) -> (u16, u8) {
+    /// The class and reason of a pixel's fit.
+    fn decide(&self, f: &NkFit) -> (u16, u8) {
         match f.status {
             FitStatus::Ok => {}
             FitStatus::IllConditioned => return (0, reason::FIT_ILL_CONDITIONED),
@@ -579,34 +519,9 @@ impl PixelClassifier {
                 return (0, reason::FIT_INVALID_INPUT);
             }
         }
-        let Some(set) = &self.set else {
-            return match self.classify_fit(f) {
-                Ok((c, _)) => (c, reason::CLASSIFIED),
-                Err(r) => (0, r),
-            };
-        };
-        let Some(cov) = sets::total_covariance(
-            f.n,
-            f.k,
-            rows,
-            weighted,
-            &set.errors,
-            k_can_be_zero,
-            scratch,
-        ) else {
-            return (0, reason::FIT_ILL_CONDITIONED);
-        };
-        // An estimate whose one-sigma interval on n reaches 0 is not placed by the data
-        // (a valley of the DoLP curves along which the fit slides to the box's edge):
-        // the linearised consistency test means nothing there, and every material along
-        // the valley fits as well.
-        if cov.nn.sqrt() >= f.n {
-            return (self.names.len() as u16 + 1, reason::AMBIGUOUS);
-        }
-        match sets::set_answer(&self.classifier, &self.proto_class, f, cov, set.confidence) {
-            Ok(Some(c)) => (c, reason::CLASSIFIED),
-            Ok(None) => (self.names.len() as u16 + 1, reason::AMBIGUOUS),
-            Err(()) => (0, reason::REJECTED),
+        match self.classify_fit(f) {
+            Ok((c, _)) => (c, reason::CLASSIFIED),
+            Err(r) => (0, r),
         }
     }
 
@@ -794,7 +709,7 @@ pub fn fit_and_classify_corr(
     progress: &(dyn Fn(usize) + Sync),
 ) -> Result<MapCounts> {
     let npix = flags.len();
-    let (t_len, k_min) = check_map_inputs(betas, dolp, noise.as_ref(), flags, &out, nk_corr)?;
+    let t_len = check_map_inputs(betas, dolp, noise.as_ref(), flags, &out, nk_corr)?;
     let inp = MapInput {
         betas,
         classifier,
@@ -802,7 +717,6 @@ pub fn fit_and_classify_corr(
         noise,
         flags,
         t_len,
-        k_can_be_zero: k_min == 0.0,
     };
     let tile = tile.max(1);
     let mut sink = MapSink {
@@ -824,8 +738,7 @@ pub fn fit_and_classify_corr(
     Ok(sink.counts)
 }
 
-/// The size checks of [`fit_and_classify_corr`]; the number of captures and the fit's
-/// `k_min`.
+/// The size checks of [`fit_and_classify_corr`]; the number of captures.
 fn check_map_inputs(
     betas: Betas<'_>,
     dolp: &[&[f32]],
@@ -833,18 +746,18 @@ fn check_map_inputs(
     flags: &[u8],
     out: &MapOutputs<'_>,
     nk_corr: &[f32],
-) -> Result<(usize, f64)> {
+) -> Result<usize> {
     let npix = flags.len();
     if !nk_corr.is_empty() {
         check_len("nk_corr", nk_corr.len(), npix)?;
     }
-    let (t_len, k_min) = match betas {
-        Betas::Shared(plan) => (plan.len(), plan.options().bounds.k_min),
-        Betas::PerPixel { beta, plan } => {
+    let t_len = match betas {
+        Betas::Shared(plan) => plan.len(),
+        Betas::PerPixel { beta, .. } => {
             for b in beta {
                 check_len("beta", b.len(), npix)?;
             }
-            (beta.len(), plan.options().bounds.k_min)
+            beta.len()
         }
     };
     check_len("DoLP images (captures)", dolp.len(), t_len)?;
@@ -870,7 +783,7 @@ fn check_map_inputs(
     }
     check_len("class", out.class.len(), npix)?;
     check_len("reason", out.reason.len(), npix)?;
-    Ok((t_len, k_min))
+    Ok(t_len)
 }
 
 /// What a map run reads (checked by [`check_map_inputs`]).
@@ -882,8 +795,6 @@ struct MapInput<'a> {
     flags: &'a [u8],
     /// Number of captures.
     t_len: usize,
-    /// The fit's box reaches `k = 0`.
-    k_can_be_zero: bool,
 }
 
 /// Where a map run writes: the output images, the counts and the optional `n`–`k`
@@ -966,15 +877,6 @@ impl MapInput<'_> {
         }
     }
 
-    /// β of pixel `p` in capture `t`.
-    #[inline]
-    fn beta_of(&self, t: usize, p: usize) -> f64 {
-        match self.betas {
-            Betas::Shared(plan) => plan.betas()[t],
-            Betas::PerPixel { beta, .. } => beta[t][p] as f64,
-        }
-    }
-
     /// Fit, classify and record the pixels `range`.
     fn run_tile(
         &self,
@@ -1027,16 +929,7 @@ impl MapInput<'_> {
                 fit_batch_pixel_beta(plan, &sc.b, &sc.y, se_arg, &mut sc.fits[..m])?
             }
         }
-        let all_captures: Vec<usize> = (0..t_len).collect();
-        decide_all(
-            self,
-            &sc.fits[..m],
-            &sc.idx,
-            &all_captures,
-            &sc.y,
-            se_arg,
-            &mut sc.decisions,
-        );
+        decide_all(self.classifier, &sc.fits[..m], &mut sc.decisions);
         for ((&p, f), &(c, r)) in sc.idx.iter().zip(&sc.fits[..m]).zip(&sc.decisions) {
             sink.fit(p, f, c, r);
         }
@@ -1089,15 +982,7 @@ impl MapInput<'_> {
         let ps_arg = weighted.then_some(&sc.ps[..]);
         fit_batch_pixel_beta(plan, &sc.pb, &sc.py, ps_arg, &mut sc.fits[..g])?;
         let gidx: Vec<usize> = group.iter().map(|&(_, p)| p).collect();
-        decide_all(
-            self,
-            &sc.fits[..g],
-            &gidx,
-            &ts,
-            &sc.py,
-            ps_arg,
-            &mut sc.decisions,
-        );
+        decide_all(self.classifier, &sc.fits[..g], &mut sc.decisions);
         for ((&p, f), &(c, r)) in gidx.iter().zip(&sc.fits[..g]).zip(&sc.decisions) {
             sink.fit(p, f, c, r);
         }
@@ -1105,39 +990,10 @@ impl MapInput<'_> {
     }
 }
 
-/// The class and reason of every fit of a batch (in parallel): pixel `idx[i]`'s fit
-/// `fits[i]` used the captures `ts`, with measurements `y[i·|ts| ..]` (and `se`).
-fn decide_all(
-    inp: &MapInput<'_>,
-    fits: &[NkFit],
-    idx: &[usize],
-    ts: &[usize],
-    y: &[f64],
-    se: Option<&[f64]>,
-    out: &mut Vec<(u16, u8)>,
-) {
-    let t_len = ts.len();
-    let (classifier, weighted, k_can_be_zero) = (inp.classifier, inp.weighted(), inp.k_can_be_zero);
+/// The class and reason of every fit of a batch (in parallel).
+fn decide_all(classifier: &PixelClassifier, fits: &[NkFit], out: &mut Vec<(u16, u8)>) {
     fits.par_iter()
-        .zip(idx.par_iter())
-        .enumerate()
-        .map_init(
-            || (CovScratch::default(), Vec::<PixelRow>::with_capacity(t_len)),
-            |(scratch, rows), (i, (f, &p))| {
-                rows.clear();
-                if classifier.set.is_some() && f.status == FitStatus::Ok {
-                    for (j, &t) in ts.iter().enumerate() {
-                        rows.push(PixelRow {
-                            capture: t,
-                            beta: inp.beta_of(t, p),
-                            y: y[i * t_len + j],
-                            se: se.map_or(1.0, |s| s[i * t_len + j]),
-                        });
-                    }
-                }
-                classifier.decide(f, rows, weighted, k_can_be_zero, scratch)
-            },
-        )
+        .map(|f| classifier.decide(f))
         .collect_into_vec(out);
 }
 

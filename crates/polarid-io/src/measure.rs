@@ -313,38 +313,48 @@ fn region_geometry(
 }
 
 /// The β (eq. 5, degrees) of every pixel of a `width × height` image lit by capture `c`
-/// of `m` and seen on plane `plane` (an index into [`Manifest::planes`]), row-major; NaN
-/// where a pixel has no geometry (its ray misses the plane, or the source is below the
-/// plane's horizon there). `None` for a far-field capture (one β: [`beta_deg`]). For
-/// drawing a capture's geometry (the report's β map).
+/// of `m`, row-major, each pixel on the plane of the first region whose rectangle holds
+/// it (else the first plane); NaN where a pixel has no geometry (its ray misses the
+/// plane, or the source is below the plane's horizon there). `None` for a far-field
+/// capture (one β: [`beta_deg`]). For drawing a capture's geometry (`polarid.beta_map`).
 ///
 /// Errors: [`IoError::Manifest`] naming `capture[j].source` when the manifest has no
-/// camera or `plane` is not one of its planes (or the camera is behind it).
+/// camera or the camera is behind a plane that holds pixels.
 pub fn beta_map(
     m: &Manifest,
     c: &Capture,
-    plane: usize,
     width: usize,
     height: usize,
 ) -> Result<Option<Vec<f32>>> {
     let Some(spec) = &c.illumination else {
         return Ok(None);
     };
-    let err = |reason: String| c.field_error(&m.path, "source", source_text(spec), reason);
+    let err = |e: CoreError| c.field_error(&m.path, "source", source_text(spec), e.to_string());
     let (camera, source) = camera_and_source(m, c, spec)?;
-    let vg = m
-        .planes
-        .get(plane)
-        .ok_or_else(|| err(format!("no plane with index {plane}")))?
-        .to_plane()
-        .and_then(|p| ViewGeometry::new(camera, p))
-        .map_err(|e| err(e.to_string()))?;
-    let mut out = vec![f32::NAN; width * height];
-    for (v, row) in out.chunks_mut(width.max(1)).enumerate() {
-        for (u, px) in row.iter_mut().enumerate() {
-            if let Ok(g) = vg.pixel(u as f64, v as f64, &source) {
-                *px = g.beta.to_degrees() as f32;
+    let mut plane = vec![0usize; width * height];
+    for r in m.regions.iter().rev() {
+        for y in r.rect.y..(r.rect.y + r.rect.height).min(height) {
+            for x in r.rect.x..(r.rect.x + r.rect.width).min(width) {
+                plane[y * width + x] = r.plane;
             }
+        }
+    }
+    // The geometry of each plane that holds pixels.
+    let views = m.planes.iter().enumerate().map(|(i, p)| {
+        let used = plane.contains(&i);
+        let view = || p.to_plane().and_then(|p| ViewGeometry::new(camera, p));
+        used.then(view).transpose().map_err(err)
+    });
+    let views = views.collect::<Result<Vec<_>>>()?;
+    let mut out = vec![f32::NAN; width * height];
+    for (i, (px, &pi)) in out.iter_mut().zip(&plane).enumerate() {
+        let (u, v) = ((i % width) as f64, (i / width) as f64);
+        if let Some(Ok(g)) = views
+            .get(pi)
+            .and_then(Option::as_ref)
+            .map(|g| g.pixel(u, v, &source))
+        {
+            *px = g.beta.to_degrees() as f32;
         }
     }
     Ok(Some(out))

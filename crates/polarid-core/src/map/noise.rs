@@ -140,29 +140,6 @@ pub struct NoiseModel {
 }
 
 impl NoiseModel {
-    /// A model from the sensor's read noise (DN) and gain (e⁻/DN). Errors: a read noise
-    /// not finite or negative, a gain not finite and positive, or both terms zero.
-    pub fn from_sensor(read_noise_dn: f64, gain_e_per_dn: f64) -> Result<Self> {
-        crate::error::ensure_range(
-            "read noise (DN)",
-            read_noise_dn,
-            0.0,
-            f64::MAX,
-            "finite and >= 0",
-        )?;
-        if !(gain_e_per_dn.is_finite() && gain_e_per_dn > 0.0) {
-            return Err(CoreError::OutOfRange {
-                name: "gain (e-/DN)",
-                value: gain_e_per_dn,
-                expected: "finite and > 0",
-            });
-        }
-        Ok(Self {
-            read_var_dn2: read_noise_dn * read_noise_dn,
-            inv_gain: 1.0 / gain_e_per_dn,
-        })
-    }
-
     /// The DoLP standard error of a block with noise terms `(a, b)`:
     /// `√(r² A + B/g)` (NaN when the terms are).
     #[inline]
@@ -607,11 +584,11 @@ mod tests {
     }
 
     #[test]
-    fn sensor_model_checks() {
-        let m = NoiseModel::from_sensor(2.0, 4.0).unwrap();
-        assert_eq!((m.read_var_dn2, m.inv_gain), (4.0, 0.25));
-        assert!(NoiseModel::from_sensor(-1.0, 1.0).is_err());
-        assert!(NoiseModel::from_sensor(1.0, 0.0).is_err());
+    fn dolp_se_of_the_model() {
+        let m = NoiseModel {
+            read_var_dn2: 4.0,
+            inv_gain: 0.25,
+        };
         assert!((m.dolp_se(1.0, 4.0) - 5f64.sqrt()).abs() < 1e-12);
     }
 }

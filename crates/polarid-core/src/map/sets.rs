@@ -24,18 +24,17 @@
 //! material with confidence.
 //!
 //! # Set
-//! Every material whose nearest prototype has a set distance
-//! ([`Classifier::set_distance`]) with `d² ≤ χ²₂(confidence)` is consistent: one → that
-//! material; several → `ambiguous`; none → `unknown` (reason `rejected`). An estimate
-//! whose total `n_se ≥ n` (its one-sigma interval reaches `n = 0`: the data leave the
-//! pixel free to slide along a valley of the DoLP curves, typically to the box's edge)
-//! is `ambiguous` without the test: a linearised distance means nothing that far from
-//! the estimate (on the rough aluminum of the Mitsuba renders, such pixels at
-//! `(5, 13) ± (7, 8)` were otherwise found consistent with green paint only).
+//! The set rule of `polarid_pipeline::map` tests the materials against a pixel's
+//! estimate with this covariance: one consistent → that material; several →
+//! `ambiguous`; none → `unknown` (reason `rejected`). An estimate whose total
+//! `n_se ≥ n` (its one-sigma interval reaches `n = 0`: the data leave the pixel free to
+//! slide along a valley of the DoLP curves, typically to the box's edge) is `ambiguous`
+//! without the test: a linearised distance means nothing that far from the estimate (on
+//! the rough aluminum of the Mitsuba renders, such pixels at `(5, 13) ± (7, 8)` were
+//! otherwise found consistent with green paint only).
 
-use crate::classify::{Classifier, Cov2, Estimate, chi2_2dof_quantile};
+use crate::classify::Cov2;
 use crate::dop::{dop, dop_beta_derivs, dop_grad};
-use crate::fit::{FitStatus, NkFit};
 use crate::systematic::Polarimetric;
 
 /// The systematic error model of a map: the polarimetric part (one analyzer) and the
@@ -204,45 +203,6 @@ fn sandwich(
     c01 += aa0 * aa1 + u2 * ap0 * ap1 + s2 * i01;
     c11 += aa1 * aa1 + u2 * ap1 * ap1 + s2 * i11;
     Some([c00, c01, c11])
-}
-
-/// The answer of the set rule for an estimate with covariance `cov`: `Ok(Some(class))`
-/// (one consistent material, 1-based), `Ok(None)` (several: ambiguous), `Err(())` (none:
-/// unknown). `proto_class` maps prototypes to 1-based classes.
-pub(crate) fn set_answer(
-    classifier: &Classifier,
-    proto_class: &[u16],
-    fit: &NkFit,
-    cov: Cov2,
-    confidence: f64,
-) -> Result<Option<u16>, ()> {
-    let est = Estimate {
-        n: fit.n,
-        k: fit.k,
-        cov: Some(cov),
-        fit_status: FitStatus::Ok,
-    };
-    let q = chi2_2dof_quantile(confidence);
-    let mut found: Option<u16> = None;
-    let mut several = false;
-    for (i, p) in classifier.prototypes().iter().enumerate() {
-        let Some(d) = Classifier::set_distance(&est, p) else {
-            continue;
-        };
-        if d * d <= q {
-            let c = proto_class.get(i).copied().unwrap_or(0);
-            match found {
-                None => found = Some(c),
-                Some(f) if f != c => several = true,
-                _ => {}
-            }
-        }
-    }
-    match (found, several) {
-        (None, _) => Err(()),
-        (Some(_), true) => Ok(None),
-        (Some(c), false) => Ok(Some(c)),
-    }
 }
 
 #[cfg(test)]

@@ -94,11 +94,6 @@ impl ColourPattern {
         self.block_band[block & 3]
     }
 
-    /// Number of blocks of band `band` in the period (e.g. 2 for `G` of `RGGB`).
-    pub fn blocks_of(&self, band: usize) -> usize {
-        self.block_band.iter().filter(|&&b| b == band).count()
-    }
-
     /// `(band, k)` of raw pixel `(y, x)`: its band index and polarizer `k × 45°`.
     pub fn channel_at(&self, y: usize, x: usize) -> (usize, usize) {
         let block = ((y % 4) / 2) * 2 + (x % 4) / 2;

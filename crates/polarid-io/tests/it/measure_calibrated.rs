@@ -346,7 +346,7 @@ fn beta_map_of_a_capture() {
     let d = tempfile::tempdir().unwrap();
     let lamps = lamps();
     let mut m = load(d.path(), &PLATES, &lamps);
-    let map = polarid_io::measure::beta_map(&m, &m.captures[0], 0, bench::W, bench::H)
+    let map = polarid_io::measure::beta_map(&m, &m.captures[0], bench::W, bench::H)
         .unwrap()
         .unwrap();
     let cam = m.camera.as_ref().unwrap().to_camera();
@@ -371,13 +371,13 @@ fn beta_map_of_a_capture() {
         [0.0, 0.0, 1.0],
     )
     .unwrap();
-    let map = polarid_io::measure::beta_map(&m, &m.captures[0], 0, bench::W, bench::H)
+    let map = polarid_io::measure::beta_map(&m, &m.captures[0], bench::W, bench::H)
         .unwrap()
         .unwrap();
     assert!(map[0].is_nan() && map[(bench::H - 1) * bench::W].is_finite());
     m.captures[0].illumination = None;
     assert!(
-        polarid_io::measure::beta_map(&m, &m.captures[0], 0, bench::W, bench::H)
+        polarid_io::measure::beta_map(&m, &m.captures[0], bench::W, bench::H)
             .unwrap()
             .is_none()
     );
