@@ -54,6 +54,10 @@ use crate::systematic::{cholesky, forward};
 /// Two wavelengths closer than this (nm) are the same band.
 pub const BAND_TOLERANCE_NM: f64 = 0.5;
 
+/// The extinction coefficient below which a material is transparent: told by its index
+/// alone (`hypothesis`, "Transparent materials and the open world").
+pub const TRANSPARENT_K: f64 = 0.01;
+
 /// Whether two band wavelengths are the same band: both known and within
 /// [`BAND_TOLERANCE_NM`].
 pub fn same_band(a: Option<f64>, b: Option<f64>) -> bool {
@@ -144,11 +148,10 @@ impl MultiPrototype {
         })
     }
 
-    /// Whether the material is transparent (`k <` [`TRANSPARENT_K`](super::TRANSPARENT_K))
+    /// Whether the material is transparent (`k <` [`TRANSPARENT_K`])
     /// in each of its bands at `wavelengths` ([`MultiPrototype::bands_at`]).
     pub fn transparent_at(&self, wavelengths: &[f64]) -> bool {
-        self.bands_at(wavelengths)
-            .all(|b| b.k < super::TRANSPARENT_K)
+        self.bands_at(wavelengths).all(|b| b.k < TRANSPARENT_K)
     }
 
     /// Band `i` as a single-band [`Prototype`] (class, category and source copied).

@@ -119,7 +119,7 @@
 //!
 //! # Transparent materials and the open world
 //!
-//! A material whose extinction coefficient is below [`TRANSPARENT_K`] in every band is
+//! A material whose extinction coefficient is below [`TRANSPARENT_K`](super::TRANSPARENT_K) in every band is
 //! seen by DoLP through its index alone: at `k < 0.01` the Fresnel DoLP moves by less
 //! than 10⁻⁴ from that of `k = 0`, far below any row's error. Every transparent material
 //! of the same index (and dispersion over the bands used) predicts the same rows, and a
@@ -158,10 +158,6 @@ pub const OFFSET_SIGMAS: f64 = 3.0;
 /// beyond its material's declared range (aged, heated, anodised or long-humid surfaces),
 /// nm.
 pub const EXTENDED_LAYER_NM: f64 = 20.0;
-
-/// The extinction coefficient below which a material is transparent: told by its index
-/// alone (module documentation, "Transparent materials and the open world").
-pub const TRANSPARENT_K: f64 = 0.01;
 
 /// One measured row of a target.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -100,7 +100,7 @@ mod wolff;
 
 pub use bands::{
     BAND_TOLERANCE_NM, BandPoint, EstimateBand, FilmShifts, MultiEstimate, MultiPrototype,
-    NativeLayer, chi2_quantile, same_band,
+    NativeLayer, TRANSPARENT_K, chi2_quantile, same_band,
 };
 pub use classifier::{Classifier, NEAR_ZERO_SIGMAS};
 pub use config::{
@@ -111,7 +111,7 @@ pub use decision::{Candidate, Decision, Neighbour, Status};
 pub use evaluate::{Confusion, EvalItem, Evaluation, Labelled, SetStats, evaluate, leave_one_out};
 pub use hypothesis::{
     CandidateModel, HypRow, HypothesisConfig, HypothesisOutcome, LayerModel, NuisanceFit,
-    Nuisances, OFFSET_SIGMAS, TRANSPARENT_K, classify_rows, layered_dolp, test_hypothesis,
+    Nuisances, OFFSET_SIGMAS, classify_rows, layered_dolp, test_hypothesis,
 };
 pub use points::{Estimate, Prototype, class_categories};
 pub use wolff::{
