@@ -177,6 +177,8 @@ pub fn explain_hypotheses(f: &FitRow, out: &HypothesisOutcome, top: usize, p: f6
             d.predicted,
             d.candidates[0].probability.unwrap_or(f64::NAN)
         ),
+        // A transparent material alone: an index, not a name (its reason says so).
+        Status::Ambiguous if d.candidates.len() == 1 => format!("ambiguous: {}", d.reason),
         Status::Ambiguous => format!(
             "ambiguous: {}",
             d.candidates
@@ -487,6 +489,44 @@ mod tests {
         let e = classify_measurements(Path::new("m.csv"), &m, &src, &bad, &FitConfig::default())
             .unwrap_err();
         assert!(e.to_string().contains("alumin=1"), "{e}");
+    }
+
+    /// A transparent material is an index, not a name, against a library (LSAT, n 2.02,
+    /// is ZnO's index twin): never `ok`; against the user's own prototypes it is named.
+    #[test]
+    fn a_transparent_target_is_an_index_against_a_library() {
+        let m = rows((2.02, 0.0), (1.5, 0.0), 1.0);
+        let fit_cfg = FitConfig::default();
+        let cfg = ClassifyConfig::default();
+        let lib = PrototypeSource::Library("builtin".into());
+        let (out, _) = classify_measurements(Path::new("m.csv"), &m, &lib, &cfg, &fit_cfg).unwrap();
+        let r = &out.rows[0];
+        assert_eq!(r.status, "ambiguous", "{r:?}");
+        assert_eq!(r.candidates, ["ZnO_o"], "{r:?}");
+        assert_eq!(r.category.as_deref(), Some("dielectric"), "{r:?}");
+        assert!(
+            r.reason.contains("transparent material of ZnO_o's index"),
+            "{r:?}"
+        );
+        assert!(
+            out.notes[0].contains("transparent material"),
+            "{}",
+            out.notes[0]
+        );
+        let zno = polarid_core::classify::Prototype {
+            class: "ZnO".into(),
+            n: 2.0,
+            k: 0.0,
+            cov: None,
+            category: Some("dielectric".into()),
+            source: "test".into(),
+        };
+        let own = PrototypeSource::List(vec![zno], "the prototypes".into());
+        let (out, _) = classify_measurements(Path::new("m.csv"), &m, &own, &cfg, &fit_cfg).unwrap();
+        assert_eq!(
+            (out.rows[0].predicted.as_str(), out.rows[0].status.as_str()),
+            ("ZnO", "ok")
+        );
     }
 
     #[test]
