@@ -353,7 +353,8 @@ def material_map(
     rule : {"set", "nearest"}, default "set"
         ``set`` (``polarid map``'s default): a pixel is the one material consistent with
         its estimate at ``confidence`` (noise plus the systematic error model),
-        ``ambiguous`` (the last class name) when several are, unknown (code 0, reason
+        ``ambiguous`` (the last class name) when several are (or, against a built-in
+        catalogue, when the one is transparent: its index, not its name), unknown (code 0, reason
         ``rejected``) when none is; ``nearest``: the paper's nearest prototype
         (``metric``, ``max_distance``).
     confidence : float, default 0.95

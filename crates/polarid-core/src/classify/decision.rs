@@ -3,7 +3,8 @@
 //! distance, and the consistent set: the [`Candidate`]s within the χ²₂ quantile of the
 //! confidence, ranked, with their common category.
 
-use super::UNKNOWN;
+use super::bands::MultiPrototype;
+use super::{AMBIGUOUS, UNKNOWN};
 use crate::status::FitStatus;
 
 /// Why a decision is what it is.
@@ -151,6 +152,40 @@ impl Decision {
             .map(|c| c.class.as_str())
             .collect::<Vec<_>>()
             .join(";")
+    }
+
+    /// Against a catalogue (an open world): a single answer that is a transparent material
+    /// (every prototype of its class transparent at `wavelengths`,
+    /// [`MultiPrototype::transparent_at`]) becomes [`AMBIGUOUS`], with it the only
+    /// candidate and its category kept, because DoLP tells a transparent surface by its
+    /// index alone and a material of the same index outside the library fits as well
+    /// (`hypothesis`, "Transparent materials and the open world"). Other decisions are
+    /// left as they are. `confidence`: the test's, for the reason.
+    pub fn open_world(&mut self, protos: &[MultiPrototype], wavelengths: &[f64], confidence: f64) {
+        if self.status != Status::Ok || self.candidates.len() != 1 {
+            return;
+        }
+        let class = &self.candidates[0].class;
+        let mut own = protos.iter().filter(|p| &p.class == class).peekable();
+        if own.peek().is_none() || !own.clone().all(|p| p.transparent_at(wavelengths)) {
+            return;
+        }
+        let index: Vec<String> = own
+            .flat_map(|p| p.bands_at(wavelengths))
+            .map(|b| match b.wavelength_nm {
+                Some(w) => format!("n {:.3} at {w} nm", b.n),
+                None => format!("n {:.3}", b.n),
+            })
+            .collect();
+        self.reason = format!(
+            "a transparent material of {class}'s index ({}) explains the data at {}% \
+             confidence; DoLP tells a transparent surface by its index alone, and a material \
+             of the same index outside the library explains them as well",
+            index.join(", "),
+            confidence * 100.0
+        );
+        self.predicted = AMBIGUOUS.to_string();
+        self.status = Status::Ambiguous;
     }
 }
 

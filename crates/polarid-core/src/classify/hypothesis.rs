@@ -120,15 +120,17 @@
 //! # Transparent materials and the open world
 //!
 //! A material whose extinction coefficient is below [`TRANSPARENT_K`](super::TRANSPARENT_K) in every band is
-//! seen by DoLP through its index alone: at `k < 0.01` the Fresnel DoLP moves by less
-//! than 10⁻⁴ from that of `k = 0`, far below any row's error. Every transparent material
-//! of the same index (and dispersion over the bands used) predicts the same rows, and a
-//! literature library holds only a few of the many transparent materials of any index
-//! from 1.3 to 2.7. So when the materials are a library ([`HypothesisConfig::open_world`]),
-//! a transparent material that passes alone is reported [`AMBIGUOUS`] with its category:
-//! the data say "a transparent material of this index", of which the library's one is an
-//! example (LSAT, `n ≈ 2.02`, is ZnO's index twin at 550 nm). A trained model is the
-//! user's own closed list of classes (`open_world` false): its single answers stand.
+//! seen by DoLP through its index alone: at `k = 0.01` the Fresnel DoLP moves by less
+//! than 10⁻⁴ from that of `k = 0` (n 1.33–2.7, β 20–85°), far below any row's error.
+//! Every transparent material of the same index (and dispersion over the bands used)
+//! predicts the same rows, and a literature catalogue holds only a few of the many
+//! transparent materials of any index from 1.3 to 2.7. So when the materials are a
+//! catalogue ([`HypothesisConfig::open_world`]), a transparent material that passes alone
+//! is reported [`AMBIGUOUS`] with its category ([`Decision::open_world`]): the data say "a
+//! transparent material of this index", of which the catalogue's one is an example
+//! (LSAT, `n ≈ 2.02`, is ZnO's index twin at 550 nm). A trained model or the user's own
+//! library is the list of what the scene holds (`open_world` false): its single answers
+//! stand.
 
 // NaN-safe negated comparisons on purpose; index loops over 3×3 blocks read as the
 // equations.
@@ -210,9 +212,10 @@ pub struct HypothesisConfig {
     pub confidence: f64,
     /// The nuisances' bounds.
     pub nuisances: Nuisances,
-    /// The materials are a literature library, not every material the scene can hold: a
-    /// transparent material passing alone is [`AMBIGUOUS`] (module documentation,
-    /// "Transparent materials and the open world"). `false` for a trained model.
+    /// The materials are a literature catalogue, not every material the scene can hold:
+    /// a transparent material passing alone is [`AMBIGUOUS`] (module documentation,
+    /// "Transparent materials and the open world"). `false` for a trained model or the
+    /// user's own list.
     pub open_world: bool,
 }
 
@@ -1532,16 +1535,11 @@ pub fn classify_rows(
         Some(cat) if candidates.iter().all(|c| c.category.as_ref() == Some(&cat)) => Some(cat),
         _ => None,
     };
-    let twins = cfg.open_world && candidates.len() == 1 && inp.transparent(&candidates[0].class);
-    let (predicted, status, reason) = if twins {
-        index_twins(&candidates[0], &inp, cfg.confidence)
-    } else {
-        verdict(&candidates, &tested, &widened, cfg.confidence)
-    };
+    let (predicted, status, reason) = verdict(&candidates, &tested, &widened, cfg.confidence);
     let best = &tested[0];
     let runner = tested.get(1);
     let runner_up_distance = runner.map_or(f64::NAN, |r| r.distance);
-    let decision = Decision {
+    let mut decision = Decision {
         predicted,
         nearest_class: Some(best.class.clone()),
         nearest: Some(Neighbour {
@@ -1562,6 +1560,9 @@ pub fn classify_rows(
         set_category,
         bands_used,
     };
+    if cfg.open_world {
+        decision.open_world(protos, wavelengths, cfg.confidence);
+    }
     Ok(HypothesisOutcome { decision, tested })
 }
 
@@ -1615,14 +1616,6 @@ struct RowsTest<'a> {
 }
 
 impl RowsTest<'_> {
-    /// Whether every prototype of `class` is transparent in the rows' bands.
-    fn transparent(&self, class: &str) -> bool {
-        self.protos
-            .iter()
-            .filter(|p| p.class == class)
-            .all(|p| p.transparent_at(self.wavelengths))
-    }
-
     /// The category of the first prototype of `class` that has one.
     fn category_of(&self, class: &str) -> Option<String> {
         self.protos
@@ -1722,36 +1715,6 @@ impl RowsTest<'_> {
         }
         widened
     }
-}
-
-/// `(predicted, status, reason)` of a transparent material `c` passing alone in an open
-/// world: [`AMBIGUOUS`] (module documentation, "Transparent materials and the open
-/// world").
-fn index_twins(c: &Candidate, inp: &RowsTest<'_>, confidence: f64) -> (String, Status, String) {
-    let index = inp
-        .protos
-        .iter()
-        .filter(|p| p.class == c.class)
-        .flat_map(|p| p.bands_at(inp.wavelengths))
-        .map(|b| match b.wavelength_nm {
-            Some(w) => format!("n {:.3} at {w} nm", b.n),
-            None => format!("n {:.3}", b.n),
-        })
-        .collect::<Vec<_>>();
-    (
-        AMBIGUOUS.to_string(),
-        Status::Ambiguous,
-        format!(
-            "a transparent material of {}'s index ({}) explains the rows at {}% confidence \
-             (p {:.3}, chi2 {:.2}); DoLP tells a transparent surface by its index alone, and \
-             a material of the same index outside the library explains them as well",
-            c.class,
-            index.join(", "),
-            confidence * 100.0,
-            c.probability.unwrap_or(f64::NAN),
-            c.distance
-        ),
-    )
 }
 
 /// `(predicted, status, reason)` of [`classify_rows`] from the passing `candidates`,

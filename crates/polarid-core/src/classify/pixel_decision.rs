@@ -285,6 +285,7 @@ pub struct HypothesisDecider {
     classes: Vec<String>,
     confidence: f64,
     scale_min: f64,
+    open_world: bool,
     tests: PixelTests,
     /// Per prototype: its class index and the prototype (for the transparency test).
     materials: Vec<(u16, MultiPrototype)>,
@@ -294,8 +295,15 @@ impl HypothesisDecider {
     /// Each material of `protos` tested at `confidence` with the polarimeter's lowest
     /// scale `scale_min` ([`super::Nuisances::from_error_model`]); the offset's bound is
     /// taken per pixel from its rows' angle uncertainty, as `classify` takes it per
-    /// target. Errors: no prototype, bad settings.
-    pub fn new(protos: &[MultiPrototype], confidence: f64, scale_min: f64) -> Result<Self> {
+    /// target. `open_world`: the materials are a catalogue, not the scene's own list (a
+    /// transparent material alone is ambiguous, [`super::Decision::open_world`]).
+    /// Errors: no prototype, bad settings.
+    pub fn new(
+        protos: &[MultiPrototype],
+        confidence: f64,
+        scale_min: f64,
+        open_world: bool,
+    ) -> Result<Self> {
         if protos.is_empty() {
             return Err(CoreError::TooFew {
                 what: "materials",
@@ -317,6 +325,7 @@ impl HypothesisDecider {
             classes,
             confidence,
             scale_min,
+            open_world,
         };
         d.config(0.0).validate()?;
         Ok(d)
@@ -333,13 +342,13 @@ impl HypothesisDecider {
         HypothesisConfig {
             confidence: self.confidence,
             nuisances: n,
-            open_world: true,
+            open_world: self.open_world,
         }
     }
 
     /// The answer for a pixel's rows (bands indexing `wavelengths`, nm): the materials
-    /// that pass ([`classify_rows`](super::classify_rows), uniform priors, an open world:
-    /// a transparent material alone is ambiguous), without testing those that cannot
+    /// that pass ([`classify_rows`](super::classify_rows), uniform priors; in an open
+    /// world a transparent material alone is ambiguous), without testing those that cannot
     /// pass (`hypothesis::pixel`). Errors: bad rows (as [`classify_rows`](super::classify_rows)).
     pub fn decide(&self, rows: &[HypRow], wavelengths: &[f64]) -> Result<PixelAnswer> {
         let angle = rows.iter().map(|r| r.angle_sd).fold(0.0, f64::max);
@@ -349,11 +358,12 @@ impl HypothesisDecider {
                 Verdict::None => PixelAnswer::Unknown,
                 // A transparent material is told by its index alone (open world).
                 Verdict::One(c)
-                    if self
-                        .materials
-                        .iter()
-                        .filter(|(i, _)| *i == c)
-                        .all(|(_, p)| p.transparent_at(wavelengths)) =>
+                    if self.open_world
+                        && self
+                            .materials
+                            .iter()
+                            .filter(|(i, _)| *i == c)
+                            .all(|(_, p)| p.transparent_at(wavelengths)) =>
                 {
                     PixelAnswer::Ambiguous
                 }

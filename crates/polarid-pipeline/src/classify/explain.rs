@@ -450,7 +450,12 @@ pub fn explain(target: &str, est: &Estimate, d: &Decision, clf: &Classifier, top
                     s.push_str(&format!("; {r}"));
                 }
             }
-            if !d.reason.is_empty() && d.status != polarid_core::classify::Status::Ambiguous {
+            // An ambiguous set's reason repeats the list; one candidate's says why (an
+            // index, not a name).
+            if !d.reason.is_empty()
+                && (d.status != polarid_core::classify::Status::Ambiguous
+                    || d.candidates.len() == 1)
+            {
                 s.push_str(&format!("; {}", d.reason));
             }
         }

@@ -102,6 +102,14 @@ pub enum PrototypeSource {
 }
 
 impl PrototypeSource {
+    /// A catalogue shipped with polarid (`builtin`, `builtin-rgb`, `paper2007`): an open
+    /// world, where a transparent material alone is an index, not a name
+    /// ([`polarid_core::classify::Decision::open_world`]). A library CSV or a model is the
+    /// user's own list of what the scene holds.
+    pub fn is_catalogue(&self) -> bool {
+        matches!(self, PrototypeSource::Library(s) if polarid_io::library::BUILTIN_NAMES.contains(&s.as_str()))
+    }
+
     /// The single-band prototypes and a label for messages (`model PATH`, `library
     /// SPEC`). A multi-band model or library (with `wavelength_nm`) is an error naming it:
     /// its bands are not separate prototypes; use [`PrototypeSource::load_multi`].
@@ -481,6 +489,9 @@ pub fn classify(
     let rows_in: Vec<&FitRow> = fits.iter().map(|(_, f)| f).collect();
     let (protos, cmp) = prototypes_for(source, protos, cfg.bench, &rows_in, &mut warnings)?;
     let clf = multi_classifier(protos, &label, cfg.classifier)?;
+    // A library is an open world: a transparent material alone is an index, not a name.
+    let open_world =
+        source.is_catalogue() && cfg.classifier.rule == polarid_core::classify::Rule::Set;
     let wolff = cfg
         .wolff
         .as_ref()
@@ -491,7 +502,14 @@ pub fn classify(
     for group in group_fits(fits) {
         // ok: group_fits returns non-empty groups of indices into `fits`.
         let (line, f) = &fits[group[0]];
-        let d = clf.classify_multi(&multi_estimate_for(group.iter().map(|&i| &fits[i].1), cmp));
+        let mut d = clf.classify_multi(&multi_estimate_for(group.iter().map(|&i| &fits[i].1), cmp));
+        if open_world {
+            let w: Vec<f64> = group
+                .iter()
+                .filter_map(|&i| fits[i].1.wavelength_nm)
+                .collect();
+            d.open_world(clf.profiles(), &w, cfg.classifier.confidence);
+        }
         let mut note = explain(&f.target, &estimate_for(f, cmp), &d, &clf, cfg.explain);
         if f.wavelength_nm.is_some() {
             let have: Vec<String> = group

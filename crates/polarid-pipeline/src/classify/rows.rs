@@ -267,7 +267,7 @@ struct TargetClassifier<'a> {
     priors: &'a [f64],
     /// The in-scene references' calibration.
     scene: Option<&'a SceneCalibration>,
-    /// The materials are a library (an open world), not a trained model.
+    /// The materials are a catalogue (an open world), not the user's own list.
     open_world: bool,
 }
 
@@ -405,7 +405,7 @@ pub fn classify_measurements(
         protos: &protos,
         priors: &priors,
         scene: scene.as_ref(),
-        open_world: matches!(source, PrototypeSource::Library(_)),
+        open_world: source.is_catalogue(),
     };
     let mut out = Classified::default();
     for g in &groups {

@@ -77,6 +77,11 @@ impl MapPrototypes<'_> {
     }
 
     /// Whether the pixels are tested against their rows (a library under the set rule).
+    /// A catalogue shipped with polarid (an open world), not the user's own list.
+    pub(super) fn is_catalogue(&self) -> bool {
+        matches!(self, MapPrototypes::Library(s) if polarid_io::library::BUILTIN_NAMES.contains(s))
+    }
+
     pub(super) fn tests_rows(&self, cfg: &MapConfig) -> bool {
         matches!(self, MapPrototypes::Library(_)) && cfg.rule == Rule::Set
     }
@@ -176,8 +181,13 @@ pub(crate) fn decision(
             let n =
                 Nuisances::from_error_model(e.extinction_ratio, e.retardance_deg.to_radians(), 0.0);
             Decider::Hypothesis {
-                decider: HypothesisDecider::new(&profiles, cfg.confidence, n.scale_min)
-                    .map_err(core_err)?,
+                decider: HypothesisDecider::new(
+                    &profiles,
+                    cfg.confidence,
+                    n.scale_min,
+                    src.is_catalogue(),
+                )
+                .map_err(core_err)?,
                 floor: e.dolp_floor,
             }
         }

@@ -118,7 +118,7 @@ fn map_decisions_equal_classify_rows_against_the_builtin_libraries() {
     for (name, protos, band_sets) in &cases {
         let mut seen = [0usize; 3];
         for confidence in [0.95, 0.99] {
-            let decider = HypothesisDecider::new(protos, confidence, scale_min).unwrap();
+            let decider = HypothesisDecider::new(protos, confidence, scale_min, true).unwrap();
             for i in 0..n / 2 {
                 let wl = &band_sets[i % band_sets.len()];
                 let cfg = HypothesisConfig {
