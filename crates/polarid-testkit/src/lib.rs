@@ -131,7 +131,7 @@ pub fn note(msg: &str) {
     let _ = writeln!(err, "{msg}");
 }
 
-/// `note!("...", args)`: [`note`] with `format!` arguments, prefixed with the module of
+/// `note!("...", args)`: [`note()`] with `format!` arguments, prefixed with the module of
 /// the test (`it::map_cmd: ...`), e.g. when a test on the independent renders is skipped
 /// because `POLARID_RENDERS` is not set.
 #[macro_export]

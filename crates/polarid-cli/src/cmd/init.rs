@@ -20,7 +20,7 @@ pub struct Args {
     #[arg(short = 'o', long, value_name = "TOML")]
     pub output: Option<PathBuf>,
     /// An OpenCV calibration file (cv::FileStorage YAML/JSON/XML from calibrateCamera):
-    /// write a calibrated skeleton ([camera] opencv = ..., a source position per capture)
+    /// write a calibrated skeleton (`[camera]` opencv = ..., a source position per capture)
     /// instead of far-field angles.
     #[arg(long, value_name = "FILE")]
     pub opencv: Option<PathBuf>,

@@ -314,7 +314,7 @@ pub fn region_extent(
 }
 
 /// The explanation's region text: `95% region (Mahalanobis <= 2.448): n …, k … in (n, k)`,
-/// one clause per region of [`decision_regions`] ([`region_extent`]) naming the
+/// one clause per region of [`decision_regions`] (`region_extent`) naming the
 /// prototypes it tests when they carry a covariance (`with aluminum's covariance n …`).
 /// `None` when the estimate has no usable covariance.
 pub fn regions_text(est: &Estimate, clf: &Classifier) -> Option<String> {

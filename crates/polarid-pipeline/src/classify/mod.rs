@@ -357,7 +357,7 @@ pub struct ClassifyOutput {
     /// for fits).
     pub hypotheses: Vec<TargetHypotheses>,
     /// The in-scene references' calibration (`classify MEASUREMENTS.csv` with a
-    /// `reference` column; [`reference`]).
+    /// `reference` column; [`mod@reference`]).
     pub calibration: Option<reference::SceneCalibration>,
 }
 

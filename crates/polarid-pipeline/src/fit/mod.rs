@@ -379,7 +379,7 @@ fn fit_warnings(
 /// ([`FitConfig::n_range`], [`FitConfig::k_range`]): an `n_se` above 3 times the width
 /// of the `n` box (or a `k_se` above 3 times the `k` box) means the ±1 standard error
 /// interval spans six boxes of plausible materials, so the data do not locate the
-/// estimate, and the fit is `ill_conditioned` ([`mark_ill_conditioned`]). With the
+/// estimate, and the fit is `ill_conditioned` (`mark_ill_conditioned`). With the
 /// default boxes (`n` in 0.01..10, `k` in 0..15): `n_se > 29.97` or `k_se > 45`.
 ///
 /// Why so wide: metals are fitted along a ridge of nearly perfectly correlated `(n, k)`

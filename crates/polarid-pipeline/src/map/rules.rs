@@ -6,7 +6,7 @@ use polarid_core::stokes::PixelRules;
 use crate::error::{Result, ensure};
 
 /// Check a dark level (DN, finite and `>= 0`) and an optional saturation level (finite
-/// and above the dark level). Errors are [`PipelineError::Config`] naming
+/// and above the dark level). Errors are [`crate::PipelineError::Config`] naming
 /// `--dark-level` or `--saturation` (the Python bindings show them as `dark_level`,
 /// `saturation`).
 pub fn check_levels(dark_level: f64, saturation: Option<f64>) -> Result<()> {

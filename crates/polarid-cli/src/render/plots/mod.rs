@@ -4,7 +4,7 @@
 //!   paper eq. (9) curve, one colour per target;
 //! - [`nk_plane`]: the (n, k) plane with class prototypes, test estimates with 1-σ
 //!   covariance ellipses and the nearest-neighbour decision regions (paper § 6);
-//! - [`class_map`], [`answer_map`]: a material map (class index image, 0 = `unknown`)
+//! - `class_map`, [`answer_map`]: a material map (class index image, 0 = `unknown`)
 //!   with a legend of the answers (docs/FORMATS.md, "Answers"), the `unknown` pixels by
 //!   reason and the regions outlined;
 //! - [`scalar_map`]: a scalar image (n, k, DoLP, ...) in the viridis colour map with a
