@@ -20,8 +20,9 @@ pub struct Args {
     #[arg(short = 'o', long, value_name = "TOML")]
     pub output: Option<PathBuf>,
     /// An OpenCV calibration file (cv::FileStorage YAML/JSON/XML from calibrateCamera):
-    /// write a calibrated skeleton (`[camera]` opencv = ..., a source position per capture)
+    /// write a calibrated skeleton ([camera] opencv = ..., a source position per capture)
     /// instead of far-field angles.
+    #[allow(rustdoc::broken_intra_doc_links)] // the help text's TOML table, not a link
     #[arg(long, value_name = "FILE")]
     pub opencv: Option<PathBuf>,
 }
