@@ -166,11 +166,12 @@ impl Decision {
             return;
         }
         let class = &self.candidates[0].class;
-        let mut own = protos.iter().filter(|p| &p.class == class).peekable();
-        if own.peek().is_none() || !own.clone().all(|p| p.transparent_at(wavelengths)) {
+        let own: Vec<&MultiPrototype> = protos.iter().filter(|p| &p.class == class).collect();
+        if own.is_empty() || !own.iter().all(|p| p.transparent_at(wavelengths)) {
             return;
         }
         let index: Vec<String> = own
+            .iter()
             .flat_map(|p| p.bands_at(wavelengths))
             .map(|b| match b.wavelength_nm {
                 Some(w) => format!("n {:.3} at {w} nm", b.n),
